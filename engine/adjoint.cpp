@@ -1,0 +1,255 @@
+#include "engine/adjoint.h"
+
+#include <chrono>
+#include <cmath>
+#include <ostream>
+
+namespace hindsight {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// The fixed-step grid: N equal steps, t_N = t1 exactly.
+std::vector<double> fixedGrid(const IntegratorOptions& options) {
+  const double span = options.t1 - options.t0;
+  const double ratio = span / options.step;
+  // A step that divides the interval up to round-off must not produce an extra tiny step.
+  auto count = static_cast<std::int64_t>(std::ceil(ratio - 1e-9 * ratio));
+  if (count < 1) count = 1;
+  if (count > options.maxSteps) {
+    throw std::invalid_argument("IntegratorOptions: step = " + std::to_string(options.step) + " needs " +
+                                std::to_string(count) +
+                                " steps, more than maxSteps = " + std::to_string(options.maxSteps));
+  }
+  std::vector<double> grid(static_cast<std::size_t>(count) + 1);
+  for (std::int64_t n = 0; n < count; ++n) grid[n] = options.t0 + span * (static_cast<double>(n) / count);
+  grid[count] = options.t1;
+  return grid;
+}
+
+class GridRecomputer final : public StepRecomputer {
+ public:
+  GridRecomputer(RungeKuttaIntegrator& integrator, const std::vector<double>& times)
+      : integrator_(integrator), times_(times) {}
+  void advance(std::int64_t step, VectorRef z) override {
+    integrator_.step(times_[step], times_[step + 1] - times_[step], z);
+  }
+
+ private:
+  RungeKuttaIntegrator& integrator_;
+  const std::vector<double>& times_;
+};
+
+/// The forward sweep shared by simulate() and computeGradient().
+struct ForwardSweep {
+  ForwardSweep(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options)
+      : problem(problem), options(options), integrator(problem, p, options) {
+    const int n = problem.stateSize();
+    z.resize(n);
+    zPrevious.resize(n);
+    zdot.resize(n);
+    problem.initialState(p, z);
+    for (int k = 0; k < n; ++k) {
+      if (!std::isfinite(z(k))) {
+        throw std::invalid_argument("initial state z0 of '" + problem.name() +
+                                    "' has a non-finite entry z0[" + std::to_string(k) +
+                                    "] = " + std::to_string(z(k)));
+      }
+    }
+  }
+
+  void run(TrajectoryStorage* storage, const StateObserver& observer, RunSummary& summary) {
+    const bool needDerivative = storage != nullptr && storage->needsDerivative();
+    const auto derivativeAtStart = [&]() -> ConstVectorRef {
+      if (!needDerivative) return zdot;
+      if (integrator.firstStageIsRhs()) return integrator.lastFirstStage();
+      integrator.evaluateRhs(times.back(), zPrevious, zdot);
+      return zdot;
+    };
+    const auto accept = [&](std::int64_t n, double t) {
+      if (storage != nullptr) storage->record(n, times[n], zPrevious, derivativeAtStart());
+      times.push_back(t);
+      if (observer) observer(n + 1, t, z);
+    };
+    if (storage != nullptr) {
+      TrajectoryInfo info;
+      info.problemName = problem.name();
+      info.stateSize = problem.stateSize();
+      info.t0 = options.t0;
+      info.t1 = options.t1;
+      if (!options.adaptive) {
+        info.stepCount = options.replayTimes.empty()
+                             ? static_cast<std::int64_t>(fixedGrid(options).size()) - 1
+                             : static_cast<std::int64_t>(options.replayTimes.size()) - 1;
+      }
+      storage->begin(info, *recomputer);
+    }
+    times.clear();
+    times.push_back(options.t0);
+    if (observer) observer(0, options.t0, z);
+    objective = 0.0;
+    if (!options.adaptive || !options.replayTimes.empty()) {
+      const std::vector<double> grid = options.replayTimes.empty() ? fixedGrid(options) : options.replayTimes;
+      times.reserve(grid.size());
+      for (std::size_t n = 0; n + 1 < grid.size(); ++n) {
+        zPrevious = z;
+        objective += integrator.step(grid[n], grid[n + 1] - grid[n], z);
+        accept(static_cast<std::int64_t>(n), grid[n + 1]);
+      }
+    } else {
+      runAdaptive(summary, accept);
+    }
+    summary.steps = static_cast<std::int64_t>(times.size()) - 1;
+    // The terminal derivative for strategies that interpolate (Hermite).
+    if (storage != nullptr) {
+      if (needDerivative) integrator.evaluateRhs(times.back(), z, zdot);
+      storage->finish(summary.steps, times.back(), z, zdot);
+    }
+    objective += problem.terminal(z, integratorParameters());
+  }
+
+  template <typename Accept>
+  void runAdaptive(RunSummary& summary, Accept&& accept) {
+    const ButcherTableau& tableau = integrator.tableau();
+    const double exponent = -1.0 / (std::min(tableau.order, tableau.embeddedOrder) + 1.0);
+    const double maxStep = options.maxStep > 0.0 ? options.maxStep : options.t1 - options.t0;
+    double t = options.t0;
+    double h = std::min(options.step, maxStep);
+    std::int64_t n = 0;
+    while (t < options.t1) {
+      if (n >= options.maxSteps) {
+        throw NumericalError("more than maxSteps = " + std::to_string(options.maxSteps) + " steps", t);
+      }
+      zPrevious = z;
+      for (;;) {
+        if (h < options.minStep) {
+          throw NumericalError("step size underflow: h = " + std::to_string(h) + " < minStep", t);
+        }
+        const double tNext = (t + h >= options.t1 || options.t1 - (t + h) < 1e-12 * h) ? options.t1 : t + h;
+        const double hTaken = tNext - t;
+        double error = 0.0;
+        double increment = 0.0;
+        bool newtonFailed = false;
+        try {
+          increment = integrator.step(t, hTaken, z, &error);
+        } catch (const NewtonFailure&) {
+          newtonFailed = true;
+        } catch (const NumericalError&) {
+          newtonFailed = true;  // a non-finite trial state: retry smaller
+        }
+        if (!newtonFailed && error <= 1.0) {
+          objective += increment;
+          accept(n, tNext);
+          t = tNext;
+          const double factor = error > 0.0 ? 0.9 * std::pow(error, exponent) : 5.0;
+          h = std::min(maxStep, hTaken * std::min(5.0, std::max(0.2, factor)));
+          break;
+        }
+        ++summary.rejectedSteps;
+        z = zPrevious;
+        const double factor = newtonFailed ? 0.25 : std::max(0.1, 0.9 * std::pow(error, exponent));
+        h = hTaken * std::min(0.9, factor);
+      }
+      ++n;
+    }
+  }
+
+  ConstVectorRef integratorParameters() const { return parameters; }
+
+  const Problem& problem;
+  const IntegratorOptions& options;
+  RungeKuttaIntegrator integrator;
+  Vector parameters;
+  Vector z, zPrevious, zdot;
+  std::vector<double> times;
+  double objective = 0.0;
+  std::unique_ptr<StepRecomputer> recomputer;
+};
+
+void fillWork(RunSummary& summary, const RungeKuttaIntegrator& integrator) {
+  summary.method = integrator.tableau().name;
+  summary.rhsEvaluations = integrator.counters().rhsEvaluations;
+  summary.jacobianEvaluations = integrator.counters().jacobianEvaluations;
+  summary.factorizations = integrator.counters().factorizations;
+  summary.newtonIterations = integrator.counters().newtonIterations;
+}
+
+}  // namespace
+
+void RunSummary::print(std::ostream& out) const {
+  out << "method: " << method << (adjoint.empty() ? "" : "\nadjoint: " + adjoint)
+      << (storage.empty() ? "" : "\nstorage: " + storage) << "\nsteps: " << steps
+      << "\nrejected steps: " << rejectedSteps << "\nrhs evaluations: " << rhsEvaluations
+      << "\njacobian evaluations: " << jacobianEvaluations << "\nfactorizations: " << factorizations
+      << "\nnewton iterations: " << newtonIterations << "\nrecomputed steps: " << recomputedSteps
+      << "\nstates stored: " << statesStored << "\npeak bytes in memory: " << formatBytes(peakBytesInMemory)
+      << "\nbytes on disk: " << formatBytes(bytesOnDisk) << "\ncompression ratio: " << compressionRatio
+      << "\nforward seconds: " << forwardSeconds << "\nbackward seconds: " << backwardSeconds
+      << "\nI/O seconds: " << ioSeconds << '\n';
+}
+
+ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,
+                       const StateObserver& observer) {
+  const auto start = Clock::now();
+  ForwardSweep sweep(problem, p, options);
+  sweep.parameters = p;
+  ForwardResult result;
+  sweep.run(nullptr, observer, result.summary);
+  result.objective = sweep.objective;
+  result.finalState = sweep.z;
+  result.times = std::move(sweep.times);
+  fillWork(result.summary, sweep.integrator);
+  result.summary.adjoint.clear();
+  result.summary.peakBytesInMemory = static_cast<std::int64_t>(result.times.size()) * 8;
+  result.summary.forwardSeconds = secondsSince(start);
+  return result;
+}
+
+GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,
+                               TrajectoryStorage& storage, const StateObserver& observer) {
+  const auto start = Clock::now();
+  ForwardSweep sweep(problem, p, options);
+  sweep.parameters = p;
+  sweep.recomputer = std::make_unique<GridRecomputer>(sweep.integrator, sweep.times);
+  GradientResult result;
+  result.summary.storage = storage.spec();
+  if (!options.adaptive) {
+    // Fixed grids are known in advance: reserve so that recording never reallocates the grid.
+    sweep.times.reserve(options.replayTimes.empty() ? fixedGrid(options).size() : options.replayTimes.size());
+  }
+  sweep.run(&storage, observer, result.summary);
+  result.summary.forwardSeconds = secondsSince(start);
+
+  const auto backwardStart = Clock::now();
+  const int n = problem.stateSize();
+  Vector lambda = Vector::Zero(n);
+  Vector gradient = Vector::Zero(problem.parameterSize());
+  problem.addTerminalGradient(sweep.z, p, lambda, gradient);
+  Vector& z = sweep.zPrevious;
+  const std::vector<double>& times = sweep.times;
+  for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
+    storage.restore(step, z);
+    sweep.integrator.adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+  }
+  problem.addInitialStateVjp(p, lambda, gradient);
+  result.summary.backwardSeconds = secondsSince(backwardStart);
+
+  const StorageCounters& counters = storage.counters();
+  fillWork(result.summary, sweep.integrator);
+  result.summary.recomputedSteps = counters.recomputedSteps;
+  result.summary.statesStored = counters.statesStored;
+  result.summary.peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(times.size()) * 8;
+  result.summary.bytesOnDisk = counters.bytesOnDisk;
+  result.summary.compressionRatio = counters.compressionRatio();
+  result.summary.ioSeconds = counters.ioSeconds;
+  result.objective = sweep.objective;
+  result.gradient = std::move(gradient);
+  result.times = std::move(sweep.times);
+  return result;
+}
+
+}  // namespace hindsight

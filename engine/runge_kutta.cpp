@@ -1,0 +1,360 @@
+#include "engine/integrator.h"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace hindsight {
+namespace {
+
+ButcherTableau makeTableau(const std::string& name, std::initializer_list<std::initializer_list<double>> a,
+                           std::initializer_list<double> b, std::initializer_list<double> c,
+                           std::initializer_list<double> bEmbedded, int order, int embeddedOrder) {
+  ButcherTableau t;
+  t.name = name;
+  const int s = static_cast<int>(b.size());
+  t.a = Matrix::Zero(s, s);
+  int i = 0;
+  for (const auto& row : a) {
+    int j = 0;
+    for (double v : row) t.a(i, j++) = v;
+    ++i;
+  }
+  t.b = Eigen::Map<const Vector>(b.begin(), s);
+  t.c = Eigen::Map<const Vector>(c.begin(), s);
+  if (bEmbedded.size() != 0) t.bEmbedded = Eigen::Map<const Vector>(bEmbedded.begin(), s);
+  t.order = order;
+  t.embeddedOrder = embeddedOrder;
+  return t;
+}
+
+double infNorm(ConstVectorRef v) { return v.size() == 0 ? 0.0 : v.cwiseAbs().maxCoeff(); }
+
+}  // namespace
+
+bool ButcherTableau::isExplicit() const {
+  for (int i = 0; i < a.rows(); ++i) {
+    if (a(i, i) != 0.0) return false;
+  }
+  return true;
+}
+
+std::vector<std::string> ButcherTableau::names() { return {"rk4", "dopri5", "trbdf2", "sdirk2", "midpoint"}; }
+
+ButcherTableau ButcherTableau::byName(const std::string& name) {
+  if (name == "rk4") {
+    return makeTableau(name, {{0, 0, 0, 0}, {0.5, 0, 0, 0}, {0, 0.5, 0, 0}, {0, 0, 1, 0}},
+                       {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0, 0.5, 0.5, 1}, {}, 4, 0);
+  }
+  if (name == "dopri5") {
+    // Dormand & Prince (1980), the 5th-order solution propagated, 4th-order embedded.
+    return makeTableau(
+        name,
+        {{0, 0, 0, 0, 0, 0, 0},
+         {1.0 / 5, 0, 0, 0, 0, 0, 0},
+         {3.0 / 40, 9.0 / 40, 0, 0, 0, 0, 0},
+         {44.0 / 45, -56.0 / 15, 32.0 / 9, 0, 0, 0, 0},
+         {19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729, 0, 0, 0},
+         {9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656, 0, 0},
+         {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0}},
+        {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0},
+        {0, 0.2, 0.3, 0.8, 8.0 / 9, 1, 1},
+        {5179.0 / 57600, 0, 7571.0 / 16695, 393.0 / 640, -92097.0 / 339200, 187.0 / 2100, 1.0 / 40}, 5, 4);
+  }
+  if (name == "trbdf2") {
+    // TR-BDF2 written as an ESDIRK (Hosea & Shampine 1996): gamma = 2 - sqrt(2), d = gamma/2,
+    // w = sqrt(2)/4; stiffly accurate and L-stable; the embedded weights give order 3.
+    const double gamma = 2.0 - std::sqrt(2.0);
+    const double d = gamma / 2.0;
+    const double w = std::sqrt(2.0) / 4.0;
+    return makeTableau(name, {{0, 0, 0}, {d, d, 0}, {w, w, d}}, {w, w, d}, {0, gamma, 1},
+                       {(1.0 - w) / 3.0, (3.0 * w + 1.0) / 3.0, d / 3.0}, 2, 3);
+  }
+  if (name == "sdirk2") {
+    // Alexander (1977): gamma = 1 - 1/sqrt(2), L-stable, stiffly accurate.
+    const double gamma = 1.0 - 1.0 / std::sqrt(2.0);
+    return makeTableau(name, {{gamma, 0}, {1.0 - gamma, gamma}}, {1.0 - gamma, gamma}, {gamma, 1.0}, {}, 2,
+                       0);
+  }
+  if (name == "midpoint") {
+    return makeTableau(name, {{0.5}}, {1.0}, {0.5}, {}, 2, 0);
+  }
+  std::string known;
+  for (const auto& n : names()) known += (known.empty() ? "" : ", ") + n;
+  throw std::invalid_argument("IntegratorOptions.method = '" + name +
+                              "' is unknown; known methods: " + known);
+}
+
+bool IntegratorOptions::IsValid(std::string* error) const {
+  std::ostringstream msg;
+  const auto fail = [&](const std::string& text) {
+    if (error != nullptr) *error = text;
+    return false;
+  };
+  bool known = false;
+  for (const auto& n : ButcherTableau::names()) known = known || n == method;
+  if (!known) {
+    std::string names;
+    for (const auto& n : ButcherTableau::names()) names += (names.empty() ? "" : ", ") + n;
+    return fail("IntegratorOptions.method = '" + method + "' is unknown; known methods: " + names);
+  }
+  if (!std::isfinite(t0) || !std::isfinite(t1) || !(t1 > t0)) {
+    msg << "IntegratorOptions: t1 = " << t1 << " must be finite and greater than t0 = " << t0;
+    return fail(msg.str());
+  }
+  if (!std::isfinite(step) || !(step > 0.0)) {
+    msg << "IntegratorOptions.step = " << step << " must be positive and finite";
+    return fail(msg.str());
+  }
+  if (adaptive) {
+    const ButcherTableau tableau = ButcherTableau::byName(method);
+    if (tableau.bEmbedded.size() == 0) {
+      return fail("IntegratorOptions.adaptive: method '" + method +
+                  "' has no embedded error estimate; use dopri5 or trbdf2");
+    }
+    if (!(relativeTolerance > 0.0) || !(absoluteTolerance > 0.0) || !std::isfinite(relativeTolerance) ||
+        !std::isfinite(absoluteTolerance)) {
+      msg << "IntegratorOptions: relativeTolerance = " << relativeTolerance
+          << " and absoluteTolerance = " << absoluteTolerance << " must be positive and finite";
+      return fail(msg.str());
+    }
+    if (!(minStep > 0.0) || maxStep < 0.0) {
+      msg << "IntegratorOptions: minStep = " << minStep << " must be positive and maxStep = " << maxStep
+          << " non-negative";
+      return fail(msg.str());
+    }
+  }
+  if (maxSteps < 1) {
+    msg << "IntegratorOptions.maxSteps = " << maxSteps << " must be at least 1";
+    return fail(msg.str());
+  }
+  if (!(newtonTolerance > 0.0) || newtonTolerance >= 1.0 || newtonMaxIterations < 1) {
+    msg << "IntegratorOptions: newtonTolerance = " << newtonTolerance
+        << " must be in (0, 1) and newtonMaxIterations = " << newtonMaxIterations << " at least 1";
+    return fail(msg.str());
+  }
+  if (!replayTimes.empty()) {
+    if (replayTimes.size() < 2 || replayTimes.front() != t0 || replayTimes.back() != t1) {
+      return fail("IntegratorOptions.replayTimes must start at t0 and end at t1");
+    }
+    for (std::size_t i = 1; i < replayTimes.size(); ++i) {
+      if (!(replayTimes[i] > replayTimes[i - 1])) {
+        msg << "IntegratorOptions.replayTimes[" << i << "] = " << replayTimes[i]
+            << " must exceed the previous time";
+        return fail(msg.str());
+      }
+    }
+  }
+  return true;
+}
+
+void IntegratorOptions::validate() const {
+  std::string error;
+  if (!IsValid(&error)) throw std::invalid_argument(error);
+}
+
+RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRef p,
+                                           const IntegratorOptions& options)
+    : problem_(problem), p_(p), options_(options) {
+  options_.validate();
+  if (p.size() != problem.parameterSize()) {
+    throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + ", problem '" +
+                                problem.name() + "' expects " + std::to_string(problem.parameterSize()));
+  }
+  tableau_ = ButcherTableau::byName(options.method);
+  n_ = problem.stateSize();
+  stages_ = static_cast<int>(tableau_.b.size());
+  workspace_ = problem.createWorkspace();
+  stageSlopes_.resize(n_, stages_);
+  stageStates_.resize(n_, stages_);
+  stageAdjoints_.resize(n_, stages_);
+  base_.resize(n_);
+  residual_.resize(n_);
+  delta_.resize(n_);
+  work_.resize(n_);
+  rhsWork_.resize(n_);
+  zStart_.resize(n_);
+  if (problem.hasDenseJacobian()) {
+    jacobian_.resize(n_, n_);
+    newtonMatrix_.resize(n_, n_);
+    lu_ = Eigen::PartialPivLU<Matrix>(n_);
+  } else if (!tableau_.isExplicit()) {
+    newtonSolver_ = problem.createNewtonSolver();
+    if (!newtonSolver_) {
+      throw std::invalid_argument("problem '" + problem.name() +
+                                  "' has no dense Jacobian and no Newton solver; implicit method '" +
+                                  options.method + "' needs one");
+    }
+  }
+}
+
+RungeKuttaIntegrator::~RungeKuttaIntegrator() = default;
+
+bool RungeKuttaIntegrator::firstStageIsRhs() const { return tableau_.c(0) == 0.0 && tableau_.a(0, 0) == 0.0; }
+
+ConstVectorRef RungeKuttaIntegrator::lastFirstStage() const { return stageSlopes_.col(0); }
+
+void RungeKuttaIntegrator::evaluateRhs(double t, ConstVectorRef z, VectorRef f) {
+  problem_.rhs(t, z, p_, f, workspace_.get());
+  ++counters_.rhsEvaluations;
+}
+
+void RungeKuttaIntegrator::solveImplicitStage(int i, double t, double h) {
+  const double ti = t + tableau_.c(i) * h;
+  const double alpha = h * tableau_.a(i, i);
+  auto K = stageSlopes_.col(i);
+  auto Z = stageStates_.col(i);
+  // Initial guess: the previous stage's slope, or F at the explicit part.
+  if (i > 0) {
+    K = stageSlopes_.col(i - 1);
+  } else {
+    problem_.rhs(ti, base_, p_, rhsWork_, workspace_.get());
+    ++counters_.rhsEvaluations;
+    K = rhsWork_;
+  }
+  double previous = std::numeric_limits<double>::infinity();
+  for (int iteration = 0; iteration < options_.newtonMaxIterations; ++iteration) {
+    Z = base_ + alpha * K;
+    problem_.rhs(ti, Z, p_, rhsWork_, workspace_.get());
+    ++counters_.rhsEvaluations;
+    residual_ = K - rhsWork_;
+    if (iteration == 0) {
+      // Simplified Newton: one Jacobian and factorisation per stage.
+      if (newtonSolver_) {
+        newtonSolver_->factorize(ti, Z, p_, alpha, workspace_.get());
+      } else {
+        problem_.rhsJacobian(ti, Z, p_, jacobian_, workspace_.get());
+        newtonMatrix_.noalias() = -alpha * jacobian_;
+        newtonMatrix_.diagonal().array() += 1.0;
+        lu_.compute(newtonMatrix_);
+      }
+      ++counters_.jacobianEvaluations;
+      ++counters_.factorizations;
+    }
+    if (newtonSolver_) {
+      delta_ = residual_;
+      newtonSolver_->solve(delta_);
+    } else {
+      delta_.noalias() = lu_.solve(residual_);
+    }
+    K -= delta_;
+    ++counters_.newtonIterations;
+    const double change = alpha * infNorm(delta_);
+    if (!std::isfinite(change)) throw NewtonFailure("Newton iteration produced a non-finite stage", ti);
+    if (change <= options_.newtonTolerance * (infNorm(Z) + options_.absoluteTolerance)) {
+      Z = base_ + alpha * K;
+      return;
+    }
+    if (iteration >= 2 && change > previous && change > 1e3 * options_.newtonTolerance * (infNorm(Z) + 1.0)) {
+      throw NewtonFailure("Newton iteration diverges in stage " + std::to_string(i), ti);
+    }
+    previous = change;
+  }
+  throw NewtonFailure("Newton iteration did not converge in " + std::to_string(options_.newtonMaxIterations) +
+                          " iterations (stage " + std::to_string(i) + ")",
+                      ti);
+}
+
+void RungeKuttaIntegrator::computeStages(double t, double h, ConstVectorRef z) {
+  for (int i = 0; i < stages_; ++i) {
+    base_ = z;
+    for (int j = 0; j < i; ++j) {
+      if (tableau_.a(i, j) != 0.0) base_ += (h * tableau_.a(i, j)) * stageSlopes_.col(j);
+    }
+    if (tableau_.a(i, i) == 0.0) {
+      stageStates_.col(i) = base_;
+      problem_.rhs(t + tableau_.c(i) * h, base_, p_, stageSlopes_.col(i), workspace_.get());
+      ++counters_.rhsEvaluations;
+    } else {
+      solveImplicitStage(i, t, h);
+    }
+  }
+}
+
+double RungeKuttaIntegrator::step(double t, double h, VectorRef z, double* errorNorm) {
+  assert(z.size() == n_);
+  zStart_ = z;
+  computeStages(t, h, zStart_);
+  double increment = 0.0;
+  for (int i = 0; i < stages_; ++i) {
+    if (tableau_.b(i) == 0.0) continue;
+    z += (h * tableau_.b(i)) * stageSlopes_.col(i);
+    increment += h * tableau_.b(i) *
+                 problem_.integrand(t + tableau_.c(i) * h, stageStates_.col(i), p_, workspace_.get());
+  }
+  if (!z.allFinite() || !std::isfinite(increment)) {
+    throw NumericalError("the state or the objective became non-finite", t + h);
+  }
+  if (errorNorm != nullptr) {
+    assert(tableau_.bEmbedded.size() == stages_);
+    work_.setZero();
+    for (int i = 0; i < stages_; ++i) {
+      const double weight = tableau_.b(i) - tableau_.bEmbedded(i);
+      if (weight != 0.0) work_ += (h * weight) * stageSlopes_.col(i);
+    }
+    double sum = 0.0;
+    for (int k = 0; k < n_; ++k) {
+      const double scale = options_.absoluteTolerance +
+                           options_.relativeTolerance * std::max(std::abs(zStart_(k)), std::abs(z(k)));
+      const double e = work_(k) / scale;
+      sum += e * e;
+    }
+    *errorNorm = std::sqrt(sum / n_);
+  }
+  return increment;
+}
+
+void RungeKuttaIntegrator::jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w,
+                                                    VectorRef out) {
+  if (newtonSolver_ || !problem_.hasDenseJacobian()) {
+    problem_.rhsStateVjp(t, z, p_, w, out, workspace_.get());
+  } else {
+    problem_.rhsJacobian(t, z, p_, jacobian_, workspace_.get());
+    out.noalias() = jacobian_.transpose() * w;
+  }
+  ++counters_.jacobianEvaluations;
+}
+
+void RungeKuttaIntegrator::adjointStep(double t, double h, ConstVectorRef z, VectorRef lambda,
+                                       VectorRef gradient) {
+  assert(z.size() == n_ && lambda.size() == n_ && gradient.size() == p_.size());
+  computeStages(t, h, z);
+  for (int i = stages_ - 1; i >= 0; --i) {
+    const double ti = t + tableau_.c(i) * h;
+    const double alpha = h * tableau_.a(i, i);
+    // r_i = h b_i lambda + h sum_{j>i} a_ji Zbar_j, kept in base_.
+    base_ = (h * tableau_.b(i)) * lambda;
+    for (int j = i + 1; j < stages_; ++j) {
+      if (tableau_.a(j, i) != 0.0) base_ += (h * tableau_.a(j, i)) * stageAdjoints_.col(j);
+    }
+    auto Zbar = stageAdjoints_.col(i);
+    auto Zi = stageStates_.col(i);
+    jacobianTransposeProduct(ti, Zi, base_, Zbar);
+    if (tableau_.b(i) != 0.0) {
+      problem_.addIntegrandStateGradient(ti, Zi, p_, h * tableau_.b(i), Zbar, workspace_.get());
+    }
+    if (alpha != 0.0) {
+      if (newtonSolver_) {
+        newtonSolver_->factorize(ti, Zi, p_, alpha, workspace_.get());
+        newtonSolver_->solveTransposed(Zbar);
+      } else {
+        // jacobian_ holds F_z(Z_i) from jacobianTransposeProduct.
+        newtonMatrix_.noalias() = -alpha * jacobian_;
+        newtonMatrix_.diagonal().array() += 1.0;
+        lu_.compute(newtonMatrix_);
+        residual_ = Zbar;
+        Zbar.noalias() = lu_.transpose().solve(residual_);
+      }
+      ++counters_.factorizations;
+    }
+    // Kbar_i = r_i + h a_ii Zbar_i.
+    if (alpha != 0.0) base_ += alpha * Zbar;
+    problem_.addRhsParameterVjp(ti, Zi, p_, base_, gradient, workspace_.get());
+    if (tableau_.b(i) != 0.0) {
+      problem_.addIntegrandParameterGradient(ti, Zi, p_, h * tableau_.b(i), gradient, workspace_.get());
+    }
+  }
+  for (int i = 0; i < stages_; ++i) lambda += stageAdjoints_.col(i);
+}
+
+}  // namespace hindsight

@@ -1,0 +1,112 @@
+#include "engine/second_order_problem.h"
+
+#include <Eigen/Cholesky>
+
+namespace hindsight {
+namespace {
+
+struct SecondOrderWorkspace final : ProblemWorkspace {
+  explicit SecondOrderWorkspace(int f)
+      : mass(f, f), cholesky(f), force(f), acceleration(f), mu(f), ry(f, f), rv(f, f) {}
+  std::unique_ptr<ProblemWorkspace> model;
+  Matrix mass;
+  Eigen::LLT<Matrix> cholesky;
+  Vector force, acceleration, mu;
+  Matrix ry, rv;
+};
+
+SecondOrderWorkspace& workspaceOf(ProblemWorkspace* ws) {
+  assert(ws != nullptr && "SecondOrderProblem needs the workspace it created");
+  return static_cast<SecondOrderWorkspace&>(*ws);
+}
+
+// a = M^{-1} f at (t, y, v); leaves the factorisation of M in the workspace.
+void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorRef y, ConstVectorRef v,
+                       ConstVectorRef p, SecondOrderWorkspace& w) {
+  problem.massMatrix(t, y, p, w.mass, w.model.get());
+  problem.force(t, y, v, p, w.force, w.model.get());
+  w.cholesky.compute(w.mass);
+  if (w.cholesky.info() != Eigen::Success) {
+    throw NumericalError("mass matrix of '" + problem.name() + "' is not positive definite", t);
+  }
+  w.acceleration = w.force;
+  w.cholesky.solveInPlace(w.acceleration);
+}
+
+}  // namespace
+
+void SecondOrderProblem::addInitialCoordinatesVjp(ConstVectorRef, ConstVectorRef, ConstVectorRef,
+                                                  VectorRef) const {}
+
+std::unique_ptr<ProblemWorkspace> SecondOrderProblem::createWorkspace() const {
+  auto ws = std::make_unique<SecondOrderWorkspace>(coordinateCount());
+  ws->model = createModelWorkspace();
+  return ws;
+}
+
+void SecondOrderProblem::initialState(ConstVectorRef p, VectorRef z0) const {
+  const int f = coordinateCount();
+  initialCoordinates(p, z0.head(f), z0.tail(f));
+}
+
+void SecondOrderProblem::addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0,
+                                            VectorRef gradient) const {
+  const int f = coordinateCount();
+  addInitialCoordinatesVjp(p, lambda0.head(f), lambda0.tail(f), gradient);
+}
+
+void SecondOrderProblem::rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef out,
+                             ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
+  out.head(f) = z.tail(f);
+  out.tail(f) = w.acceleration;
+}
+
+void SecondOrderProblem::rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
+                                     ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
+  residualJacobians(t, z.head(f), z.tail(f), w.acceleration, p, w.ry, w.rv, w.model.get());
+  w.cholesky.solveInPlace(w.ry);
+  w.cholesky.solveInPlace(w.rv);
+  jacobian.topLeftCorner(f, f).setZero();
+  jacobian.topRightCorner(f, f).setIdentity();
+  jacobian.bottomLeftCorner(f, f) = -w.ry;
+  jacobian.bottomRightCorner(f, f) = -w.rv;
+}
+
+void SecondOrderProblem::addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef wIn,
+                                            VectorRef out, ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
+  // M is symmetric, so M^{-T} = M^{-1}; the minus sign goes into mu.
+  w.mu = -wIn.tail(f);
+  w.cholesky.solveInPlace(w.mu);
+  addResidualParameterVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out, w.model.get());
+}
+
+double SecondOrderProblem::integrand(double t, ConstVectorRef z, ConstVectorRef p,
+                                     ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  return objectiveIntegrand(t, z.head(f), z.tail(f), p, workspaceOf(ws).model.get());
+}
+
+void SecondOrderProblem::addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
+                                                   VectorRef out, ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  addObjectiveStateGradient(t, z.head(f), z.tail(f), p, scale, out.head(f), out.tail(f),
+                            workspaceOf(ws).model.get());
+}
+
+void SecondOrderProblem::addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p,
+                                                       double scale, VectorRef out,
+                                                       ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  addObjectiveParameterGradient(t, z.head(f), z.tail(f), p, scale, out, workspaceOf(ws).model.get());
+}
+
+}  // namespace hindsight

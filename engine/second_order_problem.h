@@ -1,0 +1,68 @@
+// Adapter from the second-order mechanical form M(t, y, p) y'' = f(t, y, y', p) (SPEC.md section 5,
+// the paper's eq. 3) to the first-order interface with state z = (y, v), v = y'.
+//
+// The model supplies the mass matrix, the force vector and the Jacobians of the residual
+// r(t, y, v, a, p) = M(t, y, p) a - f(t, y, v, p) at the current acceleration a. The adapter derives
+//   F = (v, a),  a = M^{-1} f,
+//   F_z = [[0, I], [-M^{-1} r_y, -M^{-1} r_v]],
+//   (F_p)^T (w_y, w_v) = -(r_p)^T M^{-T} w_v,
+// so the model never forms M^{-1}. Sizes: f coordinates, state size 2f. The mass matrix must be
+// symmetric positive definite; a failed Cholesky factorisation throws NumericalError with the time.
+#pragma once
+
+#include "engine/problem.h"
+
+namespace hindsight {
+
+class SecondOrderProblem : public Problem {
+ public:
+  /// Number f of generalised coordinates y.
+  virtual int coordinateCount() const = 0;
+  /// Scratch buffers of the model; created once per solve.
+  virtual std::unique_ptr<ProblemWorkspace> createModelWorkspace() const { return nullptr; }
+
+  virtual void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const = 0;
+  /// gradient += (dy0/dp)^T lambdaY + (dv0/dp)^T lambdaV. Default: independent of p.
+  virtual void addInitialCoordinatesVjp(ConstVectorRef p, ConstVectorRef lambdaY, ConstVectorRef lambdaV,
+                                        VectorRef gradient) const;
+
+  virtual void massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
+                          ProblemWorkspace* ws) const = 0;
+  virtual void force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+                     ProblemWorkspace* ws) const = 0;
+  /// dr/dy and dr/dv of r = M(t, y, p) a - f(t, y, v, p), at the given a.
+  virtual void residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                 ConstVectorRef p, MatrixRef ry, MatrixRef rv,
+                                 ProblemWorkspace* ws) const = 0;
+  /// out += (dr/dp)^T mu at the given a.
+  virtual void addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                       ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                       ProblemWorkspace* ws) const = 0;
+
+  /// Objective integrand G(t, y, v, p) and its gradients (gy, gv, gp += scale * ...).
+  virtual double objectiveIntegrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                    ProblemWorkspace* ws) const = 0;
+  virtual void addObjectiveStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                         double scale, VectorRef gy, VectorRef gv,
+                                         ProblemWorkspace* ws) const = 0;
+  virtual void addObjectiveParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                             double scale, VectorRef gp, ProblemWorkspace* ws) const = 0;
+
+  // ---- The first-order interface, derived from the above. ----
+  int stateSize() const final { return 2 * coordinateCount(); }
+  std::unique_ptr<ProblemWorkspace> createWorkspace() const final;
+  void initialState(ConstVectorRef p, VectorRef z0) const final;
+  void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const final;
+  void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace* ws) const final;
+  void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
+                   ProblemWorkspace* ws) const final;
+  void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                          ProblemWorkspace* ws) const final;
+  double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace* ws) const final;
+  void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
+                                 ProblemWorkspace* ws) const final;
+  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
+                                     VectorRef out, ProblemWorkspace* ws) const final;
+};
+
+}  // namespace hindsight

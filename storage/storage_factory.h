@@ -1,0 +1,21 @@
+// The one factory of trajectory storage strategies (STYLE.md guideline 2): a spec string
+// "NAME[:key=value,...]" becomes a strategy. Adding a strategy touches its own file, the table in
+// storage_factory.cpp and the typed conformance test list.
+#pragma once
+
+#include "storage/trajectory_storage.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+/// Throws std::invalid_argument for an unknown name (listing the known ones), an unknown key
+/// (listing the valid ones) or an out-of-range value (naming it and the range).
+std::unique_ptr<TrajectoryStorage> createStorage(const std::string& spec);
+
+/// Names of all strategies, for help texts.
+std::vector<std::string> storageStrategyNames();
+
+}  // namespace hindsight

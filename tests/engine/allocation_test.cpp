@@ -1,0 +1,100 @@
+// The hot loops allocate nothing: after set-up, forward steps, adjoint steps and restores from
+// full storage make no heap allocation (STYLE.md guideline 3). Counted with a replaced operator new.
+#include "engine/integrator.h"
+#include "problems/classic_problems.h"
+#include "storage/full_storage.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+namespace {
+std::atomic<bool> countAllocations{false};
+std::atomic<long> allocationCount{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (countAllocations.load(std::memory_order_relaxed))
+    allocationCount.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace hindsight {
+namespace {
+
+class AllocationCounter {
+ public:
+  AllocationCounter() {
+    allocationCount = 0;
+    countAllocations = true;
+  }
+  ~AllocationCounter() { countAllocations = false; }
+  long count() const { return allocationCount.load(); }
+};
+
+class NoAllocation : public ::testing::TestWithParam<std::string> {};
+
+INSTANTIATE_TEST_SUITE_P(Integrators, NoAllocation,
+                         ::testing::Values("rk4", "dopri5", "trbdf2", "sdirk2", "midpoint"),
+                         [](const auto& info) { return info.param; });
+
+TEST_P(NoAllocation, ForwardAndAdjointStepsOfASecondOrderProblem) {
+  Pendulum problem;
+  const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = GetParam();
+  RungeKuttaIntegrator integrator(problem, p, options);
+  Vector z(2), zStart(2), lambda = Vector::Ones(2), gradient = Vector::Zero(4);
+  problem.initialState(p, z);
+  zStart = z;
+  double error = 0.0;
+  const bool embedded = integrator.tableau().bEmbedded.size() > 0;
+  long forwardAllocations = 0, adjointAllocations = 0;
+  {
+    AllocationCounter counter;
+    for (int i = 0; i < 10; ++i) integrator.step(0.01 * i, 0.01, z, embedded ? &error : nullptr);
+    forwardAllocations = counter.count();
+  }
+  {
+    AllocationCounter counter;
+    for (int i = 0; i < 10; ++i) integrator.adjointStep(0.01 * i, 0.01, zStart, lambda, gradient);
+    adjointAllocations = counter.count();
+  }
+  EXPECT_EQ(forwardAllocations, 0);
+  EXPECT_EQ(adjointAllocations, 0);
+}
+
+TEST(NoAllocation, RestoreFromFullStorage) {
+  struct NoRecompute final : StepRecomputer {
+    void advance(std::int64_t, VectorRef) override { FAIL() << "full storage must not recompute"; }
+  } recomputer;
+  FullStorage storage;
+  storage.setVerifyRestores(false);
+  TrajectoryInfo info;
+  info.stateSize = 8;
+  info.t1 = 1.0;
+  info.stepCount = 3000;
+  storage.begin(info, recomputer);
+  Vector z = Vector::LinSpaced(8, 0.0, 1.0);
+  for (int n = 0; n < 3000; ++n) storage.record(n, n * 1e-3, z, z);
+  storage.finish(3000, 1.0, z, z);
+  AllocationCounter counter;
+  for (int n = 2999; n >= 0; --n) storage.restore(n, z);
+  EXPECT_EQ(counter.count(), 0);
+}
+
+TEST(NoAllocation, CounterSeesAnAllocation) {
+  // The counter itself works: a deliberate allocation is seen.
+  AllocationCounter counter;
+  auto* volatile p = new double[4];
+  delete[] p;
+  EXPECT_GE(counter.count(), 1);
+}
+
+}  // namespace
+}  // namespace hindsight
