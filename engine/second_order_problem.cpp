@@ -7,12 +7,17 @@ namespace {
 
 struct SecondOrderWorkspace final : ProblemWorkspace {
   explicit SecondOrderWorkspace(int f)
-      : mass(f, f), cholesky(f), force(f), acceleration(f), mu(f), ry(f, f), rv(f, f) {}
+      : mass(f, f), cholesky(f), force(f), acceleration(f), mu(f), ry(f, f), rv(f, f), cachedState(2 * f) {}
   std::unique_ptr<ProblemWorkspace> model;
   Matrix mass;
   Eigen::LLT<Matrix> cholesky;
   Vector force, acceleration, mu;
   Matrix ry, rv;
+  // The acceleration of the last (t, y, v, p): rhs, Jacobian and parameter products at one stage
+  // share it instead of refactorising M. Compared bit for bit, so results do not change.
+  bool cacheValid = false;
+  double cachedTime = 0.0;
+  Vector cachedState, cachedParameters;
 };
 
 SecondOrderWorkspace& workspaceOf(ProblemWorkspace* ws) {
@@ -23,6 +28,12 @@ SecondOrderWorkspace& workspaceOf(ProblemWorkspace* ws) {
 // a = M^{-1} f at (t, y, v); leaves the factorisation of M in the workspace.
 void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorRef y, ConstVectorRef v,
                        ConstVectorRef p, SecondOrderWorkspace& w) {
+  const Eigen::Index f = y.size();
+  if (w.cacheValid && t == w.cachedTime && w.cachedState.head(f) == y && w.cachedState.tail(f) == v &&
+      w.cachedParameters == p) {
+    return;
+  }
+  w.cacheValid = false;
   problem.massMatrix(t, y, p, w.mass, w.model.get());
   problem.force(t, y, v, p, w.force, w.model.get());
   w.cholesky.compute(w.mass);
@@ -31,6 +42,11 @@ void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorR
   }
   w.acceleration = w.force;
   w.cholesky.solveInPlace(w.acceleration);
+  w.cachedTime = t;
+  w.cachedState.head(f) = y;
+  w.cachedState.tail(f) = v;
+  w.cachedParameters = p;
+  w.cacheValid = true;
 }
 
 }  // namespace
@@ -40,6 +56,7 @@ void SecondOrderProblem::addInitialCoordinatesVjp(ConstVectorRef, ConstVectorRef
 
 std::unique_ptr<ProblemWorkspace> SecondOrderProblem::createWorkspace() const {
   auto ws = std::make_unique<SecondOrderWorkspace>(coordinateCount());
+  ws->cachedParameters.resize(parameterSize());
   ws->model = createModelWorkspace();
   return ws;
 }
