@@ -1,0 +1,334 @@
+#include "problems/slider_crank.h"
+
+#include <unsupported/Eigen/AutoDiff>
+
+#include <vector>
+
+namespace hindsight::rod {
+namespace {
+
+// Derivative vectors live on the stack (fixed capacity), so AD arithmetic allocates nothing.
+using Derivatives = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * SliderCrankProblem::kMaxModes, 1>;
+using AD = Eigen::AutoDiffScalar<Derivatives>;
+
+/// Read-only view of the invariants inside p.
+struct View {
+  View(const InvariantLayout& layout, ConstVectorRef p) : n(layout.modes), p(p.data()), layout(layout) {}
+  double mc(int k) const { return p[layout.massMoment() + k]; }
+  double j0() const { return p[layout.polarMoment()]; }
+  double c1(int k, int j) const { return p[layout.c1() + k + 2 * j]; }
+  double c2(int i) const { return p[layout.c2() + i]; }
+  double a0(int i) const { return p[layout.a0() + i]; }
+  double ct(int i, int j) const { return p[layout.cTilde() + i + n * j]; }
+  // M_ee enters through its symmetric part: the mass matrix must be symmetric (it is factorised by
+  // Cholesky, which reads one triangle), and the gradient then splits evenly between (i, j) and (j, i).
+  double mee(int i, int j) const { return 0.5 * (p[layout.mee() + i + n * j] + p[layout.mee() + j + n * i]); }
+  double kee(int i, int j) const { return p[layout.kee() + i + n * j]; }
+  double b(int i) const { return p[layout.b() + i]; }
+  int n;
+  const double* p;
+  const InvariantLayout& layout;
+};
+
+/// The frame angle's kinematics from the closure r sin(phi) + (L + c) sin(beta) = 0, c = b q:
+/// beta = asin(u), u = -r sin(phi) / (L + c). g = dbeta/dc, betaDot = beta_t + g c',
+/// betaC = beta'' - g c'' (the part without q''), rho = R(beta)^T r_A''.
+template <typename T>
+struct Frame {
+  T beta, g, betaDot, betaC, rho0, rho1;
+};
+
+template <typename T>
+void frameKinematics(const CrankMotion& crank, double length, double t, const T& c, const T& cDot, Frame<T>& out) {
+  using std::asin;
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  double phi, phiDot, phiDdot;
+  crank.at(t, phi, phiDot, phiDdot);
+  const double r = crank.radius, s = std::sin(phi), co = std::cos(phi);
+  const T d = length + c;
+  const T u = -r * s / d;
+  const T w1 = 1.0 / sqrt(1.0 - u * u);  // asin'
+  const T w2 = u * w1 * w1 * w1;          // asin''
+  const T ut = -r * co * phiDot / d;
+  const T uc = r * s / (d * d);
+  const T utt = (r * s * phiDot * phiDot - r * co * phiDdot) / d;
+  const T utc = r * co * phiDot / (d * d);
+  const T ucc = -2.0 * r * s / (d * d * d);
+  const T bt = w1 * ut;
+  out.g = w1 * uc;
+  const T btt = w2 * ut * ut + w1 * utt;
+  const T btc = w2 * ut * uc + w1 * utc;
+  const T bcc = w2 * uc * uc + w1 * ucc;
+  out.beta = asin(u);
+  out.betaDot = bt + out.g * cDot;
+  out.betaC = btt + 2.0 * btc * cDot + bcc * cDot * cDot;
+  // r_A'' = r phi'' (-sin, cos) - r phi'^2 (cos, sin), expressed in the body frame.
+  const double ax = -r * phiDdot * s - r * phiDot * phiDot * co;
+  const double ay = r * phiDdot * co - r * phiDot * phiDot * s;
+  const T cb = cos(out.beta), sb = sin(out.beta);
+  out.rho0 = cb * ax + sb * ay;
+  out.rho1 = -sb * ax + cb * ay;
+}
+
+/// The residual r (see the header) for scalar type T. q, qd are length n; a is the acceleration;
+/// ba = b . a. Scratch arrays A1, h of length n. Returns g * kappa (needed for d/db).
+template <typename T>
+T residualCore(const View& P, const Frame<T>& fr, const T* q, const T* qd, ConstVectorRef a, const T& ba, T* r,
+               T* A1, T* h) {
+  const int n = P.n;
+  T jw = T(P.j0());
+  T sw0 = T(P.mc(0)), sw1 = T(P.mc(1));
+  for (int i = 0; i < n; ++i) {
+    jw += 2.0 * P.c2(i) * q[i];
+    sw0 += P.c1(0, i) * q[i];
+    sw1 += P.c1(1, i) * q[i];
+  }
+  for (int j = 0; j < n; ++j) {
+    T mq = T(0.0);
+    T a1 = T(P.a0(j));
+    for (int i = 0; i < n; ++i) {
+      mq += P.mee(j, i) * q[i];
+      a1 += q[i] * P.ct(i, j);
+    }
+    h[j] = P.c2(j) + mq;
+    jw += q[j] * mq;
+    A1[j] = a1;
+  }
+  const T betaA = fr.g * ba;
+  T kappa = fr.betaDot * 0.0;
+  T hqd = T(0.0);
+  for (int j = 0; j < n; ++j) {
+    kappa += A1[j] * a(j);
+    hqd += h[j] * qd[j];
+  }
+  kappa += jw * (betaA + fr.betaC) + (-sw1 * fr.rho0 + sw0 * fr.rho1) + 2.0 * fr.betaDot * hqd;
+  const T gKappa = fr.g * kappa;
+  const T betaDot2 = fr.betaDot * fr.betaDot;
+  for (int i = 0; i < n; ++i) {
+    T ri = T(0.0);
+    for (int j = 0; j < n; ++j) {
+      ri += P.mee(i, j) * a(j) + P.kee(i, j) * q[j] - 2.0 * fr.betaDot * P.ct(i, j) * qd[j];
+    }
+    ri += A1[i] * (betaA + fr.betaC) + gKappa * P.b(i) + P.c1(0, i) * fr.rho0 + P.c1(1, i) * fr.rho1 -
+          betaDot2 * h[i];
+    r[i] = ri;
+  }
+  return gKappa;
+}
+
+struct RodWorkspace final : ProblemWorkspace {
+  explicit RodWorkspace(int n)
+      : q(n), qd(n), r(n), a1(n), h(n), dq(n), dqd(n), dr(n), da1(n), dh(n), zero(Vector::Zero(n)) {}
+  std::vector<AD> q, qd, r, a1, h;
+  std::vector<double> dq, dqd, dr, da1, dh;
+  Vector zero;
+};
+
+RodWorkspace& workspaceOf(ProblemWorkspace* ws) {
+  assert(ws != nullptr);
+  return static_cast<RodWorkspace&>(*ws);
+}
+
+double dot(const View& P, ConstVectorRef x) {
+  double s = 0.0;
+  for (int i = 0; i < P.n; ++i) s += P.b(i) * x(i);
+  return s;
+}
+
+}  // namespace
+
+void CrankMotion::at(double t, double& phi, double& phiDot, double& phiDdot) const {
+  if (t < rampTime) {
+    const double tau = t / rampTime;
+    const double twoPi = 2.0 * M_PI;
+    phiDot = omega * (tau - std::sin(twoPi * tau) / twoPi);
+    phiDdot = omega / rampTime * (1.0 - std::cos(twoPi * tau));
+    phi = omega * rampTime * (tau * tau / 2.0 + (std::cos(twoPi * tau) - 1.0) / (twoPi * twoPi));
+  } else {
+    phiDot = omega;
+    phiDdot = 0.0;
+    phi = omega * rampTime / 2.0 + omega * (t - rampTime);
+  }
+}
+
+SliderCrankProblem::SliderCrankProblem(int modeCount, double rodLength, const CrankMotion& crank)
+    : length_(rodLength), crank_(crank) {
+  if (modeCount < 1 || modeCount > kMaxModes) {
+    throw std::invalid_argument("modeCount = " + std::to_string(modeCount) + " must be in [1, " +
+                                std::to_string(kMaxModes) + "]");
+  }
+  if (!(rodLength > 0.0)) throw std::invalid_argument("rod length must be positive");
+  if (!(crank.radius > 0.0) || !(crank.radius < rodLength)) {
+    throw std::invalid_argument("crank radius = " + std::to_string(crank.radius) + " must be in (0, rod length = " +
+                                std::to_string(rodLength) + ")");
+  }
+  if (!(crank.rampTime > 0.0)) throw std::invalid_argument("crank ramp time must be positive");
+  layout_.modes = modeCount;
+}
+
+std::unique_ptr<ProblemWorkspace> SliderCrankProblem::createModelWorkspace() const {
+  return std::make_unique<RodWorkspace>(layout_.modes);
+}
+
+void SliderCrankProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRef v0) const {
+  y0.setZero();
+  v0.setZero();
+}
+
+double SliderCrankProblem::frameAngle(double t, ConstVectorRef q, ConstVectorRef p) const {
+  const View P(layout_, p);
+  Frame<double> fr;
+  frameKinematics(crank_, length_, t, dot(P, q), 0.0, fr);
+  return fr.beta;
+}
+
+void SliderCrankProblem::massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
+                                    ProblemWorkspace*) const {
+  const View P(layout_, p);
+  const int n = layout_.modes;
+  Frame<double> fr;
+  frameKinematics(crank_, length_, t, dot(P, q), 0.0, fr);
+  double jw = P.j0();
+  for (int i = 0; i < n; ++i) {
+    jw += 2.0 * P.c2(i) * q(i);
+    for (int j = 0; j < n; ++j) jw += q(i) * P.mee(i, j) * q(j);
+  }
+  const double g = fr.g;
+  for (int j = 0; j < n; ++j) {
+    double a1 = P.a0(j);
+    for (int i = 0; i < n; ++i) a1 += q(i) * P.ct(i, j);
+    for (int i = 0; i < n; ++i) mass(i, j) = P.mee(i, j) + jw * g * g * P.b(i) * P.b(j) + g * P.b(i) * a1;
+  }
+  for (int i = 0; i < n; ++i) {
+    double a1 = P.a0(i);
+    for (int k = 0; k < n; ++k) a1 += q(k) * P.ct(k, i);
+    for (int j = 0; j < n; ++j) mass(i, j) += a1 * g * P.b(j);
+  }
+}
+
+void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                                  VectorRef r, ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  Frame<double> fr;
+  frameKinematics(crank_, length_, t, dot(P, q), dot(P, v), fr);
+  for (int i = 0; i < layout_.modes; ++i) {
+    w.dq[i] = q(i);
+    w.dqd[i] = v(i);
+  }
+  residualCore<double>(P, fr, w.dq.data(), w.dqd.data(), a, dot(P, a), w.dr.data(), w.da1.data(), w.dh.data());
+  for (int i = 0; i < layout_.modes; ++i) r(i) = w.dr[i];
+}
+
+void SliderCrankProblem::force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+                               ProblemWorkspace* ws) const {
+  residual(t, q, v, workspaceOf(ws).zero, p, f, ws);
+  f = -f;
+}
+
+void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  const int n = layout_.modes;
+  // Seed q and q' with unit directions 0..n-1 and n..2n-1.
+  AD c(0.0, Derivatives::Zero(2 * n)), cd(0.0, Derivatives::Zero(2 * n));
+  for (int i = 0; i < n; ++i) {
+    w.q[i] = AD(q(i), 2 * n, i);
+    w.qd[i] = AD(v(i), 2 * n, n + i);
+    c += P.b(i) * w.q[i];
+    cd += P.b(i) * w.qd[i];
+  }
+  Frame<AD> fr;
+  frameKinematics(crank_, length_, t, c, cd, fr);
+  const AD ba(dot(P, a), Derivatives::Zero(2 * n));
+  residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
+  for (int i = 0; i < n; ++i) {
+    const Derivatives& d = w.r[i].derivatives();
+    for (int j = 0; j < n; ++j) {
+      rq(i, j) = d(j);
+      rv(i, j) = d(n + j);
+    }
+  }
+}
+
+void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                                 ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                                 ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  const InvariantLayout& L = layout_;
+  const int n = L.modes;
+  // F = mu . r with the three scalar channels (c = b q, c' = b q', b a) seeded: their partials carry
+  // the nonlinear dependence on b through the frame kinematics.
+  const AD c(dot(P, q), 3, 0), cd(dot(P, v), 3, 1), ba(dot(P, a), 3, 2);
+  for (int i = 0; i < n; ++i) {
+    w.q[i] = AD(q(i), Derivatives::Zero(3));
+    w.qd[i] = AD(v(i), Derivatives::Zero(3));
+  }
+  Frame<AD> fr;
+  frameKinematics(crank_, length_, t, c, cd, fr);
+  const AD gKappa = residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
+  Derivatives channels = Derivatives::Zero(3);
+  for (int i = 0; i < n; ++i) channels += mu(i) * w.r[i].derivatives();
+
+  // Terms linear in the invariants (see the header for r and kappa).
+  const double g = fr.g.value(), betaDot = fr.betaDot.value(), betaC = fr.betaC.value();
+  const double rho0 = fr.rho0.value(), rho1 = fr.rho1.value();
+  const double betaA = g * ba.value();
+  double mb = 0.0;
+  for (int i = 0; i < n; ++i) mb += mu(i) * P.b(i);
+  const double zeta = g * mb * (betaA + betaC);             // dF/dJ_w
+  const double sigma0 = g * mb * rho1, sigma1 = -g * mb * rho0;  // dF/ds_w
+  out(L.polarMoment()) += zeta;
+  out(L.massMoment()) += sigma0;
+  out(L.massMoment() + 1) += sigma1;
+  for (int j = 0; j < n; ++j) {
+    const double eta = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);  // dF/dh_j
+    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                    // dF/dA1_j
+    out(L.c2() + j) += eta + 2.0 * zeta * q(j);
+    out(L.a0() + j) += alpha;
+    out(L.c1() + 2 * j) += sigma0 * q(j) + rho0 * mu(j);
+    out(L.c1() + 1 + 2 * j) += sigma1 * q(j) + rho1 * mu(j);
+    for (int i = 0; i < n; ++i) {
+      const double etaI = -betaDot * betaDot * mu(i) + 2.0 * g * mb * betaDot * v(i);
+      out(L.cTilde() + i + n * j) += q(i) * alpha - 2.0 * betaDot * mu(i) * v(j);
+      const double etaJ = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);
+      out(L.mee() + i + n * j) +=
+          0.5 * (mu(i) * a(j) + etaI * q(j) + mu(j) * a(i) + etaJ * q(i)) + zeta * q(i) * q(j);
+      out(L.kee() + i + n * j) += mu(i) * q(j);
+    }
+    // b: through the channels and the explicit g kappa b term.
+    out(L.b() + j) += channels(0) * q(j) + channels(1) * v(j) + channels(2) * a(j) + gKappa.value() * mu(j);
+  }
+}
+
+double SliderCrankProblem::objectiveIntegrand(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
+                                              ProblemWorkspace*) const {
+  const View P(layout_, p);
+  double s = 0.0;
+  for (int i = 0; i < layout_.modes; ++i) {
+    for (int j = 0; j < layout_.modes; ++j) s += q(i) * P.kee(i, j) * q(j);
+  }
+  return s;
+}
+
+void SliderCrankProblem::addObjectiveStateGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
+                                                   double scale, VectorRef gq, VectorRef, ProblemWorkspace*) const {
+  const View P(layout_, p);
+  for (int i = 0; i < layout_.modes; ++i) {
+    for (int j = 0; j < layout_.modes; ++j) gq(i) += scale * (P.kee(i, j) + P.kee(j, i)) * q(j);
+  }
+}
+
+void SliderCrankProblem::addObjectiveParameterGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef,
+                                                       double scale, VectorRef gp, ProblemWorkspace*) const {
+  const int n = layout_.modes;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) gp(layout_.kee() + i + n * j) += scale * q(i) * q(j);
+  }
+}
+
+}  // namespace hindsight::rod
