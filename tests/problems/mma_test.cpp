@@ -2,9 +2,10 @@
 // with a closed-form KKT point, bit-exact restart, allocation-free updates and argument checking.
 #include "problems/mma.h"
 
+#include "problems/allocation_counting.h"
+
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -12,32 +13,6 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
-
-// Counts heap allocations while `g_countAllocations` is set, so that a test can prove that
-// Mma::update allocates nothing (STYLE.md guideline 3). Eigen allocates with std::malloc and
-// operator new ends in malloc, so interposing malloc (forwarding to glibc) sees both.
-namespace {
-std::atomic<bool> g_countAllocations{false};
-std::atomic<long> g_allocationCount{0};
-}  // namespace
-
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* p, std::size_t size);
-void* malloc(std::size_t size) {
-  if (g_countAllocations.load(std::memory_order_relaxed)) g_allocationCount.fetch_add(1);
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) {
-  if (g_countAllocations.load(std::memory_order_relaxed)) g_allocationCount.fetch_add(1);
-  return __libc_calloc(count, size);
-}
-void* realloc(void* p, std::size_t size) {
-  if (g_countAllocations.load(std::memory_order_relaxed)) g_allocationCount.fetch_add(1);
-  return __libc_realloc(p, size);
-}
-}
 
 namespace hindsight {
 namespace {
@@ -312,18 +287,16 @@ TEST(Mma, UpdateAllocatesNothing) {
   Matrix df = Matrix::Ones(2, n);
   df.row(1) = Vector::LinSpaced(n, 0.5, 2.0).transpose();
   f << 0.1, -0.2;
-  g_allocationCount = 0;
-  g_countAllocations = true;
-  for (int k = 0; k < 4; ++k) mma.update(0.0, df0, f, df, xmin, xmax, x);
-  MmaState state = mma.state();  // copying out allocates; restoring into the same sizes must not
-  g_countAllocations = false;
-  const long copyAllocations = g_allocationCount.exchange(0);
-  EXPECT_EQ(copyAllocations, 4);  // the four vectors of the copied state
-  g_countAllocations = true;
+  {
+    testing::AllocationCounter counter;
+    for (int k = 0; k < 4; ++k) mma.update(0.0, df0, f, df, xmin, xmax, x);
+    EXPECT_EQ(counter.count(), 0);
+  }
+  const MmaState state = mma.state();  // copying out allocates; restoring into the same sizes must not
+  testing::AllocationCounter counter;
   mma.restore(state);
   mma.update(0.0, df0, f, df, xmin, xmax, x);
-  g_countAllocations = false;
-  EXPECT_EQ(g_allocationCount.load(), 0);
+  EXPECT_EQ(counter.count(), 0);
 }
 
 // Messages must name the offending argument.
