@@ -8,10 +8,6 @@
 namespace hindsight {
 namespace {
 
-// Limits of the asymptote distance |x - low|, |upp - x| in units of (xmax - xmin), as in Svanberg's
-// 2007 implementation: they keep the approximation from becoming flat or infinitely curved.
-constexpr double kMinAsymptoteDistance = 0.01;
-constexpr double kMaxAsymptoteDistance = 10.0;
 // Fractions of the positive and negative parts of a derivative put into p and q (the 1.001 / 0.001
 // split of the 2007 note), which makes every approximation strictly convex.
 constexpr double kMainCurvature = 1.001;
@@ -62,6 +58,12 @@ bool MmaOptions::IsValid(std::string* error) const {
     return Fail(error, RangeMessage("asymptote_expansion", asymptote_expansion, ">= 1 and finite"));
   if (!(asymptote_contraction > 0.0 && asymptote_contraction <= 1.0))
     return Fail(error, RangeMessage("asymptote_contraction", asymptote_contraction, "in (0, 1]"));
+  if (!(min_asymptote_distance > 0.0 && min_asymptote_distance <= initial_asymptote_distance))
+    return Fail(error, RangeMessage("min_asymptote_distance", min_asymptote_distance,
+                                    "in (0, initial_asymptote_distance]"));
+  if (!(max_asymptote_distance >= initial_asymptote_distance && std::isfinite(max_asymptote_distance)))
+    return Fail(error, RangeMessage("max_asymptote_distance", max_asymptote_distance,
+                                    ">= initial_asymptote_distance and finite"));
   if (!(asymptote_margin > 0.0 && asymptote_margin < 1.0))
     return Fail(error, RangeMessage("asymptote_margin", asymptote_margin, "in (0, 1)"));
   if (!(move_limit > 0.0 && move_limit <= 1.0))
@@ -93,10 +95,10 @@ Mma::Mma(int n, int m, const MmaOptions& options) : n_(n), m_(m), options_(optio
   std::string error;
   if (!options.IsValid(&error)) ThrowArgument("Mma: options invalid: " + error);
 
-  for (Vector* v :
-       {&state_.xold1, &state_.xold2, &state_.low, &state_.upp, &sub_.xsi, &sub_.eta, &p0_,   &q0_,
-        &alpha_,       &beta_,        &xsub_,      &xOld_,      &xsiOld_,  &etaOld_,  &dx_,   &dxsi_,
-        &deta_,        &uxInv_,       &xlInv_,     &plam_,      &qlam_,    &deltaX_,  &diagX_})
+  for (Vector* v : {&state_.xold1, &state_.xold2,  &state_.low,  &state_.upp, &sub_.xsi, &sub_.eta, &p0_,
+                    &q0_,          &alpha_,        &beta_,       &xsub_,      &xOld_,    &xsiOld_,  &etaOld_,
+                    &dx_,          &dxsi_,         &deta_,       &uxInv_,     &xlInv_,   &plam_,    &qlam_,
+                    &deltaX_,      &inverseDiagX_, &toAlphaInv_, &toBetaInv_})
     v->setZero(n);
   for (Vector* v : {&sub_.lambda, &sub_.y, &b_, &mu_, &s_, &yOld_, &lambdaOld_, &muOld_, &sOld_, &dy_,
                     &dlambda_, &dmu_, &ds_, &gvec_, &deltaY_, &diagY_, &deltaLambda_})
@@ -192,10 +194,10 @@ void Mma::buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef c
           trend > 0.0 ? o.asymptote_expansion : (trend < 0.0 ? o.asymptote_contraction : 1.0);
       low(j) = x(j) - factor * (state_.xold1(j) - low(j));
       upp(j) = x(j) + factor * (upp(j) - state_.xold1(j));
-      low(j) = std::min(std::max(low(j), x(j) - kMaxAsymptoteDistance * range),
-                        x(j) - kMinAsymptoteDistance * range);
-      upp(j) = std::max(std::min(upp(j), x(j) + kMaxAsymptoteDistance * range),
-                        x(j) + kMinAsymptoteDistance * range);
+      low(j) = std::min(std::max(low(j), x(j) - o.max_asymptote_distance * range),
+                        x(j) - o.min_asymptote_distance * range);
+      upp(j) = std::max(std::min(upp(j), x(j) + o.max_asymptote_distance * range),
+                        x(j) + o.min_asymptote_distance * range);
     }
     // Move limits of the subproblem: a margin away from the asymptotes, at most move_limit * range.
     alpha_(j) =
@@ -315,7 +317,9 @@ void Mma::solveSubproblem() {
       ++sub_.newton_iterations;
 
       // Newton step on the relaxed KKT conditions. Eliminating the bound multipliers, slacks and
-      // y leaves diag(diagX) dx + G^T dlambda = -deltaX for x, and the (m+1) x (m+1) system
+      // y leaves diag(diagX) dx + G^T dlambda = -deltaX (diagX: second derivative of
+      // the Lagrangian plus the bound terms xsi / (x - alpha) + eta / (beta - x)) for x, and the (m+1) x
+      // (m+1) system
       //   [ G diag(diagX)^-1 G^T + diag(s/lambda + 1/diagY)   a    ] [dlambda]   [rhs]
       //   [ a^T                                               -zeta/z] [dz     ] = [deltaZ]
       // for the constraint multipliers and z, where G = dg/dx of the approximations and deltaX,
@@ -330,21 +334,24 @@ void Mma::solveSubproblem() {
       for (int j = 0; j < n_; ++j) {
         const double uxinv = 1.0 / (upp(j) - xsub_(j));
         const double xlinv = 1.0 / (xsub_(j) - low(j));
-        const double toAlpha = xsub_(j) - alpha_(j);
-        const double toBeta = beta_(j) - xsub_(j);
+        const double toAlphaInv = 1.0 / (xsub_(j) - alpha_(j));
+        const double toBetaInv = 1.0 / (beta_(j) - xsub_(j));
+        toAlphaInv_(j) = toAlphaInv;
+        toBetaInv_(j) = toBetaInv;
         uxInv_(j) = uxinv;
         xlInv_(j) = xlinv;
         const double dpsidx = plam_(j) * uxinv * uxinv - qlam_(j) * xlinv * xlinv;
-        deltaX_(j) = dpsidx - epsilon / toAlpha + epsilon / toBeta;
-        diagX_(j) = 2.0 * (plam_(j) * uxinv * uxinv * uxinv + qlam_(j) * xlinv * xlinv * xlinv) +
-                    xsi(j) / toAlpha + eta(j) / toBeta;
+        deltaX_(j) = dpsidx - epsilon * toAlphaInv + epsilon * toBetaInv;
+        inverseDiagX_(j) =
+            1.0 / (2.0 * (plam_(j) * uxinv * uxinv * uxinv + qlam_(j) * xlinv * xlinv * xlinv) +
+                   xsi(j) * toAlphaInv + eta(j) * toBetaInv);
       }
       double lambdaDotA = 0.0;
       for (int i = 0; i < m_; ++i) {
         for (int j = 0; j < n_; ++j) {
           const double g = P_(i, j) * uxInv_(j) * uxInv_(j) - Q_(i, j) * xlInv_(j) * xlInv_(j);
           gradG_(i, j) = g;
-          scaledGradG_(i, j) = g / diagX_(j);
+          scaledGradG_(i, j) = g * inverseDiagX_(j);
         }
         gvec_(i) = P_.row(i).dot(uxInv_) + Q_.row(i).dot(xlInv_);
         deltaY_(i) = o.y_linear_cost + o.y_quadratic_cost * y(i) - lambda(i) - epsilon / y(i);
@@ -376,11 +383,9 @@ void Mma::solveSubproblem() {
       for (int j = 0; j < n_; ++j) {
         double gTdlambda = 0.0;
         for (int i = 0; i < m_; ++i) gTdlambda += gradG_(i, j) * dlambda_(i);
-        dx_(j) = -(deltaX_(j) + gTdlambda) / diagX_(j);
-        const double toAlpha = xsub_(j) - alpha_(j);
-        const double toBeta = beta_(j) - xsub_(j);
-        dxsi_(j) = -xsi(j) + (epsilon - xsi(j) * dx_(j)) / toAlpha;
-        deta_(j) = -eta(j) + (epsilon + eta(j) * dx_(j)) / toBeta;
+        dx_(j) = -(deltaX_(j) + gTdlambda) * inverseDiagX_(j);
+        dxsi_(j) = -xsi(j) + (epsilon - xsi(j) * dx_(j)) * toAlphaInv_(j);
+        deta_(j) = -eta(j) + (epsilon + eta(j) * dx_(j)) * toBetaInv_(j);
       }
       for (int i = 0; i < m_; ++i) {
         dy_(i) = (dlambda_(i) - deltaY_(i)) / diagY_(i);
@@ -393,8 +398,8 @@ void Mma::solveSubproblem() {
       // positive; never longer than the full Newton step.
       double inverseStep = 1.0;
       for (int j = 0; j < n_; ++j) {
-        inverseStep = std::max(inverseStep, -kFractionToBoundary * dx_(j) / (xsub_(j) - alpha_(j)));
-        inverseStep = std::max(inverseStep, kFractionToBoundary * dx_(j) / (beta_(j) - xsub_(j)));
+        inverseStep = std::max(inverseStep, -kFractionToBoundary * dx_(j) * toAlphaInv_(j));
+        inverseStep = std::max(inverseStep, kFractionToBoundary * dx_(j) * toBetaInv_(j));
         inverseStep = std::max(inverseStep, -kFractionToBoundary * dxsi_(j) / xsi(j));
         inverseStep = std::max(inverseStep, -kFractionToBoundary * deta_(j) / eta(j));
       }

@@ -1,29 +1,33 @@
 // The Method of Moving Asymptotes (MMA) for inequality-constrained nonlinear optimization.
 //
-// Problem form (the standard form of Svanberg 2007): for design variables x (n), elastic variables y (m) and
-// z,
+// Problem form (the standard form of Svanberg 2007): for design variables x (n), elastic variables
+// y (m) and z,
 //
 //   minimize    f0(x) + a0 z + sum_i (c_i y_i + 1/2 d_i y_i^2)
 //   subject to  f_i(x) - a_i z - y_i <= 0,   i = 1..m,
 //               xmin_j <= x_j <= xmax_j,     j = 1..n,
 //               y_i >= 0, z >= 0.
 //
-// With a0 = 1, a_i = 0 and c_i large (the defaults) the elastic variables are zero at any feasible
-// solution of the original problem "minimize f0 s.t. f_i <= 0, xmin <= x <= xmax", and they keep every
-// subproblem feasible when the current design violates a constraint.
+// With a0 = 1, a_i = 0 and c_i large (the defaults) this is the problem "minimize f0 s.t. f_i <= 0,
+// xmin <= x <= xmax": at a KKT point of that problem whose multipliers are below c_i the elastic
+// variables are zero, and while the design violates a constraint they keep the subproblem feasible.
 //
-// Each call of `Mma::update` builds the convex, separable MMA approximation of f0 and every f_i around
-// the current x (moving asymptotes low < x < upp; Svanberg 1987 and 2007) and
-// replaces x by the minimizer of that approximation, found by Svanberg's primal-dual interior-point
-// method (described in the 2007 note, "subsolv"). The caller evaluates functions and gradients between
-// updates; the optimizer never calls back.
+// Each call of `Mma::update` builds the convex, separable MMA approximation of f0 and every f_i
+// around the current x (terms p / (upp - x) + q / (x - low) with moving asymptotes low < x < upp;
+// Svanberg 1987, 2007) and replaces x by the minimizer of that approximation, found by Svanberg's
+// primal-dual interior-point method (the 2007 note's "subsolv"). The caller evaluates functions and
+// gradients between updates; the optimizer never calls back. Preconditions: functions and gradients
+// finite, xmin < xmax componentwise, x within the bounds; scaling f0 and f_i to order 1 (as SPEC.md
+// sec. 7 does) matters because c_i = 1000 and the barrier tolerance are absolute.
 //
 // Restart: everything that carries over from one update to the next is the `MmaState` (iteration count,
 // the two previous iterates and the asymptotes). `state()` copies it out and `restore()` copies it in,
 // so an optimization continued from a stored state reproduces the uninterrupted one bit for bit.
 //
-// Cost per update: O(n m^2 + m^3) per Newton step of the subproblem solver; all buffers are allocated
-// by the constructor, `update` and `restore` allocate nothing.
+// Cost per update: O(n m^2 + m^3) per Newton step of the subproblem solver, a few dozen Newton steps
+// per update; all buffers are allocated by the constructor, `update` and `restore` allocate nothing.
+// Accuracy: each subproblem is solved to the barrier parameter subproblem_tolerance (1e-7), which
+// bounds how exactly a constraint is active at the end (f_i ~ -1e-7 / lambda_i).
 //
 // References:
 //   K. Svanberg, The method of moving asymptotes - a new method for structural optimization,
@@ -49,6 +53,15 @@ struct MmaOptions {
   double asymptote_expansion = 1.2;
   /// asydecr: factor that narrows the asymptotes when a variable oscillates. In (0, 1].
   double asymptote_contraction = 0.7;
+  /// Smallest distance |x - low|, |upp - x| of the asymptotes, in units of (xmax - xmin); 0.01 in
+  /// Svanberg's 2007 implementation. It caps the curvature of the approximations: where the
+  /// objective is stationary inside the box (no constraint balancing it) a step is about 0.9 times
+  /// this distance whatever the gradient, so such variables end in a limit cycle of that amplitude;
+  /// a smaller value lets them converge. In (0, initial_asymptote_distance].
+  double min_asymptote_distance = 0.01;
+  /// Largest distance of the asymptotes, in units of (xmax - xmin); 10 in Svanberg's 2007
+  /// implementation. >= initial_asymptote_distance.
+  double max_asymptote_distance = 10.0;
   /// albefa: the subproblem keeps x at least this fraction of the way from an asymptote. In (0, 1).
   double asymptote_margin = 0.1;
   /// move: a variable moves at most move (xmax - xmin) per iteration. In (0, 1].
@@ -114,7 +127,7 @@ class Mma final {
   ///   objective           f0(x) (enters only through the gradient, kept for symmetry with the note)
   ///   objective_gradient  df0/dx, length n
   ///   constraints         f_i(x), length m (the constraint is f_i(x) <= 0)
-  ///   constraint_jacobian df_i/dx_j, m x n
+  ///   constraint_jacobian df_i/dx_j, m x n (column-major; a row-major argument is copied)
   ///   xmin, xmax          bounds, length n, xmin_j < xmax_j
   /// On return x holds the next iterate, which satisfies xmin <= x <= xmax.
   /// Throws std::invalid_argument naming the argument when a size is wrong, a value is not finite,
@@ -122,7 +135,7 @@ class Mma final {
   void update(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
               ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax, Vector& x);
 
-  /// A copy of the state that carries over between updates.
+  /// The state that carries over between updates; copy it to store it.
   const MmaState& state() const { return state_; }
   /// Replaces the state. Throws std::invalid_argument naming the field when a vector has not length n
   /// or iteration < 0.
@@ -168,10 +181,10 @@ class Mma final {
   double dz_ = 0.0, dzeta_ = 0.0;
 
   // Work vectors of length n and m.
-  Vector uxInv_, xlInv_, plam_, qlam_, deltaX_, diagX_;
+  Vector uxInv_, xlInv_, toAlphaInv_, toBetaInv_, plam_, qlam_, deltaX_, inverseDiagX_;
   Vector gvec_, deltaY_, diagY_, deltaLambda_;
   RowMatrix gradG_;        // m x n, dg_i/dx_j of the approximations at xsub_
-  RowMatrix scaledGradG_;  // m x n, gradG_ / diagX
+  RowMatrix scaledGradG_;  // m x n, gradG_ * inverseDiagX_
   Matrix reducedMatrix_;   // (m+1) x (m+1)
   Vector reducedRhs_, reducedSolution_;
   Eigen::PartialPivLU<Matrix> reducedLu_;
