@@ -316,15 +316,15 @@ void Mma::solveSubproblem() {
       ++newtonSteps;
       ++sub_.newton_iterations;
 
-      // Newton step on the relaxed KKT conditions. Eliminating the bound multipliers, slacks and
-      // y leaves diag(diagX) dx + G^T dlambda = -deltaX (diagX: second derivative of
-      // the Lagrangian plus the bound terms xsi / (x - alpha) + eta / (beta - x)) for x, and the (m+1) x
-      // (m+1) system
-      //   [ G diag(diagX)^-1 G^T + diag(s/lambda + 1/diagY)   a    ] [dlambda]   [rhs]
-      //   [ a^T                                               -zeta/z] [dz     ] = [deltaZ]
-      // for the constraint multipliers and z, where G = dg/dx of the approximations and deltaX,
-      // deltaY, deltaLambda, deltaZ are the relaxed residuals with the complementarity conditions
-      // substituted. m is small, so the dense reduced system is cheap for any n.
+      // Newton step on the relaxed KKT conditions. Eliminating the bound multipliers, the slacks and
+      // y leaves, with diagX = (second derivative of the Lagrangian) + xsi / (x - alpha)
+      // + eta / (beta - x) and G = dg/dx of the constraint approximations (m x n),
+      //   diag(diagX) dx + G^T dlambda = -deltaX                                   for x, and
+      //   [ G diag(diagX)^-1 G^T + diag(s / lambda + 1 / diagY)   a       ] [dlambda]   [rhs   ]
+      //   [ a^T                                                   -zeta/z ] [dz     ] = [deltaZ]
+      // with rhs = deltaLambda + deltaY / diagY - G diag(diagX)^-1 deltaX, where the deltas are the
+      // relaxed residuals with the complementarity conditions substituted. m is small, so the dense
+      // (m+1) x (m+1) system is cheap for any n.
       plam_ = p0_;
       qlam_ = q0_;
       for (int i = 0; i < m_; ++i) {

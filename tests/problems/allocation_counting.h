@@ -14,6 +14,8 @@ class AllocationCounter {
   AllocationCounter(const AllocationCounter&) = delete;
   AllocationCounter& operator=(const AllocationCounter&) = delete;
   long count() const;  // allocations since construction
+  // False under AddressSanitizer, whose own malloc must not be replaced; tests then skip.
+  static bool available();
 };
 
 }  // namespace hindsight::testing
