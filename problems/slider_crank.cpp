@@ -13,7 +13,7 @@ using AD = Eigen::AutoDiffScalar<Derivatives>;
 
 /// Read-only view of the invariants inside p.
 struct View {
-  View(const InvariantLayout& layout, ConstVectorRef p) : n(layout.modes), p(p.data()), layout(layout) {}
+  View(const SliderCrankLayout& layout, ConstVectorRef p) : n(layout.modes), p(p.data()), layout(layout) {}
   double mc(int k) const { return p[layout.massMoment() + k]; }
   double j0() const { return p[layout.polarMoment()]; }
   double c1(int k, int j) const { return p[layout.c1() + k + 2 * j]; }
@@ -27,7 +27,7 @@ struct View {
   double b(int i) const { return p[layout.b() + i]; }
   int n;
   const double* p;
-  const InvariantLayout& layout;
+  const SliderCrankLayout& layout;
 };
 
 /// The frame angle's kinematics from the closure r sin(phi) + (L + c) sin(beta) = 0, c = b q:
@@ -259,7 +259,7 @@ void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, Con
                                                  ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
-  const InvariantLayout& L = layout_;
+  const SliderCrankLayout& L = layout_;
   const int n = L.modes;
   // F = mu . r with the three scalar channels (c = b q, c' = b q', b a) seeded: their partials carry
   // the nonlinear dependence on b through the frame kinematics.

@@ -11,7 +11,7 @@
 // This is d'Alembert's principle projected with delta beta = beta_q delta q; tests compare it with
 // Lagrange's equations built from the nodal kinetic energy.
 //
-// The parameters p are the inertia invariants of the rod (InvariantLayout), so the engine's dpsi/dp
+// The parameters p are the inertia invariants of the rod (SliderCrankLayout), so the engine's dpsi/dp
 // is what the design chain (problems/design_gradient.h) turns into dpsi/dx. The objective is
 // psi1 = int q^T K_ee q dt. Initial state: at rest, undeformed.
 //
@@ -38,10 +38,11 @@ struct CrankMotion {
   void at(double t, double& phi, double& phiDot, double& phiDdot) const;
 };
 
-/// Offsets of the invariants in the parameter vector p, for n modes:
+/// Offsets of the invariants in the parameter vector p, for n modes (the same order as
+/// rod::InvariantLayout of problems/invariants.h, which packs them; a test checks they agree):
 /// m (1), m c (2), J0 (1), C1 (2 x n, column-major), C2 (n), a0 (n), Ct (n x n, column-major),
 /// M_ee (n x n), K_ee (n x n), b (n). Size 4 + 5n + 3n^2.
-struct InvariantLayout {
+struct SliderCrankLayout {
   int modes = 0;
   int mass() const { return 0; }
   int massMoment() const { return 1; }
@@ -66,7 +67,7 @@ class SliderCrankProblem final : public SecondOrderProblem {
   std::string name() const override { return "slider-crank"; }
   int coordinateCount() const override { return layout_.modes; }
   int parameterSize() const override { return layout_.size(); }
-  const InvariantLayout& layout() const { return layout_; }
+  const SliderCrankLayout& layout() const { return layout_; }
   const CrankMotion& crank() const { return crank_; }
   double rodLength() const { return length_; }
 
@@ -93,7 +94,7 @@ class SliderCrankProblem final : public SecondOrderProblem {
   double frameAngle(double t, ConstVectorRef q, ConstVectorRef p) const;
 
  private:
-  InvariantLayout layout_;
+  SliderCrankLayout layout_;
   double length_;
   CrankMotion crank_;
 };

@@ -72,10 +72,10 @@ struct SyntheticRod {
     }
   }
 
-  /// The invariants of SPEC.md section 3, packed in rod::InvariantLayout order.
+  /// The invariants of SPEC.md section 3, packed in rod::SliderCrankLayout order.
   Vector invariants() const {
     const int n = static_cast<int>(phi.cols());
-    rod::InvariantLayout layout{n};
+    rod::SliderCrankLayout layout{n};
     Vector p = Vector::Zero(layout.size());
     const Matrix E = (Matrix(2 * nodes, 2) << ex, ey).finished();
     p(layout.mass()) = ex.dot(mass * ex);
