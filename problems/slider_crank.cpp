@@ -39,7 +39,8 @@ struct Frame {
 };
 
 template <typename T>
-void frameKinematics(const CrankMotion& crank, double length, double t, const T& c, const T& cDot, Frame<T>& out) {
+void frameKinematics(const CrankMotion& crank, double length, double t, const T& c, const T& cDot,
+                     Frame<T>& out) {
   using std::asin;
   using std::cos;
   using std::sin;
@@ -50,7 +51,7 @@ void frameKinematics(const CrankMotion& crank, double length, double t, const T&
   const T d = length + c;
   const T u = -r * s / d;
   const T w1 = 1.0 / sqrt(1.0 - u * u);  // asin'
-  const T w2 = u * w1 * w1 * w1;          // asin''
+  const T w2 = u * w1 * w1 * w1;         // asin''
   const T ut = -r * co * phiDot / d;
   const T uc = r * s / (d * d);
   const T utt = (r * s * phiDot * phiDot - r * co * phiDdot) / d;
@@ -75,8 +76,8 @@ void frameKinematics(const CrankMotion& crank, double length, double t, const T&
 /// The residual r (see the header) for scalar type T. q, qd are length n; a is the acceleration;
 /// ba = b . a. Scratch arrays A1, h of length n. Returns g * kappa (needed for d/db).
 template <typename T>
-T residualCore(const View& P, const Frame<T>& fr, const T* q, const T* qd, ConstVectorRef a, const T& ba, T* r,
-               T* A1, T* h) {
+T residualCore(const View& P, const Frame<T>& fr, const T* q, const T* qd, ConstVectorRef a, const T& ba,
+               T* r, T* A1, T* h) {
   const int n = P.n;
   T jw = T(P.j0());
   T sw0 = T(P.mc(0)), sw1 = T(P.mc(1));
@@ -161,8 +162,8 @@ SliderCrankProblem::SliderCrankProblem(int modeCount, double rodLength, const Cr
   }
   if (!(rodLength > 0.0)) throw std::invalid_argument("rod length must be positive");
   if (!(crank.radius > 0.0) || !(crank.radius < rodLength)) {
-    throw std::invalid_argument("crank radius = " + std::to_string(crank.radius) + " must be in (0, rod length = " +
-                                std::to_string(rodLength) + ")");
+    throw std::invalid_argument("crank radius = " + std::to_string(crank.radius) +
+                                " must be in (0, rod length = " + std::to_string(rodLength) + ")");
   }
   if (!(crank.rampTime > 0.0)) throw std::invalid_argument("crank ramp time must be positive");
   layout_.modes = modeCount;
@@ -208,8 +209,8 @@ void SliderCrankProblem::massMatrix(double t, ConstVectorRef q, ConstVectorRef p
   }
 }
 
-void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
-                                  VectorRef r, ProblemWorkspace* ws) const {
+void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                  ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   Frame<double> fr;
@@ -218,7 +219,8 @@ void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, 
     w.dq[i] = q(i);
     w.dqd[i] = v(i);
   }
-  residualCore<double>(P, fr, w.dq.data(), w.dqd.data(), a, dot(P, a), w.dr.data(), w.da1.data(), w.dh.data());
+  residualCore<double>(P, fr, w.dq.data(), w.dqd.data(), a, dot(P, a), w.dr.data(), w.da1.data(),
+                       w.dh.data());
   for (int i = 0; i < layout_.modes; ++i) r(i) = w.dr[i];
 }
 
@@ -229,7 +231,8 @@ void SliderCrankProblem::force(double t, ConstVectorRef q, ConstVectorRef v, Con
 }
 
 void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const {
+                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv,
+                                           ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   const int n = layout_.modes;
@@ -254,9 +257,9 @@ void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVect
   }
 }
 
-void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                                                 ConstVectorRef p, ConstVectorRef mu, VectorRef out,
-                                                 ProblemWorkspace* ws) const {
+void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
+                                                 ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
+                                                 VectorRef out, ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   const SliderCrankLayout& L = layout_;
@@ -270,7 +273,8 @@ void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, Con
   }
   Frame<AD> fr;
   frameKinematics(crank_, length_, t, c, cd, fr);
-  const AD gKappa = residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
+  const AD gKappa =
+      residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
   Derivatives channels = Derivatives::Zero(3);
   for (int i = 0; i < n; ++i) channels += mu(i) * w.r[i].derivatives();
 
@@ -280,14 +284,14 @@ void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, Con
   const double betaA = g * ba.value();
   double mb = 0.0;
   for (int i = 0; i < n; ++i) mb += mu(i) * P.b(i);
-  const double zeta = g * mb * (betaA + betaC);             // dF/dJ_w
+  const double zeta = g * mb * (betaA + betaC);                  // dF/dJ_w
   const double sigma0 = g * mb * rho1, sigma1 = -g * mb * rho0;  // dF/ds_w
   out(L.polarMoment()) += zeta;
   out(L.massMoment()) += sigma0;
   out(L.massMoment() + 1) += sigma1;
   for (int j = 0; j < n; ++j) {
     const double eta = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);  // dF/dh_j
-    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                    // dF/dA1_j
+    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                   // dF/dA1_j
     out(L.c2() + j) += eta + 2.0 * zeta * q(j);
     out(L.a0() + j) += alpha;
     out(L.c1() + 2 * j) += sigma0 * q(j) + rho0 * mu(j);
@@ -316,15 +320,17 @@ double SliderCrankProblem::objectiveIntegrand(double, ConstVectorRef q, ConstVec
 }
 
 void SliderCrankProblem::addObjectiveStateGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
-                                                   double scale, VectorRef gq, VectorRef, ProblemWorkspace*) const {
+                                                   double scale, VectorRef gq, VectorRef,
+                                                   ProblemWorkspace*) const {
   const View P(layout_, p);
   for (int i = 0; i < layout_.modes; ++i) {
     for (int j = 0; j < layout_.modes; ++j) gq(i) += scale * (P.kee(i, j) + P.kee(j, i)) * q(j);
   }
 }
 
-void SliderCrankProblem::addObjectiveParameterGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef,
-                                                       double scale, VectorRef gp, ProblemWorkspace*) const {
+void SliderCrankProblem::addObjectiveParameterGradient(double, ConstVectorRef q, ConstVectorRef,
+                                                       ConstVectorRef, double scale, VectorRef gp,
+                                                       ProblemWorkspace*) const {
   const int n = layout_.modes;
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) gp(layout_.kee() + i + n * j) += scale * q(i) * q(j);

@@ -73,19 +73,21 @@ class SliderCrankProblem final : public SecondOrderProblem {
 
   std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
   void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
-  void massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass, ProblemWorkspace* ws) const override;
+  void massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
+                  ProblemWorkspace* ws) const override;
   void force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
              ProblemWorkspace* ws) const override;
   void residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                          MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const override;
-  void addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
-                               ConstVectorRef mu, VectorRef out, ProblemWorkspace* ws) const override;
+  void addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                               ProblemWorkspace* ws) const override;
   double objectiveIntegrand(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
                             ProblemWorkspace* ws) const override;
   void addObjectiveStateGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,
                                  VectorRef gq, VectorRef gv, ProblemWorkspace* ws) const override;
-  void addObjectiveParameterGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,
-                                     VectorRef gp, ProblemWorkspace* ws) const override;
+  void addObjectiveParameterGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
+                                     double scale, VectorRef gp, ProblemWorkspace* ws) const override;
 
   /// The residual r = M(t, q) a - f(t, q, q') (for tests and diagnostics).
   void residual(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p, VectorRef r,

@@ -20,7 +20,9 @@ using testing::SyntheticRod;
 
 struct Fixture {
   explicit Fixture(int modes, unsigned seed = 7)
-      : body(modes, 1.0, seed), problem(modes, 1.0, CrankMotion{}), p(body.invariants()),
+      : body(modes, 1.0, seed),
+        problem(modes, 1.0, CrankMotion{}),
+        p(body.invariants()),
         workspace(problem.createModelWorkspace()) {
     std::mt19937 rng(seed + 1);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -96,15 +98,15 @@ TEST(SliderCrank, StateJacobiansMatchFiniteDifferences) {
     Matrix rq(5, 5), rv(5, 5);
     f.problem.residualJacobians(t, f.q, f.qd, f.a, f.p, rq, rv, f.workspace.get());
     for (int i = 0; i < 5; ++i) {
-      const auto qCheck = checkGradient([&](const Vector& x) { return f.residual(t, x, f.qd, f.a, f.p)(i); }, f.q,
-                                        rq.row(i).transpose(), {1e-7});
+      const auto qCheck = checkGradient([&](const Vector& x) { return f.residual(t, x, f.qd, f.a, f.p)(i); },
+                                        f.q, rq.row(i).transpose(), {1e-7});
       EXPECT_TRUE(qCheck.passed) << "row " << i << " of r_q: " << qCheck.message;
       // r is quadratic in q', so a large central-difference step is exact and avoids round-off.
       GradientCheckOptions quadratic;
       quadratic.tolerance = 1e-7;
       quadratic.relativeStep = 1e-2;
-      const auto vCheck = checkGradient([&](const Vector& x) { return f.residual(t, f.q, x, f.a, f.p)(i); }, f.qd,
-                                        rv.row(i).transpose(), quadratic);
+      const auto vCheck = checkGradient([&](const Vector& x) { return f.residual(t, f.q, x, f.a, f.p)(i); },
+                                        f.qd, rv.row(i).transpose(), quadratic);
       EXPECT_TRUE(vCheck.passed) << "row " << i << " of r_v: " << vCheck.message;
     }
   }
@@ -118,8 +120,8 @@ TEST(SliderCrank, ParameterProductMatchesFiniteDifferencesForEveryInvariant) {
   for (double t : {0.8, 2.2}) {
     Vector vjp = Vector::Zero(f.p.size());
     f.problem.addResidualParameterVjp(t, f.q, f.qd, f.a, f.p, mu, vjp, f.workspace.get());
-    const auto check = checkGradient([&](const Vector& x) { return mu.dot(f.residual(t, f.q, f.qd, f.a, x)); }, f.p,
-                                     vjp, {1e-6, 1e-6});
+    const auto check = checkGradient(
+        [&](const Vector& x) { return mu.dot(f.residual(t, f.q, f.qd, f.a, x)); }, f.p, vjp, {1e-6, 1e-6});
     EXPECT_TRUE(check.passed) << "t = " << t << ": " << check.message;
   }
 }
@@ -134,7 +136,8 @@ TEST(SliderCrank, ObjectiveGradientsMatchFiniteDifferences) {
   f.problem.addObjectiveParameterGradient(0.0, f.q, f.qd, f.p, 1.0, gp, f.workspace.get());
   const auto stateCheck = checkGradient([&](const Vector& x) { return G(x, f.p); }, f.q, gq, {1e-7});
   EXPECT_TRUE(stateCheck.passed) << stateCheck.message;
-  const auto parameterCheck = checkGradient([&](const Vector& x) { return G(f.q, x); }, f.p, gp, {1e-7, 1e-6});
+  const auto parameterCheck =
+      checkGradient([&](const Vector& x) { return G(f.q, x); }, f.p, gp, {1e-7, 1e-6});
   EXPECT_TRUE(parameterCheck.passed) << parameterCheck.message;
   EXPECT_EQ(gv.norm(), 0.0);
 }
@@ -152,8 +155,9 @@ TEST(SliderCrank, DiscreteAdjointIsTheDerivativeOfTheComputedObjective) {
     FullStorage storage;
     const GradientResult result = computeGradient(f.problem, f.p, options, storage);
     EXPECT_GT(result.objective, 0.0);
-    const auto check = checkGradient([&](const Vector& x) { return simulate(f.problem, x, options).objective; }, f.p,
-                                     result.gradient, {method == "rk4" ? 1e-6 : 5e-6, 1e-3});
+    const auto check =
+        checkGradient([&](const Vector& x) { return simulate(f.problem, x, options).objective; }, f.p,
+                      result.gradient, {method == "rk4" ? 1e-6 : 5e-6, 1e-3});
     EXPECT_TRUE(check.passed) << method << ": " << check.message;
     // A wrong term would show: the gradient is far from zero in every invariant group.
     EXPECT_GT(result.gradient.cwiseAbs().maxCoeff(), 1e3 * result.gradient.cwiseAbs().minCoeff());

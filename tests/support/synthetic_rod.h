@@ -97,7 +97,8 @@ struct SyntheticRod {
   /// Kinetic energy (1/2) W^T M W from nodal velocities in the body frame,
   /// W = E R^T r_A' + beta' S w + Phi q', w = X + Phi q, beta from the closure (time derivative
   /// by the chain rule on the closure, independent of the model's formulas).
-  double kineticEnergy(const rod::CrankMotion& crank, double length, double t, const Vector& q, const Vector& qd) const {
+  double kineticEnergy(const rod::CrankMotion& crank, double length, double t, const Vector& q,
+                       const Vector& qd) const {
     double phiAngle, phiDot, phiDdot;
     crank.at(t, phiAngle, phiDot, phiDdot);
     const double c = phi.row(2 * nodeB).dot(q);
@@ -106,8 +107,10 @@ struct SyntheticRod {
     const double s = -crank.radius * std::sin(phiAngle) / d;
     const double beta = std::asin(s);
     // d/dt of sin(beta) (L + c) = -r sin(phi): cos(beta) beta' d + sin(beta) c' = -r cos(phi) phi'.
-    const double betaDot = (-crank.radius * std::cos(phiAngle) * phiDot - std::sin(beta) * cd) / (std::cos(beta) * d);
-    const Eigen::Vector2d rAdot(-crank.radius * phiDot * std::sin(phiAngle), crank.radius * phiDot * std::cos(phiAngle));
+    const double betaDot =
+        (-crank.radius * std::cos(phiAngle) * phiDot - std::sin(beta) * cd) / (std::cos(beta) * d);
+    const Eigen::Vector2d rAdot(-crank.radius * phiDot * std::sin(phiAngle),
+                                crank.radius * phiDot * std::cos(phiAngle));
     const Eigen::Vector2d local(std::cos(beta) * rAdot(0) + std::sin(beta) * rAdot(1),
                                 -std::sin(beta) * rAdot(0) + std::cos(beta) * rAdot(1));
     const Vector w = X + phi * q;
