@@ -1,5 +1,6 @@
 #include "problems/modal_reduction.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <Spectra/MatOp/SparseSymMatProd.h>
 #include <Spectra/MatOp/SymShiftInvert.h>
@@ -53,10 +54,10 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
             << " is outside the allowed range [1, inf)";
     throw std::invalid_argument(message.str());
   }
-  if (!(options.tolerance > 0.0) || options.maxIterations < 1) {
+  if (!(options.tolerance > 0.0) || options.maxIterations < 1 || options.refinementSteps < 0) {
     std::ostringstream message;
     message << "ModalReductionOptions: tolerance = " << options.tolerance << " must be in (0, inf) and maxIterations = "
-            << options.maxIterations << " in [1, inf)";
+            << options.maxIterations << " in [1, inf), refinementSteps = " << options.refinementSteps << " in [0, inf)";
     throw std::invalid_argument(message.str());
   }
 
@@ -80,8 +81,24 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
             << " eigenpairs (info " << static_cast<int>(solver.info()) << ")";
     throw std::runtime_error(message.str());
   }
-  const Vector values = solver.eigenvalues();
-  const Matrix vectors = solver.eigenvectors();
+  Vector values = solver.eigenvalues();
+  Matrix vectors = solver.eigenvectors();
+  if (options.refinementSteps > 0) {
+    // Block inverse iteration with K followed by Rayleigh-Ritz on span(K^-1 M V).
+    Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
+    if (factorization.info() != Eigen::Success)
+      throw std::runtime_error("computeModalBasis: the constrained stiffness matrix is not positive definite");
+    for (int step = 0; step < options.refinementSteps; ++step) {
+      const Matrix subspace = factorization.solve(Matrix(mass * vectors));
+      const Matrix projectedStiffness = subspace.transpose() * (stiffness * subspace);
+      const Matrix projectedMass = subspace.transpose() * (mass * subspace);
+      const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(0.5 * (projectedStiffness + projectedStiffness.transpose()),
+                                                               0.5 * (projectedMass + projectedMass.transpose()));
+      if (ritz.info() != Eigen::Success) throw std::runtime_error("computeModalBasis: Rayleigh-Ritz refinement failed");
+      values = ritz.eigenvalues();
+      vectors = subspace * ritz.eigenvectors();
+    }
+  }
   std::vector<int> order(values.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return values(a) < values(b); });

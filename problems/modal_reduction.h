@@ -30,6 +30,11 @@ struct ModalReductionOptions {
   double gapWarningThreshold = 1.05;  ///< warn when lambda_{n+1} / lambda_n is below this.
   double tolerance = 1e-13;           ///< Spectra convergence tolerance (relative, on Ritz values).
   int maxIterations = 1000;           ///< Spectra restarts.
+  /// Block inverse-iteration + Rayleigh-Ritz steps applied to Spectra's n + 1 vectors (0 = none), one
+  /// sparse Cholesky of K in total. Each step shrinks the error component of mode i outside the block by
+  /// lambda_i / lambda_{n+2}; it makes the modes a smoother function of the design, which finite-difference
+  /// checks of the design gradient need.
+  int refinementSteps = 2;
 
   /// The options SPEC 2 implies for a RodConfig (modeCount, inertiaReliefModes).
   static ModalReductionOptions fromConfig(const RodConfig& config);
