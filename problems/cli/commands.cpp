@@ -12,7 +12,30 @@ std::vector<Command>& commands() {
   return all;
 }
 
-void registerCommands(CLI::App& app) { registerDemo(app); }
+void registerCommands(CLI::App& app) {
+  registerDemo(app);
+  registerEvaluate(app);
+}
+
+nlohmann::json summaryToJson(const RunSummary& s) {
+  return {{"method", s.method},
+          {"adjoint", s.adjoint},
+          {"storage", s.storage},
+          {"steps", s.steps},
+          {"rejected_steps", s.rejectedSteps},
+          {"rhs_evaluations", s.rhsEvaluations},
+          {"jacobian_evaluations", s.jacobianEvaluations},
+          {"factorizations", s.factorizations},
+          {"newton_iterations", s.newtonIterations},
+          {"recomputed_steps", s.recomputedSteps},
+          {"states_stored", s.statesStored},
+          {"peak_bytes_in_memory", s.peakBytesInMemory},
+          {"bytes_on_disk", s.bytesOnDisk},
+          {"compression_ratio", s.compressionRatio},
+          {"forward_seconds", s.forwardSeconds},
+          {"backward_seconds", s.backwardSeconds},
+          {"io_seconds", s.ioSeconds}};
+}
 
 int runSelected(CLI::App& app) {
   for (const Command& command : commands()) {

@@ -3,7 +3,10 @@
 // or 3 (numerical or storage failure); nothing half-written is left behind.
 #pragma once
 
+#include "engine/adjoint.h"
+
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <functional>
 #include <vector>
@@ -23,6 +26,10 @@ int runSelected(CLI::App& app);
 /// Runs `body`, translating exceptions into messages and exit codes.
 int guarded(const std::function<int()>& body);
 
+/// The run summary as a JSON object (same keys as RunSummary's fields, snake_case).
+nlohmann::json summaryToJson(const RunSummary& summary);
+
 void registerDemo(CLI::App& app);
+void registerEvaluate(CLI::App& app);
 
 }  // namespace hindsight::cli
