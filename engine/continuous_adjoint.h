@@ -1,0 +1,63 @@
+// The continuous adjoint with hindsight's own storage (SPEC.md section 5; the paper's eq. 8 in
+// first-order form; Bestle & Eberhard 1992):
+//   lambda' = -F_z^T lambda - G_z^T,          lambda(t1) = dphi/dz(z(t1)),
+//   mu'     = -(G_p + lambda^T F_p)^T,        mu(t1) = 0,
+//   dpsi/dp = mu(t0) + dphi/dp + (dz0/dp)^T lambda(t0),
+// integrated backward from t1 to t0 with its own adaptive steps. The forward sweep is the engine's
+// own (any IntegratorOptions, fixed or adaptive); psi is the forward sweep's computed psi.
+//
+// Backward integrator (the choice): Dormand-Prince 5(4) on the augmented system (lambda, mu), with
+// FSAL, an error test on lambda and mu together (weighted RMS norm, atol + rtol |y|) and Hairer's
+// starting-step heuristic. Explicit, so each step costs 6 evaluations of F_z^T lambda and F_p^T lambda and
+// nothing is factorised; that suits the non-stiff mechanical problems this route is meant for. For
+// stiff problems (Robertson) the backward system is as stiff as the forward one and dopri5 is
+// stability-limited: use the CVODES route (BDF) or the discrete adjoint of trbdf2 there.
+//
+// Forward states z(t) at the backward stage times come from the storage:
+//   - storage.canInterpolate() (e.g. "hermite:every=M"): storage.interpolate(t, z);
+//   - otherwise (e.g. "full"): the backward sweep restores z_n in reverse order as usual and builds
+//     a cubic Hermite dense output on each forward step [t_n, t_{n+1}] from z_n, z_{n+1} and
+//     F(t_n, z_n), F(t_{n+1}, z_{n+1}) (one F evaluation per grid point), keeping only the window of
+//     grid points the current and a possibly rejected backward step can reach.
+// The result is the gradient of the exact psi up to the forward error, the O(h^4) interpolation
+// error and the backward tolerance; unlike the discrete adjoint it is not the derivative of the
+// computed psi.
+//
+// Preconditions: p has problem.parameterSize() entries; a problem without a dense Jacobian must
+// implement rhsStateVjp(). Throws std::invalid_argument for bad options (naming the field and its
+// range), NumericalError with the time for a backward step-size underflow, too many backward steps
+// or a non-finite adjoint, StorageError from the storage.
+#pragma once
+
+#include "engine/adjoint.h"
+
+#include <cstdint>
+#include <string>
+
+namespace hindsight {
+
+struct ContinuousAdjointOptions {
+  /// Tolerances of the backward error test on (lambda, mu). rtol in [1e-14, 1), atol > 0.
+  double relativeTolerance = 1e-8;
+  double absoluteTolerance = 1e-10;
+  /// First backward step; 0 chooses it by Hairer's heuristic. In [0, t1 - t0].
+  double initialStep = 0.0;
+  /// A backward step smaller than minStep * max(1, |t|) is an underflow (NumericalError). In (0, 1e-3].
+  double minStep = 1e-14;
+  /// Upper bound on accepted plus rejected backward steps, in [1, 1e12].
+  std::int64_t maxSteps = 10'000'000;
+
+  bool IsValid(std::string* error) const;
+  /// Throws std::invalid_argument with IsValid's message.
+  void validate() const;
+};
+
+/// psi (from the forward sweep over `forward`) and dpsi/dp by the continuous adjoint, with forward
+/// states from `storage`. The summary's adjoint is "continuous"; steps, rhs evaluations and
+/// rejected steps include the forward sweep; jacobianEvaluations counts the backward F_z (or
+/// F_z^T lambda) evaluations; rhsEvaluations also counts the F evaluations for z' at grid points.
+GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef p,
+                                         const IntegratorOptions& forward, TrajectoryStorage& storage,
+                                         const ContinuousAdjointOptions& options = {});
+
+}  // namespace hindsight
