@@ -52,9 +52,13 @@ class InterpolatedStates final : public ForwardStates {
 class RestoredWindowStates final : public ForwardStates {
  public:
   RestoredWindowStates(const Problem& problem, ConstVectorRef p, ProblemWorkspace* workspace,
-                       TrajectoryStorage& storage, const std::vector<double>& times, ConstVectorRef finalState,
-                       std::int64_t& rhsEvaluations)
-      : problem_(problem), p_(p), workspace_(workspace), storage_(storage), times_(times),
+                       TrajectoryStorage& storage, const std::vector<double>& times,
+                       ConstVectorRef finalState, std::int64_t& rhsEvaluations)
+      : problem_(problem),
+        p_(p),
+        workspace_(workspace),
+        storage_(storage),
+        times_(times),
         rhsEvaluations_(rhsEvaluations) {
     nextIndex_ = static_cast<std::int64_t>(times.size()) - 1;
     push([&](VectorRef z) { z = finalState; });
@@ -76,8 +80,8 @@ class RestoredWindowStates final : public ForwardStates {
     const double span = b.t - a.t;
     const double s = (t - a.t) / span;
     const double s2 = s * s, s3 = s2 * s;
-    z = (2.0 * s3 - 3.0 * s2 + 1.0) * a.z + ((s3 - 2.0 * s2 + s) * span) * a.f + (-2.0 * s3 + 3.0 * s2) * b.z +
-        ((s3 - s2) * span) * b.f;
+    z = (2.0 * s3 - 3.0 * s2 + 1.0) * a.z + ((s3 - 2.0 * s2 + s) * span) * a.f +
+        (-2.0 * s3 + 3.0 * s2) * b.z + ((s3 - s2) * span) * b.f;
   }
 
   void release(double t) override {
@@ -126,8 +130,14 @@ class RestoredWindowStates final : public ForwardStates {
 class AdjointSystem {
  public:
   AdjointSystem(const Problem& problem, ConstVectorRef p, ProblemWorkspace* workspace, ForwardStates& states)
-      : problem_(problem), p_(p), workspace_(workspace), states_(states), n_(problem.stateSize()),
-        np_(problem.parameterSize()), z_(n_), vjp_(n_) {
+      : problem_(problem),
+        p_(p),
+        workspace_(workspace),
+        states_(states),
+        n_(problem.stateSize()),
+        np_(problem.parameterSize()),
+        z_(n_),
+        vjp_(n_) {
     if (problem.hasDenseJacobian()) jacobian_ = Matrix::Zero(n_, n_);
   }
 
@@ -209,9 +219,9 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   const double exponent = -1.0 / 5.0;
   while (t > t0) {
     if (statistics.steps + statistics.rejected >= options.maxSteps) {
-      throw NumericalError("continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) +
-                               " backward steps",
-                           t);
+      throw NumericalError(
+          "continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) + " backward steps",
+          t);
     }
     if (h < options.minStep * std::max(1.0, std::abs(t))) {
       std::ostringstream msg;
@@ -293,8 +303,8 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   forward.validate();
   if (options.initialStep > forward.t1 - forward.t0) {
     std::ostringstream msg;
-    msg << "ContinuousAdjointOptions.initialStep = " << options.initialStep << " must be in [0, t1 - t0 = "
-        << forward.t1 - forward.t0 << "]";
+    msg << "ContinuousAdjointOptions.initialStep = " << options.initialStep
+        << " must be in [0, t1 - t0 = " << forward.t1 - forward.t0 << "]";
     throw std::invalid_argument(msg.str());
   }
   const auto start = Clock::now();

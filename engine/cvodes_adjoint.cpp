@@ -179,7 +179,8 @@ class CvodesAdjointSolver final {
     check(CVodeSetStopTime(memory_, options_.t1), "CVodeSetStopTime", options_.t0);
     matrix_ = SUNDenseMatrix(data_.n, data_.n, context_);
     solver_ = SUNLinSol_Dense(z_, matrix_, context_);
-    if (matrix_ == nullptr || solver_ == nullptr) throw NumericalError("dense linear solver creation failed", 0);
+    if (matrix_ == nullptr || solver_ == nullptr)
+      throw NumericalError("dense linear solver creation failed", 0);
     check(CVodeSetLinearSolver(memory_, solver_, matrix_), "CVodeSetLinearSolver", options_.t0);
     check(CVodeSetJacFn(memory_, &forwardJacobian), "CVodeSetJacFn", options_.t0);
 
@@ -200,8 +201,8 @@ class CvodesAdjointSolver final {
     // the forward steps is enforced here, with the flag CVODES gives in normal mode.
     while (t < options_.t1) {
       if (static_cast<std::int64_t>(result.times.size()) > options_.maxSteps) {
-        check(CV_TOO_MUCH_WORK, "CVodeF", t, "more than CvodesOptions.maxSteps = " +
-                                                 std::to_string(options_.maxSteps) + " forward steps");
+        check(CV_TOO_MUCH_WORK, "CVodeF", t,
+              "more than CvodesOptions.maxSteps = " + std::to_string(options_.maxSteps) + " forward steps");
       }
       const int flag = CVodeF(memory_, options_.t1, z_, &t, CV_ONE_STEP, &checkpoints);
       check(flag, "CVodeF", currentTime(memory_, t));
@@ -249,7 +250,8 @@ class CvodesAdjointSolver final {
           t1);
     matrixB_ = SUNDenseMatrix(data_.n, data_.n, context_);
     solverB_ = SUNLinSol_Dense(lambda_, matrixB_, context_);
-    if (matrixB_ == nullptr || solverB_ == nullptr) throw NumericalError("dense linear solver creation failed", t1);
+    if (matrixB_ == nullptr || solverB_ == nullptr)
+      throw NumericalError("dense linear solver creation failed", t1);
     check(CVodeSetLinearSolverB(memory_, which, solverB_, matrixB_), "CVodeSetLinearSolverB", t1);
     check(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
     N_VConst(0.0, gradientQuadrature_);

@@ -9,7 +9,8 @@
 //            variable-degree polynomial);
 //   backward CVodeB integrates lambda' = -F_z^T lambda - G_z^T from lambda(t1) = dphi/dz(t1) to t0
 //            with the dense Jacobian -F_z^T (SUNDenseMatrix + SUNLinSol_Dense), and the backward
-//            quadrature qB' = -(G_p + lambda^T F_p) (CVodeQuadInitB), so qB(t0) = int (G_p + lambda^T F_p) dt;
+//            quadrature qB' = -(G_p + lambda^T F_p) (CVodeQuadInitB), so qB(t0) = int (G_p + lambda^T F_p)
+//            dt;
 //   result   dpsi/dp = qB(t0) + dphi/dp + (dz0/dp)^T lambda(t0)  (Bestle & Eberhard 1992; the paper's eq. 8).
 // The gradient is that of the exact psi up to the tolerances, not the derivative of the computed psi.
 //

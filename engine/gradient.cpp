@@ -8,7 +8,8 @@ AdjointMethod parseAdjointMethod(const std::string& name) {
   if (name == "discrete") return AdjointMethod::Discrete;
   if (name == "continuous") return AdjointMethod::Continuous;
   if (name == "cvodes") return AdjointMethod::Cvodes;
-  throw std::invalid_argument("adjoint method '" + name + "' is unknown; valid: discrete, continuous, cvodes");
+  throw std::invalid_argument("adjoint method '" + name +
+                              "' is unknown; valid: discrete, continuous, cvodes");
 }
 
 std::string toString(AdjointMethod method) {

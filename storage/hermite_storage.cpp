@@ -48,7 +48,8 @@ void HermiteStorage::append(std::vector<double>& buffer, const double* values, s
     std::size_t capacity = std::max<std::size_t>(needed, std::max<std::size_t>(2 * buffer.capacity(), 256));
     // Grow less than geometrically when the budget would not allow it.
     const std::int64_t room = budgetBytes() - counters().bytesInMemory;
-    const std::size_t affordable = buffer.capacity() + static_cast<std::size_t>(std::max<std::int64_t>(room, 0) / 8);
+    const std::size_t affordable =
+        buffer.capacity() + static_cast<std::size_t>(std::max<std::int64_t>(room, 0) / 8);
     capacity = std::max(needed, std::min(capacity, affordable));
     holdBytes(static_cast<std::int64_t>(capacity - buffer.capacity()) * 8);
     buffer.reserve(capacity);

@@ -106,7 +106,8 @@ TEST_P(EveryRoute, OscillatorMatchesClosedFormUndampedAndDamped) {
     const double tol = tolerance(GetParam().method);
     EXPECT_NEAR(result.objective, exact, tol * std::abs(exact)) << "damping " << damping;
     EXPECT_LT((result.gradient - exactGradient).norm(), tol * exactGradient.norm())
-        << "damping " << damping << ": " << result.gradient.transpose() << " vs " << exactGradient.transpose();
+        << "damping " << damping << ": " << result.gradient.transpose() << " vs "
+        << exactGradient.transpose();
   }
 }
 
@@ -140,7 +141,8 @@ std::vector<double> pendulumErrors(AdjointMethod method, CvodesMethod cvodesMeth
     errors.push_back((result.gradient - reference).norm() / reference.norm());
     std::cout << " rtol " << rtol << ": error " << errors.back();
     if (errors.size() > 1) {
-      std::cout << " (order per decade " << std::log10(errors[errors.size() - 2] / errors.back()) / 2.0 << ")";
+      std::cout << " (order per decade " << std::log10(errors[errors.size() - 2] / errors.back()) / 2.0
+                << ")";
     }
   }
   std::cout << "\n";

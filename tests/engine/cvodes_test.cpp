@@ -78,7 +78,8 @@ TEST_P(CvodesVariant, OscillatorMatchesClosedFormUndampedAndDamped) {
     // high-order Adams method takes long steps: observed 1.2e-7 relative for adams/hermite.
     const double tolerance = GetParam().interpolation == CvodesInterpolation::Hermite ? 1e-6 : 1e-7;
     EXPECT_LT((result.gradient - exactGradient).norm(), tolerance * exactGradient.norm())
-        << "damping " << damping << ": " << result.gradient.transpose() << " vs " << exactGradient.transpose();
+        << "damping " << damping << ": " << result.gradient.transpose() << " vs "
+        << exactGradient.transpose();
   }
 }
 
@@ -170,7 +171,8 @@ TEST(CvodesFailure, BackwardMaxStepsGivesTheSundialsFlagAndTime) {
     void rhs(double, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
       f(0) = -p(0) * z(0);
     }
-    void rhsJacobian(double, ConstVectorRef, ConstVectorRef p, MatrixRef j, ProblemWorkspace*) const override {
+    void rhsJacobian(double, ConstVectorRef, ConstVectorRef p, MatrixRef j,
+                     ProblemWorkspace*) const override {
       j(0, 0) = -p(0);
     }
     void addRhsParameterVjp(double, ConstVectorRef z, ConstVectorRef, ConstVectorRef w, VectorRef out,
@@ -214,14 +216,17 @@ TEST(CvodesFailure, ExceptionInsideACallbackIsRethrown) {
       if (t > 0.5) throw NumericalError("model evaluation failed", t);
       f(0) = -p(0) * z(0);
     }
-    void rhsJacobian(double, ConstVectorRef, ConstVectorRef p, MatrixRef j, ProblemWorkspace*) const override {
+    void rhsJacobian(double, ConstVectorRef, ConstVectorRef p, MatrixRef j,
+                     ProblemWorkspace*) const override {
       j(0, 0) = -p(0);
     }
     void addRhsParameterVjp(double, ConstVectorRef z, ConstVectorRef, ConstVectorRef w, VectorRef out,
                             ProblemWorkspace*) const override {
       out(0) -= z(0) * w(0);
     }
-    double integrand(double, ConstVectorRef z, ConstVectorRef, ProblemWorkspace*) const override { return z(0); }
+    double integrand(double, ConstVectorRef z, ConstVectorRef, ProblemWorkspace*) const override {
+      return z(0);
+    }
     void addIntegrandStateGradient(double, ConstVectorRef, ConstVectorRef, double scale, VectorRef out,
                                    ProblemWorkspace*) const override {
       out(0) += scale;

@@ -1,10 +1,10 @@
 // The "hermite" strategy: O(H^4) interpolation (checked as an observed order against the
 // oscillator's closed-form trajectory), exact kept points, a discrete-adjoint gradient that
 // converges to the full-storage one as M shrinks, and a budget it never exceeds.
+#include "storage/hermite_storage.h"
 #include "engine/adjoint.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
-#include "storage/hermite_storage.h"
 #include "storage/storage_factory.h"
 
 #include <gtest/gtest.h>
@@ -88,8 +88,8 @@ TEST(HermiteStorage, InterpolationErrorIsFourthOrder) {
             << restore4 << "; observed order " << std::log2(restore16 / restore8) << ", "
             << std::log2(restore8 / restore4) << "\n";
   std::cout << "[ hermite ] max error, interpolate: M=16 " << interpolate16 << ", M=8 " << interpolate8
-            << ", M=4 " << interpolate4 << "; observed order " << std::log2(interpolate16 / interpolate8) << ", "
-            << std::log2(interpolate8 / interpolate4) << "\n";
+            << ", M=4 " << interpolate4 << "; observed order " << std::log2(interpolate16 / interpolate8)
+            << ", " << std::log2(interpolate8 / interpolate4) << "\n";
   for (double ratio : {restore16 / restore8, restore8 / restore4, interpolate16 / interpolate8,
                        interpolate8 / interpolate4}) {
     EXPECT_GT(ratio, 12.0);
