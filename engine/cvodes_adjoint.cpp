@@ -23,105 +23,112 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-/// Everything the callbacks need; SUNDIALS hands it back as user_data.
-struct CallbackData {
-  const Problem* problem = nullptr;
-  Vector p;
-  std::unique_ptr<ProblemWorkspace> workspace;
-  int n = 0;
-  int np = 0;
-  Matrix jacobian;  // n x n scratch for F_z
-  std::int64_t rhsEvaluations = 0;
-  std::int64_t jacobianEvaluations = 0;
-  std::exception_ptr error;  // first exception thrown by the problem inside a callback
-  std::string lastMessage;   // the last message of CVODES' error handler
-};
-
-using ConstMap = Eigen::Map<const Vector>;
-using MutableMap = Eigen::Map<Vector>;
-
-ConstMap view(N_Vector v, Eigen::Index size) { return ConstMap(N_VGetArrayPointer(v), size); }
-MutableMap mutableView(N_Vector v, Eigen::Index size) { return MutableMap(N_VGetArrayPointer(v), size); }
-
-/// Runs `body`; an exception is stored (the first one wins) and CVODES gets -1, unrecoverable.
-template <typename Body>
-int guarded(void* userData, Body&& body) {
-  auto* data = static_cast<CallbackData*>(userData);
-  try {
-    body(*data);
-    return 0;
-  } catch (...) {
-    if (!data->error) data->error = std::current_exception();
-    return -1;
-  }
-}
-
-// ---- Forward problem: z' = F, q' = G. ----
-
-int forwardRhs(realtype t, N_Vector z, N_Vector zdot, void* userData) {
-  return guarded(userData, [&](CallbackData& d) {
-    ++d.rhsEvaluations;
-    MutableMap f = mutableView(zdot, d.n);
-    d.problem->rhs(t, view(z, d.n), d.p, f, d.workspace.get());
-  });
-}
-
-int forwardQuadrature(realtype t, N_Vector z, N_Vector qdot, void* userData) {
-  return guarded(userData, [&](CallbackData& d) {
-    NV_Ith_S(qdot, 0) = d.problem->integrand(t, view(z, d.n), d.p, d.workspace.get());
-  });
-}
-
-int forwardJacobian(realtype t, N_Vector z, N_Vector, SUNMatrix jacobian, void* userData, N_Vector, N_Vector,
-                    N_Vector) {
-  return guarded(userData, [&](CallbackData& d) {
-    ++d.jacobianEvaluations;
-    Eigen::Map<Matrix> j(SUNDenseMatrix_Data(jacobian), d.n, d.n);  // column-major, like Eigen
-    d.problem->rhsJacobian(t, view(z, d.n), d.p, j, d.workspace.get());
-  });
-}
-
-// ---- Backward problem: lambda' = -F_z^T lambda - G_z^T, qB' = -(G_p + F_p^T lambda). ----
-
-int backwardRhs(realtype t, N_Vector z, N_Vector lambda, N_Vector lambdaDot, void* userData) {
-  return guarded(userData, [&](CallbackData& d) {
-    ++d.jacobianEvaluations;
-    const ConstMap zv = view(z, d.n);
-    d.problem->rhsJacobian(t, zv, d.p, d.jacobian, d.workspace.get());
-    MutableMap out = mutableView(lambdaDot, d.n);
-    out.noalias() = -(d.jacobian.transpose() * view(lambda, d.n));
-    d.problem->addIntegrandStateGradient(t, zv, d.p, -1.0, out, d.workspace.get());
-  });
-}
-
-int backwardQuadrature(realtype t, N_Vector z, N_Vector lambda, N_Vector qdot, void* userData) {
-  return guarded(userData, [&](CallbackData& d) {
-    const ConstMap zv = view(z, d.n);
-    MutableMap out = mutableView(qdot, d.np);
-    out.setZero();
-    d.problem->addRhsParameterVjp(t, zv, d.p, view(lambda, d.n), out, d.workspace.get());
-    d.problem->addIntegrandParameterGradient(t, zv, d.p, 1.0, out, d.workspace.get());
-    out = -out;
-  });
-}
-
-int backwardJacobian(realtype t, N_Vector z, N_Vector, N_Vector, SUNMatrix jacobian, void* userData, N_Vector,
-                     N_Vector, N_Vector) {
-  return guarded(userData, [&](CallbackData& d) {
-    ++d.jacobianEvaluations;
-    d.problem->rhsJacobian(t, view(z, d.n), d.p, d.jacobian, d.workspace.get());
-    Eigen::Map<Matrix>(SUNDenseMatrix_Data(jacobian), d.n, d.n) = -d.jacobian.transpose();
-  });
-}
-
-void errorHandler(int, const char* module, const char* function, char* message, void* userData) {
-  auto* data = static_cast<CallbackData*>(userData);
-  data->lastMessage = std::string(module) + "::" + function + ": " + message;
-}
-
 /// The one owner of SUNDIALS objects (RAII): context, CVODES memory (forward, adjoint and backward),
 /// vectors, dense matrices and linear solvers. Nothing outside this class sees an N_Vector.
 class CvodesAdjointSolver final {
+  // ---- The callbacks SUNDIALS calls, and what they need (user_data). ----
+  /// Everything the callbacks need; SUNDIALS hands it back as user_data.
+  struct CallbackData {
+    const Problem* problem = nullptr;
+    Vector p;
+    std::unique_ptr<ProblemWorkspace> workspace;
+    int n = 0;
+    int np = 0;
+    Matrix jacobian;  // n x n scratch for F_z
+    std::int64_t rhsEvaluations = 0;
+    std::int64_t jacobianEvaluations = 0;
+    std::exception_ptr error;  // first exception thrown by the problem inside a callback
+    std::string lastMessage;   // the last message of CVODES' error handler
+  };
+
+  using ConstMap = Eigen::Map<const Vector>;
+  using MutableMap = Eigen::Map<Vector>;
+
+  static ConstMap view(N_Vector v, Eigen::Index size) { return ConstMap(N_VGetArrayPointer(v), size); }
+  static MutableMap mutableView(N_Vector v, Eigen::Index size) {
+    return MutableMap(N_VGetArrayPointer(v), size);
+  }
+
+  /// Runs `body`; an exception is stored (the first one wins) and CVODES gets -1, unrecoverable.
+  template <typename Body>
+  static int guarded(void* userData, Body&& body) {
+    auto* data = static_cast<CallbackData*>(userData);
+    try {
+      body(*data);
+      return 0;
+    } catch (...) {
+      if (!data->error) data->error = std::current_exception();
+      return -1;
+    }
+  }
+
+  // ---- Forward problem: z' = F, q' = G. ----
+
+  static int forwardRhs(realtype t, N_Vector z, N_Vector zdot, void* userData) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.rhsEvaluations;
+      MutableMap f = mutableView(zdot, d.n);
+      d.problem->rhs(t, view(z, d.n), d.p, f, d.workspace.get());
+    });
+  }
+
+  static int forwardQuadrature(realtype t, N_Vector z, N_Vector qdot, void* userData) {
+    return guarded(userData, [&](CallbackData& d) {
+      NV_Ith_S(qdot, 0) = d.problem->integrand(t, view(z, d.n), d.p, d.workspace.get());
+    });
+  }
+
+  static int forwardJacobian(realtype t, N_Vector z, N_Vector, SUNMatrix jacobian, void* userData, N_Vector,
+                             N_Vector, N_Vector) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.jacobianEvaluations;
+      Eigen::Map<Matrix> j(SUNDenseMatrix_Data(jacobian), d.n, d.n);  // column-major, like Eigen
+      d.problem->rhsJacobian(t, view(z, d.n), d.p, j, d.workspace.get());
+    });
+  }
+
+  // ---- Backward problem: lambda' = -F_z^T lambda - G_z^T, qB' = -(G_p + F_p^T lambda). ----
+
+  static int backwardRhs(realtype t, N_Vector z, N_Vector lambda, N_Vector lambdaDot, void* userData) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.jacobianEvaluations;
+      const ConstMap zv = view(z, d.n);
+      d.problem->rhsJacobian(t, zv, d.p, d.jacobian, d.workspace.get());
+      MutableMap out = mutableView(lambdaDot, d.n);
+      out.noalias() = -(d.jacobian.transpose() * view(lambda, d.n));
+      d.problem->addIntegrandStateGradient(t, zv, d.p, -1.0, out, d.workspace.get());
+    });
+  }
+
+  static int backwardQuadrature(realtype t, N_Vector z, N_Vector lambda, N_Vector qdot, void* userData) {
+    return guarded(userData, [&](CallbackData& d) {
+      const ConstMap zv = view(z, d.n);
+      MutableMap out = mutableView(qdot, d.np);
+      out.setZero();
+      d.problem->addRhsParameterVjp(t, zv, d.p, view(lambda, d.n), out, d.workspace.get());
+      d.problem->addIntegrandParameterGradient(t, zv, d.p, 1.0, out, d.workspace.get());
+      out = -out;
+    });
+  }
+
+  static int backwardJacobian(realtype t, N_Vector z, N_Vector, N_Vector, SUNMatrix jacobian, void* userData,
+                              N_Vector, N_Vector, N_Vector) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.jacobianEvaluations;
+      d.problem->rhsJacobian(t, view(z, d.n), d.p, d.jacobian, d.workspace.get());
+      Eigen::Map<Matrix>(SUNDenseMatrix_Data(jacobian), d.n, d.n) = -d.jacobian.transpose();
+    });
+  }
+
+  static void errorHandler(int errorCode, const char* module, const char* function, char* message,
+                           void* userData) {
+    // Warnings (CV_WARNING) do not stop CVODES; only errors go into the next exception's message.
+    if (errorCode < 0) {
+      auto* data = static_cast<CallbackData*>(userData);
+      data->lastMessage = std::string(module) + "::" + function + ": " + message;
+    }
+  }
+
  public:
   CvodesAdjointSolver(const Problem& problem, ConstVectorRef p, const CvodesOptions& options)
       : options_(options) {

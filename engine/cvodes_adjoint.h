@@ -79,7 +79,8 @@ struct CvodesOptions {
 /// in the forward, recomputation and backward phases (counted in the callbacks); factorizations = the
 /// linear-solver setups of both problems (CVodeGetNumLinSolvSetups); recomputedSteps = the forward
 /// steps before the last check point, which CVodeB re-integrates; statesStored = check points
-/// (CVodeF's ncheck).
+/// (CVodeF's ncheck). peakBytesInMemory stays 0: CVODES does not report the memory of its check
+/// points and data points. times is the forward grid (CVodeF in one-step mode up to the stop time t1).
 GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, const CvodesOptions& options);
 
 }  // namespace hindsight
