@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <deque>
 #include <sstream>
 
 namespace hindsight {
@@ -60,6 +59,8 @@ class RestoredWindowStates final : public ForwardStates {
         storage_(storage),
         times_(times),
         rhsEvaluations_(rhsEvaluations) {
+    points_.reserve(64);
+    spare_.reserve(64);
     nextIndex_ = static_cast<std::int64_t>(times.size()) - 1;
     push([&](VectorRef z) { z = finalState; });
   }
@@ -85,10 +86,10 @@ class RestoredWindowStates final : public ForwardStates {
   }
 
   void release(double t) override {
-    while (points_.size() >= 2 && points_[1].t >= t) {
-      spare_.push_back(std::move(points_.front()));
-      points_.pop_front();
-    }
+    std::size_t drop = 0;
+    while (points_.size() - drop >= 2 && points_[drop + 1].t >= t) ++drop;
+    for (std::size_t i = 0; i < drop; ++i) spare_.push_back(std::move(points_[i]));
+    points_.erase(points_.begin(), points_.begin() + static_cast<std::ptrdiff_t>(drop));
   }
 
  private:
@@ -122,7 +123,9 @@ class RestoredWindowStates final : public ForwardStates {
   const std::vector<double>& times_;
   std::int64_t& rhsEvaluations_;
   std::int64_t nextIndex_;
-  std::deque<Point> points_;  // descending t
+  // Descending t. Dropped points are recycled through spare_, so that once the window has reached its
+  // largest size the backward sweep allocates nothing.
+  std::vector<Point> points_;
   std::vector<Point> spare_;
 };
 
@@ -149,7 +152,8 @@ class AdjointSystem {
     auto muDot = out.tail(np_);
     if (problem_.hasDenseJacobian()) {
       problem_.rhsJacobian(t, z_, p_, jacobian_, workspace_);
-      lambdaDot.noalias() = -(jacobian_.transpose() * lambda);
+      lambdaDot.noalias() = jacobian_.transpose() * lambda;
+      lambdaDot = -lambdaDot;
     } else {
       problem_.rhsStateVjp(t, z_, p_, lambda, vjp_, workspace_);
       lambdaDot = -vjp_;
@@ -198,6 +202,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   const double span = t1 - t0;
   Matrix k(m, stages);
   Vector stage(m), error(m), f1(m);
+  const Vector weightDifference = tableau.b - tableau.bEmbedded;
   BackwardStatistics statistics;
   double t = t1;
   system.evaluate(t, y, k.col(0));
@@ -238,7 +243,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
       system.evaluate(t - tableau.c(i) * hTaken, stage, k.col(i));
     }
     // The last stage is the new solution (FSAL: a_7j = b_j, c_7 = 1).
-    error.noalias() = k * (tableau.b - tableau.bEmbedded);
+    error.noalias() = k * weightDifference;
     error *= -hTaken;
     double norm = weightedRms(error, y, stage, rtol, atol);
     if (!std::isfinite(norm) || !stage.allFinite()) norm = 1e10;

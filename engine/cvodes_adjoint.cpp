@@ -138,7 +138,8 @@ class CvodesAdjointSolver final {
     data_.n = problem.stateSize();
     data_.np = problem.parameterSize();
     data_.jacobian = Matrix::Zero(data_.n, data_.n);
-    if (SUNContext_Create(nullptr, &context_) != 0) throw std::runtime_error("SUNContext_Create failed");
+    if (SUNContext_Create(nullptr, &context_) != 0)
+      throw NumericalError("SUNContext_Create failed", options.t0);
     z_ = newVector(data_.n);
     quadrature_ = newVector(1);
     lambda_ = newVector(data_.n);

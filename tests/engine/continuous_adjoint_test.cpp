@@ -150,8 +150,10 @@ std::vector<double> pendulumErrors(AdjointMethod method, CvodesMethod cvodesMeth
 }
 
 // Tolerance proportionality: the global error of a well-behaved adaptive solver scales like
-// rtol^alpha with alpha near 1. Over each two decades of rtol the error must fall by at least 10x
-// (alpha >= 0.5), and at rtol = 1e-10 the gradient must be within 1e-7 of the reference.
+// rtol^alpha with alpha near 1 (observed: continuous 0.82-0.90, CVODES Adams 0.51-1.11, BDF
+// 0.63-1.22 per decade, printed as "order per decade"). Required: a factor of at least sqrt(10)
+// per decade of rtol, checked over each two decades (>= 10x, alpha >= 0.5; a single decade is too
+// noisy for a variable-order method), and at rtol = 1e-10 a gradient within 1e-7 of the reference.
 void expectConvergence(const std::vector<double>& errors) {
   for (std::size_t i = 1; i < errors.size(); ++i) {
     EXPECT_GT(errors[i - 1] / errors[i], 10.0) << "from rtol 1e-" << 2 * i + 2 << " to 1e-" << 2 * i + 4;
@@ -206,6 +208,66 @@ TEST(ContinuousSources, CoarserHermiteStorageCostsAccuracy) {
   const double error4 = (computeGradient(problem, p, options).gradient - fine).norm() / fine.norm();
   std::cout << "[ continuous ] hermite every=8: " << error8 << ", every=4: " << error4 << "\n";
   EXPECT_GT(error8 / error4, 8.0);
+}
+
+/// The oscillator seen through vector-Jacobian products only (a large-state problem's interface).
+class MatrixFreeOscillator final : public Problem {
+ public:
+  std::string name() const override { return "matrix-free-oscillator"; }
+  int stateSize() const override { return inner_.stateSize(); }
+  int parameterSize() const override { return inner_.parameterSize(); }
+  std::unique_ptr<ProblemWorkspace> createWorkspace() const override { return inner_.createWorkspace(); }
+  void initialState(ConstVectorRef p, VectorRef z0) const override { inner_.initialState(p, z0); }
+  void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const override {
+    inner_.addInitialStateVjp(p, lambda0, gradient);
+  }
+  void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace* ws) const override {
+    inner_.rhs(t, z, p, f, ws);
+  }
+  bool hasDenseJacobian() const override { return false; }
+  void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                   ProblemWorkspace* ws) const override {
+    Matrix jacobian(2, 2);
+    inner_.rhsJacobian(t, z, p, jacobian, ws);
+    out = jacobian.transpose() * w;
+  }
+  void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                          ProblemWorkspace* ws) const override {
+    inner_.addRhsParameterVjp(t, z, p, w, out, ws);
+  }
+  double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace* ws) const override {
+    return inner_.integrand(t, z, p, ws);
+  }
+  void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
+                                 ProblemWorkspace* ws) const override {
+    inner_.addIntegrandStateGradient(t, z, p, scale, out, ws);
+  }
+  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
+                                     VectorRef out, ProblemWorkspace* ws) const override {
+    inner_.addIntegrandParameterGradient(t, z, p, scale, out, ws);
+  }
+
+ private:
+  Oscillator inner_;
+};
+
+TEST(ContinuousMatrixFree, VectorJacobianProductsGiveTheDenseGradient) {
+  const Vector p = Eigen::Vector3d(4.0, 0.4, 0.8);
+  GradientOptions options = tightOptions(AdjointMethod::Continuous, 3.0);
+  options.integrator.relativeTolerance = 1e-8;
+  options.integrator.absoluteTolerance = 1e-10;
+  const GradientResult dense = computeGradient(Oscillator(), p, options);
+  const GradientResult matrixFree = computeGradient(MatrixFreeOscillator(), p, options);
+  EXPECT_EQ(dense.objective, matrixFree.objective);
+  EXPECT_LT((dense.gradient - matrixFree.gradient).norm(), 1e-13 * dense.gradient.norm());
+  // CVODES' dense direct solver needs the Jacobian: refused with the reason.
+  options.adjoint = AdjointMethod::Cvodes;
+  try {
+    computeGradient(MatrixFreeOscillator(), p, options);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("hasDenseJacobian"), std::string::npos) << e.what();
+  }
 }
 
 TEST(AdjointMethodOption, ParsesTheThreeNamesAndListsThemOnError) {
