@@ -1,6 +1,8 @@
 #include "engine/continuous_adjoint.h"
 
+#include <Eigen/LU>
 #include <chrono>
+
 #include <cmath>
 #include <sstream>
 
@@ -165,6 +167,24 @@ class AdjointSystem {
     muDot = -muDot;
   }
 
+  /// For the implicit method: z(t), F_z(t, z(t)) into jacobian() and G_z^T into stateGradient().
+  void linearize(double t) {
+    ++evaluations;
+    states_.at(t, z_);
+    problem_.rhsJacobian(t, z_, p_, jacobian_, workspace_);
+    stateGradient_.setZero();
+    problem_.addIntegrandStateGradient(t, z_, p_, 1.0, stateGradient_, workspace_);
+    linearizedAt_ = t;
+  }
+  const Matrix& jacobian() const { return jacobian_; }
+  const Vector& stateGradient() const { return stateGradient_; }
+  /// out = (G_p + lambda^T F_p)^T at the time of the last linearize().
+  void parameterRate(ConstVectorRef lambda, VectorRef out) {
+    out.setZero();
+    problem_.addRhsParameterVjp(linearizedAt_, z_, p_, lambda, out, workspace_);
+    problem_.addIntegrandParameterGradient(linearizedAt_, z_, p_, 1.0, out, workspace_);
+  }
+
   std::int64_t evaluations = 0;
 
  private:
@@ -175,11 +195,14 @@ class AdjointSystem {
   int n_, np_;
   Vector z_, vjp_;
   Matrix jacobian_;
+  Vector stateGradient_ = Vector::Zero(n_);
+  double linearizedAt_ = 0.0;
 };
 
 struct BackwardStatistics {
   std::int64_t steps = 0;
   std::int64_t rejected = 0;
+  std::int64_t factorizations = 0;
 };
 
 double weightedRms(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, double rtol, double atol) {
@@ -192,6 +215,25 @@ double weightedRms(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, d
   return std::sqrt(sum / static_cast<double>(error.size()));
 }
 
+/// Hairer, Norsett & Wanner, Solving ODEs I, section II.4: a starting step for a method of `order`,
+/// from y(t1) and its slope f1 = f(t1, y).
+double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y, ConstVectorRef f1,
+                   int order, const ContinuousAdjointOptions& options) {
+  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  const double span = t1 - t0;
+  const double d0 = weightedRms(y, y, y, rtol, atol);
+  const double d1 = weightedRms(f1, y, y, rtol, atol);
+  const double h0 = std::min((d0 < 1e-5 || d1 < 1e-5) ? 1e-6 * span : 0.01 * d0 / d1, span);
+  const Vector trial = y - h0 * f1;
+  Vector f2(y.size());
+  system.evaluate(t1 - h0, trial, f2);
+  const double d2 = weightedRms(f2 - f1, y, y, rtol, atol) / h0;
+  const double dmax = std::max(d1, d2);
+  const double h1 =
+      dmax <= 1e-15 ? std::max(1e-6 * span, h0 * 1e-3) : std::pow(0.01 / dmax, 1.0 / (order + 1.0));
+  return std::min({100.0 * h0, h1, span});
+}
+
 /// Dormand-Prince 5(4) from t1 down to t0; y holds y(t1) on entry and y(t0) on exit.
 BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& states, double t0, double t1,
                                      VectorRef y, const ContinuousAdjointOptions& options) {
@@ -199,28 +241,15 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   const Eigen::Index m = y.size();
   const int stages = static_cast<int>(tableau.b.size());
   const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
-  const double span = t1 - t0;
   Matrix k(m, stages);
-  Vector stage(m), error(m), f1(m);
+  Vector stage(m), error(m);
   const Vector weightDifference = tableau.b - tableau.bEmbedded;
   BackwardStatistics statistics;
   double t = t1;
   system.evaluate(t, y, k.col(0));
 
-  double h = options.initialStep;
-  if (h <= 0.0) {
-    // Hairer, Norsett & Wanner, Solving ODEs I, section II.4 (starting step size).
-    const double d0 = weightedRms(y, y, y, rtol, atol);
-    const double d1 = weightedRms(k.col(0), y, y, rtol, atol);
-    double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 * span : 0.01 * d0 / d1;
-    h0 = std::min(h0, span);
-    stage = y - h0 * k.col(0);
-    system.evaluate(t - h0, stage, f1);
-    const double d2 = weightedRms(f1 - k.col(0), y, y, rtol, atol) / h0;
-    const double dmax = std::max(d1, d2);
-    const double h1 = dmax <= 1e-15 ? std::max(1e-6 * span, h0 * 1e-3) : std::pow(0.01 / dmax, 1.0 / 5.0);
-    h = std::min({100.0 * h0, h1, span});
-  }
+  double h =
+      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, k.col(0), 5, options);
   const double exponent = -1.0 / 5.0;
   while (t > t0) {
     if (statistics.steps + statistics.rejected >= options.maxSteps) {
@@ -264,6 +293,85 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   return statistics;
 }
 
+/// TR-BDF2 (the ESDIRK of engine/integrator.h) from t1 down to t0, in the backward time
+/// s = t1 - t: d(lambda)/ds = F_z^T lambda + G_z^T is linear, so each implicit stage is one LU
+/// solve with I - h a_ii F_z^T; d(mu)/ds = G_p + F_p^T lambda is a quadrature with the same
+/// weights. The error estimate (b - b_hat) covers lambda and mu; L-stable, so stiff adjoints take
+/// steps set by accuracy, not stability.
+BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, double t1, VectorRef y, int n,
+                                             const ContinuousAdjointOptions& options) {
+  static const ButcherTableau tableau = ButcherTableau::byName("trbdf2");
+  const int stages = static_cast<int>(tableau.b.size());
+  const Eigen::Index np = y.size() - n;
+  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  Matrix k(n, stages), q(np, stages), newton(n, n);
+  Vector stage(n), rhs(n), error(y.size()), next(y.size()), slope(y.size());
+  const Vector weightDifference = tableau.b - tableau.bEmbedded;
+  Eigen::PartialPivLU<Matrix> lu(n);
+  BackwardStatistics statistics;
+  double t = t1;
+  // First stage (c = 0, explicit); later steps reuse the last stage (stiffly accurate: FSAL).
+  system.linearize(t);
+  k.col(0).noalias() = system.jacobian().transpose() * y.head(n);
+  k.col(0) += system.stateGradient();
+  system.parameterRate(y.head(n), q.col(0));
+  // The starting step from the slope in t, dy/dt = -(k_1, q_1).
+  slope << -k.col(0), -q.col(0);
+  double h =
+      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, options);
+  const double exponent = -1.0 / (std::min(tableau.order, tableau.embeddedOrder) + 1.0);
+  while (t > t0) {
+    if (statistics.steps + statistics.rejected >= options.maxSteps) {
+      throw NumericalError(
+          "continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) + " backward steps",
+          t);
+    }
+    if (h < options.minStep * std::max(1.0, std::abs(t))) {
+      std::ostringstream msg;
+      msg << "continuous adjoint: backward step size underflow, h = " << h;
+      throw NumericalError(msg.str(), t);
+    }
+    const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+    const double hTaken = t - tNext;
+    for (int i = 1; i < stages; ++i) {
+      const double ti = t - tableau.c(i) * hTaken;
+      system.linearize(ti);
+      rhs = y.head(n);
+      for (int j = 0; j < i; ++j) rhs.noalias() += (hTaken * tableau.a(i, j)) * k.col(j);
+      rhs += (hTaken * tableau.a(i, i)) * system.stateGradient();
+      newton.noalias() = -(hTaken * tableau.a(i, i)) * system.jacobian().transpose();
+      newton.diagonal().array() += 1.0;
+      lu.compute(newton);
+      ++statistics.factorizations;
+      stage.noalias() = lu.solve(rhs);
+      k.col(i).noalias() = system.jacobian().transpose() * stage;
+      k.col(i) += system.stateGradient();
+      system.parameterRate(stage, q.col(i));
+    }
+    next.head(n) = stage;  // stiffly accurate: the last stage is the new lambda
+    next.tail(np) = y.tail(np);
+    next.tail(np).noalias() += hTaken * (q * tableau.b);
+    error.head(n).noalias() = k * weightDifference;
+    error.tail(np).noalias() = q * weightDifference;
+    error *= hTaken;
+    double norm = weightedRms(error, y, next, rtol, atol);
+    if (!std::isfinite(norm) || !next.allFinite()) norm = 1e10;
+    if (norm <= 1.0) {
+      y = next;
+      t = tNext;
+      k.col(0) = k.col(stages - 1);
+      q.col(0) = q.col(stages - 1);
+      ++statistics.steps;
+      const double factor = norm > 0.0 ? 0.9 * std::pow(norm, exponent) : 5.0;
+      h = hTaken * std::min(5.0, std::max(0.2, factor));
+    } else {
+      ++statistics.rejected;
+      h = hTaken * std::min(0.9, std::max(0.1, 0.9 * std::pow(norm, exponent)));
+    }
+  }
+  return statistics;
+}
+
 }  // namespace
 
 bool ContinuousAdjointOptions::IsValid(std::string* error) const {
@@ -293,6 +401,10 @@ bool ContinuousAdjointOptions::IsValid(std::string* error) const {
     msg << "ContinuousAdjointOptions.maxSteps = " << maxSteps << " must be in [1, 1e12]";
     return fail();
   }
+  if (method != "dopri5" && method != "trbdf2") {
+    msg << "ContinuousAdjointOptions.method = '" << method << "' is unknown; valid: dopri5, trbdf2";
+    return fail();
+  }
   return true;
 }
 
@@ -306,6 +418,11 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                          const ContinuousAdjointOptions& options) {
   options.validate();
   forward.validate();
+  if (options.method == "trbdf2" && !problem.hasDenseJacobian()) {
+    throw std::invalid_argument(
+        "ContinuousAdjointOptions.method = 'trbdf2' needs a dense Jacobian, but problem '" + problem.name() +
+        "' has hasDenseJacobian() == false; use 'dopri5'");
+  }
   if (options.initialStep > forward.t1 - forward.t0) {
     std::ostringstream msg;
     msg << "ContinuousAdjointOptions.initialStep = " << options.initialStep
@@ -369,13 +486,16 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                                     forwardResult.finalState, rhsEvaluations);
   }
   AdjointSystem system(problem, p, workspace.get(), *states);
-  const BackwardStatistics backward = integrateBackward(system, *states, forward.t0, forward.t1, y, options);
+  const BackwardStatistics backward =
+      options.method == "trbdf2" ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options)
+                                 : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
   result.summary.backwardSeconds = secondsSince(backwardStart);
 
   const StorageCounters& counters = storage.counters();
   result.summary.rejectedSteps += backward.rejected;
+  result.summary.factorizations += backward.factorizations;
   result.summary.rhsEvaluations += rhsEvaluations + recomputeIntegrator.counters().rhsEvaluations;
   result.summary.jacobianEvaluations += system.evaluations;
   result.summary.recomputedSteps = counters.recomputedSteps;

@@ -6,12 +6,17 @@
 // integrated backward from t1 to t0 with its own adaptive steps. The forward sweep is the engine's
 // own (any IntegratorOptions, fixed or adaptive); psi is the forward sweep's computed psi.
 //
-// Backward integrator (the choice): Dormand-Prince 5(4) on the augmented system (lambda, mu), with
-// FSAL, an error test on lambda and mu together (weighted RMS norm, atol + rtol |y|) and Hairer's
-// starting-step heuristic. Explicit, so each step costs 6 evaluations of F_z^T lambda and F_p^T lambda and
-// nothing is factorised; that suits the non-stiff mechanical problems this route is meant for. For
-// stiff problems (Robertson) the backward system is as stiff as the forward one and dopri5 is
-// stability-limited: use the CVODES route (BDF) or the discrete adjoint of trbdf2 there.
+// Backward integrator (the choice, ContinuousAdjointOptions::method):
+//   "dopri5" (default): Dormand-Prince 5(4) on the augmented system (lambda, mu), with FSAL, an error
+//     test on lambda and mu together (weighted RMS norm, atol + rtol |y|) and Hairer's starting-step
+//     heuristic. Explicit: each step costs 6 evaluations of F_z^T lambda and F_p^T lambda and nothing
+//     is factorised; it works matrix-free (rhsStateVjp) and suits the non-stiff mechanical problems.
+//     On stiff problems (Robertson) the backward system is as stiff as the forward one and dopri5
+//     is stability-limited.
+//   "trbdf2": the L-stable TR-BDF2 ESDIRK (order 2, embedded order 3; Hosea & Shampine 1996) in the
+//     backward time. The lambda equation is linear, so each implicit stage is one LU solve with
+//     I - h gamma F_z^T (no Newton iteration); mu is a quadrature with the same weights. Needs a
+//     dense Jacobian; for stiff problems.
 //
 // Forward states z(t) at the backward stage times come from the storage:
 //   - storage.canInterpolate() (e.g. "hermite:every=M"): storage.interpolate(t, z);
@@ -37,6 +42,9 @@
 namespace hindsight {
 
 struct ContinuousAdjointOptions {
+  /// Backward integrator: "dopri5" (explicit, non-stiff, any problem) or "trbdf2" (L-stable, for
+  /// stiff problems; needs a dense Jacobian).
+  std::string method = "dopri5";
   /// Tolerances of the backward error test on (lambda, mu). rtol in [1e-14, 1), atol > 0.
   double relativeTolerance = 1e-8;
   double absoluteTolerance = 1e-10;
