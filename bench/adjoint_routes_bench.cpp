@@ -11,8 +11,9 @@
 //
 // Run: build/bench/adjoint_routes_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 //      --benchmark_out=bench/adjoint_routes.json --benchmark_out_format=json
-// The continuous route is not run on Robertson: its backward dopri5 is stability-limited on the
-// stiff adjoint system (see engine/continuous_adjoint.h).
+// On Robertson the continuous route runs with the implicit backward trbdf2 (forward trbdf2, full
+// storage): the default backward dopri5 is stability-limited on the stiff adjoint system (see
+// engine/continuous_adjoint.h).
 #include "engine/gradient.h"
 #include "problems/classic_problems.h"
 
@@ -138,7 +139,7 @@ void registerAll() {
       }
     }
   }
-  // ---- Robertson (stiff, t1 = 1e5): discrete trbdf2 and CVODES BDF. ----
+  // ---- Robertson (stiff, t1 = 1e5): discrete trbdf2, continuous with backward trbdf2, CVODES BDF. ----
   for (double rtol : {1e-5, 1e-7, 1e-9}) {
     GradientOptions base;
     base.integrator.method = "trbdf2";
@@ -153,6 +154,12 @@ void registerAll() {
     GradientOptions discrete = base;
     discrete.adjoint = AdjointMethod::Discrete;
     add("robertson/discrete-trbdf2/full" + suffix, &robertson, discrete);
+    GradientOptions continuous = base;
+    continuous.adjoint = AdjointMethod::Continuous;
+    continuous.continuous.method = "trbdf2";
+    continuous.continuous.relativeTolerance = rtol;
+    continuous.continuous.absoluteTolerance = rtol * 1e-5;
+    add("robertson/continuous-trbdf2/full" + suffix, &robertson, continuous);
     for (CvodesInterpolation interpolation :
          {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
       for (std::int64_t nd : {10, 100, 1000}) {
