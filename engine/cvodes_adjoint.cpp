@@ -38,7 +38,7 @@ class CvodesAdjointSolver final {
     std::int64_t rhsEvaluations = 0;
     std::int64_t jacobianEvaluations = 0;
     std::exception_ptr error;  // first exception thrown by the problem inside a callback
-    std::string lastMessage;   // the last message of CVODES' error handler
+    std::string lastMessage;   // CVODES' error messages, "; "-separated (backward errors come in pairs)
   };
 
   using ConstMap = Eigen::Map<const Vector>;
@@ -125,7 +125,8 @@ class CvodesAdjointSolver final {
     // Warnings (CV_WARNING) do not stop CVODES; only errors go into the next exception's message.
     if (errorCode < 0) {
       auto* data = static_cast<CallbackData*>(userData);
-      data->lastMessage = std::string(module) + "::" + function + ": " + message;
+      if (!data->lastMessage.empty()) data->lastMessage += "; ";
+      data->lastMessage += std::string(module) + "::" + function + ": " + message;
     }
   }
 
@@ -189,8 +190,8 @@ class CvodesAdjointSolver final {
     solver_ = SUNLinSol_Dense(z_, matrix_, context_);
     if (matrix_ == nullptr || solver_ == nullptr)
       throw NumericalError("dense linear solver creation failed", 0);
-    check(CVodeSetLinearSolver(memory_, solver_, matrix_), "CVodeSetLinearSolver", options_.t0);
-    check(CVodeSetJacFn(memory_, &forwardJacobian), "CVodeSetJacFn", options_.t0);
+    checkLinear(CVodeSetLinearSolver(memory_, solver_, matrix_), "CVodeSetLinearSolver", options_.t0);
+    checkLinear(CVodeSetJacFn(memory_, &forwardJacobian), "CVodeSetJacFn", options_.t0);
 
     N_VConst(0.0, quadrature_);
     check(CVodeQuadInit(memory_, &forwardQuadrature, quadrature_), "CVodeQuadInit", options_.t0);
@@ -221,13 +222,10 @@ class CvodesAdjointSolver final {
     finalState_ = view(z_, data_.n);
     result.objective = NV_Ith_S(quadrature_, 0) + data_.problem->terminal(finalState_, data_.p);
 
-    long steps = 0, errorTestFailures = 0, setups = 0;
+    long steps = 0;
     check(CVodeGetNumSteps(memory_, &steps), "CVodeGetNumSteps", t);
-    check(CVodeGetNumErrTestFails(memory_, &errorTestFailures), "CVodeGetNumErrTestFails", t);
-    check(CVodeGetNumLinSolvSetups(memory_, &setups), "CVodeGetNumLinSolvSetups", t);
     result.summary.steps = steps;
-    result.summary.rejectedSteps = errorTestFailures;
-    result.summary.factorizations = setups;
+    addWork(memory_, t, result.summary);
     result.summary.statesStored = checkpoints;
     // Check points are listed newest first; CVodeB re-integrates every step before the last one.
     std::vector<CVadjCheckPointRec> records(static_cast<std::size_t>(checkpoints) + 2);
@@ -260,8 +258,8 @@ class CvodesAdjointSolver final {
     solverB_ = SUNLinSol_Dense(lambda_, matrixB_, context_);
     if (matrixB_ == nullptr || solverB_ == nullptr)
       throw NumericalError("dense linear solver creation failed", t1);
-    check(CVodeSetLinearSolverB(memory_, which, solverB_, matrixB_), "CVodeSetLinearSolverB", t1);
-    check(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
+    checkLinear(CVodeSetLinearSolverB(memory_, which, solverB_, matrixB_), "CVodeSetLinearSolverB", t1);
+    checkLinear(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
     N_VConst(0.0, gradientQuadrature_);
     check(CVodeQuadInitB(memory_, which, &backwardQuadrature, gradientQuadrature_), "CVodeQuadInitB", t1);
     check(CVodeQuadSStolerancesB(memory_, which, options_.relativeTolerance, options_.absoluteTolerance),
@@ -278,11 +276,7 @@ class CvodesAdjointSolver final {
     data_.problem->addInitialStateVjp(data_.p, view(lambda_, data_.n), gradient);
     result.gradient = std::move(gradient);
 
-    long errorTestFailures = 0, setups = 0;
-    check(CVodeGetNumErrTestFails(backwardMemory, &errorTestFailures), "CVodeGetNumErrTestFails", tB);
-    check(CVodeGetNumLinSolvSetups(backwardMemory, &setups), "CVodeGetNumLinSolvSetups", tB);
-    result.summary.rejectedSteps += errorTestFailures;
-    result.summary.factorizations += setups;
+    addWork(backwardMemory, tB, result.summary);
   }
 
   std::int64_t rhsEvaluations() const { return data_.rhsEvaluations; }
@@ -297,6 +291,19 @@ class CvodesAdjointSolver final {
     return v;
   }
 
+  /// Adds one CVODES memory's rejected steps (error-test and Newton convergence failures), linear
+  /// solver setups and Newton iterations to the summary.
+  void addWork(void* memory, double t, RunSummary& summary) {
+    long errorTestFailures = 0, convergenceFailures = 0, setups = 0, iterations = 0;
+    check(CVodeGetNumErrTestFails(memory, &errorTestFailures), "CVodeGetNumErrTestFails", t);
+    check(CVodeGetNumNonlinSolvConvFails(memory, &convergenceFailures), "CVodeGetNumNonlinSolvConvFails", t);
+    check(CVodeGetNumLinSolvSetups(memory, &setups), "CVodeGetNumLinSolvSetups", t);
+    check(CVodeGetNumNonlinSolvIters(memory, &iterations), "CVodeGetNumNonlinSolvIters", t);
+    summary.rejectedSteps += errorTestFailures + convergenceFailures;
+    summary.factorizations += setups;
+    summary.newtonIterations += iterations;
+  }
+
   static double currentTime(void* memory, double fallback) {
     double t = fallback;
     if (memory != nullptr && CVodeGetCurrentTime(memory, &t) != CV_SUCCESS) t = fallback;
@@ -307,9 +314,20 @@ class CvodesAdjointSolver final {
   /// inside a callback is rethrown as it was.
   void check(int flag, const char* call, double t, std::string detail = {}) {
     if (flag >= 0) return;
-    if (data_.error) std::rethrow_exception(data_.error);
+    fail(flag, CVodeGetReturnFlagName(flag), call, t, std::move(detail));
+  }
+  /// The same for the CVLS linear-solver interface, whose flags (CVLS_*) have their own names.
+  void checkLinear(int flag, const char* call, double t) {
+    if (flag >= 0) return;
+    fail(flag, CVodeGetLinReturnFlagName(flag), call, t, {});
+  }
+  /// Takes ownership of `name` (SUNDIALS allocates it with malloc).
+  [[noreturn]] void fail(int flag, char* name, const char* call, double t, std::string detail) {
+    if (data_.error) {
+      std::free(name);
+      std::rethrow_exception(data_.error);
+    }
     if (!detail.empty()) data_.lastMessage = std::move(detail);
-    char* name = CVodeGetReturnFlagName(flag);
     std::string message = std::string(call) + " failed with " + (name != nullptr ? name : "an unknown flag") +
                           " (" + std::to_string(flag) + ")";
     std::free(name);

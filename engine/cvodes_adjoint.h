@@ -75,8 +75,10 @@ struct CvodesOptions {
 
 /// psi and dpsi/dp by CVODES. The summary reports: method "cvodes-bdf" / "cvodes-adams", adjoint
 /// "cvodes", storage "cvodes:checkpoints=Nd,interp=...", steps = forward steps; rejectedSteps = forward
-/// plus backward error-test failures; rhs and Jacobian evaluations = every F, G and F_z evaluation
-/// in the forward, recomputation and backward phases (counted in the callbacks); factorizations = the
+/// plus backward error-test and Newton convergence failures; newtonIterations = both problems' Newton
+/// iterations; rhsEvaluations = every F evaluation (forward and recomputation phases) and
+/// jacobianEvaluations = every F_z evaluation (forward Jacobian, backward right-hand side and backward
+/// Jacobian), both counted in the callbacks; factorizations = the
 /// linear-solver setups of both problems (CVodeGetNumLinSolvSetups); recomputedSteps = the forward
 /// steps before the last check point, which CVodeB re-integrates; statesStored = check points
 /// (CVodeF's ncheck). peakBytesInMemory stays 0: CVODES does not report the memory of its check

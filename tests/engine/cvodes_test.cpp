@@ -61,6 +61,9 @@ TEST_P(CvodesVariant, ExponentialDecayMatchesClosedForm) {
   EXPECT_EQ(result.times.back(), horizon);
   EXPECT_GT(result.summary.rhsEvaluations, result.summary.steps);
   EXPECT_GT(result.summary.jacobianEvaluations, 0);
+  EXPECT_GT(result.summary.newtonIterations, result.summary.steps);  // forward and backward Newton
+  EXPECT_GT(result.summary.factorizations, 0);
+  EXPECT_EQ(result.summary.storage, "cvodes:checkpoints=50,interp=" + toString(GetParam().interpolation));
   EXPECT_GE(result.summary.statesStored, result.summary.steps / 50);
 }
 
