@@ -1,5 +1,6 @@
-// The continuous adjoint with hindsight's own storage (SPEC.md section 5; the paper's eq. 8 in
-// first-order form; Bestle & Eberhard 1992):
+// The continuous adjoint with hindsight's own storage (SPEC.md section 5; Bestle & Eberhard 1992;
+// in first-order form z = (y, y'), the paper's eqs. (7) terminal condition with fixed t1, (8) adjoint
+// ODE, (9) initial-state term and (10) gradient):
 //   lambda' = -F_z^T lambda - G_z^T,          lambda(t1) = dphi/dz(z(t1)),
 //   mu'     = -(G_p + lambda^T F_p)^T,        mu(t1) = 0,
 //   dpsi/dp = mu(t0) + dphi/dp + (dz0/dp)^T lambda(t0),
@@ -28,10 +29,17 @@
 // error and the backward tolerance; unlike the discrete adjoint it is not the derivative of the
 // computed psi.
 //
+// Dimensions: lambda in R^n (n = stateSize()), mu and the gradient in R^np (np = parameterSize()).
 // Preconditions: p has problem.parameterSize() entries; a problem without a dense Jacobian must
 // implement rhsStateVjp(). Throws std::invalid_argument for bad options (naming the field and its
 // range), NumericalError with the time for a backward step-size underflow, too many backward steps
 // or a non-finite adjoint, StorageError from the storage.
+//
+// References: D. Bestle, P. Eberhard, "Analyzing and optimizing multibody systems", Mech. Struct.
+// Mach. 20 (1992) (the adjoint and its gradient quadrature); Y. Cao, S. Li, L. Petzold, R. Serban,
+// SIAM J. Sci. Comput. 24 (2003) (the adjoint ODE/DAE, lambda(t1) = dphi/dz, backward quadrature);
+// E. Hairer, S. P. Norsett, G. Wanner, Solving ODEs I (1993), II.4-II.5 (dopri5, step control, the
+// starting step); M. E. Hosea, L. F. Shampine, Appl. Numer. Math. 20 (1996) (TR-BDF2).
 #pragma once
 
 #include "engine/adjoint.h"

@@ -11,7 +11,10 @@
 //            with the dense Jacobian -F_z^T (SUNDenseMatrix + SUNLinSol_Dense), and the backward
 //            quadrature qB' = -(G_p + lambda^T F_p) (CVodeQuadInitB), so qB(t0) = int (G_p + lambda^T F_p)
 //            dt;
-//   result   dpsi/dp = qB(t0) + dphi/dp + (dz0/dp)^T lambda(t0)  (Bestle & Eberhard 1992; the paper's eq. 8).
+//   result   dpsi/dp = qB(t0) + dphi/dp + (dz0/dp)^T lambda(t0)  (Bestle & Eberhard 1992).
+// In the paper's second-order notation (reference/, Held et al.) these are its eqs. (7) (terminal
+// condition; here t1 is fixed, so no tau term), (8) (adjoint ODE), (9) (initial-state adjoint) and
+// (10) (gradient), written for the first-order state z = (y, y').
 // The gradient is that of the exact psi up to the tolerances, not the derivative of the computed psi.
 //
 // Preconditions: problem.hasDenseJacobian() (the dense direct solver needs F_z); p has

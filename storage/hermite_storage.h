@@ -15,6 +15,9 @@
 // needsDerivative() is true: the engine passes z' = F(t_n, z_n) to record() and finish().
 // interpolate(t) gives z(t) anywhere in [t0, t_N] once finish() has been called, for the continuous
 // adjoint; data stay until the next begin().
+// Throws: std::invalid_argument for every < 1 (factory: naming "hermite.every" and its range) or t
+// outside [t0, t_N] in interpolate(); StorageError when the budget would be exceeded;
+// std::logic_error for interpolate() before finish().
 #pragma once
 
 #include "storage/storage_spec.h"
