@@ -69,9 +69,11 @@ struct ContinuousAdjointOptions {
 };
 
 /// psi (from the forward sweep over `forward`) and dpsi/dp by the continuous adjoint, with forward
-/// states from `storage`. The summary's adjoint is "continuous"; steps, rhs evaluations and
-/// rejected steps include the forward sweep; jacobianEvaluations counts the backward F_z (or
-/// F_z^T lambda) evaluations; rhsEvaluations also counts the F evaluations for z' at grid points.
+/// states from `storage`. The summary's adjoint is "continuous", method the forward method; steps
+/// are the forward steps; rejectedSteps, rhsEvaluations, jacobianEvaluations and factorizations are
+/// the forward sweep's plus the backward sweep's (rejected backward steps; F for z' at grid points and
+/// for recomputation; one F_z or F_z^T lambda per backward stage; one LU per implicit stage).
+/// Throws as described in the file comment.
 GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef p,
                                          const IntegratorOptions& forward, TrajectoryStorage& storage,
                                          const ContinuousAdjointOptions& options = {});
