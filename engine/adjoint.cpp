@@ -64,7 +64,8 @@ struct ForwardSweep {
 
   void run(TrajectoryStorage* storage, const StateObserver& observer, RunSummary& summary) {
     const bool needDerivative = storage != nullptr && storage->needsDerivative();
-    const auto derivativeAtStart = [&]() -> ConstVectorRef {
+    // Returns a Ref by value: a `const Ref&` to a Ref made from zdot would dangle.
+    const auto derivativeAtStart = [&]() -> Eigen::Ref<const Vector> {
       if (!needDerivative) return zdot;
       if (integrator.firstStageIsRhs()) return integrator.lastFirstStage();
       integrator.evaluateRhs(times.back(), zPrevious, zdot);
@@ -158,7 +159,7 @@ struct ForwardSweep {
     }
   }
 
-  ConstVectorRef integratorParameters() const { return parameters; }
+  const Vector& integratorParameters() const { return parameters; }
 
   const Problem& problem;
   const IntegratorOptions& options;

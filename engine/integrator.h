@@ -111,7 +111,8 @@ class RungeKuttaIntegrator final {
   void evaluateRhs(double t, ConstVectorRef z, VectorRef f);
   /// The first stage derivative of the last step() when it equals F(t_n, z_n) (c_1 = 0 and a_11 = 0).
   bool firstStageIsRhs() const;
-  ConstVectorRef lastFirstStage() const;
+  /// By value: a Ref to the column of the stage matrix (returning `const Ref&` would dangle).
+  Eigen::Ref<const Vector> lastFirstStage() const;
 
   ProblemWorkspace* problemWorkspace() const { return workspace_.get(); }
   const IntegratorCounters& counters() const { return counters_; }

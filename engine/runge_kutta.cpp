@@ -192,7 +192,7 @@ RungeKuttaIntegrator::~RungeKuttaIntegrator() = default;
 
 bool RungeKuttaIntegrator::firstStageIsRhs() const { return tableau_.c(0) == 0.0 && tableau_.a(0, 0) == 0.0; }
 
-ConstVectorRef RungeKuttaIntegrator::lastFirstStage() const { return stageSlopes_.col(0); }
+Eigen::Ref<const Vector> RungeKuttaIntegrator::lastFirstStage() const { return stageSlopes_.col(0); }
 
 void RungeKuttaIntegrator::evaluateRhs(double t, ConstVectorRef z, VectorRef f) {
   problem_.rhs(t, z, p_, f, workspace_.get());

@@ -1,6 +1,7 @@
 #include "storage/storage_factory.h"
 
 #include "storage/full_storage.h"
+#include "storage/hermite_storage.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -17,6 +18,7 @@ struct Entry {
 const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
       {"full", &FullStorage::keys, &FullStorage::create},
+      {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
   };
   return entries;
 }

@@ -89,6 +89,17 @@ class TrajectoryStorage {
   void setVerifyRestores(bool on) { verifyRestores_ = on; }
   bool verifyRestores() const { return verifyRestores_; }
 
+  /// True when interpolate() gives z(t) at any t in [t0, t_N] (for the continuous adjoint, which
+  /// takes its own backward steps). Strategies that keep no dense output return false.
+  virtual bool canInterpolate() const { return false; }
+  /// z <- z(t) for t in [info().t0, t_N], in any order, between finish() and the next begin(); z has
+  /// info().stateSize entries. Strategies that cannot interpolate throw std::logic_error.
+  virtual void interpolate(double t, VectorRef z) {
+    (void)t;
+    (void)z;
+    throw std::logic_error("strategy " + spec() + " cannot interpolate");
+  }
+
  protected:
   explicit TrajectoryStorage(std::int64_t budgetBytes);
 

@@ -3,6 +3,7 @@
 #include "engine/integrator.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
+#include "storage/hermite_storage.h"
 
 #include <gtest/gtest.h>
 
@@ -86,6 +87,32 @@ TEST(NoAllocation, RestoreFromFullStorage) {
   AllocationCounter counter;
   for (int n = 2999; n >= 0; --n) storage.restore(n, z);
   EXPECT_EQ(counter.count(), 0);
+}
+
+TEST(NoAllocation, RecordRestoreAndInterpolateWithHermiteStorage) {
+  // With N announced, the hermite strategy allocates once in begin(); record, restore and
+  // interpolate allocate nothing.
+  struct NoRecompute final : StepRecomputer {
+    void advance(std::int64_t, VectorRef) override { FAIL() << "hermite storage must not recompute"; }
+  } recomputer;
+  HermiteStorage storage(4);
+  storage.setVerifyRestores(false);  // the debug-build hash list grows with every record
+  TrajectoryInfo info;
+  info.stateSize = 8;
+  info.t1 = 3.0;
+  info.stepCount = 3000;
+  storage.begin(info, recomputer);
+  Vector z = Vector::LinSpaced(8, 0.0, 1.0), zdot = Vector::Ones(8);
+  long allocations = 0;
+  {
+    AllocationCounter counter;
+    for (int n = 0; n < 3000; ++n) storage.record(n, n * 1e-3, z, zdot);
+    storage.finish(3000, 3.0, z, zdot);
+    for (int n = 2999; n >= 0; --n) storage.restore(n, z);
+    for (int i = 0; i <= 100; ++i) storage.interpolate(0.03 * i, z);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
 }
 
 TEST(NoAllocation, CounterSeesAnAllocation) {

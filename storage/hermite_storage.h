@@ -1,0 +1,68 @@
+// Strategy "hermite": keeps (z, z') at every M-th grid point and at the final point; states in
+// between are cubic Hermite interpolants (SPEC.md section 6; the scheme of CVODES' CV_HERMITE
+// check-point interpolation, Hindmarsh et al., CVODES user documentation).
+//
+// Spec: hermite:every=M[,budget=BYTES], M in [1, 1e9] (default 10), budget default 4 GiB.
+// With kept points t_a < t_b (b = a + M, or N for the last segment), H = t_b - t_a, s = (t - t_a)/H:
+//   z(t) = h00(s) z_a + h10(s) H z'_a + h01(s) z_b + h11(s) H z'_b,
+//   h00 = 2s^3 - 3s^2 + 1, h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2.
+// The error is O(H^4) for a smooth trajectory: halving M divides it by about 16. restore(n) is exact
+// at kept points and interpolated elsewhere, so isExact() is false and a discrete adjoint over it
+// differentiates a slightly different trajectory; the gradient error shrinks like H^4.
+// Memory: (2n + 1) * 8 bytes per kept point plus 8 bytes per grid time (restore needs t_n);
+// preallocated when N is known, grown geometrically otherwise; every byte is charged to the budget,
+// and exceeding it throws StorageError.
+// needsDerivative() is true: the engine passes z' = F(t_n, z_n) to record() and finish().
+// interpolate(t) gives z(t) anywhere in [t0, t_N] once finish() has been called, for the continuous
+// adjoint; data stay until the next begin().
+// Throws: std::invalid_argument for every < 1 (factory: naming "hermite.every" and its range) or t
+// outside [t0, t_N] in interpolate(); StorageError when the budget would be exceeded;
+// std::logic_error for interpolate() before finish().
+#pragma once
+
+#include "storage/storage_spec.h"
+#include "storage/trajectory_storage.h"
+
+#include <memory>
+#include <vector>
+
+namespace hindsight {
+
+class HermiteStorage final : public TrajectoryStorage {
+ public:
+  static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
+  static constexpr std::int64_t kDefaultEvery = 10;
+  /// Throws std::invalid_argument when every < 1 or the budget is not positive.
+  explicit HermiteStorage(std::int64_t every = kDefaultEvery, std::int64_t budgetBytes = kDefaultBudget);
+  static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  static std::vector<std::string> keys() { return {"every", "budget"}; }
+
+  std::string spec() const override;
+  bool isExact() const override { return false; }
+  bool needsDerivative() const override { return true; }
+  bool canInterpolate() const override { return true; }
+  /// Throws std::logic_error before finish(), std::invalid_argument for t outside [t0, t_N].
+  void interpolate(double t, VectorRef z) override;
+
+  std::int64_t every() const { return every_; }
+
+ private:
+  void doBegin() override;
+  void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRestore(std::int64_t step, VectorRef z) override;
+
+  /// Appends to `buffer`, growing its capacity (charged to the budget) when needed.
+  void append(std::vector<double>& buffer, const double* values, std::size_t count);
+  void keep(double t, ConstVectorRef z, ConstVectorRef zdot);
+  /// Cubic Hermite between kept points `segment` and `segment + 1` at time t.
+  void evaluate(std::size_t segment, double t, VectorRef z) const;
+
+  std::int64_t every_;
+  bool finished_ = false;
+  std::vector<double> times_;      // t_0 .. t_N
+  std::vector<double> keptTimes_;  // t_0, t_M, t_2M, ..., t_N
+  std::vector<double> kept_;       // per kept point: z (n values) then z' (n values)
+};
+
+}  // namespace hindsight
