@@ -2,6 +2,7 @@
 
 #include "storage/disk_storage.h"
 #include "storage/full_storage.h"
+#include "storage/lossy_storage.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -19,6 +20,7 @@ const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
       {"full", &FullStorage::keys, &FullStorage::create},
       {"disk", &DiskStorage::keys, &DiskStorage::create},
+      {"lossy", &LossyStorage::keys, &LossyStorage::create},
   };
   return entries;
 }
