@@ -3,6 +3,7 @@
 #include "storage/disk_storage.h"
 #include "storage/full_storage.h"
 #include "storage/lossy_storage.h"
+#include "storage/multilevel_storage.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -21,6 +22,7 @@ const std::vector<Entry>& registry() {
       {"full", &FullStorage::keys, &FullStorage::create},
       {"disk", &DiskStorage::keys, &DiskStorage::create},
       {"lossy", &LossyStorage::keys, &LossyStorage::create},
+      {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
   };
   return entries;
 }
