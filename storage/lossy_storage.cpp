@@ -123,6 +123,7 @@ void LossyStorage::doBegin() {
   if (block == 0) block = std::clamp<std::int64_t>((std::int64_t{256} << 10) / stateBytes(), 1, 4096);
   if (info().stepCount > 0) block = std::min(block, info().stepCount);
   blockStates_ = block;
+  componentMajor_ = n <= block;
   const std::size_t values = static_cast<std::size_t>(block * n);
   std::size_t scratchBytes = ZSTD_compressBound(values * 8);
   if (options_.codec == Codec::kZfp) {
@@ -151,8 +152,14 @@ void LossyStorage::compressBlock() {
   const std::int64_t n = info().stateSize;
   const std::int64_t count = statesInRaw_;
   const std::size_t values = static_cast<std::size_t>(count * n);
-  for (std::int64_t i = 0; i < count; ++i) {  // component-major: contiguous in time
-    for (std::int64_t j = 0; j < n; ++j) work_[static_cast<std::size_t>(j * count + i)] = raw_[static_cast<std::size_t>(i * n + j)];
+  if (componentMajor_) {  // each component contiguous in time
+    for (std::int64_t i = 0; i < count; ++i) {
+      for (std::int64_t j = 0; j < n; ++j) {
+        work_[static_cast<std::size_t>(j * count + i)] = raw_[static_cast<std::size_t>(i * n + j)];
+      }
+    }
+  } else {  // each state contiguous in space
+    std::memcpy(work_.data(), raw_.data(), values * 8);
   }
   std::size_t size = 0;
   if (options_.codec == Codec::kZfp) {
@@ -206,7 +213,12 @@ void LossyStorage::doRestore(std::int64_t step, VectorRef z) {
   const std::int64_t index = step / blockStates_;
   if (index != decodedBlock_) decodeBlock(static_cast<std::size_t>(index));
   const std::int64_t i = step - index * blockStates_;
-  for (std::int64_t j = 0; j < info().stateSize; ++j) z(j) = work_[static_cast<std::size_t>(j * decodedStates_ + i)];
+  const std::int64_t n = info().stateSize;
+  if (componentMajor_) {
+    for (std::int64_t j = 0; j < n; ++j) z(j) = work_[static_cast<std::size_t>(j * decodedStates_ + i)];
+  } else {
+    std::memcpy(z.data(), work_.data() + i * n, static_cast<std::size_t>(n) * 8);
+  }
 }
 
 }  // namespace hindsight

@@ -12,8 +12,10 @@
 //   budget       bytes held in memory (default 4 GiB): the compressed blocks plus three work buffers
 //                of one block each (raw states, transposed/shuffled states, compressor output).
 //   block        states compressed together (default: about 256 KiB of states, at most 4096).
-// States are compressed in blocks, stored component-major (each component's values over the block's
-// steps are contiguous), so smoothness in time helps the codecs even for tiny states. The achieved
+// States are compressed in blocks. When a block has at least as many states as a state has
+// components, it is stored component-major (each component's values over the block's steps are
+// contiguous), so smoothness in time helps the codecs even for tiny states; otherwise (large
+// states, few per block) state by state, so smoothness in space does. The achieved
 // ratio is in counters() (uncompressedBytes / compressedBytes). A compressed block is freed as soon
 // as the backward sweep has decoded it.
 //
@@ -77,6 +79,7 @@ class LossyStorage final : public TrajectoryStorage {
 
   Options options_;
   std::int64_t blockStates_ = 1;
+  bool componentMajor_ = true;
   std::vector<double> raw_;   // state-major: the block being filled / zstd scratch
   std::vector<double> work_;  // component-major: the block being compressed or decoded
   std::vector<unsigned char> scratch_;
