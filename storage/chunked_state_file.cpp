@@ -24,8 +24,8 @@ constexpr H5Z_filter_t kZstdFilterId = 32015;
 
 // The zstd filter in the convention of the registered plugin (id 32015): cd_values[0] is the level,
 // each chunk is one zstd frame with its content size.
-size_t zstdFilter(unsigned flags, size_t cdCount, const unsigned cdValues[], size_t nbytes, size_t* bufferSize,
-                  void** buffer) {
+size_t zstdFilter(unsigned flags, size_t cdCount, const unsigned cdValues[], size_t nbytes,
+                  size_t* bufferSize, void** buffer) {
   if (flags & H5Z_FLAG_REVERSE) {
     const unsigned long long size = ZSTD_getFrameContentSize(*buffer, nbytes);
     if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN) return 0;
@@ -56,8 +56,8 @@ size_t zstdFilter(unsigned flags, size_t cdCount, const unsigned cdValues[], siz
   return result;
 }
 
-const H5Z_class2_t kZstdClass = {H5Z_CLASS_T_VERS, kZstdFilterId, 1, 1, "zstd (hindsight)", nullptr, nullptr,
-                                 &zstdFilter};
+const H5Z_class2_t kZstdClass = {H5Z_CLASS_T_VERS,   kZstdFilterId, 1,       1,
+                                 "zstd (hindsight)", nullptr,       nullptr, &zstdFilter};
 
 // The innermost HDF5 error messages of the current thread's stack, e.g. "Permission denied".
 herr_t collectError(unsigned depth, const H5E_error2_t* error, void* data) {
@@ -119,8 +119,8 @@ void writeStringAttribute(hid_t object, const char* name, const std::string& val
   check(H5Tset_size(type.get(), std::max<size_t>(1, value.size())), "string type");
   check(H5Tset_strpad(type.get(), H5T_STR_NULLPAD), "string type");
   Handle space = handle(H5Screate(H5S_SCALAR), H5Sclose, "attribute space");
-  Handle attribute = handle(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-                            std::string("cannot create attribute ") + name);
+  Handle attribute = handle(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
+                            H5Aclose, std::string("cannot create attribute ") + name);
   check(H5Awrite(attribute.get(), type.get(), value.c_str()), std::string("cannot write attribute ") + name);
 }
 
@@ -252,11 +252,21 @@ struct ChunkedStateFile::Impl {
 
   void execute(const Task& task) {
     switch (task.kind) {
-      case Kind::kCreate: create(); break;
-      case Kind::kWrite: write(task); break;
-      case Kind::kFinalize: finalize(); break;
-      case Kind::kOpenRead: openRead(); break;
-      case Kind::kRead: readChunk(task); break;
+      case Kind::kCreate:
+        create();
+        break;
+      case Kind::kWrite:
+        write(task);
+        break;
+      case Kind::kFinalize:
+        finalize();
+        break;
+      case Kind::kOpenRead:
+        openRead();
+        break;
+      case Kind::kRead:
+        readChunk(task);
+        break;
     }
   }
 
@@ -291,9 +301,9 @@ struct ChunkedStateFile::Impl {
     {
       Handle space = handle(H5Screate_simple(1, dims, maxDims), H5Sclose, "times dataspace");
       Handle dcpl = filteredChunks(1, chunk);
-      times = handle(H5Dcreate2(file.get(), "times", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(),
-                                access.get()),
-                     H5Dclose, "cannot create dataset /times");
+      times = handle(
+          H5Dcreate2(file.get(), "times", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(), access.get()),
+          H5Dclose, "cannot create dataset /times");
     }
     writeStringAttribute(file.get(), "format", "hindsight trajectory 1");
     writeStringAttribute(file.get(), "problem", info.problemName);
@@ -313,7 +323,8 @@ struct ChunkedStateFile::Impl {
     const Buffer& buffer = buffers[static_cast<std::size_t>(task.buffer)];
     const hsize_t first = static_cast<hsize_t>(task.chunk * chunkStates);
     const hsize_t rows = static_cast<hsize_t>(task.rows);
-    const std::string what = "cannot write rows " + std::to_string(first) + ".." + std::to_string(first + rows - 1);
+    const std::string what =
+        "cannot write rows " + std::to_string(first) + ".." + std::to_string(first + rows - 1);
     {
       const hsize_t extent[2] = {first + rows, static_cast<hsize_t>(n)};
       check(H5Dset_extent(states.get(), extent), what);
@@ -357,17 +368,19 @@ struct ChunkedStateFile::Impl {
 
   void openRead() {
     file = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (file.get() < 0) throw std::runtime_error("cannot open the trajectory file for reading: " + hdf5Message());
+    if (file.get() < 0)
+      throw std::runtime_error("cannot open the trajectory file for reading: " + hdf5Message());
     Handle access = handle(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "dataset access");
     check(H5Pset_chunk_cache(access.get(), 0, 0, 1.0), "chunk cache");
     states = handle(H5Dopen2(file.get(), "states", access.get()), H5Dclose, "cannot open dataset /states");
     Handle space = handle(H5Dget_space(states.get()), H5Sclose, "/states dataspace");
     hsize_t dims[2] = {0, 0};
-    if (H5Sget_simple_extent_ndims(space.get()) != 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0 ||
+    if (H5Sget_simple_extent_ndims(space.get()) != 2 ||
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0 ||
         dims[0] != static_cast<hsize_t>(rowCount) || dims[1] != static_cast<hsize_t>(n)) {
       throw std::runtime_error("the trajectory file holds " + std::to_string(dims[0]) + " x " +
-                               std::to_string(dims[1]) + " states, expected " + std::to_string(rowCount) + " x " +
-                               std::to_string(n) + " (truncated or replaced?)");
+                               std::to_string(dims[1]) + " states, expected " + std::to_string(rowCount) +
+                               " x " + std::to_string(n) + " (truncated or replaced?)");
     }
   }
 
@@ -375,8 +388,8 @@ struct ChunkedStateFile::Impl {
     Buffer& buffer = buffers[static_cast<std::size_t>(task.buffer)];
     const hsize_t first = static_cast<hsize_t>(task.chunk * chunkStates);
     const hsize_t rows = static_cast<hsize_t>(std::min(chunkStates, rowCount - task.chunk * chunkStates));
-    const std::string what = "cannot read rows " + std::to_string(first) + ".." + std::to_string(first + rows - 1) +
-                             " (corrupted or truncated file?)";
+    const std::string what = "cannot read rows " + std::to_string(first) + ".." +
+                             std::to_string(first + rows - 1) + " (corrupted or truncated file?)";
     Handle fileSpace = handle(H5Dget_space(states.get()), H5Sclose, what);
     const hsize_t start[2] = {first, 0};
     const hsize_t count[2] = {rows, static_cast<hsize_t>(n)};
@@ -431,7 +444,8 @@ struct ChunkedStateFile::Impl {
   int findChunk(std::int64_t chunk) const {  // with mutex held
     for (std::size_t i = 0; i < buffers.size(); ++i) {
       const Status s = buffers[i].status;
-      if (buffers[i].chunk == chunk && (s == Status::kReading || s == Status::kReady)) return static_cast<int>(i);
+      if (buffers[i].chunk == chunk && (s == Status::kReading || s == Status::kReady))
+        return static_cast<int>(i);
     }
     return -1;
   }
@@ -557,7 +571,9 @@ void ChunkedStateFile::read(std::int64_t row, double* z) {
     s.requestRead(lock, chunk, true);
     const int index = s.findChunk(chunk);
     assert(index >= 0);
-    s.changed.wait(lock, [&] { return s.failed || s.buffers[static_cast<std::size_t>(index)].status == Impl::Status::kReady; });
+    s.changed.wait(lock, [&] {
+      return s.failed || s.buffers[static_cast<std::size_t>(index)].status == Impl::Status::kReady;
+    });
     if (s.failed) s.throwFailure();
     s.buffers[static_cast<std::size_t>(index)].status = Impl::Status::kInUse;
     s.loaded = index;

@@ -8,7 +8,8 @@ namespace hindsight {
 
 bool DiskStorage::Options::IsValid(std::string* error) const {
   std::string message;
-  if (directory.empty()) message = "disk.dir must name a directory";
+  if (directory.empty())
+    message = "disk.dir must name a directory";
   else if (compressionLevel < 1 || compressionLevel > 22)
     message = "disk.level = " + std::to_string(compressionLevel) + " must be in [1, 22]";
   else if (chunkStates < 0)
@@ -19,8 +20,8 @@ bool DiskStorage::Options::IsValid(std::string* error) const {
   return message.empty();
 }
 
-DiskStorage::DiskStorage(Options options) : TrajectoryStorage(std::max<std::int64_t>(1, options.budgetBytes)),
-                                            options_(std::move(options)) {
+DiskStorage::DiskStorage(Options options)
+    : TrajectoryStorage(std::max<std::int64_t>(1, options.budgetBytes)), options_(std::move(options)) {
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument(error);
 }

@@ -175,10 +175,12 @@ void LossyStorage::compressBlock() {
       for (std::size_t b = 0; b < 8; ++b) shuffled[b * values + i] = bytes[i * 8 + b];
     }
     size = ZSTD_compress(scratch_.data(), scratch_.size(), shuffled, values * 8, kZstdLevel);
-    if (ZSTD_isError(size)) throw StorageError(std::string("lossy storage: zstd failed: ") + ZSTD_getErrorName(size));
+    if (ZSTD_isError(size))
+      throw StorageError(std::string("lossy storage: zstd failed: ") + ZSTD_getErrorName(size));
   }
   holdBytes(static_cast<std::int64_t>(size));
-  Block block{count, static_cast<std::int64_t>(size), std::unique_ptr<unsigned char[]>(new unsigned char[size])};
+  Block block{count, static_cast<std::int64_t>(size),
+              std::unique_ptr<unsigned char[]>(new unsigned char[size])};
   std::memcpy(block.data.get(), scratch_.data(), size);
   blocks_.push_back(std::move(block));
   StorageCounters& c = mutableCounters();
@@ -191,12 +193,16 @@ void LossyStorage::decodeBlock(std::size_t index) {
   Block& block = blocks_[index];
   const std::size_t values = static_cast<std::size_t>(block.states * info().stateSize);
   if (options_.codec == Codec::kZfp) {
-    ZfpRun run(work_.data(), values, options_.tolerance, block.data.get(), static_cast<std::size_t>(block.bytes));
-    if (zfp_decompress(run.stream, run.field) == 0) throw StorageError("lossy storage: ZFP decompression failed");
+    ZfpRun run(work_.data(), values, options_.tolerance, block.data.get(),
+               static_cast<std::size_t>(block.bytes));
+    if (zfp_decompress(run.stream, run.field) == 0)
+      throw StorageError("lossy storage: ZFP decompression failed");
   } else {
     auto* shuffled = reinterpret_cast<unsigned char*>(raw_.data());
-    const std::size_t size = ZSTD_decompress(shuffled, values * 8, block.data.get(), static_cast<std::size_t>(block.bytes));
-    if (ZSTD_isError(size) || size != values * 8) throw StorageError("lossy storage: zstd decompression failed");
+    const std::size_t size =
+        ZSTD_decompress(shuffled, values * 8, block.data.get(), static_cast<std::size_t>(block.bytes));
+    if (ZSTD_isError(size) || size != values * 8)
+      throw StorageError("lossy storage: zstd decompression failed");
     auto* bytes = reinterpret_cast<unsigned char*>(work_.data());
     for (std::size_t i = 0; i < values; ++i) {
       for (std::size_t b = 0; b < 8; ++b) bytes[i * 8 + b] = shuffled[b * values + i];

@@ -13,7 +13,8 @@ constexpr std::int64_t kSlotsPerBlock = 256;
 
 bool MultilevelStorage::Options::IsValid(std::string* error) const {
   std::string message;
-  if (ramBytes <= 0) message = "multilevel.ram = " + std::to_string(ramBytes) + " must be a positive byte count";
+  if (ramBytes <= 0)
+    message = "multilevel.ram = " + std::to_string(ramBytes) + " must be a positive byte count";
   else if (diskBytes < 0)
     message = "multilevel.disk = " + std::to_string(diskBytes) + " must not be negative";
   else if (compressionLevel < 1 || compressionLevel > 22)
@@ -119,7 +120,8 @@ void MultilevelStorage::doBegin() {
 std::int64_t MultilevelStorage::availableSlots() const {
   const std::int64_t unallocated = ramCapacity_ - static_cast<std::int64_t>(slots_.size());
   const std::int64_t affordable = (budgetBytes() - counters().bytesInMemory) / stateBytes();
-  return static_cast<std::int64_t>(freeSlots_.size()) + std::max<std::int64_t>(0, std::min(unallocated, affordable));
+  return static_cast<std::int64_t>(freeSlots_.size()) +
+         std::max<std::int64_t>(0, std::min(unallocated, affordable));
 }
 
 std::int64_t MultilevelStorage::acquireSlot(std::int64_t wanted) {
@@ -144,8 +146,8 @@ std::int64_t MultilevelStorage::acquireSlot(std::int64_t wanted) {
 
 void MultilevelStorage::openFile() {
   internal::StateFileOptions fileOptions;
-  fileOptions.directory = options_.directory.empty() ? std::filesystem::temp_directory_path().string()
-                                                     : options_.directory;
+  fileOptions.directory =
+      options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
   fileOptions.filePrefix = "hindsight-multilevel";
   fileOptions.compressionLevel = options_.compressionLevel;
   fileOptions.chunkStates = chunkStates_;
@@ -208,7 +210,8 @@ void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
 void MultilevelStorage::loadKept(std::size_t index, VectorRef z) {
   const Kept& k = kept_[index];
   if (k.slot >= 0) {
-    std::memcpy(z.data(), slots_[static_cast<std::size_t>(k.slot)], static_cast<std::size_t>(info().stateSize) * 8);
+    std::memcpy(z.data(), slots_[static_cast<std::size_t>(k.slot)],
+                static_cast<std::size_t>(info().stateSize) * 8);
   } else {
     file_->read(k.row, z.data());
   }
@@ -244,8 +247,9 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
     for (std::int64_t i = checkpoint.step; i < step; ++i) {
       recompute(i, z);
       if (i + 1 >= scratchFirst_ && i + 1 < step) {
-        std::memcpy(slots_[static_cast<std::size_t>(scratch_[static_cast<std::size_t>(i + 1 - scratchFirst_)])],
-                    z.data(), bytes);
+        std::memcpy(
+            slots_[static_cast<std::size_t>(scratch_[static_cast<std::size_t>(i + 1 - scratchFirst_)])],
+            z.data(), bytes);
       }
     }
   }

@@ -1,8 +1,8 @@
 // Strategy "disk": bitwise-identical gradients to "full", the byte budget, a self-describing HDF5 file
 // readable with the plain HDF5 API, compression, and every fault turned into a StorageError that
 // names the file (unwritable directory, full disk, truncated file, corrupted chunk).
-#include "storage/chunked_state_file.h"
 #include "storage/disk_storage.h"
+#include "storage/chunked_state_file.h"
 #include "storage/storage_factory.h"
 #include "support/storage_fixtures.h"
 
@@ -132,7 +132,8 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
       });
   ASSERT_TRUE(std::filesystem::exists(storage.filePath()));
   EXPECT_EQ(std::filesystem::path(storage.filePath()).parent_path(), std::filesystem::path(dir.path()));
-  EXPECT_EQ(result.summary.bytesOnDisk, static_cast<std::int64_t>(std::filesystem::file_size(storage.filePath())));
+  EXPECT_EQ(result.summary.bytesOnDisk,
+            static_cast<std::int64_t>(std::filesystem::file_size(storage.filePath())));
 
   ASSERT_TRUE(internal::ensureZstdFilter());
   EXPECT_GT(H5Zfilter_avail(32015), 0);
@@ -164,8 +165,8 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
     unsigned values[4] = {0, 0, 0, 0};
     char name[64];
     unsigned config = 0;
-    filters.push_back(H5Pget_filter2(dcpl, static_cast<unsigned>(i), &flags, &count, values, sizeof name, name,
-                                     &config));
+    filters.push_back(
+        H5Pget_filter2(dcpl, static_cast<unsigned>(i), &flags, &count, values, sizeof name, name, &config));
     if (filters.back() == 32015) {
       EXPECT_EQ(count, 1u);
       EXPECT_EQ(values[0], 3u) << "cd_values[0] is the zstd level";
@@ -250,7 +251,8 @@ TEST(DiskStorageFaults, UnwritableDirectory) {
   EXPECT_NE(message.find("[file: /proc/hindsight-"), std::string::npos) << message;
   if (::geteuid() != 0) {
     ScratchDirectory dir;
-    std::filesystem::permissions(dir.path(), std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    std::filesystem::permissions(dir.path(),
+                                 std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
     DiskStorage readOnly(diskOptions(dir.path()));
     EXPECT_NE(storageErrorOf(readOnly, fixedStepRk4()).find(dir.path()), std::string::npos);
     std::filesystem::permissions(dir.path(), std::filesystem::perms::owner_all);
@@ -272,7 +274,8 @@ TEST(DiskStorageFaults, InjectedWriteFailureReachesTheCaller) {
     DiskStorage again(healthy);
     Pendulum problem;
     const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
-    EXPECT_TRUE(bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), again), reference));
+    EXPECT_TRUE(
+        bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), again), reference));
   }
 }
 

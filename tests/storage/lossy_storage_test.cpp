@@ -35,8 +35,11 @@ Vector syntheticState(std::int64_t step, std::mt19937_64& random) {
 
 class EveryCodec : public ::testing::TestWithParam<LossyStorage::Codec> {};
 
-INSTANTIATE_TEST_SUITE_P(Codecs, EveryCodec, ::testing::Values(LossyStorage::Codec::kZfp, LossyStorage::Codec::kRound),
-                         [](const auto& info) { return info.param == LossyStorage::Codec::kZfp ? "zfp" : "round"; });
+INSTANTIATE_TEST_SUITE_P(Codecs, EveryCodec,
+                         ::testing::Values(LossyStorage::Codec::kZfp, LossyStorage::Codec::kRound),
+                         [](const auto& info) {
+                           return info.param == LossyStorage::Codec::kZfp ? "zfp" : "round";
+                         });
 
 TEST_P(EveryCodec, RestoredStatesAreWithinTheTolerance) {
   const LossyStorage::Codec codec = GetParam();
@@ -72,7 +75,8 @@ TEST_P(EveryCodec, RestoredStatesAreWithinTheTolerance) {
         }
       }
       EXPECT_LE(worst, 1.0) << "tolerance " << tolerance << ", block " << block;
-      if (tolerance >= 1e-7) EXPECT_TRUE(anyDifference) << "a lossy codec at " << tolerance << " should lose something";
+      if (tolerance >= 1e-7)
+        EXPECT_TRUE(anyDifference) << "a lossy codec at " << tolerance << " should lose something";
       // Every compressed block is freed once decoded: only the work buffers remain.
       EXPECT_EQ(storage.counters().bytesInMemory,
                 storage.counters().peakBytesInMemory - storage.counters().compressedBytes);
@@ -115,8 +119,8 @@ TEST_P(EveryCodec, CompressionRatioAboveOneAndGrowingWithTheTolerance) {
     EXPECT_GT(result.summary.compressionRatio, 1.0) << tolerance;
     EXPECT_LT(result.summary.compressionRatio, previous) << tolerance;
     EXPECT_EQ(storage.counters().uncompressedBytes, result.summary.steps * 16);
-    EXPECT_EQ(storage.counters().bytesInMemory, storage.counters().peakBytesInMemory -
-                                                    storage.counters().compressedBytes);
+    EXPECT_EQ(storage.counters().bytesInMemory,
+              storage.counters().peakBytesInMemory - storage.counters().compressedBytes);
     previous = result.summary.compressionRatio;
   }
 }
@@ -142,7 +146,7 @@ TEST(LossyStorage, MantissaRoundingIsToNearestTiesToEvenWithinItsBound) {
   EXPECT_EQ(LossyStorage::keptMantissaBits(1e-4), 13);
   EXPECT_EQ(LossyStorage::keptMantissaBits(1e-30), 52);
   double ties[] = {1.5, 2.5, 1.25, 1.75, -1.75, 0.0, 3.0};
-  LossyStorage::roundMantissas(ties, 2, 0);   // 1.1b -> 10b; 10.1b -> 10b (even)
+  LossyStorage::roundMantissas(ties, 2, 0);      // 1.1b -> 10b; 10.1b -> 10b (even)
   LossyStorage::roundMantissas(ties + 2, 5, 1);  // 1.01b -> 1.0b; 1.11b -> 10.0b
   EXPECT_EQ(ties[0], 2.0);
   EXPECT_EQ(ties[1], 2.0);

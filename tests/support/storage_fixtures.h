@@ -64,7 +64,8 @@ inline IntegratorOptions adaptiveTrBdf2() {
   return options;
 }
 
-inline GradientResult fullReference(const Problem& problem, const Vector& p, const IntegratorOptions& options) {
+inline GradientResult fullReference(const Problem& problem, const Vector& p,
+                                    const IntegratorOptions& options) {
   FullStorage storage;
   return computeGradient(problem, p, options, storage);
 }
@@ -75,8 +76,8 @@ inline ::testing::AssertionResult bitwiseEqual(const GradientResult& a, const Gr
   if (std::memcmp(&a.objective, &b.objective, sizeof(double)) != 0)
     return ::testing::AssertionFailure() << "psi differs: " << a.objective << " vs " << b.objective;
   if (std::memcmp(a.gradient.data(), b.gradient.data(), sizeof(double) * a.gradient.size()) != 0) {
-    return ::testing::AssertionFailure() << "gradients differ: " << a.gradient.transpose() << " vs "
-                                         << b.gradient.transpose();
+    return ::testing::AssertionFailure()
+           << "gradients differ: " << a.gradient.transpose() << " vs " << b.gradient.transpose();
   }
   if (a.times != b.times) return ::testing::AssertionFailure() << "time grids differ";
   return ::testing::AssertionSuccess();
