@@ -10,6 +10,8 @@
 #include <sys/mount.h>
 #include <unistd.h>
 
+#include <zstd.h>
+
 #include <fstream>
 #include <random>
 
@@ -193,6 +195,52 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
   H5Fclose(file);
 }
 
+// What the registered zstd plugin (id 32015) decodes: each stored chunk, read raw, is one standard
+// zstd frame (plus Fletcher32's 4 checksum bytes), and decompressing it with plain libzstd and
+// undoing the byte shuffle gives the states. No HDF5 filter of ours is involved in this check.
+TEST(DiskStorage, StoredChunksAreStandardZstdFramesOfShuffledStates) {
+  Pendulum problem;
+  ScratchDirectory dir;
+  DiskStorage::Options o = diskOptions(dir.path(), 16);
+  o.keepFile = true;
+  DiskStorage storage(o);
+  std::vector<double> observed;
+  const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage,
+                                                [&](std::int64_t, double, ConstVectorRef z) {
+                                                  observed.insert(observed.end(), z.data(), z.data() + 2);
+                                                });
+  const hid_t file = H5Fopen(storage.filePath().c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  const hid_t states = H5Dopen2(file, "states", H5P_DEFAULT);
+  const std::int64_t rows = result.summary.steps + 1;
+  const std::size_t chunkValues = 16 * 2;
+  for (hsize_t chunk = 0; chunk * 16 < static_cast<hsize_t>(rows); ++chunk) {
+    const hsize_t offset[2] = {chunk * 16, 0};
+    hsize_t size = 0;
+    ASSERT_GE(H5Dget_chunk_storage_size(states, offset, &size), 0);
+    std::vector<unsigned char> raw(size);
+    std::uint32_t mask = 0;
+    ASSERT_GE(H5Dread_chunk(states, H5P_DEFAULT, offset, &mask, raw.data()), 0);
+    EXPECT_EQ(mask, 0u) << "no filter skipped";
+    ASSERT_GT(size, 4u);
+    std::vector<unsigned char> shuffled(chunkValues * 8);
+    const std::size_t produced = ZSTD_decompress(shuffled.data(), shuffled.size(), raw.data(), size - 4);
+    ASSERT_FALSE(ZSTD_isError(produced)) << ZSTD_getErrorName(produced);
+    ASSERT_EQ(produced, shuffled.size());
+    EXPECT_EQ(ZSTD_getFrameContentSize(raw.data(), size - 4), shuffled.size());
+    std::vector<double> values(chunkValues);
+    auto* bytes = reinterpret_cast<unsigned char*>(values.data());
+    for (std::size_t i = 0; i < chunkValues; ++i) {
+      for (std::size_t b = 0; b < 8; ++b) bytes[i * 8 + b] = shuffled[b * chunkValues + i];
+    }
+    const std::size_t first = static_cast<std::size_t>(chunk) * chunkValues;
+    const std::size_t count = std::min(chunkValues, observed.size() - first);
+    EXPECT_EQ(std::memcmp(values.data(), observed.data() + first, count * 8), 0) << "chunk " << chunk;
+  }
+  H5Dclose(states);
+  H5Fclose(file);
+}
+
 TEST(DiskStorage, CompressesASmoothTrajectory) {
   Pendulum problem;
   ScratchDirectory dir;
@@ -249,6 +297,16 @@ TEST(DiskStorageFaults, UnwritableDirectory) {
   const std::string message = storageErrorOf(storage, fixedStepRk4());
   EXPECT_NE(message.find("cannot create the trajectory file"), std::string::npos) << message;
   EXPECT_NE(message.find("[file: /proc/hindsight-"), std::string::npos) << message;
+  // A read-only mount refuses everybody, root included.
+  ScratchDirectory mountPoint;
+  if (::mount("tmpfs", mountPoint.path().c_str(), "tmpfs", MS_RDONLY, "size=64k") == 0) {
+    DiskStorage readOnly(diskOptions(mountPoint.path()));
+    const std::string readOnlyMessage = storageErrorOf(readOnly, fixedStepRk4());
+    EXPECT_NE(readOnlyMessage.find("Read-only file system"), std::string::npos) << readOnlyMessage;
+    EXPECT_NE(readOnlyMessage.find("[file: " + mountPoint.path() + "/hindsight-"), std::string::npos)
+        << readOnlyMessage;
+    ::umount(mountPoint.path().c_str());
+  }
   if (::geteuid() != 0) {
     ScratchDirectory dir;
     std::filesystem::permissions(dir.path(),
@@ -260,22 +318,23 @@ TEST(DiskStorageFaults, UnwritableDirectory) {
 }
 
 TEST(DiskStorageFaults, InjectedWriteFailureReachesTheCaller) {
+  Pendulum problem;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
   for (std::int64_t failAfter : {0, 3}) {
     ScratchDirectory dir;
-    DiskStorage::Options o = diskOptions(dir.path(), 64);
-    o.failWriteAfterChunks = failAfter;
-    DiskStorage storage(o);
-    const std::string message = storageErrorOf(storage, fixedStepRk4());
-    EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
-    EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-"), std::string::npos) << message;
-    // The next run works, with a new file, and the failed one is gone.
-    storage.setVerifyRestores(true);
-    DiskStorage::Options healthy = diskOptions(dir.path(), 64);
-    DiskStorage again(healthy);
-    Pendulum problem;
-    const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
+    {
+      DiskStorage::Options o = diskOptions(dir.path(), 64);
+      o.failWriteAfterChunks = failAfter;
+      DiskStorage storage(o);
+      const std::string message = storageErrorOf(storage, fixedStepRk4());
+      EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
+      EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-"), std::string::npos) << message;
+      EXPECT_EQ(dir.entryCount(), 1u);
+    }
+    EXPECT_EQ(dir.entryCount(), 0u) << "the failed run's file is removed with its storage";
+    DiskStorage healthy(diskOptions(dir.path(), 64));
     EXPECT_TRUE(
-        bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), again), reference));
+        bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), healthy), reference));
   }
 }
 
