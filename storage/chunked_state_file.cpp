@@ -11,7 +11,6 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
-#include <deque>
 #include <filesystem>
 #include <mutex>
 #include <thread>
@@ -193,7 +192,11 @@ struct ChunkedStateFile::Impl {
   mutable std::mutex mutex;
   std::condition_variable changed;
   std::vector<Buffer> buffers;
-  std::deque<Task> tasks;
+  // Pending tasks: a ring allocated once (each buffer has at most one task in flight, plus the
+  // synchronous ones), so that submitting allocates nothing.
+  std::vector<Task> tasks;
+  std::size_t firstTask = 0;
+  std::size_t taskCount = 0;
   std::uint64_t nextTicket = 1;
   std::uint64_t completedTicket = 0;
   bool stop = false;
@@ -215,10 +218,11 @@ struct ChunkedStateFile::Impl {
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // this thread's stack: we report errors ourselves
     std::unique_lock<std::mutex> lock(mutex);
     for (;;) {
-      changed.wait(lock, [&] { return stop || !tasks.empty(); });
+      changed.wait(lock, [&] { return stop || taskCount > 0; });
       if (stop) break;
-      const Task task = tasks.front();
-      tasks.pop_front();
+      const Task task = tasks[firstTask];
+      firstTask = (firstTask + 1) % tasks.size();
+      --taskCount;
       const bool skip = failed;
       lock.unlock();
       std::string message;
@@ -405,7 +409,9 @@ struct ChunkedStateFile::Impl {
 
   std::uint64_t submit(Task task) {  // called with mutex held
     task.ticket = nextTicket++;
-    tasks.push_back(task);
+    assert(taskCount < tasks.size());
+    tasks[(firstTask + taskCount) % tasks.size()] = task;
+    ++taskCount;
     changed.notify_all();
     return task.ticket;
   }
@@ -487,6 +493,7 @@ ChunkedStateFile::ChunkedStateFile(const StateFileOptions& options, const Trajec
   }
   s.path = (std::filesystem::path(options.directory) / uniqueFileName(options.filePrefix)).string();
   s.buffers.resize(static_cast<std::size_t>(options.bufferCount));
+  s.tasks.resize(2 * s.buffers.size() + 4);
   for (auto& buffer : s.buffers) {
     buffer.data.resize(static_cast<std::size_t>(bufferBytes(info.stateSize, options.chunkStates) / 8));
   }
