@@ -255,6 +255,11 @@ struct ChunkedStateFile::Impl {
   }
 
   void execute(const Task& task) {
+#ifndef H5_HAVE_THREADSAFE
+    // A library built without thread safety must never be entered by two I/O threads at once.
+    static std::mutex libraryMutex;
+    std::lock_guard<std::mutex> libraryLock(libraryMutex);
+#endif
     switch (task.kind) {
       case Kind::kCreate:
         create();

@@ -13,7 +13,8 @@
 // plugin (and hdf5plugin.Zstd in Python) reads and writes. Fletcher32 makes a corrupted chunk an
 // error at read time instead of silently wrong states.
 //
-// Threading: every HDF5 call happens on the background thread; the owner's thread only copies
+// Threading: every HDF5 call happens on the background thread (serialized across files by a mutex
+// when HDF5 was built without thread safety); the owner's thread only copies
 // states into and out of a fixed pool of chunk buffers (allocated once in the constructor, sized
 // bufferBytes() each) and waits when all buffers are busy. The owner uses one object from one
 // thread. A failure on the background thread (unwritable file, full disk, corrupted chunk) is kept
