@@ -338,6 +338,33 @@ TEST(DiskStorageFaults, InjectedWriteFailureReachesTheCaller) {
   }
 }
 
+// A failed background write surfaces at one of the next record() calls, not only at finish().
+TEST(DiskStorageFaults, BackgroundWriteFailureStopsTheForwardSweepEarly) {
+  ScratchDirectory dir;
+  DiskStorage::Options o = diskOptions(dir.path(), 1);
+  o.failWriteAfterChunks = 0;
+  DiskStorage storage(o);
+  testing::ForbiddenRecomputer recomputer;
+  TrajectoryInfo info;
+  info.stateSize = 4;
+  info.t1 = 1.0;
+  storage.begin(info, recomputer);
+  Vector z = Vector::Ones(4);
+  std::int64_t step = 0;
+  std::string message;
+  try {
+    for (; step < 100000; ++step) storage.record(step, 1e-5 * step, z, z);
+  } catch (const StorageError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
+  // Three one-state buffers: the fourth record (step 3) at the latest waits for a free buffer and
+  // sees the failure of the first write.
+  EXPECT_LE(step, 3);
+  // And the storage keeps reporting it.
+  EXPECT_THROW(storage.finish(step, 1.0, z, z), StorageError);
+}
+
 // A 64 KiB tmpfs that fills up: the real ENOSPC path through HDF5.
 TEST(DiskStorageFaults, FullDiskOnATinyTmpfs) {
   ScratchDirectory dir;
