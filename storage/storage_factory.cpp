@@ -1,7 +1,10 @@
 #include "storage/storage_factory.h"
 
+#include "storage/disk_storage.h"
 #include "storage/full_storage.h"
 #include "storage/hermite_storage.h"
+#include "storage/lossy_storage.h"
+#include "storage/multilevel_storage.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -19,6 +22,9 @@ const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
       {"full", &FullStorage::keys, &FullStorage::create},
       {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
+      {"disk", &DiskStorage::keys, &DiskStorage::create},
+      {"lossy", &LossyStorage::keys, &LossyStorage::create},
+      {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
   };
   return entries;
 }

@@ -1,0 +1,123 @@
+#include "storage/disk_storage.h"
+
+#include "storage/chunked_state_file.h"
+
+#include <algorithm>
+
+namespace hindsight {
+
+bool DiskStorage::Options::IsValid(std::string* error) const {
+  std::string message;
+  if (directory.empty())
+    message = "disk.dir must name a directory";
+  else if (compressionLevel < 1 || compressionLevel > 22)
+    message = "disk.level = " + std::to_string(compressionLevel) + " must be in [1, 22]";
+  else if (chunkStates < 0)
+    message = "disk.chunk = " + std::to_string(chunkStates) + " must be positive (or 0 for automatic)";
+  else if (budgetBytes <= 0)
+    message = "disk.budget = " + std::to_string(budgetBytes) + " must be positive";
+  if (error != nullptr) *error = message;
+  return message.empty();
+}
+
+DiskStorage::DiskStorage(Options options)
+    : TrajectoryStorage(std::max<std::int64_t>(1, options.budgetBytes)), options_(std::move(options)) {
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument(error);
+}
+
+DiskStorage::~DiskStorage() { closeFile(); }
+
+std::unique_ptr<TrajectoryStorage> DiskStorage::create(const StorageSpec& spec) {
+  Options options;
+  options.directory = spec.text("dir", "");
+  if (options.directory.empty()) throw std::invalid_argument("disk.dir is required, e.g. disk:dir=/tmp");
+  options.compressionLevel = static_cast<int>(spec.integer("level", 3, 1, 22));
+  options.chunkStates = spec.integer("chunk", 0, 1, std::int64_t{1} << 30);
+  options.budgetBytes = spec.bytes("budget", kDefaultBudget);
+  options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
+  return std::make_unique<DiskStorage>(std::move(options));
+}
+
+std::string DiskStorage::spec() const {
+  std::string text = "disk:dir=" + options_.directory;
+  if (options_.compressionLevel != 3) text += ",level=" + std::to_string(options_.compressionLevel);
+  if (options_.chunkStates > 0) text += ",chunk=" + std::to_string(options_.chunkStates);
+  if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
+  if (options_.keepFile) text += ",keep=true";
+  return text;
+}
+
+void DiskStorage::closeFile() {
+  if (file_) {
+    file_->close();
+    file_.reset();
+  }
+  if (heldBytes_ > 0) {
+    releaseBytes(std::min(heldBytes_, counters().bytesInMemory));
+    heldBytes_ = 0;
+  }
+}
+
+void DiskStorage::doBegin() {
+  closeFile();
+  heldBytes_ = 0;  // begin() has already released everything
+  const int n = info().stateSize;
+  const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
+  const std::int64_t rows = info().stepCount >= 0 ? info().stepCount + 1 : std::int64_t{1} << 40;
+  std::int64_t chunk = options_.chunkStates;
+  if (chunk == 0) {
+    chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
+    chunk = std::min(chunk, std::max<std::int64_t>(1, budgetBytes() / (3 * rowBytes)));
+  }
+  chunk = std::min(chunk, rows);
+  const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(n, chunk);
+  const int bufferCount = static_cast<int>(std::clamp<std::int64_t>(budgetBytes() / bufferBytes, 1, 3));
+  holdBytes(bufferCount * bufferBytes);  // throws StorageError when not even one buffer fits
+  heldBytes_ = bufferCount * bufferBytes;
+  chunkStates_ = chunk;
+
+  internal::StateFileOptions fileOptions;
+  fileOptions.directory = options_.directory;
+  fileOptions.compressionLevel = options_.compressionLevel;
+  fileOptions.chunkStates = chunk;
+  fileOptions.bufferCount = bufferCount;
+  fileOptions.keepFile = options_.keepFile;
+  fileOptions.failWriteAfterChunks = options_.failWriteAfterChunks;
+  file_ = std::make_unique<internal::ChunkedStateFile>(fileOptions, info());
+  filePath_ = file_->path();
+}
+
+void DiskStorage::doRecord(std::int64_t, double t, ConstVectorRef z, ConstVectorRef) {
+  assert(file_);
+  file_->append(t, z.data());
+  ++mutableCounters().statesStored;
+}
+
+void DiskStorage::doFinish(double t, ConstVectorRef z, ConstVectorRef) {
+  assert(file_);
+  file_->append(t, z.data());  // the final state too, so the file holds the whole trajectory
+  file_->finishWriting(stepCount());
+  StorageCounters& c = mutableCounters();
+  c.bytesOnDisk = file_->fileBytes();
+  c.uncompressedBytes = file_->rows() * stateBytes();
+  c.compressedBytes = file_->storedStateBytes();
+  c.ioSeconds = file_->ioSeconds();
+  if (options_.afterForwardSweep) options_.afterForwardSweep(filePath_);
+  if (stepCount() == 0) {
+    closeFile();
+    return;
+  }
+  file_->startReading(stepCount() - 1);
+}
+
+void DiskStorage::doRestore(std::int64_t step, VectorRef z) {
+  assert(file_);
+  file_->read(step, z.data());
+  if (step == 0) {
+    mutableCounters().ioSeconds = file_->ioSeconds();
+    closeFile();
+  }
+}
+
+}  // namespace hindsight

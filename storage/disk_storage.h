@@ -1,0 +1,94 @@
+// Strategy "disk": every step's state in an HDF5 file, chunked, byte-shuffled and zstd-compressed,
+// written and read by a background thread (SPEC.md section 6). Exact: restore() returns the recorded
+// bits, so gradients are bitwise identical to "full" storage; nothing is recomputed.
+//
+// Spec: disk:dir=PATH[,level=1..22][,chunk=STATES][,budget=BYTES][,keep=true|false]
+//   dir     directory for the file (created if missing); required
+//   level   zstd level (default 3)
+//   chunk   states per HDF5 chunk and per I/O buffer (default: about 1 MiB of states, at most 4096)
+//   budget  bytes held in memory (default 64 MiB): the pool of up to three chunk buffers (one being
+//           filled or consumed, the others queued for writing or prefetched), charged with
+//           holdBytes() at begin(); the default chunk shrinks to fit, an explicit one does not.
+//           HDF5 runs with its chunk cache off; zstd's scratch buffers while a chunk is being
+//           (de)compressed are transient and not charged.
+//   keep    keep the file after the backward sweep (default false: it is removed after restore(0),
+//           or when the storage is destroyed or begins a new run)
+// File format: see storage/chunked_state_file.h. The file holds rows 0..N (the final state too) and
+// is named "<dir>/hindsight-<pid>-<counter>-<clock>.h5", unique per run; filePath() gives it.
+//
+// Faults are StorageError naming the file (never a crash, never a wrong gradient): a directory that
+// cannot be created or written (at begin), a write error such as a full disk (on the background
+// thread, thrown by the next record/finish/restore), a truncated file (at finish, when the file is
+// reopened for reading) or a corrupted chunk (Fletcher32 checksum mismatch, thrown by restore).
+//
+// Thread-safety: one storage object is used from one thread; it owns one background I/O thread per
+// run, joined at the end of the backward sweep, at the next begin() and in the destructor.
+//
+// References: HDF5 registered filter 32015 (zstd), https://github.com/HDFGroup/hdf5_plugins/blob/
+// master/docs/RegisteredFilterPlugins.md; Collet & Kucherawy, RFC 8878 (Zstandard).
+#pragma once
+
+#include "storage/storage_spec.h"
+#include "storage/trajectory_storage.h"
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+namespace internal {
+class ChunkedStateFile;
+}
+
+class DiskStorage final : public TrajectoryStorage {
+ public:
+  static constexpr std::int64_t kDefaultBudget = std::int64_t{64} << 20;
+
+  struct Options {
+    std::string directory;
+    int compressionLevel = 3;
+    std::int64_t chunkStates = 0;  ///< 0: automatic
+    std::int64_t budgetBytes = kDefaultBudget;
+    bool keepFile = false;
+    /// Test hook: writes of chunk K and later fail as on a full disk (-1: off).
+    std::int64_t failWriteAfterChunks = -1;
+    /// Test hook: called with the file's path after the forward sweep, when the file is complete and
+    /// closed and before it is reopened for the backward sweep (e.g. to truncate or corrupt it).
+    std::function<void(const std::string& path)> afterForwardSweep;
+
+    /// False with a message naming the field, its value and the allowed range.
+    bool IsValid(std::string* error) const;
+  };
+
+  /// Throws std::invalid_argument when !options.IsValid().
+  explicit DiskStorage(Options options);
+  ~DiskStorage() override;
+
+  static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep"}; }
+
+  std::string spec() const override;
+  bool isExact() const override { return true; }
+
+  /// The file of the current or last run (empty before the first begin()).
+  const std::string& filePath() const { return filePath_; }
+  /// States per chunk of the current or last run.
+  std::int64_t chunkStates() const { return chunkStates_; }
+
+ private:
+  void doBegin() override;
+  void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRestore(std::int64_t step, VectorRef z) override;
+  void closeFile();
+
+  Options options_;
+  std::unique_ptr<internal::ChunkedStateFile> file_;
+  std::string filePath_;
+  std::int64_t chunkStates_ = 0;
+  std::int64_t heldBytes_ = 0;
+};
+
+}  // namespace hindsight

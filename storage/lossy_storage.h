@@ -1,0 +1,92 @@
+// Strategy "lossy": every step's state in memory, compressed with a bounded error (SPEC.md section 6).
+// Not exact (isExact() is false): the backward sweep sees states within the tolerance of the recorded
+// ones, so the gradient is that of a perturbed trajectory; its error is O(tolerance) (measured in
+// tests/storage/lossy_storage_test.cpp). Nothing is recomputed.
+//
+// Spec: lossy:codec=zfp|round,tolerance=T[,budget=BYTES][,block=STATES]
+//   codec=zfp    ZFP fixed-accuracy mode on 1-D arrays of doubles; every restored value is within
+//                the ABSOLUTE tolerance T of the recorded one (Lindstrom 2014).
+//   codec=round  mantissa rounding to the fewest bits m with 2^-(m+1) <= T (round to nearest, ties to
+//                even), then byte shuffle and zstd; every restored value x~ has |x~ - x| <= T |x|, a
+//                RELATIVE bound, T in (0, 0.5] (Kloewer, Razinger, Dominguez, Duben & Palmer 2021).
+//   budget       bytes held in memory (default 4 GiB): the compressed blocks plus three work buffers
+//                of one block each (raw states, transposed/shuffled states, compressor output).
+//   block        states compressed together (default: about 256 KiB of states, at most 4096).
+// States are compressed in blocks. When a block has at least as many states as a state has
+// components, it is stored component-major (each component's values over the block's steps are
+// contiguous), so smoothness in time helps the codecs even for tiny states; otherwise (large
+// states, few per block) state by state, so smoothness in space does. The achieved
+// ratio is in counters() (uncompressedBytes / compressedBytes). A compressed block is freed as soon
+// as the backward sweep has decoded it.
+//
+// Thread-safety: one object, one thread. Throws StorageError when the budget would be exceeded or a
+// codec fails, std::invalid_argument for bad options.
+//
+// References: P. Lindstrom, "Fixed-Rate Compressed Floating-Point Arrays", IEEE TVCG 20(12), 2014;
+// M. Kloewer et al., "Compressing atmospheric data into its real information content", Nature
+// Computational Science 1, 713-724, 2021; Kukreja et al. 2022 (lossy checkpoint compression for
+// adjoints).
+#pragma once
+
+#include "storage/storage_spec.h"
+#include "storage/trajectory_storage.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+class LossyStorage final : public TrajectoryStorage {
+ public:
+  enum class Codec { kZfp, kRound };
+  static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
+
+  struct Options {
+    Codec codec = Codec::kZfp;
+    double tolerance = 1e-8;  ///< absolute for zfp, relative for round
+    std::int64_t budgetBytes = kDefaultBudget;
+    std::int64_t blockStates = 0;  ///< 0: automatic
+    bool IsValid(std::string* error) const;
+  };
+
+  /// Throws std::invalid_argument when !options.IsValid().
+  explicit LossyStorage(Options options);
+  static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  static std::vector<std::string> keys() { return {"codec", "tolerance", "budget", "block"}; }
+
+  std::string spec() const override;
+  bool isExact() const override { return false; }
+
+  /// Mantissa bits kept by codec=round for a relative tolerance (0..52).
+  static int keptMantissaBits(double relativeTolerance);
+  /// Rounds each finite value to `bits` mantissa bits, to nearest, ties to even.
+  static void roundMantissas(double* values, std::size_t count, int bits);
+
+ private:
+  void doBegin() override;
+  void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRestore(std::int64_t step, VectorRef z) override;
+  void compressBlock();
+  void decodeBlock(std::size_t index);
+
+  struct Block {
+    std::int64_t states;
+    std::int64_t bytes;
+    std::unique_ptr<unsigned char[]> data;
+  };
+
+  Options options_;
+  std::int64_t blockStates_ = 1;
+  bool componentMajor_ = true;
+  std::vector<double> raw_;   // state-major: the block being filled / zstd scratch
+  std::vector<double> work_;  // component-major: the block being compressed or decoded
+  std::vector<unsigned char> scratch_;
+  std::int64_t statesInRaw_ = 0;
+  std::vector<Block> blocks_;
+  std::int64_t decodedBlock_ = -1;
+  std::int64_t decodedStates_ = 0;
+};
+
+}  // namespace hindsight

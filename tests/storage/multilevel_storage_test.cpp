@@ -1,0 +1,206 @@
+// Strategy "multilevel": bitwise-identical gradients to "full" in each regime (all in RAM, RAM and
+// disk, checkpointing with a fixed or doubling stride), the RAM budget and the disk budget, the
+// number of recomputations, the file's lifetime and faults.
+#include "storage/multilevel_storage.h"
+#include "storage/storage_factory.h"
+#include "support/storage_fixtures.h"
+
+namespace hindsight {
+namespace {
+
+using testing::adaptiveTrBdf2;
+using testing::bitwiseEqual;
+using testing::fixedStepRk4;
+using testing::fullReference;
+using testing::pendulumParameters;
+using testing::ScratchDirectory;
+
+MultilevelStorage::Options levels(std::int64_t ram, std::int64_t disk, const std::string& directory) {
+  MultilevelStorage::Options options;
+  options.ramBytes = ram;
+  options.diskBytes = disk;
+  options.directory = directory;
+  return options;
+}
+
+enum class Regime { kRamOnly, kRamAndDisk, kCheckpointing };
+
+struct Case {
+  const char* name;
+  std::int64_t ram, disk;
+  Regime fixedRegime;  // for rk4 with N = 2000 (32000 bytes of states)
+};
+
+// Pendulum states are 16 bytes, rows on disk 24 bytes (with the time).
+const Case kCases[] = {
+    {"everything in RAM", 1 << 20, 1 << 20, Regime::kRamOnly},
+    {"RAM then disk", 8000, 1 << 20, Regime::kRamAndDisk},
+    {"stride over both", 8000, 12000, Regime::kCheckpointing},
+    {"tiny: stride over a few slots", 200, 240, Regime::kCheckpointing},
+    {"RAM only, too small", 4000, 1, Regime::kCheckpointing},
+};
+
+TEST(MultilevelStorage, BitwiseIdenticalToFullInEveryRegime) {
+  Pendulum problem;
+  for (const IntegratorOptions& options : {fixedStepRk4(), adaptiveTrBdf2()}) {
+    const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+    const bool fixed = !options.adaptive;
+    for (const Case& c : kCases) {
+      SCOPED_TRACE(std::string(c.name) + ", " + options.method);
+      ScratchDirectory dir;
+      MultilevelStorage storage(levels(c.ram, c.disk, dir.path()));
+      storage.setVerifyRestores(true);
+      const GradientResult result = computeGradient(problem, pendulumParameters(), options, storage);
+      EXPECT_TRUE(bitwiseEqual(result, reference));
+      ::testing::Test::RecordProperty(std::string(c.name) + " " + options.method,
+                                      "steps " + std::to_string(result.summary.steps) + " stride " +
+                                          std::to_string(storage.stride()) + " ram " +
+                                          std::to_string(storage.statesInRam()) + " disk " +
+                                          std::to_string(storage.statesOnDisk()) + " recomputed " +
+                                          std::to_string(result.summary.recomputedSteps) + " peak " +
+                                          std::to_string(storage.counters().peakBytesInMemory));
+      EXPECT_LE(storage.counters().peakBytesInMemory, c.ram);
+      EXPECT_LE(storage.statesOnDisk() * 24, c.disk);
+      EXPECT_EQ(storage.statesInRam() + storage.statesOnDisk(), storage.counters().statesStored);
+      EXPECT_EQ(dir.entryCount(), 0u) << "the file must be removed after the backward sweep";
+      if (fixed) {
+        switch (c.fixedRegime) {
+          case Regime::kRamOnly:
+            EXPECT_EQ(storage.statesOnDisk(), 0);
+            EXPECT_TRUE(storage.filePath().empty()) << "no file when RAM suffices";
+            EXPECT_EQ(result.summary.recomputedSteps, 0);
+            break;
+          case Regime::kRamAndDisk:
+            EXPECT_GT(storage.statesInRam(), 0);
+            EXPECT_GT(storage.statesOnDisk(), 0);
+            EXPECT_EQ(storage.stride(), 1);
+            EXPECT_EQ(result.summary.recomputedSteps, 0);
+            EXPECT_GT(result.summary.bytesOnDisk, 0);
+            break;
+          case Regime::kCheckpointing:
+            EXPECT_GT(storage.stride(), 1);
+            EXPECT_GT(result.summary.recomputedSteps, 0);
+            EXPECT_EQ(storage.counters().statesStored, (2000 + storage.stride() - 1) / storage.stride());
+            break;
+        }
+      }
+    }
+  }
+}
+
+TEST(MultilevelStorage, KnownLengthWithScratchRecomputesEachMissingStateOnce) {
+  // 8000 bytes of RAM and 12000 of disk: stride 3, and the 2 scratch states a segment needs fit.
+  Pendulum problem;
+  ScratchDirectory dir;
+  MultilevelStorage storage(levels(8000, 12000, dir.path()));
+  const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+  EXPECT_EQ(storage.stride(), 3);
+  EXPECT_EQ(result.summary.recomputedSteps, result.summary.steps - storage.counters().statesStored);
+}
+
+TEST(MultilevelStorage, UnknownLengthDoublesTheStrideAndStaysExact) {
+  // Adaptive steps and room for only 19 states: the stride doubles several times during the sweep.
+  Pendulum problem;
+  const IntegratorOptions options = adaptiveTrBdf2();
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  ScratchDirectory dir;
+  MultilevelStorage storage(levels(200, 240, dir.path()));
+  const GradientResult result = computeGradient(problem, pendulumParameters(), options, storage);
+  EXPECT_TRUE(bitwiseEqual(result, reference));
+  EXPECT_GE(storage.stride(), 8) << result.summary.steps << " steps";
+  EXPECT_LE(storage.counters().statesStored, 19);
+  EXPECT_LE(storage.counters().peakBytesInMemory, 200);
+}
+
+// A cheap deterministic "integrator" for direct tests of the protocol.
+struct AffineRecomputer final : StepRecomputer {
+  std::int64_t calls = 0;
+  void advance(std::int64_t step, VectorRef z) override {
+    ++calls;
+    z = 1.0001 * z + Vector::Constant(z.size(), static_cast<double>(step));
+  }
+};
+
+TEST(MultilevelStorage, RestoresEveryStateOfARecordedSequence) {
+  for (bool knownLength : {true, false}) {
+    for (std::int64_t ram : {64, 160, 1000, 100000}) {
+      SCOPED_TRACE("ram " + std::to_string(ram) + (knownLength ? ", N known" : ", N unknown"));
+      ScratchDirectory dir;
+      MultilevelStorage storage(levels(ram, 400, dir.path()));
+      storage.setVerifyRestores(true);
+      AffineRecomputer recomputer;
+      TrajectoryInfo info;
+      info.stateSize = 2;
+      info.t1 = 1.0;
+      const std::int64_t steps = 333;
+      info.stepCount = knownLength ? steps : -1;
+      storage.begin(info, recomputer);
+      std::vector<Vector> states;
+      Vector z = Eigen::Vector2d(0.5, -1.25);
+      for (std::int64_t step = 0; step < steps; ++step) {
+        states.push_back(z);
+        storage.record(step, step * 0.003, z, z);
+        recomputer.advance(step, z);
+      }
+      storage.finish(steps, 1.0, z, z);
+      recomputer.calls = 0;
+      for (std::int64_t step = steps - 1; step >= 0; --step) {
+        storage.restore(step, z);
+        ASSERT_EQ(std::memcmp(z.data(), states[static_cast<std::size_t>(step)].data(), 16), 0) << step;
+      }
+      EXPECT_EQ(recomputer.calls, storage.counters().recomputedSteps);
+      EXPECT_LE(storage.counters().peakBytesInMemory, ram);
+      if (ram == 100000) EXPECT_EQ(recomputer.calls, 0);
+    }
+  }
+}
+
+TEST(MultilevelStorage, KeptFileHoldsTheDiskLevelAndFaultsAreStorageErrors) {
+  Pendulum problem;
+  {
+    ScratchDirectory dir;
+    MultilevelStorage::Options options = levels(8000, 1 << 20, dir.path());
+    options.keepFile = true;
+    MultilevelStorage storage(options);
+    computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+    ASSERT_FALSE(storage.filePath().empty());
+    EXPECT_TRUE(std::filesystem::exists(storage.filePath()));
+    EXPECT_EQ(dir.entryCount(), 1u);
+  }
+  {
+    ScratchDirectory dir;
+    MultilevelStorage::Options options = levels(8000, 1 << 20, dir.path());
+    options.failWriteAfterChunks = 2;
+    MultilevelStorage storage(options);
+    try {
+      computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+      ADD_FAILURE() << "no StorageError";
+    } catch (const StorageError& e) {
+      EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+      EXPECT_NE(e.path().find(dir.path() + "/hindsight-multilevel-"), std::string::npos) << e.what();
+    }
+  }
+  {
+    MultilevelStorage storage(levels(8000, 1 << 20, "/proc"));
+    EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), StorageError);
+  }
+  {
+    MultilevelStorage storage(levels(10, 10, "/tmp"));  // not a single 16-byte state fits
+    EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), StorageError);
+  }
+}
+
+TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
+  ScratchDirectory dir;
+  const std::string spec = "multilevel:ram=65536,disk=1048576,dir=" + dir.path() + ",level=5,keep=true";
+  EXPECT_EQ(createStorage(spec)->spec(), spec);
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB")->spec(), "multilevel:ram=65536,disk=1048576");
+  EXPECT_TRUE(createStorage("multilevel:ram=64KiB,disk=1MiB")->isExact());
+  EXPECT_THROW(createStorage("multilevel:ram=64KiB"), std::invalid_argument);
+  EXPECT_THROW(createStorage("multilevel:disk=64KiB"), std::invalid_argument);
+  EXPECT_THROW(createStorage("multilevel:ram=-5,disk=1MiB"), std::invalid_argument);
+  EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,level=0"), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace hindsight
