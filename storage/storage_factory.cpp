@@ -1,5 +1,6 @@
 #include "storage/storage_factory.h"
 
+#include "storage/binomial_checkpointing.h"
 #include "storage/full_storage.h"
 #include "storage/storage_spec.h"
 
@@ -17,6 +18,7 @@ struct Entry {
 const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
       {"full", &FullStorage::keys, &FullStorage::create},
+      {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
   };
   return entries;
 }
