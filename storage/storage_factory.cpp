@@ -2,6 +2,7 @@
 
 #include "storage/binomial_checkpointing.h"
 #include "storage/full_storage.h"
+#include "storage/online_checkpointing.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -19,6 +20,7 @@ const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
       {"full", &FullStorage::keys, &FullStorage::create},
       {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
+      {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
   };
   return entries;
 }
