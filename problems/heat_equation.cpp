@@ -10,7 +10,8 @@ namespace hindsight {
 // ---- TridiagonalLu ----
 
 TridiagonalLu::TridiagonalLu(int size) : n_(size), lower_(size), pivot_(size), upper_(size) {
-  if (size < 1) throw std::invalid_argument("TridiagonalLu: size = " + std::to_string(size) + " must be >= 1");
+  if (size < 1)
+    throw std::invalid_argument("TridiagonalLu: size = " + std::to_string(size) + " must be >= 1");
 }
 
 void TridiagonalLu::factorize(const Vector& sub, const Vector& diagonal, const Vector& super, double time) {
@@ -26,9 +27,8 @@ void TridiagonalLu::factorize(const Vector& sub, const Vector& diagonal, const V
     }
     upper_(i) = super(i);
     if (!std::isfinite(pivot_(i)) || std::abs(pivot_(i)) <= 1e-300) {
-      throw NewtonFailure("tridiagonal factorisation: pivot " + std::to_string(i) + " is " +
-                              std::to_string(pivot_(i)),
-                          time);
+      throw NewtonFailure(
+          "tridiagonal factorisation: pivot " + std::to_string(i) + " is " + std::to_string(pivot_(i)), time);
     }
   }
 }
@@ -53,8 +53,7 @@ namespace {
 /// I - alpha F_z for the reaction-diffusion Jacobian, factorised by TridiagonalLu.
 class ReactionDiffusionNewtonSolver final : public NewtonSolver {
  public:
-  ReactionDiffusionNewtonSolver(int n, double h)
-      : h_(h), lu_(n), sub_(n), diagonal_(n), super_(n) {}
+  ReactionDiffusionNewtonSolver(int n, double h) : h_(h), lu_(n), sub_(n), diagonal_(n), super_(n) {}
   void factorize(double t, ConstVectorRef z, ConstVectorRef p, double alpha, ProblemWorkspace*) override {
     const double coupling = p(0) / (h_ * h_);
     const int n = static_cast<int>(z.size());
@@ -134,8 +133,8 @@ void HeatEquation::rhsStateVjp(double, ConstVectorRef z, ConstVectorRef p, Const
   }
 }
 
-void HeatEquation::addRhsParameterVjp(double, ConstVectorRef z, ConstVectorRef, ConstVectorRef w, VectorRef out,
-                                      ProblemWorkspace*) const {
+void HeatEquation::addRhsParameterVjp(double, ConstVectorRef z, ConstVectorRef, ConstVectorRef w,
+                                      VectorRef out, ProblemWorkspace*) const {
   // dF/dD = (u_{i-1} - 2 u_i + u_{i+1}) / h^2, dF/dk = u_i (1 - u_i); F does not depend on a.
   double diffusion = 0.0, reaction = 0.0;
   for (int i = 0; i < n_; ++i) {
@@ -156,8 +155,8 @@ double HeatEquation::integrand(double, ConstVectorRef z, ConstVectorRef, Problem
   return h_ * z.squaredNorm();
 }
 
-void HeatEquation::addIntegrandStateGradient(double, ConstVectorRef z, ConstVectorRef, double scale, VectorRef out,
-                                             ProblemWorkspace*) const {
+void HeatEquation::addIntegrandStateGradient(double, ConstVectorRef z, ConstVectorRef, double scale,
+                                             VectorRef out, ProblemWorkspace*) const {
   out += (2.0 * h_ * scale) * z;
 }
 

@@ -18,8 +18,8 @@ UnsignedInt128 beta(std::int64_t c, std::int64_t r) {
   if (r < 0) return 0;
   // C(c + r, k) with k = min(c, r): v_i = C(c + r - k + i, i) stays an integer after each division.
   const std::int64_t k = std::min(c, r);
-  const UnsignedInt128 top = static_cast<UnsignedInt128>(c) + static_cast<UnsignedInt128>(r) -
-                             static_cast<UnsignedInt128>(k);
+  const UnsignedInt128 top =
+      static_cast<UnsignedInt128>(c) + static_cast<UnsignedInt128>(r) - static_cast<UnsignedInt128>(k);
   UnsignedInt128 value = 1;
   for (std::int64_t i = 1; i <= k; ++i) {
     value = value * (top + static_cast<UnsignedInt128>(i)) / static_cast<UnsignedInt128>(i);
@@ -51,11 +51,11 @@ std::int64_t repetitionNumber(std::int64_t steps, std::int64_t checkpoints) {
 UnsignedInt128 optimalForwardSteps(std::int64_t steps, std::int64_t checkpoints) {
   const std::int64_t r = repetitionNumber(steps, checkpoints);
   if (r == 0) return 0;
-  // T = r N - beta(c + 1, r - 1), with beta(c + 1, r - 1) = C(c + r, c + 1) = beta(c, r - 1) (c + r) / (c + 1)
-  // evaluated from beta(c, r - 1) < N, so nothing saturates (beta(2, N - 2) ~ N^2 / 2 for c = 1).
+  // T = r N - beta(c + 1, r - 1), with beta(c + 1, r - 1) = C(c + r, c + 1) = beta(c, r - 1) (c + r) / (c +
+  // 1) evaluated from beta(c, r - 1) < N, so nothing saturates (beta(2, N - 2) ~ N^2 / 2 for c = 1).
   const UnsignedInt128 previous = beta(checkpoints, r - 1);
-  const UnsignedInt128 next = previous * static_cast<UnsignedInt128>(checkpoints + r) /
-                              static_cast<UnsignedInt128>(checkpoints + 1);
+  const UnsignedInt128 next =
+      previous * static_cast<UnsignedInt128>(checkpoints + r) / static_cast<UnsignedInt128>(checkpoints + 1);
   return static_cast<UnsignedInt128>(r) * static_cast<UnsignedInt128>(steps) - next;
 }
 
@@ -90,7 +90,9 @@ struct CountingVisitor {
   BinomialSchedule& schedule;
   void loadWorking() { ++counts.workingStateLoads; }
   void load(std::int64_t) {}
-  void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += static_cast<UnsignedInt128>(to - from); }
+  void advance(std::int64_t from, std::int64_t to) {
+    counts.recomputedSteps += static_cast<UnsignedInt128>(to - from);
+  }
   void store(std::int64_t) {
     ++counts.checkpointWrites;
     counts.maxCheckpointsHeld = std::max(counts.maxCheckpointsHeld, schedule.held());
@@ -101,8 +103,8 @@ struct CountingVisitor {
 
 ScheduleCounts simulateSchedule(std::int64_t steps, std::int64_t checkpoints) {
   if (steps < 1 || checkpoints < 1) {
-    throw std::invalid_argument("simulateSchedule: steps = " + std::to_string(steps) + " and checkpoints = " +
-                                std::to_string(checkpoints) + " must be >= 1");
+    throw std::invalid_argument("simulateSchedule: steps = " + std::to_string(steps) +
+                                " and checkpoints = " + std::to_string(checkpoints) + " must be >= 1");
   }
   ScheduleCounts counts;
   BinomialSchedule schedule;

@@ -29,9 +29,10 @@
 //
 // Preconditions: TrajectoryInfo.stepCount >= 1 (fixed step or replayed grid); begin() throws
 // std::invalid_argument telling to use `online` when it is -1 (adaptive steps).
-// Complexity: T(N, c) recomputed steps in total; O(1) amortised bookkeeping per action; restores and
-// records allocate nothing (all slots are allocated in begin()); every schedule decision costs O(min(c, r) log r)
-// binomial products with 128-bit saturating binomials, so N up to 2^62 and c up to 10^9 do not overflow.
+// Complexity: T(N, c) - (N - 1) recomputed steps in total; restores and records allocate nothing (all
+// slots are allocated in begin(), a test counts heap allocations); each schedule decision costs
+// O(min(c, r) log r) products of 128-bit saturating binomials, so N up to 2^62 and c up to 10^9 do not
+// overflow.
 #pragma once
 
 #include "storage/storage_spec.h"
@@ -136,7 +137,7 @@ void BinomialSchedule::restoreStep(std::int64_t e, Visitor& visitor) {
 
 /// Counts of a schedule run without states (revolve::simulateSchedule).
 struct ScheduleCounts {
-  std::int64_t firstSweepSteps = 0;   ///< N - 1
+  std::int64_t firstSweepSteps = 0;    ///< N - 1
   UnsignedInt128 recomputedSteps = 0;  ///< advances in the backward sweep
   std::int64_t checkpointWrites = 0;   ///< states copied into slots, first sweep included
   std::int64_t maxCheckpointsHeld = 0;

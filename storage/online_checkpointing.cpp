@@ -16,8 +16,7 @@ OnlineCheckpointing::OnlineCheckpointing(std::int64_t checkpoints, std::int64_t 
 }
 
 std::unique_ptr<TrajectoryStorage> OnlineCheckpointing::create(const StorageSpec& spec) {
-  const std::int64_t checkpoints =
-      spec.integer("checkpoints", 0, 1, BinomialCheckpointing::kMaxCheckpoints);
+  const std::int64_t checkpoints = spec.integer("checkpoints", 0, 1, BinomialCheckpointing::kMaxCheckpoints);
   return std::make_unique<OnlineCheckpointing>(checkpoints, spec.bytes("budget", kDefaultBudget));
 }
 
@@ -53,7 +52,8 @@ UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, st
 UnsignedInt128 OnlineCheckpointing::forwardStepBound(std::int64_t steps, std::int64_t c) {
   const std::int64_t d = finalSpacing(steps, c);
   const std::int64_t r = d >= 2 ? revolve::repetitionNumber(d, c / 2 + 1) : 0;
-  return static_cast<UnsignedInt128>(steps - 1) + static_cast<UnsignedInt128>(steps) * static_cast<UnsignedInt128>(r);
+  return static_cast<UnsignedInt128>(steps - 1) +
+         static_cast<UnsignedInt128>(steps) * static_cast<UnsignedInt128>(r);
 }
 
 void OnlineCheckpointing::releaseAll() {
@@ -86,8 +86,8 @@ void OnlineCheckpointing::doBegin() {
         "online checkpointing needs " +
         (requestedCheckpoints_ > 0 ? "online.checkpoints = " + std::to_string(requestedCheckpoints_)
                                    : std::string("at least one checkpoint")) +
-        " plus one working state of " + formatBytes(stateBytes()) + " within online.budget = " +
-        formatBytes(budgetBytes()) + "; raise the budget" +
+        " plus one working state of " + formatBytes(stateBytes()) +
+        " within online.budget = " + formatBytes(budgetBytes()) + "; raise the budget" +
         (requestedCheckpoints_ > 0 ? " or lower the checkpoints" : ""));
   }
   activeCheckpoints_ = std::min(activeCheckpoints_, BinomialCheckpointing::kMaxCheckpoints);

@@ -23,7 +23,8 @@
 //     (N - 1) + recomputedSteps <= (N - 1) + N rep(d, floor(c/2) + 1),
 // and it equals predictedForwardSteps(N, c) exactly. For c = 1 it is optimal, T(N, 1).
 // Memory: at most c checkpoints plus one working state, allocated on first use and charged with
-// holdBytes(); it never exceeds the budget.
+// holdBytes(); it never exceeds the budget. counters().statesStored counts checkpoint writes of the
+// forward sweep (the working-state copy made at every step is not counted).
 //
 // Preconditions: none on N (works for fixed and adaptive steps). Throws std::invalid_argument from
 // begin() when c < 1 or (c + 1) states do not fit in the budget, naming online.checkpoints/online.budget.
@@ -38,7 +39,8 @@ namespace hindsight {
 class OnlineCheckpointing final : public TrajectoryStorage {
  public:
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
-  /// checkpoints = 0 derives c from the budget at begin(); otherwise in [1, BinomialCheckpointing::kMaxCheckpoints].
+  /// checkpoints = 0 derives c from the budget at begin(); otherwise in [1,
+  /// BinomialCheckpointing::kMaxCheckpoints].
   explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
   static std::vector<std::string> keys() { return {"checkpoints", "budget"}; }
@@ -70,8 +72,8 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   std::int64_t activeCheckpoints_ = 0;
   std::int64_t forwardLimit_ = 0;
   std::int64_t spacing_ = 1;
-  std::vector<std::int64_t> positions_;            // forward checkpoints, slot i holds positions_[i]
-  std::vector<std::unique_ptr<double[]>> slots_;   // allocated on first use
+  std::vector<std::int64_t> positions_;           // forward checkpoints, slot i holds positions_[i]
+  std::vector<std::unique_ptr<double[]>> slots_;  // allocated on first use
   std::unique_ptr<double[]> working_;
   std::int64_t heldBytes_ = 0;
   bool workingValid_ = false;

@@ -1,10 +1,10 @@
 // The reaction-diffusion problem: every derivative against finite differences, the tridiagonal solver
 // against its defining residual (also on a non-symmetric matrix, so a wrong transpose cannot pass), and
 // the whole gradient against finite differences of the computed psi for explicit and implicit methods.
+#include "problems/heat_equation.h"
 #include "engine/adjoint.h"
 #include "engine/gradient_checker.h"
 #include "engine/integrator.h"
-#include "problems/heat_equation.h"
 #include "storage/full_storage.h"
 
 #include <gtest/gtest.h>
@@ -134,7 +134,9 @@ TEST_P(HeatGradient, MatchesFiniteDifferencesOfTheComputedObjective) {
   storage.setVerifyRestores(true);
   const GradientResult result = computeGradient(problem, p, options, storage);
   EXPECT_GT(result.objective, 0.0);
-  const auto objective = [&](const Vector& parameters) { return simulate(problem, parameters, options).objective; };
+  const auto objective = [&](const Vector& parameters) {
+    return simulate(problem, parameters, options).objective;
+  };
   const auto check = checkGradient(objective, p, result.gradient, {1e-7});
   EXPECT_TRUE(check.passed) << check.message;
 }

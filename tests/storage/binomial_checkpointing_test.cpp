@@ -1,8 +1,8 @@
 // Binomial (revolve) checkpointing: the schedule attains the Griewank-Walther optimum
 // T(N, c) = r N - C(c + r, r - 1) exactly, as a pure schedule (large N) and through the real storage
 // with a real problem (moderate N), without overflow, within its byte budget.
-#include "problems/classic_problems.h"
 #include "storage/binomial_checkpointing.h"
+#include "problems/classic_problems.h"
 #include "storage/full_storage.h"
 #include "storage/storage_factory.h"
 
@@ -31,7 +31,8 @@ std::int64_t dynamicProgrammingOptimum(std::int64_t l, std::int64_t s,
   if (const auto it = memo.find(key); it != memo.end()) return it->second;
   std::int64_t best = dynamicProgrammingOptimum(l, s - 1, memo);  // not using a slot is allowed
   for (std::int64_t m = 1; m < l; ++m) {
-    best = std::min(best, m + dynamicProgrammingOptimum(l - m, s - 1, memo) + dynamicProgrammingOptimum(m, s, memo));
+    best = std::min(
+        best, m + dynamicProgrammingOptimum(l - m, s - 1, memo) + dynamicProgrammingOptimum(m, s, memo));
   }
   memo[key] = best;
   return best;
@@ -44,7 +45,8 @@ TEST(RevolveFormula, EqualsDynamicProgrammingOptimumAndTheScheduleAttainsIt) {
       const std::int64_t optimum = dynamicProgrammingOptimum(n, c, memo);
       ASSERT_EQ(toString(optimalForwardSteps(n, c)), std::to_string(optimum)) << "N = " << n << ", c = " << c;
       const ScheduleCounts counts = simulateSchedule(n, c);
-      ASSERT_EQ(toString(counts.totalForwardSteps()), std::to_string(optimum)) << "N = " << n << ", c = " << c;
+      ASSERT_EQ(toString(counts.totalForwardSteps()), std::to_string(optimum))
+          << "N = " << n << ", c = " << c;
       ASSERT_LE(counts.maxCheckpointsHeld, c);
     }
   }
@@ -56,7 +58,8 @@ TEST(RevolveFormula, KnownValuesAndNoOverflow) {
   EXPECT_EQ(toString(optimalForwardSteps(1'000'000, 2)), "941809245");
   EXPECT_EQ(toString(optimalForwardSteps(1'000'000, 100)), "3817896");
   // c = 1: N (N - 1) / 2, here about 2^123: needs 128 bits and must not saturate.
-  EXPECT_EQ(toString(optimalForwardSteps(std::int64_t{1} << 62, 1)), "10633823966279326980924613473029062656");
+  EXPECT_EQ(toString(optimalForwardSteps(std::int64_t{1} << 62, 1)),
+            "10633823966279326980924613473029062656");
   EXPECT_EQ(toString(optimalForwardSteps(std::int64_t{1} << 62, 2)), "9337128491186003968533230846");
   EXPECT_EQ(revolve::repetitionNumber(10'000, 20), 4);
   // C(10^9 + 2, 2) is exact; C(10^9 + 3, 3) ~ 1.7e26 saturates at 2^64 as documented.
@@ -71,15 +74,16 @@ struct LargeCase {
 
 class LargeSchedule : public ::testing::TestWithParam<LargeCase> {};
 
-INSTANTIATE_TEST_SUITE_P(
-    Table, LargeSchedule,
-    ::testing::Values(LargeCase{1'000'000, 1}, LargeCase{1'000'000, 2}, LargeCase{1'000'000, 5},
-                      LargeCase{1'000'000, 20}, LargeCase{1'000'000, 100}, LargeCase{1'048'577, 5},
-                      LargeCase{3'000'017, 20}, LargeCase{2'000'000, 100}, LargeCase{5'000, 100},
-                      LargeCase{101, 100}, LargeCase{100, 100}),
-    [](const auto& info) {
-      return "N" + std::to_string(info.param.steps) + "_c" + std::to_string(info.param.checkpoints);
-    });
+INSTANTIATE_TEST_SUITE_P(Table, LargeSchedule,
+                         ::testing::Values(LargeCase{1'000'000, 1}, LargeCase{1'000'000, 2},
+                                           LargeCase{1'000'000, 5}, LargeCase{1'000'000, 20},
+                                           LargeCase{1'000'000, 100}, LargeCase{1'048'577, 5},
+                                           LargeCase{3'000'017, 20}, LargeCase{2'000'000, 100},
+                                           LargeCase{5'000, 100}, LargeCase{101, 100}, LargeCase{100, 100}),
+                         [](const auto& info) {
+                           return "N" + std::to_string(info.param.steps) + "_c" +
+                                  std::to_string(info.param.checkpoints);
+                         });
 
 TEST_P(LargeSchedule, TotalForwardStepsEqualTheRevolveOptimum) {
   const auto [steps, checkpoints] = GetParam();
@@ -182,7 +186,8 @@ TEST(BinomialCheckpointing, CheckpointsThatDoNotFitTheBudgetAreRejected) {
 
 TEST(BinomialCheckpointing, SpecStrings) {
   EXPECT_EQ(createStorage("binomial:checkpoints=20")->spec(), "binomial:checkpoints=20");
-  EXPECT_EQ(createStorage("binomial:checkpoints=3,budget=1MiB")->spec(), "binomial:checkpoints=3,budget=1048576");
+  EXPECT_EQ(createStorage("binomial:checkpoints=3,budget=1MiB")->spec(),
+            "binomial:checkpoints=3,budget=1048576");
   const auto message = [](const std::string& spec) {
     try {
       createStorage(spec);

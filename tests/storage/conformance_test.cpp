@@ -75,7 +75,8 @@ class Conformance : public ::testing::TestWithParam<std::string> {
 
   void run(const Problem& problem, const Vector& p, const IntegratorOptions& options) {
     if (options.adaptive && strategy().needsKnownStepCount) {
-      GTEST_SKIP() << "'" << GetParam() << "' needs the number of steps in advance; adaptive steps make it unknown";
+      GTEST_SKIP() << "'" << GetParam()
+                   << "' needs the number of steps in advance; adaptive steps make it unknown";
     }
     FullStorage full;
     full.setVerifyRestores(true);

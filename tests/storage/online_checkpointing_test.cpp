@@ -1,10 +1,10 @@
 // Online checkpointing: exact gradients with N unknown in advance, memory within the budget, and a
 // recomputation count that equals its prediction, stays below its proven bound and is compared with the
 // offline revolve optimum for the same N and c.
+#include "storage/online_checkpointing.h"
 #include "engine/adjoint.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
-#include "storage/online_checkpointing.h"
 #include "storage/storage_factory.h"
 
 #include <gtest/gtest.h>
@@ -60,7 +60,9 @@ IntegratorOptions pendulumOptions(double t1, double h) {
 void expectBitwiseEqual(const GradientResult& a, const GradientResult& b) {
   EXPECT_EQ(a.objective, b.objective);
   ASSERT_EQ(a.gradient.size(), b.gradient.size());
-  EXPECT_EQ(std::memcmp(a.gradient.data(), b.gradient.data(), sizeof(double) * static_cast<std::size_t>(a.gradient.size())), 0);
+  EXPECT_EQ(std::memcmp(a.gradient.data(), b.gradient.data(),
+                        sizeof(double) * static_cast<std::size_t>(a.gradient.size())),
+            0);
 }
 
 class OnlineOnPendulum : public ::testing::TestWithParam<std::int64_t> {};
@@ -81,7 +83,8 @@ TEST_P(OnlineOnPendulum, FixedStepsBitwiseAndAsPredicted) {
     const GradientResult result = computeGradient(problem, p, options, storage);
     expectBitwiseEqual(result, reference);
     const auto total = static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps);
-    EXPECT_EQ(toString(total), toString(OnlineCheckpointing::predictedForwardSteps(steps, c))) << "N = " << steps;
+    EXPECT_EQ(toString(total), toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))
+        << "N = " << steps;
     EXPECT_LE(total, OnlineCheckpointing::forwardStepBound(steps, c)) << "N = " << steps;
     EXPECT_GE(total, optimalForwardSteps(steps, c)) << "N = " << steps;
     EXPECT_LE(storage.counters().peakBytesInMemory, (c + 1) * 16) << "N = " << steps;
@@ -126,7 +129,8 @@ TEST(OnlineCheckpointing, SpecStringsAndBudgetErrors) {
     }
     return std::string("no exception");
   };
-  EXPECT_NE(message([] { createStorage("online:checkpoints=0"); }).find("online.checkpoints"), std::string::npos);
+  EXPECT_NE(message([] { createStorage("online:checkpoints=0"); }).find("online.checkpoints"),
+            std::string::npos);
   EXPECT_NE(message([] { createStorage("online:budget=lots"); }).find("online.budget"), std::string::npos);
   EXPECT_NE(message([] { createStorage("online:every=2"); }).find("valid keys: checkpoints, budget"),
             std::string::npos);
