@@ -1,5 +1,5 @@
 // Storage strategies on a large state (SPEC.md section 8): the reaction-diffusion problem with
-// n = 10^4 unknowns (80 kB per state), 10^3 and 10^4 fixed steps of RK4, 10^3 of TR-BDF2, one gradient per
+// n = 10^4 unknowns (80 kB per state), 10^3 and 5000 fixed steps of RK4, 10^3 of TR-BDF2, one gradient per
 // iteration through full, binomial (several c) and online storage, next to the forward-only baseline of
 // the same configuration. Counters: recomputed steps, the ratio of (N - 1) + recomputed steps to the
 // revolve optimum T(N, c) (full: T(N, N - 1) = N - 1), peak bytes in memory, the relative gradient
@@ -120,7 +120,8 @@ void registerAll() {
        1000,
        {"full:budget=8GiB", "binomial:checkpoints=10", "binomial:checkpoints=100", "online:checkpoints=10",
         "online:checkpoints=100"}},
-      {"rk4", 10000, {"full:budget=8GiB", "binomial:checkpoints=100", "online:checkpoints=100"}},
+      // At 5000 steps `full` (400 MB) is computed once, untimed, as the gradient reference only.
+      {"rk4", 5000, {"binomial:checkpoints=100", "online:checkpoints=100"}},
       {"trbdf2", 1000, {"full:budget=8GiB", "binomial:checkpoints=50", "online:checkpoints=50"}},
   };
   for (const Configuration& configuration : configurations) {
