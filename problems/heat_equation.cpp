@@ -7,6 +7,10 @@
 
 namespace hindsight {
 
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
+
 // ---- TridiagonalLu ----
 
 TridiagonalLu::TridiagonalLu(int size) : n_(size), lower_(size), pivot_(size), upper_(size) {
@@ -98,7 +102,7 @@ void HeatEquation::initialState(ConstVectorRef p, VectorRef z0) const {
   for (int i = 0; i < n_; ++i) {
     const double x = (i + 1) * h_;
     double u = 0.0;
-    for (int j = 0; j < modes_; ++j) u += p(2 + j) * std::sin((j + 1) * M_PI * x);
+    for (int j = 0; j < modes_; ++j) u += p(2 + j) * std::sin((j + 1) * kPi * x);
     z0(i) = u;
   }
 }
@@ -106,7 +110,7 @@ void HeatEquation::initialState(ConstVectorRef p, VectorRef z0) const {
 void HeatEquation::addInitialStateVjp(ConstVectorRef, ConstVectorRef lambda0, VectorRef gradient) const {
   for (int j = 0; j < modes_; ++j) {
     double sum = 0.0;
-    for (int i = 0; i < n_; ++i) sum += lambda0(i) * std::sin((j + 1) * M_PI * (i + 1) * h_);
+    for (int i = 0; i < n_; ++i) sum += lambda0(i) * std::sin((j + 1) * kPi * (i + 1) * h_);
     gradient(2 + j) += sum;
   }
 }
