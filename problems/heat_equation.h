@@ -12,6 +12,10 @@
 // (Thomas algorithm without pivoting, O(n) per factorisation and solve) for the implicit methods.
 // Explicit methods are stable for h_t <~ 2.78 h^2 / (4 D) (RK4), so large n wants small D or an implicit
 // method. Preconditions: n >= 1, m >= 0 (std::invalid_argument otherwise).
+// Complexity: F, (F_z)^T w, (F_p)^T w and G in O(n) without allocation; one Newton factorisation and each
+// solve O(n). Memory per state 8 n bytes (80 kB at n = 10^4), which is what makes storage matter.
+// References: Fisher 1937 (Ann. Eugenics 7:355-369) and Kolmogorov, Petrovsky & Piskunov 1937 for the
+// equation; Thomas algorithm e.g. Golub & Van Loan, Matrix Computations, 4th ed., section 4.3.
 #pragma once
 
 #include "engine/problem.h"
