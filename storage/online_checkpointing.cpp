@@ -32,19 +32,23 @@ std::string OnlineCheckpointing::spec() const {
 }
 
 std::int64_t OnlineCheckpointing::finalSpacing(std::int64_t steps, std::int64_t c) {
+  // Positions 0..N-2 become checkpoint candidates (N - 1 stays the working state). No thinning while at
+  // most c of them arrive; the first one (at position c) doubles d, and so does every later one at F d.
+  if (steps - 2 < c) return 1;
   const std::int64_t forward = forwardCheckpoints(c);
-  std::int64_t spacing = 1;
-  while (forward * spacing <= steps - 1) spacing *= 2;
+  std::int64_t spacing = 2;
+  while (forward * spacing <= steps - 2) spacing *= 2;
   return spacing;
 }
 
 UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c) {
+  if (steps <= 1) return 0;
   const std::int64_t d = finalSpacing(steps, c);
-  const std::int64_t held = (steps - 1) / d + 1;
+  const std::int64_t held = (steps - 2) / d + 1;  // the multiples of d in [0, N - 2]
   UnsignedInt128 total = static_cast<UnsignedInt128>(steps - 1);
   for (std::int64_t j = 0; j < held; ++j) {
     const std::int64_t length = (j + 1 < held ? (j + 1) * d : steps - 1) - j * d;
-    if (length >= 1) total += revolve::optimalForwardSteps(length, c - j);
+    total += revolve::optimalForwardSteps(length, c - j);
   }
   return total;
 }
@@ -101,12 +105,18 @@ void OnlineCheckpointing::doBegin() {
 }
 
 void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
-  const auto bytes = static_cast<std::size_t>(info().stateSize) * sizeof(double);
-  std::memcpy(working_.get(), z.data(), bytes);
+  // The working state holds the last recorded state; it becomes a checkpoint candidate only when the
+  // next record shows that it was not the last one (so N <= c + 1 states fit without thinning).
+  if (workingValid_ && (step - 1) % spacing_ == 0) commitWorkingState(step - 1);
+  std::memcpy(working_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   workingValid_ = true;
-  if (step % spacing_ != 0) return;
-  if (static_cast<std::int64_t>(positions_.size()) == forwardLimit_) {
-    // Thinning: keep the multiples of 2d, which sit in the even slots; d doubles.
+}
+
+void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
+  // While d = 1 every state is kept, up to c of them; afterwards at most F. Thinning keeps the multiples
+  // of 2d, which sit in the even slots, and doubles d; it may cascade (c even: c -> c/2 = F -> F/2).
+  while (static_cast<std::int64_t>(positions_.size()) >=
+         (spacing_ == 1 ? activeCheckpoints_ : forwardLimit_)) {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < positions_.size(); i += 2, ++kept) {
       positions_[kept] = positions_[i];
@@ -114,14 +124,16 @@ void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, 
     }
     positions_.resize(kept);
     spacing_ *= 2;
-    if (step % spacing_ != 0) return;
+    if (position % spacing_ != 0) return;
   }
-  std::memcpy(slot(static_cast<std::int64_t>(positions_.size())), z.data(), bytes);
-  positions_.push_back(step);
+  std::memcpy(slot(static_cast<std::int64_t>(positions_.size())), working_.get(),
+              static_cast<std::size_t>(info().stateSize) * sizeof(double));
+  positions_.push_back(position);
   ++mutableCounters().statesStored;
 }
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
+  ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
   interval_ = static_cast<std::int64_t>(positions_.size());  // restore(N - 1) comes from the working state
 }
 

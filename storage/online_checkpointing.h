@@ -8,23 +8,27 @@
 // checkpointing", SIAM J. Sci. Comput. 32(2); and Wang, Moin & Iaccarino 2009, "Minimal repetition
 // dynamic checkpointing algorithm for unsteady adjoint calculation", SIAM J. Sci. Comput. 31(4); it is
 // neither paper's placement rule, see the bound below for what it guarantees):
-//  * Forward sweep: at most F = ceil(c / 2) checkpoints, equidistant with spacing d (initially 1). When
-//    the state at n = F d arrives and F checkpoints are held, every other one is dropped and d doubles
-//    ("thinning"), so the held checkpoints are always all multiples of d in [0, n]. The last recorded
-//    state is kept as the working state (like revolve's current state).
+//  * Forward sweep: the last recorded state is the working state (like revolve's current state); when
+//    the next record arrives it becomes a checkpoint candidate. Checkpoints are equidistant with
+//    spacing d, always all multiples of d among the candidates. While d = 1 every candidate is kept, up to
+//    c of them (so N <= c + 1 costs no recomputation at all); from then on at most F = ceil(c / 2). When
+//    a candidate at a multiple of d arrives and the limit is reached, every other checkpoint is dropped
+//    and d doubles ("thinning", repeated if needed).
 //  * Backward sweep, N known: x_{N-1} is the working state. The intervals between held checkpoints
 //    s_0 = 0 < s_1 < ... < s_{k-1} are reversed last to first, interval j with the offline binomial
 //    schedule (BinomialSchedule) and the c - j slots not held by s_0..s_{j-1}; the last interval ends
 //    at N - 1.
-// Guarantee (what the test asserts). Thinning happens only while F d <= N - 1, so d <= max(1, 2(N-1)/F);
-// every interval has at most d steps and at least c - F + 1 = floor(c/2) + 1 slots. Since
+// Guarantee (what the test asserts). Candidates are the positions 0..N-2. Thinning from d >= 2 happens
+// only at a candidate F d <= N - 2 and from d = 1 at candidate c >= F, so d <= max(1, 2(N-2)/F). If d = 1
+// every interval has one step and nothing is recomputed; otherwise at most F checkpoints are held, every
+// interval has at most d steps and at least c - F + 1 = floor(c/2) + 1 slots. Since
 // T(l, s) <= rep(l, s) l (the line r l - beta(s+1, r-1) with beta >= 0) and rep grows with l and falls
 // with s, the total number of forward steps, counted like revolve's T(N, c) (see binomial_checkpointing.h),
 //     (N - 1) + recomputedSteps <= (N - 1) + N rep(d, floor(c/2) + 1),
 // and it equals predictedForwardSteps(N, c) exactly. For c = 1 it is optimal, T(N, 1).
 // Memory: at most c checkpoints plus one working state, allocated on first use and charged with
-// holdBytes(); it never exceeds the budget. counters().statesStored counts checkpoint writes of the
-// forward sweep (the working-state copy made at every step is not counted).
+// holdBytes(); it never exceeds the budget. counters().statesStored counts the checkpoint writes of
+// the forward sweep plus the final working state x_{N-1} (the copy made at every step is not counted).
 //
 // Preconditions: none on N (works for fixed and adaptive steps). Throws std::invalid_argument from
 // begin() when c < 1 or (c + 1) states do not fit in the budget, naming online.checkpoints/online.budget.
@@ -65,6 +69,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
   double* slot(std::int64_t index);
+  void commitWorkingState(std::int64_t position);
   void startInterval(std::int64_t j);
   void releaseAll();
 

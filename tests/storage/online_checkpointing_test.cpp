@@ -30,7 +30,8 @@ class OnlineSchedule : public ::testing::TestWithParam<Case> {};
 INSTANTIATE_TEST_SUITE_P(Table, OnlineSchedule,
                          ::testing::Values(Case{1'000'000, 1}, Case{1'000'000, 2}, Case{1'000'000, 5},
                                            Case{1'000'000, 20}, Case{1'000'000, 100}, Case{10'000, 20},
-                                           Case{10'000, 100}, Case{1'000, 10}, Case{100, 100}, Case{2, 1}),
+                                           Case{10'000, 100}, Case{1'000, 10}, Case{100, 100}, Case{101, 100},
+                                           Case{102, 100}, Case{21, 20}, Case{7, 5}, Case{2, 1}),
                          [](const auto& info) {
                            return "N" + std::to_string(info.param.steps) + "_c" +
                                   std::to_string(info.param.checkpoints);
@@ -44,6 +45,8 @@ TEST_P(OnlineSchedule, WithinItsBoundAndNeverBelowTheOfflineOptimum) {
   EXPECT_GE(online, optimum);
   EXPECT_LE(online, bound);
   if (c == 1) EXPECT_EQ(toString(online), toString(optimum));
+  // Up to c + 1 states fit (c checkpoints and the working state): nothing is recomputed, like full storage.
+  if (steps <= c + 1) EXPECT_EQ(toString(online), std::to_string(steps - 1));
   std::cout << "[ online/offline ] N = " << steps << ", c = " << c << ": online " << toString(online)
             << ", revolve optimum " << toString(optimum) << ", ratio " << ratio(online, optimum)
             << ", proven bound ratio " << ratio(bound, optimum) << '\n';
