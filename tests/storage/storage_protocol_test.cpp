@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <new>
 
@@ -18,7 +19,8 @@ std::atomic<long> allocationCount{0};
 }  // namespace
 
 void* operator new(std::size_t size) {
-  if (countAllocations.load(std::memory_order_relaxed)) allocationCount.fetch_add(1, std::memory_order_relaxed);
+  if (countAllocations.load(std::memory_order_relaxed))
+    allocationCount.fetch_add(1, std::memory_order_relaxed);
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
@@ -63,7 +65,8 @@ long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t an
   storage.setVerifyRestores(true);
   storage.begin(info, map);
   const Vector unused = Vector::Zero(size);
-  for (std::int64_t n = 0; n < steps; ++n) storage.record(n, 0.0, states[static_cast<std::size_t>(n)], unused);
+  for (std::int64_t n = 0; n < steps; ++n)
+    storage.record(n, 0.0, states[static_cast<std::size_t>(n)], unused);
   storage.finish(steps, 1.0, states.back(), unused);
   Vector z(size);
   allocationCount = 0;
@@ -83,8 +86,9 @@ TEST(StorageProtocol, BinomialRestoresExactStatesWithoutAllocating) {
     for (const std::int64_t steps : {1, 2, 5, 100, 777}) {
       BinomialCheckpointing storage(c);
       EXPECT_EQ(runProtocol(storage, steps, steps), 0) << "c = " << c << ", N = " << steps;
-      EXPECT_EQ(revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
-                revolve::toString(revolve::optimalForwardSteps(steps, c)))
+      EXPECT_EQ(
+          revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
+          revolve::toString(revolve::optimalForwardSteps(steps, c)))
           << "c = " << c << ", N = " << steps;
     }
   }
@@ -98,8 +102,9 @@ TEST(StorageProtocol, OnlineRestoresExactStatesWithNoStepCountAnnounced) {
       // Online allocates a slot on its first use, so the backward sweep's extra slots do allocate
       // (documented); this also shows that the counter above is live.
       if (c == 30 && steps == 777) EXPECT_GT(allocations, 0);
-      EXPECT_EQ(revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
-                revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))
+      EXPECT_EQ(
+          revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
+          revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))
           << "c = " << c << ", N = " << steps;
       EXPECT_LE(storage.counters().peakBytesInMemory, (c + 1) * 5 * 8);
     }
