@@ -342,8 +342,11 @@ void RungeKuttaIntegrator::adjointStep(double t, double h, ConstVectorRef z, Vec
         newtonMatrix_.noalias() = -alpha * jacobian_;
         newtonMatrix_.diagonal().array() += 1.0;
         lu_.compute(newtonMatrix_);
+        // (P^T L U)^T x = b by hand: Eigen's lu.transpose().solve() allocates a temporary.
         residual_ = Zbar;
-        Zbar.noalias() = lu_.transpose().solve(residual_);
+        lu_.matrixLU().triangularView<Eigen::Upper>().transpose().solveInPlace(residual_);
+        lu_.matrixLU().triangularView<Eigen::UnitLower>().transpose().solveInPlace(residual_);
+        Zbar.noalias() = lu_.permutationP().transpose() * residual_;
       }
       ++counters_.factorizations;
     }

@@ -5,6 +5,9 @@
 #include "storage/hermite_storage.h"
 #include "storage/lossy_storage.h"
 #include "storage/multilevel_storage.h"
+#include "storage/binomial_checkpointing.h"
+#include "storage/full_storage.h"
+#include "storage/online_checkpointing.h"
 #include "storage/storage_spec.h"
 
 #include <functional>
@@ -25,6 +28,8 @@ const std::vector<Entry>& registry() {
       {"disk", &DiskStorage::keys, &DiskStorage::create},
       {"lossy", &LossyStorage::keys, &LossyStorage::create},
       {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
+      {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
+      {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
   };
   return entries;
 }

@@ -1,42 +1,18 @@
 // The hot loops allocate nothing: after set-up, forward steps, adjoint steps and restores from
-// full storage make no heap allocation (STYLE.md guideline 3). Counted with a replaced operator new.
+// full storage make no heap allocation (STYLE.md guideline 3). Counted with the interposed malloc
+// of tests/support/allocation_counting.cpp (which also sees Eigen).
 #include "engine/integrator.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
 #include "storage/hermite_storage.h"
+#include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>
-
-#include <atomic>
-#include <cstdlib>
-#include <new>
-
-namespace {
-std::atomic<bool> countAllocations{false};
-std::atomic<long> allocationCount{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (countAllocations.load(std::memory_order_relaxed))
-    allocationCount.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace hindsight {
 namespace {
 
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    allocationCount = 0;
-    countAllocations = true;
-  }
-  ~AllocationCounter() { countAllocations = false; }
-  long count() const { return allocationCount.load(); }
-};
+using testing::AllocationCounter;
 
 class NoAllocation : public ::testing::TestWithParam<std::string> {};
 

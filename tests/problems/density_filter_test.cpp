@@ -3,7 +3,7 @@
 // objective, and argument checking.
 #include "problems/density_filter.h"
 
-#include "problems/allocation_counting.h"
+#include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // with a closed-form KKT point, bit-exact restart, allocation-free updates and argument checking.
 #include "problems/mma.h"
 
-#include "problems/allocation_counting.h"
+#include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>
 

@@ -1,39 +1,17 @@
 // The disk strategy's record() and restore() allocate nothing on the caller's thread (STYLE.md
-// guideline 3): states go through chunk buffers and a task ring allocated at begin(). Counted with a
-// replaced operator new, on the calling thread only (the I/O thread's HDF5 calls may allocate).
+// guideline 3): states go through chunk buffers and a task ring allocated at begin(). Counted with
+// tests/support/allocation_counting.h, on the calling thread only (the I/O thread's HDF5 calls may
+// allocate).
 #include "storage/disk_storage.h"
+#include "support/allocation_counting.h"
 #include "support/storage_fixtures.h"
 
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <new>
-
-namespace {
-thread_local bool countThisThread = false;
-thread_local long allocationsOnThisThread = 0;
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (countThisThread) ++allocationsOnThisThread;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-
 namespace hindsight {
 namespace {
 
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    allocationsOnThisThread = 0;
-    countThisThread = true;
-  }
-  ~AllocationCounter() { countThisThread = false; }
-  long count() const { return allocationsOnThisThread; }
-};
+using testing::AllocationCounter;
 
 TEST(DiskStorageAllocation, RecordAndRestoreAllocateNothing) {
   {  // the counter sees allocations

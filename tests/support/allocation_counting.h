@@ -1,8 +1,9 @@
 // Counting heap allocations in tests (STYLE.md guideline 3: hot paths allocate nothing).
 //
-// allocation_counting_test.cpp interposes malloc, calloc and realloc for the problems_tests binary and
+// allocation_counting.cpp, linked into every test binary, interposes malloc, calloc and realloc and
 // forwards them to glibc; Eigen allocates with std::malloc and operator new ends in malloc, so both
-// are seen. Only allocations made while an AllocationCounter is alive are counted.
+// are seen. Only allocations made on the counter's own thread while it is alive are counted (so a
+// storage's background I/O thread does not count against the caller's hot loop).
 #pragma once
 
 namespace hindsight::testing {

@@ -1,22 +1,22 @@
-// The allocation counter of allocation_counting.h, and a test that it sees the allocations of
-// operator new and of Eigen (so that a test expecting zero allocations can fail).
-#include "problems/allocation_counting.h"
+// The allocation counter of allocation_counting.h, linked into every test binary, and a test that it
+// sees the allocations of operator new and of Eigen (so that a test expecting zero allocations can fail).
+#include "support/allocation_counting.h"
 
 #include "engine/types.h"
 
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cstddef>
 #include <memory>
 #include <vector>
 
 namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_count{0};
+// Thread-local (initial-exec TLS of the executable: reading it never allocates).
+thread_local bool g_counting = false;
+thread_local long g_count = 0;
 
 inline void Record() {
-  if (g_counting.load(std::memory_order_relaxed)) g_count.fetch_add(1, std::memory_order_relaxed);
+  if (g_counting) ++g_count;
 }
 }  // namespace
 
@@ -59,7 +59,7 @@ AllocationCounter::AllocationCounter() {
   g_counting = true;
 }
 AllocationCounter::~AllocationCounter() { g_counting = false; }
-long AllocationCounter::count() const { return g_count.load(); }
+long AllocationCounter::count() const { return g_count; }
 bool AllocationCounter::available() { return HINDSIGHT_COUNT_ALLOCATIONS != 0; }
 
 TEST(AllocationCounter, SeesOperatorNewAndEigen) {

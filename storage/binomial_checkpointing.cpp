@@ -1,0 +1,254 @@
+#include "storage/binomial_checkpointing.h"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+namespace hindsight {
+namespace revolve {
+namespace {
+
+__extension__ typedef __int128 SignedInt128;
+constexpr UnsignedInt128 kSaturation = static_cast<UnsignedInt128>(1) << 64;
+
+}  // namespace
+
+UnsignedInt128 beta(std::int64_t c, std::int64_t r) {
+  assert(c >= 0);
+  if (r < 0) return 0;
+  // C(c + r, k) with k = min(c, r): v_i = C(c + r - k + i, i) stays an integer after each division.
+  const std::int64_t k = std::min(c, r);
+  const UnsignedInt128 top =
+      static_cast<UnsignedInt128>(c) + static_cast<UnsignedInt128>(r) - static_cast<UnsignedInt128>(k);
+  UnsignedInt128 value = 1;
+  for (std::int64_t i = 1; i <= k; ++i) {
+    value = value * (top + static_cast<UnsignedInt128>(i)) / static_cast<UnsignedInt128>(i);
+    // The remaining factors are >= 1, so a saturated value stays saturated.
+    if (value >= kSaturation) return kSaturation;
+  }
+  return value;
+}
+
+std::int64_t repetitionNumber(std::int64_t steps, std::int64_t checkpoints) {
+  assert(steps >= 1 && checkpoints >= 1);
+  if (steps == 1) return 0;
+  if (checkpoints == 1) return steps - 1;  // beta(1, r) = r + 1
+  const auto target = static_cast<UnsignedInt128>(steps);
+  // Exponential then binary search; beta(c, r) is increasing in r.
+  std::int64_t high = 1;
+  while (beta(checkpoints, high) < target) high *= 2;
+  std::int64_t low = high / 2;  // beta(c, low) < target unless low == 0
+  while (high - low > 1) {
+    const std::int64_t middle = low + (high - low) / 2;
+    if (beta(checkpoints, middle) >= target)
+      high = middle;
+    else
+      low = middle;
+  }
+  return high;
+}
+
+UnsignedInt128 optimalForwardSteps(std::int64_t steps, std::int64_t checkpoints) {
+  const std::int64_t r = repetitionNumber(steps, checkpoints);
+  if (r == 0) return 0;
+  // T = r N - beta(c + 1, r - 1), with beta(c + 1, r - 1) = C(c + r, c + 1) = beta(c, r - 1) (c + r) / (c +
+  // 1) evaluated from beta(c, r - 1) < N, so nothing saturates (beta(2, N - 2) ~ N^2 / 2 for c = 1).
+  const UnsignedInt128 previous = beta(checkpoints, r - 1);
+  const UnsignedInt128 next =
+      previous * static_cast<UnsignedInt128>(checkpoints + r) / static_cast<UnsignedInt128>(checkpoints + 1);
+  return static_cast<UnsignedInt128>(r) * static_cast<UnsignedInt128>(steps) - next;
+}
+
+std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots) {
+  assert(steps >= 2 && slots >= 2);
+  const std::int64_t r = repetitionNumber(steps, slots);
+  const auto l = static_cast<SignedInt128>(steps);
+  const auto b = [](std::int64_t c, std::int64_t rr) { return static_cast<SignedInt128>(beta(c, rr)); };
+  // beta(s - 1, r - 1) <= l - m <= beta(s - 1, r) and beta(s, r - 2) <= m <= beta(s, r - 1), 1 <= m < l.
+  const SignedInt128 low = std::max({SignedInt128{1}, b(slots, r - 2), l - b(slots - 1, r)});
+  const SignedInt128 high = std::min({l - 1, b(slots, r - 1), l - b(slots - 1, r - 1)});
+  assert(low <= high);
+  (void)low;
+  return static_cast<std::int64_t>(high);
+}
+
+std::string toString(UnsignedInt128 value) {
+  if (value == 0) return "0";
+  std::string digits;
+  while (value > 0) {
+    digits.push_back(static_cast<char>('0' + static_cast<int>(value % 10)));
+    value /= 10;
+  }
+  std::reverse(digits.begin(), digits.end());
+  return digits;
+}
+
+namespace {
+
+struct CountingVisitor {
+  ScheduleCounts& counts;
+  BinomialSchedule& schedule;
+  void loadWorking() { ++counts.workingStateLoads; }
+  void load(std::int64_t) {}
+  void advance(std::int64_t from, std::int64_t to) {
+    counts.recomputedSteps += static_cast<UnsignedInt128>(to - from);
+  }
+  void store(std::int64_t) {
+    ++counts.checkpointWrites;
+    counts.maxCheckpointsHeld = std::max(counts.maxCheckpointsHeld, schedule.held());
+  }
+};
+
+}  // namespace
+
+ScheduleCounts simulateSchedule(std::int64_t steps, std::int64_t checkpoints) {
+  if (steps < 1 || checkpoints < 1) {
+    throw std::invalid_argument("simulateSchedule: steps = " + std::to_string(steps) +
+                                " and checkpoints = " + std::to_string(checkpoints) + " must be >= 1");
+  }
+  ScheduleCounts counts;
+  BinomialSchedule schedule;
+  schedule.reset(steps, checkpoints, true);
+  counts.checkpointWrites = 1;
+  counts.maxCheckpointsHeld = 1;
+  counts.firstSweepSteps = steps - 1;
+  for (std::int64_t n = 1; n < steps; ++n) {
+    if (schedule.recordForward(n) >= 0) {
+      ++counts.checkpointWrites;
+      counts.maxCheckpointsHeld = std::max(counts.maxCheckpointsHeld, schedule.held());
+    }
+  }
+  CountingVisitor visitor{counts, schedule};
+  for (std::int64_t e = steps - 1; e >= 0; --e) schedule.restoreStep(e, visitor);
+  return counts;
+}
+
+}  // namespace revolve
+
+// ---- BinomialSchedule ----
+
+void BinomialSchedule::reset(std::int64_t length, std::int64_t slots, bool workingStateHoldsLast) {
+  assert(length >= 1 && slots >= 1);
+  length_ = length;
+  slots_ = slots;
+  workingValid_ = workingStateHoldsLast && length >= 2;
+  stack_.clear();
+  stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(slots, length)));
+  stack_.push_back(0);
+  nextForward_ = workingStateHoldsLast ? nextForwardTarget() : -1;
+}
+
+std::int64_t BinomialSchedule::nextForwardTarget() const {
+  const std::int64_t top = stack_.back();
+  const std::int64_t steps = length_ - top;
+  const std::int64_t freeSlots = slots_ - static_cast<std::int64_t>(stack_.size());
+  if (steps < 2 || freeSlots == 0) return -1;
+  const std::int64_t target = top + revolve::binomialSplit(steps, freeSlots + 1);
+  // The state at length - 1 is the working state; a checkpoint there would be redundant.
+  return target < length_ - 1 ? target : -1;
+}
+
+std::int64_t BinomialSchedule::recordForward(std::int64_t n) {
+  assert(n >= 1 && n < length_);
+  if (n != nextForward_) return -1;
+  stack_.push_back(n);
+  nextForward_ = nextForwardTarget();
+  return static_cast<std::int64_t>(stack_.size()) - 1;
+}
+
+// ---- BinomialCheckpointing ----
+
+BinomialCheckpointing::BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
+    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints) {
+  if (checkpoints < 1 || checkpoints > kMaxCheckpoints) {
+    throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints) +
+                                " must be an integer in [1, " + std::to_string(kMaxCheckpoints) + "]");
+  }
+}
+
+std::unique_ptr<TrajectoryStorage> BinomialCheckpointing::create(const StorageSpec& spec) {
+  if (!spec.has("checkpoints")) {
+    throw std::invalid_argument("binomial.checkpoints is required: an integer in [1, " +
+                                std::to_string(kMaxCheckpoints) + "], e.g. binomial:checkpoints=20");
+  }
+  return std::make_unique<BinomialCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints),
+                                                 spec.bytes("budget", kDefaultBudget));
+}
+
+std::string BinomialCheckpointing::spec() const {
+  std::string text = "binomial:checkpoints=" + std::to_string(checkpoints_);
+  if (budgetBytes() != kDefaultBudget) text += ",budget=" + std::to_string(budgetBytes());
+  return text;
+}
+
+void BinomialCheckpointing::releaseAll() {
+  if (heldBytes_ > 0) releaseBytes(heldBytes_);
+  heldBytes_ = 0;
+  slots_.reset();
+  working_.reset();
+  slotCount_ = 0;
+}
+
+void BinomialCheckpointing::doBegin() {
+  // The base class has reset the counters, so whatever a previous run held is no longer charged.
+  heldBytes_ = 0;
+  releaseAll();
+  const std::int64_t steps = info().stepCount;
+  if (steps < 1) {
+    throw std::invalid_argument(
+        "binomial checkpointing needs the number of steps in advance (TrajectoryInfo.stepCount = " +
+        std::to_string(steps) +
+        ", adaptive steps); use 'online:budget=BYTES' or 'online:checkpoints=C' for adaptive steps");
+  }
+  slotCount_ = std::min(checkpoints_, std::max<std::int64_t>(1, steps - 1));
+  const std::int64_t states = slotCount_ + (steps >= 2 ? 1 : 0);
+  if (states > budgetBytes() / stateBytes()) {
+    throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints_) + " needs " +
+                                std::to_string(slotCount_) + " checkpoints plus one working state of " +
+                                formatBytes(stateBytes()) + ", more than binomial.budget = " +
+                                formatBytes(budgetBytes()) + "; lower the checkpoints or raise the budget");
+  }
+  const auto n = static_cast<std::size_t>(info().stateSize);
+  holdBytes(states * stateBytes());
+  heldBytes_ = states * stateBytes();
+  slots_.reset(new double[static_cast<std::size_t>(slotCount_) * n]);
+  if (steps >= 2) working_.reset(new double[n]);
+  schedule_.reset(steps, slotCount_, true);
+}
+
+void BinomialCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
+  const auto n = static_cast<std::size_t>(info().stateSize);
+  const std::int64_t slot = step == 0 ? 0 : schedule_.recordForward(step);
+  if (slot >= 0) {
+    std::memcpy(slots_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * sizeof(double));
+    ++mutableCounters().statesStored;
+  }
+  if (step == info().stepCount - 1 && working_) {
+    std::memcpy(working_.get(), z.data(), n * sizeof(double));
+    ++mutableCounters().statesStored;
+  }
+}
+
+void BinomialCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
+
+void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
+  struct Visitor {
+    BinomialCheckpointing& self;
+    VectorRef z;
+    std::size_t n;
+    void loadWorking() { std::memcpy(z.data(), self.working_.get(), n * sizeof(double)); }
+    void load(std::int64_t slot) {
+      std::memcpy(z.data(), self.slots_.get() + static_cast<std::size_t>(slot) * n, n * sizeof(double));
+    }
+    void store(std::int64_t slot) {
+      std::memcpy(self.slots_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * sizeof(double));
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
+    }
+  } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
+  schedule_.restoreStep(step, visitor);
+  if (step == 0) releaseAll();
+}
+
+}  // namespace hindsight

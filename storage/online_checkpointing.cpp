@@ -1,0 +1,185 @@
+#include "storage/online_checkpointing.h"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+namespace hindsight {
+
+OnlineCheckpointing::OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
+    : TrajectoryStorage(budgetBytes), requestedCheckpoints_(checkpoints) {
+  if (checkpoints < 0 || checkpoints > BinomialCheckpointing::kMaxCheckpoints) {
+    throw std::invalid_argument("online.checkpoints = " + std::to_string(checkpoints) +
+                                " must be an integer in [1, " +
+                                std::to_string(BinomialCheckpointing::kMaxCheckpoints) + "]");
+  }
+}
+
+std::unique_ptr<TrajectoryStorage> OnlineCheckpointing::create(const StorageSpec& spec) {
+  const std::int64_t checkpoints = spec.integer("checkpoints", 0, 1, BinomialCheckpointing::kMaxCheckpoints);
+  return std::make_unique<OnlineCheckpointing>(checkpoints, spec.bytes("budget", kDefaultBudget));
+}
+
+std::string OnlineCheckpointing::spec() const {
+  std::string text = "online:";
+  if (requestedCheckpoints_ > 0) {
+    text += "checkpoints=" + std::to_string(requestedCheckpoints_);
+    if (budgetBytes() != kDefaultBudget) text += ",budget=" + std::to_string(budgetBytes());
+  } else {
+    text += "budget=" + std::to_string(budgetBytes());
+  }
+  return text;
+}
+
+std::int64_t OnlineCheckpointing::finalSpacing(std::int64_t steps, std::int64_t c) {
+  // Positions 0..N-2 become checkpoint candidates (N - 1 stays the working state). No thinning while at
+  // most c of them arrive; the first one (at position c) doubles d, and so does every later one at F d.
+  if (steps - 2 < c) return 1;
+  const std::int64_t forward = forwardCheckpoints(c);
+  std::int64_t spacing = 2;
+  while (forward * spacing <= steps - 2) spacing *= 2;
+  return spacing;
+}
+
+UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c) {
+  if (steps <= 1) return 0;
+  const std::int64_t d = finalSpacing(steps, c);
+  const std::int64_t held = (steps - 2) / d + 1;  // the multiples of d in [0, N - 2]
+  UnsignedInt128 total = static_cast<UnsignedInt128>(steps - 1);
+  for (std::int64_t j = 0; j < held; ++j) {
+    const std::int64_t length = (j + 1 < held ? (j + 1) * d : steps - 1) - j * d;
+    total += revolve::optimalForwardSteps(length, c - j);
+  }
+  return total;
+}
+
+UnsignedInt128 OnlineCheckpointing::forwardStepBound(std::int64_t steps, std::int64_t c) {
+  const std::int64_t d = finalSpacing(steps, c);
+  const std::int64_t r = d >= 2 ? revolve::repetitionNumber(d, c / 2 + 1) : 0;
+  return static_cast<UnsignedInt128>(steps - 1) +
+         static_cast<UnsignedInt128>(steps) * static_cast<UnsignedInt128>(r);
+}
+
+void OnlineCheckpointing::releaseAll() {
+  if (heldBytes_ > 0) releaseBytes(heldBytes_);
+  heldBytes_ = 0;
+  slots_.clear();
+  working_.reset();
+  workingValid_ = false;
+}
+
+double* OnlineCheckpointing::slot(std::int64_t index) {
+  assert(index < activeCheckpoints_);
+  while (static_cast<std::int64_t>(slots_.size()) <= index) slots_.emplace_back();
+  auto& memory = slots_[static_cast<std::size_t>(index)];
+  if (!memory) {
+    holdBytes(stateBytes());
+    heldBytes_ += stateBytes();
+    memory.reset(new double[static_cast<std::size_t>(info().stateSize)]);
+  }
+  return memory.get();
+}
+
+void OnlineCheckpointing::doBegin() {
+  heldBytes_ = 0;  // the base class has released what a previous run held
+  releaseAll();
+  const std::int64_t fitting = budgetBytes() / stateBytes() - 1;
+  activeCheckpoints_ = requestedCheckpoints_ > 0 ? requestedCheckpoints_ : fitting;
+  if (activeCheckpoints_ < 1 || activeCheckpoints_ > fitting) {
+    throw std::invalid_argument(
+        "online checkpointing needs " +
+        (requestedCheckpoints_ > 0 ? "online.checkpoints = " + std::to_string(requestedCheckpoints_)
+                                   : std::string("at least one checkpoint")) +
+        " plus one working state of " + formatBytes(stateBytes()) +
+        " within online.budget = " + formatBytes(budgetBytes()) + "; raise the budget" +
+        (requestedCheckpoints_ > 0 ? " or lower the checkpoints" : ""));
+  }
+  activeCheckpoints_ = std::min(activeCheckpoints_, BinomialCheckpointing::kMaxCheckpoints);
+  forwardLimit_ = forwardCheckpoints(activeCheckpoints_);
+  spacing_ = 1;
+  positions_.clear();
+  interval_ = -1;
+  holdBytes(stateBytes());
+  heldBytes_ += stateBytes();
+  working_.reset(new double[static_cast<std::size_t>(info().stateSize)]);
+}
+
+void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
+  // The working state holds the last recorded state; it becomes a checkpoint candidate only when the
+  // next record shows that it was not the last one (so N <= c + 1 states fit without thinning).
+  if (workingValid_ && (step - 1) % spacing_ == 0) commitWorkingState(step - 1);
+  std::memcpy(working_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
+  workingValid_ = true;
+}
+
+void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
+  // While d = 1 every state is kept, up to c of them; afterwards at most F. Thinning keeps the multiples
+  // of 2d, which sit in the even slots, and doubles d; it may cascade (c even: c -> c/2 = F -> F/2).
+  while (static_cast<std::int64_t>(positions_.size()) >=
+         (spacing_ == 1 ? activeCheckpoints_ : forwardLimit_)) {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < positions_.size(); i += 2, ++kept) {
+      positions_[kept] = positions_[i];
+      std::swap(slots_[kept], slots_[i]);
+    }
+    positions_.resize(kept);
+    spacing_ *= 2;
+    if (position % spacing_ != 0) return;
+  }
+  std::memcpy(slot(static_cast<std::int64_t>(positions_.size())), working_.get(),
+              static_cast<std::size_t>(info().stateSize) * sizeof(double));
+  positions_.push_back(position);
+  ++mutableCounters().statesStored;
+}
+
+void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
+  ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
+  interval_ = static_cast<std::int64_t>(positions_.size());  // restore(N - 1) comes from the working state
+}
+
+void OnlineCheckpointing::startInterval(std::int64_t j) {
+  interval_ = j;
+  intervalStart_ = positions_[static_cast<std::size_t>(j)];
+  const std::int64_t end = j + 1 < static_cast<std::int64_t>(positions_.size())
+                               ? positions_[static_cast<std::size_t>(j + 1)]
+                               : stepCount() - 1;
+  schedule_.reset(end - intervalStart_, activeCheckpoints_ - j, false);
+}
+
+void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
+  const auto bytes = static_cast<std::size_t>(info().stateSize) * sizeof(double);
+  if (workingValid_) {
+    assert(step == stepCount() - 1);
+    std::memcpy(z.data(), working_.get(), bytes);
+    workingValid_ = false;
+    working_.reset();
+    releaseBytes(stateBytes());
+    heldBytes_ -= stateBytes();
+    if (step == 0) releaseAll();
+    return;
+  }
+  if (interval_ == static_cast<std::int64_t>(positions_.size()) || step < intervalStart_) {
+    // The previous interval is done: the next one is the last held checkpoint at or before `step`
+    // (a checkpoint at N - 1 starts an interval of no steps and is skipped).
+    std::int64_t j = interval_ - 1;
+    while (positions_[static_cast<std::size_t>(j)] > step) --j;
+    startInterval(j);
+  }
+  struct Visitor {
+    OnlineCheckpointing& self;
+    VectorRef z;
+    std::size_t bytes;
+    std::int64_t offset;
+    std::int64_t slotOffset;
+    void loadWorking() { assert(false); }
+    void load(std::int64_t slot) { std::memcpy(z.data(), self.slot(slot + slotOffset), bytes); }
+    void store(std::int64_t slot) { std::memcpy(self.slot(slot + slotOffset), z.data(), bytes); }
+    void advance(std::int64_t from, std::int64_t to) {
+      for (std::int64_t k = from; k < to; ++k) self.recompute(offset + k, z);
+    }
+  } visitor{*this, z, bytes, intervalStart_, interval_};
+  schedule_.restoreStep(step - intervalStart_, visitor);
+  if (step == 0) releaseAll();
+}
+
+}  // namespace hindsight

@@ -1,0 +1,207 @@
+// Binomial (revolve) checkpointing: the schedule attains the Griewank-Walther optimum
+// T(N, c) = r N - C(c + r, r - 1) exactly, as a pure schedule (large N) and through the real storage
+// with a real problem (moderate N), without overflow, within its byte budget.
+#include "storage/binomial_checkpointing.h"
+#include "problems/classic_problems.h"
+#include "storage/full_storage.h"
+#include "storage/storage_factory.h"
+
+#include "engine/adjoint.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <map>
+#include <utility>
+
+namespace hindsight {
+namespace {
+
+using revolve::optimalForwardSteps;
+using revolve::simulateSchedule;
+using revolve::toString;
+
+// T(l, s) by dynamic programming over every first split m, independent of the closed form:
+// T(1, s) = 0, T(l, 1) = l (l - 1) / 2, T(l, s) = min_m m + T(l - m, s - 1) + T(m, s).
+std::int64_t dynamicProgrammingOptimum(std::int64_t l, std::int64_t s,
+                                       std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t>& memo) {
+  if (l == 1) return 0;
+  if (s == 1) return l * (l - 1) / 2;
+  const auto key = std::make_pair(l, s);
+  if (const auto it = memo.find(key); it != memo.end()) return it->second;
+  std::int64_t best = dynamicProgrammingOptimum(l, s - 1, memo);  // not using a slot is allowed
+  for (std::int64_t m = 1; m < l; ++m) {
+    best = std::min(
+        best, m + dynamicProgrammingOptimum(l - m, s - 1, memo) + dynamicProgrammingOptimum(m, s, memo));
+  }
+  memo[key] = best;
+  return best;
+}
+
+TEST(RevolveFormula, EqualsDynamicProgrammingOptimumAndTheScheduleAttainsIt) {
+  std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t> memo;
+  for (std::int64_t c = 1; c <= 6; ++c) {
+    for (std::int64_t n = 1; n <= 80; ++n) {
+      const std::int64_t optimum = dynamicProgrammingOptimum(n, c, memo);
+      ASSERT_EQ(toString(optimalForwardSteps(n, c)), std::to_string(optimum)) << "N = " << n << ", c = " << c;
+      const ScheduleCounts counts = simulateSchedule(n, c);
+      ASSERT_EQ(toString(counts.totalForwardSteps()), std::to_string(optimum))
+          << "N = " << n << ", c = " << c;
+      ASSERT_LE(counts.maxCheckpointsHeld, c);
+    }
+  }
+}
+
+TEST(RevolveFormula, KnownValuesAndNoOverflow) {
+  // Reference values computed with exact integer arithmetic (Python's math.comb).
+  EXPECT_EQ(toString(optimalForwardSteps(10'000, 20)), "37976");
+  EXPECT_EQ(toString(optimalForwardSteps(1'000'000, 2)), "941809245");
+  EXPECT_EQ(toString(optimalForwardSteps(1'000'000, 100)), "3817896");
+  // c = 1: N (N - 1) / 2, here about 2^123: needs 128 bits and must not saturate.
+  EXPECT_EQ(toString(optimalForwardSteps(std::int64_t{1} << 62, 1)),
+            "10633823966279326980924613473029062656");
+  EXPECT_EQ(toString(optimalForwardSteps(std::int64_t{1} << 62, 2)), "9337128491186003968533230846");
+  EXPECT_EQ(revolve::repetitionNumber(10'000, 20), 4);
+  // C(10^9 + 2, 2) is exact; C(10^9 + 3, 3) ~ 1.7e26 saturates at 2^64 as documented.
+  EXPECT_EQ(toString(revolve::beta(1'000'000'000, 2)), "500000001500000001");
+  EXPECT_EQ(toString(revolve::beta(1'000'000'000, 3)), "18446744073709551616");
+}
+
+struct LargeCase {
+  std::int64_t steps;
+  std::int64_t checkpoints;
+};
+
+class LargeSchedule : public ::testing::TestWithParam<LargeCase> {};
+
+INSTANTIATE_TEST_SUITE_P(Table, LargeSchedule,
+                         ::testing::Values(LargeCase{1'000'000, 1}, LargeCase{1'000'000, 2},
+                                           LargeCase{1'000'000, 5}, LargeCase{1'000'000, 20},
+                                           LargeCase{1'000'000, 100}, LargeCase{1'048'577, 5},
+                                           LargeCase{3'000'017, 20}, LargeCase{2'000'000, 100},
+                                           LargeCase{5'000, 100}, LargeCase{101, 100}, LargeCase{100, 100}),
+                         [](const auto& info) {
+                           return "N" + std::to_string(info.param.steps) + "_c" +
+                                  std::to_string(info.param.checkpoints);
+                         });
+
+TEST_P(LargeSchedule, TotalForwardStepsEqualTheRevolveOptimum) {
+  const auto [steps, checkpoints] = GetParam();
+  const ScheduleCounts counts = simulateSchedule(steps, checkpoints);
+  EXPECT_EQ(toString(counts.totalForwardSteps()), toString(optimalForwardSteps(steps, checkpoints)));
+  EXPECT_LE(counts.maxCheckpointsHeld, checkpoints);
+  EXPECT_EQ(counts.workingStateLoads, steps >= 2 ? 1 : 0);
+  if (checkpoints == 1) {
+    const auto n = static_cast<UnsignedInt128>(steps);
+    EXPECT_EQ(toString(counts.totalForwardSteps()), toString(n * (n - 1) / 2));
+  }
+}
+
+// ---- Through the real storage ----
+
+IntegratorOptions pendulumOptions(double t1, double h) {
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = t1;
+  options.step = h;
+  return options;
+}
+
+class BinomialOnPendulum : public ::testing::TestWithParam<std::int64_t> {};
+
+INSTANTIATE_TEST_SUITE_P(Checkpoints, BinomialOnPendulum, ::testing::Values(1, 2, 5, 20, 100),
+                         [](const auto& info) { return "c" + std::to_string(info.param); });
+
+TEST_P(BinomialOnPendulum, BitwiseGradientOfFullAndOptimalRecomputation) {
+  const std::int64_t c = GetParam();
+  Pendulum problem;
+  const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
+  for (const std::int64_t steps : {1, 2, 3, 7, 64, 1000}) {
+    const auto options = pendulumOptions(2.0, 2.0 / static_cast<double>(steps));
+    FullStorage full;
+    full.setVerifyRestores(true);
+    const GradientResult reference = computeGradient(problem, p, options, full);
+    ASSERT_EQ(reference.summary.steps, steps);
+    BinomialCheckpointing storage(c);
+    storage.setVerifyRestores(true);
+    const GradientResult result = computeGradient(problem, p, options, storage);
+    EXPECT_EQ(result.objective, reference.objective);
+    ASSERT_EQ(result.gradient.size(), reference.gradient.size());
+    EXPECT_EQ(std::memcmp(result.gradient.data(), reference.gradient.data(),
+                          sizeof(double) * static_cast<std::size_t>(result.gradient.size())),
+              0);
+    EXPECT_EQ(toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
+              toString(optimalForwardSteps(steps, c)))
+        << "N = " << steps << ", c = " << c;
+    const std::int64_t states = std::min(c, std::max<std::int64_t>(1, steps - 1)) + (steps >= 2 ? 1 : 0);
+    EXPECT_EQ(storage.counters().peakBytesInMemory, states * 2 * 8) << "N = " << steps;
+    EXPECT_LE(storage.counters().peakBytesInMemory, storage.budgetBytes());
+    EXPECT_EQ(storage.counters().bytesInMemory, 0);
+  }
+}
+
+TEST(BinomialCheckpointing, ReusableForASecondRun) {
+  Pendulum problem;
+  const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
+  BinomialCheckpointing storage(4);
+  storage.setVerifyRestores(true);
+  const GradientResult first = computeGradient(problem, p, pendulumOptions(1.0, 0.01), storage);
+  const GradientResult second = computeGradient(problem, p, pendulumOptions(1.0, 0.01), storage);
+  EXPECT_EQ(first.gradient, second.gradient);
+  EXPECT_EQ(toString(static_cast<UnsignedInt128>(99 + storage.counters().recomputedSteps)),
+            toString(optimalForwardSteps(100, 4)));
+}
+
+TEST(BinomialCheckpointing, AdaptiveStepsAreRejectedWithAPointerToOnline) {
+  Pendulum problem;
+  IntegratorOptions options = pendulumOptions(1.0, 1e-3);
+  options.method = "dopri5";
+  options.adaptive = true;
+  BinomialCheckpointing storage(10);
+  try {
+    computeGradient(problem, Eigen::Vector4d(1.5, 0.8, 0.3, 1.2), options, storage);
+    FAIL() << "no std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("online"), std::string::npos) << e.what();
+  }
+}
+
+TEST(BinomialCheckpointing, CheckpointsThatDoNotFitTheBudgetAreRejected) {
+  Pendulum problem;  // 2 doubles = 16 bytes per state
+  // 10 checkpoints + 1 working state = 176 bytes > 160.
+  BinomialCheckpointing tight(10, 160);
+  try {
+    computeGradient(problem, Eigen::Vector4d(1.5, 0.8, 0.3, 1.2), pendulumOptions(1.0, 0.01), tight);
+    FAIL() << "no std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("binomial.checkpoints"), std::string::npos) << message;
+    EXPECT_NE(message.find("binomial.budget"), std::string::npos) << message;
+  }
+  BinomialCheckpointing enough(10, 176);
+  enough.setVerifyRestores(true);
+  computeGradient(problem, Eigen::Vector4d(1.5, 0.8, 0.3, 1.2), pendulumOptions(1.0, 0.01), enough);
+  EXPECT_EQ(enough.counters().peakBytesInMemory, 176);
+}
+
+TEST(BinomialCheckpointing, SpecStrings) {
+  EXPECT_EQ(createStorage("binomial:checkpoints=20")->spec(), "binomial:checkpoints=20");
+  EXPECT_EQ(createStorage("binomial:checkpoints=3,budget=1MiB")->spec(),
+            "binomial:checkpoints=3,budget=1048576");
+  const auto message = [](const std::string& spec) {
+    try {
+      createStorage(spec);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message("binomial").find("binomial.checkpoints is required"), std::string::npos);
+  EXPECT_NE(message("binomial:checkpoints=0").find("binomial.checkpoints"), std::string::npos);
+  EXPECT_NE(message("binomial:checkpoints=2x").find("binomial.checkpoints"), std::string::npos);
+  EXPECT_NE(message("binomial:checkpoints=5,budget=-1").find("binomial.budget"), std::string::npos);
+  EXPECT_NE(message("binomial:snaps=5").find("valid keys: checkpoints, budget"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hindsight
