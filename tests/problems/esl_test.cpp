@@ -25,7 +25,8 @@ Vector randomDesign(const RodConfig& config, unsigned seed) {
   std::mt19937 generator(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Vector design(config.designCount());
-  for (auto& x : design) x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
+  for (auto& x : design)
+    x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
   return design;
 }
 
@@ -57,7 +58,8 @@ TEST(Esl, AtTheLoadDesignDisplacementsAreTheModalShapes) {
 TEST(Esl, GradientWithFixedLoadsMatchesFiniteDifferences) {
   const RodConfig config = coarseConfig();
   for (unsigned seed : {3u, 4u}) {
-    const Vector design = seed == 3u ? Vector(Vector::Constant(config.designCount(), 0.5)) : randomDesign(config, seed);
+    const Vector design =
+        seed == 3u ? Vector(Vector::Constant(config.designCount(), 0.5)) : randomDesign(config, seed);
     const FeModel model(config, design);
     const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
     // Loads from a different design, so that they are not in equilibrium with the modes of this one.

@@ -1,7 +1,7 @@
 #include "problems/modal_reduction.h"
 
-#include <Eigen/SparseCholesky>
 #include <gtest/gtest.h>
+#include <Eigen/SparseCholesky>
 
 #include <cmath>
 #include <random>
@@ -62,8 +62,10 @@ TEST(ModalReduction, EigenvaluesDecreaseUnderNestedRefinement) {
   const RodConfig fine;
   ModalReductionOptions options;
   options.modeCount = 6;
-  const ModalBasis coarseBasis = computeModalBasis(FeModel(coarse, Vector::Constant(coarse.designCount(), 1.0)), options);
-  const ModalBasis fineBasis = computeModalBasis(FeModel(fine, Vector::Constant(fine.designCount(), 1.0)), options);
+  const ModalBasis coarseBasis =
+      computeModalBasis(FeModel(coarse, Vector::Constant(coarse.designCount(), 1.0)), options);
+  const ModalBasis fineBasis =
+      computeModalBasis(FeModel(fine, Vector::Constant(fine.designCount(), 1.0)), options);
   for (int i = 0; i < 6; ++i) EXPECT_LT(fineBasis.eigenvalues(i), coarseBasis.eigenvalues(i)) << i;
 }
 
