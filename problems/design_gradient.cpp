@@ -43,8 +43,8 @@ class NelsonSystem {
     if (solver_.info() != Eigen::Success) {
       std::ostringstream message;
       message << "Nelson's modified matrix K - lambda M (lambda = " << eigenvalue
-              << ") is singular: the eigenvalue is repeated or the mode is degenerate (" << solver_.lastErrorMessage()
-              << ")";
+              << ") is singular: the eigenvalue is repeated or the mode is degenerate ("
+              << solver_.lastErrorMessage() << ")";
       throw std::runtime_error(message.str());
     }
   }
@@ -62,18 +62,20 @@ class NelsonSystem {
 
 void checkBasis(const FeModel& model, const ModalBasis& basis) {
   if (basis.reliefModeCount != 0)
-    throw std::invalid_argument("design gradient: basis.reliefModeCount = " + std::to_string(basis.reliefModeCount) +
-                                " is outside the allowed range {0} (inertia-relief mode derivatives are not implemented)");
+    throw std::invalid_argument(
+        "design gradient: basis.reliefModeCount = " + std::to_string(basis.reliefModeCount) +
+        " is outside the allowed range {0} (inertia-relief mode derivatives are not implemented)");
   if (basis.modesFree.rows() != model.freeDofCount() || basis.modesFull.rows() != model.dofCount() ||
       basis.modesFree.cols() != basis.eigenmodeCount || basis.eigenvalues.size() != basis.eigenmodeCount)
-    throw std::invalid_argument("design gradient: the modal basis does not belong to this FeModel (sizes differ)");
+    throw std::invalid_argument(
+        "design gradient: the modal basis does not belong to this FeModel (sizes differ)");
 }
 
 // Free-DOF vector -(K' - lambda M') phi for design element e (K' = dE Ke0, M' = drho Me0) plus
 // lambda' M phi; K' and M' are restricted to the free DOFs by dropping constrained rows.
-Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs, const ElementVector& modeLocal,
-                           double stiffnessSlope, double densitySlope, double eigenvalue, double eigenvalueDerivative,
-                           const Vector& massTimesMode) {
+Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs,
+                           const ElementVector& modeLocal, double stiffnessSlope, double densitySlope,
+                           double eigenvalue, double eigenvalueDerivative, const Vector& massTimesMode) {
   Vector rhs = eigenvalueDerivative * massTimesMode;
   const ElementVector local =
       (stiffnessSlope * model.unitStiffness() - eigenvalue * densitySlope * model.unitMass()) * modeLocal;
@@ -87,7 +89,8 @@ Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs,
 }  // namespace
 
 DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
-                                           ConstVectorRef invariantGradient, const DesignGradientOptions& options,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
                                            const DesignGradientExtras& extras) {
   const auto start = std::chrono::steady_clock::now();
   checkBasis(model, basis);
@@ -95,18 +98,19 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
   const InvariantLayout layout(n);
   if (invariantGradient.size() != layout.size) {
     std::ostringstream message;
-    message << "computeDesignGradient: invariantGradient has " << invariantGradient.size() << " entries, expected "
-            << layout.size << " (InertiaInvariants::packedSize(" << n << "))";
+    message << "computeDesignGradient: invariantGradient has " << invariantGradient.size()
+            << " entries, expected " << layout.size << " (InertiaInvariants::packedSize(" << n << "))";
     throw std::invalid_argument(message.str());
   }
   if (extras.eigenvalueGradient.size() != 0 && extras.eigenvalueGradient.size() != n)
     throw std::invalid_argument("computeDesignGradient: extras.eigenvalueGradient has " +
-                                std::to_string(extras.eigenvalueGradient.size()) + " entries, expected 0 or " +
-                                std::to_string(n));
-  if (extras.explicitDesignGradient.size() != 0 && extras.explicitDesignGradient.size() != model.designCount())
+                                std::to_string(extras.eigenvalueGradient.size()) +
+                                " entries, expected 0 or " + std::to_string(n));
+  if (extras.explicitDesignGradient.size() != 0 &&
+      extras.explicitDesignGradient.size() != model.designCount())
     throw std::invalid_argument("computeDesignGradient: extras.explicitDesignGradient has " +
-                                std::to_string(extras.explicitDesignGradient.size()) + " entries, expected 0 or " +
-                                std::to_string(model.designCount()));
+                                std::to_string(extras.explicitDesignGradient.size()) +
+                                " entries, expected 0 or " + std::to_string(model.designCount()));
   const InertiaInvariants weights = InertiaInvariants::unpack(invariantGradient, n);
   const Vector eigenvalueWeights =
       extras.eigenvalueGradient.size() == n ? extras.eigenvalueGradient : Vector(Vector::Zero(n));
@@ -144,10 +148,12 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     const auto leftLocal = gatherRows(left, dofs);
     const auto rightLocal = gatherRows(right, dofs);
     const auto modesLocal = gatherRows(modes, dofs);
-    const double massPart = massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
+    const double massPart =
+        massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
     const double stiffnessPart =
         stiffnessWeights.cwiseProduct(modesLocal.transpose() * model.unitStiffness() * modesLocal).sum();
-    result.gradient(d) = model.simp().densityDerivative(x) * massPart + model.simp().stiffnessDerivative(x) * stiffnessPart;
+    result.gradient(d) =
+        model.simp().densityDerivative(x) * massPart + model.simp().stiffnessDerivative(x) * stiffnessPart;
   }
 
   // dpsi/dphi_i as full-DOF columns, then restricted to the free DOFs.
@@ -189,10 +195,12 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
         const ElementVector stiffnessPhi = model.unitStiffness() * phi;
         const ElementVector massPhi = model.unitMass() * phi;
         const double phiMassPhi = phi.dot(massPhi);
-        const double eigenvalueDerivative = stiffnessSlope * phi.dot(stiffnessPhi) - eigenvalue * densitySlope * phiMassPhi;
-        result.gradient(d) += -(stiffnessSlope * z.dot(stiffnessPhi) - eigenvalue * densitySlope * z.dot(massPhi)) +
-                              eigenvalueDerivative * (adjointMassMode + eigenvalueWeights(i)) -
-                              0.5 * projection * densitySlope * phiMassPhi;
+        const double eigenvalueDerivative =
+            stiffnessSlope * phi.dot(stiffnessPhi) - eigenvalue * densitySlope * phiMassPhi;
+        result.gradient(d) +=
+            -(stiffnessSlope * z.dot(stiffnessPhi) - eigenvalue * densitySlope * z.dot(massPhi)) +
+            eigenvalueDerivative * (adjointMassMode + eigenvalueWeights(i)) -
+            0.5 * projection * densitySlope * phiMassPhi;
       }
     } else {
       for (int d = 0; d < model.designCount(); ++d) {
@@ -204,11 +212,12 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
         const double phiMassPhi = phi.dot(model.unitMass() * phi);
         const double eigenvalueDerivative =
             stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
-        const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope, eigenvalue,
-                                                          eigenvalueDerivative, massTimesMode));
+        const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope,
+                                                          eigenvalue, eigenvalueDerivative, massTimesMode));
         ++result.linearSolves;
         const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
-        result.gradient(d) += gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
+        result.gradient(d) +=
+            gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
       }
     }
   }
@@ -222,10 +231,12 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   checkBasis(model, basis);
   if (mode < 0 || mode >= basis.eigenmodeCount)
     throw std::invalid_argument("computeEigenpairDerivative: mode = " + std::to_string(mode) +
-                                " is outside the allowed range [0, " + std::to_string(basis.eigenmodeCount - 1) + "]");
+                                " is outside the allowed range [0, " +
+                                std::to_string(basis.eigenmodeCount - 1) + "]");
   if (designIndex < 0 || designIndex >= model.designCount())
     throw std::invalid_argument("computeEigenpairDerivative: designIndex = " + std::to_string(designIndex) +
-                                " is outside the allowed range [0, " + std::to_string(model.designCount() - 1) + "]");
+                                " is outside the allowed range [0, " +
+                                std::to_string(model.designCount() - 1) + "]");
   const double eigenvalue = basis.eigenvalues(mode);
   const Vector modeFree = basis.modesFree.col(mode);
   const Vector massTimesMode = model.mass() * modeFree;
@@ -237,9 +248,10 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   const ElementVector phi = gather(Vector(basis.modesFull.col(mode)), dofs);
   const double phiMassPhi = phi.dot(model.unitMass() * phi);
   EigenpairDerivative derivative;
-  derivative.eigenvalue = stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
-  const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope, eigenvalue,
-                                                    derivative.eigenvalue, massTimesMode));
+  derivative.eigenvalue =
+      stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
+  const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope,
+                                                    eigenvalue, derivative.eigenvalue, massTimesMode));
   const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
   derivative.modeFree = v + c * modeFree;
   return derivative;

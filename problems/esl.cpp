@@ -11,7 +11,8 @@ namespace rod {
 
 Matrix equivalentStaticLoads(const FeModel& model, const ModalBasis& basis, ConstMatrixRef modalCoordinates) {
   if (basis.modesFree.rows() != model.freeDofCount())
-    throw std::invalid_argument("equivalentStaticLoads: the modal basis does not belong to this FeModel (sizes differ)");
+    throw std::invalid_argument(
+        "equivalentStaticLoads: the modal basis does not belong to this FeModel (sizes differ)");
   if (modalCoordinates.rows() != basis.columnCount()) {
     std::ostringstream message;
     message << "equivalentStaticLoads: modalCoordinates has " << modalCoordinates.rows()
@@ -24,8 +25,8 @@ Matrix equivalentStaticLoads(const FeModel& model, const ModalBasis& basis, Cons
 EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime) {
   if (loads.rows() != model.freeDofCount() || loads.cols() < 1) {
     std::ostringstream message;
-    message << "evaluateEsl: loads are " << loads.rows() << " x " << loads.cols() << ", expected freeDofCount() = "
-            << model.freeDofCount() << " rows and at least one column";
+    message << "evaluateEsl: loads are " << loads.rows() << " x " << loads.cols()
+            << ", expected freeDofCount() = " << model.freeDofCount() << " rows and at least one column";
     throw std::invalid_argument(message.str());
   }
   if (!std::isfinite(endTime) || !(endTime > 0.0)) {

@@ -24,8 +24,8 @@ namespace rod {
 Matrix equivalentStaticLoads(const FeModel& model, const ModalBasis& basis, ConstMatrixRef modalCoordinates);
 
 struct EslResult {
-  double value = 0.0;  ///< psi2 [J s]
-  Vector gradient;     ///< dpsi2/dx_d, size model.designCount()
+  double value = 0.0;    ///< psi2 [J s]
+  Vector gradient;       ///< dpsi2/dx_d, size model.designCount()
   Matrix displacements;  ///< u_k on the free DOFs, freeDofCount x N [m]
 };
 

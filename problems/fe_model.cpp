@@ -38,7 +38,8 @@ constexpr double kCornerEta[4] = {-1.0, -1.0, 1.0, 1.0};
 
 }  // namespace
 
-ElementMatrix planeStressQuadUnitStiffness(double width, double height, double poissonRatio, double thickness) {
+ElementMatrix planeStressQuadUnitStiffness(double width, double height, double poissonRatio,
+                                           double thickness) {
   const double nu = poissonRatio;
   Eigen::Matrix3d elasticity;
   elasticity << 1.0, nu, 0.0, nu, 1.0, 0.0, 0.0, 0.0, 0.5 * (1.0 - nu);
@@ -109,7 +110,8 @@ Matrix rotateNodewiseColumns(ConstMatrixRef full) {
 
 Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full) {
   Matrix result(full.rows(), full.cols());
-  for (Eigen::Index c = 0; c < full.cols(); ++c) result.col(c) = rotateNodewiseTransposed(Vector(full.col(c)));
+  for (Eigen::Index c = 0; c < full.cols(); ++c)
+    result.col(c) = rotateNodewiseTransposed(Vector(full.col(c)));
   return result;
 }
 
@@ -119,8 +121,8 @@ FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(confi
   const int ny = config_.elementsThroughHeight;
   if (design.size() != config_.designCount()) {
     std::ostringstream message;
-    message << "FeModel: design has " << design.size() << " entries, expected designCount() = "
-            << config_.designCount() << " ((nx - 2) * ny)";
+    message << "FeModel: design has " << design.size()
+            << " entries, expected designCount() = " << config_.designCount() << " ((nx - 2) * ny)";
     throw std::invalid_argument(message.str());
   }
   for (Eigen::Index d = 0; d < design.size(); ++d) {

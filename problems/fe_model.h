@@ -50,7 +50,8 @@ class SimpLaw {
 
 /// Stiffness matrix of one rectangular plane-stress Q4 element with E = 1 (2 x 2 Gauss, exact for a
 /// rectangle), DOFs ordered (u_x, u_y) for the local nodes (0,0), (a,0), (a,b), (0,b). Units: m (thickness).
-ElementMatrix planeStressQuadUnitStiffness(double width, double height, double poissonRatio, double thickness);
+ElementMatrix planeStressQuadUnitStiffness(double width, double height, double poissonRatio,
+                                           double thickness);
 /// Consistent mass matrix of the same element with rho = 1 (2 x 2 Gauss, exact). Units: m^3.
 ElementMatrix quadUnitConsistentMass(double width, double height, double thickness);
 

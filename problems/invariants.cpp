@@ -35,8 +35,9 @@ Vector InertiaInvariants::pack() const {
 }
 
 InertiaInvariants InertiaInvariants::unpack(ConstVectorRef packed, int n) {
-  if (n < 1) throw std::invalid_argument("InertiaInvariants::unpack: modeCount = " + std::to_string(n) +
-                                         " is outside the allowed range [1, inf)");
+  if (n < 1)
+    throw std::invalid_argument("InertiaInvariants::unpack: modeCount = " + std::to_string(n) +
+                                " is outside the allowed range [1, inf)");
   const InvariantLayout layout(n);
   if (packed.size() != layout.size) {
     std::ostringstream message;
@@ -61,8 +62,9 @@ InertiaInvariants InertiaInvariants::unpack(ConstVectorRef packed, int n) {
 InertiaInvariants computeInvariants(const FeModel& model, const ModalBasis& basis) {
   if (basis.modesFull.rows() != model.dofCount() || basis.modesFull.cols() != basis.columnCount()) {
     std::ostringstream message;
-    message << "computeInvariants: basis.modesFull is " << basis.modesFull.rows() << " x " << basis.modesFull.cols()
-            << ", expected dofCount() = " << model.dofCount() << " rows and " << basis.columnCount() << " columns";
+    message << "computeInvariants: basis.modesFull is " << basis.modesFull.rows() << " x "
+            << basis.modesFull.cols() << ", expected dofCount() = " << model.dofCount() << " rows and "
+            << basis.columnCount() << " columns";
     throw std::invalid_argument(message.str());
   }
   const SparseMatrix& mass = model.massFull();

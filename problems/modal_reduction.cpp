@@ -1,10 +1,10 @@
 #include "problems/modal_reduction.h"
 
-#include <Eigen/Eigenvalues>
-#include <Eigen/SparseCholesky>
 #include <Spectra/MatOp/SparseSymMatProd.h>
 #include <Spectra/MatOp/SymShiftInvert.h>
 #include <Spectra/SymGEigsShiftSolver.h>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <cmath>
@@ -56,8 +56,9 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   }
   if (!(options.tolerance > 0.0) || options.maxIterations < 1 || options.refinementSteps < 0) {
     std::ostringstream message;
-    message << "ModalReductionOptions: tolerance = " << options.tolerance << " must be in (0, inf) and maxIterations = "
-            << options.maxIterations << " in [1, inf), refinementSteps = " << options.refinementSteps << " in [0, inf)";
+    message << "ModalReductionOptions: tolerance = " << options.tolerance
+            << " must be in (0, inf) and maxIterations = " << options.maxIterations
+            << " in [1, inf), refinementSteps = " << options.refinementSteps << " in [0, inf)";
     throw std::invalid_argument(message.str());
   }
 
@@ -87,14 +88,17 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     // Block inverse iteration with K followed by Rayleigh-Ritz on span(K^-1 M V).
     Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
     if (factorization.info() != Eigen::Success)
-      throw std::runtime_error("computeModalBasis: the constrained stiffness matrix is not positive definite");
+      throw std::runtime_error(
+          "computeModalBasis: the constrained stiffness matrix is not positive definite");
     for (int step = 0; step < options.refinementSteps; ++step) {
       const Matrix subspace = factorization.solve(Matrix(mass * vectors));
       const Matrix projectedStiffness = subspace.transpose() * (stiffness * subspace);
       const Matrix projectedMass = subspace.transpose() * (mass * subspace);
-      const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(0.5 * (projectedStiffness + projectedStiffness.transpose()),
-                                                               0.5 * (projectedMass + projectedMass.transpose()));
-      if (ritz.info() != Eigen::Success) throw std::runtime_error("computeModalBasis: Rayleigh-Ritz refinement failed");
+      const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(
+          0.5 * (projectedStiffness + projectedStiffness.transpose()),
+          0.5 * (projectedMass + projectedMass.transpose()));
+      if (ritz.info() != Eigen::Success)
+        throw std::runtime_error("computeModalBasis: Rayleigh-Ritz refinement failed");
       values = ritz.eigenvalues();
       vectors = subspace * ritz.eigenvectors();
     }
@@ -130,7 +134,8 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   if (options.inertiaReliefModes) {
     Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
     if (factorization.info() != Eigen::Success)
-      throw std::runtime_error("computeModalBasis: the constrained stiffness matrix is not positive definite");
+      throw std::runtime_error(
+          "computeModalBasis: the constrained stiffness matrix is not positive definite");
     const SparseMatrix& massFull = model.massFull();
     const Vector loads[3] = {massFull * model.unitTranslationX(), massFull * model.unitTranslationY(),
                              massFull * rotateNodewise(model.referenceCoordinates())};

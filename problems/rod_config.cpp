@@ -52,7 +52,8 @@ void RodConfig::validate() const {
   if (!std::isfinite(designLowerBound) || !(designLowerBound > 0.0 && designLowerBound < 1.0))
     fail("designLowerBound", designLowerBound, "(0, 1)");
   if (!std::isfinite(initialDesign) || !(initialDesign >= designLowerBound && initialDesign <= 1.0))
-    fail("initialDesign", initialDesign, "[designLowerBound, 1] = [" + std::to_string(designLowerBound) + ", 1]");
+    fail("initialDesign", initialDesign,
+         "[designLowerBound, 1] = [" + std::to_string(designLowerBound) + ", 1]");
   if (modeCount < 1) fail("modeCount", modeCount, "[1, inf)");
   if (!std::isfinite(crankRadius) || !(crankRadius > 0.0 && crankRadius < length))
     fail("crankRadius", crankRadius, "(0, length) = (0, " + std::to_string(length) + ")");

@@ -12,7 +12,7 @@ namespace rod {
 
 struct RodConfig {
   // --- FE mesh of the rod (SPEC 2: 200 x 12 square 4-node plane-stress elements) [P] ---
-  int elementsAlongLength = 200;  ///< nx, element columns along x; >= 3 (two solid end columns).
+  int elementsAlongLength = 200;   ///< nx, element columns along x; >= 3 (two solid end columns).
   int elementsThroughHeight = 12;  ///< ny, element rows along y; even (mid-height nodes needed), >= 2.
   double length = 1.0;             ///< L [m], distance between joints A and B.
   double height = 0.06;            ///< H [m].
@@ -36,11 +36,11 @@ struct RodConfig {
   bool inertiaReliefModes = false;  ///< append the 3 static modes K^-1 M [e_x, e_y, S X].
 
   // --- Mechanism and time horizon (SPEC 2) ---
-  double crankRadius = 0.15;           ///< r [m], in (0, L) [C].
-  double crankSpeed = 10.0 * 3.14159265358979323846;    ///< Omega [rad/s] after the ramp [C].
-  double rampTime = 2.0;               ///< T [s] of the cycloidal ramp [P].
-  double endTime = 3.0;                ///< t1 [s], >= rampTime [P].
-  int eslSamples = 100;                ///< number of equivalent static load time points [P].
+  double crankRadius = 0.15;                          ///< r [m], in (0, L) [C].
+  double crankSpeed = 10.0 * 3.14159265358979323846;  ///< Omega [rad/s] after the ramp [C].
+  double rampTime = 2.0;                              ///< T [s] of the cycloidal ramp [P].
+  double endTime = 3.0;                               ///< t1 [s], >= rampTime [P].
+  int eslSamples = 100;                               ///< number of equivalent static load time points [P].
 
   /// Number of design variables: the inner (nx - 2) * ny elements.
   int designCount() const { return (elementsAlongLength - 2) * elementsThroughHeight; }

@@ -32,7 +32,8 @@ Vector randomDesign(const RodConfig& config, unsigned seed) {
   std::mt19937 generator(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Vector design(config.designCount());
-  for (auto& x : design) x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
+  for (auto& x : design)
+    x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
   return design;
 }
 
@@ -72,7 +73,9 @@ const PerturbedInvariants& perturbedInvariants(const Vector& design) {
 }
 
 const InvariantLayout kLayout(kModes);
-const int kBlockStarts[] = {0, 1, 3, kLayout.c1, kLayout.c2, kLayout.a0, kLayout.cTilde, kLayout.mee, kLayout.kee, kLayout.b, kLayout.size};
+const int kBlockStarts[] = {
+    0,           1,           3,         kLayout.c1,  kLayout.c2, kLayout.a0, kLayout.cTilde,
+    kLayout.mee, kLayout.kee, kLayout.b, kLayout.size};
 const char* const kBlockNames[] = {"m", "m c", "J0", "C1", "C2", "a0", "Ctilde", "Mee", "Kee", "b"};
 constexpr int kBlockCount = 10;
 
@@ -80,7 +83,9 @@ constexpr int kBlockCount = 10;
 // invariant block contributes comparably.
 struct Functional {
   Vector w, s;
-  double value(const Vector& p) const { return w.dot(p) + 0.5 * (s.array() * (w.array() * p.array()).square()).sum(); }
+  double value(const Vector& p) const {
+    return w.dot(p) + 0.5 * (s.array() * (w.array() * p.array()).square()).sum();
+  }
   Vector gradient(const Vector& p) const { return w + Vector(s.array() * w.array().square() * p.array()); }
 };
 
@@ -111,7 +116,8 @@ struct ChainCheck {
 // absolute (psi is evaluated to ~1e-12 relative through the ill-conditioned eigenproblem, divided by
 // 2h = 1.2e-5), so components 1e-4 below the largest carry relative noise ~1e-3 and cannot be checked on
 // their own scale.
-ChainCheck checkChain(const Vector& design, const Functional& functional, EigenvectorSensitivityMethod method) {
+ChainCheck checkChain(const Vector& design, const Functional& functional,
+                      EigenvectorSensitivityMethod method) {
   const RodConfig config = coarseConfig();
   const FeModel model(config, design);
   const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
@@ -120,7 +126,8 @@ ChainCheck checkChain(const Vector& design, const Functional& functional, Eigenv
   DesignGradientOptions options;
   options.method = method;
   ChainCheck check;
-  check.analytic = computeDesignGradient(model, basis, functional.gradient(perturbed.center), options).gradient;
+  check.analytic =
+      computeDesignGradient(model, basis, functional.gradient(perturbed.center), options).gradient;
   check.finiteDifference.resize(design.size());
   for (Eigen::Index i = 0; i < design.size(); ++i)
     check.finiteDifference(i) =
@@ -133,11 +140,13 @@ ChainCheck checkChain(const Vector& design, const Functional& functional, Eigenv
 
 void expectChainMatches(const Vector& design, bool quadratic, unsigned seed, const char* label) {
   const Functional functional = makeFunctional(perturbedInvariants(design).center, seed, quadratic);
-  for (auto method : {EigenvectorSensitivityMethod::AdjointNelson, EigenvectorSensitivityMethod::NelsonPerVariable}) {
+  for (auto method :
+       {EigenvectorSensitivityMethod::AdjointNelson, EigenvectorSensitivityMethod::NelsonPerVariable}) {
     const ChainCheck check = checkChain(design, functional, method);
-    std::printf("[%s, %s] ||fd - an|| / ||fd|| = %.2e, max_i |fd_i - an_i| / ||fd||_inf = %.2e\n", label,
-                method == EigenvectorSensitivityMethod::AdjointNelson ? "adjoint Nelson" : "Nelson per variable",
-                check.normError, check.componentError);
+    std::printf(
+        "[%s, %s] ||fd - an|| / ||fd|| = %.2e, max_i |fd_i - an_i| / ||fd||_inf = %.2e\n", label,
+        method == EigenvectorSensitivityMethod::AdjointNelson ? "adjoint Nelson" : "Nelson per variable",
+        check.normError, check.componentError);
     EXPECT_LT(check.normError, 3e-6) << label;
     EXPECT_LT(check.componentError, 3e-6) << label;
   }
@@ -165,7 +174,8 @@ TEST(DesignGradient, QuadraticFunctionalAtRandomDesign) {
 TEST(DesignGradient, EveryInvariantBlockSeparately) {
   const Vector design = randomDesign(coarseConfig(), 3);
   const Functional all = makeFunctional(perturbedInvariants(design).center, 9, false);
-  const double scale = checkChain(design, all, EigenvectorSensitivityMethod::AdjointNelson).finiteDifference.norm();
+  const double scale =
+      checkChain(design, all, EigenvectorSensitivityMethod::AdjointNelson).finiteDifference.norm();
   for (int block = 0; block < kBlockCount; ++block) {
     Functional one = all;
     for (Eigen::Index j = 0; j < one.w.size(); ++j)
@@ -222,8 +232,10 @@ TEST(DesignGradient, EigenpairDerivativeMatchesFiniteDifferences) {
     Vector plus = design, minus = design;
     plus(designIndex) += h;
     minus(designIndex) -= h;
-    const ModalBasis basisPlus = computeModalBasis(FeModel(config, plus), ModalReductionOptions::fromConfig(config));
-    const ModalBasis basisMinus = computeModalBasis(FeModel(config, minus), ModalReductionOptions::fromConfig(config));
+    const ModalBasis basisPlus =
+        computeModalBasis(FeModel(config, plus), ModalReductionOptions::fromConfig(config));
+    const ModalBasis basisMinus =
+        computeModalBasis(FeModel(config, minus), ModalReductionOptions::fromConfig(config));
     return std::make_pair(Vector((basisPlus.eigenvalues - basisMinus.eigenvalues) / (2 * h)),
                           Matrix((basisPlus.modesFree - basisMinus.modesFree) / (2 * h)));
   };
@@ -235,9 +247,11 @@ TEST(DesignGradient, EigenpairDerivativeMatchesFiniteDifferences) {
     const Matrix fdModes = (4 * modesH - modes2H) / 3;
     for (int mode = 0; mode < kModes; ++mode) {
       const EigenpairDerivative derivative = computeEigenpairDerivative(model, basis, mode, designIndex);
-      EXPECT_NEAR(derivative.eigenvalue, fdValues(mode), 1e-6 * std::abs(fdValues(mode)) + 2e-7 * basis.eigenvalues(mode))
+      EXPECT_NEAR(derivative.eigenvalue, fdValues(mode),
+                  1e-6 * std::abs(fdValues(mode)) + 2e-7 * basis.eigenvalues(mode))
           << "mode " << mode << " design " << designIndex;
-      EXPECT_LT((derivative.modeFree - fdModes.col(mode)).norm(), 1e-6 * fdModes.col(mode).norm() + 2e-7 * basis.modesFree.col(mode).norm())
+      EXPECT_LT((derivative.modeFree - fdModes.col(mode)).norm(),
+                1e-6 * fdModes.col(mode).norm() + 2e-7 * basis.modesFree.col(mode).norm())
           << "mode " << mode << " design " << designIndex;
     }
   }
@@ -255,15 +269,17 @@ TEST(DesignGradient, ExtrasAreAddedAndBadInputThrows) {
   extras = {};
   extras.eigenvalueGradient = Vector::Unit(kModes, 0);
   const Vector gradient = computeDesignGradient(model, basis, zero, {}, extras).gradient;
-  EXPECT_NEAR(gradient(10), computeEigenpairDerivative(model, basis, 0, 10).eigenvalue, 1e-12 * std::abs(gradient(10)));
+  EXPECT_NEAR(gradient(10), computeEigenpairDerivative(model, basis, 0, 10).eigenvalue,
+              1e-12 * std::abs(gradient(10)));
   EXPECT_THROW(computeDesignGradient(model, basis, Vector::Zero(3)), std::invalid_argument);
   extras.eigenvalueGradient = Vector::Zero(kModes + 1);
   EXPECT_THROW(computeDesignGradient(model, basis, zero, {}, extras), std::invalid_argument);
   ModalReductionOptions relief = ModalReductionOptions::fromConfig(config);
   relief.inertiaReliefModes = true;
   const ModalBasis reliefBasis = computeModalBasis(model, relief);
-  EXPECT_THROW(computeDesignGradient(model, reliefBasis, Vector::Zero(InertiaInvariants::packedSize(kModes + 3))),
-               std::invalid_argument);
+  EXPECT_THROW(
+      computeDesignGradient(model, reliefBasis, Vector::Zero(InertiaInvariants::packedSize(kModes + 3))),
+      std::invalid_argument);
 }
 
 }  // namespace

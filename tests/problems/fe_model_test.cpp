@@ -1,7 +1,7 @@
 #include "problems/fe_model.h"
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <limits>
@@ -51,7 +51,8 @@ TEST(ElementMatrices, MassSumsToElementMassAndIsPositiveDefinite) {
 TEST(SimpLaw, DerivativesMatchFiniteDifferencesOnBothSidesOfTheThreshold) {
   const RodConfig config;
   const SimpLaw simp(config);
-  // Step cbrt(eps) max(1, |x|) ~ 6e-6; the truncation error (h/x)^2 (q-1)(q-2)/6 is below 2e-6 for x >= 0.011.
+  // Step cbrt(eps) max(1, |x|) ~ 6e-6; the truncation error (h/x)^2 (q-1)(q-2)/6 is below 2e-6 for x >=
+  // 0.011.
   const double h = std::cbrt(std::numeric_limits<double>::epsilon());
   for (double x : {0.011, 0.05, 0.0995, 0.1005, 0.3, 0.5, 0.97}) {
     const double fdStiffness = (simp.stiffness(x + h) - simp.stiffness(x - h)) / (2 * h);
@@ -112,7 +113,8 @@ TEST(FeModel, AssembledMatricesAreSymmetricWithRigidModesOnlyWhenUnconstrained) 
   const Eigen::SelfAdjointEigenSolver<Matrix> eigen{Matrix(model.stiffness())};
   EXPECT_GT(eigen.eigenvalues().minCoeff(), 1e-10 * eigen.eigenvalues().maxCoeff());
   // Constrained = full with the three support DOFs removed.
-  const Matrix restricted = model.restrictColumnsToFree(Matrix(model.restrictColumnsToFree(stiffnessFull).transpose()));
+  const Matrix restricted =
+      model.restrictColumnsToFree(Matrix(model.restrictColumnsToFree(stiffnessFull).transpose()));
   EXPECT_EQ(restricted, Matrix(model.stiffness()));
 }
 
@@ -122,9 +124,9 @@ TEST(FeModel, TotalMassAndVolumeFraction) {
   design(3) = 0.05;  // below the threshold: rho = c x^q rho0
   const FeModel model(config, design);
   const double elementVolume = config.length * config.height * config.thickness / model.elementCount();
-  const double expectedMass =
-      elementVolume * config.density *
-      (2 * config.elementsThroughHeight + 0.5 * (config.designCount() - 1) + config.massLawFactor * std::pow(0.05, 6));
+  const double expectedMass = elementVolume * config.density *
+                              (2 * config.elementsThroughHeight + 0.5 * (config.designCount() - 1) +
+                               config.massLawFactor * std::pow(0.05, 6));
   const Vector& ex = model.unitTranslationX();
   EXPECT_NEAR(ex.dot(model.massFull() * ex), expectedMass, 1e-13 * expectedMass);
   const double expectedFraction = (2 * 4 + 0.5 * (config.designCount() - 1) + 0.05) / model.elementCount();

@@ -57,13 +57,15 @@ TEST(Invariants, ModalBlocksAtARandomDesign) {
   // Momentum balance of a constrained eigenmode: K_full phi = lambda M_full phi + r with reactions r at
   // the supports only. Rigid motions are in the null space of K_full, so
   //   C1(x, i) = -r_Ax / lambda_i,  C1(y, i) = -(r_Ay + r_By) / lambda_i,  a0_i = -L r_By / lambda_i.
-  const Matrix reactions = model.stiffnessFull() * basis.modesFull - model.massFull() * basis.modesFull * lambda;
+  const Matrix reactions =
+      model.stiffnessFull() * basis.modesFull - model.massFull() * basis.modesFull * lambda;
   const int ax = 2 * model.jointANode(), ay = ax + 1, by = 2 * model.jointBNode() + 1;
   for (int i = 0; i < n; ++i) {
     const double scale = std::abs(reactions(ay, i)) + std::abs(reactions(by, i)) + std::abs(reactions(ax, i));
     const double lambdaI = basis.eigenvalues(i);
     EXPECT_NEAR(invariants.c1(0, i), -reactions(ax, i) / lambdaI, 1e-8 * scale / lambdaI) << i;
-    EXPECT_NEAR(invariants.c1(1, i), -(reactions(ay, i) + reactions(by, i)) / lambdaI, 1e-8 * scale / lambdaI) << i;
+    EXPECT_NEAR(invariants.c1(1, i), -(reactions(ay, i) + reactions(by, i)) / lambdaI, 1e-8 * scale / lambdaI)
+        << i;
     EXPECT_NEAR(invariants.a0(i), -config.length * reactions(by, i) / lambdaI, 1e-8 * scale / lambdaI) << i;
   }
 }

@@ -1,7 +1,7 @@
 #include "problems/modal_reduction.h"
 
-#include <Eigen/SparseCholesky>
 #include <gtest/gtest.h>
+#include <Eigen/SparseCholesky>
 
 #include <cmath>
 #include <random>
@@ -27,6 +27,13 @@ double relativeResidual(const FeModel& model, const ModalBasis& basis, int colum
 // SPEC 2 sanity values: plane-stress bending frequencies of the solid pinned-roller rod, 64.66, 254.25,
 // 556.93, 956.49 Hz. With point supports at the mid-height nodes the FE model also has an axial mode
 // (A holds u_x at one node) near 541 Hz, so the four bending modes are eigenmodes 1, 2, 4, 5.
+// Measured at 200 x 12: 64.741, 254.312, 556.192, 953.353 Hz (+0.13 %, +0.02 %, -0.13 %, -0.33 %).
+// Only the first is above the reference: a point support in 2-D elasticity is singular, its local
+// compliance grows without bound under refinement (frequencies keep falling: 400 x 24 gives 64.648,
+// 253.815, 554.666, 949.784 Hz and the axial mode falls 553.8 -> 540.9 -> 528.6 Hz from 100 x 6 to
+// 400 x 24), and this softening outweighs the Q4 parasitic-shear stiffening for the higher modes. So the
+// Q4 upper-bound argument holds against the continuum with the same point supports, not against the
+// beam-type reference values; the test asserts 0.5 % and "above" for the first mode only.
 TEST(ModalReduction, SolidRodBendingFrequenciesAtTheSpecMesh) {
   const RodConfig config;  // 200 x 12
   const FeModel model(config, Vector::Constant(config.designCount(), 1.0));
@@ -62,8 +69,10 @@ TEST(ModalReduction, EigenvaluesDecreaseUnderNestedRefinement) {
   const RodConfig fine;
   ModalReductionOptions options;
   options.modeCount = 6;
-  const ModalBasis coarseBasis = computeModalBasis(FeModel(coarse, Vector::Constant(coarse.designCount(), 1.0)), options);
-  const ModalBasis fineBasis = computeModalBasis(FeModel(fine, Vector::Constant(fine.designCount(), 1.0)), options);
+  const ModalBasis coarseBasis =
+      computeModalBasis(FeModel(coarse, Vector::Constant(coarse.designCount(), 1.0)), options);
+  const ModalBasis fineBasis =
+      computeModalBasis(FeModel(fine, Vector::Constant(fine.designCount(), 1.0)), options);
   for (int i = 0; i < 6; ++i) EXPECT_LT(fineBasis.eigenvalues(i), coarseBasis.eigenvalues(i)) << i;
 }
 
