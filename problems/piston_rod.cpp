@@ -1,5 +1,6 @@
 #include "problems/piston_rod.h"
 
+#include "engine/gradient.h"
 #include "problems/design_gradient.h"
 #include "problems/esl.h"
 #include "problems/fe_model.h"
@@ -85,12 +86,25 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
 
   start = Clock::now();
   if (request.psi1Gradient) {
-    if (config_.simulation.adjoint != "discrete") {
-      throw std::invalid_argument("simulation.adjoint = '" + config_.simulation.adjoint +
-                                  "' is not available for the piston rod in this build; use discrete");
+    GradientResult result;
+    if (config_.simulation.adjoint == "discrete") {
+      auto storage = createStorage(config_.simulation.storage);
+      result = computeGradient(problem, p, options, *storage, observer);
+    } else {
+      // The continuous and CVODES routes take their own steps; the ESL samples come from a
+      // separate fixed-step forward run when psi2 is asked for.
+      GradientOptions routes;
+      routes.adjoint = parseAdjointMethod(config_.simulation.adjoint);
+      routes.integrator = options;
+      routes.storage = config_.simulation.storage;
+      routes.continuous.relativeTolerance = config_.simulation.relativeTolerance;
+      routes.continuous.absoluteTolerance = config_.simulation.absoluteTolerance;
+      routes.cvodes.relativeTolerance = config_.simulation.relativeTolerance;
+      routes.cvodes.absoluteTolerance = config_.simulation.absoluteTolerance;
+      routes.cvodes.maxSteps = 100'000'000;
+      result = computeGradient(problem, p, routes);
+      if (request.psi2) simulate(problem, p, options, observer);
     }
-    auto storage = createStorage(config_.simulation.storage);
-    GradientResult result = computeGradient(problem, p, options, *storage, observer);
     out.psi1 = result.objective;
     out.summary = result.summary;
     out.simulationSeconds = since(start);

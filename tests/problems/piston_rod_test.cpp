@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <iostream>
 #include <random>
 
@@ -97,6 +98,19 @@ TEST(PistonRod, Psi1GradientOnTheFullMeshForASeededSampleOfElements) {
       },
       x, result.dpsi1, options);
   EXPECT_TRUE(check.passed) << check.message;
+}
+
+TEST(PistonRod, DiscreteContinuousAndCvodesAdjointsAgree) {
+  Config config = coarseConfig();
+  const Vector x = PistonRod{config}.initialDesign();
+  const Vector discrete = PistonRod{config}.evaluate(x, {true, true, true}).dpsi1;
+  for (const std::string route : {"continuous", "cvodes"}) {
+    config.simulation.adjoint = route;
+    const auto result = PistonRod{config}.evaluate(x, {true, true, true});
+    EXPECT_EQ(result.summary.adjoint, route);
+    EXPECT_LT((result.dpsi1 - discrete).norm(), 1e-6 * discrete.norm()) << route;
+    EXPECT_TRUE(std::isfinite(result.psi2)) << route;
+  }
 }
 
 TEST(PistonRod, BadDesignsAreRejectedWithTheIndex) {
