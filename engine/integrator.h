@@ -120,7 +120,8 @@ class RungeKuttaIntegrator final {
  private:
   void computeStages(double t, double h, ConstVectorRef z);
   void solveImplicitStage(int i, double t, double h);
-  void jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w, VectorRef out);
+  void jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w, VectorRef out,
+                                bool needDenseJacobian);
 
   const Problem& problem_;
   Vector p_;

@@ -61,7 +61,10 @@ class Problem {
   /// jacobian = dF/dz (n x n).
   virtual void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
                            ProblemWorkspace* ws) const;
-  /// out = (dF/dz)^T w. Only called when hasDenseJacobian() is false.
+  /// True when rhsStateVjp() is implemented (also for a problem with a dense Jacobian): explicit
+  /// stages of the discrete adjoint then use it instead of forming the Jacobian.
+  virtual bool hasStateVjp() const { return !hasDenseJacobian(); }
+  /// out = (dF/dz)^T w. Called when hasDenseJacobian() is false or hasStateVjp() is true.
   virtual void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                            ProblemWorkspace* ws) const;
   /// out += (dF/dp)^T w.

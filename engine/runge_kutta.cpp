@@ -305,8 +305,8 @@ double RungeKuttaIntegrator::step(double t, double h, VectorRef z, double* error
 }
 
 void RungeKuttaIntegrator::jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w,
-                                                    VectorRef out) {
-  if (newtonSolver_ || !problem_.hasDenseJacobian()) {
+                                                    VectorRef out, bool needDenseJacobian) {
+  if (newtonSolver_ || !problem_.hasDenseJacobian() || (!needDenseJacobian && problem_.hasStateVjp())) {
     problem_.rhsStateVjp(t, z, p_, w, out, workspace_.get());
   } else {
     problem_.rhsJacobian(t, z, p_, jacobian_, workspace_.get());
@@ -329,7 +329,8 @@ void RungeKuttaIntegrator::adjointStep(double t, double h, ConstVectorRef z, Vec
     }
     auto Zbar = stageAdjoints_.col(i);
     auto Zi = stageStates_.col(i);
-    jacobianTransposeProduct(ti, Zi, base_, Zbar);
+    // An implicit stage factorises I - alpha F_z below, so it needs the dense Jacobian anyway.
+    jacobianTransposeProduct(ti, Zi, base_, Zbar, alpha != 0.0 && !newtonSolver_);
     if (tableau_.b(i) != 0.0) {
       problem_.addIntegrandStateGradient(ti, Zi, p_, h * tableau_.b(i), Zbar, workspace_.get());
     }

@@ -106,6 +106,24 @@ void SecondOrderProblem::addRhsParameterVjp(double t, ConstVectorRef z, ConstVec
   addResidualParameterVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out, w.model.get());
 }
 
+void SecondOrderProblem::residualStateVjp(double, ConstVectorRef, ConstVectorRef, ConstVectorRef,
+                                          ConstVectorRef, ConstVectorRef, VectorRef, VectorRef,
+                                          ProblemWorkspace*) const {
+  throw std::logic_error("Problem '" + name() + "' does not implement residualStateVjp()");
+}
+
+void SecondOrderProblem::rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef wIn,
+                                     VectorRef out, ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
+  // a = M^{-1} f with r(y, v, a) = 0: da/dy = -M^{-1} r_y, da/dv = -M^{-1} r_v (M symmetric).
+  w.mu = -wIn.tail(f);
+  w.cholesky.solveInPlace(w.mu);
+  residualStateVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out.head(f), out.tail(f), w.model.get());
+  out.tail(f) += wIn.head(f);
+}
+
 double SecondOrderProblem::integrand(double t, ConstVectorRef z, ConstVectorRef p,
                                      ProblemWorkspace* ws) const {
   const int f = coordinateCount();

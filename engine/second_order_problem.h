@@ -39,6 +39,14 @@ class SecondOrderProblem : public Problem {
                                        ConstVectorRef p, ConstVectorRef mu, VectorRef out,
                                        ProblemWorkspace* ws) const = 0;
 
+  /// True when residualStateVjp() is implemented; the adapter then offers rhsStateVjp() so that
+  /// explicit adjoint stages need no Jacobian.
+  virtual bool hasResidualStateVjp() const { return false; }
+  /// outY = (dr/dy)^T mu, outV = (dr/dv)^T mu at the given a.
+  virtual void residualStateVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                                ProblemWorkspace* ws) const;
+
   /// Objective integrand G(t, y, v, p) and its gradients (gy, gv, gp += scale * ...).
   virtual double objectiveIntegrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                     ProblemWorkspace* ws) const = 0;
@@ -58,6 +66,10 @@ class SecondOrderProblem : public Problem {
                    ProblemWorkspace* ws) const final;
   void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                           ProblemWorkspace* ws) const final;
+  bool hasStateVjp() const final { return hasResidualStateVjp(); }
+  /// F_z^T w = (-r_y^T mu, w_y - r_v^T mu) with mu = M^{-1} w_v.
+  void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                   ProblemWorkspace* ws) const final;
   double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace* ws) const final;
   void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                  ProblemWorkspace* ws) const final;

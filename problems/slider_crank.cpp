@@ -7,9 +7,15 @@
 namespace hindsight::rod {
 namespace {
 
-// Derivative vectors live on the stack (fixed capacity), so AD arithmetic allocates nothing.
-using Derivatives = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * SliderCrankProblem::kMaxModes, 1>;
-using AD = Eigen::AutoDiffScalar<Derivatives>;
+// Derivative vectors live on the stack (fixed capacity), so AD arithmetic allocates nothing. Every
+// AD temporary copies its whole capacity, so a small-capacity type serves up to 12 modes (the common
+// case) and the large one the rest.
+template <int Capacity>
+using DerivativesOf = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, Capacity, 1>;
+template <int Capacity>
+using ADOf = Eigen::AutoDiffScalar<DerivativesOf<Capacity>>;
+constexpr int kSmallCapacity = 24;
+constexpr int kLargeCapacity = 2 * SliderCrankProblem::kMaxModes;
 
 /// Read-only view of the invariants inside p.
 struct View {
@@ -108,10 +114,15 @@ T residualCore(const View& P, const Frame<T>& fr, const T* q, const T* qd, Const
   const T gKappa = fr.g * kappa;
   const T betaDot2 = fr.betaDot * fr.betaDot;
   for (int i = 0; i < n; ++i) {
-    T ri = T(0.0);
+    // Sums with constant coefficients first, so that products of two active scalars are O(n), not O(n^2).
+    double meeA = 0.0;
+    T keeQ = T(0.0), ctQd = T(0.0);
     for (int j = 0; j < n; ++j) {
-      ri += P.mee(i, j) * a(j) + P.kee(i, j) * q[j] - 2.0 * fr.betaDot * P.ct(i, j) * qd[j];
+      meeA += P.mee(i, j) * a(j);
+      keeQ += P.kee(i, j) * q[j];
+      ctQd += P.ct(i, j) * qd[j];
     }
+    T ri = keeQ - 2.0 * fr.betaDot * ctQd + meeA;
     ri += A1[i] * (betaA + fr.betaC) + gKappa * P.b(i) + P.c1(0, i) * fr.rho0 + P.c1(1, i) * fr.rho1 -
           betaDot2 * h[i];
     r[i] = ri;
@@ -119,10 +130,17 @@ T residualCore(const View& P, const Frame<T>& fr, const T* q, const T* qd, Const
   return gKappa;
 }
 
+template <int Capacity>
+struct AdBuffers {
+  explicit AdBuffers(int n) : q(n), qd(n), r(n), a1(n), h(n) {}
+  std::vector<ADOf<Capacity>> q, qd, r, a1, h;
+};
+
 struct RodWorkspace final : ProblemWorkspace {
   explicit RodWorkspace(int n)
-      : q(n), qd(n), r(n), a1(n), h(n), dq(n), dqd(n), dr(n), da1(n), dh(n), zero(Vector::Zero(n)) {}
-  std::vector<AD> q, qd, r, a1, h;
+      : small(n), large(n), dq(n), dqd(n), dr(n), da1(n), dh(n), zero(Vector::Zero(n)) {}
+  AdBuffers<kSmallCapacity> small;  // Jacobians up to 12 modes; the parameter product (3 directions)
+  AdBuffers<kLargeCapacity> large;  // Jacobians beyond 12 modes
   std::vector<double> dq, dqd, dr, da1, dh;
   Vector zero;
 };
@@ -230,30 +248,47 @@ void SliderCrankProblem::force(double t, ConstVectorRef q, ConstVectorRef v, Con
   f = -f;
 }
 
-void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv,
-                                           ProblemWorkspace* ws) const {
-  auto& w = workspaceOf(ws);
-  const View P(layout_, p);
-  const int n = layout_.modes;
+namespace {
+
+template <int Capacity>
+void stateJacobians(const SliderCrankLayout& layout, const CrankMotion& crank, double length, double t,
+                    ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p, MatrixRef rq,
+                    MatrixRef rv, AdBuffers<Capacity>& w) {
+  using ADC = ADOf<Capacity>;
+  using DC = DerivativesOf<Capacity>;
+  const View P(layout, p);
+  const int n = layout.modes;
   // Seed q and q' with unit directions 0..n-1 and n..2n-1.
-  AD c(0.0, Derivatives::Zero(2 * n)), cd(0.0, Derivatives::Zero(2 * n));
+  ADC c(0.0, DC::Zero(2 * n)), cd(0.0, DC::Zero(2 * n));
   for (int i = 0; i < n; ++i) {
-    w.q[i] = AD(q(i), 2 * n, i);
-    w.qd[i] = AD(v(i), 2 * n, n + i);
+    w.q[i] = ADC(q(i), 2 * n, i);
+    w.qd[i] = ADC(v(i), 2 * n, n + i);
     c += P.b(i) * w.q[i];
     cd += P.b(i) * w.qd[i];
   }
-  Frame<AD> fr;
-  frameKinematics(crank_, length_, t, c, cd, fr);
-  const AD ba(dot(P, a), Derivatives::Zero(2 * n));
-  residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
+  Frame<ADC> fr;
+  frameKinematics(crank, length, t, c, cd, fr);
+  const ADC ba(dot(P, a), DC::Zero(2 * n));
+  residualCore<ADC>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
   for (int i = 0; i < n; ++i) {
-    const Derivatives& d = w.r[i].derivatives();
+    const DC& d = w.r[i].derivatives();
     for (int j = 0; j < n; ++j) {
       rq(i, j) = d(j);
       rv(i, j) = d(n + j);
     }
+  }
+}
+
+}  // namespace
+
+void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv,
+                                           ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  if (2 * layout_.modes <= kSmallCapacity) {
+    stateJacobians<kSmallCapacity>(layout_, crank_, length_, t, q, v, a, p, rq, rv, w.small);
+  } else {
+    stateJacobians<kLargeCapacity>(layout_, crank_, length_, t, q, v, a, p, rq, rv, w.large);
   }
 }
 
@@ -266,17 +301,20 @@ void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, Con
   const int n = L.modes;
   // F = mu . r with the three scalar channels (c = b q, c' = b q', b a) seeded: their partials carry
   // the nonlinear dependence on b through the frame kinematics.
-  const AD c(dot(P, q), 3, 0), cd(dot(P, v), 3, 1), ba(dot(P, a), 3, 2);
+  using ADS = ADOf<kSmallCapacity>;
+  using DS = DerivativesOf<kSmallCapacity>;
+  auto& b = w.small;
+  const ADS c(dot(P, q), 3, 0), cd(dot(P, v), 3, 1), ba(dot(P, a), 3, 2);
   for (int i = 0; i < n; ++i) {
-    w.q[i] = AD(q(i), Derivatives::Zero(3));
-    w.qd[i] = AD(v(i), Derivatives::Zero(3));
+    b.q[i] = ADS(q(i), DS::Zero(3));
+    b.qd[i] = ADS(v(i), DS::Zero(3));
   }
-  Frame<AD> fr;
+  Frame<ADS> fr;
   frameKinematics(crank_, length_, t, c, cd, fr);
-  const AD gKappa =
-      residualCore<AD>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
-  Derivatives channels = Derivatives::Zero(3);
-  for (int i = 0; i < n; ++i) channels += mu(i) * w.r[i].derivatives();
+  const ADS gKappa =
+      residualCore<ADS>(P, fr, b.q.data(), b.qd.data(), a, ba, b.r.data(), b.a1.data(), b.h.data());
+  DS channels = DS::Zero(3);
+  for (int i = 0; i < n; ++i) channels += mu(i) * b.r[i].derivatives();
 
   // Terms linear in the invariants (see the header for r and kappa).
   const double g = fr.g.value(), betaDot = fr.betaDot.value(), betaC = fr.betaC.value();
@@ -306,6 +344,78 @@ void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, Con
     }
     // b: through the channels and the explicit g kappa b term.
     out(L.b() + j) += channels(0) * q(j) + channels(1) * v(j) + channels(2) * a(j) + gKappa.value() * mu(j);
+  }
+}
+
+void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                          ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
+                                          ProblemWorkspace*) const {
+  using ADS = ADOf<kSmallCapacity>;
+  const View P(layout_, p);
+  const int n = layout_.modes;
+  // Frame scalars and their partials in c (direction 0) and c' (direction 1).
+  Frame<ADS> fr;
+  frameKinematics(crank_, length_, t, ADS(dot(P, q), 2, 0), ADS(dot(P, v), 2, 1), fr);
+  const double g = fr.g.value(), gC = fr.g.derivatives()(0);
+  const double bd = fr.betaDot.value(), bdC = fr.betaDot.derivatives()(0), bdCd = fr.betaDot.derivatives()(1);
+  const double bc = fr.betaC.value(), bcC = fr.betaC.derivatives()(0), bcCd = fr.betaC.derivatives()(1);
+  const double r0 = fr.rho0.value(), r1 = fr.rho1.value();
+  const double r0C = fr.rho0.derivatives()(0), r1C = fr.rho1.derivatives()(0);
+  const double ba = dot(P, a);
+  const double s = g * ba + bc, sC = gC * ba + bcC, sCd = bcCd;  // beta_q a + beta_c and partials
+
+  // The q-dependent quantities of the residual (see the header).
+  double jw = P.j0(), sw0 = P.mc(0), sw1 = P.mc(1);
+  for (int i = 0; i < n; ++i) {
+    jw += 2.0 * P.c2(i) * q(i);
+    sw0 += P.c1(0, i) * q(i);
+    sw1 += P.c1(1, i) * q(i);
+  }
+  double a1a = 0.0, muA1 = 0.0, hQd = 0.0, muH = 0.0, muCtQd = 0.0, mb = 0.0, c1mu0 = 0.0, c1mu1 = 0.0;
+  for (int j = 0; j < n; ++j) {
+    double a1 = P.a0(j), h = P.c2(j), ctQd = 0.0;
+    for (int i = 0; i < n; ++i) {
+      a1 += q(i) * P.ct(i, j);
+      h += P.mee(j, i) * q(i);
+      ctQd += P.ct(j, i) * v(i);
+    }
+    jw += q(j) * (h - P.c2(j));
+    a1a += a1 * a(j);
+    muA1 += mu(j) * a1;
+    hQd += h * v(j);
+    muH += mu(j) * h;
+    muCtQd += mu(j) * ctQd;
+    mb += mu(j) * P.b(j);
+    c1mu0 += P.c1(0, j) * mu(j);
+    c1mu1 += P.c1(1, j) * mu(j);
+  }
+  const double x = -sw1 * r0 + sw0 * r1, xC = -sw1 * r0C + sw0 * r1C;
+  const double kappa = a1a + jw * s + x + 2.0 * bd * hQd;
+  const double kappaC = jw * sC + xC + 2.0 * bdC * hQd;
+  const double kappaCd = jw * sCd + 2.0 * bdCd * hQd;
+
+  // Coefficients of b (dependence through c and c').
+  const double alongQ = muA1 * sC + mb * (gC * kappa + g * kappaC) + (c1mu0 * r0C + c1mu1 * r1C) -
+                        2.0 * bd * bdC * muH - 2.0 * bdC * muCtQd;
+  const double alongV = muA1 * sCd + mb * g * kappaCd - 2.0 * bd * bdCd * muH - 2.0 * bdCd * muCtQd;
+  const double gmb = g * mb;
+  for (int i = 0; i < n; ++i) {
+    double keeMu = 0.0, ctMu = 0.0, ctA = 0.0, meeMu = 0.0, meeQ = 0.0, meeQd = 0.0, ctTMu = 0.0;
+    for (int j = 0; j < n; ++j) {
+      keeMu += P.kee(j, i) * mu(j);
+      ctMu += P.ct(i, j) * mu(j);
+      ctA += P.ct(i, j) * a(j);
+      meeMu += P.mee(i, j) * mu(j);
+      meeQ += P.mee(i, j) * q(j);
+      meeQd += P.mee(i, j) * v(j);
+      ctTMu += P.ct(j, i) * mu(j);
+    }
+    const double jwQ = 2.0 * P.c2(i) + 2.0 * meeQ;  // M_ee is used symmetric
+    const double xQ = P.c1(0, i) * r1 - P.c1(1, i) * r0;
+    const double kappaQ = ctA + s * jwQ + xQ + 2.0 * bd * meeQd;
+    outQ(i) = keeMu + s * ctMu + gmb * kappaQ - bd * bd * meeMu + P.b(i) * alongQ;
+    const double hI = P.c2(i) + meeQ;
+    outV(i) = gmb * 2.0 * bd * hI - 2.0 * bd * ctTMu + P.b(i) * alongV;
   }
 }
 

@@ -112,6 +112,21 @@ TEST(SliderCrank, StateJacobiansMatchFiniteDifferences) {
   }
 }
 
+TEST(SliderCrank, StateProductEqualsTheTransposedJacobians) {
+  Fixture f(5);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Vector mu = Vector::NullaryExpr(5, [&] { return u(rng); });
+  for (double t : {0.4, 1.7, 2.5}) {
+    Matrix rq(5, 5), rv(5, 5);
+    f.problem.residualJacobians(t, f.q, f.qd, f.a, f.p, rq, rv, f.workspace.get());
+    Vector outQ(5), outV(5);
+    f.problem.residualStateVjp(t, f.q, f.qd, f.a, f.p, mu, outQ, outV, f.workspace.get());
+    EXPECT_LT((outQ - rq.transpose() * mu).norm(), 1e-12 * (rq.transpose() * mu).norm()) << "t = " << t;
+    EXPECT_LT((outV - rv.transpose() * mu).norm(), 1e-12 * (rv.transpose() * mu).norm()) << "t = " << t;
+  }
+}
+
 TEST(SliderCrank, ParameterProductMatchesFiniteDifferencesForEveryInvariant) {
   Fixture f(4);
   std::mt19937 rng(3);
