@@ -12,7 +12,11 @@ std::vector<Command>& commands() {
   return all;
 }
 
-void registerCommands(CLI::App& app) { registerDemo(app); }
+void registerCommands(CLI::App& app) {
+  registerDemo(app);
+  registerOptimize(app);
+  registerPlot(app);
+}
 
 int runSelected(CLI::App& app) {
   for (const Command& command : commands()) {

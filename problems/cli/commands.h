@@ -24,5 +24,7 @@ int runSelected(CLI::App& app);
 int guarded(const std::function<int()>& body);
 
 void registerDemo(CLI::App& app);
+void registerOptimize(CLI::App& app);
+void registerPlot(CLI::App& app);
 
 }  // namespace hindsight::cli
