@@ -72,7 +72,8 @@ def main():
     axis.set_ylabel("compliance [J s]")
     axis.set_title("Piston rod: integral compliance over the MMA iterations")
     axis.grid(True, alpha=0.3)
-    axis.set_ylim(bottom=0.0)
+    # Logarithmic: the early transients of a run and the final factor between the routes both show.
+    axis.set_yscale("log")
     axis.legend(fontsize=8)
     fig.savefig(args.out, dpi=120, bbox_inches="tight")
     return 0
