@@ -164,6 +164,11 @@ IterationRecord TopologyOptimizer::step() {
     const auto mmaStart = Clock::now();
     const int n = designCount();
     const Vector gradient = chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
+    if (!gradient.allFinite()) {
+      throw NumericalError("the gradient of " + settings.objective + " at iteration " +
+                               std::to_string(state_.iteration) + " is not finite",
+                           config().rod.endTime);
+    }
     Vector constraint(1);
     constraint(0) = evaluation.volumeFraction / settings.volumeFraction - 1.0;
     const Matrix jacobian = chainThroughFilter(evaluation.dvolume / settings.volumeFraction).transpose();

@@ -55,7 +55,7 @@ struct IterationRecord {
   double maxDesignChange = std::numeric_limits<double>::quiet_NaN();
   double evaluationSeconds = 0.0;
   double mmaSeconds = 0.0;
-  double totalSeconds = 0.0;  ///< evaluation + MMA (+ the caller adds its writing time if it wishes)
+  double totalSeconds = 0.0;  ///< evaluation + MMA (OptimizationRun adds its picture writing)
   int backtracks = 0;         ///< halvings toward the previous design after a diverged simulation
 };
 
