@@ -171,8 +171,8 @@ void Config::validate() const {
                                 std::to_string(optimization.volumeFraction) + " must be in (0, 1)");
   }
   if (!(optimization.moveLimit > 0.0 && optimization.moveLimit <= 1.0)) {
-    throw std::invalid_argument("config field 'optimization.moveLimit' = " + std::to_string(optimization.moveLimit) +
-                                " must be in (0, 1]");
+    throw std::invalid_argument("config field 'optimization.moveLimit' = " +
+                                std::to_string(optimization.moveLimit) + " must be in (0, 1]");
   }
   if (simulation.adaptive && simulation.integrator != "dopri5" && simulation.integrator != "trbdf2") {
     throw std::invalid_argument(

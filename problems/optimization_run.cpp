@@ -2,6 +2,7 @@
 
 #include "problems/pictures.h"
 
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -9,7 +10,6 @@
 #include <fstream>
 #include <ostream>
 #include <stdexcept>
-#include <unistd.h>
 
 namespace hindsight {
 namespace {
@@ -17,9 +17,7 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-double since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // Creates the directory and proves that a file can be written in it.
 void prepareDirectory(const std::string& directory) {
@@ -27,7 +25,8 @@ void prepareDirectory(const std::string& directory) {
   std::error_code error;
   fs::create_directories(directory, error);
   if (error) {
-    throw std::invalid_argument("--out '" + directory + "': cannot create the output directory: " + error.message());
+    throw std::invalid_argument("--out '" + directory +
+                                "': cannot create the output directory: " + error.message());
   }
   if (!fs::is_directory(directory, error)) {
     throw std::invalid_argument("--out '" + directory + "' exists and is not a directory");
@@ -41,7 +40,8 @@ void prepareDirectory(const std::string& directory) {
     written = static_cast<bool>(file);
   }
   std::remove(probe.c_str());
-  if (!written) throw std::invalid_argument("--out '" + directory + "': the output directory is not writable");
+  if (!written)
+    throw std::invalid_argument("--out '" + directory + "': the output directory is not writable");
 }
 
 // The configuration as JSON without the fields a resumed run may change.
@@ -51,12 +51,14 @@ nlohmann::json comparable(nlohmann::json json) {
   return json;
 }
 
-void requireSameConfiguration(const Config& requested, const std::string& storedJson, const std::string& path) {
+void requireSameConfiguration(const Config& requested, const std::string& storedJson,
+                              const std::string& path) {
   nlohmann::json stored;
   try {
     stored = comparable(toJson(configFromJson(nlohmann::json::parse(storedJson))));
   } catch (const std::exception& e) {
-    throw StorageError(std::string("results file: the stored configuration cannot be read: ") + e.what(), path);
+    throw StorageError(std::string("results file: the stored configuration cannot be read: ") + e.what(),
+                       path);
   }
   const nlohmann::json wanted = comparable(toJson(requested));
   if (stored == wanted) return;
@@ -64,18 +66,20 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
   for (const auto& [section, fields] : wanted.items()) {
     for (const auto& [field, value] : fields.items()) {
       const auto storedSection = stored.find(section);
-      if (storedSection == stored.end() || !storedSection->contains(field) || (*storedSection)[field] != value) {
-        differences += (differences.empty() ? "" : ", ") + section + "." + field + " (requested " + value.dump() +
-                       ", stored " +
-                       (storedSection != stored.end() && storedSection->contains(field)
-                            ? (*storedSection)[field].dump()
-                            : std::string("absent")) +
-                       ")";
+      if (storedSection == stored.end() || !storedSection->contains(field) ||
+          (*storedSection)[field] != value) {
+        differences +=
+            (differences.empty() ? "" : ", ") + section + "." + field + " (requested " + value.dump() +
+            ", stored " +
+            (storedSection != stored.end() && storedSection->contains(field) ? (*storedSection)[field].dump()
+                                                                             : std::string("absent")) +
+            ")";
       }
     }
   }
   throw std::invalid_argument("--resume: the configuration differs from the one stored in " + path + ": " +
-                              differences + "; only optimization.iterations and optimization.pictureEvery may change");
+                              differences +
+                              "; only optimization.iterations and optimization.pictureEvery may change");
 }
 
 }  // namespace
@@ -88,17 +92,19 @@ std::string progressLine(const IterationRecord& r) {
     std::snprintf(change, sizeof change, "%5.3f", r.maxDesignChange);
   }
   char line[200];
-  std::snprintf(line, sizeof line, "iter %3d  psi1 %.4f  psi2 %.4f  V/V0 %.4f  max|dx| %s  %.1f s", r.iteration,
-                r.psi1, r.psi2, r.volumeFraction, change, r.totalSeconds);
+  std::snprintf(line, sizeof line, "iter %3d  psi1 %.4f  psi2 %.4f  V/V0 %.4f  max|dx| %s  %.1f s",
+                r.iteration, r.psi1, r.psi2, r.volumeFraction, change, r.totalSeconds);
   std::string text = line;
-  if (r.backtracks > 0) text += "  (" + std::to_string(r.backtracks) + " halvings after a diverged simulation)";
+  if (r.backtracks > 0)
+    text += "  (" + std::to_string(r.backtracks) + " halvings after a diverged simulation)";
   return text;
 }
 
 OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOptions& options)
     : config_(config), options_(options), optimizer_(config) {
   if (options.resume && options.force) {
-    throw std::invalid_argument("--resume and --force exclude each other: continue the results or overwrite them");
+    throw std::invalid_argument(
+        "--resume and --force exclude each other: continue the results or overwrite them");
   }
   if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
   prepareDirectory(options.outputDirectory);
@@ -116,9 +122,9 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
     requireSameConfiguration(config_, data_.configurationJson, resultsPath_);
     const int done = data_.state.iteration;
     if (config_.optimization.iterations < done) {
-      throw std::invalid_argument("optimization.iterations = " + std::to_string(config_.optimization.iterations) +
-                                  " is below the " + std::to_string(done) + " iterations already in " +
-                                  resultsPath_);
+      throw std::invalid_argument(
+          "optimization.iterations = " + std::to_string(config_.optimization.iterations) + " is below the " +
+          std::to_string(done) + " iterations already in " + resultsPath_);
     }
     const std::size_t expectedRows = static_cast<std::size_t>(done) + (data_.finished ? 1 : 0);
     if (data_.history.size() != expectedRows || data_.nx != rc.elementsAlongLength ||

@@ -38,7 +38,7 @@ struct OptimizationRunSummary {
   std::vector<IterationRecord> history;  ///< the whole history, stored and new
   int resumedFrom = 0;                   ///< iterations taken over from the results file
   bool finished = false;
-  double wallSeconds = 0.0;              ///< of this invocation
+  double wallSeconds = 0.0;  ///< of this invocation
   std::string resultsPath;
 };
 

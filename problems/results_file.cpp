@@ -2,13 +2,13 @@
 
 #include <hdf5.h>
 
+#include <fcntl.h>
+#include <unistd.h>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <fcntl.h>
 #include <functional>
 #include <stdexcept>
-#include <unistd.h>
 
 namespace hindsight {
 namespace {
@@ -105,18 +105,21 @@ void writeExtendible(const Context& c, hid_t parent, const char* name, hid_t mem
   Handle space(c.check(H5Screate_simple(rank, dims.data(), maxDims.data()), "dataspace"), H5Sclose);
   Handle properties(c.check(H5Pcreate(H5P_DATASET_CREATE), "dataset properties"), H5Pclose);
   c.ok(H5Pset_chunk(properties.get(), rank, chunk.data()), "chunking");
-  Handle dataset(c.check(H5Dcreate2(parent, name, fileType, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
-                         std::string("create dataset ") + name),
-                 H5Dclose);
+  Handle dataset(
+      c.check(H5Dcreate2(parent, name, fileType, space.get(), H5P_DEFAULT, properties.get(), H5P_DEFAULT),
+              std::string("create dataset ") + name),
+      H5Dclose);
   if (dims[0] > 0) c.ok(H5Dwrite(dataset.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
 }
 
-void writeFixed(const Context& c, hid_t parent, const char* name, std::vector<hsize_t> dims, const double* data) {
+void writeFixed(const Context& c, hid_t parent, const char* name, std::vector<hsize_t> dims,
+                const double* data) {
   const int rank = static_cast<int>(dims.size());
   Handle space(c.check(H5Screate_simple(rank, dims.data(), nullptr), "dataspace"), H5Sclose);
-  Handle dataset(c.check(H5Dcreate2(parent, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                         std::string("create dataset ") + name),
-                 H5Dclose);
+  Handle dataset(
+      c.check(H5Dcreate2(parent, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+              std::string("create dataset ") + name),
+      H5Dclose);
   bool empty = false;
   for (hsize_t d : dims) empty = empty || d == 0;
   if (!empty) c.ok(H5Dwrite(dataset.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
@@ -194,7 +197,8 @@ void writeContents(const Context& c, hid_t file, const ResultsData& data) {
     writeFixed(c, group.get(), "modes",
                {static_cast<hsize_t>(data.finalModes.cols()), static_cast<hsize_t>(data.finalModes.rows())},
                data.finalModes.data());
-    writeFixed(c, group.get(), "frequencies_hz", {data.finalFrequenciesHz.size()}, data.finalFrequenciesHz.data());
+    writeFixed(c, group.get(), "frequencies_hz", {data.finalFrequenciesHz.size()},
+               data.finalFrequenciesHz.data());
   }
 }
 
@@ -233,10 +237,11 @@ std::string readString(const Context& c, hid_t object, const char* name) {
 
 // Reads a dataset of the expected shape into `out` (resized), converting to `memType`.
 template <typename T>
-void readDataset(const Context& c, hid_t parent, const char* name, hid_t memType, const std::vector<hsize_t>& shape,
-                 T* out) {
-  Handle dataset(c.check(H5Dopen2(parent, name, H5P_DEFAULT), std::string("dataset '") + name + "' is missing"),
-                 H5Dclose);
+void readDataset(const Context& c, hid_t parent, const char* name, hid_t memType,
+                 const std::vector<hsize_t>& shape, T* out) {
+  Handle dataset(
+      c.check(H5Dopen2(parent, name, H5P_DEFAULT), std::string("dataset '") + name + "' is missing"),
+      H5Dclose);
   Handle space(c.check(H5Dget_space(dataset.get()), name), H5Sclose);
   const int rank = H5Sget_simple_extent_ndims(space.get());
   std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
@@ -254,11 +259,13 @@ Vector readVector(const Context& c, hid_t parent, const char* name, hsize_t size
 }
 
 hsize_t datasetRows(const Context& c, hid_t parent, const char* name) {
-  Handle dataset(c.check(H5Dopen2(parent, name, H5P_DEFAULT), std::string("dataset '") + name + "' is missing"),
-                 H5Dclose);
+  Handle dataset(
+      c.check(H5Dopen2(parent, name, H5P_DEFAULT), std::string("dataset '") + name + "' is missing"),
+      H5Dclose);
   Handle space(c.check(H5Dget_space(dataset.get()), name), H5Sclose);
   hsize_t dims[2] = {0, 0};
-  if (H5Sget_simple_extent_ndims(space.get()) != 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0) {
+  if (H5Sget_simple_extent_ndims(space.get()) != 2 ||
+      H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0) {
     c.fail(std::string("dataset '") + name + "' is not two-dimensional");
   }
   return dims[0];
@@ -276,7 +283,8 @@ ResultsData readContents(const Context& c, hid_t file) {
   data.ny = readInt(c, file, "ny");
   data.state.iteration = readInt(c, file, "updates");
   data.state.objectiveScale = readDouble(c, file, "objective_scale");
-  if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0) c.fail("inconsistent attributes");
+  if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0)
+    c.fail("inconsistent attributes");
   const auto rows = static_cast<hsize_t>(rowsSigned);
 
   {
@@ -307,7 +315,8 @@ ResultsData readContents(const Context& c, hid_t file) {
     std::vector<double> designs(rows * nx * ny);
     readDataset(c, file, "designs", H5T_NATIVE_DOUBLE, {rows, ny, nx}, designs.data());
     for (hsize_t k = 0; k < rows; ++k) {
-      data.densities.push_back(Eigen::Map<const Vector>(designs.data() + k * nx * ny, static_cast<Eigen::Index>(nx * ny)));
+      data.densities.push_back(
+          Eigen::Map<const Vector>(designs.data() + k * nx * ny, static_cast<Eigen::Index>(nx * ny)));
     }
   }
   {
@@ -335,7 +344,8 @@ ResultsData readContents(const Context& c, hid_t file) {
     data.finalModes.resize(static_cast<Eigen::Index>(dims[1]), static_cast<Eigen::Index>(modeCount));
     readDataset(c, group.get(), "modes", H5T_NATIVE_DOUBLE, {modeCount, dims[1]}, data.finalModes.data());
     data.finalFrequenciesHz.resize(modeCount);
-    readDataset(c, group.get(), "frequencies_hz", H5T_NATIVE_DOUBLE, {modeCount}, data.finalFrequenciesHz.data());
+    readDataset(c, group.get(), "frequencies_hz", H5T_NATIVE_DOUBLE, {modeCount},
+                data.finalFrequenciesHz.data());
   }
   return data;
 }
@@ -350,7 +360,8 @@ void writeResultsFile(const std::string& path, const ResultsData& data) {
                                 std::to_string(data.history.size()) + " history entries");
   }
   for (const Vector& grid : data.densities) {
-    if (static_cast<std::size_t>(grid.size()) != cells) throw std::invalid_argument("results: density grid size");
+    if (static_cast<std::size_t>(grid.size()) != cells)
+      throw std::invalid_argument("results: density grid size");
   }
   const Eigen::Index n = data.state.design.size();
   if (n < 1 || data.state.mma.xold1.size() != n || data.state.mma.xold2.size() != n ||
@@ -387,7 +398,8 @@ void writeResultsFile(const std::string& path, const ResultsData& data) {
     throw StorageError("results file: rename of " + partial + " failed: " + reason, path);
   }
   const auto slash = path.find_last_of('/');
-  syncPath(Context{path}, slash == std::string::npos ? std::string(".") : path.substr(0, std::max<std::size_t>(slash, 1)),
+  syncPath(Context{path},
+           slash == std::string::npos ? std::string(".") : path.substr(0, std::max<std::size_t>(slash, 1)),
            true);
 }
 

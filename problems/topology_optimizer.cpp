@@ -10,9 +10,7 @@ namespace hindsight {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
   const int nx = rc.elementsAlongLength;
@@ -65,9 +63,9 @@ void TopologyOptimizer::restore(const OptimizerState& state) {
                                 " entries, the configuration has " + std::to_string(n) + " design variables");
   }
   if (state.iteration < 0 || state.iteration > config().optimization.iterations) {
-    throw std::invalid_argument("optimizer state: iteration " + std::to_string(state.iteration) +
-                                " outside [0, optimization.iterations = " +
-                                std::to_string(config().optimization.iterations) + "]");
+    throw std::invalid_argument(
+        "optimizer state: iteration " + std::to_string(state.iteration) +
+        " outside [0, optimization.iterations = " + std::to_string(config().optimization.iterations) + "]");
   }
   if (state.iteration > 0 && !(state.objectiveScale > 0.0 && std::isfinite(state.objectiveScale))) {
     throw std::invalid_argument("optimizer state: objective scale " + std::to_string(state.objectiveScale) +
@@ -134,8 +132,8 @@ IterationRecord TopologyOptimizer::step() {
       evaluated = rod_.evaluate(physicalDesign(design), request);
       const double value = usePsi1 ? evaluated->psi1 : evaluated->psi2;
       if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * state_.objectiveScale)) {
-        throw NumericalError("objective " + settings.objective + " = " + std::to_string(value) +
-                                 " exceeds " + std::to_string(maxObjectiveGrowth) + " times its initial value",
+        throw NumericalError("objective " + settings.objective + " = " + std::to_string(value) + " exceeds " +
+                                 std::to_string(maxObjectiveGrowth) + " times its initial value",
                              config().rod.endTime);
       }
     } catch (const NumericalError&) {
@@ -154,7 +152,8 @@ IterationRecord TopologyOptimizer::step() {
   const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
   if (!(std::isfinite(objective) && objective > 0.0)) {
     throw NumericalError("objective " + settings.objective + " = " + std::to_string(objective) +
-                             " at iteration " + std::to_string(state_.iteration) + " is not positive and finite",
+                             " at iteration " + std::to_string(state_.iteration) +
+                             " is not positive and finite",
                          config().rod.endTime);
   }
   OptimizerState next = state_;
@@ -163,7 +162,8 @@ IterationRecord TopologyOptimizer::step() {
   if (update) {
     const auto mmaStart = Clock::now();
     const int n = designCount();
-    const Vector gradient = chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
+    const Vector gradient =
+        chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
     if (!gradient.allFinite()) {
       throw NumericalError("the gradient of " + settings.objective + " at iteration " +
                                std::to_string(state_.iteration) + " is not finite",
@@ -178,8 +178,9 @@ IterationRecord TopologyOptimizer::step() {
     mma_.restore(state_.mma);
     mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
     if (!x.allFinite()) {
-      throw NumericalError("the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
-                           config().rod.endTime);
+      throw NumericalError(
+          "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
+          config().rod.endTime);
     }
     record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
     next.design = x;

@@ -61,10 +61,10 @@ struct IterationRecord {
 
 /// What carries over between iterations.
 struct OptimizerState {
-  int iteration = 0;             ///< number of completed MMA updates; the next record has this index
-  Vector design;                 ///< x_iteration, the design variables (designCount)
-  MmaState mma;                  ///< MMA after `iteration` updates
-  double objectiveScale = 0.0;   ///< psi(x0); 0 until the first evaluation
+  int iteration = 0;            ///< number of completed MMA updates; the next record has this index
+  Vector design;                ///< x_iteration, the design variables (designCount)
+  MmaState mma;                 ///< MMA after `iteration` updates
+  double objectiveScale = 0.0;  ///< psi(x0); 0 until the first evaluation
 };
 
 class TopologyOptimizer final {
@@ -106,8 +106,8 @@ class TopologyOptimizer final {
   Vector densityGrid(ConstVectorRef design) const;
 
  private:
-  Vector physicalDesign(ConstVectorRef design) const;          // filtered design variables
-  Vector chainThroughFilter(ConstVectorRef gradient) const;    // F^T on the design variables
+  Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
+  Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 

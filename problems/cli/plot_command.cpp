@@ -5,15 +5,15 @@
 // Debian packages python3-matplotlib and python3-h5py install), else python3 on the PATH.
 #include "problems/cli/commands.h"
 
+#include <spawn.h>
+#include <sys/wait.h>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <spawn.h>
 #include <stdexcept>
-#include <sys/wait.h>
 
 extern char** environ;
 
@@ -44,7 +44,8 @@ int runPlot(const PlotSettings& s) {
     python = "/usr/bin/python3";
   }
   std::vector<std::string> arguments = {python, script};
-  for (const std::string& directory : s.directories) arguments.push_back((fs::path(directory) / "results.h5").string());
+  for (const std::string& directory : s.directories)
+    arguments.push_back((fs::path(directory) / "results.h5").string());
   arguments.push_back("--out");
   arguments.push_back(s.output);
   std::vector<char*> argv;
@@ -69,9 +70,11 @@ int runPlot(const PlotSettings& s) {
 
 void registerPlot(CLI::App& app) {
   auto s = std::make_shared<PlotSettings>();
-  CLI::App* command =
-      app.add_subcommand("plot", "psi1 over the iterations of one or two optimization runs (like the paper's Fig. 4)");
-  command->add_option("directories", s->directories, "result directories (DIR [DIR2])")->required()->expected(1, 2);
+  CLI::App* command = app.add_subcommand(
+      "plot", "psi1 over the iterations of one or two optimization runs (like the paper's Fig. 4)");
+  command->add_option("directories", s->directories, "result directories (DIR [DIR2])")
+      ->required()
+      ->expected(1, 2);
   command->add_option("--out", s->output, "PNG file")->capture_default_str();
   commands().push_back({command, [s] { return guarded([&] { return runPlot(*s); }); }});
 }

@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -17,11 +20,8 @@
 #include <iostream>
 #include <map>
 #include <random>
-#include <signal.h>
 #include <sstream>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
 namespace hindsight {
 namespace {
@@ -46,7 +46,8 @@ Config coarseConfig(const std::string& objective = "psi1", int iterations = 8) {
 
 // A fresh, empty directory per test under the system temporary directory.
 std::string freshDirectory(const std::string& name) {
-  const fs::path path = fs::temp_directory_path() / ("hindsight_optimizer_test_" + std::to_string(::getpid())) / name;
+  const fs::path path =
+      fs::temp_directory_path() / ("hindsight_optimizer_test_" + std::to_string(::getpid())) / name;
   fs::remove_all(path);
   fs::create_directories(path.parent_path());
   return path.string();
@@ -64,7 +65,8 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
     SCOPED_TRACE("iteration " + std::to_string(k));
     EXPECT_EQ(a.history[k].iteration, b.history[k].iteration);
     EXPECT_EQ(a.history[k].backtracks, b.history[k].backtracks);
-    EXPECT_TRUE(sameBits(a.history[k].psi1, b.history[k].psi1)) << a.history[k].psi1 << " vs " << b.history[k].psi1;
+    EXPECT_TRUE(sameBits(a.history[k].psi1, b.history[k].psi1))
+        << a.history[k].psi1 << " vs " << b.history[k].psi1;
     EXPECT_TRUE(sameBits(a.history[k].psi2, b.history[k].psi2));
     EXPECT_TRUE(sameBits(a.history[k].volumeFraction, b.history[k].volumeFraction));
     EXPECT_TRUE(sameBits(a.history[k].maxDesignChange, b.history[k].maxDesignChange));
@@ -81,7 +83,8 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
   EXPECT_EQ(a.finalModes.rows(), b.finalModes.rows());
   EXPECT_EQ(a.finalModes.cols(), b.finalModes.cols());
   EXPECT_TRUE(a.finalModes.size() == b.finalModes.size() &&
-              std::memcmp(a.finalModes.data(), b.finalModes.data(), sizeof(double) * a.finalModes.size()) == 0);
+              std::memcmp(a.finalModes.data(), b.finalModes.data(), sizeof(double) * a.finalModes.size()) ==
+                  0);
   EXPECT_EQ(a.configurationJson, b.configurationJson);
 }
 
@@ -185,9 +188,9 @@ TEST(TopologyOptimizer, FilteredDensityIsWhatTheModelSeesAndKeepsSolidColumns) {
     EXPECT_EQ(grid(row * nx), 1.0);
     EXPECT_EQ(grid(row * nx + nx - 1), 1.0);
   }
-  EXPECT_LT(grid(0 * nx + 1), 1.0);  // smeared out
-  EXPECT_GT(grid(0 * nx + 2), 0.5);  // its right neighbour gained
-  EXPECT_GT(grid(1 * nx + 1), 0.5);  // and the one above
+  EXPECT_LT(grid(0 * nx + 1), 1.0);          // smeared out
+  EXPECT_GT(grid(0 * nx + 2), 0.5);          // its right neighbour gained
+  EXPECT_GT(grid(1 * nx + 1), 0.5);          // and the one above
   EXPECT_DOUBLE_EQ(grid(3 * nx + 10), 0.5);  // far away nothing changes
   std::vector<IterationRecord> history;
   while (!optimizer.finished()) history.push_back(optimizer.step());
@@ -359,7 +362,8 @@ TEST(OptimizationRun, ResumingAFinishedRunWithMoreIterationsEqualsTheLongerRun) 
   // Same count: nothing to do, the file is unchanged.
   EXPECT_EQ(runQuietly(coarseConfig("psi1", 3), options).history.size(), 4u);
   runQuietly(coarseConfig("psi1", 6), options);
-  expectSameResults(readResultsFile(dir + "/results.h5"), referenceResults(coarseConfig("psi1", 6), "psi1_6"));
+  expectSameResults(readResultsFile(dir + "/results.h5"),
+                    referenceResults(coarseConfig("psi1", 6), "psi1_6"));
 }
 
 TEST(OptimizationRun, ExistingResultsNeedResumeOrForce) {
@@ -470,7 +474,9 @@ TEST(OptimizeCommand, RunsResumesAndRefusesToOverwrite) {
   const std::string dir = freshDirectory("cli_run");
   const std::string coarse =
       "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 "
-      "--set rod.rampTime=0.5 --set rod.endTime=0.5 --set simulation.step=2e-4 --move-limit 0.1 --picture-every 1 --out " + dir;
+      "--set rod.rampTime=0.5 --set rod.endTime=0.5 --set simulation.step=2e-4 --move-limit 0.1 "
+      "--picture-every 1 --out " +
+      dir;
   CliResult result = runCli("optimize " + coarse + " --iterations 2");
   ASSERT_EQ(result.exitCode, 0) << result.output;
   EXPECT_NE(result.output.find("iter   0  psi1 "), std::string::npos) << result.output;
