@@ -139,7 +139,8 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         integerField("iterations", MEMBER(optimization.iterations), 0, 100000),
         realField("volumeFraction", MEMBER(optimization.volumeFraction), 0.0, 1.0, true),
         realField("filterRadius", MEMBER(optimization.filterRadius), 0.0, 1000.0),
-        integerField("pictureEvery", MEMBER(optimization.pictureEvery), 0, 100000)}},
+        integerField("pictureEvery", MEMBER(optimization.pictureEvery), 0, 100000),
+        realField("moveLimit", MEMBER(optimization.moveLimit), 0.0, 1.0, true)}},
   };
   return sections;
 }
@@ -168,6 +169,10 @@ void Config::validate() const {
   if (optimization.volumeFraction >= 1.0 || optimization.volumeFraction <= 0.0) {
     throw std::invalid_argument("config field 'optimization.volumeFraction' = " +
                                 std::to_string(optimization.volumeFraction) + " must be in (0, 1)");
+  }
+  if (!(optimization.moveLimit > 0.0 && optimization.moveLimit <= 1.0)) {
+    throw std::invalid_argument("config field 'optimization.moveLimit' = " +
+                                std::to_string(optimization.moveLimit) + " must be in (0, 1]");
   }
   if (simulation.adaptive && simulation.integrator != "dopri5" && simulation.integrator != "trbdf2") {
     throw std::invalid_argument(

@@ -30,6 +30,10 @@ struct OptimizationSettings {
   double volumeFraction = 0.5;  ///< V/V0 bound, in (0, 1)
   double filterRadius = 0.0;    ///< density filter radius in elements; 0 = no filter (the paper's choice)
   int pictureEvery = 0;         ///< a PNG of every k-th design; 0 = final design only
+  /// MMA move limit (Svanberg's "move"), in (0, 1]; 0.5 is the SPEC.md section 7 constant. Smaller
+  /// values keep the inertia-loaded rod away from the soft, mechanism-like designs that large first
+  /// steps reach (see problems/topology_optimizer.h).
+  double moveLimit = 0.5;
 };
 
 struct Config {

@@ -15,6 +15,8 @@ std::vector<Command>& commands() {
 void registerCommands(CLI::App& app) {
   registerDemo(app);
   registerEvaluate(app);
+  registerOptimize(app);
+  registerPlot(app);
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {

@@ -31,5 +31,7 @@ nlohmann::json summaryToJson(const RunSummary& summary);
 
 void registerDemo(CLI::App& app);
 void registerEvaluate(CLI::App& app);
+void registerOptimize(CLI::App& app);
+void registerPlot(CLI::App& app);
 
 }  // namespace hindsight::cli

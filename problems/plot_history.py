@@ -1,0 +1,83 @@
+#!/usr/bin/python3
+"""psi1 over the iterations of one or two hindsight topology optimizations, like Fig. 4 of Held,
+Knüfer & Seifried: the compliance history of each route and its final design.
+
+usage: plot_history.py RESULTS.h5 [RESULTS2.h5] --out FILE.png
+
+Reads the results files written by `hindsight optimize` (layout in problems/results_file.h) with h5py
+and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every file psi1 is drawn over
+the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
+stored design of every file (density 1 black, 0 white, joint A on the left).
+"""
+import argparse
+import json
+import sys
+
+import h5py
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def load(path):
+    with h5py.File(path, "r") as f:
+        if text(f.attrs["format"]) != "hindsight-topology-results":
+            raise SystemExit(f"{path}: not a hindsight topology results file")
+        config = json.loads(text(f.attrs["configuration"]))
+        history = {name: f["history"][name][()] for name in f["history"]}
+        designs = f["designs"][()]
+        finished = int(f.attrs["finished"]) == 1
+    return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("results", nargs="+", help="one or two results.h5 files")
+    parser.add_argument("--out", required=True, help="PNG file to write")
+    args = parser.parse_args()
+    if len(args.results) > 2:
+        parser.error("give one or two results files")
+    runs = [load(path) for path in args.results]
+
+    fig = plt.figure(figsize=(9, 4.2 + 1.0 * len(runs)))
+    grid = fig.add_gridspec(1 + len(runs), 1, height_ratios=[4.0] + [1.0] * len(runs), hspace=0.6)
+    axis = fig.add_subplot(grid[0])
+    colors = ["tab:blue", "tab:red"]
+    for index, run in enumerate(runs):
+        objective = run["config"]["optimization"]["objective"]
+        label = "psi1 route (exact adjoint)" if objective == "psi1" else "psi2 route (ESL)"
+        iterations = run["history"]["iteration"]
+        psi1 = run["history"]["psi1"]
+        color = colors[index % len(colors)]
+        axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
+        if objective == "psi2":
+            axis.plot(iterations, run["history"]["psi2"], "--", color=color, label=f"{label}: psi2 (minimised)")
+        if len(iterations) == 0:
+            continue
+        design_axis = fig.add_subplot(grid[1 + index])
+        design = run["designs"][-1]
+        design_axis.imshow(design, cmap="gray_r", vmin=0.0, vmax=1.0, origin="lower", aspect="equal",
+                           interpolation="nearest")
+        state = "final" if run["finished"] else "latest"
+        design_axis.set_title(f"{label}: {state} design (iteration {int(iterations[-1])}), "
+                              f"V/V0 = {run['history']['volume_fraction'][-1]:.3f}", fontsize=9)
+        design_axis.set_xticks([])
+        design_axis.set_yticks([])
+    axis.set_xlabel("iteration")
+    axis.set_ylabel("compliance [J s]")
+    axis.set_title("Piston rod: integral compliance over the MMA iterations")
+    axis.grid(True, alpha=0.3)
+    # Logarithmic: the early transients of a run and the final factor between the routes both show.
+    axis.set_yscale("log")
+    axis.legend(fontsize=8)
+    fig.savefig(args.out, dpi=120, bbox_inches="tight")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
