@@ -1,4 +1,5 @@
 #include "engine/adjoint.h"
+#include "engine/grid_recomputer.h"
 
 #include <chrono>
 #include <cmath>
@@ -30,19 +31,6 @@ std::vector<double> fixedGrid(const IntegratorOptions& options) {
   grid[count] = options.t1;
   return grid;
 }
-
-class GridRecomputer final : public StepRecomputer {
- public:
-  GridRecomputer(RungeKuttaIntegrator& integrator, const std::vector<double>& times)
-      : integrator_(integrator), times_(times) {}
-  void advance(std::int64_t step, VectorRef z) override {
-    integrator_.step(times_[step], times_[step + 1] - times_[step], z);
-  }
-
- private:
-  RungeKuttaIntegrator& integrator_;
-  const std::vector<double>& times_;
-};
 
 /// The forward sweep shared by simulate() and computeGradient().
 struct ForwardSweep {

@@ -1,4 +1,5 @@
 #include "engine/continuous_adjoint.h"
+#include "engine/grid_recomputer.h"
 
 #include <Eigen/LU>
 #include <chrono>
@@ -14,21 +15,6 @@ using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
-
-/// Recomputes forward steps for checkpointing strategies with the same integrator code path and
-/// the grid the forward sweep took, so the bits are those of the forward sweep.
-class GridRecomputer final : public StepRecomputer {
- public:
-  GridRecomputer(RungeKuttaIntegrator& integrator, const std::vector<double>& times)
-      : integrator_(integrator), times_(times) {}
-  void advance(std::int64_t step, VectorRef z) override {
-    integrator_.step(times_[step], times_[step + 1] - times_[step], z);
-  }
-
- private:
-  RungeKuttaIntegrator& integrator_;
-  const std::vector<double>& times_;
-};
 
 /// Where the backward sweep gets z(t).
 class ForwardStates {
