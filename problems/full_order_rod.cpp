@@ -276,12 +276,19 @@ class FullOrderRodProblem::Newton final : public NewtonSolver {
   void factorize(double t, ConstVectorRef, ConstVectorRef, double alpha, ProblemWorkspace*) override {
     frame_ = rigidFrameMotion(problem_.crank_, problem_.model_.config().length, t);
     time_ = t;
-    if (alpha != alpha_) {
-      alpha_ = alpha;
-      matrix_ = problem_.model_.mass() + (alpha * alpha) * problem_.model_.stiffness();
+    alpha_ = alpha;
+    // The preconditioner's alpha0 is alpha rounded to 20 mantissa bits: a fixed step whose size
+    // varies in the last bits (t_{n+1} - t_n) then factorises once, and alpha0 depends on alpha only,
+    // so a recomputation from a checkpoint reproduces the original bits whatever was factorised before.
+    int exponent = 0;
+    const double mantissa = std::frexp(alpha, &exponent);
+    const double rounded = std::ldexp(std::round(std::ldexp(mantissa, 20)), exponent - 20);
+    if (rounded != factoredAlpha_) {
+      factoredAlpha_ = rounded;
+      matrix_ = problem_.model_.mass() + (rounded * rounded) * problem_.model_.stiffness();
       factor_.factorize(matrix_);
       if (factor_.info() != Eigen::Success) {
-        alpha_ = std::numeric_limits<double>::quiet_NaN();
+        factoredAlpha_ = std::numeric_limits<double>::quiet_NaN();
         throw NewtonFailure("full-order rod: M + alpha^2 K is not positive definite", t);
       }
     }
@@ -308,28 +315,30 @@ class FullOrderRodProblem::Newton final : public NewtonSolver {
   }
 
  private:
-  // P x = rhs_ (or P^T), P = P0 + Delta, P0 = M + alpha^2 K, Delta = alpha C + alpha^2 (A - K)
-  //   = alpha (2 beta' + alpha beta'') M_S - alpha^2 beta'^2 M, by refinement with P0's factor.
+  // P x = rhs_ (or P^T x = rhs_) with P = M + alpha C + alpha^2 A
+  //   = M + alpha^2 K + alpha (2 beta' + alpha beta'') M_S - alpha^2 beta'^2 M (last two with coupling),
+  // by iterative refinement x <- x + P0^{-1} (rhs - P x) with the factor of P0 = M + alpha0^2 K.
   void solveSchur(bool transposed) {
     solution_ = rhs_;
     solveP0(solution_);
-    if (!problem_.coupling_) return;
-    const double rotated = alpha_ * (2.0 * frame_.rate + alpha_ * frame_.acceleration);
-    const double massScale = -alpha_ * alpha_ * frame_.rate * frame_.rate;
+    const bool coupling = problem_.coupling_;
+    if (!coupling && alpha_ == factoredAlpha_) return;  // P = P0 exactly
+    const double rotated = coupling ? alpha_ * (2.0 * frame_.rate + alpha_ * frame_.acceleration) : 0.0;
+    const double massScale = coupling ? 1.0 - alpha_ * alpha_ * frame_.rate * frame_.rate : 1.0;
     double previous = std::numeric_limits<double>::infinity();
     for (int iteration = 0; iteration < 100; ++iteration) {
-      // residual = rhs - P x = rhs - P0 x - Delta x.
-      residual_.noalias() = problem_.model_.mass() * solution_;
-      correction_.noalias() = problem_.model_.stiffness() * solution_;
-      residual_ += (alpha_ * alpha_) * correction_;
-      if (transposed) {
-        correction_.noalias() = problem_.rotatedMass_.transpose() * solution_;
-      } else {
-        correction_.noalias() = problem_.rotatedMass_ * solution_;
-      }
-      residual_ += rotated * correction_;
+      residual_.noalias() = problem_.model_.stiffness() * solution_;
+      residual_ *= alpha_ * alpha_;
       correction_.noalias() = problem_.model_.mass() * solution_;
       residual_ += massScale * correction_;
+      if (coupling) {
+        if (transposed) {
+          correction_.noalias() = problem_.rotatedMass_.transpose() * solution_;
+        } else {
+          correction_.noalias() = problem_.rotatedMass_ * solution_;
+        }
+        residual_ += rotated * correction_;
+      }
       correction_ = rhs_ - residual_;
       solveP0(correction_);
       solution_ += correction_;
@@ -337,8 +346,8 @@ class FullOrderRodProblem::Newton final : public NewtonSolver {
       const double size = solution_.lpNorm<Eigen::Infinity>();
       if (!std::isfinite(change)) throw NewtonFailure("full-order rod: refinement produced a non-finite value", time_);
       if (change <= 4.0 * std::numeric_limits<double>::epsilon() * size) return;
-      // Stagnation at round-off: the change stopped shrinking although it is already tiny.
       if (change > 0.5 * previous) {
+        // No more progress: fine at round-off level, a failure otherwise.
         if (change <= 1e-12 * size) return;
         throw NewtonFailure("full-order rod: iterative refinement of the Newton matrix does not contract "
                             "(alpha too large for the frame coupling terms)",
@@ -357,6 +366,7 @@ class FullOrderRodProblem::Newton final : public NewtonSolver {
   const FullOrderRodProblem& problem_;
   int n_;
   double alpha_ = std::numeric_limits<double>::quiet_NaN();
+  double factoredAlpha_ = std::numeric_limits<double>::quiet_NaN();
   double time_ = 0.0;
   RigidFrameMotion frame_;
   SparseMatrix matrix_;
