@@ -22,6 +22,11 @@ struct SimulationSettings {
   std::string storage = "full";      ///< trajectory storage spec, e.g. binomial:checkpoints=50
   std::string adjoint = "discrete";  ///< discrete | continuous | cvodes
   std::string eigenvectorRoute = "adjoint-nelson";  ///< adjoint-nelson | nelson (the paper's route)
+  /// reduced: the modal slider-crank of SPEC 3 (PistonRod); full: the unreduced FE rod in the rigid
+  /// frame of SPEC 9 (rod::FullOrderRodProblem; needs an implicit integrator at usual steps).
+  std::string model = "reduced";
+  /// Full model only: keep the relative Coriolis, centrifugal and Euler terms (false drops them).
+  bool fullOrderCoupling = true;
 };
 
 struct OptimizationSettings {

@@ -2,6 +2,7 @@
 // of one piston-rod design; with --gradient, also dpsi1/dx, dpsi2/dx and dV/dx into an HDF5 file.
 #include "problems/cli/commands.h"
 #include "problems/design_io.h"
+#include "problems/full_order_rod.h"
 #include "problems/piston_rod.h"
 
 #include <nlohmann/json.hpp>
@@ -21,9 +22,44 @@ struct EvaluateSettings {
   std::string storage;
   std::string integrator;
   std::string adjoint;
+  std::string model;
   bool json = false;
   bool printConfig = false;
 };
+
+// The full-order model of SPEC 9: psi1,full, the volume fraction and the run summary (no psi2, no modes).
+int runFullOrder(const Config& config, const PistonRod& rod, const Vector& design, const EvaluateSettings& s) {
+  const bool gradient = !s.gradientFile.empty();
+  const rod::FullOrderRodEvaluation result = rod::evaluateFullOrderRod(config, design, gradient);
+  if (gradient) {
+    writeDesignFields(s.gradientFile, config.rod, {{"dpsi1_dx", result.dpsi1}, {"dvolume_dx", result.dvolume}},
+                      0.0);
+  }
+  if (s.json) {
+    nlohmann::json out;
+    out["model"] = "full";
+    out["psi1"] = result.psi1;
+    out["volume_fraction"] = result.volumeFraction;
+    out["state_size"] = result.stateSize;
+    out["omega_max"] = result.omegaMax;
+    out["n_design"] = rod.designCount();
+    out["coupling"] = config.simulation.fullOrderCoupling;
+    out["summary"] = summaryToJson(result.summary);
+    out["seconds"] = {{"model", result.modelSeconds}, {"simulation", result.simulationSeconds}};
+    if (gradient) out["gradient_file"] = s.gradientFile;
+    std::cout << out.dump(2) << '\n';
+    return 0;
+  }
+  std::cout << std::setprecision(8) << "model: full order (SPEC 9), coupling terms "
+            << (config.simulation.fullOrderCoupling ? "kept" : "dropped") << "\npsi1 (full): " << result.psi1
+            << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
+            << "\nstate size: " << result.stateSize << "\nhighest FE frequency omega_max [rad/s]: " << result.omegaMax
+            << '\n';
+  if (gradient) std::cout << "gradients written to " << s.gradientFile << '\n';
+  result.summary.print(std::cout);
+  std::cout << "model seconds: " << result.modelSeconds << '\n';
+  return 0;
+}
 
 int runEvaluate(const EvaluateSettings& s) {
   Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
@@ -31,6 +67,7 @@ int runEvaluate(const EvaluateSettings& s) {
   if (!s.storage.empty()) applySetting(config, "simulation.storage=\"" + s.storage + "\"");
   if (!s.integrator.empty()) applySetting(config, "simulation.integrator=\"" + s.integrator + "\"");
   if (!s.adjoint.empty()) applySetting(config, "simulation.adjoint=\"" + s.adjoint + "\"");
+  if (!s.model.empty()) applySetting(config, "simulation.model=\"" + s.model + "\"");
   if (s.printConfig) {
     std::cout << toJson(config).dump(2) << '\n';
     return 0;
@@ -38,6 +75,7 @@ int runEvaluate(const EvaluateSettings& s) {
   const PistonRod rod(config);
   const Vector design = s.designFile.empty() ? rod.initialDesign() : readDesignFile(s.designFile, config.rod);
   const bool gradient = !s.gradientFile.empty();
+  if (config.simulation.model == "full") return runFullOrder(config, rod, design, s);
   const PistonRodEvaluation result = rod.evaluate(design, {gradient, true, gradient});
   if (gradient) {
     writeDesignFields(
@@ -90,6 +128,8 @@ void registerEvaluate(CLI::App& app) {
   cmd->add_option("--storage", s->storage, "trajectory storage spec (overrides simulation.storage)");
   cmd->add_option("--integrator", s->integrator, "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint");
   cmd->add_option("--adjoint", s->adjoint, "discrete | continuous | cvodes");
+  cmd->add_option("--model", s->model,
+                  "reduced (modal, SPEC 3) | full (unreduced FE rod, SPEC 9; overrides simulation.model)");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});
