@@ -93,8 +93,12 @@ void designRun(benchmark::State& state, int nx, int ny, std::string what) {
   if (what == "gradient-adjoint-nelson") designGradients()[key] = result.dpsi1;
   if (what == "gradient-nelson") {
     auto it = designGradients().find(key);
-    if (it != designGradients().end())
-      state.counters["grad_rel_diff"] = (result.dpsi1 - it->second).norm() / it->second.norm();
+    if (it == designGradients().end()) {
+      // Filtered run without hindsight's route: compute it here, after the timed loop.
+      Config reference = meshConfig(nx, ny);
+      it = designGradients().emplace(key, PistonRod(reference).evaluate(x, request).dpsi1).first;
+    }
+    state.counters["grad_rel_diff"] = (result.dpsi1 - it->second).norm() / it->second.norm();
   }
 }
 
