@@ -496,3 +496,33 @@ TEST(FullOrderRodGradient, BinomialCheckpointingGivesTheBitsOfFullStorage) {
 
 }  // namespace
 }  // namespace hindsight::rod
+
+namespace hindsight::rod {
+namespace {
+
+// Through the engine: after the first step has factorised M + alpha0^2 K, TR-BDF2 forward and adjoint
+// steps allocate nothing.
+TEST(FullOrderRodGradient, Trbdf2StepsAllocateNothingAfterTheFirstFactorisation) {
+  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counting unavailable";
+  const RodConfig config = coarseRod();
+  const Vector x = testDesign(config, 23);
+  const FullOrderRodProblem problem(config, x, fastCrank(), true);
+  IntegratorOptions options;
+  options.method = "trbdf2";
+  options.t1 = 0.01;
+  options.step = 1e-3;
+  options.newtonTolerance = 1e-10;
+  RungeKuttaIntegrator integrator(problem, x, options);
+  Vector z = Vector::Zero(problem.stateSize());
+  integrator.step(0.0, 1e-3, z);
+  const Vector start = z;
+  Vector lambda = Vector::Ones(problem.stateSize()), gradient = Vector::Zero(problem.parameterSize());
+  testing::AllocationCounter counter;
+  integrator.step(1e-3, 1e-3, z);
+  integrator.adjointStep(1e-3, 1e-3, start, lambda, gradient);
+  EXPECT_EQ(counter.count(), 0);
+  EXPECT_GT(gradient.cwiseAbs().maxCoeff(), 0.0);
+}
+
+}  // namespace
+}  // namespace hindsight::rod
