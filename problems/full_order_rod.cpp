@@ -41,15 +41,21 @@ RigidFrameMotion rigidFrameMotion(const CrankMotion& crank, double length, doubl
 class FullOrderRodProblem::Workspace final : public ProblemWorkspace {
  public:
   Workspace(int free, int full)
-      : force(free), product(free), multiplier(free), accelerationFree(free), uFull(full), vFull(full),
-        aFull(full), muFull(full) {}
+      : force(free),
+        product(free),
+        multiplier(free),
+        accelerationFree(free),
+        uFull(full),
+        vFull(full),
+        aFull(full),
+        muFull(full) {}
   Vector force, product, multiplier, accelerationFree;  // free DOFs
   Vector uFull, vFull, aFull, muFull;                   // all DOFs
 };
 
 FullOrderRodProblem::FullOrderRodProblem(const RodConfig& config, ConstVectorRef design, bool coupling)
-    : FullOrderRodProblem(config, design,
-                          CrankMotion{config.crankRadius, config.crankSpeed, config.rampTime}, coupling) {}
+    : FullOrderRodProblem(config, design, CrankMotion{config.crankRadius, config.crankSpeed, config.rampTime},
+                          coupling) {}
 
 FullOrderRodProblem::FullOrderRodProblem(const RodConfig& config, ConstVectorRef design,
                                          const CrankMotion& crank, bool coupling)
@@ -91,7 +97,8 @@ void FullOrderRodProblem::build() {
 
   massFactor_.compute(model_.mass());
   if (massFactor_.info() != Eigen::Success) {
-    throw std::runtime_error("full-order rod: the Cholesky factorisation of M failed (M not positive definite)");
+    throw std::runtime_error(
+        "full-order rod: the Cholesky factorisation of M failed (M not positive definite)");
   }
 }
 
@@ -122,8 +129,8 @@ double FullOrderRodProblem::largestEigenvalue(int iterations) const {
   return lambda;
 }
 
-void FullOrderRodProblem::applyStiffnessOperator(const RigidFrameMotion& frame, ConstVectorRef x, VectorRef out,
-                                                 bool transposed) const {
+void FullOrderRodProblem::applyStiffnessOperator(const RigidFrameMotion& frame, ConstVectorRef x,
+                                                 VectorRef out, bool transposed) const {
   out.noalias() = model_.stiffness() * x;  // K symmetric
   if (!coupling_) return;
   out.noalias() -= (frame.rate * frame.rate) * (model_.mass() * x);
@@ -147,7 +154,8 @@ void FullOrderRodProblem::initialState(ConstVectorRef p, VectorRef z0) const {
   z0.setZero();  // at rest, undeformed
 }
 
-void FullOrderRodProblem::rhs(double t, ConstVectorRef z, ConstVectorRef, VectorRef f, ProblemWorkspace* ws) const {
+void FullOrderRodProblem::rhs(double t, ConstVectorRef z, ConstVectorRef, VectorRef f,
+                              ProblemWorkspace* ws) const {
   auto& w = static_cast<Workspace&>(*ws);
   const RigidFrameMotion frame = rigidFrameMotion(crank_, model_.config().length, t);
   const auto u = z.head(n_);
@@ -162,8 +170,8 @@ void FullOrderRodProblem::rhs(double t, ConstVectorRef z, ConstVectorRef, Vector
   f.tail(n_) = -w.force;
 }
 
-void FullOrderRodProblem::rhsStateVjp(double t, ConstVectorRef, ConstVectorRef, ConstVectorRef w, VectorRef out,
-                                      ProblemWorkspace* ws) const {
+void FullOrderRodProblem::rhsStateVjp(double t, ConstVectorRef, ConstVectorRef, ConstVectorRef w,
+                                      VectorRef out, ProblemWorkspace* ws) const {
   auto& work = static_cast<Workspace&>(*ws);
   const RigidFrameMotion frame = rigidFrameMotion(crank_, model_.config().length, t);
   // F_z^T w = (-A^T mu, w_1 - C^T mu), mu = M^{-1} w_2 (M symmetric).
@@ -246,8 +254,9 @@ void FullOrderRodProblem::addIntegrandStateGradient(double, ConstVectorRef z, Co
   out.head(n_).noalias() += (2.0 * scale) * (model_.stiffness() * z.head(n_));
 }
 
-void FullOrderRodProblem::addIntegrandParameterGradient(double, ConstVectorRef z, ConstVectorRef p, double scale,
-                                                        VectorRef out, ProblemWorkspace* ws) const {
+void FullOrderRodProblem::addIntegrandParameterGradient(double, ConstVectorRef z, ConstVectorRef p,
+                                                        double scale, VectorRef out,
+                                                        ProblemWorkspace* ws) const {
   auto& work = static_cast<Workspace&>(*ws);
   const std::vector<int>& freeToFull = model_.freeToFull();
   work.uFull.setZero();
@@ -266,7 +275,13 @@ void FullOrderRodProblem::addIntegrandParameterGradient(double, ConstVectorRef z
 class FullOrderRodProblem::Newton final : public NewtonSolver {
  public:
   explicit Newton(const FullOrderRodProblem& problem)
-      : problem_(problem), n_(problem.n_), rhs_(n_), solution_(n_), residual_(n_), correction_(n_), work_(n_) {
+      : problem_(problem),
+        n_(problem.n_),
+        rhs_(n_),
+        solution_(n_),
+        residual_(n_),
+        correction_(n_),
+        work_(n_) {
     // The pattern of M + alpha^2 K (K's pattern contains M's: same element connectivity).
     const SparseMatrix pattern = problem.model_.mass() + problem.model_.stiffness();
     factor_.analyzePattern(pattern);
@@ -344,14 +359,16 @@ class FullOrderRodProblem::Newton final : public NewtonSolver {
       solution_ += correction_;
       const double change = correction_.lpNorm<Eigen::Infinity>();
       const double size = solution_.lpNorm<Eigen::Infinity>();
-      if (!std::isfinite(change)) throw NewtonFailure("full-order rod: refinement produced a non-finite value", time_);
+      if (!std::isfinite(change))
+        throw NewtonFailure("full-order rod: refinement produced a non-finite value", time_);
       if (change <= 4.0 * std::numeric_limits<double>::epsilon() * size) return;
       if (change > 0.5 * previous) {
         // No more progress: fine at round-off level, a failure otherwise.
         if (change <= 1e-12 * size) return;
-        throw NewtonFailure("full-order rod: iterative refinement of the Newton matrix does not contract "
-                            "(alpha too large for the frame coupling terms)",
-                            time_);
+        throw NewtonFailure(
+            "full-order rod: iterative refinement of the Newton matrix does not contract "
+            "(alpha too large for the frame coupling terms)",
+            time_);
       }
       previous = change;
     }

@@ -44,8 +44,16 @@
 // along the rod is already a narrow band, so no permutation buffers). factorize() with a new alpha0
 // re-runs the numeric sparse Cholesky, which allocates its scratch.
 //
+// Newton tolerance: the stage residual of this stiff model has round-off ~1e-11 ||Z|| (F sums terms
+// omega_max^2 u ~ 1e8 larger than itself), so evaluateFullOrderRod() raises the engine's 1e-13 to 1e-10;
+// the model is linear, so the first Newton iteration solves the stage and the second confirms.
+//
+// Measured (bench/RESULTS.md): at x0 on 200 x 12, TR-BDF2 h = 1e-3, psi1,full = 0.25249 against the
+// reduced psi1 = 0.25253 (-1.6e-4: modal truncation and the reduced model's frame feedback b q); the
+// coupling terms contribute 1.4e-4; dpsi1/dx agrees with the reduced chain's to 5.4e-4 (norm).
+//
 // Sizes: n = 2 (nx+1)(ny+1) - 3 free DOFs (5223 at 200 x 12, state 10446). Units SI.
-// Stiffness: the highest FE frequency grows like 1/element size (~1e6 rad/s at 200 x 12, x = 0.5), so
+// Stiffness: the highest FE frequency grows like 1/element size (1.86e6 rad/s at 200 x 12, x = 0.5), so
 // explicit methods need h < 2.8 / omega_max; evaluateFullOrderRod() refuses an unstable explicit step.
 #pragma once
 
@@ -64,11 +72,11 @@ namespace rod {
 
 /// The rigid frame's motion at time t: beta_r and its rates, and R^T r_A'' (body components).
 struct RigidFrameMotion {
-  double angle = 0.0;                 ///< beta_r [rad]
-  double rate = 0.0;                  ///< beta_r' [rad/s]
-  double acceleration = 0.0;          ///< beta_r'' [rad/s^2]
-  double pinAccelerationX = 0.0;      ///< (R^T r_A'')_x [m/s^2]
-  double pinAccelerationY = 0.0;      ///< (R^T r_A'')_y [m/s^2]
+  double angle = 0.0;             ///< beta_r [rad]
+  double rate = 0.0;              ///< beta_r' [rad/s]
+  double acceleration = 0.0;      ///< beta_r'' [rad/s^2]
+  double pinAccelerationX = 0.0;  ///< (R^T r_A'')_x [m/s^2]
+  double pinAccelerationY = 0.0;  ///< (R^T r_A'')_y [m/s^2]
 };
 /// beta_r = asin(-r sin(phi) / L) and its derivatives; requires r < L.
 RigidFrameMotion rigidFrameMotion(const CrankMotion& crank, double length, double t);
@@ -79,7 +87,8 @@ class FullOrderRodProblem final : public Problem {
   /// config or design (see FeModel), and std::runtime_error if M is not positive definite.
   FullOrderRodProblem(const RodConfig& config, ConstVectorRef design, bool coupling = true);
   /// Same with an explicit crank (tests use a short ramp).
-  FullOrderRodProblem(const RodConfig& config, ConstVectorRef design, const CrankMotion& crank, bool coupling);
+  FullOrderRodProblem(const RodConfig& config, ConstVectorRef design, const CrankMotion& crank,
+                      bool coupling);
   ~FullOrderRodProblem() override;
 
   std::string name() const override { return "full-order-rod"; }
@@ -127,10 +136,16 @@ class FullOrderRodProblem final : public Problem {
   CrankMotion crank_;
   bool coupling_;
   int n_;
-  SparseMatrix rotatedMass_;  // M_S
+  SparseMatrix rotatedMass_;                           // M_S
   Vector loadX_, loadY_, loadRotated_, loadPosition_;  // P^T M_full {e_x, e_y, S X, X}
   Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> massFactor_;
 };
+
+/// The recommended time stepping for the full-order model (the CLI's `--model full` default): TR-BDF2 is
+/// L-stable, so the FE modes far above the load's spectrum are damped instead of limiting the step;
+/// at h = 1e-3 s (omega_1 h ~ 0.2) psi1,full changes by 4e-6 relative when h is halved (40 x 4 mesh).
+inline constexpr const char* kFullOrderDefaultIntegrator = "trbdf2";
+inline constexpr double kFullOrderDefaultStep = 1e-3;
 
 /// What evaluateFullOrderRod() returns.
 struct FullOrderRodEvaluation {

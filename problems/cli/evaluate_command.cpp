@@ -28,12 +28,13 @@ struct EvaluateSettings {
 };
 
 // The full-order model of SPEC 9: psi1,full, the volume fraction and the run summary (no psi2, no modes).
-int runFullOrder(const Config& config, const PistonRod& rod, const Vector& design, const EvaluateSettings& s) {
+int runFullOrder(const Config& config, const PistonRod& rod, const Vector& design,
+                 const EvaluateSettings& s) {
   const bool gradient = !s.gradientFile.empty();
   const rod::FullOrderRodEvaluation result = rod::evaluateFullOrderRod(config, design, gradient);
   if (gradient) {
-    writeDesignFields(s.gradientFile, config.rod, {{"dpsi1_dx", result.dpsi1}, {"dvolume_dx", result.dvolume}},
-                      0.0);
+    writeDesignFields(s.gradientFile, config.rod,
+                      {{"dpsi1_dx", result.dpsi1}, {"dvolume_dx", result.dvolume}}, 0.0);
   }
   if (s.json) {
     nlohmann::json out;
@@ -53,8 +54,8 @@ int runFullOrder(const Config& config, const PistonRod& rod, const Vector& desig
   std::cout << std::setprecision(8) << "model: full order (SPEC 9), coupling terms "
             << (config.simulation.fullOrderCoupling ? "kept" : "dropped") << "\npsi1 (full): " << result.psi1
             << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
-            << "\nstate size: " << result.stateSize << "\nhighest FE frequency omega_max [rad/s]: " << result.omegaMax
-            << '\n';
+            << "\nstate size: " << result.stateSize
+            << "\nhighest FE frequency omega_max [rad/s]: " << result.omegaMax << '\n';
   if (gradient) std::cout << "gradients written to " << s.gradientFile << '\n';
   result.summary.print(std::cout);
   std::cout << "model seconds: " << result.modelSeconds << '\n';
@@ -68,6 +69,19 @@ int runEvaluate(const EvaluateSettings& s) {
   if (!s.integrator.empty()) applySetting(config, "simulation.integrator=\"" + s.integrator + "\"");
   if (!s.adjoint.empty()) applySetting(config, "simulation.adjoint=\"" + s.adjoint + "\"");
   if (!s.model.empty()) applySetting(config, "simulation.model=\"" + s.model + "\"");
+  // `--model full` alone: the full-order defaults (TR-BDF2, h = 1e-3 s; the model is far too stiff for
+  // the reduced model's RK4 at 1e-4), unless the integrator or the step were chosen explicitly.
+  if (s.model == "full" && s.configFile.empty() && s.integrator.empty()) {
+    bool chosen = false;
+    for (const auto& assignment : s.assignments) {
+      chosen = chosen || assignment.rfind("simulation.integrator", 0) == 0 ||
+               assignment.rfind("simulation.step", 0) == 0;
+    }
+    if (!chosen) {
+      config.simulation.integrator = rod::kFullOrderDefaultIntegrator;
+      config.simulation.step = rod::kFullOrderDefaultStep;
+    }
+  }
   if (s.printConfig) {
     std::cout << toJson(config).dump(2) << '\n';
     return 0;
@@ -129,7 +143,9 @@ void registerEvaluate(CLI::App& app) {
   cmd->add_option("--integrator", s->integrator, "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint");
   cmd->add_option("--adjoint", s->adjoint, "discrete | continuous | cvodes");
   cmd->add_option("--model", s->model,
-                  "reduced (modal, SPEC 3) | full (unreduced FE rod, SPEC 9; overrides simulation.model)");
+                  "reduced (modal, SPEC 3) | full (unreduced FE rod, SPEC 9; overrides simulation.model; "
+                  "without --config, --integrator or --set simulation.integrator/step it also selects trbdf2 "
+                  "with h = 1e-3 s)");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});

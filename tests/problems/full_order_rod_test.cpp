@@ -68,7 +68,8 @@ TEST(RigidFrameMotion, RatesAreTheDerivativesOfTheAngleAndTheClosureHolds) {
     crank.at(t, phi, phiDot, phiDdot);
     EXPECT_NEAR(crank.radius * std::sin(phi) + length * std::sin(m.angle), 0.0, 1e-15);
     EXPECT_NEAR(m.rate, (plus.angle - minus.angle) / (2 * h), 1e-6 * std::max(1.0, std::abs(m.rate)));
-    EXPECT_NEAR(m.acceleration, (plus.rate - minus.rate) / (2 * h), 1e-5 * std::max(1.0, std::abs(m.acceleration)));
+    EXPECT_NEAR(m.acceleration, (plus.rate - minus.rate) / (2 * h),
+                1e-5 * std::max(1.0, std::abs(m.acceleration)));
     // R^T r_A'' from finite differences of r_A in the inertial frame.
     auto pin = [&](double s) {
       double a, b, c;
@@ -121,8 +122,9 @@ TEST(FullOrderRod, RhsSatisfiesTheEquationsOfMotion) {
   const RigidFrameMotion m = rigidFrameMotion(fastCrank(), config.length, kTestTime);
   const Matrix massFull = Matrix(model.massFull());
   const Vector X = model.referenceCoordinates();
-  const Vector aFull = m.pinAccelerationX * model.unitTranslationX() + m.pinAccelerationY * model.unitTranslationY() +
-                       m.acceleration * rotateNodewise(X) - m.rate * m.rate * X;
+  const Vector aFull = m.pinAccelerationX * model.unitTranslationX() +
+                       m.pinAccelerationY * model.unitTranslationY() + m.acceleration * rotateNodewise(X) -
+                       m.rate * m.rate * X;
   auto msTimes = [&](const Vector& free) {
     return model.restrictToFree(massFull * rotateNodewise(model.extendToFull(free)));
   };
@@ -183,8 +185,8 @@ TEST_P(FullOrderDerivatives, IntegrandGradientsMatchFiniteDifferences) {
   auto ws = problem.createWorkspace();
   Vector gz = Vector::Zero(2 * n);
   problem.addIntegrandStateGradient(kTestTime, z, x, 1.0, gz, ws.get());
-  auto byState = checkGradient([&](const Vector& y) { return problem.integrand(kTestTime, y, x, ws.get()); }, z, gz,
-                               {1e-6, 1e-3, {}, 0.0});
+  auto byState = checkGradient([&](const Vector& y) { return problem.integrand(kTestTime, y, x, ws.get()); },
+                               z, gz, {1e-6, 1e-3, {}, 0.0});
   EXPECT_TRUE(byState.passed) << byState.message;
   EXPECT_EQ(gz.tail(n).norm(), 0.0);
   Vector gp = Vector::Zero(x.size());
@@ -262,7 +264,8 @@ INSTANTIATE_TEST_SUITE_P(Coupling, FullOrderDerivatives, ::testing::Bool(),
                          [](const auto& info) { return info.param ? "WithCoupling" : "WithoutCoupling"; });
 
 // dpsi/dx by the discrete adjoint against central differences of the computed psi, every element.
-double simulatePsi(const RodConfig& config, const Vector& x, const IntegratorOptions& options, bool coupling) {
+double simulatePsi(const RodConfig& config, const Vector& x, const IntegratorOptions& options,
+                   bool coupling) {
   const FullOrderRodProblem problem(config, x, fastCrank(), coupling);
   return simulate(problem, x, options).objective;
 }
@@ -305,12 +308,13 @@ void checkAdjointGradient(const std::string& method, double step, double endTime
   double worst = 0.0;
   for (Eigen::Index i = 0; i < x.size(); ++i) {
     const double error = std::abs(result.gradient(i) - fd(i)) / std::max(std::abs(fd(i)), floor);
-    EXPECT_LT(error, 2e-6) << method << " element " << i << ": adjoint " << result.gradient(i) << ", fd " << fd(i);
+    EXPECT_LT(error, 2e-6) << method << " element " << i << ": adjoint " << result.gradient(i) << ", fd "
+                           << fd(i);
     worst = std::max(worst, error);
   }
   std::cout << "[ adjoint ] " << method << " h = " << step << (coupling ? "" : " (no coupling)")
-            << ": psi = " << result.objective << ", max relative error vs 4th-order differences " << worst << " ("
-            << result.summary.steps << " steps)\n";
+            << ": psi = " << result.objective << ", max relative error vs 4th-order differences " << worst
+            << " (" << result.summary.steps << " steps)\n";
 }
 
 TEST(FullOrderRodGradient, Rk4MatchesFiniteDifferencesForEveryElement) {
@@ -349,8 +353,10 @@ TEST(FullOrderRodEvaluation, RefusesAnUnstableExplicitStep) {
 class ModalEquations final : public Problem {
  public:
   ModalEquations(const FullOrderRodProblem& full, const ModalBasis& basis)
-      : full_(full), modes_(basis.modesFree.leftCols(basis.eigenmodeCount)),
-        eigenvalues_(basis.eigenvalues.head(basis.eigenmodeCount)), load_(full.freeDofCount()) {}
+      : full_(full),
+        modes_(basis.modesFree.leftCols(basis.eigenmodeCount)),
+        eigenvalues_(basis.eigenvalues.head(basis.eigenmodeCount)),
+        load_(full.freeDofCount()) {}
   std::string name() const override { return "modal"; }
   int stateSize() const override { return 2 * static_cast<int>(eigenvalues_.size()); }
   int parameterSize() const override { return 0; }
@@ -390,7 +396,8 @@ TEST(FullOrderRod, WithoutCouplingTheModalProjectionFollowsTheModalEquations) {
   const Vector uEnd = simulate(problem, x, options).finalState.head(problem.freeDofCount());
   const ModalEquations modalProblem(problem, basis);
   const Vector etaEnd = simulate(modalProblem, Vector(0), options).finalState.head(modal.modeCount);
-  const Vector projected = basis.modesFree.leftCols(modal.modeCount).transpose() * (problem.model().mass() * uEnd);
+  const Vector projected =
+      basis.modesFree.leftCols(modal.modeCount).transpose() * (problem.model().mass() * uEnd);
   std::cout << "[ modal ] eta(t1) = " << etaEnd.transpose() << "\n          projection error "
             << (projected - etaEnd).norm() / etaEnd.norm() << '\n';
   EXPECT_GT(etaEnd.norm(), 0.0);
@@ -485,6 +492,36 @@ TEST(FullOrderRodGradient, BinomialCheckpointingGivesTheBitsOfFullStorage) {
   EXPECT_GT(b.summary.recomputedSteps, 0);
   EXPECT_EQ(a.objective, b.objective);
   EXPECT_EQ((a.gradient - b.gradient).cwiseAbs().maxCoeff(), 0.0);
+}
+
+}  // namespace
+}  // namespace hindsight::rod
+
+namespace hindsight::rod {
+namespace {
+
+// Through the engine: after the first step has factorised M + alpha0^2 K, TR-BDF2 forward and adjoint
+// steps allocate nothing.
+TEST(FullOrderRodGradient, Trbdf2StepsAllocateNothingAfterTheFirstFactorisation) {
+  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counting unavailable";
+  const RodConfig config = coarseRod();
+  const Vector x = testDesign(config, 23);
+  const FullOrderRodProblem problem(config, x, fastCrank(), true);
+  IntegratorOptions options;
+  options.method = "trbdf2";
+  options.t1 = 0.01;
+  options.step = 1e-3;
+  options.newtonTolerance = 1e-10;
+  RungeKuttaIntegrator integrator(problem, x, options);
+  Vector z = Vector::Zero(problem.stateSize());
+  integrator.step(0.0, 1e-3, z);
+  const Vector start = z;
+  Vector lambda = Vector::Ones(problem.stateSize()), gradient = Vector::Zero(problem.parameterSize());
+  testing::AllocationCounter counter;
+  integrator.step(1e-3, 1e-3, z);
+  integrator.adjointStep(1e-3, 1e-3, start, lambda, gradient);
+  EXPECT_EQ(counter.count(), 0);
+  EXPECT_GT(gradient.cwiseAbs().maxCoeff(), 0.0);
 }
 
 }  // namespace
