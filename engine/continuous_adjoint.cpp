@@ -16,6 +16,21 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+/// Throws NumericalError (with the time) when a backward integrator has used up its steps or its
+/// step size has underflowed; shared by the explicit and the implicit backward integrators.
+void checkBackwardStep(std::int64_t attempts, const ContinuousAdjointOptions& options, double t, double h) {
+  if (attempts >= options.maxSteps) {
+    throw NumericalError(
+        "continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) + " backward steps",
+        t);
+  }
+  if (h < options.minStep * std::max(1.0, std::abs(t))) {
+    std::ostringstream msg;
+    msg << "continuous adjoint: backward step size underflow, h = " << h;
+    throw NumericalError(msg.str(), t);
+  }
+}
+
 /// Where the backward sweep gets z(t).
 class ForwardStates {
  public:
@@ -238,16 +253,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
       options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, k.col(0), 5, options);
   const double exponent = -1.0 / 5.0;
   while (t > t0) {
-    if (statistics.steps + statistics.rejected >= options.maxSteps) {
-      throw NumericalError(
-          "continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) + " backward steps",
-          t);
-    }
-    if (h < options.minStep * std::max(1.0, std::abs(t))) {
-      std::ostringstream msg;
-      msg << "continuous adjoint: backward step size underflow, h = " << h;
-      throw NumericalError(msg.str(), t);
-    }
+    checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
@@ -307,16 +313,7 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
       options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, options);
   const double exponent = -1.0 / (std::min(tableau.order, tableau.embeddedOrder) + 1.0);
   while (t > t0) {
-    if (statistics.steps + statistics.rejected >= options.maxSteps) {
-      throw NumericalError(
-          "continuous adjoint: more than maxSteps = " + std::to_string(options.maxSteps) + " backward steps",
-          t);
-    }
-    if (h < options.minStep * std::max(1.0, std::abs(t))) {
-      std::ostringstream msg;
-      msg << "continuous adjoint: backward step size underflow, h = " << h;
-      throw NumericalError(msg.str(), t);
-    }
+    checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
