@@ -477,7 +477,7 @@ def plots(suite, out_dir):
             ax.scatter([r["cpu"] for r in rs], [max(r["err"], 1e-16) for r in rs], label=fam, s=40,
                        marker="o" if "cvodes" in fam else ("s" if "discrete" in fam else "^"))
             for r in rs:
-                if "cvodes" not in fam or "Nd100" in r["variant"]:
+                if "cvodes" not in fam or r["variant"].endswith("Nd100"):
                     ax.annotate(r["tol"].replace("rtol:", "") + ("" if "cvodes" not in fam else " Nd100"),
                                 (r["cpu"], max(r["err"], 1e-16)), fontsize=6, xytext=(3, 2), textcoords="offset points")
         ax.set_xscale("log")
