@@ -292,67 +292,21 @@ void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVect
   }
 }
 
-void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
-                                                 ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
-                                                 VectorRef out, ProblemWorkspace* ws) const {
-  auto& w = workspaceOf(ws);
-  const View P(layout_, p);
-  const SliderCrankLayout& L = layout_;
-  const int n = L.modes;
-  // F = mu . r with the three scalar channels (c = b q, c' = b q', b a) seeded: their partials carry
-  // the nonlinear dependence on b through the frame kinematics.
-  using ADS = ADOf<kSmallCapacity>;
-  using DS = DerivativesOf<kSmallCapacity>;
-  auto& b = w.small;
-  const ADS c(dot(P, q), 3, 0), cd(dot(P, v), 3, 1), ba(dot(P, a), 3, 2);
-  for (int i = 0; i < n; ++i) {
-    b.q[i] = ADS(q(i), DS::Zero(3));
-    b.qd[i] = ADS(v(i), DS::Zero(3));
-  }
-  Frame<ADS> fr;
-  frameKinematics(crank_, length_, t, c, cd, fr);
-  const ADS gKappa =
-      residualCore<ADS>(P, fr, b.q.data(), b.qd.data(), a, ba, b.r.data(), b.a1.data(), b.h.data());
-  DS channels = DS::Zero(3);
-  for (int i = 0; i < n; ++i) channels += mu(i) * b.r[i].derivatives();
+namespace {
 
-  // Terms linear in the invariants (see the header for r and kappa).
-  const double g = fr.g.value(), betaDot = fr.betaDot.value(), betaC = fr.betaC.value();
-  const double rho0 = fr.rho0.value(), rho1 = fr.rho1.value();
-  const double betaA = g * ba.value();
-  double mb = 0.0;
-  for (int i = 0; i < n; ++i) mb += mu(i) * P.b(i);
-  const double zeta = g * mb * (betaA + betaC);                  // dF/dJ_w
-  const double sigma0 = g * mb * rho1, sigma1 = -g * mb * rho0;  // dF/ds_w
-  out(L.polarMoment()) += zeta;
-  out(L.massMoment()) += sigma0;
-  out(L.massMoment() + 1) += sigma1;
-  for (int j = 0; j < n; ++j) {
-    const double eta = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);  // dF/dh_j
-    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                   // dF/dA1_j
-    out(L.c2() + j) += eta + 2.0 * zeta * q(j);
-    out(L.a0() + j) += alpha;
-    out(L.c1() + 2 * j) += sigma0 * q(j) + rho0 * mu(j);
-    out(L.c1() + 1 + 2 * j) += sigma1 * q(j) + rho1 * mu(j);
-    for (int i = 0; i < n; ++i) {
-      const double etaI = -betaDot * betaDot * mu(i) + 2.0 * g * mb * betaDot * v(i);
-      out(L.cTilde() + i + n * j) += q(i) * alpha - 2.0 * betaDot * mu(i) * v(j);
-      const double etaJ = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);
-      out(L.mee() + i + n * j) +=
-          0.5 * (mu(i) * a(j) + etaI * q(j) + mu(j) * a(i) + etaJ * q(i)) + zeta * q(i) * q(j);
-      out(L.kee() + i + n * j) += mu(i) * q(j);
-    }
-    // b: through the channels and the explicit g kappa b term.
-    out(L.b() + j) += channels(0) * q(j) + channels(1) * v(j) + channels(2) * a(j) + gKappa.value() * mu(j);
-  }
-}
+/// The scalars of mu . r (see the header) and their partials in the channels c = b q, c' = b q' and
+/// b a, shared by the state product and the parameter product.
+struct ProductScalars {
+  double g, bd, bc, r0, r1;       // frame: dbeta/dc, beta', beta_c, rho
+  double ba, s, jw, kappa;        // b a, beta_q a + beta_c, J_w, kappa
+  double mb, muA1;                // mu . b, mu . A1
+  double alongQ, alongV, alongA;  // d(mu . r)/dc, d/dc', d/d(b a) through the channels
+};
 
-void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                                          ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
-                                          ProblemWorkspace*) const {
+ProductScalars productScalars(const View& P, const CrankMotion& crank_, double length_, double t,
+                              ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef mu) {
+  const int n = P.n;
   using ADS = ADOf<kSmallCapacity>;
-  const View P(layout_, p);
-  const int n = layout_.modes;
   // Frame scalars and their partials in c (direction 0) and c' (direction 1).
   Frame<ADS> fr;
   frameKinematics(crank_, length_, t, ADS(dot(P, q), 2, 0), ADS(dot(P, v), 2, 1), fr);
@@ -398,6 +352,61 @@ void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVecto
   const double alongQ = muA1 * sC + mb * (gC * kappa + g * kappaC) + (c1mu0 * r0C + c1mu1 * r1C) -
                         2.0 * bd * bdC * muH - 2.0 * bdC * muCtQd;
   const double alongV = muA1 * sCd + mb * g * kappaCd - 2.0 * bd * bdCd * muH - 2.0 * bdCd * muCtQd;
+  return ProductScalars{g,  bd,    bc, r0,   r1,     ba,     s,
+                        jw, kappa, mb, muA1, alongQ, alongV, g * (muA1 + mb * g * jw)};
+}
+
+}  // namespace
+
+void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
+                                                 ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
+                                                 VectorRef out, ProblemWorkspace*) const {
+  const View P(layout_, p);
+  const SliderCrankLayout& L = layout_;
+  const int n = L.modes;
+  // F = mu . r depends on b nonlinearly only through the channels c = b q, c' = b q' and b a; their
+  // partials and the frame scalars come from the same helper as the state product.
+  const ProductScalars k = productScalars(P, crank_, length_, t, q, v, a, mu);
+  const double channels[3] = {k.alongQ, k.alongV, k.alongA};
+  const double gKappa = k.g * k.kappa;
+
+  // Terms linear in the invariants (see the header for r and kappa).
+  const double g = k.g, betaDot = k.bd, betaC = k.bc, rho0 = k.r0, rho1 = k.r1;
+  const double betaA = g * k.ba;
+  const double mb = k.mb;
+  const double zeta = g * mb * (betaA + betaC);                  // dF/dJ_w
+  const double sigma0 = g * mb * rho1, sigma1 = -g * mb * rho0;  // dF/ds_w
+  out(L.polarMoment()) += zeta;
+  out(L.massMoment()) += sigma0;
+  out(L.massMoment() + 1) += sigma1;
+  for (int j = 0; j < n; ++j) {
+    const double eta = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);  // dF/dh_j
+    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                   // dF/dA1_j
+    out(L.c2() + j) += eta + 2.0 * zeta * q(j);
+    out(L.a0() + j) += alpha;
+    out(L.c1() + 2 * j) += sigma0 * q(j) + rho0 * mu(j);
+    out(L.c1() + 1 + 2 * j) += sigma1 * q(j) + rho1 * mu(j);
+    for (int i = 0; i < n; ++i) {
+      const double etaI = -betaDot * betaDot * mu(i) + 2.0 * g * mb * betaDot * v(i);
+      out(L.cTilde() + i + n * j) += q(i) * alpha - 2.0 * betaDot * mu(i) * v(j);
+      const double etaJ = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);
+      out(L.mee() + i + n * j) +=
+          0.5 * (mu(i) * a(j) + etaI * q(j) + mu(j) * a(i) + etaJ * q(i)) + zeta * q(i) * q(j);
+      out(L.kee() + i + n * j) += mu(i) * q(j);
+    }
+    // b: through the channels and the explicit g kappa b term.
+    out(L.b() + j) += channels[0] * q(j) + channels[1] * v(j) + channels[2] * a(j) + gKappa * mu(j);
+  }
+}
+
+void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                          ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
+                                          ProblemWorkspace*) const {
+  const View P(layout_, p);
+  const int n = layout_.modes;
+  const ProductScalars k = productScalars(P, crank_, length_, t, q, v, a, mu);
+  const double g = k.g, bd = k.bd, r0 = k.r0, r1 = k.r1, s = k.s, alongQ = k.alongQ, alongV = k.alongV;
+  const double mb = k.mb;
   const double gmb = g * mb;
   for (int i = 0; i < n; ++i) {
     double keeMu = 0.0, ctMu = 0.0, ctA = 0.0, meeMu = 0.0, meeQ = 0.0, meeQd = 0.0, ctTMu = 0.0;
