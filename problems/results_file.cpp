@@ -13,6 +13,17 @@
 namespace hindsight {
 namespace {
 
+/// The real-valued history columns: dataset name in /history and the record member it stores. One
+/// table for writing and reading, so the two cannot drift apart.
+const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
+    {"psi1", &IterationRecord::psi1},
+    {"psi2", &IterationRecord::psi2},
+    {"volume_fraction", &IterationRecord::volumeFraction},
+    {"max_design_change", &IterationRecord::maxDesignChange},
+    {"evaluation_seconds", &IterationRecord::evaluationSeconds},
+    {"mma_seconds", &IterationRecord::mmaSeconds},
+    {"total_seconds", &IterationRecord::totalSeconds}};
+
 constexpr const char* kFormat = "hindsight-topology-results";
 constexpr int kFormatVersion = 1;
 
@@ -157,16 +168,8 @@ void writeContents(const Context& c, hid_t file, const ResultsData& data) {
     writeExtendible(c, group.get(), "iteration", H5T_NATIVE_INT, H5T_STD_I32LE, {rows}, iteration.data());
     for (std::size_t k = 0; k < rows; ++k) iteration[k] = data.history[k].backtracks;
     writeExtendible(c, group.get(), "backtracks", H5T_NATIVE_INT, H5T_STD_I32LE, {rows}, iteration.data());
-    const std::pair<const char*, double IterationRecord::*> columns[] = {
-        {"psi1", &IterationRecord::psi1},
-        {"psi2", &IterationRecord::psi2},
-        {"volume_fraction", &IterationRecord::volumeFraction},
-        {"max_design_change", &IterationRecord::maxDesignChange},
-        {"evaluation_seconds", &IterationRecord::evaluationSeconds},
-        {"mma_seconds", &IterationRecord::mmaSeconds},
-        {"total_seconds", &IterationRecord::totalSeconds}};
     std::vector<double> column(rows);
-    for (const auto& [name, member] : columns) {
+    for (const auto& [name, member] : kHistoryColumns) {
       for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].*member;
       writeExtendible(c, group.get(), name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, {rows}, column.data());
     }
@@ -295,16 +298,8 @@ ResultsData readContents(const Context& c, hid_t file) {
     for (hsize_t k = 0; k < rows; ++k) data.history[k].iteration = iteration[k];
     readDataset(c, group.get(), "backtracks", H5T_NATIVE_INT, {rows}, iteration.data());
     for (hsize_t k = 0; k < rows; ++k) data.history[k].backtracks = iteration[k];
-    const std::pair<const char*, double IterationRecord::*> columns[] = {
-        {"psi1", &IterationRecord::psi1},
-        {"psi2", &IterationRecord::psi2},
-        {"volume_fraction", &IterationRecord::volumeFraction},
-        {"max_design_change", &IterationRecord::maxDesignChange},
-        {"evaluation_seconds", &IterationRecord::evaluationSeconds},
-        {"mma_seconds", &IterationRecord::mmaSeconds},
-        {"total_seconds", &IterationRecord::totalSeconds}};
     std::vector<double> column(rows);
-    for (const auto& [name, member] : columns) {
+    for (const auto& [name, member] : kHistoryColumns) {
       readDataset(c, group.get(), name, H5T_NATIVE_DOUBLE, {rows}, column.data());
       for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = column[k];
     }

@@ -2,6 +2,7 @@
 
 #include <unsupported/Eigen/AutoDiff>
 
+#include <array>
 #include <vector>
 
 namespace hindsight::rod {
@@ -215,15 +216,17 @@ void SliderCrankProblem::massMatrix(double t, ConstVectorRef q, ConstVectorRef p
     for (int j = 0; j < n; ++j) jw += q(i) * P.mee(i, j) * q(j);
   }
   const double g = fr.g;
+  // A1 = a0 + q^T Ct once; M = M_ee + A1^T beta_q + beta_q^T A1 + J_w beta_q^T beta_q, beta_q = g b.
+  std::array<double, kMaxModes> a1;
   for (int j = 0; j < n; ++j) {
-    double a1 = P.a0(j);
-    for (int i = 0; i < n; ++i) a1 += q(i) * P.ct(i, j);
-    for (int i = 0; i < n; ++i) mass(i, j) = P.mee(i, j) + jw * g * g * P.b(i) * P.b(j) + g * P.b(i) * a1;
+    a1[j] = P.a0(j);
+    for (int i = 0; i < n; ++i) a1[j] += q(i) * P.ct(i, j);
   }
-  for (int i = 0; i < n; ++i) {
-    double a1 = P.a0(i);
-    for (int k = 0; k < n; ++k) a1 += q(k) * P.ct(k, i);
-    for (int j = 0; j < n; ++j) mass(i, j) += a1 * g * P.b(j);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      // Same operation order as before the refactoring, so the bits are unchanged.
+      mass(i, j) = (P.mee(i, j) + jw * g * g * P.b(i) * P.b(j) + g * P.b(i) * a1[j]) + a1[i] * g * P.b(j);
+    }
   }
 }
 
