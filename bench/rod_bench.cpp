@@ -6,9 +6,9 @@
 //                    by the paper's route (discrete adjoint + Nelson per design variable), meshes
 //                    100x6 ... 800x48 (the number of design variables grows 4x per step).
 //   rod_storage/...  the slider-crank with the invariants of the 200x12 initial design, m modes, horizons
-//                    T of 3-30 s (the crank turns at constant speed after 2 s), fixed-step rk4, one
+//                    T of 3-100 s (the crank turns at constant speed after 2 s), fixed-step rk4, one
 //                    gradient dpsi1/dp per strategy: full, binomial, online, disk, multilevel, hermite,
-//                    lossy; baseline: the forward sweep alone.
+//                    lossy; baseline: the forward sweep alone. m20/T100 is 10^6 steps.
 //   rod_routes/...   peers on the same problem (200x12, 10 modes, T = 3 s): discrete adjoint (rk4 at
 //                    the default step; dopri5 adaptive), continuous adjoint (dopri5), CVODES (Adams and
 //                    BDF, Hermite and polynomial, Nd in {10, 100, 1000}); baselines: forward sweeps.
@@ -18,11 +18,13 @@
 // disk_bytes, compression (uncompressed / compressed), grad_rel_err (rod_storage: against full
 // storage of the same run; rod_routes: against a tight discrete reference, rk4 at h = 2e-5, computed
 // once outside the timing), designs, and the phase seconds of PistonRod::evaluate (model_s,
-// simulation_s, chain_s). Every benchmark runs one iteration per repetition; bench/run_suite.py
+// simulation_s, chain_s), rss_base and rss_peak (the process's resident set when the benchmark starts
+// and its high-water mark over the benchmark, bench/peak_rss.h). Every benchmark runs one iteration per repetition; bench/run_suite.py
 // chooses the filters and repetitions and computes medians, min and max.
 //
 // Run: build/bench/rod_bench --benchmark_filter=... --benchmark_repetitions=3
 //      (see bench/run_suite.py and bench/RESULTS.md)
+#include "bench/peak_rss.h"
 #include "engine/gradient.h"
 #include "problems/fe_model.h"
 #include "problems/invariants.h"
@@ -174,6 +176,7 @@ void storageForward(benchmark::State& state, int modes, double endTime) {
   const ReducedRod& r = reducedRod(modes);
   const IntegratorOptions o = fixedStep("rk4", endTime, storageStep(modes));
   ForwardResult result;
+  const double rssBase = bench::resetPeakRss();
   for (auto _ : state) {
     try {
       result = simulate(*r.problem, r.p, o);
@@ -186,6 +189,8 @@ void storageForward(benchmark::State& state, int modes, double endTime) {
   state.counters["h"] = o.step;
   state.counters["state_bytes"] = 8.0 * 2 * modes;
   state.counters["psi1"] = result.objective;
+  state.counters["rss_base"] = rssBase;
+  state.counters["rss_peak"] = rssBase < 0 ? -1.0 : bench::peakRssBytes();
 }
 
 std::int64_t checkpointsOf(const std::string& spec) {
@@ -201,6 +206,7 @@ void storageGradient(benchmark::State& state, int modes, double endTime, std::st
   const bool isFull = StorageSpec::parse(spec).name() == "full";
   GradientResult result;
   StorageCounters counters;
+  const double rssBase = bench::resetPeakRss();
   for (auto _ : state) {
     try {
       auto storage = createStorage(spec);
@@ -229,6 +235,8 @@ void storageGradient(benchmark::State& state, int modes, double endTime, std::st
   state.counters["grad_rel_err"] = (result.gradient - full).norm() / full.norm();
   state.counters["forward_s"] = result.summary.forwardSeconds;
   state.counters["backward_s"] = result.summary.backwardSeconds;
+  state.counters["rss_base"] = rssBase;
+  state.counters["rss_peak"] = rssBase < 0 ? -1.0 : bench::peakRssBytes();
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -310,14 +318,8 @@ void registerAll() {
   }
 
   // ---- rod_storage ----
-  struct Horizon {
-    int modes;
-    double endTime;
-  };
-  // m20/T3: quick; m20/T10, m20/T30 (3e5 steps) and m40/T10 (h = 5e-5, 2e5 steps): full.
-  const std::vector<Horizon> horizons = {{20, 3.0}, {20, 10.0}, {20, 30.0}, {40, 10.0}};
   const std::string dir = "/tmp/hindsight-rod-bench";
-  const std::vector<std::string> specs = {
+  const std::vector<std::string> allSpecs = {
       "full",
       "binomial:checkpoints=10",
       "binomial:checkpoints=100",
@@ -333,10 +335,30 @@ void registerAll() {
       "lossy:codec=zfp,tolerance=1e-6",
       "lossy:codec=zfp,tolerance=1e-10",
   };
+  // The long horizons run one of each family (about 2.5 min per gradient at 10^6 steps).
+  const std::vector<std::string> longSpecs = {
+      "full",
+      "binomial:checkpoints=100",
+      "binomial:checkpoints=1000",
+      "online:checkpoints=100",
+      "disk:dir=" + dir,
+      "multilevel:ram=4MiB,disk=64MiB,dir=" + dir,
+      "hermite:every=16",
+      "lossy:codec=zfp,tolerance=1e-10",
+  };
+  struct Horizon {
+    int modes;
+    double endTime;
+    const std::vector<std::string>* specs;
+  };
+  // m20/T3: quick; m20/T10 (10^5 steps), m20/T30 (3e5), m20/T100 (10^6) and m40/T10 (h = 5e-5, 2e5
+  // steps): full.
+  const std::vector<Horizon> horizons = {
+      {20, 3.0, &allSpecs}, {20, 10.0, &allSpecs}, {20, 30.0, &allSpecs}, {20, 100.0, &longSpecs}, {40, 10.0, &longSpecs}};
   for (const Horizon& h : horizons) {
     const std::string prefix = "rod_storage/" + storageKey(h.modes, h.endTime);
     add(prefix + "/forward", storageForward, h.modes, h.endTime);
-    for (const std::string& spec : specs) add(prefix + "/" + spec, storageGradient, h.modes, h.endTime, spec);
+    for (const std::string& spec : *h.specs) add(prefix + "/" + spec, storageGradient, h.modes, h.endTime, spec);
   }
 
   // ---- rod_routes ----

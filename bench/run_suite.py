@@ -51,10 +51,15 @@ FULL = [
     ("rod_bench", r"^rod_design/(100x6|200x12)/gradient-nelson/", 3),
     ("rod_bench", r"^rod_design/400x24/gradient-nelson/", 1),
     ("rod_bench", r"^rod_storage/m20/T3/", 3),
-    ("rod_bench", r"^rod_storage/m20/T10/", 3),
+    ("rod_bench", r"^rod_storage/m20/T10/", 1),
     ("rod_bench", r"^rod_storage/m20/T30/", 1),
+    ("rod_bench", r"^rod_storage/m20/T100/", 1),
     ("rod_bench", r"^rod_storage/m40/T10/", 1),
-    ("rod_bench", r"^rod_routes/", 3),
+    ("rod_bench", r"^rod_routes/(forward/(rk4|trbdf2)|discrete-(rk4|trbdf2)/|.*/rtol:1e-06/)", 3),
+    ("rod_bench", r"^rod_routes/.*/rtol:1e-0[48]/", 1),
+    ("full_order_bench", r"^full_order/(100x6|200x12)/", 3),
+    ("full_order_bench", r"^full_order/(400x24|800x48)/", 1),
+    ("optimize_bench", r".", 3),
     ("storage_bench", r".", 3),
     ("disk_bench", r".", 3),
     ("adjoint_routes_bench", r".", 3),
@@ -519,14 +524,52 @@ def plots(suite, out_dir):
     return made
 
 
+def merge_parts(dirs):
+    """One suite from parts run at the same time (each on its own core) or one after the other: runs are
+    concatenated with the part they came from, benchmarks united (a name in two parts is an error), the
+    load averages are the extremes over the parts and the duration is the span from first start to last end."""
+    if not dirs:
+        sys.exit("merge needs the part directories")
+    parts = []
+    for d in dirs:
+        with open(os.path.join(d, "suite.json")) as f:
+            parts.append(json.load(f))
+    suite = {"mode": "merged: " + ", ".join(p["mode"] for p in parts), "parts": [], "machine": parts[0]["machine"],
+             "git": parts[0]["git"], "runs": [], "benchmarks": {}}
+    starts, ends = [], []
+    for d, p in zip(dirs, parts):
+        start = datetime.datetime.strptime(p["started"], "%Y-%m-%d %H:%M:%S")
+        starts.append(start)
+        ends.append(start + datetime.timedelta(seconds=p["duration_s"]))
+        suite["parts"].append({"dir": os.path.relpath(d, ROOT), "mode": p["mode"], "started": p["started"],
+                               "duration_s": p["duration_s"], "git": p["git"], "load_start": p["load_start"],
+                               "load_end": p.get("load_end", p["load_start"])})
+        for r in p["runs"]:
+            suite["runs"].append(dict(r, part=os.path.relpath(d, ROOT)))
+        for name, b in p["benchmarks"].items():
+            if name in suite["benchmarks"]:
+                sys.exit("merge: %s is in two parts" % name)
+            suite["benchmarks"][name] = b
+        if p["git"]["commit"] != suite["git"]["commit"]:
+            suite["git"] = {"commit": " + ".join(x["git"]["commit"][:10] for x in suite["parts"]),
+                            "branch": p["git"]["branch"], "dirty": any(x["git"]["dirty"] for x in suite["parts"])}
+    suite["started"] = min(starts).strftime("%Y-%m-%d %H:%M:%S")
+    suite["duration_s"] = (max(ends) - min(starts)).total_seconds()
+    suite["load_start"] = [max(x["load_start"][i] for x in suite["parts"]) for i in range(3)]
+    suite["load_end"] = [max(x["load_end"][i] for x in suite["parts"]) for i in range(3)]
+    return suite
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("mode", choices=["quick", "full", "report"],
-                        help="report: rebuild tables and plots from an existing DIR/suite.json")
+    parser.add_argument("mode", choices=["quick", "full", "report", "merge"],
+                        help="report: rebuild tables and plots from an existing DIR/suite.json; "
+                             "merge: combine the suite.json of parts run side by side (one per core)")
     parser.add_argument("--out", default=None)
     parser.add_argument("--build", default=os.path.join(ROOT, "build"))
     parser.add_argument("--only", default=None,
-                        help="run only the plan entries whose filter text matches this regular expression")
+                        help="run only the plan entries whose 'binary filter' text matches this regular expression")
+    parser.add_argument("parts", nargs="*", help="merge: the DIRs whose suite.json files to combine into --out")
     parser.add_argument("--repetitions", type=int, default=None, help="override every entry's repetitions")
     args = parser.parse_args()
     out_dir = os.path.abspath(args.out or os.path.join(ROOT, "bench", "results-" + args.mode))
@@ -536,10 +579,14 @@ def main():
     if args.mode == "report":
         with open(suite_path) as f:
             suite = json.load(f)
+    elif args.mode == "merge":
+        suite = merge_parts(args.parts)
+        with open(suite_path, "w") as f:
+            json.dump(suite, f, indent=1)
     else:
         plan = QUICK if args.mode == "quick" else FULL
         if args.only:
-            plan = [entry for entry in plan if re.search(args.only, entry[1])]
+            plan = [entry for entry in plan if re.search(args.only, entry[0] + " " + entry[1])]
         if args.repetitions:
             plan = [(b, f, args.repetitions) for b, f, _ in plan]
         started = time.time()
