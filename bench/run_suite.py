@@ -5,15 +5,20 @@ and PNG plots.
     /usr/bin/python3 bench/run_suite.py quick|full [--out DIR] [--build DIR] [--only REGEX] [--repetitions N]
     /usr/bin/python3 bench/run_suite.py report --out DIR   (tables and plots again from DIR/suite.json)
 
-quick: bench/rod_bench only: meshes 100x6 and 200x12 (paper route at 200x12: 1 repetition), six storage
-       strategies on the 20-mode rod with T = 3 s, the peers at rtol 1e-6 (CVODES Nd = 100 only);
-       3 repetitions. About 4-5 min of CPU time; under a load average of 6 on 2 cores the wall time
-       is 2-4x that (bench/RESULTS.md gives the measured duration).
-full:  every rod_bench benchmark: meshes up to 800x48 (the paper's route at 400x24, minutes per
-       gradient, 1 repetition; at 800x48 it is not run), all 14 strategies on m20/T3, m20/T10 (10^5
-       steps), m20/T30 and m40/T10 (h = 5e-5), the peers at rtol 1e-4, 1e-6, 1e-8 with Nd 10/100/1000,
-       then the colleagues' benches (storage_bench, disk_bench, adjoint_routes_bench, engine_bench).
-       Estimated 3-4 h CPU time: start it on a quiet machine, in the background.
+quick: the full-order rod at 100x6 (7 strategies, 100 TR-BDF2 steps); rod_bench: meshes 100x6 and
+       200x12 (paper route at 200x12: 1 repetition), six storage strategies on the 20-mode rod with
+       T = 3 s, the peers at rtol 1e-6 (CVODES Nd = 100 only); 3 repetitions. Under 5 min on 2 cores
+       (bench/RESULTS.md gives the measured duration).
+full:  rod_bench: meshes 100x6 ... 1600x96 (the paper's route up to 400x24, minutes per gradient, 1
+       repetition); 14 strategies on m20/T3, m20/T10 (10^5 steps) and m20/T30 (3e5 steps), one per
+       family on m20/T100 (10^6 steps) and m40/T10 (h = 5e-5); the peers at rtol 1e-4, 1e-6, 1e-8 with
+       Nd 10/100/1000. full_order_bench: 7 strategies on the full-order rod 100x6 ... 800x48.
+       optimize_bench: the 50-iteration optimisation, both routes. Then the colleagues' benches
+       (storage_bench, disk_bench, adjoint_routes_bench, engine_bench). About 1.5 h on 2 cores when run
+       as two parts side by side (bench/RESULTS.md gives the commands and durations):
+         run_suite.py full --out A --only '^rod_bench (?!.*400x24/gradient-nelson)'
+         run_suite.py full --out B --only '400x24/gradient-nelson|^(?!rod_bench)'
+         run_suite.py merge --out DIR A B
 
 Outputs in DIR (default bench/results-MODE): suite.json (median, min, max per benchmark and counter;
 machine info, nproc, load average at start and end, git commit; the exact commands), the raw Google
@@ -37,6 +42,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # (binary, filter, repetitions). Filters are Google Benchmark regular expressions.
 QUICK = [
+    ("full_order_bench", r"^full_order/100x6/", 3),
     ("rod_bench", r"^rod_design/100x6/", 3),
     ("rod_bench", r"^rod_design/200x12/(forward|gradient-adjoint-nelson)/", 3),
     ("rod_bench", r"^rod_design/200x12/gradient-nelson/", 1),
@@ -50,6 +56,7 @@ FULL = [
     ("rod_bench", r"^rod_design/(400x24|800x48)/(forward|gradient-adjoint-nelson)/", 3),
     ("rod_bench", r"^rod_design/(100x6|200x12)/gradient-nelson/", 3),
     ("rod_bench", r"^rod_design/400x24/gradient-nelson/", 1),
+    ("rod_bench", r"^rod_design/1600x96/(forward|gradient-adjoint-nelson)/", 1),
     ("rod_bench", r"^rod_storage/m20/T3/", 3),
     ("rod_bench", r"^rod_storage/m20/T10/", 1),
     ("rod_bench", r"^rod_storage/m20/T30/", 1),
@@ -202,7 +209,7 @@ def mb(v):
 
 def design_rows(results):
     rows = []
-    for mesh in ["100x6", "200x12", "400x24", "800x48"]:
+    for mesh in ["100x6", "200x12", "400x24", "800x48", "1600x96"]:
         f = "rod_design/%s/forward" % mesh
         a = "rod_design/%s/gradient-adjoint-nelson" % mesh
         n = "rod_design/%s/gradient-nelson" % mesh
@@ -230,6 +237,48 @@ def storage_groups(results):
         if m:
             groups.setdefault(m.group(1), []).append(m.group(2))
     return groups
+
+
+def rss_growth(results, name):
+    """Peak resident set over a benchmark minus the resident set at its start [MB] (None if unknown)."""
+    base, peak = med(results, name, "rss_base"), med(results, name, "rss_peak")
+    if base is None or peak is None or base < 0 or peak < 0:
+        return None
+    return (peak - base) / 1e6
+
+
+def strategy_table(results, prefix, specs, directory):
+    """Markdown rows of one storage trade-off group: PREFIXforward is the baseline, PREFIXspec per strategy;
+    the scratch directory in the specs is printed as D."""
+    fwd = prefix + "forward"
+    base = med(results, fwd)
+    rows = ["| strategy | CPU ms | wall ms | grad/fwd CPU | recomputed | ratio to revolve | peak MB | "
+            "RSS growth MB | disk MB | compression | I/O s | rel. gradient error |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            "| forward only (baseline) | %s | %s | 1 | — | — | — | %s | — | — | — | — |" % (
+                fmt(base), fmt(med(results, fwd, "real_time_ms")), fmt(rss_growth(results, fwd)))]
+    for spec in specs:
+        name = prefix + spec
+        if results[name]["errors"] and not results[name]["repetitions"]:
+            rows.append("| %s | error: %s |" % (spec, results[name]["errors"][0]))
+            continue
+        rows.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+            spec.replace(directory, "D"), fmt(med(results, name)), fmt(med(results, name, "real_time_ms")),
+            fmt(ratio(med(results, name), base)), fmt(med(results, name, "recomputed")),
+            fmt(med(results, name, "ratio_to_revolve"), 4), fmt(mb(med(results, name, "peak_bytes"))),
+            fmt(rss_growth(results, name)), fmt(mb(med(results, name, "disk_bytes"))),
+            fmt(med(results, name, "compression")), fmt(med(results, name, "io_s")),
+            fmt(med(results, name, "grad_rel_err"))))
+    return rows
+
+
+def full_order_groups(results):
+    groups = {}
+    for name in results:
+        m = re.match(r"^full_order/(\d+x\d+)/(.*)$", name)
+        if m and m.group(2) != "forward":
+            groups.setdefault(m.group(1), []).append(m.group(2))
+    return sorted(groups.items(), key=lambda kv: int(kv[0].split("x")[0]))
 
 
 def route_rows(results):
@@ -315,6 +364,20 @@ def markdown(suite):
             out.append("| paper route / hindsight, gradient CPU (chain only) | %s, %d designs%s | %s (%s) |" % (
                 r["mesh"], r["designs"], ", 1 rep." if r["n_reps"] == 1 else "",
                 fmt(ratio(r["n_cpu"], r["an_cpu"])), fmt(ratio(r["n_chain"], r["an_chain"]))))
+    for mesh, specs in full_order_groups(results):
+        f, b = "full_order/%s/full" % mesh, "full_order/%s/binomial:checkpoints=10" % mesh
+        if f in results and b in results:
+            out.append("| full-order rod: binomial c=10 / full, CPU; storage peak MB (binomial vs full) | %s, %s "
+                       "steps | %s; %s vs %s |" % (
+                           mesh, fmt(med(results, f, "steps")), fmt(ratio(med(results, b), med(results, f))),
+                           fmt(mb(med(results, b, "peak_bytes"))), fmt(mb(med(results, f, "peak_bytes")))))
+    if "rod_optimize/psi1" in results and "rod_optimize/psi2" in results:
+        p1, p2 = "rod_optimize/psi1", "rod_optimize/psi2"
+        out.append("| 50-iteration optimisation, wall s: ψ1 route / ESL route | 200x12 defaults | %s / %s |" % (
+            fmt(med(results, p1, "real_time_ms") / 1e3), fmt(med(results, p2, "real_time_ms") / 1e3)))
+        out.append("| ψ1 of the final design: ESL route / ψ1 route (paper 3.3) | 200x12 defaults | %s (%s vs %s) |" % (
+            fmt(ratio(med(results, p2, "psi1_final"), med(results, p1, "psi1_final"))),
+            fmt(med(results, p2, "psi1_final"), 4), fmt(med(results, p1, "psi1_final"), 4)))
     for r in design_rows(results):
         out.append("| gradient / forward, adjoint Nelson | %s, %d designs | %s%s |" % (
             r["mesh"], r["designs"], fmt(ratio(r["an_cpu"], r["fwd_cpu"])),
@@ -353,26 +416,51 @@ def markdown(suite):
                    "optimum; N − 1 for strategies without a schedule).\n" % (
                        key.split("/")[0][1:], key.split("/")[1][1:], fmt(med(results, fwd, "steps")),
                        fmt(med(results, fwd, "state_bytes"))))
-        out.append("| strategy | CPU ms | wall ms | grad/fwd CPU | recomputed | ratio to revolve | peak MB | disk MB | "
-                   "compression | I/O s | rel. gradient error |")
-        out.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-        base = med(results, fwd)
-        out.append("| forward only (baseline) | %s | %s | 1 | — | — | — | — | — | — | — |" % (
-            fmt(base), fmt(med(results, fwd, "real_time_ms"))))
-        for spec in specs:
-            if spec == "forward":
-                continue
-            name = "rod_storage/%s/%s" % (key, spec)
-            if results[name]["errors"] and not results[name]["repetitions"]:
-                out.append("| %s | error: %s |" % (spec, results[name]["errors"][0]))
-                continue
-            out.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
-                spec.replace("/tmp/hindsight-rod-bench", "D"), fmt(med(results, name)),
-                fmt(med(results, name, "real_time_ms")),
-                fmt(ratio(med(results, name), base)), fmt(med(results, name, "recomputed")),
-                fmt(med(results, name, "ratio_to_revolve"), 4), fmt(mb(med(results, name, "peak_bytes"))),
-                fmt(mb(med(results, name, "disk_bytes"))), fmt(med(results, name, "compression")),
-                fmt(med(results, name, "io_s")), fmt(med(results, name, "grad_rel_err"))))
+        out.extend(strategy_table(results, "rod_storage/%s/" % key, [x for x in specs if x != "forward"],
+                                  "/tmp/hindsight-rod-bench"))
+        out.append("")
+
+    # ------------------------------------------------------------------ full-order rod
+    for mesh, specs in full_order_groups(results):
+        fwd = "full_order/%s/forward" % mesh
+        out.append("## Storage trade-offs, full-order rod %s (`full_order_bench`)\n" % mesh)
+        out.append("Unreduced FE model of x0 = 0.5 (SPEC §9), state %s doubles (%s kB), TR-BDF2 h = 1e-3, "
+                   "%s steps (crank at full speed after 50 ms); full storage for the paper's T = 3 s would hold "
+                   "%s MB. One gradient dψ1,full/dx per repetition (%s); error against `full`. RSS growth = "
+                   "peak resident set over the benchmark minus the resident set at its start.\n" % (
+                       fmt(med(results, fwd, "state_bytes") / 8), fmt(med(results, fwd, "state_bytes") / 1e3),
+                       fmt(med(results, fwd, "steps")), fmt(mb(med(results, fwd, "full_bytes_T3"))),
+                       "%d repetitions" % results[fwd]["repetitions"] if results[fwd]["repetitions"] > 1
+                       else "1 repetition"))
+        out.extend(strategy_table(results, "full_order/%s/" % mesh, specs, "/tmp/hindsight-full-order-bench"))
+        out.append("")
+
+    # ------------------------------------------------------------------ optimisation
+    opt = [n for n in ("rod_optimize/psi1", "rod_optimize/psi2") if n in results]
+    if opt:
+        out.append("## The 50-iteration optimisation end to end (`optimize_bench`)\n")
+        out.append("`hindsight optimize` on the default configuration (200x12, 10 modes, rk4 h = 1e-4, T = 3 s, "
+                   "MMA move limit 0.5, V/V0 ≤ 0.5), results.h5 rewritten after every iteration. psi1: exact "
+                   "gradients (discrete adjoint + adjoint Nelson); psi2: equivalent static loads. Seconds are "
+                   "medians (min–max) over the repetitions; ψ1 of the final design is the paper's comparison.\n")
+        out.append("| route | reps | wall s | CPU s | evaluations | ψ1 initial | ψ1 final | ψ2 final | V/V0 | "
+                   "backtracks | evaluation s | MMA s |")
+        out.append("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+        for name in opt:
+            b = results[name]
+            w = b["real_time_ms"]
+            out.append("| %s | %d | %s (%s–%s) | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+                name.split("/")[1], b["repetitions"], fmt(w["median"] / 1e3), fmt(w["min"] / 1e3),
+                fmt(w["max"] / 1e3), fmt(med(results, name) / 1e3), fmt(med(results, name, "iterations")),
+                fmt(med(results, name, "psi1_initial"), 5), fmt(med(results, name, "psi1_final"), 4),
+                fmt(med(results, name, "psi2_final"), 4), fmt(med(results, name, "volume_final"), 3),
+                fmt(med(results, name, "backtracks")), fmt(med(results, name, "evaluation_s")),
+                fmt(med(results, name, "mma_s"))))
+        if len(opt) == 2:
+            out.append("\nψ1 of the ESL design / ψ1 of the ψ1 design: %s (paper: 3.3); wall time ψ1 route / ESL "
+                       "route: %s (paper: two days / 1.5 h = 32).\n" % (
+                           fmt(ratio(med(results, opt[1], "psi1_final"), med(results, opt[0], "psi1_final"))),
+                           fmt(ratio(med(results, opt[0], "real_time_ms"), med(results, opt[1], "real_time_ms")))))
         out.append("")
 
     # ------------------------------------------------------------------ routes
@@ -403,7 +491,8 @@ def markdown(suite):
         out.append("")
 
     # ------------------------------------------------------------------ other binaries
-    others = sorted(n for n in results if results[n]["binary"] != "rod_bench")
+    others = sorted(n for n in results
+                    if results[n]["binary"] not in ("rod_bench", "full_order_bench", "optimize_bench"))
     if others:
         out.append("## Other benchmarks (medians)\n")
         out.append("| benchmark | CPU ms | wall ms | counters (median) |")
