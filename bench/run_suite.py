@@ -639,9 +639,10 @@ def merge_parts(dirs):
             if name in suite["benchmarks"]:
                 sys.exit("merge: %s is in two parts" % name)
             suite["benchmarks"][name] = b
-        if p["git"]["commit"] != suite["git"]["commit"]:
-            suite["git"] = {"commit": " + ".join(x["git"]["commit"][:10] for x in suite["parts"]),
-                            "branch": p["git"]["branch"], "dirty": any(x["git"]["dirty"] for x in suite["parts"])}
+    commits = [x["git"]["commit"] for x in suite["parts"]]
+    if len(set(commits)) > 1:
+        suite["git"] = {"commit": " + ".join(c[:10] for c in commits), "branch": parts[-1]["git"]["branch"],
+                        "dirty": any(x["git"]["dirty"] for x in suite["parts"])}
     suite["started"] = min(starts).strftime("%Y-%m-%d %H:%M:%S")
     suite["duration_s"] = (max(ends) - min(starts)).total_seconds()
     suite["load_start"] = [max(x["load_start"][i] for x in suite["parts"]) for i in range(3)]
@@ -660,7 +661,7 @@ def main():
                         help="run only the plan entries whose 'binary filter' text matches this regular expression")
     parser.add_argument("parts", nargs="*", help="merge: the DIRs whose suite.json files to combine into --out")
     parser.add_argument("--repetitions", type=int, default=None, help="override every entry's repetitions")
-    args = parser.parse_args()
+    args = parser.parse_intermixed_args()
     out_dir = os.path.abspath(args.out or os.path.join(ROOT, "bench", "results-" + args.mode))
     os.makedirs(out_dir, exist_ok=True)
     suite_path = os.path.join(out_dir, "suite.json")
