@@ -136,9 +136,10 @@ void gradient(benchmark::State& state, Mesh mesh, std::string spec) {
   setCommon(state, mesh, rssBase, result.objective);
   if (spec == "full") fullGradients()[mesh.name()] = result.gradient;
   auto reference = fullGradients().find(mesh.name());
-  state.counters["grad_rel_err"] = reference == fullGradients().end()
-                                       ? -1.0  // run filtered without `full`: no reference
-                                       : (result.gradient - reference->second).norm() / reference->second.norm();
+  state.counters["grad_rel_err"] =
+      reference == fullGradients().end()
+          ? -1.0  // run filtered without `full`: no reference
+          : (result.gradient - reference->second).norm() / reference->second.norm();
   const std::int64_t n = result.summary.steps;
   const std::int64_t checkpoints = checkpointsOf(spec);
   const double optimum = checkpoints >= 0 ? static_cast<double>(revolve::optimalForwardSteps(n, checkpoints))

@@ -19,8 +19,8 @@
 // storage of the same run; rod_routes: against a tight discrete reference, rk4 at h = 2e-5, computed
 // once outside the timing), designs, and the phase seconds of PistonRod::evaluate (model_s,
 // simulation_s, chain_s), rss_base and rss_peak (the process's resident set when the benchmark starts
-// and its high-water mark over the benchmark, bench/peak_rss.h). Every benchmark runs one iteration per repetition; bench/run_suite.py
-// chooses the filters and repetitions and computes medians, min and max.
+// and its high-water mark over the benchmark, bench/peak_rss.h). Every benchmark runs one iteration per
+// repetition; bench/run_suite.py chooses the filters and repetitions and computes medians, min and max.
 //
 // Run: build/bench/rod_bench --benchmark_filter=... --benchmark_repetitions=3
 //      (see bench/run_suite.py and bench/RESULTS.md)
@@ -166,7 +166,10 @@ const Vector& fullGradient(int modes, double endTime) {
   if (it == cache.end()) {
     const ReducedRod& r = reducedRod(modes);
     auto full = createStorage("full");
-    it = cache.emplace(key, computeGradient(*r.problem, r.p, fixedStep("rk4", endTime, storageStep(modes)), *full).gradient)
+    it = cache
+             .emplace(key,
+                      computeGradient(*r.problem, r.p, fixedStep("rk4", endTime, storageStep(modes)), *full)
+                          .gradient)
              .first;
   }
   return it->second;
@@ -354,12 +357,16 @@ void registerAll() {
   };
   // m20/T3: quick; m20/T10 (10^5 steps), m20/T30 (3e5), m20/T100 (10^6) and m40/T10 (h = 5e-5, 2e5
   // steps): full.
-  const std::vector<Horizon> horizons = {
-      {20, 3.0, &allSpecs}, {20, 10.0, &allSpecs}, {20, 30.0, &allSpecs}, {20, 100.0, &longSpecs}, {40, 10.0, &longSpecs}};
+  const std::vector<Horizon> horizons = {{20, 3.0, &allSpecs},
+                                         {20, 10.0, &allSpecs},
+                                         {20, 30.0, &allSpecs},
+                                         {20, 100.0, &longSpecs},
+                                         {40, 10.0, &longSpecs}};
   for (const Horizon& h : horizons) {
     const std::string prefix = "rod_storage/" + storageKey(h.modes, h.endTime);
     add(prefix + "/forward", storageForward, h.modes, h.endTime);
-    for (const std::string& spec : *h.specs) add(prefix + "/" + spec, storageGradient, h.modes, h.endTime, spec);
+    for (const std::string& spec : *h.specs)
+      add(prefix + "/" + spec, storageGradient, h.modes, h.endTime, spec);
   }
 
   // ---- rod_routes ----
@@ -395,7 +402,8 @@ void registerAll() {
     continuous.adjoint = AdjointMethod::Continuous;
     add("rod_routes/continuous-dopri5/full" + suffix, routeGradient, continuous);
     for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
-      for (CvodesInterpolation interpolation : {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
+      for (CvodesInterpolation interpolation :
+           {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
         for (std::int64_t nd : {10, 100, 1000}) {
           GradientOptions cvodes = base;
           cvodes.adjoint = AdjointMethod::Cvodes;

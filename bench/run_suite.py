@@ -231,12 +231,14 @@ def design_rows(results):
 
 
 def storage_groups(results):
+    """{"m20/T3": [specs...], ...} in the order of modes, then horizon (dicts keep insertion order)."""
     groups = {}
     for name in results:
         m = re.match(r"^rod_storage/(m\d+/T\d+)/(.*)$", name)
         if m:
             groups.setdefault(m.group(1), []).append(m.group(2))
-    return groups
+    order = lambda key: tuple(int(x) for x in re.findall(r"\d+", key))
+    return {key: groups[key] for key in sorted(groups, key=order)}
 
 
 def rss_growth(results, name):
@@ -324,7 +326,7 @@ def markdown(suite):
     out.append("## Summary: headline ratios (CPU-time medians)\n")
     out.append("| headline | configuration | value |")
     out.append("|---|---|---:|")
-    for key, names in sorted(storage_groups(results).items()):
+    for key, names in storage_groups(results).items():
         base = med(results, "rod_storage/%s/forward" % key)
         for spec in ["full", "binomial:checkpoints=100", "online:checkpoints=100", "disk:dir=/tmp/hindsight-rod-bench",
                      "hermite:every=4", "lossy:codec=round,tolerance=1e-6"]:
@@ -344,7 +346,7 @@ def markdown(suite):
             out.append("| gradient / forward dopri5 rtol=1e-6, %s (error %s) | rod m10/T3 | %s |" % (
                 route, fmt(med(results, name, "grad_rel_err")),
                 fmt(ratio(med(results, name), med(results, "rod_routes/forward/dopri5/rtol:1e-06")))))
-    for key in sorted(storage_groups(results)):
+    for key in storage_groups(results):
         for spec in ["binomial:checkpoints=10", "binomial:checkpoints=100", "online:checkpoints=100",
                      "online:checkpoints=1000"]:
             name = "rod_storage/%s/%s" % (key, spec)
@@ -407,7 +409,7 @@ def markdown(suite):
         out.append("")
 
     # ------------------------------------------------------------------ storage
-    for key, specs in sorted(storage_groups(results).items()):
+    for key, specs in storage_groups(results).items():
         fwd = "rod_storage/%s/forward" % key
         out.append("## Storage trade-offs, rod %s (`rod_storage`)\n" % key)
         out.append("Slider-crank with the invariants of the 200x12 initial design, %s modes, T = %s s, rk4 "
@@ -451,7 +453,7 @@ def markdown(suite):
             w = b["real_time_ms"]
             out.append("| %s | %d | %s (%s–%s) | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
                 name.split("/")[1], b["repetitions"], fmt(w["median"] / 1e3), fmt(w["min"] / 1e3),
-                fmt(w["max"] / 1e3), fmt(med(results, name) / 1e3), fmt(med(results, name, "iterations")),
+                fmt(w["max"] / 1e3), fmt(med(results, name) / 1e3), fmt(med(results, name, "evaluations")),
                 fmt(med(results, name, "psi1_initial"), 5), fmt(med(results, name, "psi1_final"), 4),
                 fmt(med(results, name, "psi2_final"), 4), fmt(med(results, name, "volume_final"), 3),
                 fmt(med(results, name, "backtracks")), fmt(med(results, name, "evaluation_s")),
@@ -521,40 +523,42 @@ def plots(suite, out_dir):
         return []
     results = suite["benchmarks"]
     made = []
-    # Time vs memory per strategy.
-    groups = storage_groups(results)
-    if groups:
-        fig, axes = plt.subplots(1, len(groups), figsize=(7 * len(groups), 5.5), squeeze=False)
-        for ax, (key, specs) in zip(axes[0], sorted(groups.items())):
-            base = med(results, "rod_storage/%s/forward" % key)
+    # Time vs memory per strategy: one panel per reduced-rod horizon and per full-order mesh.
+    panels = [("rod_storage/%s/" % key, [x for x in specs if x != "forward"], "reduced rod " + key)
+              for key, specs in storage_groups(results).items()]
+    panels += [("full_order/%s/" % mesh, specs, "full-order rod " + mesh) for mesh, specs in full_order_groups(results)]
+    if panels:
+        columns = min(3, len(panels))
+        rows_ = (len(panels) + columns - 1) // columns
+        fig, axes = plt.subplots(rows_, columns, figsize=(6.5 * columns, 5 * rows_), squeeze=False)
+        markers = dict(full="s", binomial="o", online="^", disk="D", multilevel="P", hermite="v", lossy="*")
+        for ax, (prefix, specs, title) in zip(axes.flat, panels):
+            base = med(results, prefix + "forward")
             families = {}
             for spec in specs:
-                if spec == "forward":
-                    continue
-                name = "rod_storage/%s/%s" % (key, spec)
-                t, peak = med(results, name), med(results, name, "peak_bytes")
+                t, peak = med(results, prefix + spec), med(results, prefix + spec, "peak_bytes")
                 if t is None or peak is None:
                     continue
-                fam = spec.split(":")[0]
-                families.setdefault(fam, []).append((peak / 1e6, t / base if base else t, spec))
-            markers = dict(full="s", binomial="o", online="^", disk="D", multilevel="P", hermite="v", lossy="*")
+                families.setdefault(spec.split(":")[0], []).append((peak / 1e6, t / base if base else t, spec))
             for fam, pts in sorted(families.items()):
                 ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=markers.get(fam, "x"), s=60, label=fam)
                 for x, y, spec in pts:
                     label = spec.split(":", 1)[1] if ":" in spec else spec
-                    label = label.replace("dir=/tmp/hindsight-rod-bench", "").replace("checkpoints=", "c=").strip(",")
+                    label = re.sub(r"dir=/tmp/[^,]*", "", label).replace("checkpoints=", "c=").strip(",")
                     ax.annotate(label or fam, (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
             ax.set_xscale("log")
             ax.set_xlabel("peak bytes held in memory by the storage [MB]")
             ax.set_ylabel("gradient CPU time / forward CPU time")
-            ax.set_title("rod %s: time vs memory per strategy" % key)
+            ax.set_title("%s: time vs memory" % title)
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.suptitle("hindsight storage strategies, medians (%d cores, load %.1f)" % (
+            ax.legend(fontsize=7)
+        for ax in list(axes.flat)[len(panels):]:
+            ax.set_visible(False)
+        fig.suptitle("hindsight storage strategies, CPU-time medians (%d cores, load %.1f)" % (
             suite["machine"]["nproc"], suite["load_start"][0]))
         fig.tight_layout()
         path = os.path.join(out_dir, "storage_tradeoff.png")
-        fig.savefig(path, dpi=110)
+        fig.savefig(path, dpi=100)
         plt.close(fig)
         made.append(path)
     # Error vs time per route.
@@ -679,6 +683,9 @@ def main():
             plan = [entry for entry in plan if re.search(args.only, entry[0] + " " + entry[1])]
         if args.repetitions:
             plan = [(b, f, args.repetitions) for b, f, _ in plan]
+        for stale in os.listdir(out_dir):  # raw files of an earlier run would mix with this one's
+            if re.match(r"^raw-\d+-.*\.json$", stale):
+                os.remove(os.path.join(out_dir, stale))
         started = time.time()
         suite = {
             "mode": args.mode + ("" if not args.only else " --only '%s'" % args.only)
