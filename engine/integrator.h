@@ -129,6 +129,7 @@ class RungeKuttaIntegrator final {
   ButcherTableau tableau_;
   std::unique_ptr<ProblemWorkspace> workspace_;
   std::unique_ptr<NewtonSolver> newtonSolver_;  // null: dense path below
+  bool linearInState_ = false;                  // Problem::isLinearInState(): one Newton step per stage
   int n_;
   int stages_;
   Matrix stageSlopes_;    // K, n x s

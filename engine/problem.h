@@ -72,6 +72,11 @@ class Problem {
                                   VectorRef out, ProblemWorkspace* ws) const = 0;
   /// A solver for I - alpha F_z; nullptr means the engine's dense LU of rhsJacobian().
   virtual std::unique_ptr<NewtonSolver> createNewtonSolver() const { return nullptr; }
+  /// True when F is affine in z (F = A(t, p) z + b(t, p)) and the Newton solve (createNewtonSolver() or
+  /// the dense LU) is exact to round-off: an implicit stage is then solved by its first Newton step, and
+  /// the engine skips the second iteration that would only confirm it (one F evaluation and one solve
+  /// per implicit stage). Default false: Newton iterates to options.newtonTolerance.
+  virtual bool isLinearInState() const { return false; }
 
   /// The objective integrand G(t, z, p).
   virtual double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace* ws) const = 0;

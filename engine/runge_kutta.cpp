@@ -174,6 +174,7 @@ RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRe
   work_.resize(n_);
   rhsWork_.resize(n_);
   zStart_.resize(n_);
+  linearInState_ = problem.isLinearInState();
   if (problem.hasDenseJacobian()) {
     jacobian_.resize(n_, n_);
     newtonMatrix_.resize(n_, n_);
@@ -241,7 +242,8 @@ void RungeKuttaIntegrator::solveImplicitStage(int i, double t, double h) {
     ++counters_.newtonIterations;
     const double change = alpha * infNorm(delta_);
     if (!std::isfinite(change)) throw NewtonFailure("Newton iteration produced a non-finite stage", ti);
-    if (change <= options_.newtonTolerance * (infNorm(Z) + options_.absoluteTolerance)) {
+    // An affine F with an exact solve: the first step solves the stage (Problem::isLinearInState).
+    if (linearInState_ || change <= options_.newtonTolerance * (infNorm(Z) + options_.absoluteTolerance)) {
       Z = base_ + alpha * K;
       return;
     }

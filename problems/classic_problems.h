@@ -166,7 +166,7 @@ class Robertson final : public Problem {
                                  ProblemWorkspace* ws) const override;
   void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
                                      VectorRef out, ProblemWorkspace* ws) const override;
-  double terminal(ConstVectorRef z, ConstVectorRef p) const override { return z(0); }
+  double terminal(ConstVectorRef z, ConstVectorRef) const override { return z(0); }
   void addTerminalGradient(ConstVectorRef, ConstVectorRef, VectorRef gz, VectorRef) const override {
     gz(0) += 1.0;
   }

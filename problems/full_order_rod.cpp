@@ -410,8 +410,9 @@ FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef
   }
   IntegratorOptions options = reference.integratorOptions();
   // The stage residual K - F(Z) of this stiff model has round-off ~1e-11 ||Z|| (F sums terms
-  // omega_max^2 u far larger than itself), so the engine's default 1e-13 cannot be met; the model is
-  // linear, so Newton converges in one iteration and the second confirms at this level.
+  // omega_max^2 u far larger than itself), so the engine's default 1e-13 could not be met by a
+  // confirming iteration; the problem is linear in the state (isLinearInState), so the engine takes
+  // one exact Newton step per stage and this tolerance only matters to callers that iterate.
   options.newtonTolerance = std::max(options.newtonTolerance, 1e-10);
   FullOrderRodEvaluation out;
   auto start = Clock::now();

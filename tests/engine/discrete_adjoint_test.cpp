@@ -156,5 +156,68 @@ TEST(StiffProblem, ExplicitMethodNeedsFarMoreStepsThanImplicit) {
   EXPECT_NEAR(explicitRun.objective, implicit.objective, 1e-5 * std::abs(implicit.objective));
 }
 
+// z' = A(p) z + b(t), A = [[0, 1], [-k, -c]], b = (0, sin 3t), psi = int z_0^2 dt: affine in z, so it may
+// declare isLinearInState() and have its implicit stages solved by one Newton step.
+class ForcedOscillator final : public Problem {
+ public:
+  explicit ForcedOscillator(bool declareLinear) : declareLinear_(declareLinear) {}
+  std::string name() const override { return "forced-oscillator"; }
+  int stateSize() const override { return 2; }
+  int parameterSize() const override { return 2; }
+  bool isLinearInState() const override { return declareLinear_; }
+  void initialState(ConstVectorRef, VectorRef z0) const override { z0 << 1.0, 0.0; }
+  void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
+    f(0) = z(1);
+    f(1) = -p(0) * z(0) - p(1) * z(1) + std::sin(3.0 * t);
+  }
+  void rhsJacobian(double, ConstVectorRef, ConstVectorRef p, MatrixRef j, ProblemWorkspace*) const override {
+    j << 0.0, 1.0, -p(0), -p(1);
+  }
+  void addRhsParameterVjp(double, ConstVectorRef z, ConstVectorRef, ConstVectorRef w, VectorRef out,
+                          ProblemWorkspace*) const override {
+    out(0) -= z(0) * w(1);
+    out(1) -= z(1) * w(1);
+  }
+  double integrand(double, ConstVectorRef z, ConstVectorRef, ProblemWorkspace*) const override {
+    return z(0) * z(0);
+  }
+  void addIntegrandStateGradient(double, ConstVectorRef z, ConstVectorRef, double scale, VectorRef out,
+                                 ProblemWorkspace*) const override {
+    out(0) += scale * 2.0 * z(0);
+  }
+  void addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, double, VectorRef,
+                                     ProblemWorkspace*) const override {}
+
+ private:
+  bool declareLinear_;
+};
+
+class ImplicitMethod : public ::testing::TestWithParam<std::string> {};
+
+INSTANTIATE_TEST_SUITE_P(Integrators, ImplicitMethod, ::testing::Values("trbdf2", "sdirk2", "midpoint"),
+                         [](const auto& info) { return info.param; });
+
+TEST_P(ImplicitMethod, LinearProblemTakesOneNewtonStepPerStageWithTheSameResult) {
+  const Vector p = Eigen::Vector2d(40.0, 0.3);
+  const auto options = fixedStep(GetParam(), 2.0, 1e-2);
+  const ForcedOscillator linear(true), iterated(false);
+  const GradientResult one = gradientWithFullStorage(linear, p, options);
+  const GradientResult many = gradientWithFullStorage(iterated, p, options);
+  const ButcherTableau tableau = ButcherTableau::byName(GetParam());
+  int implicitStages = 0;
+  for (Eigen::Index i = 0; i < tableau.a.rows(); ++i) implicitStages += tableau.a(i, i) != 0.0 ? 1 : 0;
+  // Forward sweeps alone (the backward sweep re-solves each step's stages once more).
+  const ForwardResult oneForward = simulate(linear, p, options), manyForward = simulate(iterated, p, options);
+  EXPECT_EQ(oneForward.summary.newtonIterations, implicitStages * oneForward.summary.steps);
+  EXPECT_GE(manyForward.summary.newtonIterations, 2 * implicitStages * manyForward.summary.steps);
+  EXPECT_EQ(one.summary.newtonIterations, 2 * implicitStages * one.summary.steps);
+  // One exact step solves the affine stage equation: the iterated result differs by round-off only.
+  EXPECT_NEAR(one.objective, many.objective, 1e-13 * std::abs(many.objective));
+  EXPECT_LT((one.gradient - many.gradient).norm(), 1e-11 * many.gradient.norm());
+  // And the discrete adjoint is still the derivative of the psi so computed.
+  const auto check = checkGradient(computedObjective(linear, options), p, one.gradient, {1e-8});
+  EXPECT_TRUE(check.passed) << check.message;
+}
+
 }  // namespace
 }  // namespace hindsight
