@@ -1,3 +1,6 @@
+// Helpers shared by the benchmark binaries: the revolve optimum a storage spec is measured against,
+// the storage counters every storage benchmark reports, and the peak resident set per benchmark.
+//
 // Peak resident set size of the benchmark process, per benchmark: Linux keeps one high-water mark
 // (VmHWM) per process, and writing "5" to /proc/self/clear_refs resets it to the current RSS (Linux >= 4.0,
 // Documentation/admin-guide/mm/soft-dirty.rst). A benchmark calls resetPeakRss() before its timed loop
@@ -5,10 +8,49 @@
 // before: caches of earlier benchmarks, the model). No library does this; it is 30 lines of procfs.
 #pragma once
 
+#include "engine/adjoint.h"
+#include "storage/binomial_checkpointing.h"
+#include "storage/storage_spec.h"
+#include "storage/trajectory_storage.h"
+
+#include <benchmark/benchmark.h>
+
+#include <cstdint>
 #include <fstream>
 #include <string>
 
 namespace hindsight::bench {
+
+/// Forward steps of the optimal schedule for `steps` steps under `spec`: revolve's T(N, c) for the
+/// checkpointing strategies (binomial, online: c from the spec), N - 1 for the rest (nothing to
+/// recompute; T(N, N - 1) = N - 1 as well).
+inline double revolveOptimum(const std::string& spec, std::int64_t steps) {
+  const StorageSpec parsed = StorageSpec::parse(spec);
+  if (parsed.name() == "binomial" || parsed.name() == "online") {
+    const std::int64_t c = parsed.integer("checkpoints", 0, 0, BinomialCheckpointing::kMaxCheckpoints);
+    return static_cast<double>(revolve::optimalForwardSteps(steps, c));
+  }
+  return static_cast<double>(steps - 1);
+}
+
+/// The counters of one gradient over storage `spec`: steps, recomputed, ratio_to_revolve
+/// ((N - 1 + recomputed) / revolveOptimum), peak_bytes, disk_bytes, compression, io_s, stored,
+/// forward_s, backward_s.
+inline void setStorageCounters(benchmark::State& state, const std::string& spec, const RunSummary& summary,
+                               const StorageCounters& counters) {
+  const std::int64_t n = summary.steps;
+  state.counters["steps"] = static_cast<double>(n);
+  state.counters["recomputed"] = static_cast<double>(counters.recomputedSteps);
+  state.counters["ratio_to_revolve"] =
+      static_cast<double>(n - 1 + counters.recomputedSteps) / revolveOptimum(spec, n);
+  state.counters["peak_bytes"] = static_cast<double>(counters.peakBytesInMemory);
+  state.counters["disk_bytes"] = static_cast<double>(counters.bytesOnDisk);
+  state.counters["compression"] = counters.compressionRatio();
+  state.counters["io_s"] = counters.ioSeconds;
+  state.counters["stored"] = static_cast<double>(counters.statesStored);
+  state.counters["forward_s"] = summary.forwardSeconds;
+  state.counters["backward_s"] = summary.backwardSeconds;
+}
 
 /// A /proc/self/status field in bytes ("VmHWM", "VmRSS"), or -1 when it cannot be read.
 inline double procStatusBytes(const std::string& field) {

@@ -16,17 +16,15 @@
 // Counters: steps, state_bytes, recomputed, ratio_to_revolve ((N - 1 + recomputed) / T(N, c)),
 // peak_bytes (held by the storage), disk_bytes, compression, io_s, grad_rel_err (against full storage
 // of the same mesh, computed by the `full` benchmark that runs first in each group), rss_base and
-// rss_peak (process resident set at the start and its high-water mark, bench/peak_rss.h), psi1,
+// rss_peak (process resident set at the start and its high-water mark, bench/bench_support.h), psi1,
 // forward_s, backward_s. One iteration per repetition; bench/run_suite.py chooses repetitions.
 //
 // Run: build/bench/full_order_bench --benchmark_filter='full_order/200x12/'
-#include "bench/peak_rss.h"
+#include "bench/bench_support.h"
 #include "engine/adjoint.h"
 #include "problems/full_order_rod.h"
 #include "problems/rod_config.h"
-#include "storage/binomial_checkpointing.h"
 #include "storage/storage_factory.h"
-#include "storage/storage_spec.h"
 
 #include <benchmark/benchmark.h>
 
@@ -110,13 +108,6 @@ void forward(benchmark::State& state, Mesh mesh) {
   setCommon(state, mesh, rssBase, result.objective);
 }
 
-std::int64_t checkpointsOf(const std::string& spec) {
-  const StorageSpec parsed = StorageSpec::parse(spec);
-  if (parsed.name() == "binomial" || parsed.name() == "online")
-    return parsed.integer("checkpoints", 0, 0, BinomialCheckpointing::kMaxCheckpoints);
-  return -1;
-}
-
 void gradient(benchmark::State& state, Mesh mesh, std::string spec) {
   const Case& c = caseOf(mesh);
   const double rssBase = bench::resetPeakRss();
@@ -140,20 +131,7 @@ void gradient(benchmark::State& state, Mesh mesh, std::string spec) {
       reference == fullGradients().end()
           ? -1.0  // run filtered without `full`: no reference
           : (result.gradient - reference->second).norm() / reference->second.norm();
-  const std::int64_t n = result.summary.steps;
-  const std::int64_t checkpoints = checkpointsOf(spec);
-  const double optimum = checkpoints >= 0 ? static_cast<double>(revolve::optimalForwardSteps(n, checkpoints))
-                                          : static_cast<double>(n - 1);
-  state.counters["steps"] = static_cast<double>(n);
-  state.counters["recomputed"] = static_cast<double>(counters.recomputedSteps);
-  state.counters["ratio_to_revolve"] = static_cast<double>(n - 1 + counters.recomputedSteps) / optimum;
-  state.counters["peak_bytes"] = static_cast<double>(counters.peakBytesInMemory);
-  state.counters["disk_bytes"] = static_cast<double>(counters.bytesOnDisk);
-  state.counters["compression"] = counters.compressionRatio();
-  state.counters["io_s"] = counters.ioSeconds;
-  state.counters["stored"] = static_cast<double>(counters.statesStored);
-  state.counters["forward_s"] = result.summary.forwardSeconds;
-  state.counters["backward_s"] = result.summary.backwardSeconds;
+  bench::setStorageCounters(state, spec, result.summary, counters);
 }
 
 void registerAll() {

@@ -19,19 +19,18 @@
 // storage of the same run; rod_routes: against a tight discrete reference, rk4 at h = 2e-5, computed
 // once outside the timing), designs, and the phase seconds of PistonRod::evaluate (model_s,
 // simulation_s, chain_s), rss_base and rss_peak (the process's resident set when the benchmark starts
-// and its high-water mark over the benchmark, bench/peak_rss.h). Every benchmark runs one iteration per
+// and its high-water mark over the benchmark, bench/bench_support.h). Every benchmark runs one iteration per
 // repetition; bench/run_suite.py chooses the filters and repetitions and computes medians, min and max.
 //
 // Run: build/bench/rod_bench --benchmark_filter=... --benchmark_repetitions=3
 //      (see bench/run_suite.py and bench/RESULTS.md)
-#include "bench/peak_rss.h"
+#include "bench/bench_support.h"
 #include "engine/gradient.h"
 #include "problems/fe_model.h"
 #include "problems/invariants.h"
 #include "problems/modal_reduction.h"
 #include "problems/piston_rod.h"
 #include "problems/slider_crank.h"
-#include "storage/binomial_checkpointing.h"
 #include "storage/storage_factory.h"
 #include "storage/storage_spec.h"
 
@@ -196,13 +195,6 @@ void storageForward(benchmark::State& state, int modes, double endTime) {
   state.counters["rss_peak"] = rssBase < 0 ? -1.0 : bench::peakRssBytes();
 }
 
-std::int64_t checkpointsOf(const std::string& spec) {
-  const StorageSpec parsed = StorageSpec::parse(spec);
-  if (parsed.name() == "binomial" || parsed.name() == "online")
-    return parsed.integer("checkpoints", 0, 0, BinomialCheckpointing::kMaxCheckpoints);
-  return -1;  // no checkpointing schedule: compare with N - 1 forward steps
-}
-
 void storageGradient(benchmark::State& state, int modes, double endTime, std::string spec) {
   const ReducedRod& r = reducedRod(modes);
   const IntegratorOptions o = fixedStep("rk4", endTime, storageStep(modes));
@@ -223,21 +215,8 @@ void storageGradient(benchmark::State& state, int modes, double endTime, std::st
   }
   if (isFull) fullGradients().emplace(storageKey(modes, endTime), result.gradient);
   const Vector& full = fullGradient(modes, endTime);
-  const std::int64_t n = result.summary.steps;
-  const std::int64_t c = checkpointsOf(spec);
-  const double optimum =
-      c >= 0 ? static_cast<double>(revolve::optimalForwardSteps(n, c)) : static_cast<double>(n - 1);
-  state.counters["steps"] = static_cast<double>(n);
-  state.counters["recomputed"] = static_cast<double>(counters.recomputedSteps);
-  state.counters["ratio_to_revolve"] = static_cast<double>(n - 1 + counters.recomputedSteps) / optimum;
-  state.counters["peak_bytes"] = static_cast<double>(counters.peakBytesInMemory);
-  state.counters["disk_bytes"] = static_cast<double>(counters.bytesOnDisk);
-  state.counters["compression"] = counters.compressionRatio();
-  state.counters["io_s"] = counters.ioSeconds;
-  state.counters["stored"] = static_cast<double>(counters.statesStored);
+  bench::setStorageCounters(state, spec, result.summary, counters);
   state.counters["grad_rel_err"] = (result.gradient - full).norm() / full.norm();
-  state.counters["forward_s"] = result.summary.forwardSeconds;
-  state.counters["backward_s"] = result.summary.backwardSeconds;
   state.counters["rss_base"] = rssBase;
   state.counters["rss_peak"] = rssBase < 0 ? -1.0 : bench::peakRssBytes();
 }

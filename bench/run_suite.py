@@ -14,11 +14,12 @@ full:  rod_bench: meshes 100x6 ... 1600x96 (the paper's route up to 400x24, minu
        family on m20/T100 (10^6 steps) and m40/T10 (h = 5e-5); the peers at rtol 1e-4, 1e-6, 1e-8 with
        Nd 10/100/1000. full_order_bench: 7 strategies on the full-order rod 100x6 ... 800x48.
        optimize_bench: the 50-iteration optimisation, both routes. Then the colleagues' benches
-       (storage_bench, disk_bench, adjoint_routes_bench, engine_bench). About 1.5 h on 2 cores when run
-       as two parts side by side (bench/RESULTS.md gives the commands and durations):
-         run_suite.py full --out A --only '^rod_bench (?!.*400x24/gradient-nelson)'
+       (storage_bench, disk_bench, adjoint_routes_bench, engine_bench). About 145 min of CPU; 80 min
+       on 2 cores when run as parts side by side (bench/RESULTS.md gives the commands and durations):
+         run_suite.py full --out A --only '^rod_bench (?!.*(400x24/gradient-nelson|1600x96|T100|m40))'
          run_suite.py full --out B --only '400x24/gradient-nelson|^(?!rod_bench)'
-         run_suite.py merge --out DIR A B
+         ... then the rest (1600x96, m20/T100, m40/T10) the same way, and
+         run_suite.py merge --out DIR A B ...
 
 Outputs in DIR (default bench/results-MODE): suite.json (median, min, max per benchmark and counter;
 machine info, nproc, load average at start and end, git commit; the exact commands), the raw Google
@@ -60,8 +61,8 @@ FULL = [
     ("rod_bench", r"^rod_storage/m20/T3/", 3),
     ("rod_bench", r"^rod_storage/m20/T10/", 1),
     ("rod_bench", r"^rod_storage/m20/T30/", 1),
-    ("rod_bench", r"^rod_storage/m20/T100/", 1),
-    ("rod_bench", r"^rod_storage/m40/T10/", 1),
+    ("rod_bench", r"^rod_storage/m20/T100/", 3),
+    ("rod_bench", r"^rod_storage/m40/T10/", 3),
     ("rod_bench", r"^rod_routes/(forward/(rk4|trbdf2)|discrete-(rk4|trbdf2)/|.*/rtol:1e-06/)", 3),
     ("rod_bench", r"^rod_routes/.*/rtol:1e-0[48]/", 1),
     ("full_order_bench", r"^full_order/(100x6|200x12)/", 3),
@@ -314,13 +315,17 @@ def markdown(suite):
                "the benchmark thread's (the disk strategy's I/O thread is in `io_s`).\n" % (
                    m["nproc"], m["cpu"], m["memory"],
                    "/".join("%.2f" % x for x in suite["load_start"]),
-                   "/".join("%.2f" % x for x in suite["load_end"]), suite["git"]["commit"][:10],
+                   "/".join("%.2f" % x for x in suite["load_end"]), ", ".join(sorted(set(c[:10] for c in suite["git"]["commit"].split(" + ")))),
                    " (dirty)" if suite["git"]["dirty"] else "", suite["started"], suite["duration_s"]))
     out.append("Commands:\n")
     out.append("```")
     for r in suite["runs"]:
         out.append("%s   # %.0f s" % (r["command"], r["seconds"]))
     out.append("```\n")
+    if suite.get("replaced"):
+        by = sorted({r["by"] for r in suite["replaced"]})
+        out.append("%d benchmarks of earlier parts were replaced by the later part(s) %s (merge --replace).\n" % (
+            len(suite["replaced"]), ", ".join(by)))
 
     # ------------------------------------------------------------------ summary
     out.append("## Summary: headline ratios (CPU-time medians)\n")
@@ -617,9 +622,10 @@ def plots(suite, out_dir):
     return made
 
 
-def merge_parts(dirs):
+def merge_parts(dirs, replace=False):
     """One suite from parts run at the same time (each on its own core) or one after the other: runs are
-    concatenated with the part they came from, benchmarks united (a name in two parts is an error), the
+    concatenated with the part they came from, benchmarks united (a name in two parts is an error, or with
+    `replace` the later part's entry wins and is listed under "replaced"), the
     load averages are the extremes over the parts and the duration is the span from first start to last end."""
     if not dirs:
         sys.exit("merge needs the part directories")
@@ -641,10 +647,12 @@ def merge_parts(dirs):
             suite["runs"].append(dict(r, part=os.path.relpath(d, ROOT)))
         for name, b in p["benchmarks"].items():
             if name in suite["benchmarks"]:
-                sys.exit("merge: %s is in two parts" % name)
+                if not replace:
+                    sys.exit("merge: %s is in two parts (--replace lets the later part's figures win)" % name)
+                suite.setdefault("replaced", []).append({"name": name, "by": os.path.relpath(d, ROOT)})
             suite["benchmarks"][name] = b
-    commits = [x["git"]["commit"] for x in suite["parts"]]
-    if len(set(commits)) > 1:
+    commits = list(dict.fromkeys(x["git"]["commit"] for x in suite["parts"]))  # unique, in order
+    if len(commits) > 1:
         suite["git"] = {"commit": " + ".join(c[:10] for c in commits), "branch": parts[-1]["git"]["branch"],
                         "dirty": any(x["git"]["dirty"] for x in suite["parts"])}
     suite["started"] = min(starts).strftime("%Y-%m-%d %H:%M:%S")
@@ -663,6 +671,8 @@ def main():
     parser.add_argument("--build", default=os.path.join(ROOT, "build"))
     parser.add_argument("--only", default=None,
                         help="run only the plan entries whose 'binary filter' text matches this regular expression")
+    parser.add_argument("--replace", action="store_true",
+                        help="merge: a benchmark in a later part replaces the same one of an earlier part")
     parser.add_argument("parts", nargs="*", help="merge: the DIRs whose suite.json files to combine into --out")
     parser.add_argument("--repetitions", type=int, default=None, help="override every entry's repetitions")
     args = parser.parse_intermixed_args()
@@ -674,7 +684,7 @@ def main():
         with open(suite_path) as f:
             suite = json.load(f)
     elif args.mode == "merge":
-        suite = merge_parts(args.parts)
+        suite = merge_parts(args.parts, args.replace)
         with open(suite_path, "w") as f:
             json.dump(suite, f, indent=1)
     else:

@@ -7,6 +7,7 @@
 //
 // Run (see bench/RESULTS.md):
 //   ./build/bench/storage_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+#include "bench/bench_support.h"
 #include "engine/adjoint.h"
 #include "problems/heat_equation.h"
 #include "storage/binomial_checkpointing.h"
@@ -100,7 +101,7 @@ void gradient(benchmark::State& state, std::string method, std::int64_t steps, s
   const std::int64_t c = checkpointCount(spec, steps);
   const auto total = static_cast<double>(steps - 1 + storage->counters().recomputedSteps);
   state.counters["recomputed"] = static_cast<double>(storage->counters().recomputedSteps);
-  state.counters["ratio_to_revolve"] = total / static_cast<double>(revolve::optimalForwardSteps(steps, c));
+  state.counters["ratio_to_revolve"] = total / bench::revolveOptimum(spec, steps);
   state.counters["checkpoints"] = static_cast<double>(c);
   state.counters["peak_bytes"] = static_cast<double>(storage->counters().peakBytesInMemory);
   state.counters["grad_rel_diff"] = (result.gradient - full).norm() / full.norm();
