@@ -518,6 +518,15 @@ def markdown(suite):
     return "\n".join(out)
 
 
+def save(plt, fig, out_dir, name, dpi):
+    """Lays out, writes DIR/name and closes one figure; returns its path."""
+    fig.tight_layout()
+    path = os.path.join(out_dir, name)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def plots(suite, out_dir):
     try:
         import matplotlib
@@ -561,11 +570,7 @@ def plots(suite, out_dir):
             ax.set_visible(False)
         fig.suptitle("hindsight storage strategies, CPU-time medians (%d cores, load %.1f)" % (
             suite["machine"]["nproc"], suite["load_start"][0]))
-        fig.tight_layout()
-        path = os.path.join(out_dir, "storage_tradeoff.png")
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        made.append(path)
+        made.append(save(plt, fig, out_dir, "storage_tradeoff.png", 100))
     # Error vs time per route.
     rows = route_rows(results)
     if rows:
@@ -590,11 +595,7 @@ def plots(suite, out_dir):
         ax.set_title("rod 200x12, 10 modes, T = 3 s: error vs time per adjoint route")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-        fig.tight_layout()
-        path = os.path.join(out_dir, "routes_error_vs_time.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        made.append(path)
+        made.append(save(plt, fig, out_dir, "routes_error_vs_time.png", 110))
     # Gradient / forward vs design count.
     rows = design_rows(results)
     if rows:
@@ -614,11 +615,7 @@ def plots(suite, out_dir):
         ax.set_title("piston rod, 10 modes, T = 3 s: gradient cost vs design count")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        path = os.path.join(out_dir, "design_scaling.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        made.append(path)
+        made.append(save(plt, fig, out_dir, "design_scaling.png", 110))
     return made
 
 
