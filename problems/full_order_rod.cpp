@@ -158,16 +158,20 @@ void FullOrderRodProblem::rhs(double t, ConstVectorRef z, ConstVectorRef, Vector
                               ProblemWorkspace* ws) const {
   auto& w = static_cast<Workspace&>(*ws);
   const RigidFrameMotion frame = rigidFrameMotion(crank_, model_.config().length, t);
-  const auto u = z.head(n_);
-  const auto v = z.tail(n_);
-  // g = A u + C v + f(t); u' = v, v' = -M^{-1} g.
-  applyStiffnessOperator(frame, u, w.force, false);
-  if (coupling_) w.force.noalias() += (2.0 * frame.rate) * (rotatedMass_ * v);
-  w.force += frame.pinAccelerationX * loadX_ + frame.pinAccelerationY * loadY_ +
-             frame.acceleration * loadRotated_ - (frame.rate * frame.rate) * loadPosition_;
-  solveMass(w.force);
-  f.head(n_) = v;
+  // u' = v, v' = -M^{-1} g.
+  massSolvedForce(frame, z, w.force);
+  f.head(n_) = z.tail(n_);
   f.tail(n_) = -w.force;
+}
+
+void FullOrderRodProblem::massSolvedForce(const RigidFrameMotion& frame, ConstVectorRef z,
+                                          VectorRef out) const {
+  // g = A u + C v + f(t).
+  applyStiffnessOperator(frame, z.head(n_), out, false);
+  if (coupling_) out.noalias() += (2.0 * frame.rate) * (rotatedMass_ * z.tail(n_));
+  out += frame.pinAccelerationX * loadX_ + frame.pinAccelerationY * loadY_ +
+         frame.acceleration * loadRotated_ - (frame.rate * frame.rate) * loadPosition_;
+  solveMass(out);
 }
 
 void FullOrderRodProblem::rhsStateVjp(double t, ConstVectorRef, ConstVectorRef, ConstVectorRef w,
@@ -192,11 +196,7 @@ void FullOrderRodProblem::addRhsParameterVjp(double t, ConstVectorRef z, ConstVe
   //   q = F_2 + a_full - beta'^2 u + beta'' S u + 2 beta' S v   (coupling terms only with coupling).
   const auto u = z.head(n_);
   const auto v = z.tail(n_);
-  applyStiffnessOperator(frame, u, work.force, false);
-  if (coupling_) work.force.noalias() += (2.0 * frame.rate) * (rotatedMass_ * v);
-  work.force += frame.pinAccelerationX * loadX_ + frame.pinAccelerationY * loadY_ +
-                frame.acceleration * loadRotated_ - (frame.rate * frame.rate) * loadPosition_;
-  solveMass(work.force);  // = -F_2
+  massSolvedForce(frame, z, work.force);  // = -F_2
   work.multiplier = w.tail(n_);
   solveMass(work.multiplier);
 

@@ -135,6 +135,8 @@ class FullOrderRodProblem final : public Problem {
   class Workspace;
   class Newton;
   void build();
+  /// out = M^{-1} g with g = A u + C v + f(t) for z = (u, v), so that F_2 = -out.
+  void massSolvedForce(const RigidFrameMotion& frame, ConstVectorRef z, VectorRef out) const;
 
   FeModel model_;
   CrankMotion crank_;
