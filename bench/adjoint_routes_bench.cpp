@@ -14,6 +14,7 @@
 // On Robertson the continuous route runs with the implicit backward trbdf2 (forward trbdf2, full
 // storage): the default backward dopri5 is stability-limited on the stiff adjoint system (see
 // engine/continuous_adjoint.h).
+#include "bench/bench_support.h"
 #include "engine/gradient.h"
 #include "problems/classic_problems.h"
 
@@ -123,21 +124,9 @@ void registerAll() {
     continuous.storage = "hermite:every=4";
     add("pendulum/continuous-dopri5/hermite4" + suffix, &pendulum, continuous);
 
-    for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
-      for (CvodesInterpolation interpolation :
-           {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
-        for (std::int64_t nd : {10, 100, 1000}) {
-          GradientOptions cvodes = base;
-          cvodes.adjoint = AdjointMethod::Cvodes;
-          cvodes.cvodes.method = method;
-          cvodes.cvodes.interpolation = interpolation;
-          cvodes.cvodes.checkpointSteps = nd;
-          add("pendulum/cvodes-" + toString(method) + "/" + toString(interpolation) + "-Nd" +
-                  std::to_string(nd) + suffix,
-              &pendulum, cvodes);
-        }
-      }
-    }
+    bench::forEachCvodesVariant(base, [&](const std::string& label, const GradientOptions& cvodes) {
+      add("pendulum/" + label + suffix, &pendulum, cvodes);
+    });
   }
   // ---- Robertson (stiff, t1 = 1e5): discrete trbdf2, continuous with backward trbdf2, CVODES BDF. ----
   for (double rtol : {1e-5, 1e-7, 1e-9}) {

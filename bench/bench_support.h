@@ -9,6 +9,7 @@
 #pragma once
 
 #include "engine/adjoint.h"
+#include "engine/gradient.h"
 #include "storage/binomial_checkpointing.h"
 #include "storage/storage_spec.h"
 #include "storage/trajectory_storage.h"
@@ -20,6 +21,27 @@
 #include <string>
 
 namespace hindsight::bench {
+
+/// Calls add(label, options) for every CVODES variant the benches compare, each a copy of `base` with
+/// the CVODES route: Adams and BDF x CV_HERMITE and CV_POLYNOMIAL x Nd in {10, 100, 1000};
+/// label = "cvodes-METHOD/INTERPOLATION-NdN".
+template <class Add>
+void forEachCvodesVariant(const GradientOptions& base, Add&& add) {
+  for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
+    for (CvodesInterpolation interpolation :
+         {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
+      for (std::int64_t nd : {10, 100, 1000}) {
+        GradientOptions cvodes = base;
+        cvodes.adjoint = AdjointMethod::Cvodes;
+        cvodes.cvodes.method = method;
+        cvodes.cvodes.interpolation = interpolation;
+        cvodes.cvodes.checkpointSteps = nd;
+        add("cvodes-" + toString(method) + "/" + toString(interpolation) + "-Nd" + std::to_string(nd),
+            cvodes);
+      }
+    }
+  }
+}
 
 /// Forward steps of the optimal schedule for `steps` steps under `spec`: revolve's T(N, c) for the
 /// checkpointing strategies (binomial, online: c from the spec), N - 1 for the rest (nothing to

@@ -380,21 +380,9 @@ void registerAll() {
     GradientOptions continuous = base;
     continuous.adjoint = AdjointMethod::Continuous;
     add("rod_routes/continuous-dopri5/full" + suffix, routeGradient, continuous);
-    for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
-      for (CvodesInterpolation interpolation :
-           {CvodesInterpolation::Hermite, CvodesInterpolation::Polynomial}) {
-        for (std::int64_t nd : {10, 100, 1000}) {
-          GradientOptions cvodes = base;
-          cvodes.adjoint = AdjointMethod::Cvodes;
-          cvodes.cvodes.method = method;
-          cvodes.cvodes.interpolation = interpolation;
-          cvodes.cvodes.checkpointSteps = nd;
-          add("rod_routes/cvodes-" + toString(method) + "/" + toString(interpolation) + "-Nd" +
-                  std::to_string(nd) + suffix,
-              routeGradient, cvodes);
-        }
-      }
-    }
+    bench::forEachCvodesVariant(base, [&](const std::string& label, const GradientOptions& cvodes) {
+      add("rod_routes/" + label + suffix, routeGradient, cvodes);
+    });
   }
 }
 
