@@ -1,4 +1,4 @@
-// Accuracy against cost of the three adjoint routes (SPEC.md section 8): discrete (hindsight's
+// Accuracy against cost of the three adjoint routes (docs/design.md §8): discrete (hindsight's
 // integrator transposed), continuous (own backward dopri5 over the storage) and CVODES, on the
 // nonlinear pendulum and on stiff Robertson kinetics, at several tolerances; for CVODES also
 // Nd in {10, 100, 1000} and both interpolation types.
@@ -14,9 +14,9 @@
 // On Robertson the continuous route runs with the implicit backward trbdf2 (forward trbdf2, full
 // storage): the default backward dopri5 is stability-limited on the stiff adjoint system (see
 // engine/continuous_adjoint.h).
-#include "bench/bench_support.h"
-#include "engine/gradient.h"
-#include "problems/classic_problems.h"
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include "bench_support.h"
 
 #include <benchmark/benchmark.h>
 
@@ -42,7 +42,7 @@ Case& pendulum() {
     options.integrator.method = "rk4";
     options.integrator.t1 = k.horizon;
     options.integrator.step = 1e-4;
-    k.reference = computeGradient(*k.problem, k.p, options).gradient;
+    k.reference = computeGradientByMethod(*k.problem, k.p, options).gradient;
     return k;
   }();
   return c;
@@ -58,7 +58,7 @@ Case& robertson() {
     options.integrator.step = 1e-8;
     options.integrator.relativeTolerance = 1e-11;
     options.integrator.absoluteTolerance = 1e-16;
-    k.reference = computeGradient(*k.problem, k.p, options).gradient;
+    k.reference = computeGradientByMethod(*k.problem, k.p, options).gradient;
     return k;
   }();
   return c;
@@ -77,7 +77,7 @@ void run(benchmark::State& state, Case& (*problemCase)(), GradientOptions option
   options.integrator.t1 = c.horizon;
   GradientResult result;
   for (auto _ : state) {
-    result = computeGradient(*c.problem, c.p, options);
+    result = computeGradientByMethod(*c.problem, c.p, options);
     benchmark::DoNotOptimize(result.gradient.data());
   }
   state.counters["gradient_error"] = relativeError(c, result.gradient);

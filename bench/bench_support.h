@@ -8,11 +8,11 @@
 // before: caches of earlier benchmarks, the model). No library does this; it is 30 lines of procfs.
 #pragma once
 
-#include "engine/adjoint.h"
-#include "engine/gradient.h"
-#include "storage/binomial_checkpointing.h"
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <benchmark/benchmark.h>
 

@@ -7,8 +7,8 @@
 // with computation), seconds of the I/O thread, relative gradient error against full storage.
 //
 //   ./build/bench/disk_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
-#include "engine/adjoint.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <benchmark/benchmark.h>
 

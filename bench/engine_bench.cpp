@@ -1,9 +1,9 @@
 // Forward and forward+adjoint time of the engine on the pendulum (non-stiff, rk4 fixed step) and on
 // Robertson's stiff kinetics (trbdf2, adaptive). The ratio (forward+adjoint)/forward is the cost of
 // a gradient in units of a simulation; the forward-only run is the baseline in the same binary.
-#include "engine/adjoint.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
 
 #include <benchmark/benchmark.h>
 

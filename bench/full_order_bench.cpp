@@ -1,4 +1,4 @@
-// Storage trade-offs on the full-order rod (SPEC.md section 9, issue #7 experiment 1): the unreduced
+// Storage trade-offs on the full-order rod (docs/design.md §9, issue #7 experiment 1): the unreduced
 // FE model of the initial design x0 = 0.5 carried by the rigid slider-crank motion, state 2n with
 // n = 2 (nx+1)(ny+1) - 3 free DOFs (22 kB per state at 100x6, 1.25 MB at 800x48), TR-BDF2 at
 // h = 1e-3 s (the CLI's `--model full` default), one gradient dpsi1,full/dx per storage strategy.
@@ -20,11 +20,11 @@
 // forward_s, backward_s. One iteration per repetition; bench/run_suite.py chooses repetitions.
 //
 // Run: build/bench/full_order_bench --benchmark_filter='full_order/200x12/'
-#include "bench/bench_support.h"
-#include "engine/adjoint.h"
-#include "problems/full_order_rod.h"
-#include "problems/rod_config.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/rod/full_order_rod.h>
+#include <hindsight/problems/rod/rod_config.h>
+#include <hindsight/storage/storage_factory.h>
+#include "bench_support.h"
 
 #include <benchmark/benchmark.h>
 

@@ -5,7 +5,7 @@
 //
 //   rod_optimize/psi1   the paper's psi1 = int q^T K_ee q dt with exact gradients (discrete adjoint +
 //                       adjoint Nelson), 51 evaluations
-//   rod_optimize/psi2   the equivalent-static-load route (SPEC section 7), 51 evaluations
+//   rod_optimize/psi2   the equivalent-static-load route (docs/design.md §7), 51 evaluations
 //
 // Counters: evaluations (iterations recorded, 51 for 50 updates), psi1_final and psi2_final (both objectives
 // of the final design, whichever was optimised), psi1_initial, volume_final (V/V0), backtracks (halvings
@@ -13,8 +13,8 @@
 // one repetition = the whole run. Results go to /tmp/hindsight-optimize-bench/OBJECTIVE (overwritten).
 //
 // Run: build/bench/optimize_bench --benchmark_filter=rod_optimize/psi2
-#include "problems/config.h"
-#include "problems/optimization_run.h"
+#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/topopt/optimization_run.h>
 
 #include <benchmark/benchmark.h>
 

@@ -1,5 +1,5 @@
-// The piston-rod benchmark suite (SPEC.md section 8) on the reduced (modal) rod: every group has its
-// baseline in the same run (STYLE.md guideline 10).
+// The piston-rod benchmark suite (docs/design.md §8) on the reduced (modal) rod: every group has its
+// baseline in the same run (docs/design.md P 10).
 //
 //   rod_design/...   one forward run of the design (FE model, modes, invariants, simulation) against
 //                    one gradient dpsi1/dx by hindsight's route (discrete adjoint + adjoint Nelson) and
@@ -24,15 +24,15 @@
 //
 // Run: build/bench/rod_bench --benchmark_filter=... --benchmark_repetitions=3
 //      (see bench/run_suite.py and bench/RESULTS.md)
-#include "bench/bench_support.h"
-#include "engine/gradient.h"
-#include "problems/fe_model.h"
-#include "problems/invariants.h"
-#include "problems/modal_reduction.h"
-#include "problems/piston_rod.h"
-#include "problems/slider_crank.h"
-#include "storage/storage_factory.h"
-#include "storage/storage_spec.h"
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/invariants.h>
+#include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/rod/slider_crank.h>
+#include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/storage_spec.h>
+#include "bench_support.h"
 
 #include <benchmark/benchmark.h>
 
@@ -261,7 +261,7 @@ void routeGradient(benchmark::State& state, GradientOptions options) {
   GradientResult result;
   for (auto _ : state) {
     try {
-      result = computeGradient(*r.problem, r.p, options);
+      result = computeGradientByMethod(*r.problem, r.p, options);
     } catch (const std::exception& error) {
       state.SkipWithError(error.what());
       return;

@@ -431,7 +431,7 @@ def markdown(suite):
     for mesh, specs in full_order_groups(results):
         fwd = "full_order/%s/forward" % mesh
         out.append("## Storage trade-offs, full-order rod %s (`full_order_bench`)\n" % mesh)
-        out.append("Unreduced FE model of x0 = 0.5 (SPEC §9), state %s doubles (%s kB), TR-BDF2 h = 1e-3, "
+        out.append("Unreduced FE model of x0 = 0.5 (docs/design.md §9), state %s doubles (%s kB), TR-BDF2 h = 1e-3, "
                    "%s steps (crank at full speed after 50 ms); full storage for the paper's T = 3 s would hold "
                    "%s MB. One gradient dψ1,full/dx per repetition (%s); error against `full`. RSS growth = "
                    "peak resident set over the benchmark minus the resident set at its start.\n" % (

@@ -1,4 +1,4 @@
-// Storage strategies on a large state (SPEC.md section 8): the reaction-diffusion problem with
+// Storage strategies on a large state (docs/design.md §8): the reaction-diffusion problem with
 // n = 10^4 unknowns (80 kB per state), 10^3 and 5000 fixed steps of RK4, 10^3 of TR-BDF2, one gradient per
 // iteration through full, binomial (several c) and online storage, next to the forward-only baseline of
 // the same configuration. Counters: recomputed steps, the ratio of (N - 1) + recomputed steps to the
@@ -7,13 +7,13 @@
 //
 // Run (see bench/RESULTS.md):
 //   ./build/bench/storage_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
-#include "bench/bench_support.h"
-#include "engine/adjoint.h"
-#include "problems/heat_equation.h"
-#include "storage/binomial_checkpointing.h"
-#include "storage/full_storage.h"
-#include "storage/online_checkpointing.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/heat_equation.h>
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/storage_factory.h>
+#include "bench_support.h"
 
 #include <benchmark/benchmark.h>
 

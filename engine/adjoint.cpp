@@ -1,5 +1,5 @@
-#include "engine/adjoint.h"
-#include "engine/grid_recomputer.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/grid_recomputer.h>
 
 #include <chrono>
 #include <cmath>

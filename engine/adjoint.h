@@ -1,12 +1,12 @@
 // The forward sweep and the discrete-adjoint backward sweep over a trajectory storage strategy
-// (SPEC.md section 5). The backward sweep asks the storage for z_n in reverse order and applies the
+// (docs/design.md §5). The backward sweep asks the storage for z_n in reverse order and applies the
 // integrator's exact transposed step, so the gradient is the derivative of the psi actually
 // computed (to the Newton residual for implicit methods). Adaptive steps are taken once in the
 // forward sweep; the backward sweep replays exactly the accepted steps.
 #pragma once
 
-#include "engine/integrator.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <functional>
 #include <iosfwd>
@@ -15,7 +15,7 @@
 
 namespace hindsight {
 
-/// What a run did and what it cost (SPEC.md section 5).
+/// What a run did and what it cost (docs/design.md §5).
 struct RunSummary {
   std::string method;
   std::string adjoint = "discrete";

@@ -1,5 +1,5 @@
-#include "engine/continuous_adjoint.h"
-#include "engine/grid_recomputer.h"
+#include <hindsight/engine/continuous_adjoint.h>
+#include <hindsight/engine/grid_recomputer.h>
 
 #include <Eigen/LU>
 #include <chrono>

@@ -1,4 +1,4 @@
-// The continuous adjoint with hindsight's own storage (SPEC.md section 5; Bestle & Eberhard 1992;
+// The continuous adjoint with hindsight's own storage (docs/design.md §5; Bestle & Eberhard 1992;
 // in first-order form z = (y, y'), the paper's eqs. (7) terminal condition with fixed t1, (8) adjoint
 // ODE, (9) initial-state term and (10) gradient):
 //   lambda' = -F_z^T lambda - G_z^T,          lambda(t1) = dphi/dz(z(t1)),
@@ -42,7 +42,7 @@
 // starting step); M. E. Hosea, L. F. Shampine, Appl. Numer. Math. 20 (1996) (TR-BDF2).
 #pragma once
 
-#include "engine/adjoint.h"
+#include <hindsight/engine/adjoint.h>
 
 #include <cstdint>
 #include <string>

@@ -1,4 +1,4 @@
-#include "engine/gradient_checker.h"
+#include <hindsight/engine/gradient_checker.h>
 
 #include <cmath>
 #include <limits>
@@ -46,6 +46,13 @@ GradientCheckResult checkGradient(const std::function<double(const Vector&)>& ob
       result.worstIndex = i;
     }
   }
+  double differenceSquared = 0.0, fdSquared = 0.0;
+  for (Eigen::Index i : indices) {
+    differenceSquared +=
+        (gradient(i) - result.finiteDifference(i)) * (gradient(i) - result.finiteDifference(i));
+    fdSquared += result.finiteDifference(i) * result.finiteDifference(i);
+  }
+  result.normError = std::sqrt(differenceSquared) / std::sqrt(fdSquared);
   result.passed = result.maxError <= options.tolerance;
   std::ostringstream msg;
   msg.precision(12);

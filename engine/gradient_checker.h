@@ -1,11 +1,11 @@
-// A reusable finite-difference gradient checker (STYLE.md guideline 5; after Ceres' GradientChecker).
+// A reusable finite-difference gradient checker (docs/design.md P 5; after Ceres' GradientChecker).
 //
 // Central differences with step h_i = cbrt(eps) * max(1, |x_i|); the error of component i is
 // |g_i - fd_i| / max(|fd_i|, floor * ||fd||_inf), so tiny components are judged against the
 // gradient's scale. The checker itself is tested against a deliberately wrong gradient.
 #pragma once
 
-#include "engine/types.h"
+#include <hindsight/engine/types.h>
 
 #include <functional>
 #include <string>
@@ -26,8 +26,10 @@ struct GradientCheckOptions {
 
 struct GradientCheckResult {
   bool passed = false;
-  double maxError = 0.0;
+  double maxError = 0.0;  ///< the largest component error (see above)
   Eigen::Index worstIndex = -1;
+  /// ||g - fd|| / ||fd|| over the checked components: one number for the whole vector.
+  double normError = 0.0;
   Vector finiteDifference;  ///< same size as x; unchecked components are 0
   std::string message;      ///< names the worst component, both values and the error
 };

@@ -3,8 +3,8 @@
 // and continuous adjoint sweeps.
 #pragma once
 
-#include "engine/integrator.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <vector>
 

@@ -1,4 +1,4 @@
-// Runge-Kutta integrators with discrete adjoints (SPEC.md section 5).
+// Runge-Kutta integrators with discrete adjoints (docs/design.md §5).
 //
 // One class covers explicit and diagonally implicit Runge-Kutta methods given by a Butcher tableau:
 //   Z_i = z_n + h sum_j a_ij K_j,   K_i = F(t_n + c_i h, Z_i, p),   z_{n+1} = z_n + h sum_i b_i K_i,
@@ -22,7 +22,7 @@
 // nothing (a test checks this with a counting operator new).
 #pragma once
 
-#include "engine/problem.h"
+#include <hindsight/engine/problem.h>
 
 #include <Eigen/LU>
 

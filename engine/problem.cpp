@@ -1,4 +1,4 @@
-#include "engine/problem.h"
+#include <hindsight/engine/problem.h>
 
 namespace hindsight {
 

@@ -1,17 +1,17 @@
 // The problem interface of the adjoint engine: a first-order system z' = F(t, z, p) with an
 // objective psi = integral_{t0}^{t1} G(t, z, p) dt + phi(z(t1), p).
 //
-// A problem is immutable during a solve (STYLE.md guideline 3): every method is const and writes
+// A problem is immutable during a solve (docs/design.md P 3): every method is const and writes
 // only into its output arguments and into the ProblemWorkspace it created itself. The engine
 // creates one workspace per solve, before the first step, so evaluations allocate nothing.
 //
 // Dimensions: z in R^n (stateSize()), p in R^np (parameterSize()). Derivatives are the partials
-// the continuous and discrete adjoints need (SPEC.md section 5): F_z (dense Jacobian or a
+// the continuous and discrete adjoints need (docs/design.md §5): F_z (dense Jacobian or a
 // vector-Jacobian product), (F_p)^T w, G_z, G_p, and the terminal term's gradients. Every
 // derivative a problem supplies is tested against finite differences with GradientChecker.
 #pragma once
 
-#include "engine/types.h"
+#include <hindsight/engine/types.h>
 
 #include <memory>
 #include <string>

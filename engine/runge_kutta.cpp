@@ -1,4 +1,4 @@
-#include "engine/integrator.h"
+#include <hindsight/engine/integrator.h>
 
 #include <cmath>
 #include <limits>

@@ -1,4 +1,4 @@
-#include "engine/second_order_problem.h"
+#include <hindsight/engine/second_order_problem.h>
 
 #include <Eigen/Cholesky>
 

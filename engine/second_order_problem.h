@@ -1,4 +1,4 @@
-// Adapter from the second-order mechanical form M(t, y, p) y'' = f(t, y, y', p) (SPEC.md section 5,
+// Adapter from the second-order mechanical form M(t, y, p) y'' = f(t, y, y', p) (docs/design.md §5,
 // the paper's eq. 3) to the first-order interface with state z = (y, v), v = y'.
 //
 // The model supplies the mass matrix, the force vector and the Jacobians of the residual
@@ -10,7 +10,7 @@
 // symmetric positive definite; a failed Cholesky factorisation throws NumericalError with the time.
 #pragma once
 
-#include "engine/problem.h"
+#include <hindsight/engine/problem.h>
 
 namespace hindsight {
 

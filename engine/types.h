@@ -1,6 +1,6 @@
 // Common vocabulary of hindsight: vector aliases and the exceptions that carry numerical failures.
 //
-// Failure kinds (STYLE.md guideline 4): bad user input throws std::invalid_argument naming the
+// Failure kinds (docs/design.md P 4): bad user input throws std::invalid_argument naming the
 // argument, its value and the allowed range; a numerical outcome (Newton divergence, step-size
 // underflow, I/O failure) throws hindsight::NumericalError or hindsight::StorageError, which carry
 // the simulation time or the file involved; internal bugs are asserts.

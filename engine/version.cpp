@@ -1,7 +1,8 @@
-#include "engine/types.h"
+#include <hindsight/engine/types.h>
 
 namespace hindsight {
 
-const char* version() { return "0.1.0"; }
+// HINDSIGHT_VERSION comes from CMakeLists.txt, the one place the version is set.
+const char* version() { return HINDSIGHT_VERSION; }
 
 }  // namespace hindsight

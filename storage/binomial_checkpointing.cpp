@@ -1,4 +1,4 @@
-#include "storage/binomial_checkpointing.h"
+#include <hindsight/storage/binomial_checkpointing.h>
 
 #include <algorithm>
 #include <cstring>

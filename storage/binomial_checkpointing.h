@@ -8,7 +8,7 @@
 // beta(c, r) steps. For N steps let r be the least integer with beta(c, r) >= N; the least number of
 // forward steps that reverses N steps is
 //     T(N, c) = r N - beta(c + 1, r - 1) = r N - C(c + r, r - 1)
-// (Griewank 1992, Optim. Methods Softw. 1:35-54; Griewank & Walther 2000; SPEC.md section 6).
+// (Griewank 1992, Optim. Methods Softw. 1:35-54; Griewank & Walther 2000; docs/design.md §6).
 // The schedule below attains it: to reverse an interval of l steps whose first state is held in one of
 // s slots, advance m steps, keep that state in a new slot, reverse the right part (l - m steps, s - 1
 // slots), release the slot and reverse the left part (m steps, s slots). T is convex piecewise linear in
@@ -35,8 +35,8 @@
 // overflow.
 #pragma once
 
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <cassert>
 #include <cstdint>
@@ -65,7 +65,7 @@ std::string toString(UnsignedInt128 value);
 }  // namespace revolve
 
 /// The revolve schedule as a state machine on positions 0..l-1 of one interval, without states
-/// (STYLE.md guideline 1: the storage strategies and the pure schedule simulator drive the same code).
+/// (docs/design.md P 1: the storage strategies and the pure schedule simulator drive the same code).
 /// Checkpoints form a stack; the checkpoint at stack depth i lives in slot i. Slot 0 holds position 0.
 class BinomialSchedule {
  public:

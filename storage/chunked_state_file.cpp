@@ -1,4 +1,4 @@
-#include "storage/chunked_state_file.h"
+#include <hindsight/storage/chunked_state_file.h>
 
 #include <hdf5.h>
 #include <zstd.h>

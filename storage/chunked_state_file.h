@@ -25,7 +25,7 @@
 // inspected]; startReading(firstRow); read() rows in non-increasing order (repeats allowed); close().
 #pragma once
 
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <cstdint>
 #include <memory>

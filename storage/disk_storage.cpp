@@ -1,6 +1,6 @@
-#include "storage/disk_storage.h"
+#include <hindsight/storage/disk_storage.h>
 
-#include "storage/chunked_state_file.h"
+#include <hindsight/storage/chunked_state_file.h>
 
 #include <algorithm>
 

@@ -1,5 +1,5 @@
 // Strategy "disk": every step's state in an HDF5 file, chunked, byte-shuffled and zstd-compressed,
-// written and read by a background thread (SPEC.md section 6). Exact: restore() returns the recorded
+// written and read by a background thread (docs/design.md §6). Exact: restore() returns the recorded
 // bits, so gradients are bitwise identical to "full" storage; nothing is recomputed.
 //
 // Spec: disk:dir=PATH[,level=1..22][,chunk=STATES][,budget=BYTES][,keep=true|false]
@@ -28,8 +28,8 @@
 // master/docs/RegisteredFilterPlugins.md; Collet & Kucherawy, RFC 8878 (Zstandard).
 #pragma once
 
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <functional>
 #include <memory>

@@ -1,4 +1,4 @@
-#include "storage/hermite_storage.h"
+#include <hindsight/storage/hermite_storage.h>
 
 #include <algorithm>
 #include <cstring>

@@ -1,5 +1,5 @@
 // Strategy "hermite": keeps (z, z') at every M-th grid point and at the final point; states in
-// between are cubic Hermite interpolants (SPEC.md section 6; the scheme of CVODES' CV_HERMITE
+// between are cubic Hermite interpolants (docs/design.md §6; the scheme of CVODES' CV_HERMITE
 // check-point interpolation, Hindmarsh et al., CVODES user documentation).
 //
 // Spec: hermite:every=M[,budget=BYTES], M in [1, 1e9] (default 10), budget default 4 GiB.
@@ -20,8 +20,8 @@
 // std::logic_error for interpolate() before finish().
 #pragma once
 
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <memory>
 #include <vector>

@@ -1,4 +1,4 @@
-#include "storage/lossy_storage.h"
+#include <hindsight/storage/lossy_storage.h>
 
 #include <zfp.h>
 #include <zstd.h>

@@ -1,4 +1,4 @@
-// Strategy "lossy": every step's state in memory, compressed with a bounded error (SPEC.md section 6).
+// Strategy "lossy": every step's state in memory, compressed with a bounded error (docs/design.md §6).
 // Not exact (isExact() is false): the backward sweep sees states within the tolerance of the recorded
 // ones, so the gradient is that of a perturbed trajectory; its error is O(tolerance) (measured in
 // tests/storage/lossy_storage_test.cpp). Nothing is recomputed.
@@ -28,8 +28,8 @@
 // adjoints).
 #pragma once
 
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <memory>
 #include <string>

@@ -1,6 +1,6 @@
-#include "storage/multilevel_storage.h"
+#include <hindsight/storage/multilevel_storage.h>
 
-#include "storage/chunked_state_file.h"
+#include <hindsight/storage/chunked_state_file.h>
 
 #include <algorithm>
 #include <cstring>

@@ -1,6 +1,6 @@
 // Strategy "multilevel": states in memory up to a RAM budget, then in an HDF5 file up to a disk
 // budget, and when even both are too small for all N states, checkpoints every k-th state and
-// recomputes the others through recompute(step, z) (SPEC.md section 6). Lossless: gradients are
+// recomputes the others through recompute(step, z) (docs/design.md §6). Lossless: gradients are
 // bitwise identical to "full" storage, recomputation included.
 //
 // Spec: multilevel:ram=BYTES,disk=BYTES[,dir=PATH][,level=1..22][,keep=true|false]
@@ -28,8 +28,8 @@
 // background I/O thread per run while the disk level is used.
 #pragma once
 
-#include "storage/storage_spec.h"
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <memory>
 #include <string>

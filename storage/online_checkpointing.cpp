@@ -1,4 +1,4 @@
-#include "storage/online_checkpointing.h"
+#include <hindsight/storage/online_checkpointing.h>
 
 #include <algorithm>
 #include <cstring>

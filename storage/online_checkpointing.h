@@ -36,7 +36,7 @@
 // backward sweep's cost is the bound above. The first use of a slot allocates it.
 #pragma once
 
-#include "storage/binomial_checkpointing.h"
+#include <hindsight/storage/binomial_checkpointing.h>
 
 namespace hindsight {
 

@@ -1,19 +1,24 @@
-#include "storage/storage_factory.h"
+#include <hindsight/storage/storage_factory.h>
 
-#include "storage/disk_storage.h"
-#include "storage/full_storage.h"
-#include "storage/hermite_storage.h"
-#include "storage/lossy_storage.h"
-#include "storage/multilevel_storage.h"
-#include "storage/binomial_checkpointing.h"
-#include "storage/full_storage.h"
-#include "storage/online_checkpointing.h"
-#include "storage/storage_spec.h"
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/disk_storage.h>
+#include <hindsight/storage/hermite_storage.h>
+#include <hindsight/storage/lossy_storage.h>
+#include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <functional>
 
 namespace hindsight {
 namespace {
+
+// FullStorage lives in the engine, which knows nothing of spec strings; its spec is read here.
+std::unique_ptr<TrajectoryStorage> createFull(const StorageSpec& spec) {
+  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget));
+}
+std::vector<std::string> fullKeys() { return {"budget"}; }
 
 struct Entry {
   const char* name;
@@ -23,7 +28,7 @@ struct Entry {
 
 const std::vector<Entry>& registry() {
   static const std::vector<Entry> entries = {
-      {"full", &FullStorage::keys, &FullStorage::create},
+      {"full", &fullKeys, &createFull},
       {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
       {"disk", &DiskStorage::keys, &DiskStorage::create},
       {"lossy", &LossyStorage::keys, &LossyStorage::create},

@@ -1,9 +1,9 @@
-// The one factory of trajectory storage strategies (STYLE.md guideline 2): a spec string
+// The one factory of trajectory storage strategies (docs/design.md P 2): a spec string
 // "NAME[:key=value,...]" becomes a strategy. Adding a strategy touches its own file, the table in
 // storage_factory.cpp and the typed conformance test list.
 #pragma once
 
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <memory>
 #include <string>

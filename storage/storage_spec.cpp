@@ -1,6 +1,6 @@
-#include "storage/storage_spec.h"
+#include <hindsight/storage/storage_spec.h>
 
-#include "storage/trajectory_storage.h"
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <cmath>
 #include <sstream>

@@ -1,10 +1,10 @@
 // The hot loops allocate nothing: after set-up, forward steps, adjoint steps and restores from
-// full storage make no heap allocation (STYLE.md guideline 3). Counted with the interposed malloc
+// full storage make no heap allocation (docs/design.md P 3). Counted with the interposed malloc
 // of tests/support/allocation_counting.cpp (which also sees Eigen).
-#include "engine/integrator.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/hermite_storage.h"
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/integrator.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/hermite_storage.h>
 #include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 // Bad input is rejected with std::invalid_argument naming the argument and the value; numerical
-// failures carry the simulation time (STYLE.md guideline 4).
-#include "engine/adjoint.h"
-#include "engine/gradient_checker.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/storage_factory.h"
+// failures carry the simulation time (docs/design.md P 4).
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/gradient_checker.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
 

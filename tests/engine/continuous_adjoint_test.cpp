@@ -1,11 +1,11 @@
-// The three adjoint routes behind the one entry point computeGradient(problem, p, GradientOptions):
+// The three adjoint routes behind the one entry point computeGradientByMethod(problem, p, GradientOptions):
 // closed forms for the linear problems; convergence to the tight discrete gradient on the nonlinear
 // pendulum as tolerances tighten; the continuous adjoint's two sources of forward states (storage
 // interpolation and restored windows) agree; bad options are named.
-#include "engine/gradient.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/hermite_storage.h"
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/hermite_storage.h>
 #include "support/engine_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -88,7 +88,7 @@ TEST_P(EveryRoute, ExponentialDecayMatchesClosedForm) {
   GradientOptions options = tightOptions(GetParam().method, horizon);
   if (!GetParam().storage.empty()) options.storage = GetParam().storage;
   options.continuous.method = GetParam().backward;
-  const GradientResult result = computeGradient(problem, p, options);
+  const GradientResult result = computeGradientByMethod(problem, p, options);
   EXPECT_EQ(result.summary.adjoint, toString(GetParam().method));
   const double exact = ExponentialDecay::exactObjective(p(0), p(1), horizon);
   const Vector exactGradient = complexStepGradient(
@@ -107,7 +107,7 @@ TEST_P(EveryRoute, OscillatorMatchesClosedFormUndampedAndDamped) {
     GradientOptions options = tightOptions(GetParam().method, horizon);
     if (!GetParam().storage.empty()) options.storage = GetParam().storage;
     options.continuous.method = GetParam().backward;
-    const GradientResult result = computeGradient(problem, p, options);
+    const GradientResult result = computeGradientByMethod(problem, p, options);
     const double exact = Oscillator::exactObjective(p(0), p(1), p(2), horizon);
     const Vector exactGradient = complexStepGradient(
         [&](const Eigen::VectorXcd& x) { return Oscillator::exactObjective(x(0), x(1), x(2), horizon); }, p);
@@ -124,7 +124,7 @@ TEST_P(EveryRoute, OscillatorMatchesClosedFormUndampedAndDamped) {
 Vector pendulumReference(const Pendulum& problem, const Vector& p, double horizon) {
   GradientOptions options = tightOptions(AdjointMethod::Discrete, horizon);
   options.integrator.step = 1e-4;
-  return computeGradient(problem, p, options).gradient;
+  return computeGradientByMethod(problem, p, options).gradient;
 }
 
 /// Relative gradient errors of a route at rtol = 1e-4, 1e-6, 1e-8, 1e-10 (atol = rtol / 100).
@@ -145,7 +145,7 @@ std::vector<double> pendulumErrors(AdjointMethod method, CvodesMethod cvodesMeth
     options.cvodes.method = cvodesMethod;
     options.cvodes.relativeTolerance = rtol;
     options.cvodes.absoluteTolerance = rtol / 100;
-    const GradientResult result = computeGradient(problem, p, options);
+    const GradientResult result = computeGradientByMethod(problem, p, options);
     errors.push_back((result.gradient - reference).norm() / reference.norm());
     std::cout << " rtol " << rtol << ": error " << errors.back();
     if (errors.size() > 1) {
@@ -201,11 +201,11 @@ TEST(ContinuousStiff, RobertsonWithImplicitBackwardAgreesWithDiscreteAndCvodes) 
   options.cvodes.relativeTolerance = 1e-9;
   options.cvodes.absoluteTolerance = 1e-14;
   options.adjoint = AdjointMethod::Continuous;
-  const GradientResult continuous = computeGradient(problem, p, options);
+  const GradientResult continuous = computeGradientByMethod(problem, p, options);
   options.adjoint = AdjointMethod::Discrete;
-  const GradientResult discrete = computeGradient(problem, p, options);
+  const GradientResult discrete = computeGradientByMethod(problem, p, options);
   options.adjoint = AdjointMethod::Cvodes;
-  const GradientResult cvodes = computeGradient(problem, p, options);
+  const GradientResult cvodes = computeGradientByMethod(problem, p, options);
   EXPECT_GT(continuous.summary.factorizations, discrete.summary.steps);  // the backward sweep factorised
   for (int i = 0; i < 3; ++i) {
     const double c = continuous.gradient(i) * p(i), d = discrete.gradient(i) * p(i),
@@ -226,9 +226,9 @@ TEST(ContinuousSources, RestoredWindowAndHermiteEveryStepGiveTheSameGradient) {
   options.integrator.relativeTolerance = 1e-7;
   options.integrator.absoluteTolerance = 1e-9;
   options.storage = "full";
-  const GradientResult window = computeGradient(problem, p, options);
+  const GradientResult window = computeGradientByMethod(problem, p, options);
   options.storage = "hermite:every=1";
-  const GradientResult interpolated = computeGradient(problem, p, options);
+  const GradientResult interpolated = computeGradientByMethod(problem, p, options);
   EXPECT_EQ(window.objective, interpolated.objective);
   EXPECT_LT((window.gradient - interpolated.gradient).norm(), 1e-12 * window.gradient.norm());
   EXPECT_EQ(window.summary.storage, "full");
@@ -245,11 +245,11 @@ TEST(ContinuousSources, CoarserHermiteStorageCostsAccuracy) {
   options.integrator.adaptive = false;
   options.integrator.step = 4e-3;
   options.storage = "hermite:every=1";
-  const Vector fine = computeGradient(problem, p, options).gradient;
+  const Vector fine = computeGradientByMethod(problem, p, options).gradient;
   options.storage = "hermite:every=8";
-  const double error8 = (computeGradient(problem, p, options).gradient - fine).norm() / fine.norm();
+  const double error8 = (computeGradientByMethod(problem, p, options).gradient - fine).norm() / fine.norm();
   options.storage = "hermite:every=4";
-  const double error4 = (computeGradient(problem, p, options).gradient - fine).norm() / fine.norm();
+  const double error4 = (computeGradientByMethod(problem, p, options).gradient - fine).norm() / fine.norm();
   std::cout << "[ continuous ] hermite every=8: " << error8 << ", every=4: " << error4 << "\n";
   EXPECT_GT(error8 / error4, 8.0);
 }
@@ -300,16 +300,16 @@ TEST(ContinuousMatrixFree, VectorJacobianProductsGiveTheDenseGradient) {
   GradientOptions options = tightOptions(AdjointMethod::Continuous, 3.0);
   options.integrator.relativeTolerance = 1e-8;
   options.integrator.absoluteTolerance = 1e-10;
-  const GradientResult dense = computeGradient(Oscillator(), p, options);
-  const GradientResult matrixFree = computeGradient(MatrixFreeOscillator(), p, options);
+  const GradientResult dense = computeGradientByMethod(Oscillator(), p, options);
+  const GradientResult matrixFree = computeGradientByMethod(MatrixFreeOscillator(), p, options);
   EXPECT_EQ(dense.objective, matrixFree.objective);
   EXPECT_LT((dense.gradient - matrixFree.gradient).norm(), 1e-13 * dense.gradient.norm());
   // The implicit backward method and CVODES' dense direct solver need the Jacobian: refused.
   options.continuous.method = "trbdf2";
-  EXPECT_THROW(computeGradient(MatrixFreeOscillator(), p, options), std::invalid_argument);
+  EXPECT_THROW(computeGradientByMethod(MatrixFreeOscillator(), p, options), std::invalid_argument);
   options.adjoint = AdjointMethod::Cvodes;
   try {
-    computeGradient(MatrixFreeOscillator(), p, options);
+    computeGradientByMethod(MatrixFreeOscillator(), p, options);
     FAIL() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("hasDenseJacobian"), std::string::npos) << e.what();
@@ -334,7 +334,7 @@ TEST(ContinuousBadInput, BadOptionsNameTheField) {
   GradientOptions options = tightOptions(AdjointMethod::Continuous, 1.0);
   options.continuous.relativeTolerance = 0.0;
   try {
-    computeGradient(problem, Eigen::Vector2d(1.0, 1.0), options);
+    computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options);
     FAIL() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("ContinuousAdjointOptions.relativeTolerance"), std::string::npos)
@@ -342,11 +342,11 @@ TEST(ContinuousBadInput, BadOptionsNameTheField) {
   }
   options.continuous.relativeTolerance = 1e-6;
   options.continuous.initialStep = 2.0;
-  EXPECT_THROW(computeGradient(problem, Eigen::Vector2d(1.0, 1.0), options), std::invalid_argument);
+  EXPECT_THROW(computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options), std::invalid_argument);
   options.continuous.initialStep = 0.0;
   options.continuous.method = "rk4";
   try {
-    computeGradient(problem, Eigen::Vector2d(1.0, 1.0), options);
+    computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options);
     FAIL() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("ContinuousAdjointOptions.method = 'rk4'"), std::string::npos)
@@ -355,7 +355,7 @@ TEST(ContinuousBadInput, BadOptionsNameTheField) {
   }
   options.continuous.method = "dopri5";
   options.storage = "nonsense";
-  EXPECT_THROW(computeGradient(problem, Eigen::Vector2d(1.0, 1.0), options), std::invalid_argument);
+  EXPECT_THROW(computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options), std::invalid_argument);
 }
 
 TEST(ContinuousFailure, TooFewBackwardStepsGiveNumericalErrorWithTheTime) {
@@ -363,7 +363,7 @@ TEST(ContinuousFailure, TooFewBackwardStepsGiveNumericalErrorWithTheTime) {
   GradientOptions options = tightOptions(AdjointMethod::Continuous, 4.0);
   options.continuous.maxSteps = 5;
   try {
-    computeGradient(problem, Eigen::Vector4d(1.5, 0.8, 0.3, 1.2), options);
+    computeGradientByMethod(problem, Eigen::Vector4d(1.5, 0.8, 0.3, 1.2), options);
     FAIL() << "no exception";
   } catch (const NumericalError& e) {
     EXPECT_NE(std::string(e.what()).find("maxSteps = 5"), std::string::npos) << e.what();

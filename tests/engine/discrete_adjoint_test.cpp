@@ -1,7 +1,7 @@
 // The discrete adjoint against closed forms (linear ODEs) and against finite differences of the
 // computed psi (nonlinear and stiff problems), for every integrator.
-#include "engine/gradient_checker.h"
-#include "problems/classic_problems.h"
+#include <hindsight/engine/gradient_checker.h>
+#include <hindsight/problems/classic/classic_problems.h>
 #include "support/engine_fixtures.h"
 
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-#include "engine/types.h"
+#include <hindsight/engine/types.h>
 
 #include <gtest/gtest.h>
 

@@ -1,12 +1,12 @@
 // Binomial (revolve) checkpointing: the schedule attains the Griewank-Walther optimum
 // T(N, c) = r N - C(c + r, r - 1) exactly, as a pure schedule (large N) and through the real storage
 // with a real problem (moderate N), without overflow, within its byte budget.
-#include "storage/binomial_checkpointing.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/storage_factory.h>
 
-#include "engine/adjoint.h"
+#include <hindsight/engine/adjoint.h>
 
 #include <gtest/gtest.h>
 

@@ -1,16 +1,17 @@
-// The one conformance suite every trajectory storage strategy runs through (STYLE.md guideline 6,
-// SPEC.md section 6). Adding a strategy means adding one line to strategiesUnderTest() below.
+// The one conformance suite every trajectory storage strategy runs through (docs/design.md P 6,
+// docs/design.md §6). Adding a strategy means adding one line to strategiesUnderTest() below.
 //
 // Properties checked on every case: the strategy's psi and dpsi/dp against `full` (bitwise, with == and
 // memcmp, for exact strategies; within the listed relative tolerance for the others); every restore
 // verified against the hash of the recorded bits (setVerifyRestores(true)); the peak bytes in memory
 // within budgetBytes(); counters that make sense (full recomputes nothing and stores every state); the
 // same storage object reused for a second run gives the same bits.
-#include "engine/adjoint.h"
-#include "problems/classic_problems.h"
-#include "problems/heat_equation.h"
-#include "storage/full_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/problems/classic/heat_equation.h>
+#include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/storage_spec.h>
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
-// The disk strategy's record() and restore() allocate nothing on the caller's thread (STYLE.md
-// guideline 3): states go through chunk buffers and a task ring allocated at begin(). Counted with
+// The disk strategy's record() and restore() allocate nothing on the caller's thread (docs/design.md
+// P 3): states go through chunk buffers and a task ring allocated at begin(). Counted with
 // tests/support/allocation_counting.h, on the calling thread only (the I/O thread's HDF5 calls may
 // allocate).
-#include "storage/disk_storage.h"
+#include <hindsight/storage/disk_storage.h>
 #include "support/allocation_counting.h"
 #include "support/storage_fixtures.h"
 

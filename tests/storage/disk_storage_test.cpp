@@ -1,9 +1,9 @@
 // Strategy "disk": bitwise-identical gradients to "full", the byte budget, a self-describing HDF5 file
 // readable with the plain HDF5 API, compression, and every fault turned into a StorageError that
 // names the file (unwritable directory, full disk, truncated file, corrupted chunk).
-#include "storage/disk_storage.h"
-#include "storage/chunked_state_file.h"
-#include "storage/storage_factory.h"
+#include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/disk_storage.h>
+#include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
 #include <hdf5.h>

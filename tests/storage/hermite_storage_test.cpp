@@ -1,11 +1,11 @@
 // The "hermite" strategy: O(H^4) interpolation (checked as an observed order against the
 // oscillator's closed-form trajectory), exact kept points, a discrete-adjoint gradient that
 // converges to the full-storage one as M shrinks, and a budget it never exceeds.
-#include "storage/hermite_storage.h"
-#include "engine/adjoint.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/hermite_storage.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
 

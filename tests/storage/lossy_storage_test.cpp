@@ -1,8 +1,8 @@
 // Strategy "lossy": every restored value within the tolerance (absolute for zfp, relative for
 // round), gradient errors that fall with the tolerance and stay below C * tolerance, compression
 // ratios above 1 that grow with the tolerance, the byte budget, and the spec strings.
-#include "storage/lossy_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/storage/lossy_storage.h>
+#include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
 #include <cmath>

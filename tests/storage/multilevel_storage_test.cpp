@@ -1,8 +1,8 @@
 // Strategy "multilevel": bitwise-identical gradients to "full" in each regime (all in RAM, RAM and
 // disk, checkpointing with a fixed or doubling stride), the RAM budget and the disk budget, the
 // number of recomputations, the file's lifetime and faults.
-#include "storage/multilevel_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
 namespace hindsight {

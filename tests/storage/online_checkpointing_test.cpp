@@ -1,11 +1,11 @@
 // Online checkpointing: exact gradients with N unknown in advance, memory within the budget, and a
 // recomputation count that equals its prediction, stays below its proven bound and is compared with the
 // offline revolve optimum for the same N and c.
-#include "storage/online_checkpointing.h"
-#include "engine/adjoint.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
-#include "storage/storage_factory.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
 

@@ -1,9 +1,9 @@
 // The checkpointing strategies driven directly through the TrajectoryStorage protocol, without the
 // engine: a deterministic step map stands in for the integrator, so every restored state can be
 // compared with the recorded one, and heap allocations during the backward sweep are counted
-// (STYLE.md guideline 3: restores allocate nothing) with tests/support/allocation_counting.h.
-#include "storage/binomial_checkpointing.h"
-#include "storage/online_checkpointing.h"
+// (docs/design.md P 3: restores allocate nothing) with tests/support/allocation_counting.h.
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/online_checkpointing.h>
 #include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>

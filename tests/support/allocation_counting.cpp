@@ -2,7 +2,7 @@
 // sees the allocations of operator new and of Eigen (so that a test expecting zero allocations can fail).
 #include "support/allocation_counting.h"
 
-#include "engine/types.h"
+#include <hindsight/engine/types.h>
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Counting heap allocations in tests (STYLE.md guideline 3: hot paths allocate nothing).
+// Counting heap allocations in tests (docs/design.md P 3: hot paths allocate nothing).
 //
 // allocation_counting.cpp, linked into every test binary, interposes malloc, calloc and realloc and
 // forwards them to glibc; Eigen allocates with std::malloc and operator new ends in malloc, so both

@@ -1,8 +1,8 @@
 // Shared helpers for engine tests.
 #pragma once
 
-#include "engine/adjoint.h"
-#include "storage/full_storage.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
 
 #include <complex>
 #include <functional>

@@ -2,9 +2,9 @@
 // with fixed-step rk4 and with adaptive trbdf2), bitwise comparison of gradients against "full".
 #pragma once
 
-#include "engine/adjoint.h"
-#include "problems/classic_problems.h"
-#include "storage/full_storage.h"
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
 
 #include <gtest/gtest.h>
 

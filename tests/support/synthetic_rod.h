@@ -2,10 +2,10 @@
 // model: nodes on a rectangle, a node-wise isotropic SPD mass matrix M = m (x) I2 (as a consistent
 // plane mass matrix is), reference coordinates X, random shape functions Phi that vanish at the pin
 // A (both directions) and in y at the roller B, and a random SPD modal stiffness. The invariants are
-// computed straight from the SPEC.md section 3 table, so the test does not share code with the model.
+// computed straight from the docs/design.md §3 table, so the test does not share code with the model.
 #pragma once
 
-#include "problems/slider_crank.h"
+#include <hindsight/problems/rod/slider_crank.h>
 
 #include <random>
 
@@ -72,7 +72,7 @@ struct SyntheticRod {
     }
   }
 
-  /// The invariants of SPEC.md section 3, packed in rod::SliderCrankLayout order.
+  /// The invariants of docs/design.md §3, packed in rod::SliderCrankLayout order.
   Vector invariants() const {
     const int n = static_cast<int>(phi.cols());
     rod::SliderCrankLayout layout{n};

@@ -1,0 +1,68 @@
+#include "commands.h"
+
+#include <hindsight/engine/types.h>
+
+#include <iostream>
+#include <stdexcept>
+
+namespace hindsight::cli {
+
+std::vector<Command>& commands() {
+  static std::vector<Command> all;
+  return all;
+}
+
+void registerCommands(CLI::App& app) {
+  registerDemo(app);
+  registerEvaluate(app);
+  registerOptimize(app);
+  registerPlot(app);
+}
+
+nlohmann::json summaryToJson(const RunSummary& s) {
+  return {{"method", s.method},
+          {"adjoint", s.adjoint},
+          {"storage", s.storage},
+          {"steps", s.steps},
+          {"rejected_steps", s.rejectedSteps},
+          {"rhs_evaluations", s.rhsEvaluations},
+          {"jacobian_evaluations", s.jacobianEvaluations},
+          {"factorizations", s.factorizations},
+          {"newton_iterations", s.newtonIterations},
+          {"recomputed_steps", s.recomputedSteps},
+          {"states_stored", s.statesStored},
+          {"peak_bytes_in_memory", s.peakBytesInMemory},
+          {"bytes_on_disk", s.bytesOnDisk},
+          {"compression_ratio", s.compressionRatio},
+          {"forward_seconds", s.forwardSeconds},
+          {"backward_seconds", s.backwardSeconds},
+          {"io_seconds", s.ioSeconds}};
+}
+
+int runSelected(CLI::App& app) {
+  for (const Command& command : commands()) {
+    if (command.app->parsed()) return command.run();
+  }
+  std::cerr << app.help();
+  return 2;
+}
+
+int guarded(const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "hindsight: error: " << e.what() << '\n';
+    return 2;
+  } catch (const NumericalError& e) {
+    std::cerr << "hindsight: numerical failure: " << e.what() << '\n';
+    return 3;
+  } catch (const StorageError& e) {
+    std::cerr << "hindsight: storage failure: " << e.what() << '\n';
+    return 3;
+  } catch (const std::exception& e) {
+    std::cerr << "hindsight: failure: " << e.what() << '\n';
+    return 3;
+  }
+}
+
+}  // namespace hindsight::cli

@@ -1,0 +1,157 @@
+// `hindsight evaluate`: psi1, psi2, the volume fraction, the modes' frequencies and the run summary
+// of one piston-rod design; with --gradient, also dpsi1/dx, dpsi2/dx and dV/dx into an HDF5 file.
+#include <hindsight/problems/rod/design_io.h>
+#include <hindsight/problems/rod/full_order_rod.h>
+#include <hindsight/problems/rod/piston_rod.h>
+#include "commands.h"
+
+#include <nlohmann/json.hpp>
+
+#include <iomanip>
+#include <iostream>
+#include <memory>
+
+namespace hindsight::cli {
+namespace {
+
+struct EvaluateSettings {
+  std::string configFile;
+  std::vector<std::string> assignments;
+  std::string designFile;
+  std::string gradientFile;
+  std::string storage;
+  std::string integrator;
+  std::string adjoint;
+  std::string model;
+  bool json = false;
+  bool printConfig = false;
+};
+
+// The full-order model of docs/design.md §9: psi1,full, the volume fraction and the run summary (no psi2, no
+// modes).
+int runFullOrder(const Config& config, const PistonRod& rod, const Vector& design,
+                 const EvaluateSettings& s) {
+  const bool gradient = !s.gradientFile.empty();
+  const rod::FullOrderRodEvaluation result = rod::evaluateFullOrderRod(config, design, gradient);
+  if (gradient) {
+    writeDesignFields(s.gradientFile, config.rod,
+                      {{"dpsi1_dx", result.dpsi1}, {"dvolume_dx", result.dvolume}}, 0.0);
+  }
+  if (s.json) {
+    nlohmann::json out;
+    out["model"] = "full";
+    out["psi1"] = result.psi1;
+    out["volume_fraction"] = result.volumeFraction;
+    out["state_size"] = result.stateSize;
+    out["omega_max"] = result.omegaMax;
+    out["n_design"] = rod.designCount();
+    out["coupling"] = config.simulation.fullOrderCoupling;
+    out["summary"] = summaryToJson(result.summary);
+    out["seconds"] = {{"model", result.modelSeconds}, {"simulation", result.simulationSeconds}};
+    if (gradient) out["gradient_file"] = s.gradientFile;
+    std::cout << out.dump(2) << '\n';
+    return 0;
+  }
+  std::cout << std::setprecision(8)
+            << "model: full order (unreduced FE rod in the rigid mechanism's frame), coupling terms "
+            << (config.simulation.fullOrderCoupling ? "kept" : "dropped") << "\npsi1 (full): " << result.psi1
+            << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
+            << "\nstate size: " << result.stateSize
+            << "\nhighest FE frequency omega_max [rad/s]: " << result.omegaMax << '\n';
+  if (gradient) std::cout << "gradients written to " << s.gradientFile << '\n';
+  result.summary.print(std::cout);
+  std::cout << "model seconds: " << result.modelSeconds << '\n';
+  return 0;
+}
+
+int runEvaluate(const EvaluateSettings& s) {
+  Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
+  for (const auto& assignment : s.assignments) applySetting(config, assignment);
+  if (!s.storage.empty()) applySetting(config, "simulation.storage=\"" + s.storage + "\"");
+  if (!s.integrator.empty()) applySetting(config, "simulation.integrator=\"" + s.integrator + "\"");
+  if (!s.adjoint.empty()) applySetting(config, "simulation.adjoint=\"" + s.adjoint + "\"");
+  if (!s.model.empty()) applySetting(config, "simulation.model=\"" + s.model + "\"");
+  // `--model full` alone: the full-order defaults (TR-BDF2, h = 1e-3 s; the model is far too stiff for
+  // the reduced model's RK4 at 1e-4), unless the integrator or the step were chosen explicitly.
+  if (s.model == "full" && s.configFile.empty() && s.integrator.empty()) {
+    bool chosen = false;
+    for (const auto& assignment : s.assignments) {
+      chosen = chosen || assignment.rfind("simulation.integrator", 0) == 0 ||
+               assignment.rfind("simulation.step", 0) == 0;
+    }
+    if (!chosen) {
+      config.simulation.integrator = rod::kFullOrderDefaultIntegrator;
+      config.simulation.step = rod::kFullOrderDefaultStep;
+    }
+  }
+  if (s.printConfig) {
+    std::cout << toJson(config).dump(2) << '\n';
+    return 0;
+  }
+  const PistonRod rod(config);
+  const Vector design = s.designFile.empty() ? rod.initialDesign() : readDesignFile(s.designFile, config.rod);
+  const bool gradient = !s.gradientFile.empty();
+  if (config.simulation.model == "full") return runFullOrder(config, rod, design, s);
+  const PistonRodEvaluation result = rod.evaluate(design, {gradient, true, gradient});
+  if (gradient) {
+    writeDesignFields(
+        s.gradientFile, config.rod,
+        {{"dpsi1_dx", result.dpsi1}, {"dpsi2_dx", result.dpsi2}, {"dvolume_dx", result.dvolume}}, 0.0);
+  }
+  if (s.json) {
+    nlohmann::json out;
+    out["psi1"] = result.psi1;
+    out["psi2"] = result.psi2;
+    out["volume_fraction"] = result.volumeFraction;
+    out["frequencies_hz"] = result.frequenciesHz;
+    out["gap_ratio"] = result.gapRatio;
+    out["warning"] = result.warning;
+    out["n_design"] = rod.designCount();
+    out["summary"] = summaryToJson(result.summary);
+    out["seconds"] = {{"model", result.modelSeconds},
+                      {"simulation", result.simulationSeconds},
+                      {"chain", result.chainSeconds},
+                      {"esl", result.eslSeconds}};
+    if (gradient) out["gradient_file"] = s.gradientFile;
+    std::cout << out.dump(2) << '\n';
+    return 0;
+  }
+  std::cout << std::setprecision(8) << "psi1: " << result.psi1 << "\npsi2: " << result.psi2
+            << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
+            << "\nfrequencies [Hz]:";
+  for (double f : result.frequenciesHz) std::cout << ' ' << f;
+  std::cout << "\nspectral gap lambda_{n+1}/lambda_n: " << result.gapRatio << '\n';
+  if (!result.warning.empty()) std::cout << "warning: " << result.warning << '\n';
+  if (gradient) std::cout << "gradients written to " << s.gradientFile << '\n';
+  result.summary.print(std::cout);
+  std::cout << "model seconds: " << result.modelSeconds << "\nchain seconds: " << result.chainSeconds
+            << "\nESL seconds: " << result.eslSeconds << '\n';
+  return 0;
+}
+
+}  // namespace
+
+void registerEvaluate(CLI::App& app) {
+  auto s = std::make_shared<EvaluateSettings>();
+  CLI::App* cmd =
+      app.add_subcommand("evaluate", "psi1, psi2, volume fraction and frequencies of a piston-rod design");
+  cmd->add_option("--config", s->configFile, "JSON configuration file (see --print-config)");
+  cmd->add_option("--set", s->assignments, "section.field=value, e.g. rod.modeCount=12 (repeatable)");
+  cmd->add_option("--design", s->designFile,
+                  "HDF5 file with dataset x of shape (ny, nx); default: uniform x0");
+  cmd->add_option("--gradient", s->gradientFile,
+                  "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx) to this HDF5 file");
+  cmd->add_option("--storage", s->storage, "trajectory storage spec (overrides simulation.storage)");
+  cmd->add_option("--integrator", s->integrator, "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint");
+  cmd->add_option("--adjoint", s->adjoint, "discrete | continuous | cvodes");
+  cmd->add_option(
+      "--model", s->model,
+      "reduced (floating frame, modal coordinates) | full (unreduced FE rod; overrides simulation.model; "
+      "without --config, --integrator or --set simulation.integrator/step it also selects trbdf2 "
+      "with h = 1e-3 s)");
+  cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
+  cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
+  commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});
+}
+
+}  // namespace hindsight::cli

@@ -1,0 +1,91 @@
+// The CVODES route to dpsi/dp (docs/design.md §5): the continuous adjoint solved by SUNDIALS CVODES
+// with its own checkpointing, as an independent cross-check of hindsight's discrete and continuous
+// adjoints.
+//
+// For z' = F(t, z, p), z(t0) = z0(p), psi = int_{t0}^{t1} G dt + phi(z(t1), p):
+//   forward  CVodeF integrates z and the quadrature q' = G (CVodeQuadInit); CVodeAdjInit(Nd, interp)
+//            stores a check point every Nd steps and, during the backward phase, interpolates z
+//            between recomputed steps (CV_HERMITE: cubic Hermite from (z, z'); CV_POLYNOMIAL:
+//            variable-degree polynomial);
+//   backward CVodeB integrates lambda' = -F_z^T lambda - G_z^T from lambda(t1) = dphi/dz(t1) to t0
+//            with the dense Jacobian -F_z^T (SUNDenseMatrix + SUNLinSol_Dense), and the backward
+//            quadrature qB' = -(G_p + lambda^T F_p) (CVodeQuadInitB), so qB(t0) = int (G_p + lambda^T F_p)
+//            dt;
+//   result   dpsi/dp = qB(t0) + dphi/dp + (dz0/dp)^T lambda(t0)  (Bestle & Eberhard 1992).
+// In the paper's second-order notation (reference/, Held et al.) these are its eqs. (7) (terminal
+// condition; here t1 is fixed, so no tau term), (8) (adjoint ODE), (9) (initial-state adjoint) and
+// (10) (gradient), written for the first-order state z = (y, y').
+// The gradient is that of the exact psi up to the tolerances, not the derivative of the computed psi.
+//
+// Preconditions: problem.hasDenseJacobian() (the dense direct solver needs F_z); p has
+// problem.parameterSize() entries. Dimensions: n = stateSize(), np = parameterSize().
+// Throws std::invalid_argument for bad options (naming the field and its range), a wrong p size or a
+// problem without a dense Jacobian; hindsight::NumericalError for every SUNDIALS return flag < 0,
+// carrying the flag's name (CVodeGetReturnFlagName) and the simulation time of the failure.
+// Exceptions thrown by the problem inside a SUNDIALS callback are caught there, make CVODES stop
+// with an unrecoverable flag, and are rethrown unchanged.
+//
+// References: A. C. Hindmarsh, R. Serban et al., "User Documentation for CVODES" (SUNDIALS 6.4),
+// chapter "Using CVODES for adjoint sensitivity analysis"; Y. Cao, S. Li, L. Petzold, R. Serban,
+// "Adjoint sensitivity analysis for differential-algebraic equations: the adjoint DAE system and its
+// numerical solution", SIAM J. Sci. Comput. 24 (2003); D. Bestle, P. Eberhard, "Analyzing and
+// optimizing multibody systems", Mech. Struct. Mach. 20 (1992).
+#pragma once
+
+#include <hindsight/engine/adjoint.h>
+
+#include <cstdint>
+#include <string>
+
+namespace hindsight {
+
+/// CVODES' linear multistep family: BDF for stiff problems, Adams-Moulton for non-stiff ones. The same
+/// family is used forward and backward.
+enum class CvodesMethod { Bdf, Adams };
+/// How CVODES rebuilds z(t) between stored data points in the backward phase (CVodeAdjInit's interp).
+enum class CvodesInterpolation { Hermite, Polynomial };
+
+/// "bdf" | "adams"; throws std::invalid_argument listing them.
+CvodesMethod parseCvodesMethod(const std::string& name);
+/// "hermite" | "polynomial"; throws std::invalid_argument listing them.
+CvodesInterpolation parseCvodesInterpolation(const std::string& name);
+std::string toString(CvodesMethod method);
+std::string toString(CvodesInterpolation interpolation);
+
+struct CvodesOptions {
+  CvodesMethod method = CvodesMethod::Bdf;
+  CvodesInterpolation interpolation = CvodesInterpolation::Hermite;
+  double t0 = 0.0;
+  double t1 = 1.0;
+  /// Scalar tolerances, used for the forward state and quadrature and the backward adjoint and
+  /// quadrature alike (CVodeSStolerances and its B / Quad variants). rtol in [1e-14, 1), atol > 0.
+  double relativeTolerance = 1e-6;
+  double absoluteTolerance = 1e-9;
+  /// Nd: integration steps between check points (CVodeAdjInit), in [1, 1e9].
+  std::int64_t checkpointSteps = 100;
+  /// mxstep of CVODES for the forward and the backward problem, in [1, 1e12].
+  std::int64_t maxSteps = 100'000;
+  /// First step size; 0 lets CVODES estimate it. In [0, t1 - t0].
+  double initialStep = 0.0;
+  /// Include the quadratures (psi and the gradient) in the local error test.
+  bool quadratureErrorControl = true;
+
+  /// False with a message naming the field, its value and the allowed range.
+  bool IsValid(std::string* error) const;
+  /// Throws std::invalid_argument with IsValid's message.
+  void validate() const;
+};
+
+/// psi and dpsi/dp by CVODES. The summary reports: method "cvodes-bdf" / "cvodes-adams", adjoint
+/// "cvodes", storage "cvodes:checkpoints=Nd,interp=...", steps = forward steps; rejectedSteps = forward
+/// plus backward error-test and Newton convergence failures; newtonIterations = both problems' Newton
+/// iterations; rhsEvaluations = every F evaluation (forward and recomputation phases) and
+/// jacobianEvaluations = every F_z evaluation (forward Jacobian, backward right-hand side and backward
+/// Jacobian), both counted in the callbacks; factorizations = the
+/// linear-solver setups of both problems (CVodeGetNumLinSolvSetups); recomputedSteps = the forward
+/// steps before the last check point, which CVodeB re-integrates; statesStored = check points
+/// (CVodeF's ncheck). peakBytesInMemory stays 0: CVODES does not report the memory of its check
+/// points and data points. times is the forward grid (CVodeF in one-step mode up to the stop time t1).
+GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, const CvodesOptions& options);
+
+}  // namespace hindsight

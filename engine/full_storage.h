@@ -1,0 +1,39 @@
+// Strategy "full": every step's state in memory. Exact, no recomputation; memory N * n * 8 bytes.
+// Spec (storage/storage_factory.h): full[:budget=BYTES] (default budget 4 GiB). It lives in the engine
+// because it needs nothing but memory: a program that links only hindsight::engine has a strategy. Works for
+// unknown N (adaptive steps): states are kept in blocks, so growth never copies what is already stored.
+#pragma once
+
+#include <hindsight/engine/trajectory_storage.h>
+
+#include <memory>
+#include <vector>
+
+namespace hindsight {
+
+class FullStorage final : public TrajectoryStorage {
+ public:
+  static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
+  explicit FullStorage(std::int64_t budgetBytes = kDefaultBudget);
+
+  std::string spec() const override;
+  bool isExact() const override { return true; }
+
+ private:
+  void doBegin() override;
+  void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRestore(std::int64_t step, VectorRef z) override;
+
+  // States live in blocks of up to kStatesPerBlock; a block is charged in full when it is
+  // allocated and sized so that it never exceeds the budget or the known step count.
+  struct Block {
+    std::int64_t firstStep;
+    std::int64_t capacity;
+    std::unique_ptr<double[]> data;
+  };
+  static constexpr std::int64_t kStatesPerBlock = 1024;
+  std::vector<Block> blocks_;
+};
+
+}  // namespace hindsight

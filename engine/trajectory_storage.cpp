@@ -1,0 +1,156 @@
+#include <hindsight/engine/trajectory_storage.h>
+
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+namespace hindsight {
+
+TrajectoryStorage::TrajectoryStorage(std::int64_t budgetBytes) : budgetBytes_(budgetBytes) {
+  if (budgetBytes <= 0) {
+    throw std::invalid_argument("storage budget must be positive, got " + std::to_string(budgetBytes) +
+                                " bytes");
+  }
+}
+
+void TrajectoryStorage::begin(const TrajectoryInfo& info, StepRecomputer& recomputer) {
+  if (info.stateSize <= 0) {
+    throw std::invalid_argument("TrajectoryInfo.stateSize must be positive, got " +
+                                std::to_string(info.stateSize));
+  }
+  if (!(info.t1 > info.t0)) {
+    throw std::invalid_argument("TrajectoryInfo: t1 must exceed t0");
+  }
+  if (counters_.bytesInMemory != 0) releaseBytes(counters_.bytesInMemory);
+  info_ = info;
+  recomputer_ = &recomputer;
+  counters_ = StorageCounters{};
+  stepCount_ = -1;
+  nextRecord_ = 0;
+  nextRestore_ = -1;
+  hashes_.clear();
+  phase_ = Phase::kForward;
+  doBegin();
+}
+
+void TrajectoryStorage::record(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) {
+  if (phase_ != Phase::kForward)
+    throw std::logic_error("TrajectoryStorage::record outside the forward sweep");
+  if (step != nextRecord_) {
+    throw std::logic_error("TrajectoryStorage::record: expected step " + std::to_string(nextRecord_) +
+                           ", got " + std::to_string(step));
+  }
+  assert(z.size() == info_.stateSize);
+  if (verifyRestores_) hashes_.push_back(hashState(z));
+  doRecord(step, t, z, zdot);
+  ++nextRecord_;
+}
+
+void TrajectoryStorage::finish(std::int64_t stepCount, double t, ConstVectorRef z, ConstVectorRef zdot) {
+  if (phase_ != Phase::kForward || stepCount != nextRecord_) {
+    throw std::logic_error("TrajectoryStorage::finish: " + std::to_string(nextRecord_) +
+                           " steps recorded, finish(" + std::to_string(stepCount) + ")");
+  }
+  stepCount_ = stepCount;
+  doFinish(t, z, zdot);
+  phase_ = Phase::kBackward;
+  nextRestore_ = stepCount - 1;
+}
+
+void TrajectoryStorage::restore(std::int64_t step, VectorRef z) {
+  if (phase_ != Phase::kBackward || step != nextRestore_) {
+    throw std::logic_error("TrajectoryStorage::restore: expected step " + std::to_string(nextRestore_) +
+                           ", got " + std::to_string(step));
+  }
+  doRestore(step, z);
+  if (verifyRestores_ && isExact() && hashState(z) != hashes_[static_cast<std::size_t>(step)]) {
+    throw std::logic_error("storage '" + spec() + "' restored different bits for step " +
+                           std::to_string(step));
+  }
+  --nextRestore_;
+  if (nextRestore_ < 0) phase_ = Phase::kIdle;
+}
+
+void TrajectoryStorage::holdBytes(std::int64_t bytes) {
+  if (!fits(bytes)) {
+    throw StorageError("storage '" + spec() + "' would exceed its budget of " + formatBytes(budgetBytes_) +
+                       " (holds " + formatBytes(counters_.bytesInMemory) + ", needs " + formatBytes(bytes) +
+                       " more); raise the budget or choose a checkpointing strategy");
+  }
+  counters_.bytesInMemory += bytes;
+  if (counters_.bytesInMemory > counters_.peakBytesInMemory)
+    counters_.peakBytesInMemory = counters_.bytesInMemory;
+}
+
+void TrajectoryStorage::releaseBytes(std::int64_t bytes) {
+  assert(bytes <= counters_.bytesInMemory);
+  counters_.bytesInMemory -= bytes;
+}
+
+void TrajectoryStorage::recompute(std::int64_t step, VectorRef z) {
+  recomputer_->advance(step, z);
+  ++counters_.recomputedSteps;
+}
+
+std::uint64_t hashState(ConstVectorRef z) {
+  std::uint64_t h = 1469598103934665603ULL;
+  for (Eigen::Index i = 0; i < z.size(); ++i) {
+    std::uint64_t bits;
+    std::memcpy(&bits, z.data() + i, sizeof bits);
+    for (int b = 0; b < 8; ++b) {
+      h ^= (bits >> (8 * b)) & 0xffu;
+      h *= 1099511628211ULL;
+    }
+  }
+  return h;
+}
+
+std::int64_t parseBytes(const std::string& text, const std::string& field) {
+  std::size_t pos = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &pos);
+  } catch (const std::exception&) {
+    pos = 0;
+  }
+  const std::string unit = text.substr(pos);
+  double scale = 0.0;
+  if (unit.empty() || unit == "B")
+    scale = 1.0;
+  else if (unit == "KiB")
+    scale = 1024.0;
+  else if (unit == "MiB")
+    scale = 1024.0 * 1024.0;
+  else if (unit == "GiB")
+    scale = 1024.0 * 1024.0 * 1024.0;
+  else if (unit == "TiB")
+    scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
+  else if (unit == "kB" || unit == "KB")
+    scale = 1e3;
+  else if (unit == "MB")
+    scale = 1e6;
+  else if (unit == "GB")
+    scale = 1e9;
+  if (pos == 0 || scale == 0.0 || !(value > 0.0) || !std::isfinite(value) || value * scale > 9.0e18) {
+    throw std::invalid_argument(field + " = '" + text +
+                                "' is not a positive byte count (examples: 4096, 64KiB, 32MiB, 4GiB, 10MB)");
+  }
+  return static_cast<std::int64_t>(value * scale);
+}
+
+std::string formatBytes(std::int64_t bytes) {
+  if (bytes == TrajectoryStorage::kUnlimitedBytes) return "unlimited";
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double value = static_cast<double>(bytes);
+  int u = 0;
+  while (value >= 1024.0 && u < 4) {
+    value /= 1024.0;
+    ++u;
+  }
+  std::ostringstream out;
+  out.precision(u == 0 ? 0 : 1);
+  out << std::fixed << value << ' ' << units[u];
+  return out.str();
+}
+
+}  // namespace hindsight

@@ -1,0 +1,261 @@
+#include <hindsight/problems/rod/design_gradient.h>
+
+#include <hindsight/problems/rod/invariants.h>
+
+#include <Eigen/SparseLU>
+
+#include <chrono>
+#include <sstream>
+#include <stdexcept>
+
+namespace hindsight {
+namespace rod {
+namespace {
+
+// Gathers the rows of the element DOFs of a full-DOF matrix.
+Eigen::Matrix<double, 8, Eigen::Dynamic> gatherRows(const Matrix& full, const std::array<int, 8>& dofs) {
+  Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, full.cols());
+  for (int a = 0; a < 8; ++a) local.row(a) = full.row(dofs[a]);
+  return local;
+}
+
+ElementVector gather(const Vector& full, const std::array<int, 8>& dofs) {
+  ElementVector local;
+  for (int a = 0; a < 8; ++a) local(a) = full(dofs[a]);
+  return local;
+}
+
+// Nelson's modified operator for one mode: K - lambda M with row and column k replaced by e_k, where
+// k = argmax |phi| (free-DOF index). Factorised once, reused for every right-hand side.
+class NelsonSystem {
+ public:
+  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree) {
+    modeFree.cwiseAbs().maxCoeff(&pivot_);
+    SparseMatrix matrix = model.stiffness() - eigenvalue * model.mass();
+    matrix.makeCompressed();
+    for (int column = 0; column < matrix.outerSize(); ++column) {
+      for (SparseMatrix::InnerIterator it(matrix, column); it; ++it) {
+        if (it.row() == pivot_ || column == pivot_) it.valueRef() = (it.row() == column) ? 1.0 : 0.0;
+      }
+    }
+    solver_.analyzePattern(matrix);
+    solver_.factorize(matrix);
+    if (solver_.info() != Eigen::Success) {
+      std::ostringstream message;
+      message << "Nelson's modified matrix K - lambda M (lambda = " << eigenvalue
+              << ") is singular: the eigenvalue is repeated or the mode is degenerate ("
+              << solver_.lastErrorMessage() << ")";
+      throw std::runtime_error(message.str());
+    }
+  }
+  Eigen::Index pivot() const { return pivot_; }
+  /// Solves with the right-hand side's pivot entry set to zero (so the solution's pivot entry is zero).
+  Vector solve(Vector rightHandSide) const {
+    rightHandSide(pivot_) = 0.0;
+    return solver_.solve(rightHandSide);
+  }
+
+ private:
+  Eigen::Index pivot_ = 0;
+  Eigen::SparseLU<SparseMatrix> solver_;
+};
+
+void checkBasis(const FeModel& model, const ModalBasis& basis) {
+  if (basis.reliefModeCount != 0)
+    throw std::invalid_argument(
+        "design gradient: basis.reliefModeCount = " + std::to_string(basis.reliefModeCount) +
+        " is outside the allowed range {0} (inertia-relief mode derivatives are not implemented)");
+  if (basis.modesFree.rows() != model.freeDofCount() || basis.modesFull.rows() != model.dofCount() ||
+      basis.modesFree.cols() != basis.eigenmodeCount || basis.eigenvalues.size() != basis.eigenmodeCount)
+    throw std::invalid_argument(
+        "design gradient: the modal basis does not belong to this FeModel (sizes differ)");
+}
+
+// Free-DOF vector -(K' - lambda M') phi for design element e (K' = dE Ke0, M' = drho Me0) plus
+// lambda' M phi; K' and M' are restricted to the free DOFs by dropping constrained rows.
+Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs,
+                           const ElementVector& modeLocal, double stiffnessSlope, double densitySlope,
+                           double eigenvalue, double eigenvalueDerivative, const Vector& massTimesMode) {
+  Vector rhs = eigenvalueDerivative * massTimesMode;
+  const ElementVector local =
+      (stiffnessSlope * model.unitStiffness() - eigenvalue * densitySlope * model.unitMass()) * modeLocal;
+  for (int a = 0; a < 8; ++a) {
+    const int free = model.fullToFree()[dofs[a]];
+    if (free >= 0) rhs(free) -= local(a);
+  }
+  return rhs;
+}
+
+}  // namespace
+
+DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras) {
+  const auto start = std::chrono::steady_clock::now();
+  checkBasis(model, basis);
+  const int n = basis.eigenmodeCount;
+  const InvariantLayout layout(n);
+  if (invariantGradient.size() != layout.size) {
+    std::ostringstream message;
+    message << "computeDesignGradient: invariantGradient has " << invariantGradient.size()
+            << " entries, expected " << layout.size << " (InertiaInvariants::packedSize(" << n << "))";
+    throw std::invalid_argument(message.str());
+  }
+  if (extras.eigenvalueGradient.size() != 0 && extras.eigenvalueGradient.size() != n)
+    throw std::invalid_argument("computeDesignGradient: extras.eigenvalueGradient has " +
+                                std::to_string(extras.eigenvalueGradient.size()) +
+                                " entries, expected 0 or " + std::to_string(n));
+  if (extras.explicitDesignGradient.size() != 0 &&
+      extras.explicitDesignGradient.size() != model.designCount())
+    throw std::invalid_argument("computeDesignGradient: extras.explicitDesignGradient has " +
+                                std::to_string(extras.explicitDesignGradient.size()) +
+                                " entries, expected 0 or " + std::to_string(model.designCount()));
+  const InertiaInvariants weights = InertiaInvariants::unpack(invariantGradient, n);
+  const Vector eigenvalueWeights =
+      extras.eigenvalueGradient.size() == n ? extras.eigenvalueGradient : Vector(Vector::Zero(n));
+
+  const SparseMatrix& massFull = model.massFull();
+  const SparseMatrix& stiffnessFull = model.stiffnessFull();
+  const Matrix& modes = basis.modesFull;
+  const Vector& coordinates = model.referenceCoordinates();
+  const Vector rotatedCoordinates = rotateNodewise(coordinates);
+  const Matrix rotatedModesTransposed = rotateNodewiseTransposedColumns(modes);
+
+  // Explicit part: psi_explicit = sum_ab Gm_ab L_a^T M R_b + sum_ij Gk_ij phi_i^T K phi_j with
+  // L = [e_x, e_y, X, S X, Phi], R = [e_x, e_y, X, Phi, S^T Phi].
+  Matrix left(model.dofCount(), 4 + n), right(model.dofCount(), 3 + 2 * n);
+  left << model.unitTranslationX(), model.unitTranslationY(), coordinates, rotatedCoordinates, modes;
+  right << model.unitTranslationX(), model.unitTranslationY(), coordinates, modes, rotatedModesTransposed;
+  Matrix massWeights = Matrix::Zero(4 + n, 3 + 2 * n);
+  massWeights(0, 0) += weights.mass;
+  massWeights(0, 2) += weights.massTimesCenter(0);
+  massWeights(1, 2) += weights.massTimesCenter(1);
+  massWeights(2, 2) += weights.polarMoment;
+  massWeights.block(0, 3, 2, n) += weights.c1;
+  massWeights.block(4, 2, n, 1) += weights.c2;
+  massWeights.block(3, 3, 1, n) += weights.a0.transpose();
+  massWeights.block(4, 3 + n, n, n) += weights.cTilde;
+  massWeights.block(4, 3, n, n) += weights.mee;
+  const Matrix& stiffnessWeights = weights.kee;
+
+  DesignGradientResult result;
+  result.gradient = Vector::Zero(model.designCount());
+  for (int d = 0; d < model.designCount(); ++d) {
+    const int element = model.designToElement(d);
+    const double x = model.design()(d);
+    const std::array<int, 8> dofs = model.elementDofs(element);
+    const auto leftLocal = gatherRows(left, dofs);
+    const auto rightLocal = gatherRows(right, dofs);
+    const auto modesLocal = gatherRows(modes, dofs);
+    const double massPart =
+        massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
+    const double stiffnessPart =
+        stiffnessWeights.cwiseProduct(modesLocal.transpose() * model.unitStiffness() * modesLocal).sum();
+    result.gradient(d) =
+        model.simp().densityDerivative(x) * massPart + model.simp().stiffnessDerivative(x) * stiffnessPart;
+  }
+
+  // dpsi/dphi_i as full-DOF columns, then restricted to the free DOFs.
+  const Matrix massModes = massFull * modes;
+  Matrix modeGradientFull = massFull * model.unitTranslationX() * weights.c1.row(0) +
+                            massFull * model.unitTranslationY() * weights.c1.row(1) +
+                            (massFull * coordinates) * weights.c2.transpose() +
+                            (massFull * rotatedCoordinates) * weights.a0.transpose() +
+                            (massFull * rotatedModesTransposed) * weights.cTilde.transpose() +
+                            rotateNodewiseColumns(massModes) * weights.cTilde +
+                            massModes * (weights.mee + weights.mee.transpose()) +
+                            (stiffnessFull * modes) * (weights.kee + weights.kee.transpose());
+  modeGradientFull.row(model.jointBAxialDof()) += weights.b.transpose();
+  const Matrix modeGradient = model.restrictColumnsToFree(modeGradientFull);
+
+  const SparseMatrix& mass = model.mass();
+  for (int i = 0; i < n; ++i) {
+    const double eigenvalue = basis.eigenvalues(i);
+    const Vector& modeFree = basis.modesFree.col(i);
+    const Vector gradientOfMode = modeGradient.col(i);
+    const Vector massTimesMode = mass * modeFree;
+    const double projection = gradientOfMode.dot(modeFree);
+    const NelsonSystem system(model, eigenvalue, modeFree);
+    ++result.factorizations;
+    const Vector modeFull = modes.col(i);
+
+    if (options.method == EigenvectorSensitivityMethod::AdjointNelson) {
+      const Vector adjoint = system.solve(gradientOfMode - projection * massTimesMode);
+      ++result.linearSolves;
+      const Vector adjointFull = model.extendToFull(adjoint);
+      const double adjointMassMode = adjoint.dot(massTimesMode);
+      for (int d = 0; d < model.designCount(); ++d) {
+        const double x = model.design()(d);
+        const double stiffnessSlope = model.simp().stiffnessDerivative(x);
+        const double densitySlope = model.simp().densityDerivative(x);
+        const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
+        const ElementVector phi = gather(modeFull, dofs);
+        const ElementVector z = gather(adjointFull, dofs);
+        const ElementVector stiffnessPhi = model.unitStiffness() * phi;
+        const ElementVector massPhi = model.unitMass() * phi;
+        const double phiMassPhi = phi.dot(massPhi);
+        const double eigenvalueDerivative =
+            stiffnessSlope * phi.dot(stiffnessPhi) - eigenvalue * densitySlope * phiMassPhi;
+        result.gradient(d) +=
+            -(stiffnessSlope * z.dot(stiffnessPhi) - eigenvalue * densitySlope * z.dot(massPhi)) +
+            eigenvalueDerivative * (adjointMassMode + eigenvalueWeights(i)) -
+            0.5 * projection * densitySlope * phiMassPhi;
+      }
+    } else {
+      for (int d = 0; d < model.designCount(); ++d) {
+        const double x = model.design()(d);
+        const double stiffnessSlope = model.simp().stiffnessDerivative(x);
+        const double densitySlope = model.simp().densityDerivative(x);
+        const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
+        const ElementVector phi = gather(modeFull, dofs);
+        const double phiMassPhi = phi.dot(model.unitMass() * phi);
+        const double eigenvalueDerivative =
+            stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
+        const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope,
+                                                          eigenvalue, eigenvalueDerivative, massTimesMode));
+        ++result.linearSolves;
+        const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
+        result.gradient(d) +=
+            gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
+      }
+    }
+  }
+  if (extras.explicitDesignGradient.size() != 0) result.gradient += extras.explicitDesignGradient;
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const ModalBasis& basis, int mode,
+                                               int designIndex) {
+  checkBasis(model, basis);
+  if (mode < 0 || mode >= basis.eigenmodeCount)
+    throw std::invalid_argument("computeEigenpairDerivative: mode = " + std::to_string(mode) +
+                                " is outside the allowed range [0, " +
+                                std::to_string(basis.eigenmodeCount - 1) + "]");
+  if (designIndex < 0 || designIndex >= model.designCount())
+    throw std::invalid_argument("computeEigenpairDerivative: designIndex = " + std::to_string(designIndex) +
+                                " is outside the allowed range [0, " +
+                                std::to_string(model.designCount() - 1) + "]");
+  const double eigenvalue = basis.eigenvalues(mode);
+  const Vector modeFree = basis.modesFree.col(mode);
+  const Vector massTimesMode = model.mass() * modeFree;
+  const NelsonSystem system(model, eigenvalue, modeFree);
+  const double x = model.design()(designIndex);
+  const double stiffnessSlope = model.simp().stiffnessDerivative(x);
+  const double densitySlope = model.simp().densityDerivative(x);
+  const std::array<int, 8> dofs = model.elementDofs(model.designToElement(designIndex));
+  const ElementVector phi = gather(Vector(basis.modesFull.col(mode)), dofs);
+  const double phiMassPhi = phi.dot(model.unitMass() * phi);
+  EigenpairDerivative derivative;
+  derivative.eigenvalue =
+      stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
+  const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope,
+                                                    eigenvalue, derivative.eigenvalue, massTimesMode));
+  const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
+  derivative.modeFree = v + c * modeFree;
+  return derivative;
+}
+
+}  // namespace rod
+}  // namespace hindsight

@@ -1,0 +1,30 @@
+// Designs and design-sized fields in HDF5 files, laid out as (ny, nx) arrays over ALL elements:
+// element row j (bottom to top), column i (A to B). The interface columns i = 0 and i = nx-1 are
+// not design variables; in a design they hold 1. Design variable d sits at column i = d / ny + 1,
+// row j = d % ny (the order of rod::FeModel).
+#pragma once
+
+#include <hindsight/engine/types.h>
+#include <hindsight/problems/rod/rod_config.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hindsight {
+
+/// Reads dataset `x` of shape (ny, nx). Throws std::invalid_argument naming the file when it cannot
+/// be opened, has no dataset x, has the wrong shape, or holds a design value outside
+/// [designLowerBound, 1] (naming the row and column).
+Vector readDesignFile(const std::string& path, const rod::RodConfig& config);
+
+/// Writes each (name, values over design variables) as a (ny, nx) dataset; interface columns get
+/// `interfaceValue` (1 for a design, 0 for a gradient). The file appears complete or not at all
+/// (written to a temporary name, then renamed). Throws StorageError naming the file on failure.
+void writeDesignFields(const std::string& path, const rod::RodConfig& config,
+                       const std::vector<std::pair<std::string, Vector>>& fields, double interfaceValue);
+
+/// Design vector <-> (ny, nx) row-major array over all elements.
+std::vector<double> designToGrid(const rod::RodConfig& config, ConstVectorRef values, double interfaceValue);
+
+}  // namespace hindsight

@@ -1,0 +1,150 @@
+// Design-dependent finite-element model of the flexible piston rod (docs/design.md §2).
+//
+// A rectangular nx x ny mesh of 4-node bilinear plane-stress quadrilaterals (2 x 2 Gauss points,
+// consistent mass), 2 DOFs per node ordered (u_x, u_y). Node (i, j), 0 <= i <= nx, 0 <= j <= ny, sits at
+// x = i L / nx, y = -H/2 + j H / ny and has index i (ny + 1) + j; its DOFs are 2 node and 2 node + 1.
+// Element (i, j), 0 <= i < nx, 0 <= j < ny, has index i ny + j and local nodes (i,j), (i+1,j), (i+1,j+1),
+// (i,j+1) (counter-clockwise). The first and last element columns are solid (x = 1); the inner
+// (nx - 2) ny elements are the design variables, design index d = (i - 1) ny + j.
+//
+// Joint A is the mid-height node of the left face, pinned (u_x = u_y = 0); joint B is the mid-height
+// node of the right face, on a roller (u_y = 0). "Full" quantities live on all 2 (nx+1)(ny+1) DOFs and
+// are unconstrained; "free" quantities live on the remaining DOFs, in increasing full-DOF order.
+//
+// The material follows the SIMP law of Olhoff & Du (2005), "Topological design of continuum structures
+// subjected to forced vibration", with the parameters of Held, Knüfer & Seifried (reference/, eq. 4).
+//
+// FeModel is immutable after construction; build a new one for every design. Units are SI.
+#pragma once
+
+#include <hindsight/engine/types.h>
+#include <hindsight/problems/rod/rod_config.h>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <array>
+#include <vector>
+
+namespace hindsight {
+namespace rod {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+using ElementMatrix = Eigen::Matrix<double, 8, 8>;
+using ElementVector = Eigen::Matrix<double, 8, 1>;
+
+/// The SIMP material interpolation (docs/design.md §2): E(x) = x^p E0; rho(x) = c x^q rho0 for x < threshold,
+/// x rho0 for x >= threshold. The density law has a kink at the threshold; there the derivative is the
+/// right-hand one (the linear branch). Inputs are not range-checked (FeModel checks the design).
+class SimpLaw {
+ public:
+  explicit SimpLaw(const RodConfig& config);
+  double stiffness(double x) const;            ///< E(x) [N/m^2]
+  double stiffnessDerivative(double x) const;  ///< dE/dx
+  double density(double x) const;              ///< rho(x) [kg/m^3]
+  double densityDerivative(double x) const;    ///< drho/dx
+
+ private:
+  double youngsModulus_, density_, penalty_, factor_, exponent_, threshold_;
+};
+
+/// Stiffness matrix of one rectangular plane-stress Q4 element with E = 1 (2 x 2 Gauss, exact for a
+/// rectangle), DOFs ordered (u_x, u_y) for the local nodes (0,0), (a,0), (a,b), (0,b). Units: m (thickness).
+ElementMatrix planeStressQuadUnitStiffness(double width, double height, double poissonRatio,
+                                           double thickness);
+/// Consistent mass matrix of the same element with rho = 1 (2 x 2 Gauss, exact). Units: m^3.
+ElementMatrix quadUnitConsistentMass(double width, double height, double thickness);
+
+/// Applies S = [[0, -1], [1, 0]] to every node's (u_x, u_y) pair of a full DOF vector (rotation by +90 deg).
+Vector rotateNodewise(ConstVectorRef full);
+/// Applies S^T node-wise.
+Vector rotateNodewiseTransposed(ConstVectorRef full);
+/// Column-wise versions of the two above.
+Matrix rotateNodewiseColumns(ConstMatrixRef full);
+Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full);
+
+class FeModel {
+ public:
+  /// Builds mesh, element matrices and the assembled sparse K, M (full and constrained) for `design`.
+  /// `design` has config.designCount() entries in [designLowerBound, 1].
+  /// Throws std::invalid_argument for an invalid config (RodConfig::validate) or a design of wrong size,
+  /// non-finite entries or entries outside [designLowerBound, 1] (naming the index and the value).
+  FeModel(const RodConfig& config, ConstVectorRef design);
+
+  const RodConfig& config() const { return config_; }
+  const SimpLaw& simp() const { return simp_; }
+  const Vector& design() const { return design_; }
+
+  int nodeCount() const { return nodeCount_; }
+  int dofCount() const { return 2 * nodeCount_; }
+  int freeDofCount() const { return static_cast<int>(freeToFull_.size()); }
+  int elementCount() const { return elementCount_; }
+  int designCount() const { return static_cast<int>(design_.size()); }
+
+  int nodeIndex(int i, int j) const { return i * (config_.elementsThroughHeight + 1) + j; }
+  /// Full DOF indices of an element, local node order as documented at the top of the file.
+  std::array<int, 8> elementDofs(int element) const;
+  /// Element index of design variable d.
+  int designToElement(int designIndex) const { return designToElement_[designIndex]; }
+  /// Design index of an element, -1 for the solid end columns.
+  int elementToDesign(int element) const { return elementToDesign_[element]; }
+  /// Design value of an element (1 for the solid end columns).
+  double elementDesignValue(int element) const;
+
+  /// Ke0: element stiffness for E = 1 (all elements are identical rectangles).
+  const ElementMatrix& unitStiffness() const { return unitStiffness_; }
+  /// Me0: element consistent mass for rho = 1.
+  const ElementMatrix& unitMass() const { return unitMass_; }
+
+  /// Unconstrained K [N/m] and M [kg] on all DOFs.
+  const SparseMatrix& stiffnessFull() const { return stiffnessFull_; }
+  const SparseMatrix& massFull() const { return massFull_; }
+  /// K and M restricted to the free DOFs of the pinned (A) / roller (B) support.
+  const SparseMatrix& stiffness() const { return stiffness_; }
+  const SparseMatrix& mass() const { return mass_; }
+
+  /// Nodal reference coordinates X as a full DOF vector [m].
+  const Vector& referenceCoordinates() const { return referenceCoordinates_; }
+  /// Unit translations e_x, e_y as full DOF vectors.
+  const Vector& unitTranslationX() const { return unitTranslationX_; }
+  const Vector& unitTranslationY() const { return unitTranslationY_; }
+
+  /// freeToFull()[k] is the full DOF of free DOF k; fullToFree()[d] is -1 for constrained DOFs.
+  const std::vector<int>& freeToFull() const { return freeToFull_; }
+  const std::vector<int>& fullToFree() const { return fullToFree_; }
+  Vector restrictToFree(ConstVectorRef full) const;
+  Matrix restrictColumnsToFree(ConstMatrixRef full) const;
+  /// Extends free-DOF vectors/matrices by zeros at the constrained DOFs.
+  Vector extendToFull(ConstVectorRef free) const;
+  Matrix extendColumnsToFull(ConstMatrixRef free) const;
+
+  int jointANode() const;
+  int jointBNode() const;
+  /// Full DOF of u_x at B, and its free-DOF index (u_x at B is free: roller).
+  int jointBAxialDof() const { return 2 * jointBNode(); }
+  int jointBAxialFreeDof() const { return fullToFree_[jointBAxialDof()]; }
+
+  /// V(x)/V0 over all elements (solid columns count with x = 1; all elements have equal area).
+  double volumeFraction() const;
+  /// d(V/V0)/dx_d for every design variable (constant 1 / elementCount).
+  Vector volumeFractionGradient() const;
+
+ private:
+  void assemble();
+
+  RodConfig config_;
+  SimpLaw simp_;
+  Vector design_;
+  int nodeCount_ = 0;
+  int elementCount_ = 0;
+  std::vector<int> designToElement_;
+  std::vector<int> elementToDesign_;
+  ElementMatrix unitStiffness_;
+  ElementMatrix unitMass_;
+  SparseMatrix stiffnessFull_, massFull_, stiffness_, mass_;
+  Vector referenceCoordinates_, unitTranslationX_, unitTranslationY_;
+  std::vector<int> freeToFull_, fullToFree_;
+};
+
+}  // namespace rod
+}  // namespace hindsight

@@ -1,0 +1,165 @@
+#include <hindsight/problems/rod/modal_reduction.h>
+
+#include <Spectra/MatOp/SparseSymMatProd.h>
+#include <Spectra/MatOp/SymShiftInvert.h>
+#include <Spectra/SymGEigsShiftSolver.h>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+namespace hindsight {
+namespace rod {
+
+ModalReductionOptions ModalReductionOptions::fromConfig(const RodConfig& config) {
+  ModalReductionOptions options;
+  options.modeCount = config.modeCount;
+  options.inertiaReliefModes = config.inertiaReliefModes;
+  return options;
+}
+
+double ModalBasis::frequencyHz(int mode) const { return std::sqrt(eigenvalues(mode)) / (2.0 * M_PI); }
+
+namespace {
+
+// Sign rule documented in the header: the first entry with |v_k| >= 0.1 max |v| is made positive.
+void applySignConvention(Eigen::Ref<Eigen::VectorXd> mode) {
+  const double largest = mode.cwiseAbs().maxCoeff();
+  for (Eigen::Index k = 0; k < mode.size(); ++k) {
+    if (std::abs(mode(k)) >= 0.1 * largest) {
+      if (mode(k) < 0.0) mode = -mode;
+      return;
+    }
+  }
+}
+
+}  // namespace
+
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options) {
+  const int freeDofs = model.freeDofCount();
+  const int n = options.modeCount;
+  if (n < 1 || n + 1 >= freeDofs) {
+    std::ostringstream message;
+    message << "ModalReductionOptions.modeCount = " << n << " is outside the allowed range [1, "
+            << freeDofs - 2 << "] (free DOFs minus 2)";
+    throw std::invalid_argument(message.str());
+  }
+  if (!(options.gapWarningThreshold >= 1.0)) {
+    std::ostringstream message;
+    message << "ModalReductionOptions.gapWarningThreshold = " << options.gapWarningThreshold
+            << " is outside the allowed range [1, inf)";
+    throw std::invalid_argument(message.str());
+  }
+  if (!(options.tolerance > 0.0) || options.maxIterations < 1 || options.refinementSteps < 0) {
+    std::ostringstream message;
+    message << "ModalReductionOptions: tolerance = " << options.tolerance
+            << " must be in (0, inf) and maxIterations = " << options.maxIterations
+            << " in [1, inf), refinementSteps = " << options.refinementSteps << " in [0, inf)";
+    throw std::invalid_argument(message.str());
+  }
+
+  const SparseMatrix& stiffness = model.stiffness();
+  const SparseMatrix& mass = model.mass();
+  const int requested = n + 1;
+  const int subspace = std::min(freeDofs, std::max(2 * requested + 1, requested + 20));
+
+  using ShiftInvert = Spectra::SymShiftInvert<double, Eigen::Sparse, Eigen::Sparse>;
+  using MassProduct = Spectra::SparseSymMatProd<double>;
+  ShiftInvert shiftInvert(stiffness, mass);
+  MassProduct massProduct(mass);
+  Spectra::SymGEigsShiftSolver<ShiftInvert, MassProduct, Spectra::GEigsMode::ShiftInvert> solver(
+      shiftInvert, massProduct, requested, subspace, 0.0);
+  solver.init();
+  const Eigen::Index converged =
+      solver.compute(Spectra::SortRule::LargestMagn, options.maxIterations, options.tolerance);
+  if (solver.info() != Spectra::CompInfo::Successful || converged < requested) {
+    std::ostringstream message;
+    message << "computeModalBasis: Spectra shift-invert solver converged " << converged << " of " << requested
+            << " eigenpairs (info " << static_cast<int>(solver.info()) << ")";
+    throw std::runtime_error(message.str());
+  }
+  Vector values = solver.eigenvalues();
+  Matrix vectors = solver.eigenvectors();
+  if (options.refinementSteps > 0) {
+    // Block inverse iteration with K followed by Rayleigh-Ritz on span(K^-1 M V).
+    Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
+    if (factorization.info() != Eigen::Success)
+      throw std::runtime_error(
+          "computeModalBasis: the constrained stiffness matrix is not positive definite");
+    for (int step = 0; step < options.refinementSteps; ++step) {
+      const Matrix subspace = factorization.solve(Matrix(mass * vectors));
+      const Matrix projectedStiffness = subspace.transpose() * (stiffness * subspace);
+      const Matrix projectedMass = subspace.transpose() * (mass * subspace);
+      const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(
+          0.5 * (projectedStiffness + projectedStiffness.transpose()),
+          0.5 * (projectedMass + projectedMass.transpose()));
+      if (ritz.info() != Eigen::Success)
+        throw std::runtime_error("computeModalBasis: Rayleigh-Ritz refinement failed");
+      values = ritz.eigenvalues();
+      vectors = subspace * ritz.eigenvectors();
+    }
+  }
+  std::vector<int> order(values.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return values(a) < values(b); });
+
+  ModalBasis basis;
+  basis.eigenmodeCount = n;
+  basis.reliefModeCount = options.inertiaReliefModes ? 3 : 0;
+  basis.iterations = static_cast<int>(solver.num_iterations());
+  basis.operations = static_cast<int>(solver.num_operations());
+  basis.eigenvalues.resize(basis.columnCount());
+  basis.modesFree.resize(freeDofs, basis.columnCount());
+  for (int i = 0; i < n; ++i) {
+    basis.eigenvalues(i) = values(order[i]);
+    Vector mode = vectors.col(order[i]);
+    mode /= std::sqrt(mode.dot(mass * mode));
+    applySignConvention(mode);
+    basis.modesFree.col(i) = mode;
+  }
+  basis.firstDiscardedEigenvalue = values(order[n]);
+  basis.gapRatio = basis.firstDiscardedEigenvalue / basis.eigenvalues(n - 1);
+  if (basis.gapRatio < options.gapWarningThreshold) {
+    std::ostringstream message;
+    message << "modal truncation inside an eigenvalue cluster: lambda_" << n + 1 << " / lambda_" << n << " = "
+            << basis.gapRatio << " < " << options.gapWarningThreshold
+            << "; eigenvector sensitivities may be inaccurate";
+    basis.warning = message.str();
+  }
+
+  if (options.inertiaReliefModes) {
+    Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
+    if (factorization.info() != Eigen::Success)
+      throw std::runtime_error(
+          "computeModalBasis: the constrained stiffness matrix is not positive definite");
+    const SparseMatrix& massFull = model.massFull();
+    const Vector loads[3] = {massFull * model.unitTranslationX(), massFull * model.unitTranslationY(),
+                             massFull * rotateNodewise(model.referenceCoordinates())};
+    for (int r = 0; r < 3; ++r) {
+      Vector mode = factorization.solve(model.restrictToFree(loads[r]));
+      for (int pass = 0; pass < 2; ++pass) {
+        for (int j = 0; j < n + r; ++j) {
+          const Vector column = basis.modesFree.col(j);
+          mode -= column.dot(mass * mode) * column;
+        }
+      }
+      const double norm = std::sqrt(mode.dot(mass * mode));
+      if (!(norm > 0.0) || !std::isfinite(norm))
+        throw std::runtime_error("computeModalBasis: inertia-relief mode " + std::to_string(r) +
+                                 " is linearly dependent on the eigenmodes");
+      mode /= norm;
+      applySignConvention(mode);
+      basis.modesFree.col(n + r) = mode;
+      basis.eigenvalues(n + r) = mode.dot(stiffness * mode);
+    }
+  }
+  basis.modesFull = model.extendColumnsToFull(basis.modesFree);
+  return basis;
+}
+
+}  // namespace rod
+}  // namespace hindsight

@@ -1,0 +1,73 @@
+// Modal reduction of the pinned-roller rod: the shape functions Phi of docs/design.md §2.
+//
+// Solves K phi = lambda M phi on the free DOFs (constrained K, M of FeModel) for the lowest n + 1
+// eigenpairs with Spectra's SymGEigsShiftSolver in shift-invert mode (shift 0: K is positive definite
+// once A is pinned and B rolls), keeps the lowest n, and reports the spectral gap lambda_{n+1}/lambda_n:
+// eigenvector sensitivities (Nelson 1976) degrade when the truncation cuts through a cluster.
+//
+// Modes are ascending in lambda, mass-normalised (phi^T M phi = 1) and signed deterministically: the
+// first free-DOF entry whose magnitude is at least a tenth of the largest magnitude is positive. (The
+// rule "largest entry positive" is not used because antisymmetric bending modes of a symmetric design
+// have two extreme entries equal up to round-off, so the sign would be decided by round-off and jump
+// under a finite-difference perturbation.)
+//
+// Optionally three static inertia-relief modes K^-1 M [e_x, e_y, S X] (restricted to the free DOFs) are
+// appended, M-orthonormalised against the kept eigenmodes and each other (two passes of modified
+// Gram-Schmidt). Their "eigenvalues" entries hold the Rayleigh quotients.
+#pragma once
+
+#include <hindsight/engine/types.h>
+#include <hindsight/problems/rod/fe_model.h>
+
+#include <string>
+
+namespace hindsight {
+namespace rod {
+
+struct ModalReductionOptions {
+  int modeCount = 10;                 ///< n eigenmodes kept, 1 <= n, n + 1 < free DOF count.
+  bool inertiaReliefModes = false;    ///< append K^-1 M [e_x, e_y, S X] (3 more columns).
+  double gapWarningThreshold = 1.05;  ///< warn when lambda_{n+1} / lambda_n is below this.
+  double tolerance = 1e-13;           ///< Spectra convergence tolerance (relative, on Ritz values).
+  int maxIterations = 1000;           ///< Spectra restarts.
+  /// Block inverse-iteration + Rayleigh-Ritz steps applied to Spectra's n + 1 vectors (0 = none), one
+  /// sparse Cholesky of K in total. Each step shrinks the error component of mode i outside the block by
+  /// lambda_i / lambda_{n+2}; it makes the modes a smoother function of the design, which finite-difference
+  /// checks of the design gradient need.
+  int refinementSteps = 2;
+
+  /// The options docs/design.md §2 implies for a RodConfig (modeCount, inertiaReliefModes).
+  static ModalReductionOptions fromConfig(const RodConfig& config);
+};
+
+struct ModalBasis {
+  /// lambda_i = omega_i^2 [1/s^2] of the eigenmodes (ascending), followed by the Rayleigh quotients of
+  /// the inertia-relief modes if any. Size eigenmodeCount + reliefModeCount.
+  Vector eigenvalues;
+  /// Phi on the free DOFs, freeDofCount x (eigenmodeCount + reliefModeCount); Phi^T M Phi = I.
+  Matrix modesFree;
+  /// Phi on all DOFs (zeros at the constrained DOFs), dofCount x columns.
+  Matrix modesFull;
+  int eigenmodeCount = 0;
+  int reliefModeCount = 0;
+  /// lambda_{n+1} (first discarded eigenvalue) and the gap ratio lambda_{n+1} / lambda_n.
+  double firstDiscardedEigenvalue = 0.0;
+  double gapRatio = 0.0;
+  /// Empty unless gapRatio < gapWarningThreshold; then a message naming the ratio.
+  std::string warning;
+  /// Spectra counters, for the run summary.
+  int iterations = 0;
+  int operations = 0;
+
+  int columnCount() const { return eigenmodeCount + reliefModeCount; }
+  /// Natural frequency of eigenmode i in Hz.
+  double frequencyHz(int mode) const;
+};
+
+/// Computes the modal basis of `model`.
+/// Throws std::invalid_argument for modeCount < 1 or modeCount + 1 >= freeDofCount, or a
+/// gapWarningThreshold < 1; throws std::runtime_error when Spectra does not converge (numerical outcome).
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options);
+
+}  // namespace rod
+}  // namespace hindsight

@@ -1,0 +1,137 @@
+#include <hindsight/problems/rod/piston_rod.h>
+
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/rod/design_gradient.h>
+#include <hindsight/problems/rod/esl.h>
+#include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/invariants.h>
+#include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/slider_crank.h>
+#include <hindsight/storage/storage_factory.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace hindsight {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+}  // namespace
+
+PistonRod::PistonRod(const Config& config) : config_(config) { config_.validate(); }
+
+Vector PistonRod::initialDesign() const { return Vector::Constant(designCount(), config_.rod.initialDesign); }
+
+IntegratorOptions PistonRod::integratorOptions() const {
+  const SimulationSettings& s = config_.simulation;
+  IntegratorOptions options;
+  options.method = s.integrator;
+  options.t0 = 0.0;
+  options.t1 = config_.rod.endTime;
+  options.adaptive = s.adaptive;
+  options.relativeTolerance = s.relativeTolerance;
+  options.absoluteTolerance = s.absoluteTolerance;
+  if (s.adaptive) {
+    options.step = s.step;
+  } else {
+    const long samples = config_.rod.eslSamples;
+    const long blocks = static_cast<long>(std::ceil(options.t1 / s.step / samples - 1e-9));
+    options.step = options.t1 / static_cast<double>(std::max(1L, blocks) * samples);
+  }
+  options.validate();
+  return options;
+}
+
+PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& request) const {
+  const rod::RodConfig& rc = config_.rod;
+  PistonRodEvaluation out;
+  auto start = Clock::now();
+  const rod::FeModel model(rc, design);
+  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  const Vector p = rod::computeInvariants(model, basis).pack();
+  for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
+  out.gapRatio = basis.gapRatio;
+  out.warning = basis.warning;
+  out.modes = basis.modesFull;
+  out.volumeFraction = model.volumeFraction();
+  out.dvolume = model.volumeFractionGradient();
+  out.modelSeconds = since(start);
+
+  rod::CrankMotion crank;
+  crank.radius = rc.crankRadius;
+  crank.omega = rc.crankSpeed;
+  crank.rampTime = rc.rampTime;
+  const rod::SliderCrankProblem problem(basis.columnCount(), rc.length, crank);
+  const IntegratorOptions options = integratorOptions();
+
+  // q(t_k) at the ESL sample times, which are grid points of the fixed-step grid.
+  const int n = basis.columnCount();
+  const int samples = rc.eslSamples;
+  Matrix sampled = Matrix::Zero(n, samples);
+  std::int64_t stride = 0;
+  if (!options.adaptive) {
+    stride = static_cast<std::int64_t>(std::llround(options.t1 / options.step)) / samples;
+  } else if (request.psi2) {
+    throw std::invalid_argument(
+        "psi2 needs fixed steps (simulation.adaptive = false): its load times must be grid points");
+  }
+  const StateObserver observer = [&](std::int64_t step, double, ConstVectorRef z) {
+    if (stride > 0 && step > 0 && step % stride == 0 && step / stride <= samples) {
+      sampled.col(step / stride - 1) = z.head(n);
+    }
+  };
+
+  start = Clock::now();
+  if (request.psi1Gradient) {
+    GradientResult result;
+    if (config_.simulation.adjoint == "discrete") {
+      auto storage = createStorage(config_.simulation.storage);
+      result = computeGradient(problem, p, options, *storage, observer);
+    } else {
+      // The continuous and CVODES routes take their own steps; the ESL samples come from a
+      // separate fixed-step forward run when psi2 is asked for.
+      GradientOptions routes;
+      routes.adjoint = parseAdjointMethod(config_.simulation.adjoint);
+      routes.integrator = options;
+      routes.storage = config_.simulation.storage;
+      routes.continuous.relativeTolerance = config_.simulation.relativeTolerance;
+      routes.continuous.absoluteTolerance = config_.simulation.absoluteTolerance;
+      routes.cvodes.relativeTolerance = config_.simulation.relativeTolerance;
+      routes.cvodes.absoluteTolerance = config_.simulation.absoluteTolerance;
+      routes.cvodes.maxSteps = 100'000'000;
+      result = computeGradientByMethod(problem, p, routes);
+      if (request.psi2) simulate(problem, p, options, observer);
+    }
+    out.psi1 = result.objective;
+    out.summary = result.summary;
+    out.simulationSeconds = since(start);
+    start = Clock::now();
+    rod::DesignGradientOptions chain;
+    chain.method = config_.simulation.eigenvectorRoute == "nelson"
+                       ? rod::EigenvectorSensitivityMethod::NelsonPerVariable
+                       : rod::EigenvectorSensitivityMethod::AdjointNelson;
+    out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain).gradient;
+    out.chainSeconds = since(start);
+  } else {
+    ForwardResult result = simulate(problem, p, options, observer);
+    out.psi1 = result.objective;
+    out.summary = result.summary;
+    out.simulationSeconds = since(start);
+  }
+
+  out.psi2 = std::numeric_limits<double>::quiet_NaN();
+  if (request.psi2) {
+    start = Clock::now();
+    const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
+    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1);
+    out.psi2 = esl.value;
+    if (request.psi2Gradient) out.dpsi2 = esl.gradient;
+    out.eslSeconds = since(start);
+  }
+  return out;
+}
+
+}  // namespace hindsight

@@ -1,0 +1,62 @@
+// The piston-rod benchmark end to end (docs/design.md §2-4): for a design x, the SIMP FE model,
+// the pinned-roller modal basis, the inertia invariants, the slider-crank simulation with psi1 and
+// its adjoint gradient dpsi1/dp, the chain to dpsi1/dx through the invariants and the eigenvector
+// sensitivities, the equivalent-static-load objective psi2 with its gradient, and the volume
+// fraction. The model object is immutable; evaluate() builds everything for one design.
+#pragma once
+
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/rod/config.h>
+
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+struct PistonRodEvaluation {
+  double psi1 = 0.0;
+  double psi2 = 0.0;  ///< NaN when not requested
+  double volumeFraction = 0.0;
+  std::vector<double> frequenciesHz;
+  double gapRatio = 0.0;
+  std::string warning;             ///< spectral-gap warning, empty when the gap is comfortable
+  Vector dpsi1;                    ///< d psi1 / dx over the design variables (empty unless requested)
+  Vector dpsi2;                    ///< d psi2 / dx (ESL approximation; empty unless requested)
+  Vector dvolume;                  ///< d(V/V0)/dx
+  Matrix modes;                    ///< the kept modes on all DOFs (dofCount x n)
+  RunSummary summary;              ///< of the psi1 simulation (and adjoint when a gradient was computed)
+  double modelSeconds = 0.0;       ///< FE assembly, modes, invariants
+  double simulationSeconds = 0.0;  ///< forward (+ adjoint) sweep
+  double chainSeconds = 0.0;       ///< dpsi/dp -> dpsi/dx
+  double eslSeconds = 0.0;
+};
+
+class PistonRod {
+ public:
+  /// Validates the configuration (std::invalid_argument naming the field).
+  explicit PistonRod(const Config& config);
+
+  const Config& config() const { return config_; }
+  int designCount() const { return config_.rod.designCount(); }
+  /// The uniform initial design x0.
+  Vector initialDesign() const;
+
+  struct Request {
+    bool psi1Gradient = true;
+    bool psi2 = true;
+    bool psi2Gradient = true;
+  };
+  /// Throws std::invalid_argument for a design of wrong size or out of bounds (naming the index),
+  /// NumericalError for a failed simulation, std::runtime_error for a failed eigen solve.
+  PistonRodEvaluation evaluate(ConstVectorRef design, const Request& request) const;
+  PistonRodEvaluation evaluate(ConstVectorRef design) const { return evaluate(design, Request{}); }
+
+  /// The integrator options actually used: the fixed step is refined so that N is a multiple of the
+  /// number of ESL samples and the sample times t_k = k t1 / N_esl are grid points.
+  IntegratorOptions integratorOptions() const;
+
+ private:
+  Config config_;
+};
+
+}  // namespace hindsight

@@ -1,0 +1,202 @@
+#include <hindsight/problems/topopt/optimization_run.h>
+
+#include <hindsight/problems/topopt/pictures.h>
+
+#include <unistd.h>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+#include <stdexcept>
+
+namespace hindsight {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+// Creates the directory and proves that a file can be written in it.
+void prepareDirectory(const std::string& directory) {
+  if (directory.empty()) throw std::invalid_argument("--out: the output directory name is empty");
+  std::error_code error;
+  fs::create_directories(directory, error);
+  if (error) {
+    throw std::invalid_argument("--out '" + directory +
+                                "': cannot create the output directory: " + error.message());
+  }
+  if (!fs::is_directory(directory, error)) {
+    throw std::invalid_argument("--out '" + directory + "' exists and is not a directory");
+  }
+  const std::string probe = (fs::path(directory) / (".write-probe-" + std::to_string(::getpid()))).string();
+  bool written = false;
+  {
+    std::ofstream file(probe, std::ios::binary | std::ios::trunc);
+    file << "probe\n";
+    file.flush();
+    written = static_cast<bool>(file);
+  }
+  std::remove(probe.c_str());
+  if (!written)
+    throw std::invalid_argument("--out '" + directory + "': the output directory is not writable");
+}
+
+// The configuration as JSON without the fields a resumed run may change.
+nlohmann::json comparable(nlohmann::json json) {
+  json["optimization"].erase("iterations");
+  json["optimization"].erase("pictureEvery");
+  return json;
+}
+
+void requireSameConfiguration(const Config& requested, const std::string& storedJson,
+                              const std::string& path) {
+  nlohmann::json stored;
+  try {
+    stored = comparable(toJson(configFromJson(nlohmann::json::parse(storedJson))));
+  } catch (const std::exception& e) {
+    throw StorageError(std::string("results file: the stored configuration cannot be read: ") + e.what(),
+                       path);
+  }
+  const nlohmann::json wanted = comparable(toJson(requested));
+  if (stored == wanted) return;
+  std::string differences;
+  for (const auto& [section, fields] : wanted.items()) {
+    for (const auto& [field, value] : fields.items()) {
+      const auto storedSection = stored.find(section);
+      if (storedSection == stored.end() || !storedSection->contains(field) ||
+          (*storedSection)[field] != value) {
+        differences +=
+            (differences.empty() ? "" : ", ") + section + "." + field + " (requested " + value.dump() +
+            ", stored " +
+            (storedSection != stored.end() && storedSection->contains(field) ? (*storedSection)[field].dump()
+                                                                             : std::string("absent")) +
+            ")";
+      }
+    }
+  }
+  throw std::invalid_argument("--resume: the configuration differs from the one stored in " + path + ": " +
+                              differences +
+                              "; only optimization.iterations and optimization.pictureEvery may change");
+}
+
+}  // namespace
+
+std::string progressLine(const IterationRecord& r) {
+  char change[32];
+  if (std::isnan(r.maxDesignChange)) {
+    std::snprintf(change, sizeof change, "%5s", "final");
+  } else {
+    std::snprintf(change, sizeof change, "%5.3f", r.maxDesignChange);
+  }
+  char line[200];
+  std::snprintf(line, sizeof line, "iter %3d  psi1 %.4f  psi2 %.4f  V/V0 %.4f  max|dx| %s  %.1f s",
+                r.iteration, r.psi1, r.psi2, r.volumeFraction, change, r.totalSeconds);
+  std::string text = line;
+  if (r.backtracks > 0)
+    text += "  (" + std::to_string(r.backtracks) + " halvings after a diverged simulation)";
+  return text;
+}
+
+OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOptions& options)
+    : config_(config), options_(options), optimizer_(config) {
+  if (options.resume && options.force) {
+    throw std::invalid_argument(
+        "--resume and --force exclude each other: continue the results or overwrite them");
+  }
+  if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
+  prepareDirectory(options.outputDirectory);
+  resultsPath_ = (fs::path(options.outputDirectory) / "results.h5").string();
+  std::remove((resultsPath_ + ".partial").c_str());  // garbage of a crash during a write
+
+  const rod::RodConfig& rc = config_.rod;
+  const bool exists = fs::exists(resultsPath_);
+  if (exists && !options.resume && !options.force) {
+    throw std::invalid_argument(resultsPath_ +
+                                " exists; use --resume to continue it or --force to overwrite it");
+  }
+  if (exists && options.resume) {
+    data_ = readResultsFile(resultsPath_);
+    requireSameConfiguration(config_, data_.configurationJson, resultsPath_);
+    const int done = data_.state.iteration;
+    if (config_.optimization.iterations < done) {
+      throw std::invalid_argument(
+          "optimization.iterations = " + std::to_string(config_.optimization.iterations) + " is below the " +
+          std::to_string(done) + " iterations already in " + resultsPath_);
+    }
+    const std::size_t expectedRows = static_cast<std::size_t>(done) + (data_.finished ? 1 : 0);
+    if (data_.history.size() != expectedRows || data_.nx != rc.elementsAlongLength ||
+        data_.ny != rc.elementsThroughHeight) {
+      throw StorageError("results file: inconsistent history (" + std::to_string(data_.history.size()) +
+                             " rows after " + std::to_string(done) + " updates)",
+                         resultsPath_);
+    }
+    optimizer_.restore(data_.state);  // checks the sizes against the configuration
+    if (data_.finished && config_.optimization.iterations > done) {
+      // The final evaluation made no update; a longer run redoes it as an ordinary iteration.
+      data_.history.pop_back();
+      data_.densities.pop_back();
+      data_.finished = false;
+      data_.finalModes.resize(0, 0);
+      data_.finalFrequenciesHz.clear();
+    }
+  } else {
+    data_ = ResultsData{};
+    data_.nx = rc.elementsAlongLength;
+    data_.ny = rc.elementsThroughHeight;
+    data_.state = optimizer_.state();
+  }
+  data_.configurationJson = toJson(config_).dump();
+}
+
+void OptimizationRun::writePictures(const std::string& stem, const Vector& grid) const {
+  const rod::RodConfig& rc = config_.rod;
+  const fs::path base = fs::path(options_.outputDirectory) / stem;
+  writeDensityPng(base.string() + ".png", rc.elementsAlongLength, rc.elementsThroughHeight, grid,
+                  options_.pixelsPerElement);
+  writeDensityVtk(base.string() + ".vtk", rc.elementsAlongLength, rc.elementsThroughHeight, grid,
+                  rc.length / rc.elementsAlongLength);
+}
+
+OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
+  const auto start = Clock::now();
+  OptimizationRunSummary summary;
+  summary.resumedFrom = static_cast<int>(data_.history.size());
+  summary.resultsPath = resultsPath_;
+  for (const IterationRecord& record : data_.history) progress << progressLine(record) << "  (stored)\n";
+  if (data_.finished) {
+    progress << "the run in " << resultsPath_ << " is finished; nothing to do" << std::endl;
+  }
+  const int pictureEvery = config_.optimization.pictureEvery;
+  while (!data_.finished) {
+    const auto iterationStart = Clock::now();
+    IterationRecord record = optimizer_.step();
+    const Vector grid = optimizer_.densityGrid(optimizer_.lastEvaluatedDesign());
+    data_.state = optimizer_.state();
+    data_.finished = optimizer_.finished();
+    if (data_.finished) {
+      const PistonRodEvaluation& evaluation = *optimizer_.lastEvaluation();
+      data_.finalModes = evaluation.modes;
+      data_.finalFrequenciesHz = evaluation.frequenciesHz;
+    }
+    // Pictures before the results file: after a crash in between, the resumed run rewrites them.
+    if (pictureEvery > 0 && record.iteration % pictureEvery == 0) {
+      writePictures("design_iter_" + std::to_string(record.iteration), grid);
+    }
+    if (data_.finished) writePictures("design_final", grid);
+    record.totalSeconds = since(iterationStart);
+    data_.history.push_back(record);
+    data_.densities.push_back(grid);
+    writeResultsFile(resultsPath_, data_);
+    progress << progressLine(record) << std::endl;
+    if (options_.afterCommit) options_.afterCommit(record);
+  }
+  summary.history = data_.history;
+  summary.finished = data_.finished;
+  summary.wallSeconds = since(start);
+  return summary;
+}
+
+}  // namespace hindsight

@@ -1,0 +1,200 @@
+#include <hindsight/problems/topopt/topology_optimizer.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace hindsight {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
+  const int nx = rc.elementsAlongLength;
+  const int ny = rc.elementsThroughHeight;
+  std::vector<int> map(static_cast<std::size_t>(rc.designCount()));
+  // Design index d = (i - 1) ny + j for element column i, row j (problems/fe_model.h).
+  for (int d = 0; d < rc.designCount(); ++d) {
+    const int column = d / ny + 1;
+    const int row = d % ny;
+    map[static_cast<std::size_t>(d)] = row * nx + column;
+  }
+  return map;
+}
+
+std::vector<bool> designMask(const rod::RodConfig& rc, const std::vector<int>& designToGrid) {
+  std::vector<bool> mask(static_cast<std::size_t>(rc.elementsAlongLength * rc.elementsThroughHeight), false);
+  for (int g : designToGrid) mask[static_cast<std::size_t>(g)] = true;
+  return mask;
+}
+
+Config validated(const Config& config) {
+  config.validate();
+  return config;
+}
+
+// docs/design.md §7: Svanberg's 2007 constants (the MmaOptions defaults); only the move limit is
+// configurable.
+MmaOptions mmaOptions(const OptimizationSettings& settings) {
+  MmaOptions options;
+  options.move_limit = settings.moveLimit;
+  return options;
+}
+
+}  // namespace
+
+TopologyOptimizer::TopologyOptimizer(const Config& config)
+    : designToGrid_(makeDesignToGrid(validated(config).rod)),
+      rod_(config),
+      filter_(config.rod.elementsAlongLength, config.rod.elementsThroughHeight,
+              config.optimization.filterRadius, designMask(config.rod, designToGrid_)),
+      mma_(config.rod.designCount(), 1, mmaOptions(config.optimization)) {
+  state_.design = rod_.initialDesign();
+  state_.mma = mma_.state();
+}
+
+void TopologyOptimizer::restore(const OptimizerState& state) {
+  const int n = designCount();
+  if (state.design.size() != n) {
+    throw std::invalid_argument("optimizer state: design has " + std::to_string(state.design.size()) +
+                                " entries, the configuration has " + std::to_string(n) + " design variables");
+  }
+  if (state.iteration < 0 || state.iteration > config().optimization.iterations) {
+    throw std::invalid_argument(
+        "optimizer state: iteration " + std::to_string(state.iteration) +
+        " outside [0, optimization.iterations = " + std::to_string(config().optimization.iterations) + "]");
+  }
+  if (state.iteration > 0 && !(state.objectiveScale > 0.0 && std::isfinite(state.objectiveScale))) {
+    throw std::invalid_argument("optimizer state: objective scale " + std::to_string(state.objectiveScale) +
+                                " must be positive and finite after the first iteration");
+  }
+  mma_.restore(state.mma);  // checks the MMA vectors
+  state_ = state;
+  finished_ = false;
+  last_.reset();
+}
+
+Vector TopologyOptimizer::physicalDesign(ConstVectorRef design) const {
+  if (filter_.isIdentity()) return design;
+  const rod::RodConfig& rc = config().rod;
+  Vector grid = Vector::Ones(rc.elementsAlongLength * rc.elementsThroughHeight);
+  for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = design(d);
+  Vector filtered(grid.size());
+  filter_.apply(grid, filtered);
+  Vector out(designCount());
+  // A convex combination of values in [xMin, 1]; the clamp only removes rounding.
+  for (int d = 0; d < designCount(); ++d) {
+    out(d) = std::clamp(filtered(designToGrid_[static_cast<std::size_t>(d)]), rc.designLowerBound, 1.0);
+  }
+  return out;
+}
+
+Vector TopologyOptimizer::chainThroughFilter(ConstVectorRef gradient) const {
+  if (filter_.isIdentity()) return gradient;
+  const rod::RodConfig& rc = config().rod;
+  Vector grid = Vector::Zero(rc.elementsAlongLength * rc.elementsThroughHeight);
+  for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = gradient(d);
+  Vector chained(grid.size());
+  filter_.applyTranspose(grid, chained);
+  Vector out(designCount());
+  for (int d = 0; d < designCount(); ++d) out(d) = chained(designToGrid_[static_cast<std::size_t>(d)]);
+  return out;
+}
+
+Vector TopologyOptimizer::densityGrid(ConstVectorRef design) const {
+  const rod::RodConfig& rc = config().rod;
+  const Vector physical = physicalDesign(design);
+  Vector grid = Vector::Ones(rc.elementsAlongLength * rc.elementsThroughHeight);
+  for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = physical(d);
+  return grid;
+}
+
+IterationRecord TopologyOptimizer::step() {
+  if (finished_) throw std::logic_error("TopologyOptimizer::step after the final evaluation");
+  const auto start = Clock::now();
+  const OptimizationSettings& settings = config().optimization;
+  const bool usePsi1 = settings.objective == "psi1";
+  const bool update = state_.iteration < settings.iterations;
+
+  PistonRod::Request request;
+  request.psi1Gradient = update && usePsi1;
+  request.psi2 = true;
+  request.psi2Gradient = update && !usePsi1;
+  IterationRecord record;
+  record.iteration = state_.iteration;
+  Vector design = state_.design;
+  std::optional<PistonRodEvaluation> evaluated;
+  while (!evaluated) {
+    try {
+      evaluated = rod_.evaluate(physicalDesign(design), request);
+      const double value = usePsi1 ? evaluated->psi1 : evaluated->psi2;
+      if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * state_.objectiveScale)) {
+        throw NumericalError("objective " + settings.objective + " = " + std::to_string(value) + " exceeds " +
+                                 std::to_string(maxObjectiveGrowth) + " times its initial value",
+                             config().rod.endTime);
+      }
+    } catch (const NumericalError&) {
+      if (state_.iteration == 0 || record.backtracks == maxBacktracks) throw;
+      evaluated.reset();
+      design = 0.5 * (design + state_.mma.xold1);  // halfway back to x_{k-1}
+      ++record.backtracks;
+    }
+  }
+  PistonRodEvaluation& evaluation = *evaluated;
+  record.psi1 = evaluation.psi1;
+  record.psi2 = evaluation.psi2;
+  record.volumeFraction = evaluation.volumeFraction;
+  record.evaluationSeconds = since(start);
+
+  const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
+  if (!(std::isfinite(objective) && objective > 0.0)) {
+    throw NumericalError("objective " + settings.objective + " = " + std::to_string(objective) +
+                             " at iteration " + std::to_string(state_.iteration) +
+                             " is not positive and finite",
+                         config().rod.endTime);
+  }
+  OptimizerState next = state_;
+  if (next.iteration == 0 && next.objectiveScale == 0.0) next.objectiveScale = objective;
+
+  if (update) {
+    const auto mmaStart = Clock::now();
+    const int n = designCount();
+    const Vector gradient =
+        chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
+    if (!gradient.allFinite()) {
+      throw NumericalError("the gradient of " + settings.objective + " at iteration " +
+                               std::to_string(state_.iteration) + " is not finite",
+                           config().rod.endTime);
+    }
+    Vector constraint(1);
+    constraint(0) = evaluation.volumeFraction / settings.volumeFraction - 1.0;
+    const Matrix jacobian = chainThroughFilter(evaluation.dvolume / settings.volumeFraction).transpose();
+    const Vector lower = Vector::Constant(n, config().rod.designLowerBound);
+    const Vector upper = Vector::Ones(n);
+    Vector x = design;
+    mma_.restore(state_.mma);
+    mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
+    if (!x.allFinite()) {
+      throw NumericalError(
+          "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
+          config().rod.endTime);
+    }
+    record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
+    next.design = x;
+    next.mma = mma_.state();
+    next.iteration += 1;
+    record.mmaSeconds = since(mmaStart);
+  } else {
+    finished_ = true;
+  }
+  state_ = std::move(next);
+  last_ = std::move(evaluated);
+  lastDesign_ = std::move(design);
+  record.totalSeconds = since(start);
+  return record;
+}
+
+}  // namespace hindsight

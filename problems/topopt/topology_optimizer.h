@@ -1,0 +1,123 @@
+// Topology optimization of the piston rod (docs/design.md §7; Held, Knüfer & Seifried, section 6):
+//
+//   minimize    psi(x) / psi(x0)
+//   subject to  (V(x)/V0) / volumeFraction - 1 <= 0,   designLowerBound <= x_d <= 1,
+//
+// with MMA (problems/mma.h, the constants of Svanberg's 2007 note, which are the MmaOptions defaults),
+// one constraint. psi is optimization.objective:
+//   psi1  the integral compliance, with its exact adjoint gradient (the paper's route);
+//   psi2  the equivalent-static-load compliance: loads from the simulation at the current design, held
+//         fixed for the gradient (the paper's comparison route). psi1 of every design is evaluated too,
+//         by the same simulation, so both routes are compared on the same measure.
+// psi2 is evaluated on both routes (one factorisation of K, cheap next to the simulation).
+//
+// With optimization.filterRadius >= 1 the model sees the filtered density xf = F x
+// (problems/density_filter.h) and the gradients are chained through F^T; 0 (the default, the paper's
+// choice) means no filter and reproduces the paper's checkerboards.
+//
+// Iteration k evaluates the design x_k and, while k < optimization.iterations, performs the MMA update
+// x_k -> x_{k+1}. After the last update the final design x_N is evaluated once more (iteration N, no
+// update), so a run of N iterations has N + 1 records, the last one the final design.
+//
+// Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
+// x, and MMA's large early steps can reach a soft, near-mechanism design (first frequency below 1 Hz)
+// whose simulation diverges (the floating-frame equations have no geometric stiffening). When the
+// simulation of a new design x_k fails with a NumericalError, or its objective exceeds
+// maxObjectiveGrowth times the initial one (a diverging response that is still finite), x_k is moved
+// halfway back to the previous, successfully evaluated design x_{k-1} (kept in the MMA state as
+// xold1), up to maxBacktracks times; the record counts the halvings. Deterministic, so restart stays
+// bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
+// this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
+//
+// Restart: everything that carries over between iterations is the OptimizerState (plain data). An
+// optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations
+// are deterministic, MMA restores exactly).
+#pragma once
+
+#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/topopt/density_filter.h>
+#include <hindsight/problems/topopt/mma.h>
+
+#include <limits>
+#include <optional>
+
+namespace hindsight {
+
+/// One iteration's record (the history row). Seconds are wall-clock and differ between runs;
+/// everything else is reproducible bit for bit.
+struct IterationRecord {
+  int iteration = 0;
+  double psi1 = 0.0;
+  double psi2 = 0.0;
+  double volumeFraction = 0.0;  ///< V/V0 over all elements (solid end columns included)
+  /// max_d |x_{k+1,d} - x_{k,d}| of the update made in this iteration; NaN for the final evaluation.
+  double maxDesignChange = std::numeric_limits<double>::quiet_NaN();
+  double evaluationSeconds = 0.0;
+  double mmaSeconds = 0.0;
+  double totalSeconds = 0.0;  ///< evaluation + MMA (OptimizationRun adds its picture writing)
+  int backtracks = 0;         ///< halvings toward the previous design after a diverged simulation
+};
+
+/// What carries over between iterations.
+struct OptimizerState {
+  int iteration = 0;            ///< number of completed MMA updates; the next record has this index
+  Vector design;                ///< x_iteration, the design variables (designCount)
+  MmaState mma;                 ///< MMA after `iteration` updates
+  double objectiveScale = 0.0;  ///< psi(x0); 0 until the first evaluation
+};
+
+class TopologyOptimizer final {
+ public:
+  /// Validates the configuration (std::invalid_argument naming the field). Starts from x0.
+  explicit TopologyOptimizer(const Config& config);
+
+  const Config& config() const { return rod_.config(); }
+  const PistonRod& rod() const { return rod_; }
+  int designCount() const { return rod_.designCount(); }
+
+  const OptimizerState& state() const { return state_; }
+  /// Continues from a stored state. Throws std::invalid_argument when sizes do not match the
+  /// configuration or the iteration is outside [0, optimization.iterations].
+  void restore(const OptimizerState& state);
+
+  /// True when the final design has been evaluated.
+  bool finished() const { return finished_; }
+
+  /// One iteration: evaluates the current design and, while fewer than optimization.iterations
+  /// updates were made, performs the MMA update; otherwise evaluates the final design and sets
+  /// finished(). Throws std::logic_error when already finished; evaluation errors propagate
+  /// (NumericalError, std::runtime_error) and leave the state unchanged.
+  IterationRecord step();
+
+  /// The evaluation made by the last step() (modes, frequencies, gradients); empty before.
+  const std::optional<PistonRodEvaluation>& lastEvaluation() const { return last_; }
+  /// The design variables evaluated by the last step() (x_k after any backtracking); empty before.
+  const Vector& lastEvaluatedDesign() const { return lastDesign_; }
+
+  /// Halvings toward the previous design before a failed simulation is reported.
+  static constexpr int maxBacktracks = 10;
+  /// An objective above this multiple of psi(x0) counts as a diverged response.
+  static constexpr double maxObjectiveGrowth = 10.0;
+
+  /// The element densities the model sees for design variables x (filtered when a filter is on),
+  /// over ALL elements on the picture grid (problems/pictures.h numbering e = row * nx + column,
+  /// solid end columns = 1); length nx * ny.
+  Vector densityGrid(ConstVectorRef design) const;
+
+ private:
+  Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
+  Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
+  // Picture-grid index of every design variable.
+  std::vector<int> designToGrid_;
+
+  PistonRod rod_;
+  DensityFilter filter_;
+  Mma mma_;
+  OptimizerState state_;
+  bool finished_ = false;
+  std::optional<PistonRodEvaluation> last_;
+  Vector lastDesign_;
+};
+
+}  // namespace hindsight

@@ -1,0 +1,59 @@
+#include <hindsight/problems/rod/design_io.h>
+
+#include <hindsight/problems/rod/fe_model.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+namespace hindsight {
+namespace {
+
+rod::RodConfig coarse() {
+  rod::RodConfig config;
+  config.elementsAlongLength = 7;
+  config.elementsThroughHeight = 4;
+  return config;
+}
+
+TEST(DesignIo, RoundTripAndLayoutMatchTheFeModel) {
+  const rod::RodConfig config = coarse();
+  Vector x(config.designCount());
+  for (Eigen::Index d = 0; d < x.size(); ++d) x(d) = 0.01 + 0.9 * d / x.size();
+  const std::string path = ::testing::TempDir() + "/design.h5";
+  writeDesignFields(path, config, {{"x", x}}, 1.0);
+  EXPECT_EQ(readDesignFile(path, config), x);
+  // Grid cell (row j, column i) holds the design variable of FeModel element i * ny + j.
+  const rod::FeModel model(config, x);
+  const std::vector<double> grid = designToGrid(config, x, 1.0);
+  for (int d = 0; d < config.designCount(); ++d) {
+    const int e = model.designToElement(d);
+    const int i = e / config.elementsThroughHeight, j = e % config.elementsThroughHeight;
+    EXPECT_EQ(grid[j * config.elementsAlongLength + i], x(d));
+  }
+  EXPECT_EQ(grid[0], 1.0);  // interface column
+}
+
+TEST(DesignIo, BadFilesAreNamed) {
+  const rod::RodConfig config = coarse();
+  const std::string path = ::testing::TempDir() + "/bad_design.h5";
+  Vector x = Vector::Constant(config.designCount(), 0.5);
+  x(5) = 0.001;
+  writeDesignFields(path, config, {{"x", x}}, 1.0);
+  try {
+    readDesignFile(path, config);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("x[1][2]"), std::string::npos) << e.what();
+  }
+  writeDesignFields(path, config, {{"y", x}}, 1.0);
+  EXPECT_THROW(readDesignFile(path, config), std::invalid_argument);
+  rod::RodConfig other = config;
+  other.elementsAlongLength = 9;
+  writeDesignFields(path, config, {{"x", Vector::Constant(config.designCount(), 0.5)}}, 1.0);
+  EXPECT_THROW(readDesignFile(path, other), std::invalid_argument);
+  EXPECT_THROW(writeDesignFields("/nonexistent/dir/f.h5", config, {{"x", x}}, 1.0), StorageError);
+}
+
+}  // namespace
+}  // namespace hindsight

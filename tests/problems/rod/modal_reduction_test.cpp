@@ -1,0 +1,144 @@
+#include <hindsight/problems/rod/modal_reduction.h>
+
+#include <gtest/gtest.h>
+#include <Eigen/SparseCholesky>
+
+#include <cmath>
+#include <random>
+
+namespace hindsight {
+namespace rod {
+namespace {
+
+// Share of a mode's kinetic energy in u_x (1 for a pure axial mode, ~0 for a slender bending mode).
+double axialShare(const FeModel& model, const ModalBasis& basis, int mode) {
+  Vector ux = basis.modesFull.col(mode);
+  for (Eigen::Index k = 1; k < ux.size(); k += 2) ux(k) = 0.0;
+  return ux.dot(model.massFull() * ux);
+}
+
+double relativeResidual(const FeModel& model, const ModalBasis& basis, int columns) {
+  const Matrix phi = basis.modesFree.leftCols(columns);
+  const Matrix stiffnessPhi = model.stiffness() * phi;
+  const Matrix residual = stiffnessPhi - model.mass() * phi * basis.eigenvalues.head(columns).asDiagonal();
+  return residual.norm() / stiffnessPhi.norm();
+}
+
+// docs/design.md §2 sanity values: plane-stress bending frequencies of the solid pinned-roller rod, 64.66,
+// 254.25, 556.93, 956.49 Hz. With point supports at the mid-height nodes the FE model also has an axial mode
+// (A holds u_x at one node) near 541 Hz, so the four bending modes are eigenmodes 1, 2, 4, 5.
+// Measured at 200 x 12: 64.741, 254.312, 556.192, 953.353 Hz (+0.13 %, +0.02 %, -0.13 %, -0.33 %).
+// Only the first is above the reference: a point support in 2-D elasticity is singular, its local
+// compliance grows without bound under refinement (frequencies keep falling: 400 x 24 gives 64.648,
+// 253.815, 554.666, 949.784 Hz and the axial mode falls 553.8 -> 540.9 -> 528.6 Hz from 100 x 6 to
+// 400 x 24), and this softening outweighs the Q4 parasitic-shear stiffening for the higher modes. So the
+// Q4 upper-bound argument holds against the continuum with the same point supports, not against the
+// beam-type reference values; the test asserts 0.5 % and "above" for the first mode only.
+TEST(ModalReduction, SolidRodBendingFrequenciesAtTheSpecMesh) {
+  const RodConfig config;  // 200 x 12
+  const FeModel model(config, Vector::Constant(config.designCount(), 1.0));
+  ModalReductionOptions options;
+  options.modeCount = 5;
+  const ModalBasis basis = computeModalBasis(model, options);
+  ASSERT_EQ(basis.eigenmodeCount, 5);
+  const int bendingModes[4] = {0, 1, 3, 4};
+  const double exactHz[4] = {64.66, 254.25, 556.93, 956.49};
+  for (int k = 0; k < 4; ++k) {
+    const int mode = bendingModes[k];
+    EXPECT_LT(axialShare(model, basis, mode), 0.05) << "mode " << mode << " is not a bending mode";
+    EXPECT_NEAR(basis.frequencyHz(mode), exactHz[k], 0.005 * exactHz[k]) << "bending mode " << k + 1;
+  }
+  EXPECT_GT(axialShare(model, basis, 2), 0.99);
+  // The first bending mode is stiff (Q4 parasitic shear dominates over the support compliance).
+  EXPECT_GT(basis.frequencyHz(0), exactHz[0]);
+
+  EXPECT_LT(relativeResidual(model, basis, 5), 1e-8);
+  const Matrix gram = basis.modesFree.transpose() * (model.mass() * basis.modesFree);
+  EXPECT_LT((gram - Matrix::Identity(5, 5)).cwiseAbs().maxCoeff(), 1e-10);
+  for (int i = 0; i + 1 < 5; ++i) EXPECT_LT(basis.eigenvalues(i), basis.eigenvalues(i + 1));
+  EXPECT_GT(basis.gapRatio, 1.05);
+  EXPECT_TRUE(basis.warning.empty()) << basis.warning;
+}
+
+// Nested meshes (100x6 inside 200x12, same support points): by the min-max principle every eigenvalue
+// can only decrease under refinement.
+TEST(ModalReduction, EigenvaluesDecreaseUnderNestedRefinement) {
+  RodConfig coarse;
+  coarse.elementsAlongLength = 100;
+  coarse.elementsThroughHeight = 6;
+  const RodConfig fine;
+  ModalReductionOptions options;
+  options.modeCount = 6;
+  const ModalBasis coarseBasis =
+      computeModalBasis(FeModel(coarse, Vector::Constant(coarse.designCount(), 1.0)), options);
+  const ModalBasis fineBasis =
+      computeModalBasis(FeModel(fine, Vector::Constant(fine.designCount(), 1.0)), options);
+  for (int i = 0; i < 6; ++i) EXPECT_LT(fineBasis.eigenvalues(i), coarseBasis.eigenvalues(i)) << i;
+}
+
+TEST(ModalReduction, RandomDesignResidualOrthonormalityAndSign) {
+  RodConfig config;
+  config.elementsAlongLength = 40;
+  config.elementsThroughHeight = 6;
+  std::mt19937 generator(11);
+  std::uniform_real_distribution<double> uniform(0.02, 1.0);
+  Vector design(config.designCount());
+  for (auto& x : design) x = uniform(generator);
+  const FeModel model(config, design);
+  ModalReductionOptions options;
+  options.modeCount = 8;
+  const ModalBasis basis = computeModalBasis(model, options);
+  EXPECT_LT(relativeResidual(model, basis, 8), 1e-8);
+  const Matrix gram = basis.modesFree.transpose() * (model.mass() * basis.modesFree);
+  EXPECT_LT((gram - Matrix::Identity(8, 8)).cwiseAbs().maxCoeff(), 1e-10);
+  EXPECT_EQ(basis.modesFull.rows(), model.dofCount());
+  EXPECT_EQ(model.restrictColumnsToFree(basis.modesFull), basis.modesFree);
+  for (int i = 0; i < 8; ++i) {
+    const Vector mode = basis.modesFree.col(i);
+    const double threshold = 0.1 * mode.cwiseAbs().maxCoeff();
+    Eigen::Index first = 0;
+    while (std::abs(mode(first)) < threshold) ++first;
+    EXPECT_GT(mode(first), 0.0) << "sign convention, mode " << i;
+  }
+  EXPECT_GE(basis.firstDiscardedEigenvalue, basis.eigenvalues(7));
+}
+
+TEST(ModalReduction, InertiaReliefModesAreMassOrthonormalStaticShapes) {
+  RodConfig config;
+  config.elementsAlongLength = 20;
+  config.elementsThroughHeight = 4;
+  const FeModel model(config, Vector::Constant(config.designCount(), 0.5));
+  ModalReductionOptions options;
+  options.modeCount = 4;
+  options.inertiaReliefModes = true;
+  const ModalBasis basis = computeModalBasis(model, options);
+  ASSERT_EQ(basis.columnCount(), 7);
+  const Matrix gram = basis.modesFree.transpose() * (model.mass() * basis.modesFree);
+  EXPECT_LT((gram - Matrix::Identity(7, 7)).cwiseAbs().maxCoeff(), 1e-10);
+  // The span of [Phi, relief modes] contains K^-1 M e_x (restricted): projection residual ~ 0.
+  Eigen::SimplicialLDLT<SparseMatrix> factorization(model.stiffness());
+  const Vector shape = factorization.solve(model.restrictToFree(model.massFull() * model.unitTranslationX()));
+  const Vector projected = basis.modesFree * (basis.modesFree.transpose() * (model.mass() * shape));
+  EXPECT_LT((shape - projected).norm(), 1e-9 * shape.norm());
+}
+
+TEST(ModalReduction, SmallGapProducesAWarningAndBadOptionsThrow) {
+  RodConfig config;
+  config.elementsAlongLength = 20;
+  config.elementsThroughHeight = 4;
+  const FeModel model(config, Vector::Constant(config.designCount(), 0.5));
+  ModalReductionOptions options;
+  options.modeCount = 2;
+  options.gapWarningThreshold = 1e6;  // every gap is "small" against this
+  const ModalBasis basis = computeModalBasis(model, options);
+  EXPECT_FALSE(basis.warning.empty());
+  EXPECT_NE(basis.warning.find("lambda_3 / lambda_2"), std::string::npos) << basis.warning;
+  options.modeCount = 0;
+  EXPECT_THROW(computeModalBasis(model, options), std::invalid_argument);
+  options.modeCount = model.freeDofCount();
+  EXPECT_THROW(computeModalBasis(model, options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rod
+}  // namespace hindsight

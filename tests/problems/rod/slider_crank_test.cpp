@@ -1,0 +1,218 @@
+// The reduced slider-crank equations against Lagrange's equations built from the nodal kinetic
+// energy, and every derivative the adjoint uses against finite differences.
+#include <hindsight/problems/rod/slider_crank.h>
+
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/gradient_checker.h>
+#include "support/synthetic_rod.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <iostream>
+
+namespace hindsight::rod {
+namespace {
+
+using testing::SyntheticRod;
+
+struct Fixture {
+  explicit Fixture(int modes, unsigned seed = 7)
+      : body(modes, 1.0, seed),
+        problem(modes, 1.0, CrankMotion{}),
+        p(body.invariants()),
+        workspace(problem.createModelWorkspace()) {
+    std::mt19937 rng(seed + 1);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    q = Vector::NullaryExpr(modes, [&] { return 0.01 * u(rng); });
+    qd = Vector::NullaryExpr(modes, [&] { return 0.5 * u(rng); });
+    a = Vector::NullaryExpr(modes, [&] { return 20.0 * u(rng); });
+  }
+  Vector residual(double t, const Vector& qq, const Vector& vv, const Vector& aa, const Vector& pp) const {
+    Vector r(qq.size());
+    problem.residual(t, qq, vv, aa, pp, r, workspace.get());
+    return r;
+  }
+  SyntheticRod body;
+  SliderCrankProblem problem;
+  Vector p, q, qd, a;
+  std::unique_ptr<ProblemWorkspace> workspace;
+};
+
+TEST(SliderCrank, ResidualSatisfiesLagrangesEquationsOfTheNodalKineticEnergy) {
+  for (double t : {0.37, 1.3, 2.6}) {  // in the ramp and at constant speed
+    Fixture f(4);
+    const CrankMotion crank;
+    const int n = 4;
+    const auto T = [&](double tt, const Vector& qq, const Vector& vv) {
+      return f.body.kineticEnergy(crank, 1.0, tt, qq, vv);
+    };
+    // dT/dq' is exact by central differences (T is quadratic in q'); dT/dq with a small step.
+    const auto dTdv = [&](double tt, const Vector& qq, const Vector& vv) {
+      Vector g(n);
+      for (int i = 0; i < n; ++i) {
+        Vector plus = vv, minus = vv;
+        plus(i) += 1e-3;
+        minus(i) -= 1e-3;
+        g(i) = (T(tt, qq, plus) - T(tt, qq, minus)) / 2e-3;
+      }
+      return g;
+    };
+    Vector dTdq(n);
+    for (int i = 0; i < n; ++i) {
+      Vector plus = f.q, minus = f.q;
+      plus(i) += 1e-6;
+      minus(i) -= 1e-6;
+      dTdq(i) = (T(t, plus, f.qd) - T(t, minus, f.qd)) / 2e-6;
+    }
+    // d/dt along the path q(t +- d) = q +- d q' + d^2/2 q'', q'(t +- d) = q' +- d q''.
+    const double d = 1e-4;
+    const Vector ddt = (dTdv(t + d, f.q + d * f.qd + 0.5 * d * d * f.a, f.qd + d * f.a) -
+                        dTdv(t - d, f.q - d * f.qd + 0.5 * d * d * f.a, f.qd - d * f.a)) /
+                       (2 * d);
+    const Vector lagrange = ddt - dTdq + f.body.kee * f.q;
+    const Vector r = f.residual(t, f.q, f.qd, f.a, f.p);
+    const double relative = (lagrange - r).norm() / r.norm();
+    std::cout << "[ Lagrange ] t = " << t << ": relative residual " << relative << "\n";
+    EXPECT_LT(relative, 1e-6) << "model " << r.transpose() << "\nLagrange " << lagrange.transpose();
+  }
+}
+
+TEST(SliderCrank, MassMatrixIsTheAccelerationPartOfTheResidual) {
+  Fixture f(5);
+  const double t = 1.1;
+  Matrix mass(5, 5);
+  f.problem.massMatrix(t, f.q, f.p, mass, f.workspace.get());
+  const Vector r0 = f.residual(t, f.q, f.qd, Vector::Zero(5), f.p);
+  const Vector r1 = f.residual(t, f.q, f.qd, f.a, f.p);
+  EXPECT_LT((mass * f.a - (r1 - r0)).norm(), 1e-12 * (r1 - r0).norm());
+  EXPECT_LT((mass - mass.transpose()).norm(), 1e-14 * mass.norm());
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Matrix>(mass).eigenvalues().minCoeff(), 0.0);
+}
+
+TEST(SliderCrank, StateJacobiansMatchFiniteDifferences) {
+  Fixture f(5);
+  for (double t : {0.4, 2.5}) {
+    Matrix rq(5, 5), rv(5, 5);
+    f.problem.residualJacobians(t, f.q, f.qd, f.a, f.p, rq, rv, f.workspace.get());
+    for (int i = 0; i < 5; ++i) {
+      const auto qCheck = checkGradient([&](const Vector& x) { return f.residual(t, x, f.qd, f.a, f.p)(i); },
+                                        f.q, rq.row(i).transpose(), {1e-7});
+      EXPECT_TRUE(qCheck.passed) << "row " << i << " of r_q: " << qCheck.message;
+      // r is quadratic in q', so a large central-difference step is exact and avoids round-off.
+      GradientCheckOptions quadratic;
+      quadratic.tolerance = 1e-7;
+      quadratic.relativeStep = 1e-2;
+      const auto vCheck = checkGradient([&](const Vector& x) { return f.residual(t, f.q, x, f.a, f.p)(i); },
+                                        f.qd, rv.row(i).transpose(), quadratic);
+      EXPECT_TRUE(vCheck.passed) << "row " << i << " of r_v: " << vCheck.message;
+    }
+  }
+}
+
+TEST(SliderCrank, StateProductEqualsTheTransposedJacobians) {
+  Fixture f(5);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Vector mu = Vector::NullaryExpr(5, [&] { return u(rng); });
+  for (double t : {0.4, 1.7, 2.5}) {
+    Matrix rq(5, 5), rv(5, 5);
+    f.problem.residualJacobians(t, f.q, f.qd, f.a, f.p, rq, rv, f.workspace.get());
+    Vector outQ(5), outV(5);
+    f.problem.residualStateVjp(t, f.q, f.qd, f.a, f.p, mu, outQ, outV, f.workspace.get());
+    EXPECT_LT((outQ - rq.transpose() * mu).norm(), 1e-12 * (rq.transpose() * mu).norm()) << "t = " << t;
+    EXPECT_LT((outV - rv.transpose() * mu).norm(), 1e-12 * (rv.transpose() * mu).norm()) << "t = " << t;
+  }
+}
+
+TEST(SliderCrank, ParameterProductMatchesFiniteDifferencesForEveryInvariant) {
+  Fixture f(4);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Vector mu = Vector::NullaryExpr(4, [&] { return u(rng); });
+  for (double t : {0.8, 2.2}) {
+    Vector vjp = Vector::Zero(f.p.size());
+    f.problem.addResidualParameterVjp(t, f.q, f.qd, f.a, f.p, mu, vjp, f.workspace.get());
+    const auto check = checkGradient(
+        [&](const Vector& x) { return mu.dot(f.residual(t, f.q, f.qd, f.a, x)); }, f.p, vjp, {1e-6, 1e-6});
+    EXPECT_TRUE(check.passed) << "t = " << t << ": " << check.message;
+  }
+}
+
+TEST(SliderCrank, ObjectiveGradientsMatchFiniteDifferences) {
+  Fixture f(4);
+  const auto G = [&](const Vector& qq, const Vector& pp) {
+    return f.problem.objectiveIntegrand(0.0, qq, f.qd, pp, f.workspace.get());
+  };
+  Vector gq = Vector::Zero(4), gv = Vector::Zero(4), gp = Vector::Zero(f.p.size());
+  f.problem.addObjectiveStateGradient(0.0, f.q, f.qd, f.p, 1.0, gq, gv, f.workspace.get());
+  f.problem.addObjectiveParameterGradient(0.0, f.q, f.qd, f.p, 1.0, gp, f.workspace.get());
+  const auto stateCheck = checkGradient([&](const Vector& x) { return G(x, f.p); }, f.q, gq, {1e-7});
+  EXPECT_TRUE(stateCheck.passed) << stateCheck.message;
+  const auto parameterCheck =
+      checkGradient([&](const Vector& x) { return G(f.q, x); }, f.p, gp, {1e-7, 1e-6});
+  EXPECT_TRUE(parameterCheck.passed) << parameterCheck.message;
+  EXPECT_EQ(gv.norm(), 0.0);
+}
+
+TEST(SliderCrank, DiscreteAdjointIsTheDerivativeOfTheComputedObjective) {
+  // One second of the ramp, 3 modes: every one of the 46 invariants is checked. Components below
+  // 1e-3 of the largest are judged against that scale (central differences of psi ~ 1e-7 cannot
+  // resolve them better); trbdf2 carries its Newton residual (1e-13 relative) on top.
+  Fixture f(3);
+  for (const std::string method : {"rk4", "trbdf2"}) {
+    IntegratorOptions options;
+    options.method = method;
+    options.t1 = 1.0;
+    options.step = 1e-3;
+    FullStorage storage;
+    const GradientResult result = computeGradient(f.problem, f.p, options, storage);
+    EXPECT_GT(result.objective, 0.0);
+    const auto check =
+        checkGradient([&](const Vector& x) { return simulate(f.problem, x, options).objective; }, f.p,
+                      result.gradient, {method == "rk4" ? 1e-6 : 5e-6, 1e-3});
+    EXPECT_TRUE(check.passed) << method << ": " << check.message;
+    // A wrong term would show: the gradient is far from zero in every invariant group.
+    EXPECT_GT(result.gradient.cwiseAbs().maxCoeff(), 1e3 * result.gradient.cwiseAbs().minCoeff());
+  }
+}
+
+TEST(SliderCrank, CrankRampIsCycloidal) {
+  const CrankMotion crank;
+  double phi, phiDot, phiDdot;
+  crank.at(0.0, phi, phiDot, phiDdot);
+  EXPECT_EQ(phi, 0.0);
+  EXPECT_EQ(phiDot, 0.0);
+  EXPECT_NEAR(phiDdot, 0.0, 1e-14);
+  crank.at(2.0, phi, phiDot, phiDdot);
+  EXPECT_NEAR(phiDot, 10 * M_PI, 1e-12);
+  EXPECT_NEAR(phiDdot, 0.0, 1e-12);
+  EXPECT_NEAR(phi, 10 * M_PI, 1e-12);  // Omega T / 2
+  // phi' is the derivative of phi, phi'' of phi' (central differences).
+  for (double t : {0.3, 1.0, 1.7, 2.5}) {
+    double p1, d1, a1, p2, d2, a2;
+    crank.at(t + 1e-6, p1, d1, a1);
+    crank.at(t - 1e-6, p2, d2, a2);
+    crank.at(t, phi, phiDot, phiDdot);
+    EXPECT_NEAR((p1 - p2) / 2e-6, phiDot, 1e-6 * (1 + phiDot));
+    EXPECT_NEAR((d1 - d2) / 2e-6, phiDdot, 1e-6 * (1 + std::abs(phiDdot)));
+  }
+}
+
+TEST(SliderCrank, BadConstructionArgumentsAreNamed) {
+  EXPECT_THROW(SliderCrankProblem(0, 1.0, CrankMotion{}), std::invalid_argument);
+  EXPECT_THROW(SliderCrankProblem(41, 1.0, CrankMotion{}), std::invalid_argument);
+  CrankMotion tooLong;
+  tooLong.radius = 1.5;
+  try {
+    SliderCrankProblem(4, 1.0, tooLong);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("crank radius"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace hindsight::rod
