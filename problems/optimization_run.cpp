@@ -1,9 +1,9 @@
 #include "problems/optimization_run.h"
 
+#include "engine/stopwatch.h"
 #include "problems/pictures.h"
 
 #include <unistd.h>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,9 +15,6 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // Creates the directory and proves that a file can be written in it.
 void prepareDirectory(const std::string& directory) {
@@ -161,7 +158,7 @@ void OptimizationRun::writePictures(const std::string& stem, const Vector& grid)
 }
 
 OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
-  const auto start = Clock::now();
+  const Stopwatch runTimer;
   OptimizationRunSummary summary;
   summary.resumedFrom = static_cast<int>(data_.history.size());
   summary.resultsPath = resultsPath_;
@@ -171,7 +168,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
   }
   const int pictureEvery = config_.optimization.pictureEvery;
   while (!data_.finished) {
-    const auto iterationStart = Clock::now();
+    const Stopwatch iterationTimer;
     IterationRecord record = optimizer_.step();
     const Vector grid = optimizer_.densityGrid(optimizer_.lastEvaluatedDesign());
     data_.state = optimizer_.state();
@@ -186,7 +183,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
       writePictures("design_iter_" + std::to_string(record.iteration), grid);
     }
     if (data_.finished) writePictures("design_final", grid);
-    record.totalSeconds = since(iterationStart);
+    record.totalSeconds = iterationTimer.seconds();
     data_.history.push_back(record);
     data_.densities.push_back(grid);
     writeResultsFile(resultsPath_, data_);
@@ -195,7 +192,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
   }
   summary.history = data_.history;
   summary.finished = data_.finished;
-  summary.wallSeconds = since(start);
+  summary.wallSeconds = runTimer.seconds();
   return summary;
 }
 

@@ -1,5 +1,7 @@
 #include "storage/chunked_state_file.h"
 
+#include "engine/stopwatch.h"
+
 #include <hdf5.h>
 #include <zstd.h>
 
@@ -228,13 +230,13 @@ struct ChunkedStateFile::Impl {
       std::string message;
       double elapsed = 0.0;
       if (!skip) {
-        const auto start = std::chrono::steady_clock::now();
+        const Stopwatch timer;
         try {
           execute(task);
         } catch (const std::exception& e) {
           message = e.what();
         }
-        elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        elapsed = timer.seconds();
       }
       lock.lock();
       seconds += elapsed;
