@@ -2,6 +2,7 @@
 
 #include "engine/stopwatch.h"
 #include "problems/pictures.h"
+#include "storage/atomic_file.h"
 
 #include <unistd.h>
 #include <cmath>
@@ -106,7 +107,7 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
   if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
   prepareDirectory(options.outputDirectory);
   resultsPath_ = (fs::path(options.outputDirectory) / "results.h5").string();
-  std::remove((resultsPath_ + ".partial").c_str());  // garbage of a crash during a write
+  removeStaleTemporaries(resultsPath_);  // garbage of a crash during a write
 
   const rod::RodConfig& rc = config_.rod;
   const bool exists = fs::exists(resultsPath_);
