@@ -2,6 +2,7 @@
 // finished call (successful or not), and failures name the target.
 #include "storage/atomic_file.h"
 #include "engine/types.h"
+#include "support/file_checks.h"
 #include "support/storage_fixtures.h"
 
 #include <sys/stat.h>
@@ -17,6 +18,8 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::expectStorageErrorNaming;
+using testing::listing;
 using testing::ScratchDirectory;
 
 std::string contentsOf(const std::string& path) {
@@ -26,41 +29,31 @@ std::string contentsOf(const std::string& path) {
   return out.str();
 }
 
-std::set<std::string> listing(const std::string& directory) {
-  std::set<std::string> names;
-  for (const auto& entry : fs::directory_iterator(directory)) names.insert(entry.path().filename().string());
-  return names;
-}
-
 void writeText(const std::string& path, const std::string& text) {
   writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
     return std::fputs(text.c_str(), file) >= 0 ? std::string() : std::string("fputs failed");
   });
 }
 
-// Runs `write`, which must throw StorageError naming `path`.
-template <typename Write>
-void expectStorageErrorNaming(Write&& write, const std::string& path) {
-  try {
-    write();
-    ADD_FAILURE() << "no StorageError for " << path;
-  } catch (const StorageError& e) {
-    EXPECT_EQ(e.path(), path);
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+// A scratch directory with the target out.txt in it.
+class AtomicFile : public ::testing::Test {
+ protected:
+  // The target holds `contents` and nothing else (no temporary) is in the directory.
+  void expectOnlyTarget(const std::string& contents) const {
+    EXPECT_EQ(contentsOf(path), contents);
+    EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
   }
-}
 
-TEST(AtomicFile, CreatesTheFileAndLeavesNoTemporary) {
   ScratchDirectory dir;
   const std::string path = dir.path() + "/out.txt";
+};
+
+TEST_F(AtomicFile, CreatesTheFileAndLeavesNoTemporary) {
   writeText(path, "complete\n");
-  EXPECT_EQ(contentsOf(path), "complete\n");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
+  expectOnlyTarget("complete\n");
 }
 
-TEST(AtomicFile, ReplacesAnExistingFileAndTheOldOneStaysUntilTheRename) {
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/out.txt";
+TEST_F(AtomicFile, ReplacesAnExistingFileAndTheOldOneStaysUntilTheRename) {
   writeText(path, "old contents\n");
   writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
     std::fputs("new, half", file);
@@ -70,13 +63,10 @@ TEST(AtomicFile, ReplacesAnExistingFileAndTheOldOneStaysUntilTheRename) {
     std::fputs(" and the rest\n", file);
     return {};
   });
-  EXPECT_EQ(contentsOf(path), "new, half and the rest\n");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
+  expectOnlyTarget("new, half and the rest\n");
 }
 
-TEST(AtomicFile, AFailedWriteKeepsTheOldFileAndRemovesTheTemporary) {
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/out.txt";
+TEST_F(AtomicFile, AFailedWriteKeepsTheOldFileAndRemovesTheTemporary) {
   writeText(path, "old contents\n");
 
   // A writer that reports a failure: StorageError naming the target, with the writer's reason.
@@ -90,8 +80,7 @@ TEST(AtomicFile, AFailedWriteKeepsTheOldFileAndRemovesTheTemporary) {
     EXPECT_EQ(e.path(), path);
     EXPECT_NE(std::string(e.what()).find("disk full (simulated)"), std::string::npos) << e.what();
   }
-  EXPECT_EQ(contentsOf(path), "old contents\n");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
+  expectOnlyTarget("old contents\n");
 
   // A writer that throws: its exception arrives unchanged (a caller's bad argument stays one).
   EXPECT_THROW(writeFileAtomically(path,
@@ -100,39 +89,32 @@ TEST(AtomicFile, AFailedWriteKeepsTheOldFileAndRemovesTheTemporary) {
                                      throw std::invalid_argument("bad field");
                                    }),
                std::invalid_argument);
-  EXPECT_EQ(contentsOf(path), "old contents\n");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
+  expectOnlyTarget("old contents\n");
 }
 
-TEST(AtomicFile, AWriterByNameIsFlushedAndRenamedLikeAStream) {
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/data.bin";
+TEST_F(AtomicFile, AWriterByNameIsFlushedAndRenamedLikeAStream) {
   writeFileAtomically(path, [](const std::string& temporary) { std::ofstream(temporary) << "by name"; });
-  EXPECT_EQ(contentsOf(path), "by name");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"data.bin"});
+  expectOnlyTarget("by name");
 
   // A writer that creates nothing cannot be committed.
-  expectStorageErrorNaming([&] { writeFileAtomically(dir.path() + "/none", [](const std::string&) {}); },
-                           dir.path() + "/none");
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"data.bin"});
+  const std::string none = dir.path() + "/none";
+  expectStorageErrorNaming([&] { writeFileAtomically(none, [](const std::string&) {}); }, none);
+  expectOnlyTarget("by name");
 }
 
-TEST(AtomicFile, AMissingDirectoryThrowsAndCreatesNothing) {
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/no_such_directory/out.txt";
-  expectStorageErrorNaming([&] { writeText(path, "x"); }, path);
+TEST_F(AtomicFile, AMissingDirectoryThrowsAndCreatesNothing) {
+  const std::string missing = dir.path() + "/no_such_directory/out.txt";
+  expectStorageErrorNaming([&] { writeText(missing, "x"); }, missing);
   EXPECT_TRUE(listing(dir.path()).empty());
 }
 
-TEST(AtomicFile, AReadOnlyDirectoryThrowsOrWritesCompletely) {
+TEST_F(AtomicFile, AReadOnlyDirectoryThrowsOrWritesCompletely) {
   // /proc refuses new files even to root.
   const std::string proc = "/proc/hindsight-atomic-file-test";
   expectStorageErrorNaming([&] { writeText(proc, "x"); }, proc);
   EXPECT_FALSE(fs::exists(proc));
 
   // Permission bits stop everyone but root; either way nothing torn and no temporary remains.
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/out.txt";
   ASSERT_EQ(::chmod(dir.path().c_str(), 0555), 0);
   bool threw = false;
   try {
@@ -146,39 +128,32 @@ TEST(AtomicFile, AReadOnlyDirectoryThrowsOrWritesCompletely) {
     EXPECT_TRUE(listing(dir.path()).empty());
   } else {
     EXPECT_EQ(::geteuid(), 0u) << "only root may write into a read-only directory";
-    EXPECT_EQ(contentsOf(path), "complete\n");
-    EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
+    expectOnlyTarget("complete\n");
   }
 }
 
-TEST(AtomicFile, AFailedRenameRemovesTheTemporary) {
+TEST_F(AtomicFile, AFailedRenameRemovesTheTemporary) {
   // The target is a non-empty directory: the temporary is complete, the rename fails.
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/occupied";
   fs::create_directories(path + "/inside");
   expectStorageErrorNaming([&] { writeText(path, "x"); }, path);
-  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"occupied"});
+  EXPECT_EQ(listing(dir.path()), std::set<std::string>{"out.txt"});
   EXPECT_TRUE(fs::is_directory(path + "/inside"));
 }
 
-TEST(AtomicFile, RemoveStaleTemporariesKeepsThoseOfRunningProcesses) {
-  ScratchDirectory dir;
-  const std::string path = dir.path() + "/results.h5";
+TEST_F(AtomicFile, RemoveStaleTemporariesKeepsThoseOfRunningProcesses) {
   // A pid that surely belongs to no process: a child that has exited and been reaped.
   const pid_t child = ::fork();
   ASSERT_GE(child, 0);
   if (child == 0) std::_Exit(0);
   ASSERT_EQ(::waitpid(child, nullptr, 0), child);
-  const std::string dead = path + ".tmp-" + std::to_string(child) + "-0";
-  const std::string alive = path + ".tmp-" + std::to_string(::getpid()) + "-3";
-  for (const std::string& name :
-       {dead, alive, path, dir.path() + "/other.h5.tmp-" + std::to_string(child) + "-0"})
-    std::ofstream(name) << "x";
+  const std::string dead = "out.txt.tmp-" + std::to_string(child) + "-0";
+  const std::string alive = "out.txt.tmp-" + std::to_string(::getpid()) + "-3";
+  const std::string otherTarget = "other.txt.tmp-" + std::to_string(child) + "-0";
+  for (const std::string& name : {std::string("out.txt"), dead, alive, otherTarget})
+    std::ofstream(dir.path() + "/" + name) << "x";
   removeStaleTemporaries(path);
-  EXPECT_EQ(listing(dir.path()),
-            (std::set<std::string>{"results.h5", "results.h5.tmp-" + std::to_string(::getpid()) + "-3",
-                                   "other.h5.tmp-" + std::to_string(child) + "-0"}));
-  removeStaleTemporaries(dir.path() + "/no_such_directory/results.h5");  // never throws
+  EXPECT_EQ(listing(dir.path()), (std::set<std::string>{"out.txt", alive, otherTarget}));
+  removeStaleTemporaries(dir.path() + "/no_such_directory/out.txt");  // never throws
 }
 
 }  // namespace
