@@ -1,4 +1,5 @@
 #include <hindsight/cvodes/cvodes_adjoint.h>
+#include <hindsight/engine/stopwatch.h>
 
 #include <cvodes/cvodes.h>
 #include <cvodes/cvodes_ls.h>
@@ -7,7 +8,6 @@
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <exception>
@@ -16,12 +16,6 @@
 
 namespace hindsight {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// The one owner of SUNDIALS objects (RAII): context, CVODES memory (forward, adjoint and backward),
 /// vectors, dense matrices and linear solvers. Nothing outside this class sees an N_Vector.
@@ -421,12 +415,12 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
   result.summary.storage = "cvodes:checkpoints=" + std::to_string(options.checkpointSteps) +
                            ",interp=" + toString(options.interpolation);
   CvodesAdjointSolver solver(problem, p, options);
-  const auto forwardStart = Clock::now();
+  const Stopwatch forwardTimer;
   solver.forward(result);
-  result.summary.forwardSeconds = secondsSince(forwardStart);
-  const auto backwardStart = Clock::now();
+  result.summary.forwardSeconds = forwardTimer.seconds();
+  const Stopwatch backwardTimer;
   solver.backward(result);
-  result.summary.backwardSeconds = secondsSince(backwardStart);
+  result.summary.backwardSeconds = backwardTimer.seconds();
   result.summary.rhsEvaluations = solver.rhsEvaluations();
   result.summary.jacobianEvaluations = solver.jacobianEvaluations();
   return result;

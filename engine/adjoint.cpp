@@ -1,18 +1,12 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/stopwatch.h>
 
-#include <chrono>
 #include <cmath>
 #include <ostream>
 
 namespace hindsight {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// The fixed-step grid: N equal steps, t_N = t1 exactly.
 std::vector<double> fixedGrid(const IntegratorOptions& options) {
@@ -183,7 +177,7 @@ void RunSummary::print(std::ostream& out) const {
 
 ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,
                        const StateObserver& observer) {
-  const auto start = Clock::now();
+  const Stopwatch forwardTimer;
   ForwardSweep sweep(problem, p, options);
   sweep.parameters = p;
   ForwardResult result;
@@ -194,13 +188,13 @@ ForwardResult simulate(const Problem& problem, ConstVectorRef p, const Integrato
   fillWork(result.summary, sweep.integrator);
   result.summary.adjoint.clear();
   result.summary.peakBytesInMemory = static_cast<std::int64_t>(result.times.size()) * 8;
-  result.summary.forwardSeconds = secondsSince(start);
+  result.summary.forwardSeconds = forwardTimer.seconds();
   return result;
 }
 
 GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,
                                TrajectoryStorage& storage, const StateObserver& observer) {
-  const auto start = Clock::now();
+  const Stopwatch forwardTimer;
   ForwardSweep sweep(problem, p, options);
   sweep.parameters = p;
   sweep.recomputer = std::make_unique<GridRecomputer>(sweep.integrator, sweep.times);
@@ -211,9 +205,9 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
     sweep.times.reserve(options.replayTimes.empty() ? fixedGrid(options).size() : options.replayTimes.size());
   }
   sweep.run(&storage, observer, result.summary);
-  result.summary.forwardSeconds = secondsSince(start);
+  result.summary.forwardSeconds = forwardTimer.seconds();
 
-  const auto backwardStart = Clock::now();
+  const Stopwatch backwardTimer;
   const int n = problem.stateSize();
   Vector lambda = Vector::Zero(n);
   Vector gradient = Vector::Zero(problem.parameterSize());
@@ -225,7 +219,7 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
     sweep.integrator.adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
   }
   problem.addInitialStateVjp(p, lambda, gradient);
-  result.summary.backwardSeconds = secondsSince(backwardStart);
+  result.summary.backwardSeconds = backwardTimer.seconds();
 
   const StorageCounters& counters = storage.counters();
   fillWork(result.summary, sweep.integrator);

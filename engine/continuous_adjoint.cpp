@@ -1,20 +1,14 @@
 #include <hindsight/engine/continuous_adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/stopwatch.h>
 
 #include <Eigen/LU>
-#include <chrono>
 
 #include <cmath>
 #include <sstream>
 
 namespace hindsight {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Throws NumericalError (with the time) when a backward integrator has used up its steps or its
 /// step size has underflowed; shared by the explicit and the implicit backward integrators.
@@ -412,7 +406,7 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
         << " must be in [0, t1 - t0 = " << forward.t1 - forward.t0 << "]";
     throw std::invalid_argument(msg.str());
   }
-  const auto start = Clock::now();
+  const Stopwatch forwardTimer;
   const int n = problem.stateSize();
   // The integrator that recomputes steps for checkpointing strategies (same options, same bits).
   RungeKuttaIntegrator recomputeIntegrator(problem, p, forward);
@@ -451,9 +445,9 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   result.summary = forwardResult.summary;
   result.summary.adjoint = "continuous";
   result.summary.storage = storage.spec();
-  result.summary.forwardSeconds = secondsSince(start);
+  result.summary.forwardSeconds = forwardTimer.seconds();
 
-  const auto backwardStart = Clock::now();
+  const Stopwatch backwardTimer;
   const int np = problem.parameterSize();
   Vector y = Vector::Zero(n + np);
   Vector gradient = Vector::Zero(np);
@@ -474,7 +468,7 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                  : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
-  result.summary.backwardSeconds = secondsSince(backwardStart);
+  result.summary.backwardSeconds = backwardTimer.seconds();
 
   const StorageCounters& counters = storage.counters();
   result.summary.rejectedSteps += backward.rejected;

@@ -1,6 +1,8 @@
 #include <hindsight/storage/chunked_state_file.h>
 
-#include <hdf5.h>
+#include <hindsight/engine/stopwatch.h>
+#include <hindsight/storage/hdf5.h>
+
 #include <zstd.h>
 
 #include <unistd.h>
@@ -58,79 +60,6 @@ size_t zstdFilter(unsigned flags, size_t cdCount, const unsigned cdValues[], siz
 const H5Z_class2_t kZstdClass = {H5Z_CLASS_T_VERS,   kZstdFilterId, 1,       1,
                                  "zstd (hindsight)", nullptr,       nullptr, &zstdFilter};
 
-// The innermost HDF5 error messages of the current thread's stack, e.g. "Permission denied".
-herr_t collectError(unsigned depth, const H5E_error2_t* error, void* data) {
-  auto* out = static_cast<std::string*>(data);
-  if (depth < 3 && error->desc != nullptr) *out += (out->empty() ? "" : "; ") + std::string(error->desc);
-  return 0;
-}
-
-std::string hdf5Message() {
-  std::string message;
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, &collectError, &message);
-  H5Eclear2(H5E_DEFAULT);
-  std::replace(message.begin(), message.end(), '\n', ' ');
-  return message.empty() ? "HDF5 error" : message;
-}
-
-template <typename T>
-T check(T result, const std::string& what) {
-  if (result < 0) throw std::runtime_error(what + ": " + hdf5Message());
-  return result;
-}
-
-// Closes an HDF5 handle on scope exit.
-class Handle {
- public:
-  Handle() = default;
-  Handle(hid_t id, herr_t (*closer)(hid_t)) : id_(id), closer_(closer) {}
-  Handle(Handle&& other) noexcept : id_(other.id_), closer_(other.closer_) { other.id_ = -1; }
-  Handle& operator=(Handle&& other) noexcept {
-    if (this != &other) {
-      reset();
-      id_ = other.id_;
-      closer_ = other.closer_;
-      other.id_ = -1;
-    }
-    return *this;
-  }
-  ~Handle() { reset(); }
-  hid_t get() const { return id_; }
-  /// Closes now and reports failure (a full disk often shows only when the file is closed).
-  herr_t reset() {
-    herr_t status = 0;
-    if (id_ >= 0) status = closer_(id_);
-    id_ = -1;
-    return status;
-  }
-
- private:
-  hid_t id_ = -1;
-  herr_t (*closer_)(hid_t) = nullptr;
-};
-
-Handle handle(hid_t id, herr_t (*closer)(hid_t), const std::string& what) {
-  return Handle(check(id, what), closer);
-}
-
-void writeStringAttribute(hid_t object, const char* name, const std::string& value) {
-  Handle type = handle(H5Tcopy(H5T_C_S1), H5Tclose, "string type");
-  check(H5Tset_size(type.get(), std::max<size_t>(1, value.size())), "string type");
-  check(H5Tset_strpad(type.get(), H5T_STR_NULLPAD), "string type");
-  Handle space = handle(H5Screate(H5S_SCALAR), H5Sclose, "attribute space");
-  Handle attribute = handle(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                            H5Aclose, std::string("cannot create attribute ") + name);
-  check(H5Awrite(attribute.get(), type.get(), value.c_str()), std::string("cannot write attribute ") + name);
-}
-
-template <typename T>
-void writeScalarAttribute(hid_t object, const char* name, hid_t type, T value) {
-  Handle space = handle(H5Screate(H5S_SCALAR), H5Sclose, "attribute space");
-  Handle attribute = handle(H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
-                            std::string("cannot create attribute ") + name);
-  check(H5Awrite(attribute.get(), type, &value), std::string("cannot write attribute ") + name);
-}
-
 std::string uniqueFileName(const std::string& prefix) {
   static std::atomic<std::uint64_t> counter{0};
   const auto now = std::chrono::steady_clock::now().time_since_epoch().count();
@@ -144,17 +73,13 @@ bool ensureZstdFilter() {
   static std::once_flag once;
   static bool available = false;
   std::call_once(once, [] {
-    H5E_auto2_t function = nullptr;
-    void* data = nullptr;
-    H5Eget_auto2(H5E_DEFAULT, &function, &data);
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const hdf5::ErrorSilencer quiet;
     if (H5Zfilter_avail(kZstdFilterId) > 0) {
       available = true;
     } else {
       available = H5Zregister(&kZstdClass) >= 0;
     }
     H5Eclear2(H5E_DEFAULT);
-    H5Eset_auto2(H5E_DEFAULT, function, data);
   });
   return available;
 }
@@ -207,7 +132,7 @@ struct ChunkedStateFile::Impl {
   std::int64_t storedBytes = 0;
 
   // Background-thread state: the HDF5 handles.
-  Handle file, states, times;
+  hdf5::Handle file, states, times;
   std::int64_t chunksWritten = 0;
   std::int64_t stepCount = -1;
   bool created = false;  // only a file we created is ever removed
@@ -215,7 +140,7 @@ struct ChunkedStateFile::Impl {
 
   // ---- background thread ----
   void run() {
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // this thread's stack: we report errors ourselves
+    const hdf5::ErrorSilencer quiet;  // this thread's own switch: we report errors ourselves
     std::unique_lock<std::mutex> lock(mutex);
     for (;;) {
       changed.wait(lock, [&] { return stop || taskCount > 0; });
@@ -228,13 +153,13 @@ struct ChunkedStateFile::Impl {
       std::string message;
       double elapsed = 0.0;
       if (!skip) {
-        const auto start = std::chrono::steady_clock::now();
+        const Stopwatch timer;
         try {
           execute(task);
         } catch (const std::exception& e) {
           message = e.what();
         }
-        elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        elapsed = timer.seconds();
       }
       lock.lock();
       seconds += elapsed;
@@ -279,48 +204,42 @@ struct ChunkedStateFile::Impl {
     }
   }
 
-  Handle filteredChunks(int rank, const hsize_t* chunk) {
-    Handle dcpl = handle(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "dataset properties");
-    check(H5Pset_chunk(dcpl.get(), rank, chunk), "chunk layout");
-    check(H5Pset_shuffle(dcpl.get()), "shuffle filter");
+  hdf5::Handle filteredChunks(int rank, const hsize_t* chunk) {
+    hdf5::Handle dcpl = hdf5::propertyList(H5P_DATASET_CREATE);
+    hdf5::check(H5Pset_chunk(dcpl.get(), rank, chunk), "chunk layout");
+    hdf5::check(H5Pset_shuffle(dcpl.get()), "shuffle filter");
     const unsigned level = static_cast<unsigned>(options.compressionLevel);
-    check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level), "zstd filter 32015");
-    check(H5Pset_fletcher32(dcpl.get()), "Fletcher32 filter");
+    hdf5::check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level), "zstd filter 32015");
+    hdf5::check(H5Pset_fletcher32(dcpl.get()), "Fletcher32 filter");
     return dcpl;
+  }
+
+  // Whole chunks go straight between our buffers and the file: no chunk cache.
+  static hdf5::Handle uncachedAccess() {
+    hdf5::Handle access = hdf5::propertyList(H5P_DATASET_ACCESS);
+    hdf5::check(H5Pset_chunk_cache(access.get(), 0, 0, 1.0), "chunk cache");
+    return access;
   }
 
   void create() {
     if (!ensureZstdFilter()) throw std::runtime_error("cannot register the zstd HDF5 filter (id 32015)");
-    file = Handle(H5Fcreate(path.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-    if (file.get() < 0) throw std::runtime_error("cannot create the trajectory file: " + hdf5Message());
+    file = hdf5::createFile(path, H5F_ACC_EXCL, "the trajectory file");
     created = true;
-    const hsize_t dims[2] = {0, static_cast<hsize_t>(n)};
-    const hsize_t maxDims[2] = {H5S_UNLIMITED, static_cast<hsize_t>(n)};
+    const std::vector<hsize_t> dims = {0, static_cast<hsize_t>(n)};
+    const std::vector<hsize_t> maxDims = {H5S_UNLIMITED, static_cast<hsize_t>(n)};
     const hsize_t chunk[2] = {static_cast<hsize_t>(chunkStates), static_cast<hsize_t>(n)};
-    Handle access = handle(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "dataset access");
-    // Whole chunks go straight between our buffers and the file: no chunk cache.
-    check(H5Pset_chunk_cache(access.get(), 0, 0, 1.0), "chunk cache");
-    {
-      Handle space = handle(H5Screate_simple(2, dims, maxDims), H5Sclose, "states dataspace");
-      Handle dcpl = filteredChunks(2, chunk);
-      states = handle(H5Dcreate2(file.get(), "states", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(),
-                                 access.get()),
-                      H5Dclose, "cannot create dataset /states");
-    }
-    {
-      Handle space = handle(H5Screate_simple(1, dims, maxDims), H5Sclose, "times dataspace");
-      Handle dcpl = filteredChunks(1, chunk);
-      times = handle(
-          H5Dcreate2(file.get(), "times", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(), access.get()),
-          H5Dclose, "cannot create dataset /times");
-    }
-    writeStringAttribute(file.get(), "format", "hindsight trajectory 1");
-    writeStringAttribute(file.get(), "problem", info.problemName);
-    writeScalarAttribute<std::int64_t>(file.get(), "stateSize", H5T_STD_I64LE, n);
-    writeScalarAttribute<double>(file.get(), "t0", H5T_IEEE_F64LE, info.t0);
-    writeScalarAttribute<double>(file.get(), "t1", H5T_IEEE_F64LE, info.t1);
-    writeStringAttribute(file.get(), "hindsightVersion", version());
-    writeScalarAttribute<std::int64_t>(file.get(), "chunkStates", H5T_STD_I64LE, chunkStates);
+    const hdf5::Handle access = uncachedAccess();
+    states = hdf5::createDataset(file.get(), "states", H5T_IEEE_F64LE, dims, maxDims,
+                                 filteredChunks(2, chunk).get(), access.get());
+    times = hdf5::createDataset(file.get(), "times", H5T_IEEE_F64LE, {0}, {H5S_UNLIMITED},
+                                filteredChunks(1, chunk).get(), access.get());
+    hdf5::writeStringAttribute(file.get(), "format", "hindsight trajectory 1");
+    hdf5::writeStringAttribute(file.get(), "problem", info.problemName);
+    hdf5::writeAttribute(file.get(), "stateSize", n);
+    hdf5::writeAttribute(file.get(), "t0", info.t0);
+    hdf5::writeAttribute(file.get(), "t1", info.t1);
+    hdf5::writeStringAttribute(file.get(), "hindsightVersion", version());
+    hdf5::writeAttribute(file.get(), "chunkStates", chunkStates);
   }
 
   void write(const Task& task) {
@@ -332,41 +251,17 @@ struct ChunkedStateFile::Impl {
     const Buffer& buffer = buffers[static_cast<std::size_t>(task.buffer)];
     const hsize_t first = static_cast<hsize_t>(task.chunk * chunkStates);
     const hsize_t rows = static_cast<hsize_t>(task.rows);
-    const std::string what =
-        "cannot write rows " + std::to_string(first) + ".." + std::to_string(first + rows - 1);
-    {
-      const hsize_t extent[2] = {first + rows, static_cast<hsize_t>(n)};
-      check(H5Dset_extent(states.get(), extent), what);
-      Handle fileSpace = handle(H5Dget_space(states.get()), H5Sclose, what);
-      const hsize_t start[2] = {first, 0};
-      const hsize_t count[2] = {rows, static_cast<hsize_t>(n)};
-      check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), what);
-      Handle memorySpace = handle(H5Screate_simple(2, count, nullptr), H5Sclose, what);
-      check(H5Dwrite(states.get(), H5T_NATIVE_DOUBLE, memorySpace.get(), fileSpace.get(), H5P_DEFAULT,
-                     buffer.data.data()),
-            what);
-    }
-    {
-      const hsize_t extent[1] = {first + rows};
-      check(H5Dset_extent(times.get(), extent), what);
-      Handle fileSpace = handle(H5Dget_space(times.get()), H5Sclose, what);
-      const hsize_t start[1] = {first};
-      const hsize_t count[1] = {rows};
-      check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), what);
-      Handle memorySpace = handle(H5Screate_simple(1, count, nullptr), H5Sclose, what);
-      check(H5Dwrite(times.get(), H5T_NATIVE_DOUBLE, memorySpace.get(), fileSpace.get(), H5P_DEFAULT,
-                     buffer.data.data() + chunkStates * n),
-            what);
-    }
+    hdf5::writeRows(states.get(), first, {rows, static_cast<hsize_t>(n)}, buffer.data.data());
+    hdf5::writeRows(times.get(), first, {rows}, buffer.data.data() + chunkStates * n);
     ++chunksWritten;
   }
 
   void finalize() {
-    writeScalarAttribute<std::int64_t>(file.get(), "stepCount", H5T_STD_I64LE, stepCount);
+    hdf5::writeAttribute(file.get(), "stepCount", stepCount);
     const std::int64_t stored = static_cast<std::int64_t>(H5Dget_storage_size(states.get()));
-    check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "cannot flush the trajectory file");
-    if (times.reset() < 0 || states.reset() < 0 || file.reset() < 0) {
-      throw std::runtime_error("cannot close the trajectory file: " + hdf5Message());
+    hdf5::check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "cannot flush the trajectory file");
+    if (!times.reset() || !states.reset() || !file.reset()) {
+      throw std::runtime_error("cannot close the trajectory file: " + hdf5::errorMessage());
     }
     std::error_code ec;
     const auto size = std::filesystem::file_size(path, ec);
@@ -376,20 +271,14 @@ struct ChunkedStateFile::Impl {
   }
 
   void openRead() {
-    file = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (file.get() < 0)
-      throw std::runtime_error("cannot open the trajectory file for reading: " + hdf5Message());
-    Handle access = handle(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "dataset access");
-    check(H5Pset_chunk_cache(access.get(), 0, 0, 1.0), "chunk cache");
-    states = handle(H5Dopen2(file.get(), "states", access.get()), H5Dclose, "cannot open dataset /states");
-    Handle space = handle(H5Dget_space(states.get()), H5Sclose, "/states dataspace");
-    hsize_t dims[2] = {0, 0};
-    if (H5Sget_simple_extent_ndims(space.get()) != 2 ||
-        H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0 ||
-        dims[0] != static_cast<hsize_t>(rowCount) || dims[1] != static_cast<hsize_t>(n)) {
-      throw std::runtime_error("the trajectory file holds " + std::to_string(dims[0]) + " x " +
-                               std::to_string(dims[1]) + " states, expected " + std::to_string(rowCount) +
-                               " x " + std::to_string(n) + " (truncated or replaced?)");
+    file = hdf5::openFileReadOnly(path, "the trajectory file");
+    states = hdf5::openDataset(file.get(), "states", uncachedAccess().get());
+    const std::vector<hsize_t> dims = hdf5::shape(states.get());
+    if (dims != std::vector<hsize_t>{static_cast<hsize_t>(rowCount), static_cast<hsize_t>(n)}) {
+      throw std::runtime_error("the trajectory file holds " + std::to_string(dims.size() > 0 ? dims[0] : 0) +
+                               " x " + std::to_string(dims.size() > 1 ? dims[1] : 0) + " states, expected " +
+                               std::to_string(rowCount) + " x " + std::to_string(n) +
+                               " (truncated or replaced?)");
     }
   }
 
@@ -397,16 +286,11 @@ struct ChunkedStateFile::Impl {
     Buffer& buffer = buffers[static_cast<std::size_t>(task.buffer)];
     const hsize_t first = static_cast<hsize_t>(task.chunk * chunkStates);
     const hsize_t rows = static_cast<hsize_t>(std::min(chunkStates, rowCount - task.chunk * chunkStates));
-    const std::string what = "cannot read rows " + std::to_string(first) + ".." +
-                             std::to_string(first + rows - 1) + " (corrupted or truncated file?)";
-    Handle fileSpace = handle(H5Dget_space(states.get()), H5Sclose, what);
-    const hsize_t start[2] = {first, 0};
-    const hsize_t count[2] = {rows, static_cast<hsize_t>(n)};
-    check(H5Sselect_hyperslab(fileSpace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), what);
-    Handle memorySpace = handle(H5Screate_simple(2, count, nullptr), H5Sclose, what);
-    check(H5Dread(states.get(), H5T_NATIVE_DOUBLE, memorySpace.get(), fileSpace.get(), H5P_DEFAULT,
-                  buffer.data.data()),
-          what);
+    try {
+      hdf5::readRows(states.get(), first, {rows, static_cast<hsize_t>(n)}, buffer.data.data());
+    } catch (const hdf5::Error& e) {
+      throw std::runtime_error(std::string(e.what()) + " (corrupted or truncated file?)");
+    }
   }
 
   // ---- owner thread ----

@@ -1,10 +1,10 @@
 #include <hindsight/problems/rod/design_gradient.h>
 
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/invariants.h>
 
 #include <Eigen/SparseLU>
 
-#include <chrono>
 #include <sstream>
 #include <stdexcept>
 
@@ -92,7 +92,7 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
                                            ConstVectorRef invariantGradient,
                                            const DesignGradientOptions& options,
                                            const DesignGradientExtras& extras) {
-  const auto start = std::chrono::steady_clock::now();
+  const Stopwatch timer;
   checkBasis(model, basis);
   const int n = basis.eigenmodeCount;
   const InvariantLayout layout(n);
@@ -222,7 +222,7 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     }
   }
   if (extras.explicitDesignGradient.size() != 0) result.gradient += extras.explicitDesignGradient;
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = timer.seconds();
   return result;
 }
 

@@ -20,7 +20,8 @@ Vector readDesignFile(const std::string& path, const rod::RodConfig& config);
 
 /// Writes each (name, values over design variables) as a (ny, nx) dataset; interface columns get
 /// `interfaceValue` (1 for a design, 0 for a gradient). The file appears complete or not at all
-/// (written to a temporary name, then renamed). Throws StorageError naming the file on failure.
+/// (written to a temporary name, fsynced, then renamed: storage/atomic_file.h). Throws StorageError
+/// naming the file on failure, std::invalid_argument when a field has the wrong length.
 void writeDesignFields(const std::string& path, const rod::RodConfig& config,
                        const std::vector<std::pair<std::string, Vector>>& fields, double interfaceValue);
 

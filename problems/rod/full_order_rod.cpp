@@ -1,11 +1,11 @@
 #include <hindsight/problems/rod/full_order_rod.h>
 
 #include <hindsight/engine/integrator.h>
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -397,11 +397,6 @@ std::unique_ptr<NewtonSolver> FullOrderRodProblem::createNewtonSolver() const {
 
 // ---- evaluation ----
 
-namespace {
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
-}  // namespace
-
 FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef design, bool gradient) {
   const PistonRod reference(config);  // validates the configuration
   if (config.simulation.adjoint != "discrete") {
@@ -415,7 +410,7 @@ FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef
   // one exact Newton step per stage and this tolerance only matters to callers that iterate.
   options.newtonTolerance = std::max(options.newtonTolerance, 1e-10);
   FullOrderRodEvaluation out;
-  auto start = Clock::now();
+  Stopwatch phase;
   const FullOrderRodProblem problem(config.rod, design, config.simulation.fullOrderCoupling);
   out.stateSize = problem.stateSize();
   out.volumeFraction = problem.model().volumeFraction();
@@ -434,8 +429,7 @@ FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef
                                   "); use simulation.integrator = trbdf2 or midpoint");
     }
   }
-  out.modelSeconds = since(start);
-  start = Clock::now();
+  out.modelSeconds = phase.restart();
   const Vector p = design;
   if (gradient) {
     auto storage = createStorage(config.simulation.storage);
@@ -448,7 +442,7 @@ FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef
     out.psi1 = result.objective;
     out.summary = result.summary;
   }
-  out.simulationSeconds = since(start);
+  out.simulationSeconds = phase.seconds();
   return out;
 }
 

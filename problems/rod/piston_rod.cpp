@@ -1,6 +1,7 @@
 #include <hindsight/problems/rod/piston_rod.h>
 
 #include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/esl.h>
 #include <hindsight/problems/rod/fe_model.h>
@@ -9,17 +10,10 @@
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 
 namespace hindsight {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
-
-}  // namespace
 
 PistonRod::PistonRod(const Config& config) : config_(config) { config_.validate(); }
 
@@ -48,7 +42,7 @@ IntegratorOptions PistonRod::integratorOptions() const {
 PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& request) const {
   const rod::RodConfig& rc = config_.rod;
   PistonRodEvaluation out;
-  auto start = Clock::now();
+  Stopwatch phase;
   const rod::FeModel model(rc, design);
   const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
   const Vector p = rod::computeInvariants(model, basis).pack();
@@ -58,7 +52,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   out.modes = basis.modesFull;
   out.volumeFraction = model.volumeFraction();
   out.dvolume = model.volumeFractionGradient();
-  out.modelSeconds = since(start);
+  out.modelSeconds = phase.seconds();
 
   rod::CrankMotion crank;
   crank.radius = rc.crankRadius;
@@ -84,7 +78,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     }
   };
 
-  start = Clock::now();
+  phase.restart();
   if (request.psi1Gradient) {
     GradientResult result;
     if (config_.simulation.adjoint == "discrete") {
@@ -107,29 +101,28 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     }
     out.psi1 = result.objective;
     out.summary = result.summary;
-    out.simulationSeconds = since(start);
-    start = Clock::now();
+    out.simulationSeconds = phase.restart();
     rod::DesignGradientOptions chain;
     chain.method = config_.simulation.eigenvectorRoute == "nelson"
                        ? rod::EigenvectorSensitivityMethod::NelsonPerVariable
                        : rod::EigenvectorSensitivityMethod::AdjointNelson;
     out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain).gradient;
-    out.chainSeconds = since(start);
+    out.chainSeconds = phase.seconds();
   } else {
     ForwardResult result = simulate(problem, p, options, observer);
     out.psi1 = result.objective;
     out.summary = result.summary;
-    out.simulationSeconds = since(start);
+    out.simulationSeconds = phase.seconds();
   }
 
   out.psi2 = std::numeric_limits<double>::quiet_NaN();
   if (request.psi2) {
-    start = Clock::now();
+    phase.restart();
     const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
     const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1);
     out.psi2 = esl.value;
     if (request.psi2Gradient) out.dpsi2 = esl.gradient;
-    out.eslSeconds = since(start);
+    out.eslSeconds = phase.seconds();
   }
   return out;
 }

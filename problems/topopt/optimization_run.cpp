@@ -1,9 +1,10 @@
 #include <hindsight/problems/topopt/optimization_run.h>
 
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/topopt/pictures.h>
+#include <hindsight/storage/atomic_file.h>
 
 #include <unistd.h>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,9 +16,6 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // Creates the directory and proves that a file can be written in it.
 void prepareDirectory(const std::string& directory) {
@@ -109,7 +107,7 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
   if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
   prepareDirectory(options.outputDirectory);
   resultsPath_ = (fs::path(options.outputDirectory) / "results.h5").string();
-  std::remove((resultsPath_ + ".partial").c_str());  // garbage of a crash during a write
+  removeStaleTemporaries(resultsPath_);  // garbage of a crash during a write
 
   const rod::RodConfig& rc = config_.rod;
   const bool exists = fs::exists(resultsPath_);
@@ -161,7 +159,7 @@ void OptimizationRun::writePictures(const std::string& stem, const Vector& grid)
 }
 
 OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
-  const auto start = Clock::now();
+  const Stopwatch runTimer;
   OptimizationRunSummary summary;
   summary.resumedFrom = static_cast<int>(data_.history.size());
   summary.resultsPath = resultsPath_;
@@ -171,7 +169,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
   }
   const int pictureEvery = config_.optimization.pictureEvery;
   while (!data_.finished) {
-    const auto iterationStart = Clock::now();
+    const Stopwatch iterationTimer;
     IterationRecord record = optimizer_.step();
     const Vector grid = optimizer_.densityGrid(optimizer_.lastEvaluatedDesign());
     data_.state = optimizer_.state();
@@ -186,7 +184,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
       writePictures("design_iter_" + std::to_string(record.iteration), grid);
     }
     if (data_.finished) writePictures("design_final", grid);
-    record.totalSeconds = since(iterationStart);
+    record.totalSeconds = iterationTimer.seconds();
     data_.history.push_back(record);
     data_.densities.push_back(grid);
     writeResultsFile(resultsPath_, data_);
@@ -195,7 +193,7 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
   }
   summary.history = data_.history;
   summary.finished = data_.finished;
-  summary.wallSeconds = since(start);
+  summary.wallSeconds = runTimer.seconds();
   return summary;
 }
 

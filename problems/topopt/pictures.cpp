@@ -1,7 +1,8 @@
 #include <hindsight/problems/topopt/pictures.h>
 
+#include <hindsight/storage/atomic_file.h>
+
 #include <png.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -30,28 +31,6 @@ void CheckField(const char* function, int nx, int ny, ConstVectorRef density) {
 }
 
 std::string SystemError(const std::string& what) { return what + ": " + std::strerror(errno); }
-
-// Writes a file through `write` (which returns an empty string on success, else a message) into a
-// temporary file beside `path`, flushes it to disk and renames it onto `path`. On any failure the
-// temporary file is removed and StorageError naming `path` is thrown.
-template <typename Write>
-void WriteAtomically(const std::string& path, Write&& write) {
-  const std::string temporary = path + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
-  std::FILE* file = std::fopen(temporary.c_str(), "wb");
-  if (file == nullptr) throw StorageError(SystemError("cannot create temporary file " + temporary), path);
-
-  std::string error = write(file);
-  if (error.empty() && std::fflush(file) != 0) error = SystemError("cannot write " + temporary);
-  if (error.empty() && ::fsync(::fileno(file)) != 0)
-    error = SystemError("cannot flush " + temporary + " to disk");
-  if (std::fclose(file) != 0 && error.empty()) error = SystemError("cannot close " + temporary);
-  if (error.empty() && std::rename(temporary.c_str(), path.c_str()) != 0)
-    error = SystemError("cannot rename " + temporary + " to the target");
-  if (!error.empty()) {
-    std::remove(temporary.c_str());
-    throw StorageError(error, path);
-  }
-}
 
 }  // namespace
 
@@ -86,7 +65,7 @@ void writeDensityPng(const std::string& path, int nx, int ny, ConstVectorRef den
     }
   }
 
-  WriteAtomically(path, [&](std::FILE* file) -> std::string {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
     // libpng's simplified API reports errors through the image structure instead of longjmp.
     png_image image;
     std::memset(&image, 0, sizeof(image));
@@ -110,7 +89,7 @@ void writeDensityVtk(const std::string& path, int nx, int ny, ConstVectorRef den
     out << "writeDensityVtk: element_size = " << element_size << " must be positive and finite";
     throw std::invalid_argument(out.str());
   }
-  WriteAtomically(path, [&](std::FILE* file) -> std::string {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
     int status = std::fprintf(file,
                               "# vtk DataFile Version 3.0\n"
                               "hindsight density field, %d x %d elements\n"

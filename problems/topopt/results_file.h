@@ -17,12 +17,13 @@
 //   /final/frequencies_hz  modeCount; both of the final design, empty (0 rows) until finished = 1
 //
 // Crash safety (the design this file is built on): writeResultsFile never modifies an existing file.
-// It writes the complete contents to PATH.partial, closes it, fsyncs it, renames it onto PATH (atomic on
-// POSIX) and fsyncs the directory. So at every moment PATH is either absent or a complete file written
-// by a finished call: a crash (kill -9, power loss after the rename) leaves the file of the last
-// completed iteration, never a torn one; a leftover PATH.partial is garbage and is removed by the next
-// run. Cost: the whole file is rewritten per iteration, O(K (nx ny + n)) bytes; for the 200 x 12 rod
-// that is 20 kB per completed iteration, milliseconds next to a 2 s evaluation.
+// It writes the complete contents to a temporary PATH.tmp-PID-N, closes it, fsyncs it, renames it onto
+// PATH (atomic on POSIX) and fsyncs the directory (storage/atomic_file.h). So at every moment PATH is
+// either absent or a complete file written by a finished call: a crash (kill -9, power loss after the
+// rename) leaves the file of the last completed iteration, never a torn one; a leftover temporary is
+// garbage and is removed by the next run (removeStaleTemporaries). Cost: the whole file is rewritten
+// per iteration, O(K (nx ny + n)) bytes; for the 200 x 12 rod that is 20 kB per completed iteration,
+// milliseconds next to a 2 s evaluation.
 //
 // Errors: StorageError (with the path) when the file cannot be written, read, or is not such a file.
 #pragma once

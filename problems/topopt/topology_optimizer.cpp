@@ -1,16 +1,14 @@
 #include <hindsight/problems/topopt/topology_optimizer.h>
 
+#include <hindsight/engine/stopwatch.h>
+
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 namespace hindsight {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
   const int nx = rc.elementsAlongLength;
@@ -114,7 +112,7 @@ Vector TopologyOptimizer::densityGrid(ConstVectorRef design) const {
 
 IterationRecord TopologyOptimizer::step() {
   if (finished_) throw std::logic_error("TopologyOptimizer::step after the final evaluation");
-  const auto start = Clock::now();
+  const Stopwatch stepTimer;
   const OptimizationSettings& settings = config().optimization;
   const bool usePsi1 = settings.objective == "psi1";
   const bool update = state_.iteration < settings.iterations;
@@ -147,7 +145,7 @@ IterationRecord TopologyOptimizer::step() {
   record.psi1 = evaluation.psi1;
   record.psi2 = evaluation.psi2;
   record.volumeFraction = evaluation.volumeFraction;
-  record.evaluationSeconds = since(start);
+  record.evaluationSeconds = stepTimer.seconds();
 
   const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
   if (!(std::isfinite(objective) && objective > 0.0)) {
@@ -160,7 +158,7 @@ IterationRecord TopologyOptimizer::step() {
   if (next.iteration == 0 && next.objectiveScale == 0.0) next.objectiveScale = objective;
 
   if (update) {
-    const auto mmaStart = Clock::now();
+    const Stopwatch mmaTimer;
     const int n = designCount();
     const Vector gradient =
         chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
@@ -186,14 +184,14 @@ IterationRecord TopologyOptimizer::step() {
     next.design = x;
     next.mma = mma_.state();
     next.iteration += 1;
-    record.mmaSeconds = since(mmaStart);
+    record.mmaSeconds = mmaTimer.seconds();
   } else {
     finished_ = true;
   }
   state_ = std::move(next);
   last_ = std::move(evaluated);
   lastDesign_ = std::move(design);
-  record.totalSeconds = since(start);
+  record.totalSeconds = stepTimer.seconds();
   return record;
 }
 

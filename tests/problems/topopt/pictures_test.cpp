@@ -2,6 +2,7 @@
 // bottom, the VTK file has the right header, cell count and exact values, and failures throw
 // StorageError without leaving files behind.
 #include <hindsight/problems/topopt/pictures.h>
+#include "support/file_checks.h"
 
 #include <gtest/gtest.h>
 #include <png.h>
@@ -31,11 +32,8 @@ fs::path TestDirectory() {
   return dir;
 }
 
-std::set<std::string> Listing(const fs::path& dir) {
-  std::set<std::string> names;
-  for (const auto& entry : fs::directory_iterator(dir)) names.insert(entry.path().filename().string());
-  return names;
-}
+using testing::expectStorageErrorNaming;
+using testing::listing;
 
 struct Gray {
   unsigned width = 0, height = 0, fileFormat = 0;
@@ -87,7 +85,7 @@ TEST(Pictures, PngDecodesToExpectedPixelsWithRowZeroAtTheBottom) {
   // The corners in plain words: element 0 is at the bottom-left of the picture.
   EXPECT_EQ(image.pixels[(image.height - 1) * image.width + 0], 0);
   EXPECT_EQ(image.pixels[0 * image.width + image.width - 1], 255);
-  EXPECT_EQ(Listing(dir), std::set<std::string>{"field.png"});  // no temporary left
+  EXPECT_EQ(listing(dir), std::set<std::string>{"field.png"});  // no temporary left
 }
 
 // The rod's 200 x 12 layout with a recognisable pattern, for looking at: solid end columns, solid top
@@ -150,25 +148,14 @@ TEST(Pictures, VtkFileHasHeaderCellCountAndExactValues) {
   for (int e = 0; e < nx * ny; ++e) EXPECT_EQ(values[e], density(e)) << e;  // 17 digits: exact
 }
 
-template <typename Write>
-void ExpectStorageErrorNaming(Write&& write, const std::string& path) {
-  try {
-    write();
-    ADD_FAILURE() << "no StorageError for " << path;
-  } catch (const StorageError& e) {
-    EXPECT_EQ(e.path(), path);
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
-  }
-}
-
 TEST(Pictures, UnwritablePathThrowsStorageErrorAndLeavesNoFile) {
   const fs::path dir = TestDirectory();
   const Vector density = Vector::Constant(6, 0.5);
 
   // A directory that does not exist: nothing can be created.
   const std::string missing = (dir / "no_such_directory" / "design.png").string();
-  ExpectStorageErrorNaming([&] { writeDensityPng(missing, 3, 2, density); }, missing);
-  ExpectStorageErrorNaming([&] { writeDensityVtk(missing, 3, 2, density); }, missing);
+  expectStorageErrorNaming([&] { writeDensityPng(missing, 3, 2, density); }, missing);
+  expectStorageErrorNaming([&] { writeDensityVtk(missing, 3, 2, density); }, missing);
   EXPECT_FALSE(fs::exists(missing));
 
   // The target is an existing non-empty directory: the temporary file is written completely, the
@@ -176,10 +163,10 @@ TEST(Pictures, UnwritablePathThrowsStorageErrorAndLeavesNoFile) {
   // this is the portable way to make the last step fail.)
   const fs::path occupied = dir / "occupied";
   fs::create_directories(occupied / "inside");
-  const std::set<std::string> before = Listing(dir);
-  ExpectStorageErrorNaming([&] { writeDensityPng(occupied.string(), 3, 2, density); }, occupied.string());
-  ExpectStorageErrorNaming([&] { writeDensityVtk(occupied.string(), 3, 2, density); }, occupied.string());
-  EXPECT_EQ(Listing(dir), before);
+  const std::set<std::string> before = listing(dir);
+  expectStorageErrorNaming([&] { writeDensityPng(occupied.string(), 3, 2, density); }, occupied.string());
+  expectStorageErrorNaming([&] { writeDensityVtk(occupied.string(), 3, 2, density); }, occupied.string());
+  EXPECT_EQ(listing(dir), before);
   EXPECT_TRUE(fs::is_directory(occupied / "inside"));
 }
 
@@ -203,7 +190,7 @@ TEST(Pictures, BadArgumentsThrowInvalidArgument) {
   expectNaming([&] { writeDensityPng(path, 3, 2, withNan); }, "density(4)");
   expectNaming([&] { writeDensityVtk(path, 3, -1, six); }, "ny = -1");
   expectNaming([&] { writeDensityVtk(path, 3, 2, six, 0.0); }, "element_size");
-  EXPECT_TRUE(Listing(dir).empty());
+  EXPECT_TRUE(listing(dir).empty());
 }
 
 }  // namespace

@@ -1,0 +1,35 @@
+// Checks shared by the tests of everything that writes files (atomic writes, pictures): what a
+// directory holds, and that a failed write throws StorageError naming the file.
+#pragma once
+
+#include <hindsight/engine/types.h>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <set>
+#include <string>
+
+namespace hindsight::testing {
+
+/// The names in a directory, to see that no temporary file was left behind.
+inline std::set<std::string> listing(const std::filesystem::path& directory) {
+  std::set<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(directory))
+    names.insert(entry.path().filename().string());
+  return names;
+}
+
+/// Runs `write`, which must throw StorageError naming `path` (in path() and in the message).
+template <typename Write>
+void expectStorageErrorNaming(Write&& write, const std::string& path) {
+  try {
+    write();
+    ADD_FAILURE() << "no StorageError for " << path;
+  } catch (const StorageError& e) {
+    EXPECT_EQ(e.path(), path);
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace hindsight::testing
