@@ -1,5 +1,5 @@
 // Your own ODE: write F, G and z0 once; AutoDiffProblem derives every derivative, the discrete adjoint
-// runs over binomial checkpointing (20 states kept), and central differences confirm the gradient.
+// runs over binomial checkpointing (20 checkpoints), and central differences confirm the gradient.
 #include "engine/adjoint.h"
 #include "engine/autodiff_problem.h"
 #include "engine/gradient_checker.h"
