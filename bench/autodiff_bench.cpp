@@ -20,15 +20,17 @@
 namespace hindsight {
 namespace {
 
-// PendulumEquations by hand: a = -(g/L) sin(th) - c v / (m L^2).
+// PendulumEquations with F and its derivatives written by hand in first-order form:
+// a = -(g/L) sin(th) - c v / (m L^2). G, phi and z0 do not involve the mass matrix, so they are the
+// hand-written ones of Pendulum, called directly (without the adapter and its workspace).
 class FirstOrderPendulum final : public Problem {
  public:
   std::string name() const override { return "pendulum-first-order"; }
   int stateSize() const override { return 2; }
   int parameterSize() const override { return 4; }
-  void initialState(ConstVectorRef p, VectorRef z0) const override { z0 << p(3), 0.0; }
-  void addInitialStateVjp(ConstVectorRef, ConstVectorRef lambda0, VectorRef gradient) const override {
-    gradient(3) += lambda0(0);
+  void initialState(ConstVectorRef p, VectorRef z0) const override { pendulum_.initialState(p, z0); }
+  void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const override {
+    pendulum_.addInitialStateVjp(p, lambda0, gradient);
   }
   void rhs(double, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
     f(0) = z(1);
@@ -45,19 +47,25 @@ class FirstOrderPendulum final : public Problem {
     out(1) += w(1) * (Pendulum::kGravity * std::sin(z(0)) / (length * length) + 2.0 * c * damping / length);
     out(2) -= w(1) * damping;
   }
-  double integrand(double, ConstVectorRef z, ConstVectorRef, ProblemWorkspace*) const override {
-    return z(0) * z(0);
+  double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace*) const override {
+    return pendulum_.objectiveIntegrand(t, z.head<1>(), z.tail<1>(), p, nullptr);
   }
-  void addIntegrandStateGradient(double, ConstVectorRef z, ConstVectorRef, double scale, VectorRef out,
+  void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                  ProblemWorkspace*) const override {
-    out(0) += scale * 2.0 * z(0);
+    pendulum_.addObjectiveStateGradient(t, z.head<1>(), z.tail<1>(), p, scale, out.head<1>(), out.tail<1>(),
+                                        nullptr);
   }
-  void addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, double, VectorRef,
-                                     ProblemWorkspace*) const override {}
-  double terminal(ConstVectorRef z, ConstVectorRef) const override { return 0.5 * z(1) * z(1); }
-  void addTerminalGradient(ConstVectorRef z, ConstVectorRef, VectorRef gz, VectorRef) const override {
-    gz(1) += z(1);
+  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
+                                     VectorRef out, ProblemWorkspace*) const override {
+    pendulum_.addObjectiveParameterGradient(t, z.head<1>(), z.tail<1>(), p, scale, out, nullptr);
   }
+  double terminal(ConstVectorRef z, ConstVectorRef p) const override { return pendulum_.terminal(z, p); }
+  void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override {
+    pendulum_.addTerminalGradient(z, p, gz, gp);
+  }
+
+ private:
+  Pendulum pendulum_;
 };
 
 const Pendulum kHand;
