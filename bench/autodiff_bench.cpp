@@ -20,22 +20,23 @@
 namespace hindsight {
 namespace {
 
-// PendulumEquations by hand: a = -(g/L) sin(th) - c v / (m L^2). G, phi and z0 restate Pendulum's
-// few lines on purpose: the baseline must be inline code like the functor's. Calling Pendulum's
-// out-of-line split-state versions instead doubled the cost of G_z (6.8 -> 13.8 ns) and made the
-// rk4 gradient 25% slower (52 -> 65 ms; bench/RESULTS.md), which would hide the cost measured here.
+// The values F, G, phi and z0 are PendulumEquations' own, instantiated for double (inline, as in
+// AutoDiffPendulum); only the derivatives are written by hand, from a = -(g/L) sin(th) - c v/(m L^2).
+// So the two differ in nothing but how the derivatives are obtained. (Calling Pendulum's out-of-line
+// split-state functions for G instead doubled the cost of G_z; see bench/RESULTS.md.)
 class FirstOrderPendulum final : public Problem {
  public:
   std::string name() const override { return "pendulum-first-order"; }
   int stateSize() const override { return 2; }
   int parameterSize() const override { return 4; }
-  void initialState(ConstVectorRef p, VectorRef z0) const override { z0 << p(3), 0.0; }
+  void initialState(ConstVectorRef p, VectorRef z0) const override {
+    equations_.initialState(p.data(), z0.data());
+  }
   void addInitialStateVjp(ConstVectorRef, ConstVectorRef lambda0, VectorRef gradient) const override {
     gradient(3) += lambda0(0);
   }
-  void rhs(double, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
-    f(0) = z(1);
-    f(1) = -Pendulum::kGravity / p(1) * std::sin(z(0)) - p(2) * z(1) / (p(0) * p(1) * p(1));
+  void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
+    equations_.rhs(t, z.data(), p.data(), f.data());
   }
   void rhsJacobian(double, ConstVectorRef z, ConstVectorRef p, MatrixRef j,
                    ProblemWorkspace*) const override {
@@ -48,19 +49,25 @@ class FirstOrderPendulum final : public Problem {
     out(1) += w(1) * (Pendulum::kGravity * std::sin(z(0)) / (length * length) + 2.0 * c * damping / length);
     out(2) -= w(1) * damping;
   }
-  double integrand(double, ConstVectorRef z, ConstVectorRef, ProblemWorkspace*) const override {
-    return z(0) * z(0);
+  double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace*) const override {
+    return equations_.integrand(t, z.data(), p.data());
   }
+  // G = th^2 does not depend on p: G_p adds nothing.
   void addIntegrandStateGradient(double, ConstVectorRef z, ConstVectorRef, double scale, VectorRef out,
                                  ProblemWorkspace*) const override {
     out(0) += scale * 2.0 * z(0);
   }
   void addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, double, VectorRef,
                                      ProblemWorkspace*) const override {}
-  double terminal(ConstVectorRef z, ConstVectorRef) const override { return 0.5 * z(1) * z(1); }
+  double terminal(ConstVectorRef z, ConstVectorRef p) const override {
+    return equations_.terminal(z.data(), p.data());
+  }
   void addTerminalGradient(ConstVectorRef z, ConstVectorRef, VectorRef gz, VectorRef) const override {
     gz(1) += z(1);
   }
+
+ private:
+  PendulumEquations equations_;
 };
 
 const Pendulum kHand;
