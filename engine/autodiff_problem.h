@@ -30,7 +30,7 @@
 // by hand. The explicit adjoint stages form the dense Jacobian and multiply (hasStateVjp() is false),
 // which for forward mode costs the same as a separate vector-Jacobian product would.
 // Measured on the pendulum (bench/autodiff_bench.cpp, bench/RESULTS.md): 1.1-2.1x the hand-written
-// derivative per call, 1.08-1.22x the hand-written problem for a whole gradient.
+// derivative per call, 1.05-1.22x the hand-written problem for a whole gradient.
 //
 // No evaluation allocates: the derivative vectors have fixed size (Eigen::Matrix<double, N, 1>), so
 // every active scalar lives on the stack (tests/engine/autodiff_problem_test.cpp counts this). We use
