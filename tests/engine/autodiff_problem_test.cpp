@@ -48,8 +48,10 @@ struct CoupledEquations {
 };
 using CoupledProblem = AutoDiffProblem<CoupledEquations, 3, 3>;
 
-// The minimal functor: no terminal term and a double-only initial state (independent of p).
+// The minimal functor: no terminal term and a double-only initial state (independent of p), which
+// is a data member set through the constructor.
 struct DecayEquations {
+  double initialValue = 0.0;
   template <class T>
   void rhs(double, const T* z, const T* p, T* f) const {
     f[0] = -p[0] * z[0];
@@ -58,7 +60,7 @@ struct DecayEquations {
   T integrand(double, const T* z, const T*) const {
     return z[0] * z[0];
   }
-  void initialState(const double*, double* z0) const { z0[0] = 0.7; }
+  void initialState(const double*, double* z0) const { z0[0] = initialValue; }
 };
 
 const Vector kCoupledP = Eigen::Vector3d(0.8, 1.3, 0.6);
@@ -167,7 +169,8 @@ TEST(AutoDiffProblem, GradientIsDerivativeOfComputedObjective) {
 TEST(AutoDiffProblem, OptionalPartsDefaultToZero) {
   // No terminal term: phi = 0 and no gradient; a double-only initialState: dz0/dp = 0. The result
   // equals the hand-written ExponentialDecay with the same initial value (z0 = a = 0.7).
-  const AutoDiffProblem<DecayEquations, 1, 1> problem("decay");
+  const AutoDiffProblem<DecayEquations, 1, 1> problem("decay", DecayEquations{0.7});
+  EXPECT_EQ(problem.functor().initialValue, 0.7);
   const Vector z = Vector::Constant(1, 0.4), p = Vector::Constant(1, 1.3);
   EXPECT_EQ(problem.terminal(z, p), 0.0);
   Vector gz = Vector::Zero(1), gp = Vector::Zero(1), vjp = Vector::Zero(1);
