@@ -3,6 +3,7 @@
 // They serve the tests, the benchmarks and the engine demo of the command-line tool.
 #pragma once
 
+#include <hindsight/engine/autodiff_problem.h>
 #include <hindsight/engine/second_order_problem.h>
 
 #include <complex>
@@ -143,6 +144,33 @@ class Pendulum final : public SecondOrderProblem {
   double terminal(ConstVectorRef z, ConstVectorRef p) const override;
   void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override;
 };
+
+/// The pendulum above in first-order form z = (th, v), written once for AutoDiffProblem:
+/// F = (v, -(m g L sin(th) + c v) / (m L^2)), G = th^2, phi = v^2 / 2, z0 = (th0, 0). The same
+/// problem as Pendulum with every derivative derived instead of written by hand; the tests compare
+/// the two and the benchmarks measure what the derivation costs.
+struct PendulumEquations {
+  template <class T>
+  void rhs(double, const T* z, const T* p, T* f) const {
+    using std::sin;
+    f[0] = z[1];
+    f[1] = -(p[0] * Pendulum::kGravity * p[1] * sin(z[0]) + p[2] * z[1]) / (p[0] * p[1] * p[1]);
+  }
+  template <class T>
+  T integrand(double, const T* z, const T*) const {
+    return z[0] * z[0];
+  }
+  template <class T>
+  T terminal(const T* z, const T*) const {
+    return 0.5 * z[1] * z[1];
+  }
+  template <class T>
+  void initialState(const T* p, T* z0) const {
+    z0[0] = p[3];
+    z0[1] = T(0.0);
+  }
+};
+using AutoDiffPendulum = AutoDiffProblem<PendulumEquations, 2, 4>;
 
 /// Robertson's stiff chemical kinetics (Robertson 1966; Hairer & Wanner, problem ROBER):
 /// y1' = -k1 y1 + k3 y2 y3, y2' = k1 y1 - k2 y2^2 - k3 y2 y3, y3' = k2 y2^2, y(0) = (1, 0, 0).
