@@ -1,6 +1,6 @@
 #include "problems/config.h"
 
-#include "engine/integrator.h"
+#include "engine/runge_kutta.h"
 #include "storage/storage_factory.h"
 
 #include <cmath>

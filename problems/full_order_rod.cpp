@@ -1,6 +1,6 @@
 #include "problems/full_order_rod.h"
 
-#include "engine/integrator.h"
+#include "engine/runge_kutta.h"
 #include "problems/piston_rod.h"
 #include "storage/storage_factory.h"
 

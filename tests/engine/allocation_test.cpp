@@ -1,7 +1,7 @@
 // The hot loops allocate nothing: after set-up, forward steps, adjoint steps and restores from
 // full storage make no heap allocation (STYLE.md guideline 3). Counted with the interposed malloc
 // of tests/support/allocation_counting.cpp (which also sees Eigen).
-#include "engine/integrator.h"
+#include "engine/runge_kutta.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
 #include "storage/hermite_storage.h"

@@ -1,6 +1,7 @@
 // The discrete adjoint against closed forms (linear ODEs) and against finite differences of the
 // computed psi (nonlinear and stiff problems), for every integrator.
 #include "engine/gradient_checker.h"
+#include "engine/runge_kutta.h"
 #include "problems/classic_problems.h"
 #include "support/engine_fixtures.h"
 

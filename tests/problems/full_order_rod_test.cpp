@@ -8,7 +8,7 @@
 
 #include "engine/adjoint.h"
 #include "engine/gradient_checker.h"
-#include "engine/integrator.h"
+#include "engine/runge_kutta.h"
 #include "problems/modal_reduction.h"
 #include "problems/piston_rod.h"
 #include "storage/full_storage.h"
