@@ -5,8 +5,8 @@
 //   mu'     = -(G_p + lambda^T F_p)^T,        mu(t1) = 0,
 //   dpsi/dp = mu(t0) + dphi/dp + (dz0/dp)^T lambda(t0),
 // integrated backward from t1 to t0 with its own adaptive steps. The forward sweep is the engine's
-// own (any IntegratorOptions, fixed or adaptive, whose integrator state is the problem state);
-// psi is the forward sweep's computed psi.
+// own (any IntegratorOptions, fixed or adaptive, whose integrator state is the problem state: not
+// generalized-alpha, which carries accelerations); psi is the forward sweep's computed psi.
 //
 // Backward integrator (the choice, ContinuousAdjointOptions::method):
 //   "dopri5" (default): Dormand-Prince 5(4) on the augmented system (lambda, mu), with FSAL, an error

@@ -1,4 +1,5 @@
 #include "engine/integrator.h"
+#include "engine/generalized_alpha.h"
 #include "engine/runge_kutta.h"
 
 #include <cmath>
@@ -14,12 +15,20 @@ struct MethodName {
 
 // The one table of user-facing names; parse, print and list all read it.
 constexpr MethodName kMethodNames[] = {
-    {IntegratorMethod::Rk4, "rk4"},           {IntegratorMethod::Dopri5, "dopri5"},
-    {IntegratorMethod::TrBdf2, "trbdf2"},     {IntegratorMethod::Sdirk2, "sdirk2"},
+    {IntegratorMethod::Rk4, "rk4"},
+    {IntegratorMethod::Dopri5, "dopri5"},
+    {IntegratorMethod::TrBdf2, "trbdf2"},
+    {IntegratorMethod::Sdirk2, "sdirk2"},
     {IntegratorMethod::Midpoint, "midpoint"},
+    {IntegratorMethod::GeneralizedAlpha, "generalized-alpha"},
+    {IntegratorMethod::HhtAlpha, "hht-alpha"},
 };
 
 }  // namespace
+
+bool isRungeKutta(IntegratorMethod method) {
+  return method != IntegratorMethod::GeneralizedAlpha && method != IntegratorMethod::HhtAlpha;
+}
 
 std::string toString(IntegratorMethod method) {
   for (const auto& entry : kMethodNames) {
@@ -65,7 +74,7 @@ bool IntegratorOptions::IsValid(std::string* error) const {
     return fail(msg.str());
   }
   if (adaptive) {
-    if (ButcherTableau::byMethod(parsed).bEmbedded.size() == 0) {
+    if (!isRungeKutta(parsed) || ButcherTableau::byMethod(parsed).bEmbedded.size() == 0) {
       return fail("IntegratorOptions.adaptive: method '" + method +
                   "' has no embedded error estimate; use dopri5 or trbdf2");
     }
@@ -88,6 +97,15 @@ bool IntegratorOptions::IsValid(std::string* error) const {
   if (!(newtonTolerance > 0.0) || newtonTolerance >= 1.0 || newtonMaxIterations < 1) {
     msg << "IntegratorOptions: newtonTolerance = " << newtonTolerance
         << " must be in (0, 1) and newtonMaxIterations = " << newtonMaxIterations << " at least 1";
+    return fail(msg.str());
+  }
+  if (!(rhoInfinity >= 0.0 && rhoInfinity <= 1.0)) {
+    msg << "IntegratorOptions.rhoInfinity = " << rhoInfinity << " must be in [0, 1]";
+    return fail(msg.str());
+  }
+  if (parsed == IntegratorMethod::HhtAlpha && rhoInfinity < 0.5) {
+    // HHT's alpha = (1 - rho)/(1 + rho) must stay in [0, 1/3] for unconditional stability.
+    msg << "IntegratorOptions.rhoInfinity = " << rhoInfinity << " must be in [0.5, 1] for hht-alpha";
     return fail(msg.str());
   }
   if (!replayTimes.empty()) {
@@ -113,6 +131,15 @@ void IntegratorOptions::validate() const {
 std::unique_ptr<Integrator> createIntegrator(const Problem& problem, ConstVectorRef p,
                                              const IntegratorOptions& options) {
   options.validate();
+  if (!isRungeKutta(parseIntegratorMethod(options.method))) {
+    const auto* secondOrder = dynamic_cast<const SecondOrderProblem*>(&problem);
+    if (secondOrder == nullptr) {
+      throw std::invalid_argument("IntegratorOptions.method = '" + options.method +
+                                  "' needs a second-order " + "problem (SecondOrderProblem); '" +
+                                  problem.name() + "' is first-order");
+    }
+    return std::make_unique<GeneralizedAlphaIntegrator>(*secondOrder, p, options);
+  }
   return std::make_unique<RungeKuttaIntegrator>(problem, p, options);
 }
 

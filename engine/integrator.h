@@ -9,13 +9,15 @@
 //
 // The integrator's state is what the trajectory storage records and restores per step. A one-step
 // method carries only the problem state z (x = z); a method with memory carries more (generalized-
-// alpha would carry the accelerations). Invariant: the first problem.stateSize() entries of x are z, so
+// alpha carries the accelerations). Invariant: the first problem.stateSize() entries of x are z, so
 // the terminal term phi(z_N) and the observers read z = x.head(n), and dpsi/dx of phi is dphi/dz
 // padded with zeros.
 //
 // Implementations:
 //   engine/runge_kutta.h        explicit and diagonally implicit Runge-Kutta methods ("rk4", "dopri5",
 //                               "trbdf2", "sdirk2", "midpoint"); adaptive with an embedded pair.
+//   engine/generalized_alpha.h  generalized-alpha (Chung & Hulbert 1993) and HHT-alpha for
+//                               SecondOrderProblem, fixed step ("generalized-alpha", "hht-alpha").
 //
 // Every implementation owns a workspace allocated in its constructor; step() and adjointStep()
 // allocate nothing (tests/engine/allocation_test.cpp checks this with a counting malloc).
@@ -33,14 +35,16 @@
 namespace hindsight {
 
 /// The methods createIntegrator() knows; IntegratorOptions::method names one of them.
-enum class IntegratorMethod { Rk4, Dopri5, TrBdf2, Sdirk2, Midpoint };
+enum class IntegratorMethod { Rk4, Dopri5, TrBdf2, Sdirk2, Midpoint, GeneralizedAlpha, HhtAlpha };
 
-/// The user-facing name ("rk4", "dopri5", ...).
+/// The user-facing name ("rk4", ..., "generalized-alpha", "hht-alpha").
 std::string toString(IntegratorMethod method);
 /// Parses a method name; throws std::invalid_argument naming IntegratorOptions.method and listing
 /// the known names.
 IntegratorMethod parseIntegratorMethod(const std::string& name);
-/// Every known method name.
+/// True for the methods of engine/runge_kutta.h.
+bool isRungeKutta(IntegratorMethod method);
+/// Every known method name, Runge-Kutta methods first.
 std::vector<std::string> integratorMethodNames();
 
 struct IntegratorOptions {
@@ -62,6 +66,9 @@ struct IntegratorOptions {
   /// (Runge-Kutta: h a_ii ||delta K||_inf <= newtonTolerance (||Z||_inf + absoluteTolerance)).
   double newtonTolerance = 1e-13;
   int newtonMaxIterations = 30;
+  /// Generalized-alpha and HHT-alpha: the spectral radius of the step map at infinite frequency,
+  /// in [0, 1] (1: no numerical damping; 0: asymptotic annihilation). HHT-alpha needs [0.5, 1].
+  double rhoInfinity = 0.8;
   /// When not empty: the time grid t_0 = t0 < t_1 < ... < t_N = t1 to step on, without error control.
   /// Used to differentiate the computed psi for a frozen adaptive step sequence.
   std::vector<double> replayTimes;
@@ -131,7 +138,7 @@ class Integrator {
 
 /// The integrator options.method names, for `problem` and parameters p (copied). Throws
 /// std::invalid_argument when p has the wrong size, the options are invalid or the method does not
-/// fit the problem.
+/// fit the problem (generalized-alpha needs a SecondOrderProblem).
 std::unique_ptr<Integrator> createIntegrator(const Problem& problem, ConstVectorRef p,
                                              const IntegratorOptions& options);
 

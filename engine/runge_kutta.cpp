@@ -40,10 +40,23 @@ bool ButcherTableau::isExplicit() const {
   return true;
 }
 
-std::vector<std::string> ButcherTableau::names() { return integratorMethodNames(); }
+std::vector<std::string> ButcherTableau::names() {
+  std::vector<std::string> names;
+  for (const auto& name : integratorMethodNames()) {
+    if (isRungeKutta(parseIntegratorMethod(name))) names.push_back(name);
+  }
+  return names;
+}
 
 ButcherTableau ButcherTableau::byName(const std::string& name) {
-  return byMethod(parseIntegratorMethod(name));
+  const IntegratorMethod method = parseIntegratorMethod(name);
+  if (!isRungeKutta(method)) {
+    std::string known;
+    for (const auto& n : names()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("IntegratorOptions.method = '" + name +
+                                "' is not a Runge-Kutta method; Runge-Kutta methods: " + known);
+  }
+  return byMethod(method);
 }
 
 ButcherTableau ButcherTableau::byMethod(IntegratorMethod method) {
