@@ -60,7 +60,7 @@ struct ForwardSweep {
     if (needDerivative && !integrator->hasStateDerivative()) {
       throw std::invalid_argument("storage '" + storage->spec() +
                                   "' needs the state derivative, which method '" + integrator->name() +
-                                  "' does not provide; use an exact strategy");
+                                  "' does not provide; use a strategy that does not interpolate");
     }
     // Returns a Ref by value: a `const Ref&` to a Ref made from zdot would dangle.
     const auto derivativeAtStart = [&]() -> Eigen::Ref<const Vector> {

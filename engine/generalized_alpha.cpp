@@ -34,9 +34,7 @@ GeneralizedAlphaIntegrator::Coefficients GeneralizedAlphaIntegrator::coefficient
 GeneralizedAlphaIntegrator::GeneralizedAlphaIntegrator(const SecondOrderProblem& problem, ConstVectorRef p,
                                                        const IntegratorOptions& options)
     : problem_(problem), p_(p), options_(options) {
-  options_.validate();
-  checkParameterSize(problem, p);
-  method_ = parseIntegratorMethod(options.method);
+  method_ = checkedMethod(problem, p, options);
   coefficients_ = coefficients(method_, options.rhoInfinity);
   f_ = problem.coordinateCount();
   workspace_ = problem.createModelWorkspace();

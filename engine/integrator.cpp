@@ -150,11 +150,13 @@ void solveTransposedInPlace(const Eigen::PartialPivLU<Matrix>& lu, VectorRef x, 
   x.noalias() = lu.permutationP().transpose() * work;
 }
 
-void checkParameterSize(const Problem& problem, ConstVectorRef p) {
+IntegratorMethod checkedMethod(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options) {
+  options.validate();
   if (p.size() != problem.parameterSize()) {
     throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + ", problem '" +
                                 problem.name() + "' expects " + std::to_string(problem.parameterSize()));
   }
+  return parseIntegratorMethod(options.method);
 }
 
 }  // namespace hindsight

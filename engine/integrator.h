@@ -147,7 +147,8 @@ std::unique_ptr<Integrator> createIntegrator(const Problem& problem, ConstVector
 /// adjoint steps.
 void solveTransposedInPlace(const Eigen::PartialPivLU<Matrix>& lu, VectorRef x, VectorRef work);
 
-/// Throws std::invalid_argument naming the problem when p does not have its parameter size.
-void checkParameterSize(const Problem& problem, ConstVectorRef p);
+/// The checks every implementation's constructor makes: validates the options, checks that p has the
+/// problem's parameter size (std::invalid_argument naming both sizes), and returns the parsed method.
+IntegratorMethod checkedMethod(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options);
 
 }  // namespace hindsight

@@ -104,9 +104,7 @@ ButcherTableau ButcherTableau::byMethod(IntegratorMethod method) {
 RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRef p,
                                            const IntegratorOptions& options)
     : problem_(problem), p_(p), options_(options) {
-  options_.validate();
-  checkParameterSize(problem, p);
-  method_ = parseIntegratorMethod(options.method);
+  method_ = checkedMethod(problem, p, options);
   tableau_ = ButcherTableau::byMethod(method_);
   n_ = problem.stateSize();
   stages_ = static_cast<int>(tableau_.b.size());

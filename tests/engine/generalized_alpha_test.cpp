@@ -8,6 +8,7 @@
 #include "engine/gradient_checker.h"
 #include "problems/classic_problems.h"
 #include "storage/full_storage.h"
+#include "storage/storage_factory.h"
 #include "support/engine_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -20,6 +21,7 @@ namespace {
 
 using testing::computedObjective;
 using testing::gradientWithFullStorage;
+using testing::invalidArgumentMessage;
 
 /// An elastic pendulum in polar coordinates y = (r, th): a mass m on a spring of stiffness k and rest
 /// length L, with damping c on both coordinates. M(y) = diag(m, m r^2) depends on the configuration
@@ -268,15 +270,6 @@ TEST(GeneralizedAlpha, CoefficientsFollowChungHulbertAndHht) {
   EXPECT_DOUBLE_EQ(trapezoidal.beta, 0.25);
 }
 
-std::string invalidArgumentMessage(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "no std::invalid_argument";
-}
-
 TEST(GeneralizedAlpha, RejectsBadOptionsAndProblemsNamingTheCause) {
   Oscillator oscillator;
   const Vector p = Eigen::Vector3d(4.0, 0.1, 1.0);
@@ -295,6 +288,11 @@ TEST(GeneralizedAlpha, RejectsBadOptionsAndProblemsNamingTheCause) {
   message = invalidArgumentMessage(
       [&] { simulate(firstOrder, Eigen::Vector2d(1.0, 1.0), alphaOptions("hht-alpha", 0.8, 1.0, 1e-2)); });
   EXPECT_NE(message.find("SecondOrderProblem"), std::string::npos) << message;
+  // Hermite interpolates with dx/dt, which generalized-alpha's (y, v, d, a) does not have.
+  const std::unique_ptr<TrajectoryStorage> hermite = createStorage("hermite:every=4");
+  message = invalidArgumentMessage(
+      [&] { computeGradient(oscillator, p, alphaOptions("generalized-alpha", 0.8, 1.0, 1e-2), *hermite); });
+  EXPECT_NE(message.find("needs the state derivative"), std::string::npos) << message;
   // The continuous adjoint records the problem state only; generalized-alpha carries more.
   FullStorage storage;
   message = invalidArgumentMessage([&] {
