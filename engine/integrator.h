@@ -130,7 +130,8 @@ class Integrator {
   virtual void stateDerivative(double t, ConstVectorRef x, VectorRef xdot) = 0;
   /// True when the last step() already computed dx/dt at its start (its first stage, c_1 = 0, a_11 = 0).
   virtual bool firstStageIsRhs() const = 0;
-  /// That derivative. By value: a Ref to a column of the stage matrix (a `const Ref&` would dangle).
+  /// That derivative; meaningful only when firstStageIsRhs(). By value: a Ref to a column of the stage
+  /// matrix (a `const Ref&` would dangle).
   virtual Eigen::Ref<const Vector> lastFirstStage() const = 0;
 
   virtual const IntegratorCounters& counters() const = 0;
