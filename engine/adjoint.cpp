@@ -1,5 +1,6 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/step_controller.h>
 #include <hindsight/engine/stopwatch.h>
 
 #include <cmath>
@@ -29,13 +30,14 @@ std::vector<double> fixedGrid(const IntegratorOptions& options) {
 /// The forward sweep shared by simulate() and computeGradient().
 struct ForwardSweep {
   ForwardSweep(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options)
-      : problem(problem), options(options), integrator(problem, p, options) {
-    const int n = problem.stateSize();
-    z.resize(n);
-    zPrevious.resize(n);
-    zdot.resize(n);
-    problem.initialState(p, z);
-    for (int k = 0; k < n; ++k) {
+      : problem(problem), options(options), integrator(createIntegrator(problem, p, options)) {
+    // z is the integrator's state; its head is the problem state (engine/integrator.h).
+    const int m = integrator->stateSize();
+    z.resize(m);
+    zPrevious.resize(m);
+    zdot.resize(m);
+    integrator->initialState(options.t0, z);
+    for (int k = 0; k < problem.stateSize(); ++k) {
       if (!std::isfinite(z(k))) {
         throw std::invalid_argument("initial state z0 of '" + problem.name() +
                                     "' has a non-finite entry z0[" + std::to_string(k) +
@@ -44,24 +46,32 @@ struct ForwardSweep {
     }
   }
 
+  /// The problem state z = head of the integrator's state.
+  Eigen::Ref<const Vector> problemState(const Vector& x) const { return x.head(problem.stateSize()); }
+
   void run(TrajectoryStorage* storage, const StateObserver& observer, RunSummary& summary) {
     const bool needDerivative = storage != nullptr && storage->needsDerivative();
+    if (needDerivative && !integrator->hasStateDerivative()) {
+      throw std::invalid_argument("storage '" + storage->spec() +
+                                  "' needs the state derivative, which method '" + integrator->name() +
+                                  "' does not provide; use a strategy that does not interpolate");
+    }
     // Returns a Ref by value: a `const Ref&` to a Ref made from zdot would dangle.
     const auto derivativeAtStart = [&]() -> Eigen::Ref<const Vector> {
       if (!needDerivative) return zdot;
-      if (integrator.firstStageIsRhs()) return integrator.lastFirstStage();
-      integrator.evaluateRhs(times.back(), zPrevious, zdot);
+      if (integrator->firstStageIsRhs()) return integrator->lastFirstStage();
+      integrator->stateDerivative(times.back(), zPrevious, zdot);
       return zdot;
     };
     const auto accept = [&](std::int64_t n, double t) {
       if (storage != nullptr) storage->record(n, times[n], zPrevious, derivativeAtStart());
       times.push_back(t);
-      if (observer) observer(n + 1, t, z);
+      if (observer) observer(n + 1, t, problemState(z));
     };
     if (storage != nullptr) {
       TrajectoryInfo info;
       info.problemName = problem.name();
-      info.stateSize = problem.stateSize();
+      info.stateSize = integrator->stateSize();
       info.t0 = options.t0;
       info.t1 = options.t1;
       if (!options.adaptive) {
@@ -73,14 +83,14 @@ struct ForwardSweep {
     }
     times.clear();
     times.push_back(options.t0);
-    if (observer) observer(0, options.t0, z);
+    if (observer) observer(0, options.t0, problemState(z));
     objective = 0.0;
     if (!options.adaptive || !options.replayTimes.empty()) {
       const std::vector<double> grid = options.replayTimes.empty() ? fixedGrid(options) : options.replayTimes;
       times.reserve(grid.size());
       for (std::size_t n = 0; n + 1 < grid.size(); ++n) {
         zPrevious = z;
-        objective += integrator.step(grid[n], grid[n + 1] - grid[n], z);
+        objective += integrator->step(grid[n], grid[n + 1] - grid[n], z);
         accept(static_cast<std::int64_t>(n), grid[n + 1]);
       }
     } else {
@@ -89,16 +99,15 @@ struct ForwardSweep {
     summary.steps = static_cast<std::int64_t>(times.size()) - 1;
     // The terminal derivative for strategies that interpolate (Hermite).
     if (storage != nullptr) {
-      if (needDerivative) integrator.evaluateRhs(times.back(), z, zdot);
+      if (needDerivative) integrator->stateDerivative(times.back(), z, zdot);
       storage->finish(summary.steps, times.back(), z, zdot);
     }
-    objective += problem.terminal(z, integratorParameters());
+    objective += problem.terminal(problemState(z), integratorParameters());
   }
 
   template <typename Accept>
   void runAdaptive(RunSummary& summary, Accept&& accept) {
-    const ButcherTableau& tableau = integrator.tableau();
-    const double exponent = -1.0 / (std::min(tableau.order, tableau.embeddedOrder) + 1.0);
+    const StepSizeController controller(integrator->errorOrder());
     const double maxStep = options.maxStep > 0.0 ? options.maxStep : options.t1 - options.t0;
     double t = options.t0;
     double h = std::min(options.step, maxStep);
@@ -118,7 +127,7 @@ struct ForwardSweep {
         double increment = 0.0;
         bool newtonFailed = false;
         try {
-          increment = integrator.step(t, hTaken, z, &error);
+          increment = integrator->step(t, hTaken, z, &error);
         } catch (const NewtonFailure&) {
           newtonFailed = true;
         } catch (const NumericalError&) {
@@ -128,14 +137,12 @@ struct ForwardSweep {
           objective += increment;
           accept(n, tNext);
           t = tNext;
-          const double factor = error > 0.0 ? 0.9 * std::pow(error, exponent) : 5.0;
-          h = std::min(maxStep, hTaken * std::min(5.0, std::max(0.2, factor)));
+          h = std::min(maxStep, controller.afterAccepted(hTaken, error));
           break;
         }
         ++summary.rejectedSteps;
         z = zPrevious;
-        const double factor = newtonFailed ? 0.25 : std::max(0.1, 0.9 * std::pow(error, exponent));
-        h = hTaken * std::min(0.9, factor);
+        h = newtonFailed ? controller.afterFailed(hTaken) : controller.afterRejected(hTaken, error);
       }
       ++n;
     }
@@ -145,7 +152,7 @@ struct ForwardSweep {
 
   const Problem& problem;
   const IntegratorOptions& options;
-  RungeKuttaIntegrator integrator;
+  std::unique_ptr<Integrator> integrator;
   Vector parameters;
   Vector z, zPrevious, zdot;
   std::vector<double> times;
@@ -153,8 +160,8 @@ struct ForwardSweep {
   std::unique_ptr<StepRecomputer> recomputer;
 };
 
-void fillWork(RunSummary& summary, const RungeKuttaIntegrator& integrator) {
-  summary.method = integrator.tableau().name;
+void fillWork(RunSummary& summary, const Integrator& integrator) {
+  summary.method = integrator.name();
   summary.rhsEvaluations = integrator.counters().rhsEvaluations;
   summary.jacobianEvaluations = integrator.counters().jacobianEvaluations;
   summary.factorizations = integrator.counters().factorizations;
@@ -183,9 +190,9 @@ ForwardResult simulate(const Problem& problem, ConstVectorRef p, const Integrato
   ForwardResult result;
   sweep.run(nullptr, observer, result.summary);
   result.objective = sweep.objective;
-  result.finalState = sweep.z;
+  result.finalState = sweep.problemState(sweep.z);
   result.times = std::move(sweep.times);
-  fillWork(result.summary, sweep.integrator);
+  fillWork(result.summary, *sweep.integrator);
   result.summary.adjoint.clear();
   result.summary.peakBytesInMemory = static_cast<std::int64_t>(result.times.size()) * 8;
   result.summary.forwardSeconds = forwardTimer.seconds();
@@ -197,7 +204,7 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
   const Stopwatch forwardTimer;
   ForwardSweep sweep(problem, p, options);
   sweep.parameters = p;
-  sweep.recomputer = std::make_unique<GridRecomputer>(sweep.integrator, sweep.times);
+  sweep.recomputer = std::make_unique<GridRecomputer>(*sweep.integrator, sweep.times);
   GradientResult result;
   result.summary.storage = storage.spec();
   if (!options.adaptive) {
@@ -209,20 +216,21 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
 
   const Stopwatch backwardTimer;
   const int n = problem.stateSize();
-  Vector lambda = Vector::Zero(n);
+  Vector lambda = Vector::Zero(sweep.integrator->stateSize());
   Vector gradient = Vector::Zero(problem.parameterSize());
-  problem.addTerminalGradient(sweep.z, p, lambda, gradient);
+  problem.addTerminalGradient(sweep.problemState(sweep.z), p, lambda.head(n), gradient);
   Vector& z = sweep.zPrevious;
   const std::vector<double>& times = sweep.times;
   for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
     storage.restore(step, z);
-    sweep.integrator.adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+    sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
   }
-  problem.addInitialStateVjp(p, lambda, gradient);
+  // z holds z_0 again: the last restore was step 0.
+  sweep.integrator->addInitialStateVjp(options.t0, z, lambda, gradient);
   result.summary.backwardSeconds = backwardTimer.seconds();
 
   const StorageCounters& counters = storage.counters();
-  fillWork(result.summary, sweep.integrator);
+  fillWork(result.summary, *sweep.integrator);
   result.summary.recomputedSteps = counters.recomputedSteps;
   result.summary.statesStored = counters.statesStored;
   result.summary.peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(times.size()) * 8;

@@ -1,5 +1,7 @@
 #include <hindsight/engine/continuous_adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/runge_kutta.h>
+#include <hindsight/engine/step_controller.h>
 #include <hindsight/engine/stopwatch.h>
 
 #include <Eigen/LU>
@@ -200,29 +202,19 @@ struct BackwardStatistics {
   std::int64_t factorizations = 0;
 };
 
-double weightedRms(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, double rtol, double atol) {
-  double sum = 0.0;
-  for (Eigen::Index i = 0; i < error.size(); ++i) {
-    const double scale = atol + rtol * std::max(std::abs(y0(i)), std::abs(y1(i)));
-    const double r = error(i) / scale;
-    sum += r * r;
-  }
-  return std::sqrt(sum / static_cast<double>(error.size()));
-}
-
 /// Hairer, Norsett & Wanner, Solving ODEs I, section II.4: a starting step for a method of `order`,
 /// from y(t1) and its slope f1 = f(t1, y).
 double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y, ConstVectorRef f1,
                    int order, const ContinuousAdjointOptions& options) {
   const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
   const double span = t1 - t0;
-  const double d0 = weightedRms(y, y, y, rtol, atol);
-  const double d1 = weightedRms(f1, y, y, rtol, atol);
+  const double d0 = weightedRmsNorm(y, y, y, rtol, atol);
+  const double d1 = weightedRmsNorm(f1, y, y, rtol, atol);
   const double h0 = std::min((d0 < 1e-5 || d1 < 1e-5) ? 1e-6 * span : 0.01 * d0 / d1, span);
   const Vector trial = y - h0 * f1;
   Vector f2(y.size());
   system.evaluate(t1 - h0, trial, f2);
-  const double d2 = weightedRms(f2 - f1, y, y, rtol, atol) / h0;
+  const double d2 = weightedRmsNorm(f2 - f1, y, y, rtol, atol) / h0;
   const double dmax = std::max(d1, d2);
   const double h1 =
       dmax <= 1e-15 ? std::max(1e-6 * span, h0 * 1e-3) : std::pow(0.01 / dmax, 1.0 / (order + 1.0));
@@ -232,7 +224,7 @@ double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y
 /// Dormand-Prince 5(4) from t1 down to t0; y holds y(t1) on entry and y(t0) on exit.
 BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& states, double t0, double t1,
                                      VectorRef y, const ContinuousAdjointOptions& options) {
-  static const ButcherTableau tableau = ButcherTableau::byName("dopri5");
+  static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::Dopri5);
   const Eigen::Index m = y.size();
   const int stages = static_cast<int>(tableau.b.size());
   const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
@@ -245,7 +237,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
 
   double h =
       options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, k.col(0), 5, options);
-  const double exponent = -1.0 / 5.0;
+  const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
@@ -260,7 +252,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
     // The last stage is the new solution (FSAL: a_7j = b_j, c_7 = 1).
     error.noalias() = k * weightDifference;
     error *= -hTaken;
-    double norm = weightedRms(error, y, stage, rtol, atol);
+    double norm = weightedRmsNorm(error, y, stage, rtol, atol);
     if (!std::isfinite(norm) || !stage.allFinite()) norm = 1e10;
     if (norm <= 1.0) {
       y = stage;
@@ -268,11 +260,10 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
       k.col(0) = k.col(stages - 1);
       states.release(t);
       ++statistics.steps;
-      const double factor = norm > 0.0 ? 0.9 * std::pow(norm, exponent) : 5.0;
-      h = hTaken * std::min(5.0, std::max(0.2, factor));
+      h = controller.afterAccepted(hTaken, norm);
     } else {
       ++statistics.rejected;
-      h = hTaken * std::min(0.9, std::max(0.1, 0.9 * std::pow(norm, exponent)));
+      h = controller.afterRejected(hTaken, norm);
     }
   }
   if (!y.allFinite()) throw NumericalError("continuous adjoint: non-finite adjoint state", t0);
@@ -286,7 +277,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
 /// steps set by accuracy, not stability.
 BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, double t1, VectorRef y, int n,
                                              const ContinuousAdjointOptions& options) {
-  static const ButcherTableau tableau = ButcherTableau::byName("trbdf2");
+  static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::TrBdf2);
   const int stages = static_cast<int>(tableau.b.size());
   const Eigen::Index np = y.size() - n;
   const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
@@ -305,7 +296,7 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
   slope << -k.col(0), -q.col(0);
   double h =
       options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, options);
-  const double exponent = -1.0 / (std::min(tableau.order, tableau.embeddedOrder) + 1.0);
+  const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
@@ -331,7 +322,7 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
     error.head(n).noalias() = k * weightDifference;
     error.tail(np).noalias() = q * weightDifference;
     error *= hTaken;
-    double norm = weightedRms(error, y, next, rtol, atol);
+    double norm = weightedRmsNorm(error, y, next, rtol, atol);
     if (!std::isfinite(norm) || !next.allFinite()) norm = 1e10;
     if (norm <= 1.0) {
       y = next;
@@ -339,17 +330,23 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
       k.col(0) = k.col(stages - 1);
       q.col(0) = q.col(stages - 1);
       ++statistics.steps;
-      const double factor = norm > 0.0 ? 0.9 * std::pow(norm, exponent) : 5.0;
-      h = hTaken * std::min(5.0, std::max(0.2, factor));
+      h = controller.afterAccepted(hTaken, norm);
     } else {
       ++statistics.rejected;
-      h = hTaken * std::min(0.9, std::max(0.1, 0.9 * std::pow(norm, exponent)));
+      h = controller.afterRejected(hTaken, norm);
     }
   }
   return statistics;
 }
 
 }  // namespace
+
+BackwardMethod parseBackwardMethod(const std::string& name) {
+  if (name == "dopri5") return BackwardMethod::Dopri5;
+  if (name == "trbdf2") return BackwardMethod::TrBdf2;
+  throw std::invalid_argument("ContinuousAdjointOptions.method = '" + name +
+                              "' is unknown; valid: dopri5, trbdf2");
+}
 
 bool ContinuousAdjointOptions::IsValid(std::string* error) const {
   std::ostringstream msg;
@@ -378,8 +375,10 @@ bool ContinuousAdjointOptions::IsValid(std::string* error) const {
     msg << "ContinuousAdjointOptions.maxSteps = " << maxSteps << " must be in [1, 1e12]";
     return fail();
   }
-  if (method != "dopri5" && method != "trbdf2") {
-    msg << "ContinuousAdjointOptions.method = '" << method << "' is unknown; valid: dopri5, trbdf2";
+  try {
+    parseBackwardMethod(method);
+  } catch (const std::invalid_argument& e) {
+    msg << e.what();
     return fail();
   }
   return true;
@@ -395,7 +394,8 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                          const ContinuousAdjointOptions& options) {
   options.validate();
   forward.validate();
-  if (options.method == "trbdf2" && !problem.hasDenseJacobian()) {
+  const BackwardMethod backwardMethod = parseBackwardMethod(options.method);
+  if (backwardMethod == BackwardMethod::TrBdf2 && !problem.hasDenseJacobian()) {
     throw std::invalid_argument(
         "ContinuousAdjointOptions.method = 'trbdf2' needs a dense Jacobian, but problem '" + problem.name() +
         "' has hasDenseJacobian() == false; use 'dopri5'");
@@ -409,9 +409,17 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   const Stopwatch forwardTimer;
   const int n = problem.stateSize();
   // The integrator that recomputes steps for checkpointing strategies (same options, same bits).
-  RungeKuttaIntegrator recomputeIntegrator(problem, p, forward);
+  const std::unique_ptr<Integrator> recomputeIntegrator = createIntegrator(problem, p, forward);
+  if (recomputeIntegrator->stateSize() != n) {
+    // The storage below records the problem state z that the observer sees; a method that carries
+    // more than z between steps could not be recomputed from it.
+    throw std::invalid_argument(
+        "the continuous adjoint needs a forward method whose state is the problem state; '" + forward.method +
+        "' carries " + std::to_string(recomputeIntegrator->stateSize()) + " values per step for " +
+        std::to_string(n) + " states; use the discrete adjoint");
+  }
   std::vector<double> times;
-  GridRecomputer recomputer(recomputeIntegrator, times);
+  GridRecomputer recomputer(*recomputeIntegrator, times);
   std::unique_ptr<ProblemWorkspace> workspace = problem.createWorkspace();
 
   TrajectoryInfo info;
@@ -464,8 +472,9 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   }
   AdjointSystem system(problem, p, workspace.get(), *states);
   const BackwardStatistics backward =
-      options.method == "trbdf2" ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options)
-                                 : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
+      backwardMethod == BackwardMethod::TrBdf2
+          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options)
+          : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
   result.summary.backwardSeconds = backwardTimer.seconds();
@@ -473,7 +482,7 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   const StorageCounters& counters = storage.counters();
   result.summary.rejectedSteps += backward.rejected;
   result.summary.factorizations += backward.factorizations;
-  result.summary.rhsEvaluations += rhsEvaluations + recomputeIntegrator.counters().rhsEvaluations;
+  result.summary.rhsEvaluations += rhsEvaluations + recomputeIntegrator->counters().rhsEvaluations;
   result.summary.jacobianEvaluations += system.evaluations;
   result.summary.recomputedSteps = counters.recomputedSteps;
   result.summary.statesStored = counters.statesStored;

@@ -5,7 +5,8 @@
 //   mu'     = -(G_p + lambda^T F_p)^T,        mu(t1) = 0,
 //   dpsi/dp = mu(t0) + dphi/dp + (dz0/dp)^T lambda(t0),
 // integrated backward from t1 to t0 with its own adaptive steps. The forward sweep is the engine's
-// own (any IntegratorOptions, fixed or adaptive); psi is the forward sweep's computed psi.
+// own (any IntegratorOptions, fixed or adaptive, whose integrator state is the problem state: not
+// generalized-alpha, which carries accelerations); psi is the forward sweep's computed psi.
 //
 // Backward integrator (the choice, ContinuousAdjointOptions::method):
 //   "dopri5" (default): Dormand-Prince 5(4) on the augmented system (lambda, mu), with FSAL, an error
@@ -49,9 +50,14 @@
 
 namespace hindsight {
 
+/// The backward integrators (see the file comment).
+enum class BackwardMethod { Dopri5, TrBdf2 };
+/// "dopri5" or "trbdf2"; throws std::invalid_argument naming ContinuousAdjointOptions.method otherwise.
+BackwardMethod parseBackwardMethod(const std::string& name);
+
 struct ContinuousAdjointOptions {
   /// Backward integrator: "dopri5" (explicit, non-stiff, any problem) or "trbdf2" (L-stable, for
-  /// stiff problems; needs a dense Jacobian).
+  /// stiff problems; needs a dense Jacobian); parsed with parseBackwardMethod().
   std::string method = "dopri5";
   /// Tolerances of the backward error test on (lambda, mu). rtol in [1e-14, 1), atol > 0.
   double relativeTolerance = 1e-8;

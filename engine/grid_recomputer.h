@@ -14,14 +14,14 @@ class GridRecomputer final : public StepRecomputer {
  public:
   /// `times` is the forward grid t_0..t_N; it must outlive the recomputer (it may still grow during
   /// the forward sweep, before any recomputation).
-  GridRecomputer(RungeKuttaIntegrator& integrator, const std::vector<double>& times)
+  GridRecomputer(Integrator& integrator, const std::vector<double>& times)
       : integrator_(integrator), times_(times) {}
   void advance(std::int64_t step, VectorRef z) override {
     integrator_.step(times_[step], times_[step + 1] - times_[step], z);
   }
 
  private:
-  RungeKuttaIntegrator& integrator_;
+  Integrator& integrator_;
   const std::vector<double>& times_;
 };
 

@@ -1,25 +1,26 @@
-// Runge-Kutta integrators with discrete adjoints (docs/design.md §5).
+// The integrator interface of the adjoint engine (docs/design.md §5).
 //
-// One class covers explicit and diagonally implicit Runge-Kutta methods given by a Butcher tableau:
-//   Z_i = z_n + h sum_j a_ij K_j,   K_i = F(t_n + c_i h, Z_i, p),   z_{n+1} = z_n + h sum_i b_i K_i,
-// with the objective integrated by the same quadrature, psi += h sum_i b_i G(t_n + c_i h, Z_i, p).
-// The discrete adjoint is the exact transpose of this map (Hager 2000; Sandu 2006): for stages in
-// reverse order,
-//   r_i = h b_i lambda + h sum_{j>i} a_ji Zbar_j,
-//   (I - h a_ii F_z(Z_i))^T Zbar_i = F_z(Z_i)^T r_i + h b_i G_z(Z_i)^T,
-//   Kbar_i = r_i + h a_ii Zbar_i,   gradient += F_p(Z_i)^T Kbar_i + h b_i G_p(Z_i)^T,
-// then lambda_n = lambda_{n+1} + sum_i Zbar_i. The stages are recomputed from z_n with the same code
-// path as the forward step, so they are the same bits. Implicit stages are solved by simplified
-// Newton to a tight tolerance; the adjoint uses the exact Jacobian at the converged stage (implicit
-// function theorem), so the gradient is the derivative of the computed psi up to the Newton residual.
+// An Integrator advances its own state x_n over one step, x_{n+1} = Phi(t_n, h, x_n, p), adds the
+// step's share of the objective integral, and applies the exact transpose of that step map
+// (adjointStep), so the forward sweep, the discrete adjoint (engine/adjoint.h), the recomputation of
+// checkpointed steps (engine/grid_recomputer.h) and the continuous adjoint's forward sweep work with
+// any method through this interface alone; createIntegrator() selects the implementation by
+// IntegratorOptions::method.
 //
-// Methods: "rk4" (classic, order 4, fixed step), "dopri5" (Dormand-Prince 5(4), adaptive),
-// "trbdf2" (TR-BDF2 as an L-stable ESDIRK, order 2 with an order-3 embedded estimate; Hosea & Shampine
-// 1996), "sdirk2" (Alexander's L-stable 2-stage SDIRK, order 2, fixed step), "midpoint" (implicit
-// midpoint, order 2, symplectic, fixed step). Adaptive stepping needs an embedded pair.
+// The integrator's state is what the trajectory storage records and restores per step. A one-step
+// method carries only the problem state z (x = z); a method with memory carries more (generalized-
+// alpha carries the accelerations). Invariant: the first problem.stateSize() entries of x are z, so
+// the terminal term phi(z_N) and the observers read z = x.head(n), and dpsi/dx of phi is dphi/dz
+// padded with zeros.
 //
-// The integrator owns a workspace allocated in its constructor; step() and adjointStep() allocate
-// nothing (a test checks this with a counting operator new).
+// Implementations:
+//   engine/runge_kutta.h        explicit and diagonally implicit Runge-Kutta methods ("rk4", "dopri5",
+//                               "trbdf2", "sdirk2", "midpoint"); adaptive with an embedded pair.
+//   engine/generalized_alpha.h  generalized-alpha (Chung & Hulbert 1993) and HHT-alpha for
+//                               SecondOrderProblem, fixed step ("generalized-alpha", "hht-alpha").
+//
+// Every implementation owns a workspace allocated in its constructor; step() and adjointStep()
+// allocate nothing (tests/engine/allocation_test.cpp checks this with a counting malloc).
 #pragma once
 
 #include <hindsight/engine/problem.h>
@@ -33,7 +34,21 @@
 
 namespace hindsight {
 
+/// The methods createIntegrator() knows; IntegratorOptions::method names one of them.
+enum class IntegratorMethod { Rk4, Dopri5, TrBdf2, Sdirk2, Midpoint, GeneralizedAlpha, HhtAlpha };
+
+/// The user-facing name ("rk4", ..., "generalized-alpha", "hht-alpha").
+std::string toString(IntegratorMethod method);
+/// Parses a method name; throws std::invalid_argument naming IntegratorOptions.method and listing
+/// the known names.
+IntegratorMethod parseIntegratorMethod(const std::string& name);
+/// True for the methods of engine/runge_kutta.h.
+bool isRungeKutta(IntegratorMethod method);
+/// Every known method name, Runge-Kutta methods first.
+std::vector<std::string> integratorMethodNames();
+
 struct IntegratorOptions {
+  /// A name from integratorMethodNames(); parsed once with parseIntegratorMethod().
   std::string method = "rk4";
   double t0 = 0.0;
   double t1 = 1.0;
@@ -47,9 +62,13 @@ struct IntegratorOptions {
   /// Adaptive: upper bound on the step size; 0 means t1 - t0.
   double maxStep = 0.0;
   std::int64_t maxSteps = 100'000'000;
-  /// Newton stops when h a_ii ||delta K||_inf <= newtonTolerance (||Z||_inf + absoluteTolerance).
+  /// Newton stops when its correction is below newtonTolerance times the size of the unknown
+  /// (Runge-Kutta: h a_ii ||delta K||_inf <= newtonTolerance (||Z||_inf + absoluteTolerance)).
   double newtonTolerance = 1e-13;
   int newtonMaxIterations = 30;
+  /// Generalized-alpha and HHT-alpha: the spectral radius of the step map at infinite frequency,
+  /// in [0, 1] (1: no numerical damping; 0: asymptotic annihilation). HHT-alpha needs [0.5, 1].
+  double rhoInfinity = 0.8;
   /// When not empty: the time grid t_0 = t0 < t_1 < ... < t_N = t1 to step on, without error control.
   /// Used to differentiate the computed psi for a frozen adaptive step sequence.
   std::vector<double> replayTimes;
@@ -58,20 +77,6 @@ struct IntegratorOptions {
   bool IsValid(std::string* error) const;
   /// Throws std::invalid_argument with IsValid's message.
   void validate() const;
-};
-
-/// A Butcher tableau, optionally with an embedded weight vector for error estimation.
-struct ButcherTableau {
-  std::string name;
-  Matrix a;
-  Vector b, c;
-  Vector bEmbedded;  ///< empty: no error estimate, fixed step only
-  int order = 0;
-  int embeddedOrder = 0;
-  bool isExplicit() const;
-  /// Looks up a method by name; throws std::invalid_argument listing the known ones.
-  static ButcherTableau byName(const std::string& name);
-  static std::vector<std::string> names();
 };
 
 /// Thrown by a step when the Newton iteration of an implicit stage fails; an adaptive driver
@@ -89,56 +94,62 @@ struct IntegratorCounters {
   std::int64_t newtonIterations = 0;
 };
 
-class RungeKuttaIntegrator final {
+class Integrator {
  public:
-  /// Throws std::invalid_argument when p has the wrong size or the options are invalid.
-  RungeKuttaIntegrator(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options);
-  ~RungeKuttaIntegrator();
+  virtual ~Integrator() = default;
 
-  const ButcherTableau& tableau() const { return tableau_; }
-  const IntegratorOptions& options() const { return options_; }
+  /// The method's name, as in IntegratorOptions::method.
+  virtual std::string name() const = 0;
+  virtual IntegratorMethod method() const = 0;
+  /// Order of convergence of the propagated solution.
+  virtual int order() const = 0;
+  /// True when step() can return an error estimate (adaptive stepping needs it).
+  virtual bool hasErrorEstimate() const = 0;
+  /// The error estimate is O(h^(errorOrder() + 1)); the step-size controller's exponent follows it.
+  virtual int errorOrder() const = 0;
+  /// Size of the integrator's state x (at least problem.stateSize(); its head is z).
+  virtual int stateSize() const = 0;
 
-  /// One step from (t, z) of size h: z <- z_{n+1}. Returns the objective increment
-  /// h sum_i b_i G(Z_i). With errorNorm != nullptr, also the weighted RMS norm of the embedded error
+  /// x_0 at t0 from the problem's initial state z0(p) (and what the method derives from it).
+  virtual void initialState(double t0, VectorRef x) = 0;
+  /// The transpose of initialState(): given lambda = dpsi/dx_0, adds dpsi/dp through x_0(p).
+  virtual void addInitialStateVjp(double t0, ConstVectorRef x0, ConstVectorRef lambda,
+                                  VectorRef gradient) = 0;
+
+  /// One step from (t, x) of size h: x <- x_{n+1}. Returns the step's objective increment. With
+  /// errorNorm != nullptr (only when hasErrorEstimate()), also the weighted RMS norm of the error
   /// estimate (<= 1 means acceptable). Throws NumericalError when Newton fails or a value is not finite.
-  double step(double t, double h, VectorRef z, double* errorNorm = nullptr);
+  virtual double step(double t, double h, VectorRef x, double* errorNorm = nullptr) = 0;
+  /// The transpose of step(): given x = x_n (the start of the step) and lambda = dpsi/dx_{n+1},
+  /// sets lambda <- dpsi/dx_n and adds the step's contribution to gradient (size np).
+  virtual void adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient) = 0;
 
-  /// The transpose of step(): given z = z_n (the start of the step) and lambda = dpsi/dz_{n+1},
-  /// sets lambda <- dpsi/dz_n and adds the step's contribution to gradient (size np).
-  void adjointStep(double t, double h, ConstVectorRef z, VectorRef lambda, VectorRef gradient);
+  /// True when stateDerivative() is available (a storage that interpolates, Hermite, needs it).
+  virtual bool hasStateDerivative() const = 0;
+  /// dx/dt at (t, x) into xdot (counts one evaluation).
+  virtual void stateDerivative(double t, ConstVectorRef x, VectorRef xdot) = 0;
+  /// True when the last step() already computed dx/dt at its start (its first stage, c_1 = 0, a_11 = 0).
+  virtual bool firstStageIsRhs() const = 0;
+  /// That derivative; meaningful only when firstStageIsRhs(). By value: a Ref to a column of the stage
+  /// matrix (a `const Ref&` would dangle).
+  virtual Eigen::Ref<const Vector> lastFirstStage() const = 0;
 
-  /// F(t, z) into f (counts one evaluation); for the storage's derivative and diagnostics.
-  void evaluateRhs(double t, ConstVectorRef z, VectorRef f);
-  /// The first stage derivative of the last step() when it equals F(t_n, z_n) (c_1 = 0 and a_11 = 0).
-  bool firstStageIsRhs() const;
-  /// By value: a Ref to the column of the stage matrix (returning `const Ref&` would dangle).
-  Eigen::Ref<const Vector> lastFirstStage() const;
-
-  ProblemWorkspace* problemWorkspace() const { return workspace_.get(); }
-  const IntegratorCounters& counters() const { return counters_; }
-
- private:
-  void computeStages(double t, double h, ConstVectorRef z);
-  void solveImplicitStage(int i, double t, double h);
-  void jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w, VectorRef out,
-                                bool needDenseJacobian);
-
-  const Problem& problem_;
-  Vector p_;
-  IntegratorOptions options_;
-  ButcherTableau tableau_;
-  std::unique_ptr<ProblemWorkspace> workspace_;
-  std::unique_ptr<NewtonSolver> newtonSolver_;  // null: dense path below
-  bool linearInState_ = false;                  // Problem::isLinearInState(): one Newton step per stage
-  int n_;
-  int stages_;
-  Matrix stageSlopes_;    // K, n x s
-  Matrix stageStates_;    // Z, n x s
-  Matrix stageAdjoints_;  // Zbar, n x s
-  Vector base_, residual_, delta_, work_, rhsWork_, zStart_;
-  Matrix jacobian_, newtonMatrix_;
-  Eigen::PartialPivLU<Matrix> lu_;
-  IntegratorCounters counters_;
+  virtual const IntegratorCounters& counters() const = 0;
 };
+
+/// The integrator options.method names, for `problem` and parameters p (copied). Throws
+/// std::invalid_argument when p has the wrong size, the options are invalid or the method does not
+/// fit the problem (generalized-alpha needs a SecondOrderProblem).
+std::unique_ptr<Integrator> createIntegrator(const Problem& problem, ConstVectorRef p,
+                                             const IntegratorOptions& options);
+
+/// x <- A^{-T} x for A = P^T L U factorised by `lu`, in place, without allocating (Eigen's
+/// lu.transpose().solve() allocates a temporary); `work` has the size of x. Shared by the implicit
+/// adjoint steps.
+void solveTransposedInPlace(const Eigen::PartialPivLU<Matrix>& lu, VectorRef x, VectorRef work);
+
+/// The checks every implementation's constructor makes: validates the options, checks that p has the
+/// problem's parameter size (std::invalid_argument naming both sizes), and returns the parsed method.
+IntegratorMethod checkedMethod(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options);
 
 }  // namespace hindsight

@@ -1,4 +1,5 @@
-#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/runge_kutta.h>
+#include <hindsight/engine/step_controller.h>
 
 #include <cmath>
 #include <limits>
@@ -39,14 +40,32 @@ bool ButcherTableau::isExplicit() const {
   return true;
 }
 
-std::vector<std::string> ButcherTableau::names() { return {"rk4", "dopri5", "trbdf2", "sdirk2", "midpoint"}; }
+std::vector<std::string> ButcherTableau::names() {
+  std::vector<std::string> names;
+  for (const auto& name : integratorMethodNames()) {
+    if (isRungeKutta(parseIntegratorMethod(name))) names.push_back(name);
+  }
+  return names;
+}
 
 ButcherTableau ButcherTableau::byName(const std::string& name) {
-  if (name == "rk4") {
+  const IntegratorMethod method = parseIntegratorMethod(name);
+  if (!isRungeKutta(method)) {
+    std::string known;
+    for (const auto& n : names()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("IntegratorOptions.method = '" + name +
+                                "' is not a Runge-Kutta method; Runge-Kutta methods: " + known);
+  }
+  return byMethod(method);
+}
+
+ButcherTableau ButcherTableau::byMethod(IntegratorMethod method) {
+  const std::string name = toString(method);
+  if (method == IntegratorMethod::Rk4) {
     return makeTableau(name, {{0, 0, 0, 0}, {0.5, 0, 0, 0}, {0, 0.5, 0, 0}, {0, 0, 1, 0}},
                        {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6}, {0, 0.5, 0.5, 1}, {}, 4, 0);
   }
-  if (name == "dopri5") {
+  if (method == IntegratorMethod::Dopri5) {
     // Dormand & Prince (1980), the 5th-order solution propagated, 4th-order embedded.
     return makeTableau(
         name,
@@ -61,7 +80,7 @@ ButcherTableau ButcherTableau::byName(const std::string& name) {
         {0, 0.2, 0.3, 0.8, 8.0 / 9, 1, 1},
         {5179.0 / 57600, 0, 7571.0 / 16695, 393.0 / 640, -92097.0 / 339200, 187.0 / 2100, 1.0 / 40}, 5, 4);
   }
-  if (name == "trbdf2") {
+  if (method == IntegratorMethod::TrBdf2) {
     // TR-BDF2 written as an ESDIRK (Hosea & Shampine 1996): gamma = 2 - sqrt(2), d = gamma/2,
     // w = sqrt(2)/4; stiffly accurate and L-stable; the embedded weights give order 3.
     const double gamma = 2.0 - std::sqrt(2.0);
@@ -70,98 +89,23 @@ ButcherTableau ButcherTableau::byName(const std::string& name) {
     return makeTableau(name, {{0, 0, 0}, {d, d, 0}, {w, w, d}}, {w, w, d}, {0, gamma, 1},
                        {(1.0 - w) / 3.0, (3.0 * w + 1.0) / 3.0, d / 3.0}, 2, 3);
   }
-  if (name == "sdirk2") {
+  if (method == IntegratorMethod::Sdirk2) {
     // Alexander (1977): gamma = 1 - 1/sqrt(2), L-stable, stiffly accurate.
     const double gamma = 1.0 - 1.0 / std::sqrt(2.0);
     return makeTableau(name, {{gamma, 0}, {1.0 - gamma, gamma}}, {1.0 - gamma, gamma}, {gamma, 1.0}, {}, 2,
                        0);
   }
-  if (name == "midpoint") {
+  if (method == IntegratorMethod::Midpoint) {
     return makeTableau(name, {{0.5}}, {1.0}, {0.5}, {}, 2, 0);
   }
-  std::string known;
-  for (const auto& n : names()) known += (known.empty() ? "" : ", ") + n;
-  throw std::invalid_argument("IntegratorOptions.method = '" + name +
-                              "' is unknown; known methods: " + known);
-}
-
-bool IntegratorOptions::IsValid(std::string* error) const {
-  std::ostringstream msg;
-  const auto fail = [&](const std::string& text) {
-    if (error != nullptr) *error = text;
-    return false;
-  };
-  bool known = false;
-  for (const auto& n : ButcherTableau::names()) known = known || n == method;
-  if (!known) {
-    std::string names;
-    for (const auto& n : ButcherTableau::names()) names += (names.empty() ? "" : ", ") + n;
-    return fail("IntegratorOptions.method = '" + method + "' is unknown; known methods: " + names);
-  }
-  if (!std::isfinite(t0) || !std::isfinite(t1) || !(t1 > t0)) {
-    msg << "IntegratorOptions: t1 = " << t1 << " must be finite and greater than t0 = " << t0;
-    return fail(msg.str());
-  }
-  if (!std::isfinite(step) || !(step > 0.0)) {
-    msg << "IntegratorOptions.step = " << step << " must be positive and finite";
-    return fail(msg.str());
-  }
-  if (adaptive) {
-    const ButcherTableau tableau = ButcherTableau::byName(method);
-    if (tableau.bEmbedded.size() == 0) {
-      return fail("IntegratorOptions.adaptive: method '" + method +
-                  "' has no embedded error estimate; use dopri5 or trbdf2");
-    }
-    if (!(relativeTolerance > 0.0) || !(absoluteTolerance > 0.0) || !std::isfinite(relativeTolerance) ||
-        !std::isfinite(absoluteTolerance)) {
-      msg << "IntegratorOptions: relativeTolerance = " << relativeTolerance
-          << " and absoluteTolerance = " << absoluteTolerance << " must be positive and finite";
-      return fail(msg.str());
-    }
-    if (!(minStep > 0.0) || maxStep < 0.0) {
-      msg << "IntegratorOptions: minStep = " << minStep << " must be positive and maxStep = " << maxStep
-          << " non-negative";
-      return fail(msg.str());
-    }
-  }
-  if (maxSteps < 1) {
-    msg << "IntegratorOptions.maxSteps = " << maxSteps << " must be at least 1";
-    return fail(msg.str());
-  }
-  if (!(newtonTolerance > 0.0) || newtonTolerance >= 1.0 || newtonMaxIterations < 1) {
-    msg << "IntegratorOptions: newtonTolerance = " << newtonTolerance
-        << " must be in (0, 1) and newtonMaxIterations = " << newtonMaxIterations << " at least 1";
-    return fail(msg.str());
-  }
-  if (!replayTimes.empty()) {
-    if (replayTimes.size() < 2 || replayTimes.front() != t0 || replayTimes.back() != t1) {
-      return fail("IntegratorOptions.replayTimes must start at t0 and end at t1");
-    }
-    for (std::size_t i = 1; i < replayTimes.size(); ++i) {
-      if (!(replayTimes[i] > replayTimes[i - 1])) {
-        msg << "IntegratorOptions.replayTimes[" << i << "] = " << replayTimes[i]
-            << " must exceed the previous time";
-        return fail(msg.str());
-      }
-    }
-  }
-  return true;
-}
-
-void IntegratorOptions::validate() const {
-  std::string error;
-  if (!IsValid(&error)) throw std::invalid_argument(error);
+  throw std::invalid_argument("IntegratorOptions.method = '" + name + "' is not a Runge-Kutta method");
 }
 
 RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRef p,
                                            const IntegratorOptions& options)
     : problem_(problem), p_(p), options_(options) {
-  options_.validate();
-  if (p.size() != problem.parameterSize()) {
-    throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + ", problem '" +
-                                problem.name() + "' expects " + std::to_string(problem.parameterSize()));
-  }
-  tableau_ = ButcherTableau::byName(options.method);
+  method_ = checkedMethod(problem, p, options);
+  tableau_ = ButcherTableau::byMethod(method_);
   n_ = problem.stateSize();
   stages_ = static_cast<int>(tableau_.b.size());
   workspace_ = problem.createWorkspace();
@@ -195,7 +139,14 @@ bool RungeKuttaIntegrator::firstStageIsRhs() const { return tableau_.c(0) == 0.0
 
 Eigen::Ref<const Vector> RungeKuttaIntegrator::lastFirstStage() const { return stageSlopes_.col(0); }
 
-void RungeKuttaIntegrator::evaluateRhs(double t, ConstVectorRef z, VectorRef f) {
+void RungeKuttaIntegrator::initialState(double, VectorRef z) { problem_.initialState(p_, z); }
+
+void RungeKuttaIntegrator::addInitialStateVjp(double, ConstVectorRef, ConstVectorRef lambda,
+                                              VectorRef gradient) {
+  problem_.addInitialStateVjp(p_, lambda, gradient);
+}
+
+void RungeKuttaIntegrator::stateDerivative(double t, ConstVectorRef z, VectorRef f) {
   problem_.rhs(t, z, p_, f, workspace_.get());
   ++counters_.rhsEvaluations;
 }
@@ -294,14 +245,7 @@ double RungeKuttaIntegrator::step(double t, double h, VectorRef z, double* error
       const double weight = tableau_.b(i) - tableau_.bEmbedded(i);
       if (weight != 0.0) work_ += (h * weight) * stageSlopes_.col(i);
     }
-    double sum = 0.0;
-    for (int k = 0; k < n_; ++k) {
-      const double scale = options_.absoluteTolerance +
-                           options_.relativeTolerance * std::max(std::abs(zStart_(k)), std::abs(z(k)));
-      const double e = work_(k) / scale;
-      sum += e * e;
-    }
-    *errorNorm = std::sqrt(sum / n_);
+    *errorNorm = weightedRmsNorm(work_, zStart_, z, options_.relativeTolerance, options_.absoluteTolerance);
   }
   return increment;
 }
@@ -345,11 +289,7 @@ void RungeKuttaIntegrator::adjointStep(double t, double h, ConstVectorRef z, Vec
         newtonMatrix_.noalias() = -alpha * jacobian_;
         newtonMatrix_.diagonal().array() += 1.0;
         lu_.compute(newtonMatrix_);
-        // (P^T L U)^T x = b by hand: Eigen's lu.transpose().solve() allocates a temporary.
-        residual_ = Zbar;
-        lu_.matrixLU().triangularView<Eigen::Upper>().transpose().solveInPlace(residual_);
-        lu_.matrixLU().triangularView<Eigen::UnitLower>().transpose().solveInPlace(residual_);
-        Zbar.noalias() = lu_.permutationP().transpose() * residual_;
+        solveTransposedInPlace(lu_, Zbar, residual_);
       }
       ++counters_.factorizations;
     }

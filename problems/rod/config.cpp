@@ -1,6 +1,6 @@
 #include <hindsight/problems/rod/config.h>
 
-#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/runge_kutta.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>

@@ -1,6 +1,6 @@
 #include <hindsight/problems/rod/full_order_rod.h>
 
-#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/runge_kutta.h>
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/storage/storage_factory.h>

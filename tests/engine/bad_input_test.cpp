@@ -5,6 +5,7 @@
 #include <hindsight/engine/gradient_checker.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
+#include "support/engine_fixtures.h"
 
 #include <gtest/gtest.h>
 
@@ -14,14 +15,7 @@
 namespace hindsight {
 namespace {
 
-std::string invalidArgumentMessage(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "<no std::invalid_argument thrown>";
-}
+using testing::invalidArgumentMessage;
 
 TEST(BadInput, WrongParameterSizeNamesBothSizes) {
   ExponentialDecay problem;

@@ -1,6 +1,7 @@
 // The discrete adjoint against closed forms (linear ODEs) and against finite differences of the
 // computed psi (nonlinear and stiff problems), for every integrator.
 #include <hindsight/engine/gradient_checker.h>
+#include <hindsight/engine/runge_kutta.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include "support/engine_fixtures.h"
 

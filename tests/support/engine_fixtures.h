@@ -6,6 +6,8 @@
 
 #include <complex>
 #include <functional>
+#include <stdexcept>
+#include <string>
 
 namespace hindsight::testing {
 
@@ -22,6 +24,16 @@ inline std::function<double(const Vector&)> computedObjective(const Problem& pro
                                                               const std::vector<double>& times = {}) {
   if (!times.empty()) options.replayTimes = times;
   return [&problem, options](const Vector& p) { return simulate(problem, p, options).objective; };
+}
+
+/// The message of the std::invalid_argument that f throws, or a note that it threw none.
+inline std::string invalidArgumentMessage(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "<no std::invalid_argument thrown>";
 }
 
 /// Exact gradient of a real-analytic closed form by complex-step differentiation (error ~ eps).

@@ -9,7 +9,7 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
-#include <hindsight/engine/integrator.h>
+#include <hindsight/engine/runge_kutta.h>
 #include <hindsight/problems/rod/modal_reduction.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/storage/storage_factory.h>

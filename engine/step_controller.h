@@ -1,0 +1,39 @@
+// The one error norm and the one step-size controller of the engine, shared by the adaptive forward
+// sweep (engine/adjoint.cpp), the Runge-Kutta error estimate (engine/runge_kutta.cpp) and the
+// backward integrators of the continuous adjoint (engine/continuous_adjoint.cpp), so that every
+// adaptive loop accepts, rejects and resizes steps by the same rule.
+//
+// Error norm: the weighted RMS norm ||e|| = sqrt(mean_i (e_i / (atol + rtol max(|y0_i|, |y1_i|)))^2)
+// of an error estimate e over a step from y0 to y1 (Hairer, Norsett & Wanner, Solving ODEs I, II.4);
+// a step is acceptable when ||e|| <= 1.
+//
+// Controller: the elementary (I-) controller h_new = h * 0.9 ||e||^(-1/(q+1)) for an estimate of
+// O(h^(q+1)), the factor clamped to [0.2, 5] after an accepted step and to [0.1, 0.9] after a rejected
+// one; a failed Newton iteration (or a non-finite trial state) quarters the step.
+#pragma once
+
+#include <hindsight/engine/types.h>
+
+namespace hindsight {
+
+/// The weighted RMS norm above; error, y0 and y1 have the same size (> 0).
+double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, double relativeTolerance,
+                       double absoluteTolerance);
+
+class StepSizeController {
+ public:
+  /// errorOrder q: the error estimate is O(h^(q+1)) (min of the two orders of an embedded pair).
+  explicit StepSizeController(int errorOrder) : exponent_(-1.0 / (errorOrder + 1.0)) {}
+
+  /// The next step after an accepted step of size h with error norm `norm` (<= 1).
+  double afterAccepted(double h, double norm) const;
+  /// The retry after a step of size h rejected with error norm `norm` (> 1).
+  double afterRejected(double h, double norm) const;
+  /// The retry after a step of size h whose Newton iteration failed.
+  double afterFailed(double h) const { return 0.25 * h; }
+
+ private:
+  double exponent_;
+};
+
+}  // namespace hindsight
