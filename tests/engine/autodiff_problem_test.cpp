@@ -4,6 +4,7 @@
 #include <hindsight/engine/autodiff_problem.h>
 #include <hindsight/engine/gradient_checker.h>
 #include <hindsight/engine/integrator.h>
+#include <hindsight/engine/runge_kutta.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include "support/allocation_counting.h"
 #include "support/engine_fixtures.h"

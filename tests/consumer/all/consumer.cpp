@@ -1,54 +1,41 @@
-// Computes dpsi/dp of z' = -k z, psi = int z^2 dt, through the installed package, and checks it
-// against the closed form: exit code 0 only when they agree.
-#include <hindsight/engine/adjoint.h>
-#include <hindsight/storage/storage_factory.h>
+// Uses an installed hindsight with every component, as a user would: a problem from hindsight::classic,
+// the three-route dispatcher of hindsight::cvodes with a storage made from a spec string
+// (hindsight::storage), and an MMA object from hindsight::topopt. Exit code 0 only when the discrete and
+// CVODES gradients of z' = -k z, psi = int z^2 dt agree with the closed form.
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/problems/topopt/mma.h>
 
 #include <cmath>
+#include <complex>
 #include <cstdio>
 
-class Decay final : public hindsight::Problem {
- public:
-  std::string name() const override { return "decay"; }
-  int stateSize() const override { return 1; }
-  int parameterSize() const override { return 1; }
-  void initialState(hindsight::ConstVectorRef, hindsight::VectorRef z0) const override { z0(0) = 1.0; }
-  void rhs(double, hindsight::ConstVectorRef z, hindsight::ConstVectorRef p, hindsight::VectorRef f,
-           hindsight::ProblemWorkspace*) const override {
-    f(0) = -p(0) * z(0);
-  }
-  void rhsJacobian(double, hindsight::ConstVectorRef, hindsight::ConstVectorRef p, hindsight::MatrixRef j,
-                   hindsight::ProblemWorkspace*) const override {
-    j(0, 0) = -p(0);
-  }
-  void addRhsParameterVjp(double, hindsight::ConstVectorRef z, hindsight::ConstVectorRef,
-                          hindsight::ConstVectorRef w, hindsight::VectorRef out,
-                          hindsight::ProblemWorkspace*) const override {
-    out(0) -= z(0) * w(0);
-  }
-  double integrand(double, hindsight::ConstVectorRef z, hindsight::ConstVectorRef,
-                   hindsight::ProblemWorkspace*) const override {
-    return z(0) * z(0);
-  }
-  void addIntegrandStateGradient(double, hindsight::ConstVectorRef z, hindsight::ConstVectorRef, double scale,
-                                 hindsight::VectorRef out, hindsight::ProblemWorkspace*) const override {
-    out(0) += 2.0 * scale * z(0);
-  }
-  void addIntegrandParameterGradient(double, hindsight::ConstVectorRef, hindsight::ConstVectorRef, double,
-                                     hindsight::VectorRef, hindsight::ProblemWorkspace*) const override {}
-};
-
 int main() {
-  Decay problem;
-  hindsight::IntegratorOptions options;
-  options.t1 = 1.0;
-  options.step = 1e-3;
-  auto storage = hindsight::createStorage("full");
-  const double k = 2.0;
-  const auto result = hindsight::computeGradient(problem, Eigen::VectorXd::Constant(1, k), options, *storage);
-  // psi = (1 - e^{-2k}) / (2k); dpsi/dk = e^{-2k}/k - (1 - e^{-2k}) / (2k^2).
-  const double exact = std::exp(-2 * k) / k - (1 - std::exp(-2 * k)) / (2 * k * k);
-  const double error = std::abs(result.gradient(0) - exact) / std::abs(exact);
-  std::printf("hindsight %s: dpsi/dk = %.12g, exact %.12g, relative error %.2e\n", hindsight::version(),
-              result.gradient(0), exact, error);
-  return error < 1e-10 ? 0 : 1;
+  const hindsight::ExponentialDecay problem;
+  const double k = 2.0, a = 1.0, horizon = 1.0;
+  hindsight::GradientOptions options;
+  options.integrator.t1 = horizon;
+  options.integrator.step = 1e-3;
+  options.storage = "binomial:checkpoints=10";
+  const hindsight::Vector p = Eigen::Vector2d(k, a);
+  // dpsi/dk by complex step of the closed form: exact to round-off.
+  const double h = 1e-30;
+  const double exact = hindsight::ExponentialDecay::exactObjective(std::complex<double>(k, h),
+                                                                   std::complex<double>(a), horizon)
+                           .imag() /
+                       h;
+  int failures = 0;
+  for (auto method : {hindsight::AdjointMethod::Discrete, hindsight::AdjointMethod::Cvodes}) {
+    options.adjoint = method;
+    options.cvodes.relativeTolerance = 1e-10;
+    options.cvodes.absoluteTolerance = 1e-12;
+    const auto result = hindsight::computeGradientByMethod(problem, p, options);
+    const double error = std::abs(result.gradient(0) - exact) / std::abs(exact);
+    std::printf("hindsight %s, %s route: dpsi/dk = %.12g, exact %.12g, relative error %.2e\n",
+                hindsight::version(), hindsight::toString(method).c_str(), result.gradient(0), exact, error);
+    failures += error < 1e-7 ? 0 : 1;
+  }
+  hindsight::MmaOptions mma;  // constructing it proves hindsight::topopt links
+  (void)mma;
+  return failures == 0 ? 0 : 1;
 }
