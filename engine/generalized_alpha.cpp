@@ -152,14 +152,13 @@ double GeneralizedAlphaIntegrator::step(double t, double h, VectorRef x, double*
   assert(x.size() == 4 * f_);
   assert(errorNorm == nullptr && "generalized-alpha has no error estimate");
   (void)errorNorm;
-  const double start =
-      problem_.objectiveIntegrand(t, x.segment(0, f_), x.segment(f_, f_), p_, workspace_.get());
+  const double start = problem_.integrand(t, x.segment(0, f_), x.segment(f_, f_), p_, workspace_.get());
   solveStep(t, h, x);
   x.segment(0, f_) = yNext_;
   x.segment(f_, f_) = vNext_;
   x.segment(2 * f_, f_) = accel_;
   x.segment(3 * f_, f_) = aNext_;
-  const double end = problem_.objectiveIntegrand(t + h, yNext_, vNext_, p_, workspace_.get());
+  const double end = problem_.integrand(t + h, yNext_, vNext_, p_, workspace_.get());
   const double increment = 0.5 * h * (start + end);
   if (!x.allFinite() || !std::isfinite(increment)) {
     throw NumericalError("the state or the objective became non-finite", t + h);
@@ -180,9 +179,9 @@ void GeneralizedAlphaIntegrator::adjointStep(double t, double h, ConstVectorRef 
   // docs/generalized_alpha.md: Q, V).
   adjointY_ = lambda.segment(0, f_);
   adjointV_ = lambda.segment(f_, f_);
-  problem_.addObjectiveStateGradient(tNext, yNext_, vNext_, p_, 0.5 * h, adjointY_, adjointV_,
+  problem_.addIntegrandStateGradient(tNext, yNext_, vNext_, p_, 0.5 * h, adjointY_, adjointV_,
                                      workspace_.get());
-  problem_.addObjectiveParameterGradient(tNext, yNext_, vNext_, p_, 0.5 * h, gradient, workspace_.get());
+  problem_.addIntegrandParameterGradient(tNext, yNext_, vNext_, p_, 0.5 * h, gradient, workspace_.get());
   // S^T mu = lambda_d + c (lambda_a + h^2 beta Q + h gamma V), with the exact S at the solution.
   mu_ = lambda.segment(2 * f_, f_);
   mu_ += ratio * lambda.segment(3 * f_, f_);
@@ -209,8 +208,8 @@ void GeneralizedAlphaIntegrator::adjointStep(double t, double h, ConstVectorRef 
   ld = (c.alphaF * scale) * adjointA_;
   la = (-c.alphaM * scale) * adjointA_ + (h * h * (0.5 - c.beta)) * adjointY_ +
        (h * (1.0 - c.gamma)) * adjointV_;
-  problem_.addObjectiveStateGradient(t, y, v, p_, 0.5 * h, ly, lv, workspace_.get());
-  problem_.addObjectiveParameterGradient(t, y, v, p_, 0.5 * h, gradient, workspace_.get());
+  problem_.addIntegrandStateGradient(t, y, v, p_, 0.5 * h, ly, lv, workspace_.get());
+  problem_.addIntegrandParameterGradient(t, y, v, p_, 0.5 * h, gradient, workspace_.get());
 }
 
 }  // namespace hindsight

@@ -127,13 +127,13 @@ void SecondOrderProblem::rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef 
 double SecondOrderProblem::integrand(double t, ConstVectorRef z, ConstVectorRef p,
                                      ProblemWorkspace* ws) const {
   const int f = coordinateCount();
-  return objectiveIntegrand(t, z.head(f), z.tail(f), p, workspaceOf(ws).model.get());
+  return integrand(t, z.head(f), z.tail(f), p, workspaceOf(ws).model.get());
 }
 
 void SecondOrderProblem::addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
                                                    VectorRef out, ProblemWorkspace* ws) const {
   const int f = coordinateCount();
-  addObjectiveStateGradient(t, z.head(f), z.tail(f), p, scale, out.head(f), out.tail(f),
+  addIntegrandStateGradient(t, z.head(f), z.tail(f), p, scale, out.head(f), out.tail(f),
                             workspaceOf(ws).model.get());
 }
 
@@ -141,7 +141,7 @@ void SecondOrderProblem::addIntegrandParameterGradient(double t, ConstVectorRef 
                                                        double scale, VectorRef out,
                                                        ProblemWorkspace* ws) const {
   const int f = coordinateCount();
-  addObjectiveParameterGradient(t, z.head(f), z.tail(f), p, scale, out, workspaceOf(ws).model.get());
+  addIntegrandParameterGradient(t, z.head(f), z.tail(f), p, scale, out, workspaceOf(ws).model.get());
 }
 
 }  // namespace hindsight

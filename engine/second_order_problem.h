@@ -47,13 +47,16 @@ class SecondOrderProblem : public Problem {
                                 ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
                                 ProblemWorkspace* ws) const;
 
-  /// Objective integrand G(t, y, v, p) and its gradients (gy, gv, gp += scale * ...).
-  virtual double objectiveIntegrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
-                                    ProblemWorkspace* ws) const = 0;
-  virtual void addObjectiveStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+  /// The integrand G(t, y, v, p) and its gradients (gy, gv, gp += scale * ...): the same concept and
+  /// name as Problem::integrand, stated in the coordinates; the first-order overloads below call these.
+  /// A subclass that overrides these hides the first-order overloads in its own scope (C++ name
+  /// hiding): call those through a `const Problem&`, as the engine does.
+  virtual double integrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                           ProblemWorkspace* ws) const = 0;
+  virtual void addIntegrandStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                          double scale, VectorRef gy, VectorRef gv,
                                          ProblemWorkspace* ws) const = 0;
-  virtual void addObjectiveParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+  virtual void addIntegrandParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                              double scale, VectorRef gp, ProblemWorkspace* ws) const = 0;
 
   // ---- The first-order interface, derived from the above. ----

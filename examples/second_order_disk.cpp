@@ -42,15 +42,15 @@ class TwoMassChain final : public SecondOrderProblem {
     out(3) += (y(0) - y(1)) * (mu(0) - mu(1));
     out(4) += v(1) * mu(1);
   }
-  double objectiveIntegrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
-                            ProblemWorkspace*) const override {
+  double integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
+                   ProblemWorkspace*) const override {
     return y(1) * y(1);
   }
-  void addObjectiveStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef, double scale,
+  void addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef, double scale,
                                  VectorRef gy, VectorRef, ProblemWorkspace*) const override {
     gy(1) += 2.0 * scale * y(1);
   }
-  void addObjectiveParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
+  void addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
                                      VectorRef, ProblemWorkspace*) const override {}
 };
 

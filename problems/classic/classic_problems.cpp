@@ -40,17 +40,17 @@ void Pendulum::addResidualParameterVjp(double, ConstVectorRef y, ConstVectorRef 
   out(2) += v(0) * mu(0);
 }
 
-double Pendulum::objectiveIntegrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
-                                    ProblemWorkspace*) const {
+double Pendulum::integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
+                           ProblemWorkspace*) const {
   return y(0) * y(0);
 }
 
-void Pendulum::addObjectiveStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
+void Pendulum::addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
                                          double scale, VectorRef gy, VectorRef, ProblemWorkspace*) const {
   gy(0) += scale * 2.0 * y(0);
 }
 
-void Pendulum::addObjectiveParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
+void Pendulum::addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
                                              VectorRef, ProblemWorkspace*) const {}
 
 double Pendulum::terminal(ConstVectorRef z, ConstVectorRef) const { return 0.5 * z(1) * z(1); }

@@ -80,15 +80,15 @@ class Oscillator final : public SecondOrderProblem {
     out(0) += y(0) * mu(0);
     out(1) += v(0) * mu(0);
   }
-  double objectiveIntegrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
-                            ProblemWorkspace*) const override {
+  double integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef,
+                   ProblemWorkspace*) const override {
     return y(0) * y(0);
   }
-  void addObjectiveStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef, double scale,
+  void addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef, double scale,
                                  VectorRef gy, VectorRef, ProblemWorkspace*) const override {
     gy(0) += scale * 2.0 * y(0);
   }
-  void addObjectiveParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
+  void addIntegrandParameterGradient(double, ConstVectorRef, ConstVectorRef, ConstVectorRef, double,
                                      VectorRef, ProblemWorkspace*) const override {}
 
   /// Exact psi: y = e^{st}(a cos wt + b sin wt), s = -c/2, w = sqrt(k - c^2/4), b = -s a / w, and
@@ -135,11 +135,11 @@ class Pendulum final : public SecondOrderProblem {
   void addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
                                ConstVectorRef p, ConstVectorRef mu, VectorRef out,
                                ProblemWorkspace* ws) const override;
-  double objectiveIntegrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
-                            ProblemWorkspace* ws) const override;
-  void addObjectiveStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, double scale,
+  double integrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                   ProblemWorkspace* ws) const override;
+  void addIntegrandStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, double scale,
                                  VectorRef gy, VectorRef gv, ProblemWorkspace* ws) const override;
-  void addObjectiveParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+  void addIntegrandParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                      double scale, VectorRef gp, ProblemWorkspace* ws) const override;
   double terminal(ConstVectorRef z, ConstVectorRef p) const override;
   void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override;

@@ -431,8 +431,8 @@ void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVecto
   }
 }
 
-double SliderCrankProblem::objectiveIntegrand(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
-                                              ProblemWorkspace*) const {
+double SliderCrankProblem::integrand(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
+                                     ProblemWorkspace*) const {
   const View P(layout_, p);
   double s = 0.0;
   for (int i = 0; i < layout_.modes; ++i) {
@@ -441,7 +441,7 @@ double SliderCrankProblem::objectiveIntegrand(double, ConstVectorRef q, ConstVec
   return s;
 }
 
-void SliderCrankProblem::addObjectiveStateGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
+void SliderCrankProblem::addIntegrandStateGradient(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,
                                                    double scale, VectorRef gq, VectorRef,
                                                    ProblemWorkspace*) const {
   const View P(layout_, p);
@@ -450,7 +450,7 @@ void SliderCrankProblem::addObjectiveStateGradient(double, ConstVectorRef q, Con
   }
 }
 
-void SliderCrankProblem::addObjectiveParameterGradient(double, ConstVectorRef q, ConstVectorRef,
+void SliderCrankProblem::addIntegrandParameterGradient(double, ConstVectorRef q, ConstVectorRef,
                                                        ConstVectorRef, double scale, VectorRef gp,
                                                        ProblemWorkspace*) const {
   const int n = layout_.modes;

@@ -89,11 +89,11 @@ class SliderCrankProblem final : public SecondOrderProblem {
   void residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                         ConstVectorRef mu, VectorRef outQ, VectorRef outV,
                         ProblemWorkspace* ws) const override;
-  double objectiveIntegrand(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
-                            ProblemWorkspace* ws) const override;
-  void addObjectiveStateGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,
+  double integrand(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
+                   ProblemWorkspace* ws) const override;
+  void addIntegrandStateGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,
                                  VectorRef gq, VectorRef gv, ProblemWorkspace* ws) const override;
-  void addObjectiveParameterGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
+  void addIntegrandParameterGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
                                      double scale, VectorRef gp, ProblemWorkspace* ws) const override;
 
   /// The residual r = M(t, q) a - f(t, q, q') (for tests and diagnostics).

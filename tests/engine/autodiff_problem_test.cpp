@@ -190,11 +190,12 @@ TEST(AutoDiffProblem, OptionalPartsDefaultToZero) {
   EXPECT_NEAR(derived.gradient(0), handWritten.gradient(0), 1e-14 * std::abs(handWritten.gradient(0)));
 }
 
-// ---- Against the hand-derived pendulum (problems/classic_problems.h). ----
+// ---- Against the hand-derived pendulum (problems/classic/classic_problems.h). ----
 
 class AgainstHandDerivedPendulum : public ::testing::Test {
  protected:
-  Pendulum hand;
+  Pendulum pendulum;
+  const Problem& hand = pendulum;  // the first-order interface, which SecondOrderProblem overloads
   AutoDiffPendulum derived{"pendulum-autodiff"};
   std::unique_ptr<ProblemWorkspace> handWs = hand.createWorkspace();
   std::unique_ptr<ProblemWorkspace> derivedWs = derived.createWorkspace();

@@ -292,7 +292,8 @@ class MatrixFreeOscillator final : public Problem {
   }
 
  private:
-  Oscillator inner_;
+  Oscillator oscillator_;
+  const Problem& inner_ = oscillator_;  // its first-order interface (SecondOrderProblem overloads it)
 };
 
 TEST(ContinuousMatrixFree, VectorJacobianProductsGiveTheDenseGradient) {

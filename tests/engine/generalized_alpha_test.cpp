@@ -84,17 +84,17 @@ class ElasticPendulum final : public SecondOrderProblem {
     out(2) += rd * mu(0) + thd * mu(1);
     out(3) += -k * mu(0);
   }
-  double objectiveIntegrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
-                            ProblemWorkspace*) const override {
+  double integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
+                   ProblemWorkspace*) const override {
     const double stretch = y(0) - p(3);
     return stretch * stretch + p(5) * y(1) * y(1);
   }
-  void addObjectiveStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p, double scale,
+  void addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p, double scale,
                                  VectorRef gy, VectorRef, ProblemWorkspace*) const override {
     gy(0) += scale * 2.0 * (y(0) - p(3));
     gy(1) += scale * 2.0 * p(5) * y(1);
   }
-  void addObjectiveParameterGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p, double scale,
+  void addIntegrandParameterGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p, double scale,
                                      VectorRef gp, ProblemWorkspace*) const override {
     gp(3) -= scale * 2.0 * (y(0) - p(3));
     gp(5) += scale * y(1) * y(1);

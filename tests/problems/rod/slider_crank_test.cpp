@@ -144,11 +144,11 @@ TEST(SliderCrank, ParameterProductMatchesFiniteDifferencesForEveryInvariant) {
 TEST(SliderCrank, ObjectiveGradientsMatchFiniteDifferences) {
   Fixture f(4);
   const auto G = [&](const Vector& qq, const Vector& pp) {
-    return f.problem.objectiveIntegrand(0.0, qq, f.qd, pp, f.workspace.get());
+    return f.problem.integrand(0.0, qq, f.qd, pp, f.workspace.get());
   };
   Vector gq = Vector::Zero(4), gv = Vector::Zero(4), gp = Vector::Zero(f.p.size());
-  f.problem.addObjectiveStateGradient(0.0, f.q, f.qd, f.p, 1.0, gq, gv, f.workspace.get());
-  f.problem.addObjectiveParameterGradient(0.0, f.q, f.qd, f.p, 1.0, gp, f.workspace.get());
+  f.problem.addIntegrandStateGradient(0.0, f.q, f.qd, f.p, 1.0, gq, gv, f.workspace.get());
+  f.problem.addIntegrandParameterGradient(0.0, f.q, f.qd, f.p, 1.0, gp, f.workspace.get());
   const auto stateCheck = checkGradient([&](const Vector& x) { return G(x, f.p); }, f.q, gq, {1e-7});
   EXPECT_TRUE(stateCheck.passed) << stateCheck.message;
   const auto parameterCheck =
