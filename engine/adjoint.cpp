@@ -160,6 +160,19 @@ struct ForwardSweep {
   std::unique_ptr<StepRecomputer> recomputer;
 };
 
+}  // namespace
+
+void RunSummary::addStorageCounters(const StorageCounters& counters, std::size_t gridPoints) {
+  recomputedSteps = counters.recomputedSteps;
+  statesStored = counters.statesStored;
+  peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(gridPoints) * 8;
+  bytesOnDisk = counters.bytesOnDisk;
+  compressionRatio = counters.compressionRatio();
+  ioSeconds = counters.ioSeconds;
+}
+
+namespace {
+
 void fillWork(RunSummary& summary, const Integrator& integrator) {
   summary.method = integrator.name();
   summary.rhsEvaluations = integrator.counters().rhsEvaluations;
@@ -231,12 +244,7 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
 
   const StorageCounters& counters = storage.counters();
   fillWork(result.summary, *sweep.integrator);
-  result.summary.recomputedSteps = counters.recomputedSteps;
-  result.summary.statesStored = counters.statesStored;
-  result.summary.peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(times.size()) * 8;
-  result.summary.bytesOnDisk = counters.bytesOnDisk;
-  result.summary.compressionRatio = counters.compressionRatio();
-  result.summary.ioSeconds = counters.ioSeconds;
+  result.summary.addStorageCounters(counters, times.size());
   result.objective = sweep.objective;
   result.gradient = std::move(gradient);
   result.times = std::move(sweep.times);

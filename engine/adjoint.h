@@ -36,6 +36,9 @@ struct RunSummary {
   double ioSeconds = 0.0;
   /// Human-readable, one "key: value" per line.
   void print(std::ostream& out) const;
+  /// Copies what the storage reports (recomputations, states, bytes, compression, I/O time); the time
+  /// grid of `gridPoints` doubles counts towards the peak memory. Shared by every route over a storage.
+  void addStorageCounters(const StorageCounters& counters, std::size_t gridPoints);
 };
 
 struct ForwardResult {

@@ -484,12 +484,7 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   result.summary.factorizations += backward.factorizations;
   result.summary.rhsEvaluations += rhsEvaluations + recomputeIntegrator->counters().rhsEvaluations;
   result.summary.jacobianEvaluations += system.evaluations;
-  result.summary.recomputedSteps = counters.recomputedSteps;
-  result.summary.statesStored = counters.statesStored;
-  result.summary.peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(times.size()) * 8;
-  result.summary.bytesOnDisk = counters.bytesOnDisk;
-  result.summary.compressionRatio = counters.compressionRatio();
-  result.summary.ioSeconds = counters.ioSeconds;
+  result.summary.addStorageCounters(counters, times.size());
   result.objective = forwardResult.objective;
   result.gradient = std::move(gradient);
   result.times = std::move(times);
