@@ -35,11 +35,12 @@
 // ResultsData::checksummed says which, and the next write adds the checksums.
 //
 // Crash safety (the design this file is built on): writeResultsFile never modifies an existing file.
-// It writes the complete contents to a temporary PATH.tmp-PID-N, closes it, fsyncs it, renames it onto
+// It builds the file in memory (hdf5::createMemoryFile: a full disk is then an ordinary failed write,
+// not a failed H5Fclose), writes the image to a temporary PATH.tmp-PID-N, fsyncs it, renames it onto
 // PATH (atomic on POSIX) and fsyncs the directory (storage/atomic_file.h). So at every moment PATH is
 // either absent or a complete file written by a finished call: a crash (kill -9, power loss after the
 // rename) leaves the file of the last completed iteration, never a torn one; a leftover temporary is
-// garbage and is removed by the next run (removeStaleTemporaries). Cost: the whole file is rewritten
+// garbage and is removed by the next run (removeStaleTemporariesIn). Cost: the whole file is rewritten
 // per iteration, O(K (nx ny + n)) bytes; for the 200 x 12 rod that is 20 kB per completed iteration,
 // milliseconds next to a 2 s evaluation.
 //
