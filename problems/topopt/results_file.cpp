@@ -316,7 +316,6 @@ void checkRange(Reader& reader, const std::string& object, const Vector& v, doub
   checkRange(reader, object, v.data(), static_cast<std::size_t>(v.size()), lower, upper);
 }
 
-constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr double kLargest = std::numeric_limits<double>::max();
 
 // The restored state as the optimizer leaves it (docs/design.md §7, problems/mma.h).

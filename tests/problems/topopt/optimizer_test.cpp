@@ -137,15 +137,19 @@ std::vector<double> readDoublesWithPlainHdf5(const std::string& path, const std:
   return values;
 }
 
-// Rewrites a whole dataset through HDF5, as h5py or the C API would: HDF5 recomputes its Fletcher32
-// checksums, so only the content hash can notice.
-void writeDoublesWithPlainHdf5(const std::string& path, const std::string& name,
-                               const std::vector<double>& values) {
+// Sets entry `index` of a dataset through HDF5, as h5py or the C API would: HDF5 recomputes its
+// Fletcher32 checksums, so only the content hash can notice. Returns the old value.
+double setValueWithPlainHdf5(const std::string& path, const std::string& name, std::size_t index,
+                             double value) {
+  std::vector<double> values = readDoublesWithPlainHdf5(path, name);
+  const double old = values.at(index);
+  values[index] = value;
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
   EXPECT_GE(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
   H5Dclose(dataset);
   EXPECT_GE(H5Fclose(file), 0);
+  return old;
 }
 
 // The byte offset in the file of the chunk of `name` that holds the element at `coordinates`.
@@ -567,9 +571,7 @@ TEST(ResultsFile, EveryDatasetIsChecksummedAndASoundFileVerifies) {
 // Rewritten through HDF5 (Fletcher32 recomputed), the content hash names it.
 TEST(ResultsFile, ANanWrittenThroughHdf5IntoMmaLowIsNamed) {
   const std::string path = interruptedRun("nan_hdf5");
-  std::vector<double> low = readDoublesWithPlainHdf5(path, "state/mma_low");
-  low[5] = std::numeric_limits<double>::quiet_NaN();
-  writeDoublesWithPlainHdf5(path, "state/mma_low", low);
+  setValueWithPlainHdf5(path, "state/mma_low", 5, std::numeric_limits<double>::quiet_NaN());
   const std::string error = readError(path);
   EXPECT_NE(error.find("'/state/mma_low' is corrupted"), std::string::npos) << error;
   EXPECT_NE(error.find("content hash"), std::string::npos) << error;
@@ -612,9 +614,9 @@ TEST(ResultsFile, FlippedBitsInADesignRowAreNamed) {
 // nor the bounds can see it; the content hash does.
 TEST(ResultsFile, APlausibleRewriteOfADesignRowIsCaughtByTheContentHash) {
   const std::string path = interruptedRun("plausible");
-  std::vector<double> designs = readDoublesWithPlainHdf5(path, "designs");
-  designs[80 + 30] = designs[80 + 30] == 0.7 ? 0.6 : 0.7;
-  writeDoublesWithPlainHdf5(path, "designs", designs);
+  // Row 1, element 30 (20 x 4 elements per row).
+  if (setValueWithPlainHdf5(path, "designs", 80 + 30, 0.7) == 0.7)
+    setValueWithPlainHdf5(path, "designs", 110, 0.6);
   const std::string error = readError(path);
   EXPECT_NE(error.find("'/designs' is corrupted"), std::string::npos) << error;
   EXPECT_NE(error.find("content hash"), std::string::npos) << error;
@@ -697,9 +699,7 @@ TEST(OptimizationRun, AFileWithoutChecksumsIsResumedWithAWarning) {
 TEST(OptimizationRun, AFileWithoutChecksumsIsStillCheckedForPlausibility) {
   const std::string path = interruptedRun("format1_nan");
   stripChecksums(path);
-  std::vector<double> low = readDoublesWithPlainHdf5(path, "state/mma_low");
-  low[5] = std::numeric_limits<double>::quiet_NaN();
-  writeDoublesWithPlainHdf5(path, "state/mma_low", low);
+  setValueWithPlainHdf5(path, "state/mma_low", 5, std::numeric_limits<double>::quiet_NaN());
   OptimizationRunOptions options;
   options.outputDirectory = fs::path(path).parent_path().string();
   options.resume = true;
@@ -848,9 +848,7 @@ TEST(OptimizeCommand, ResumeOfACorruptedFileExitsThreeNamingTheDataset) {
       const double nan = std::numeric_limits<double>::quiet_NaN();
       overwriteFileBytes(path, chunkOffset(path, "state/mma_low", {0}), &nan, sizeof nan);
     } else {
-      std::vector<double> low = readDoublesWithPlainHdf5(path, "state/mma_low");
-      low[0] = std::numeric_limits<double>::quiet_NaN();
-      writeDoublesWithPlainHdf5(path, "state/mma_low", low);
+      setValueWithPlainHdf5(path, "state/mma_low", 0, std::numeric_limits<double>::quiet_NaN());
     }
     const auto before = fs::last_write_time(path);
     for (const std::string& configuration : {std::string(), kCoarseFlags + " --iterations 6"}) {
@@ -879,9 +877,7 @@ TEST(VerifyCommand, ListsEveryDatasetAndNamesTheCorruptedOne) {
   EXPECT_EQ(oks, std::size(kResultsDatasets) + 1) << result.output;  // the datasets and the root
   EXPECT_NE(result.output.find("sound"), std::string::npos) << result.output;
 
-  std::vector<double> designs = readDoublesWithPlainHdf5(path, "designs");
-  designs[80 + 5] = 0.123;
-  writeDoublesWithPlainHdf5(path, "designs", designs);
+  setValueWithPlainHdf5(path, "designs", 80 + 5, 0.123);
   result = runCli("verify " + dir);
   EXPECT_EQ(result.exitCode, 3) << result.output;
   EXPECT_NE(result.output.find("/designs "), std::string::npos) << result.output;
@@ -890,9 +886,7 @@ TEST(VerifyCommand, ListsEveryDatasetAndNamesTheCorruptedOne) {
   EXPECT_NE(result.output.find("/state/mma_low "), std::string::npos) << result.output;  // still listed
 
   stripChecksums(path);  // format 1: plausible, but cannot be verified
-  std::vector<double> sound = readDoublesWithPlainHdf5(path, "designs");
-  sound[80 + 5] = 0.5;
-  writeDoublesWithPlainHdf5(path, "designs", sound);
+  setValueWithPlainHdf5(path, "designs", 80 + 5, 0.5);
   result = runCli("verify " + dir);
   EXPECT_EQ(result.exitCode, 0) << result.output;
   EXPECT_NE(result.output.find("could not be verified"), std::string::npos) << result.output;
