@@ -17,6 +17,7 @@ void registerCommands(CLI::App& app) {
   registerEvaluate(app);
   registerOptimize(app);
   registerPlot(app);
+  registerVerify(app);
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {

@@ -33,5 +33,6 @@ void registerDemo(CLI::App& app);
 void registerEvaluate(CLI::App& app);
 void registerOptimize(CLI::App& app);
 void registerPlot(CLI::App& app);
+void registerVerify(CLI::App& app);
 
 }  // namespace hindsight::cli

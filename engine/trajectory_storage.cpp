@@ -1,5 +1,7 @@
 #include <hindsight/engine/trajectory_storage.h>
 
+#include <hindsight/engine/hash.h>
+
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -93,14 +95,14 @@ void TrajectoryStorage::recompute(std::int64_t step, VectorRef z) {
 }
 
 std::uint64_t hashState(ConstVectorRef z) {
-  std::uint64_t h = 1469598103934665603ULL;
+  std::uint64_t h = kFnv1aOffsetBasis;
   for (Eigen::Index i = 0; i < z.size(); ++i) {
+    // The little-endian bytes, so that the hash does not depend on the host's byte order.
     std::uint64_t bits;
     std::memcpy(&bits, z.data() + i, sizeof bits);
-    for (int b = 0; b < 8; ++b) {
-      h ^= (bits >> (8 * b)) & 0xffu;
-      h *= 1099511628211ULL;
-    }
+    unsigned char bytes[8];
+    for (int b = 0; b < 8; ++b) bytes[b] = static_cast<unsigned char>(bits >> (8 * b));
+    h = fnv1a(bytes, sizeof bytes, h);
   }
   return h;
 }

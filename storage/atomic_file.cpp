@@ -46,6 +46,33 @@ std::string syncToDisk(const std::string& path, int flags) {
   return {};
 }
 
+// Removes the files NAME.tmp-PID-N in `directory` whose process PID no longer runs; with a non-empty
+// `prefix` only those whose name starts with it (the temporaries of one target).
+void removeStaleTemporariesMatching(const std::string& directory, const std::string& prefix) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (fs::directory_iterator it(directory, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    // The last ".tmp-" followed by PID-N, digits only: nothing else is taken for a temporary.
+    const auto marker = name.rfind(".tmp-");
+    if (marker == std::string::npos || marker + 5 < prefix.size()) continue;
+    const std::string tail = name.substr(marker + 5);
+    const auto dash = tail.find('-');
+    const auto digits = [](const std::string& text) {
+      return !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+    };
+    if (dash == std::string::npos || !digits(tail.substr(0, dash)) || !digits(tail.substr(dash + 1)))
+      continue;
+    const long pid = std::strtol(tail.c_str(), nullptr, 10);
+    // kill(pid, 0) probes without sending anything; ESRCH: no such process any more.
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+    }
+  }
+}
+
 }  // namespace
 
 void writeFileAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
@@ -89,18 +116,9 @@ void writeStreamAtomically(const std::string& path, const std::function<std::str
 
 void removeStaleTemporaries(const std::string& path) {
   namespace fs = std::filesystem;
-  const std::string prefix = fs::path(temporaryPrefix(path)).filename().string();
-  std::error_code ec;
-  for (fs::directory_iterator it(directoryOf(path), ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.compare(0, prefix.size(), prefix) != 0) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
-    // kill(pid, 0) probes without sending anything; ESRCH: no such process any more.
-    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
-      std::error_code ignored;
-      fs::remove(it->path(), ignored);
-    }
-  }
+  removeStaleTemporariesMatching(directoryOf(path), fs::path(temporaryPrefix(path)).filename().string());
 }
+
+void removeStaleTemporariesIn(const std::string& directory) { removeStaleTemporariesMatching(directory, {}); }
 
 }  // namespace hindsight

@@ -27,4 +27,8 @@ void writeStreamAtomically(const std::string& path, const std::function<std::str
 /// write); those of running processes stay. Never throws.
 void removeStaleTemporaries(const std::string& path);
 
+/// The same for every target in `directory`: removes each NAME.tmp-PID-N there whose process no
+/// longer runs (a results file, a picture, ...). Never throws.
+void removeStaleTemporariesIn(const std::string& directory);
+
 }  // namespace hindsight

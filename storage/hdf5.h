@@ -86,6 +86,13 @@ std::string objectName(hid_t parent, const std::string& name);
 /// message ("cannot create the trajectory file: Permission denied").
 Handle createFile(const std::string& path, unsigned flags, const std::string& role = "the HDF5 file");
 Handle openFileReadOnly(const std::string& path, const std::string& role = "the HDF5 file");
+/// A new HDF5 file that lives in memory only (the core driver without backing store); `name` only
+/// names it. fileImage() returns its bytes for the caller to write. Why: when HDF5 itself writes a
+/// file onto a full disk, H5Fclose fails, the library keeps the file open, and its shutdown at exit
+/// crashes on that file (HDF5 1.10.8: SIGSEGV in H5F__close_cb); a file in memory has no such write.
+Handle createMemoryFile(const std::string& name);
+/// The complete bytes of an open file, flushed first.
+std::vector<unsigned char> fileImage(hid_t file);
 /// Closes a file now, throwing when its last writes fail.
 void closeFile(Handle& file);
 Handle createGroup(hid_t parent, const std::string& name);

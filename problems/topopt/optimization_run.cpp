@@ -106,8 +106,11 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
   }
   if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
   prepareDirectory(options.outputDirectory);
+  lock_ = std::make_unique<DirectoryLock>(options.outputDirectory, "--out");
   resultsPath_ = (fs::path(options.outputDirectory) / "results.h5").string();
-  removeStaleTemporaries(resultsPath_);  // garbage of a crash during a write
+  // Garbage of a crash during a write (results file or picture); with the lock held no other run
+  // writes here.
+  removeStaleTemporariesIn(options.outputDirectory);
 
   const rod::RodConfig& rc = config_.rod;
   const bool exists = fs::exists(resultsPath_);
@@ -116,7 +119,8 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
                                 " exists; use --resume to continue it or --force to overwrite it");
   }
   if (exists && options.resume) {
-    data_ = readResultsFile(resultsPath_);
+    data_ = readResultsFile(resultsPath_);  // every check; throws StorageError naming the dataset
+    resumedUnverified_ = !data_.checksummed;
     requireSameConfiguration(config_, data_.configurationJson, resultsPath_);
     const int done = data_.state.iteration;
     if (config_.optimization.iterations < done) {
@@ -163,6 +167,12 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
   OptimizationRunSummary summary;
   summary.resumedFrom = static_cast<int>(data_.history.size());
   summary.resultsPath = resultsPath_;
+  if (resumedUnverified_) {
+    progress << "warning: " << resultsPath_
+             << " has no checksums (written before format 2); its values were checked for plausibility "
+                "only; the next write adds checksums"
+             << std::endl;
+  }
   for (const IterationRecord& record : data_.history) progress << progressLine(record) << "  (stored)\n";
   if (data_.finished) {
     progress << "the run in " << resultsPath_ << " is finished; nothing to do" << std::endl;

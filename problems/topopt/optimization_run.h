@@ -10,7 +10,16 @@
 // optimization.pictureEvery, or fewer iterations than already completed. Those throw
 // std::invalid_argument; an unreadable results file on resume throws StorageError.
 //
-// Resume: the optimizer continues from the stored state after the last completed iteration, so the
+// The output directory is locked for the run's lifetime (storage/directory_lock.h): a second run into
+// the same directory is refused at once with std::invalid_argument naming the directory and the
+// holder's PID. With the lock taken, temporary files of dead processes' atomic writes there (results
+// file and pictures, NAME.tmp-PID-N) are removed.
+//
+// Resume: the results file is read with all its checks (problems/results_file.h: checksums,
+// plausibility of the restored design and MMA state); a file that fails one throws StorageError
+// naming the dataset, and nothing runs. A format 1 file (no checksums) is resumed after the
+// plausibility checks with a warning in the progress output that it could not be verified.
+// The optimizer continues from the stored state after the last completed iteration, so the
 // history and designs of a resumed run equal those of an uninterrupted run bit for bit (the seconds
 // columns excepted). A finished run resumed with more iterations drops its final evaluation (which
 // made no update) and continues from there, exactly as a run started with the larger count.
@@ -18,9 +27,11 @@
 
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/topology_optimizer.h>
+#include <hindsight/storage/directory_lock.h>
 
 #include <functional>
 #include <iosfwd>
+#include <memory>
 #include <string>
 
 namespace hindsight {
@@ -59,6 +70,8 @@ class OptimizationRun {
 
   Config config_;
   OptimizationRunOptions options_;
+  std::unique_ptr<DirectoryLock> lock_;  // held from the constructor until the run is destroyed
+  bool resumedUnverified_ = false;       // resumed from a format 1 file (no checksums)
   std::string resultsPath_;
   ResultsData data_;
   TopologyOptimizer optimizer_;

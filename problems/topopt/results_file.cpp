@@ -1,9 +1,16 @@
 #include <hindsight/problems/topopt/results_file.h>
 
+#include <hindsight/engine/hash.h>
 #include <hindsight/storage/atomic_file.h>
 #include <hindsight/storage/hdf5.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <sstream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -20,54 +27,160 @@ const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
     {"mma_seconds", &IterationRecord::mmaSeconds},
     {"total_seconds", &IterationRecord::totalSeconds}};
 
+/// The MMA state datasets in /state and the members they store.
+const std::pair<const char*, Vector MmaState::*> kMmaVectors[] = {{"mma_xold1", &MmaState::xold1},
+                                                                  {"mma_xold2", &MmaState::xold2},
+                                                                  {"mma_low", &MmaState::low},
+                                                                  {"mma_upp", &MmaState::upp}};
+
 constexpr const char* kFormat = "hindsight-topology-results";
-constexpr int kFormatVersion = 1;
+constexpr int kFormatVersion = 2;  // 2: Fletcher32 and content hashes
+constexpr int kFirstChecksummedVersion = 2;
+constexpr int kOldestReadableVersion = 1;  // 1: no checksums
+constexpr const char* kHashAttribute = "content_hash";
+constexpr const char* kRoot = "/";
 
 [[noreturn]] void fail(const std::string& what) { throw hdf5::Error(what, {}); }
 
+// FNV-1a over values in their stored form (little-endian int32 / float64), so that the hash is the
+// same on every host and can be recomputed from the file by any reader.
+class ContentHash {
+ public:
+  void add(std::uint64_t value, int bytes = 8) {
+    unsigned char buffer[8];
+    for (int b = 0; b < bytes; ++b) buffer[b] = static_cast<unsigned char>(value >> (8 * b));
+    h_ = fnv1a(buffer, static_cast<std::size_t>(bytes), h_);
+  }
+  void add(double value) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &value, sizeof bits);
+    add(bits);
+  }
+  void add(int value) { add(static_cast<std::uint64_t>(static_cast<std::uint32_t>(value)), 4); }
+  void add(const std::string& text) {
+    add(static_cast<std::uint64_t>(text.size()));
+    h_ = fnv1a(text.data(), text.size(), h_);
+  }
+  std::string text() const {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "fnv1a64:%016llx", static_cast<unsigned long long>(h_));
+    return buffer;
+  }
+
+ private:
+  std::uint64_t h_ = kFnv1aOffsetBasis;
+};
+
+template <typename T>
+std::string datasetHash(const std::string& path, const std::vector<hsize_t>& dims, const T* values) {
+  ContentHash hash;
+  hash.add(path);
+  hash.add(static_cast<std::uint64_t>(dims.size()));
+  std::size_t count = 1;
+  for (hsize_t d : dims) {
+    hash.add(static_cast<std::uint64_t>(d));
+    count *= static_cast<std::size_t>(d);
+  }
+  for (std::size_t i = 0; i < count; ++i) hash.add(values[i]);
+  return hash.text();
+}
+
+// The run state's hash: the root attributes, mma_iteration and every dataset's hash in file order.
+struct RootAttributes {
+  std::string configuration;
+  int completedIterations = 0;
+  int finished = 0;
+  int nx = 0;
+  int ny = 0;
+  int updates = 0;
+  double objectiveScale = 0.0;
+  int mmaIteration = 0;
+};
+
+std::string rootHash(const RootAttributes& a,
+                     const std::vector<std::pair<std::string, std::string>>& datasets) {
+  ContentHash hash;
+  hash.add(kFormatVersion);
+  hash.add(a.configuration);
+  for (int value : {a.completedIterations, a.finished, a.nx, a.ny, a.updates, a.mmaIteration})
+    hash.add(value);
+  hash.add(a.objectiveScale);
+  for (const auto& [path, datasetHashText] : datasets) {
+    hash.add(path);
+    hash.add(datasetHashText);
+  }
+  return hash.text();
+}
+
 // ---- writing ----
 
-// An extendible (chunked, unlimited first dimension) dataset of `dims` holding `data`.
-void writeExtendible(hid_t parent, const char* name, hid_t memType, hid_t fileType, std::vector<hsize_t> dims,
-                     const void* data) {
-  std::vector<hsize_t> maxDims = dims;
-  maxDims[0] = H5S_UNLIMITED;
-  std::vector<hsize_t> chunk = dims;
-  chunk[0] = dims.size() == 1 ? 64 : 1;
-  for (hsize_t& size : chunk) size = std::max<hsize_t>(size, 1);
-  const hdf5::Handle properties = hdf5::propertyList(H5P_DATASET_CREATE);
-  hdf5::check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), "chunking");
-  const hdf5::Handle dataset = hdf5::createDataset(parent, name, fileType, dims, maxDims, properties.get());
-  hdf5::write(dataset.get(), memType, data);
-}
+class Writer {
+ public:
+  // A dataset of `dims` holding `data`: chunked with an unlimited first dimension (chunked layout is
+  // what the Fletcher32 filter needs; the unlimited dimension allows empty datasets), Fletcher32,
+  // and its content hash as an attribute.
+  template <typename T>
+  void dataset(hid_t parent, const std::string& group, const char* name, hid_t memType, hid_t fileType,
+               std::vector<hsize_t> dims, const T* data) {
+    std::vector<hsize_t> maxDims = dims;
+    maxDims[0] = H5S_UNLIMITED;
+    std::vector<hsize_t> chunk = dims;
+    chunk[0] = dims.size() == 1 ? std::min<hsize_t>(dims[0], 4096) : 1;
+    for (hsize_t& size : chunk) size = std::max<hsize_t>(size, 1);
+    const hdf5::Handle properties = hdf5::propertyList(H5P_DATASET_CREATE);
+    hdf5::check(H5Pset_chunk(properties.get(), static_cast<int>(chunk.size()), chunk.data()), "chunking");
+    hdf5::check(H5Pset_fletcher32(properties.get()), "the Fletcher32 filter");
+    const hdf5::Handle dataset = hdf5::createDataset(parent, name, fileType, dims, maxDims, properties.get());
+    hdf5::write(dataset.get(), memType, data);
+    const std::string path = group + "/" + name;
+    const std::string hash = datasetHash(path, dims, data);
+    hdf5::writeStringAttribute(dataset.get(), kHashAttribute, hash);
+    hashes.emplace_back(path, hash);
+  }
+  void doubles(hid_t parent, const std::string& group, const char* name, std::vector<hsize_t> dims,
+               const double* data) {
+    dataset(parent, group, name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, std::move(dims), data);
+  }
+  void ints(hid_t parent, const std::string& group, const char* name, const std::vector<int>& data) {
+    dataset(parent, group, name, H5T_NATIVE_INT, H5T_STD_I32LE, {data.size()}, data.data());
+  }
 
-void writeVector(hid_t parent, const char* name, const Vector& v) {
-  hdf5::writeDoubles(parent, name, {static_cast<hsize_t>(v.size())}, v.data());
-}
+  std::vector<std::pair<std::string, std::string>> hashes;
+};
 
 void writeContents(hid_t file, const ResultsData& data) {
   const std::size_t rows = data.history.size();
+  RootAttributes root;
+  root.configuration = data.configurationJson;
+  root.completedIterations = static_cast<int>(rows);
+  root.finished = data.finished ? 1 : 0;
+  root.nx = data.nx;
+  root.ny = data.ny;
+  root.updates = data.state.iteration;
+  root.objectiveScale = data.state.objectiveScale;
+  root.mmaIteration = data.state.mma.iteration;
   hdf5::writeStringAttribute(file, "format", kFormat);
   hdf5::writeAttribute(file, "format_version", kFormatVersion);
-  hdf5::writeStringAttribute(file, "configuration", data.configurationJson);
-  hdf5::writeAttribute(file, "completed_iterations", static_cast<int>(rows));
-  hdf5::writeAttribute(file, "finished", data.finished ? 1 : 0);
-  hdf5::writeAttribute(file, "nx", data.nx);
-  hdf5::writeAttribute(file, "ny", data.ny);
-  hdf5::writeAttribute(file, "updates", data.state.iteration);
-  hdf5::writeAttribute(file, "objective_scale", data.state.objectiveScale);
+  hdf5::writeStringAttribute(file, "configuration", root.configuration);
+  hdf5::writeAttribute(file, "completed_iterations", root.completedIterations);
+  hdf5::writeAttribute(file, "finished", root.finished);
+  hdf5::writeAttribute(file, "nx", root.nx);
+  hdf5::writeAttribute(file, "ny", root.ny);
+  hdf5::writeAttribute(file, "updates", root.updates);
+  hdf5::writeAttribute(file, "objective_scale", root.objectiveScale);
 
+  Writer writer;
   {
     const hdf5::Handle group = hdf5::createGroup(file, "history");
-    std::vector<int> iteration(rows);
-    for (std::size_t k = 0; k < rows; ++k) iteration[k] = data.history[k].iteration;
-    writeExtendible(group.get(), "iteration", H5T_NATIVE_INT, H5T_STD_I32LE, {rows}, iteration.data());
-    for (std::size_t k = 0; k < rows; ++k) iteration[k] = data.history[k].backtracks;
-    writeExtendible(group.get(), "backtracks", H5T_NATIVE_INT, H5T_STD_I32LE, {rows}, iteration.data());
-    std::vector<double> column(rows);
+    std::vector<int> column(rows);
+    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].iteration;
+    writer.ints(group.get(), "/history", "iteration", column);
+    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].backtracks;
+    writer.ints(group.get(), "/history", "backtracks", column);
+    std::vector<double> values(rows);
     for (const auto& [name, member] : kHistoryColumns) {
-      for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].*member;
-      writeExtendible(group.get(), name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, {rows}, column.data());
+      for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*member;
+      writer.doubles(group.get(), "/history", name, {rows}, values.data());
     }
   }
   {
@@ -76,83 +189,291 @@ void writeContents(hid_t file, const ResultsData& data) {
     for (std::size_t k = 0; k < rows; ++k) {
       std::copy(data.densities[k].data(), data.densities[k].data() + cells, designs.begin() + k * cells);
     }
-    writeExtendible(file, "designs", H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE,
-                    {rows, static_cast<hsize_t>(data.ny), static_cast<hsize_t>(data.nx)}, designs.data());
+    writer.doubles(file, "", "designs", {rows, static_cast<hsize_t>(data.ny), static_cast<hsize_t>(data.nx)},
+                   designs.data());
   }
   {
     const hdf5::Handle group = hdf5::createGroup(file, "state");
-    writeVector(group.get(), "design", data.state.design);
-    writeVector(group.get(), "mma_xold1", data.state.mma.xold1);
-    writeVector(group.get(), "mma_xold2", data.state.mma.xold2);
-    writeVector(group.get(), "mma_low", data.state.mma.low);
-    writeVector(group.get(), "mma_upp", data.state.mma.upp);
-    hdf5::writeAttribute(group.get(), "mma_iteration", data.state.mma.iteration);
+    const auto n = static_cast<hsize_t>(data.state.design.size());
+    writer.doubles(group.get(), "/state", "design", {n}, data.state.design.data());
+    for (const auto& [name, member] : kMmaVectors) {
+      writer.doubles(group.get(), "/state", name, {n}, (data.state.mma.*member).data());
+    }
+    hdf5::writeAttribute(group.get(), "mma_iteration", root.mmaIteration);
   }
   {
     const hdf5::Handle group = hdf5::createGroup(file, "final");
     // Column-major dofCount x modeCount is row-major modeCount x dofCount.
-    hdf5::writeDoubles(
-        group.get(), "modes",
+    writer.doubles(
+        group.get(), "/final", "modes",
         {static_cast<hsize_t>(data.finalModes.cols()), static_cast<hsize_t>(data.finalModes.rows())},
         data.finalModes.data());
-    hdf5::writeDoubles(group.get(), "frequencies_hz", {data.finalFrequenciesHz.size()},
-                       data.finalFrequenciesHz.data());
+    writer.doubles(group.get(), "/final", "frequencies_hz", {data.finalFrequenciesHz.size()},
+                   data.finalFrequenciesHz.data());
+  }
+  hdf5::writeStringAttribute(file, kHashAttribute, rootHash(root, writer.hashes));
+}
+
+// ---- reading and checking ----
+
+std::string describe(double value) {
+  std::ostringstream out;
+  out.precision(17);
+  out << value;
+  return out.str();
+}
+
+// Reads the datasets and records one check per object: Fletcher32 (HDF5 refuses the read), the
+// content hash, then plausibility. The data of a dataset that failed is not used by later checks.
+class Reader {
+ public:
+  explicit Reader(ResultsVerification& verification)
+      : verification_(verification), checksummed_(verification.checksummed) {}
+
+  // Reads `name` below `parent` (whose path is `group`) with the expected shape; false when it
+  // could not be read or its hash does not match.
+  template <typename T>
+  bool read(hid_t parent, const std::string& group, const char* name, hid_t memType,
+            const std::vector<hsize_t>& dims, T* out) {
+    const std::string path = group + "/" + name;
+    ResultsCheck& check = add(path);
+    try {
+      hdf5::read(parent, name, memType, dims, out);
+      if (checksummed_) {
+        const hdf5::Handle dataset = hdf5::openDataset(parent, name);
+        if (!hdf5::hasAttribute(dataset.get(), kHashAttribute)) {
+          check.problem = "its attribute content_hash is missing";
+        } else {
+          const std::string stored = hdf5::readStringAttribute(dataset.get(), kHashAttribute);
+          const std::string recomputed = datasetHash(path, dims, out);
+          if (stored != recomputed) {
+            check.problem = "its values do not match its content hash (stored " + stored + ", recomputed " +
+                            recomputed + ")";
+          }
+          hashes_.emplace_back(path, stored);
+        }
+      }
+    } catch (const hdf5::Error& e) {
+      check.problem = e.what();  // names the dataset and HDF5's reason ("Fletcher32 checksum")
+    }
+    return check.problem.empty();
+  }
+
+  // The shape of a dataset that must exist and have `rank` dimensions.
+  std::vector<hsize_t> shapeOf(hid_t parent, const char* name, std::size_t rank) {
+    const std::vector<hsize_t> dims = hdf5::shape(hdf5::openDataset(parent, name).get());
+    if (dims.size() != rank) {
+      fail("dataset '" + hdf5::objectName(parent, name) + "' has " + std::to_string(dims.size()) +
+           " dimensions, expected " + std::to_string(rank));
+    }
+    return dims;
+  }
+
+  ResultsCheck& add(const std::string& object) {
+    verification_.checks.push_back({object, {}});
+    return verification_.checks.back();
+  }
+  ResultsCheck* find(const std::string& object) {
+    for (ResultsCheck& check : verification_.checks) {
+      if (check.object == object) return &check;
+    }
+    return &add(object);
+  }
+  bool sound(const std::string& object) { return find(object)->problem.empty(); }
+  // Records the first problem of an object.
+  void problem(const std::string& object, const std::string& what) {
+    ResultsCheck* check = find(object);
+    if (check->problem.empty()) check->problem = what;
+  }
+
+  const std::vector<std::pair<std::string, std::string>>& hashes() const { return hashes_; }
+
+ private:
+  ResultsVerification& verification_;
+  bool checksummed_;
+  std::vector<std::pair<std::string, std::string>> hashes_;
+};
+
+// Plausibility of values of one object: finite and within [lower, upper]; the first offending entry
+// is reported.
+void checkRange(Reader& reader, const std::string& object, const double* values, std::size_t count,
+                double lower, double upper, std::size_t skipFrom = static_cast<std::size_t>(-1)) {
+  if (!reader.sound(object)) return;
+  for (std::size_t i = 0; i < count && i < skipFrom; ++i) {
+    if (!std::isfinite(values[i])) {
+      reader.problem(object, "entry " + std::to_string(i) + " is " + describe(values[i]) + ", not finite");
+      return;
+    }
+    if (!(values[i] >= lower && values[i] <= upper)) {
+      reader.problem(object, "entry " + std::to_string(i) + " = " + describe(values[i]) + " is outside [" +
+                                 describe(lower) + ", " + describe(upper) + "]");
+      return;
+    }
   }
 }
 
-// ---- reading ----
-
-Vector readVector(hid_t parent, const char* name, hsize_t size) {
-  Vector v(static_cast<Eigen::Index>(size));
-  hdf5::read(parent, name, H5T_NATIVE_DOUBLE, {size}, v.data());
-  return v;
+void checkRange(Reader& reader, const std::string& object, const Vector& v, double lower, double upper) {
+  checkRange(reader, object, v.data(), static_cast<std::size_t>(v.size()), lower, upper);
 }
 
-// The shape of a dataset that must exist and have `rank` dimensions.
-std::vector<hsize_t> shapeOf(hid_t parent, const char* name, std::size_t rank) {
-  const std::vector<hsize_t> dims = hdf5::shape(hdf5::openDataset(parent, name).get());
-  if (dims.size() != rank) {
-    fail("dataset '" + hdf5::objectName(parent, name) + "' has " + std::to_string(dims.size()) +
-         " dimensions, expected " + std::to_string(rank));
+constexpr double kLargest = std::numeric_limits<double>::max();
+
+// The restored state as the optimizer leaves it (docs/design.md §7, problems/mma.h).
+void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttributes& root) {
+  double lower = 0.0;
+  try {
+    lower = configFromJson(nlohmann::json::parse(data.configurationJson)).rod.designLowerBound;
+  } catch (const std::exception& e) {
+    reader.problem(kRoot, std::string("the attribute configuration cannot be read: ") + e.what());
+    return;
   }
-  return dims;
+  const std::size_t rows = data.history.size();
+  const int updates = data.state.iteration;
+  if (updates != static_cast<int>(rows) - (data.finished ? 1 : 0) || data.state.mma.iteration != updates) {
+    reader.problem(kRoot, "inconsistent counters: " + std::to_string(rows) +
+                              " completed iterations, finished " + std::to_string(root.finished) +
+                              ", updates " + std::to_string(updates) + ", /state mma_iteration " +
+                              std::to_string(data.state.mma.iteration));
+  }
+  if (rows > 0 && !(std::isfinite(data.state.objectiveScale) && data.state.objectiveScale > 0.0)) {
+    reader.problem(
+        kRoot, "objective_scale = " + describe(data.state.objectiveScale) + " is not positive and finite");
+  }
+
+  if (reader.sound("/history/iteration")) {
+    for (std::size_t k = 0; k < rows; ++k) {
+      if (data.history[k].iteration != static_cast<int>(k)) {
+        reader.problem("/history/iteration", "entry " + std::to_string(k) + " = " +
+                                                 std::to_string(data.history[k].iteration) + ", expected " +
+                                                 std::to_string(k));
+        break;
+      }
+    }
+  }
+  if (reader.sound("/history/backtracks")) {
+    for (std::size_t k = 0; k < rows; ++k) {
+      const int b = data.history[k].backtracks;
+      if (b < 0 || b > TopologyOptimizer::maxBacktracks) {
+        reader.problem("/history/backtracks", "entry " + std::to_string(k) + " = " + std::to_string(b) +
+                                                  " is outside [0, " +
+                                                  std::to_string(TopologyOptimizer::maxBacktracks) + "]");
+        break;
+      }
+    }
+  }
+  std::vector<double> column(rows);
+  for (const auto& [name, member] : kHistoryColumns) {
+    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].*member;
+    const std::string object = std::string("/history/") + name;
+    const bool positive = member == &IterationRecord::psi1 || member == &IterationRecord::psi2 ||
+                          member == &IterationRecord::volumeFraction;
+    // The final evaluation made no update: its max_design_change is NaN.
+    const std::size_t skipFrom = member == &IterationRecord::maxDesignChange && data.finished
+                                     ? rows - 1
+                                     : static_cast<std::size_t>(-1);
+    checkRange(reader, object, column.data(), rows, positive ? std::numeric_limits<double>::min() : 0.0,
+               member == &IterationRecord::volumeFraction ? 1.0 : kLargest, skipFrom);
+  }
+  for (std::size_t k = 0; k < data.densities.size(); ++k) {
+    if (!reader.sound("/designs")) break;
+    const Vector& grid = data.densities[k];
+    for (Eigen::Index e = 0; e < grid.size(); ++e) {
+      if (!(std::isfinite(grid(e)) && grid(e) >= lower && grid(e) <= 1.0)) {
+        reader.problem("/designs", "row " + std::to_string(k) + ", element " + std::to_string(e) + " = " +
+                                       describe(grid(e)) + " is not in [" + describe(lower) + ", 1]");
+        break;
+      }
+    }
+  }
+
+  const MmaState& mma = data.state.mma;
+  checkRange(reader, "/state/design", data.state.design, lower, 1.0);
+  // Before the first (second) update MMA's xold1 (xold2) are zeros, not designs.
+  checkRange(reader, "/state/mma_xold1", mma.xold1, mma.iteration >= 1 ? lower : -kLargest,
+             mma.iteration >= 1 ? 1.0 : kLargest);
+  checkRange(reader, "/state/mma_xold2", mma.xold2, mma.iteration >= 2 ? lower : -kLargest,
+             mma.iteration >= 2 ? 1.0 : kLargest);
+  checkRange(reader, "/state/mma_low", mma.low, -kLargest, kLargest);
+  checkRange(reader, "/state/mma_upp", mma.upp, -kLargest, kLargest);
+  // Every update puts its asymptotes strictly around the design it started from (xold1) and the
+  // design it produced (x): MMA's approximations are undefined at an asymptote.
+  if (mma.iteration >= 1 && reader.sound("/state/mma_low") && reader.sound("/state/mma_upp")) {
+    for (const auto& [object, x] :
+         {std::pair<const char*, const Vector*>{"/state/mma_xold1", &mma.xold1},
+          std::pair<const char*, const Vector*>{"/state/design", &data.state.design}}) {
+      if (!reader.sound(object)) continue;
+      for (Eigen::Index j = 0; j < x->size(); ++j) {
+        if (!(mma.low(j) < (*x)(j))) {
+          reader.problem("/state/mma_low", "entry " + std::to_string(j) + " = " + describe(mma.low(j)) +
+                                               " is not below " + object + " = " + describe((*x)(j)));
+          break;
+        }
+        if (!((*x)(j) < mma.upp(j))) {
+          reader.problem("/state/mma_upp", "entry " + std::to_string(j) + " = " + describe(mma.upp(j)) +
+                                               " is not above " + object + " = " + describe((*x)(j)));
+          break;
+        }
+      }
+    }
+  }
+  checkRange(reader, "/final/modes", data.finalModes.data(), static_cast<std::size_t>(data.finalModes.size()),
+             -kLargest, kLargest);
+  checkRange(reader, "/final/frequencies_hz", data.finalFrequenciesHz.data(), data.finalFrequenciesHz.size(),
+             0.0, kLargest);
+  if (data.finished != (data.finalModes.cols() > 0)) {
+    reader.problem("/final/modes", std::to_string(data.finalModes.cols()) + " modes in a " +
+                                       (data.finished ? "finished" : "unfinished") + " run");
+  }
 }
 
-ResultsData readContents(hid_t file) {
+// Reads and checks everything; structural failures (not a results file, missing attributes or
+// datasets, wrong ranks) throw hdf5::Error, everything else is recorded in `verification`.
+ResultsData readContents(hid_t file, ResultsVerification& verification) {
   if (hdf5::readStringAttribute(file, "format") != kFormat) fail("not a hindsight topology results file");
   const int version = hdf5::readIntAttribute(file, "format_version");
-  if (version != kFormatVersion) fail("format_version " + std::to_string(version) + " is not supported");
+  if (version < kOldestReadableVersion || version > kFormatVersion)
+    fail("format_version " + std::to_string(version) + " is not supported");
+  verification.formatVersion = version;
+  verification.checksummed = version >= kFirstChecksummedVersion;
+  Reader reader(verification);
+  reader.add(kRoot);
+
   ResultsData data;
-  data.configurationJson = hdf5::readStringAttribute(file, "configuration");
-  const int rowsSigned = hdf5::readIntAttribute(file, "completed_iterations");
-  data.finished = hdf5::readIntAttribute(file, "finished") != 0;
-  data.nx = hdf5::readIntAttribute(file, "nx");
-  data.ny = hdf5::readIntAttribute(file, "ny");
-  data.state.iteration = hdf5::readIntAttribute(file, "updates");
-  data.state.objectiveScale = hdf5::readDoubleAttribute(file, "objective_scale");
-  if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0)
+  RootAttributes root;
+  data.configurationJson = root.configuration = hdf5::readStringAttribute(file, "configuration");
+  const int rowsSigned = root.completedIterations = hdf5::readIntAttribute(file, "completed_iterations");
+  root.finished = hdf5::readIntAttribute(file, "finished");
+  data.finished = root.finished != 0;
+  data.nx = root.nx = hdf5::readIntAttribute(file, "nx");
+  data.ny = root.ny = hdf5::readIntAttribute(file, "ny");
+  data.state.iteration = root.updates = hdf5::readIntAttribute(file, "updates");
+  data.state.objectiveScale = root.objectiveScale = hdf5::readDoubleAttribute(file, "objective_scale");
+  if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0 ||
+      (root.finished != 0 && root.finished != 1))
     fail("inconsistent attributes");
+  verification.completedIterations = rowsSigned;
+  verification.finished = data.finished;
   const auto rows = static_cast<hsize_t>(rowsSigned);
 
   {
     const hdf5::Handle group = hdf5::openGroup(file, "history");
-    std::vector<int> iteration(rows);
-    hdf5::read(group.get(), "iteration", H5T_NATIVE_INT, {rows}, iteration.data());
+    std::vector<int> column(rows);
     data.history.resize(rows);
-    for (hsize_t k = 0; k < rows; ++k) data.history[k].iteration = iteration[k];
-    hdf5::read(group.get(), "backtracks", H5T_NATIVE_INT, {rows}, iteration.data());
-    for (hsize_t k = 0; k < rows; ++k) data.history[k].backtracks = iteration[k];
-    std::vector<double> column(rows);
+    reader.read(group.get(), "/history", "iteration", H5T_NATIVE_INT, {rows}, column.data());
+    for (hsize_t k = 0; k < rows; ++k) data.history[k].iteration = column[k];
+    reader.read(group.get(), "/history", "backtracks", H5T_NATIVE_INT, {rows}, column.data());
+    for (hsize_t k = 0; k < rows; ++k) data.history[k].backtracks = column[k];
+    std::vector<double> values(rows);
     for (const auto& [name, member] : kHistoryColumns) {
-      hdf5::read(group.get(), name, H5T_NATIVE_DOUBLE, {rows}, column.data());
-      for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = column[k];
+      reader.read(group.get(), "/history", name, H5T_NATIVE_DOUBLE, {rows}, values.data());
+      for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = values[k];
     }
   }
   {
     const auto nx = static_cast<hsize_t>(data.nx);
     const auto ny = static_cast<hsize_t>(data.ny);
     std::vector<double> designs(rows * nx * ny);
-    hdf5::read(file, "designs", H5T_NATIVE_DOUBLE, {rows, ny, nx}, designs.data());
+    reader.read(file, "", "designs", H5T_NATIVE_DOUBLE, {rows, ny, nx}, designs.data());
     for (hsize_t k = 0; k < rows; ++k) {
       data.densities.push_back(
           Eigen::Map<const Vector>(designs.data() + k * nx * ny, static_cast<Eigen::Index>(nx * ny)));
@@ -160,24 +481,45 @@ ResultsData readContents(hid_t file) {
   }
   {
     const hdf5::Handle group = hdf5::openGroup(file, "state");
-    const hsize_t size = shapeOf(group.get(), "design", 1)[0];
-    if (size < 1) fail("dataset 'state/design' is empty");
-    data.state.design = readVector(group.get(), "design", size);
-    data.state.mma.xold1 = readVector(group.get(), "mma_xold1", size);
-    data.state.mma.xold2 = readVector(group.get(), "mma_xold2", size);
-    data.state.mma.low = readVector(group.get(), "mma_low", size);
-    data.state.mma.upp = readVector(group.get(), "mma_upp", size);
-    data.state.mma.iteration = hdf5::readIntAttribute(group.get(), "mma_iteration");
+    const hsize_t size = reader.shapeOf(group.get(), "design", 1)[0];
+    if (size < 1) fail("dataset '/state/design' is empty");
+    data.state.design.setZero(static_cast<Eigen::Index>(size));
+    reader.read(group.get(), "/state", "design", H5T_NATIVE_DOUBLE, {size}, data.state.design.data());
+    for (const auto& [name, member] : kMmaVectors) {
+      Vector& v = data.state.mma.*member;
+      v.setZero(static_cast<Eigen::Index>(size));
+      reader.read(group.get(), "/state", name, H5T_NATIVE_DOUBLE, {size}, v.data());
+    }
+    data.state.mma.iteration = root.mmaIteration = hdf5::readIntAttribute(group.get(), "mma_iteration");
   }
   {
     const hdf5::Handle group = hdf5::openGroup(file, "final");
-    const std::vector<hsize_t> dims = shapeOf(group.get(), "modes", 2);
+    const std::vector<hsize_t> dims = reader.shapeOf(group.get(), "modes", 2);
     const hsize_t modeCount = dims[0];
-    data.finalModes.resize(static_cast<Eigen::Index>(dims[1]), static_cast<Eigen::Index>(modeCount));
-    hdf5::read(group.get(), "modes", H5T_NATIVE_DOUBLE, dims, data.finalModes.data());
-    data.finalFrequenciesHz.resize(modeCount);
-    hdf5::read(group.get(), "frequencies_hz", H5T_NATIVE_DOUBLE, {modeCount}, data.finalFrequenciesHz.data());
+    data.finalModes.setZero(static_cast<Eigen::Index>(dims[1]), static_cast<Eigen::Index>(modeCount));
+    reader.read(group.get(), "/final", "modes", H5T_NATIVE_DOUBLE, dims, data.finalModes.data());
+    data.finalFrequenciesHz.assign(modeCount, 0.0);
+    reader.read(group.get(), "/final", "frequencies_hz", H5T_NATIVE_DOUBLE, {modeCount},
+                data.finalFrequenciesHz.data());
   }
+  if (verification.checksummed) {
+    // Over the stored dataset hashes: a mismatch here means the root attributes changed (a changed
+    // dataset is already reported under its own name).
+    if (!hdf5::hasAttribute(file, kHashAttribute)) {
+      reader.problem(kRoot, "its attribute content_hash is missing");
+    } else if (reader.hashes().size() == verification.checks.size() - 1) {
+      const std::string stored = hdf5::readStringAttribute(file, kHashAttribute);
+      const std::string recomputed = rootHash(root, reader.hashes());
+      if (stored != recomputed) {
+        reader.problem(kRoot,
+                       "the attributes (configuration, counters, mma_iteration) do not match the run "
+                       "state's content hash (stored " +
+                           stored + ", recomputed " + recomputed + ")");
+      }
+    }
+  }
+  checkPlausibility(reader, data, root);
+  data.checksummed = verification.checksummed;
   return data;
 }
 
@@ -186,7 +528,18 @@ ResultsData readContents(hid_t file) {
   throw StorageError("results file: " + std::string(e.what()), path);
 }
 
+std::string corruptedObject(const std::string& object) {
+  return object == kRoot ? "the attributes of '/' are corrupted" : "dataset '" + object + "' is corrupted";
+}
+
 }  // namespace
+
+const ResultsCheck* ResultsVerification::firstProblem() const {
+  for (const ResultsCheck& check : checks) {
+    if (!check.problem.empty()) return &check;
+  }
+  return nullptr;
+}
 
 void writeResultsFile(const std::string& path, const ResultsData& data) {
   const std::size_t cells = static_cast<std::size_t>(data.nx) * static_cast<std::size_t>(data.ny);
@@ -209,37 +562,56 @@ void writeResultsFile(const std::string& path, const ResultsData& data) {
   }
 
   const hdf5::ErrorSilencer quiet;
-  writeFileAtomically(path, [&](const std::string& temporary) {
-    try {
-      hdf5::Handle file = hdf5::createFile(temporary, H5F_ACC_TRUNC, "the results file");
-      writeContents(file.get(), data);
-      hdf5::closeFile(file);
-    } catch (const hdf5::Error& e) {
-      rethrow(e, path);
-    }
+  // Built in memory and written by the atomic stream write: HDF5 never writes to the disk itself
+  // (see hdf5::createMemoryFile), so a full disk is an ordinary failed write.
+  std::vector<unsigned char> image;
+  try {
+    hdf5::Handle file = hdf5::createMemoryFile(path);
+    writeContents(file.get(), data);
+    image = hdf5::fileImage(file.get());
+    hdf5::closeFile(file);
+  } catch (const hdf5::Error& e) {
+    rethrow(e, path);
+  }
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
+    if (std::fwrite(image.data(), 1, image.size(), file) != image.size())
+      return std::string("cannot write the results file: ") + std::strerror(errno);
+    return {};
   });
+}
+
+ResultsVerification verifyResultsFile(const std::string& path) {
+  const hdf5::ErrorSilencer quiet;
+  ResultsVerification verification;
+  try {
+    const hdf5::Handle file = hdf5::openFileReadOnly(path, "the results file");
+    readContents(file.get(), verification);
+  } catch (const hdf5::Error& e) {
+    rethrow(e, path);
+  }
+  return verification;
 }
 
 ResultsData readResultsFile(const std::string& path) {
   const hdf5::ErrorSilencer quiet;
+  ResultsVerification verification;
+  ResultsData data;
   try {
     const hdf5::Handle file = hdf5::openFileReadOnly(path, "the results file");
-    return readContents(file.get());
+    data = readContents(file.get(), verification);
   } catch (const hdf5::Error& e) {
     rethrow(e, path);
   }
+  if (const ResultsCheck* bad = verification.firstProblem()) {
+    throw StorageError("results file: " + corruptedObject(bad->object) + ": " + bad->problem +
+                           "; refusing to use it (`hindsight verify` lists every dataset)",
+                       path);
+  }
+  return data;
 }
 
 std::string readResultsConfiguration(const std::string& path) {
-  const hdf5::ErrorSilencer quiet;
-  try {
-    const hdf5::Handle file = hdf5::openFileReadOnly(path, "the results file");
-    if (hdf5::readStringAttribute(file.get(), "format") != kFormat)
-      fail("not a hindsight topology results file");
-    return hdf5::readStringAttribute(file.get(), "configuration");
-  } catch (const hdf5::Error& e) {
-    rethrow(e, path);
-  }
+  return readResultsFile(path).configurationJson;
 }
 
 }  // namespace hindsight

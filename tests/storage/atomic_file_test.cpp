@@ -156,5 +156,24 @@ TEST_F(AtomicFile, RemoveStaleTemporariesKeepsThoseOfRunningProcesses) {
   removeStaleTemporaries(dir.path() + "/no_such_directory/out.txt");  // never throws
 }
 
+TEST_F(AtomicFile, RemoveStaleTemporariesInClearsEveryTargetsOfDeadProcessesOnly) {
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) std::_Exit(0);
+  ASSERT_EQ(::waitpid(child, nullptr, 0), child);
+  const std::string deadPid = std::to_string(child);
+  const std::string alive = "design_final.png.tmp-" + std::to_string(::getpid()) + "-0";
+  // Not temporaries of the atomic write: no PID-N after ".tmp-".
+  const std::string notes = "notes.tmp-" + deadPid;
+  const std::string words = "draft.tmp-x-1";
+  for (const std::string& name : {std::string("results.h5"), "results.h5.tmp-" + deadPid + "-2",
+                                  "design_final.vtk.tmp-" + deadPid + "-0",
+                                  "design_iter_3.png.tmp-" + deadPid + "-7", alive, notes, words})
+    std::ofstream(dir.path() + "/" + name) << "x";
+  removeStaleTemporariesIn(dir.path());
+  EXPECT_EQ(listing(dir.path()), (std::set<std::string>{"results.h5", alive, notes, words}));
+  removeStaleTemporariesIn(dir.path() + "/no_such_directory");  // never throws
+}
+
 }  // namespace
 }  // namespace hindsight

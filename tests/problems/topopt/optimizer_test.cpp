@@ -9,6 +9,7 @@
 #include <hdf5.h>
 
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
@@ -100,6 +102,101 @@ OptimizationRunSummary runQuietly(const Config& config, OptimizationRunOptions o
   std::ostringstream progress;
   OptimizationRun run(config, options);
   return run.run(progress);
+}
+
+// ---- corrupting a results file the way a disk, a tool or a person would ----
+
+// The datasets of a results file; each carries Fletcher32 and a content hash.
+const char* const kResultsDatasets[] = {"history/iteration",
+                                        "history/backtracks",
+                                        "history/psi1",
+                                        "history/psi2",
+                                        "history/volume_fraction",
+                                        "history/max_design_change",
+                                        "history/evaluation_seconds",
+                                        "history/mma_seconds",
+                                        "history/total_seconds",
+                                        "designs",
+                                        "state/design",
+                                        "state/mma_xold1",
+                                        "state/mma_xold2",
+                                        "state/mma_low",
+                                        "state/mma_upp",
+                                        "final/modes",
+                                        "final/frequencies_hz"};
+
+std::vector<double> readDoublesWithPlainHdf5(const std::string& path, const std::string& name) {
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  const hid_t space = H5Dget_space(dataset);
+  std::vector<double> values(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  EXPECT_GE(H5Dread(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  H5Sclose(space);
+  H5Dclose(dataset);
+  H5Fclose(file);
+  return values;
+}
+
+// Sets entry `index` of a dataset through HDF5, as h5py or the C API would: HDF5 recomputes its
+// Fletcher32 checksums, so only the content hash can notice. Returns the old value.
+double setValueWithPlainHdf5(const std::string& path, const std::string& name, std::size_t index,
+                             double value) {
+  std::vector<double> values = readDoublesWithPlainHdf5(path, name);
+  const double old = values.at(index);
+  values[index] = value;
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(H5Dwrite(dataset, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  H5Dclose(dataset);
+  EXPECT_GE(H5Fclose(file), 0);
+  return old;
+}
+
+// The byte offset in the file of the chunk of `name` that holds the element at `coordinates`.
+std::uint64_t chunkOffset(const std::string& path, const std::string& name,
+                          const std::vector<hsize_t>& coordinates) {
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  unsigned filterMask = 0;
+  haddr_t address = HADDR_UNDEF;
+  hsize_t size = 0;
+  EXPECT_GE(H5Dget_chunk_info_by_coord(dataset, coordinates.data(), &filterMask, &address, &size), 0);
+  H5Dclose(dataset);
+  H5Fclose(file);
+  EXPECT_NE(address, HADDR_UNDEF);
+  return static_cast<std::uint64_t>(address);
+}
+
+// Changes bytes of the file itself, below HDF5: what bit rot or a raw overwrite does.
+void overwriteFileBytes(const std::string& path, std::uint64_t offset, const void* bytes, std::size_t count) {
+  std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
+  file.seekp(static_cast<std::streamoff>(offset));
+  file.write(static_cast<const char*>(bytes), static_cast<std::streamsize>(count));
+  ASSERT_TRUE(static_cast<bool>(file)) << path;
+}
+
+// Turns a results file into one as written before checksums (format_version 1, no content_hash
+// attributes); the chunked layout and its filters stay, which format 1 readers never looked at.
+void stripChecksums(const std::string& path) {
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  EXPECT_GE(H5Adelete(file, "content_hash"), 0);
+  for (const char* name : kResultsDatasets)
+    EXPECT_GE(H5Adelete_by_name(file, name, "content_hash", H5P_DEFAULT), 0);
+  const hid_t attribute = H5Aopen(file, "format_version", H5P_DEFAULT);
+  const int version = 1;
+  EXPECT_GE(H5Awrite(attribute, H5T_NATIVE_INT, &version), 0);
+  H5Aclose(attribute);
+  EXPECT_GE(H5Fclose(file), 0);
+}
+
+// The message of the StorageError that reading `path` throws; empty when it reads.
+std::string readError(const std::string& path) {
+  try {
+    readResultsFile(path);
+  } catch (const StorageError& e) {
+    return e.what();
+  }
+  return {};
 }
 
 // The uninterrupted reference run of a configuration, computed once per configuration.
@@ -435,6 +532,225 @@ TEST(OptimizationRun, BadInputIsRefusedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(dir + "/out/results.h5"));
 }
 
+// ---- integrity of the results file ----
+
+// An interrupted run (3 of 7 evaluations committed) in `name`; returns the results file.
+std::string interruptedRun(const std::string& name) {
+  const std::string dir = freshDirectory(name);
+  EXPECT_FALSE(runInChild(coarseConfig("psi1", 6), dir, 2));
+  return dir + "/results.h5";
+}
+
+TEST(ResultsFile, EveryDatasetIsChecksummedAndASoundFileVerifies) {
+  const std::string path = interruptedRun("sound");
+  const ResultsVerification verification = verifyResultsFile(path);
+  EXPECT_EQ(verification.formatVersion, 2);
+  EXPECT_TRUE(verification.checksummed);
+  EXPECT_EQ(verification.completedIterations, 3);
+  EXPECT_EQ(verification.firstProblem(), nullptr);
+  ASSERT_EQ(verification.checks.size(), std::size(kResultsDatasets) + 1);  // and the root
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GT(H5Aexists(file, "content_hash"), 0);
+  for (const char* name : kResultsDatasets) {
+    SCOPED_TRACE(name);
+    const hid_t dataset = H5Dopen2(file, name, H5P_DEFAULT);
+    const hid_t creation = H5Dget_create_plist(dataset);
+    EXPECT_EQ(H5Pget_layout(creation), H5D_CHUNKED);
+    EXPECT_GE(
+        H5Pget_filter_by_id2(creation, H5Z_FILTER_FLETCHER32, nullptr, nullptr, nullptr, 0, nullptr, nullptr),
+        0);
+    EXPECT_GT(H5Aexists(dataset, "content_hash"), 0);
+    H5Pclose(creation);
+    H5Dclose(dataset);
+  }
+  H5Fclose(file);
+  EXPECT_TRUE(readResultsFile(path).checksummed);
+}
+
+// The finding: a NaN written into state/mma_low of an interrupted run was carried on unnoticed.
+// Rewritten through HDF5 (Fletcher32 recomputed), the content hash names it.
+TEST(ResultsFile, ANanWrittenThroughHdf5IntoMmaLowIsNamed) {
+  const std::string path = interruptedRun("nan_hdf5");
+  setValueWithPlainHdf5(path, "state/mma_low", 5, std::numeric_limits<double>::quiet_NaN());
+  const std::string error = readError(path);
+  EXPECT_NE(error.find("'/state/mma_low' is corrupted"), std::string::npos) << error;
+  EXPECT_NE(error.find("content hash"), std::string::npos) << error;
+  EXPECT_THROW(readResultsConfiguration(path), StorageError);  // a resume without --config too
+}
+
+// Below HDF5 (the raw bytes of the chunk): Fletcher32 refuses the read.
+TEST(ResultsFile, ANanWrittenIntoTheRawBytesOfMmaLowIsNamed) {
+  const std::string path = interruptedRun("nan_raw");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  overwriteFileBytes(path, chunkOffset(path, "state/mma_low", {0}) + 5 * sizeof(double), &nan, sizeof nan);
+  const std::string error = readError(path);
+  EXPECT_NE(error.find("'/state/mma_low' is corrupted"), std::string::npos) << error;
+  EXPECT_NE(error.find("Fletcher32"), std::string::npos) << error;
+}
+
+TEST(ResultsFile, FlippedBitsInADesignRowAreNamed) {
+  const std::string path = interruptedRun("flip");
+  // Row 1, element 30: one bit of the mantissa, one of the exponent.
+  const std::uint64_t offset = chunkOffset(path, "designs", {1, 0, 0}) + 30 * sizeof(double);
+  unsigned char bytes[8];
+  std::ifstream(path, std::ios::binary)
+      .seekg(static_cast<std::streamoff>(offset))
+      .read(reinterpret_cast<char*>(bytes), 8);
+  bytes[0] ^= 0x01;
+  bytes[6] ^= 0x10;
+  overwriteFileBytes(path, offset, bytes, sizeof bytes);
+  const ResultsVerification verification = verifyResultsFile(path);
+  const ResultsCheck* bad = verification.firstProblem();
+  ASSERT_NE(bad, nullptr);
+  EXPECT_EQ(bad->object, "/designs");
+  // Only that dataset: the others are still reported sound.
+  int problems = 0;
+  for (const ResultsCheck& check : verification.checks) problems += check.problem.empty() ? 0 : 1;
+  EXPECT_EQ(problems, 1);
+  EXPECT_NE(readError(path).find("'/designs' is corrupted"), std::string::npos);
+}
+
+// A plausible change (a density 0.5 -> 0.7, in bounds) rewritten through HDF5: neither Fletcher32
+// nor the bounds can see it; the content hash does.
+TEST(ResultsFile, APlausibleRewriteOfADesignRowIsCaughtByTheContentHash) {
+  const std::string path = interruptedRun("plausible");
+  // Row 1, element 30 (20 x 4 elements per row).
+  if (setValueWithPlainHdf5(path, "designs", 80 + 30, 0.7) == 0.7)
+    setValueWithPlainHdf5(path, "designs", 110, 0.6);
+  const std::string error = readError(path);
+  EXPECT_NE(error.find("'/designs' is corrupted"), std::string::npos) << error;
+  EXPECT_NE(error.find("content hash"), std::string::npos) << error;
+}
+
+TEST(ResultsFile, AChangedAttributeIsCaughtByTheRunStatesHash) {
+  const std::string path = interruptedRun("attribute");
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  const hid_t attribute = H5Aopen(file, "objective_scale", H5P_DEFAULT);
+  double scale = 0.0;
+  H5Aread(attribute, H5T_NATIVE_DOUBLE, &scale);
+  scale *= 1.01;
+  H5Awrite(attribute, H5T_NATIVE_DOUBLE, &scale);
+  H5Aclose(attribute);
+  H5Fclose(file);
+  const std::string error = readError(path);
+  EXPECT_NE(error.find("the attributes of '/' are corrupted"), std::string::npos) << error;
+}
+
+// Values that pass every checksum (written by writeResultsFile itself) but that no run leaves
+// behind are refused too, naming the dataset.
+TEST(ResultsFile, ImplausibleStateIsRefusedEvenWithMatchingChecksums) {
+  const ResultsData& reference = referenceResults(coarseConfig("psi1", 6), "psi1_6");
+  const std::string path = freshDirectory("implausible") + ".h5";
+  const auto expectRefused = [&](const ResultsData& data, const std::string& object,
+                                 const std::string& what) {
+    writeResultsFile(path, data);
+    const std::string error = readError(path);
+    EXPECT_NE(error.find(object == "/" ? "'/' are corrupted" : "'" + object + "' is corrupted"),
+              std::string::npos)
+        << error;
+    EXPECT_NE(error.find(what), std::string::npos) << error;
+  };
+  ResultsData data = reference;
+  data.state.mma.low(3) = std::numeric_limits<double>::quiet_NaN();
+  expectRefused(data, "/state/mma_low", "not finite");
+  data = reference;
+  data.state.mma.low(3) = data.state.mma.xold1(3);  // MMA needs low < x
+  expectRefused(data, "/state/mma_low", "is not below /state/mma_xold1");
+  data = reference;
+  data.state.mma.upp(7) = data.state.design(7);
+  expectRefused(data, "/state/mma_upp", "is not above /state/");
+  data = reference;
+  data.state.design(2) = 1.5;
+  expectRefused(data, "/state/design", "outside");
+  data = reference;
+  data.densities[2](11) = 1e-9;  // below rod.designLowerBound
+  expectRefused(data, "/designs", "row 2, element 11");
+  data = reference;
+  data.history[3].psi1 = -1.0;
+  expectRefused(data, "/history/psi1", "entry 3");
+  data = reference;
+  data.state.mma.iteration = 4;
+  expectRefused(data, "/", "inconsistent counters");
+  writeResultsFile(path, reference);
+  EXPECT_EQ(readError(path), "");
+}
+
+// Format 1 files (no checksums) are resumed after the plausibility checks, with a warning, and the
+// resumed run still equals the uninterrupted one; the rewritten file has checksums.
+TEST(OptimizationRun, AFileWithoutChecksumsIsResumedWithAWarning) {
+  const std::string path = interruptedRun("format1");
+  stripChecksums(path);
+  const ResultsVerification verification = verifyResultsFile(path);
+  EXPECT_EQ(verification.formatVersion, 1);
+  EXPECT_FALSE(verification.checksummed);
+  EXPECT_EQ(verification.firstProblem(), nullptr);
+  OptimizationRunOptions options;
+  options.outputDirectory = fs::path(path).parent_path().string();
+  options.resume = true;
+  std::ostringstream progress;
+  OptimizationRun(coarseConfig("psi1", 6), options).run(progress);
+  EXPECT_NE(progress.str().find("warning: " + path + " has no checksums"), std::string::npos)
+      << progress.str();
+  const ResultsData resumed = readResultsFile(path);
+  EXPECT_TRUE(resumed.checksummed);
+  expectSameResults(resumed, referenceResults(coarseConfig("psi1", 6), "psi1_6"));
+}
+
+TEST(OptimizationRun, AFileWithoutChecksumsIsStillCheckedForPlausibility) {
+  const std::string path = interruptedRun("format1_nan");
+  stripChecksums(path);
+  setValueWithPlainHdf5(path, "state/mma_low", 5, std::numeric_limits<double>::quiet_NaN());
+  OptimizationRunOptions options;
+  options.outputDirectory = fs::path(path).parent_path().string();
+  options.resume = true;
+  try {
+    OptimizationRun run(coarseConfig("psi1", 6), options);
+    FAIL() << "a NaN in the stored MMA state was resumed";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("'/state/mma_low' is corrupted: entry 5 is nan"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(OptimizationRun, ASecondRunIntoTheSameDirectoryIsRefusedAtOnce) {
+  const std::string dir = freshDirectory("locked");
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  {
+    OptimizationRun first(coarseConfig("psi1", 1), options);
+    try {
+      OptimizationRun second(coarseConfig("psi1", 1), options);
+      FAIL() << "a second run into a locked directory was accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("'" + dir + "' is in use"), std::string::npos) << message;
+      EXPECT_NE(message.find("pid " + std::to_string(::getpid())), std::string::npos) << message;
+    }
+  }
+  // Released with the run: the next one proceeds.
+  EXPECT_EQ(runQuietly(coarseConfig("psi1", 1), options).history.size(), 2u);
+}
+
+TEST(OptimizationRun, StaleTemporariesOfResultsAndPicturesAreRemovedOnStart) {
+  const std::string path = interruptedRun("stale");
+  const std::string dir = fs::path(path).parent_path().string();
+  const pid_t child = ::fork();  // a pid that no process has any more
+  ASSERT_GE(child, 0);
+  if (child == 0) std::_Exit(0);
+  ASSERT_EQ(::waitpid(child, nullptr, 0), child);
+  const std::string dead = std::to_string(child);
+  const std::vector<std::string> stale = {
+      "design_final.vtk.tmp-" + dead + "-0", "design_final.png.tmp-" + dead + "-1",
+      "design_iter_2.png.tmp-" + dead + "-0", "results.h5.tmp-" + dead + "-4"};
+  for (const std::string& name : stale) std::ofstream(dir + "/" + name) << "half a file";
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  options.resume = true;
+  const OptimizationRun run(coarseConfig("psi1", 6), options);
+  for (const std::string& name : stale) EXPECT_FALSE(fs::exists(dir + "/" + name)) << name;
+  EXPECT_TRUE(fs::exists(path));
+}
+
 #ifdef HINDSIGHT_CLI_PATH
 // The CLI: exit code 2 and a message naming the problem, before any work.
 struct CliResult {
@@ -478,13 +794,14 @@ TEST(OptimizeCommand, BadInputExitsWithCodeTwoAndNamesTheProblem) {
   EXPECT_FALSE(fs::exists(dir + "/o1/results.h5"));
 }
 
+// coarseConfig() as command-line flags.
+const std::string kCoarseFlags =
+    "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 "
+    "--set rod.rampTime=0.5 --set rod.endTime=0.5 --set simulation.step=2e-4 --move-limit 0.1";
+
 TEST(OptimizeCommand, RunsResumesAndRefusesToOverwrite) {
   const std::string dir = freshDirectory("cli_run");
-  const std::string coarse =
-      "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 "
-      "--set rod.rampTime=0.5 --set rod.endTime=0.5 --set simulation.step=2e-4 --move-limit 0.1 "
-      "--picture-every 1 --out " +
-      dir;
+  const std::string coarse = kCoarseFlags + " --picture-every 1 --out " + dir;
   CliResult result = runCli("optimize " + coarse + " --iterations 2");
   ASSERT_EQ(result.exitCode, 0) << result.output;
   EXPECT_NE(result.output.find("iter   0  psi1 "), std::string::npos) << result.output;
@@ -517,6 +834,142 @@ TEST(OptimizeCommand, RunsResumesAndRefusesToOverwrite) {
   result = runCli("plot " + dir + "/missing --out " + dir + "/history2.png");
   EXPECT_EQ(result.exitCode, 2) << result.output;
   EXPECT_FALSE(fs::exists(dir + "/history2.png"));
+}
+
+// The finding, as the user met it: one NaN in state/mma_low of an interrupted run, then --resume.
+// Before checksums this exited 0 with a different psi1; now it exits 3 naming the dataset, and
+// nothing runs or is written.
+TEST(OptimizeCommand, ResumeOfACorruptedFileExitsThreeNamingTheDataset) {
+  for (const bool raw : {false, true}) {
+    SCOPED_TRACE(raw ? "raw bytes" : "through HDF5");
+    const std::string path = interruptedRun(raw ? "cli_nan_raw" : "cli_nan");
+    const std::string dir = fs::path(path).parent_path().string();
+    if (raw) {
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      overwriteFileBytes(path, chunkOffset(path, "state/mma_low", {0}), &nan, sizeof nan);
+    } else {
+      setValueWithPlainHdf5(path, "state/mma_low", 0, std::numeric_limits<double>::quiet_NaN());
+    }
+    const auto before = fs::last_write_time(path);
+    for (const std::string& configuration : {std::string(), kCoarseFlags + " --iterations 6"}) {
+      const CliResult result = runCli("optimize --resume " + configuration + " --out " + dir);
+      EXPECT_EQ(result.exitCode, 3) << result.output;
+      EXPECT_NE(result.output.find("'/state/mma_low' is corrupted"), std::string::npos) << result.output;
+      EXPECT_EQ(result.output.find("iter "), std::string::npos) << "the corrupted run was continued";
+    }
+    EXPECT_EQ(fs::last_write_time(path), before);
+  }
+}
+
+TEST(VerifyCommand, ListsEveryDatasetAndNamesTheCorruptedOne) {
+  const std::string path = interruptedRun("cli_verify");
+  const std::string dir = fs::path(path).parent_path().string();
+  CliResult result = runCli("verify " + dir);
+  EXPECT_EQ(result.exitCode, 0) << result.output;
+  for (const char* name : kResultsDatasets) {
+    EXPECT_NE(result.output.find("/" + std::string(name) + " "), std::string::npos) << name << "\n"
+                                                                                    << result.output;
+  }
+  std::size_t oks = 0;
+  for (std::size_t at = result.output.find(" OK\n"); at != std::string::npos;
+       at = result.output.find(" OK\n", at + 1))
+    ++oks;
+  EXPECT_EQ(oks, std::size(kResultsDatasets) + 1) << result.output;  // the datasets and the root
+  EXPECT_NE(result.output.find("sound"), std::string::npos) << result.output;
+
+  setValueWithPlainHdf5(path, "designs", 80 + 5, 0.123);
+  result = runCli("verify " + dir);
+  EXPECT_EQ(result.exitCode, 3) << result.output;
+  EXPECT_NE(result.output.find("/designs "), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("CORRUPTED: its values do not match its content hash"), std::string::npos)
+      << result.output;
+  EXPECT_NE(result.output.find("/state/mma_low "), std::string::npos) << result.output;  // still listed
+
+  stripChecksums(path);  // format 1: plausible, but cannot be verified
+  setValueWithPlainHdf5(path, "designs", 80 + 5, 0.5);
+  result = runCli("verify " + dir);
+  EXPECT_EQ(result.exitCode, 0) << result.output;
+  EXPECT_NE(result.output.find("could not be verified"), std::string::npos) << result.output;
+
+  result = runCli("verify " + dir + "/missing");
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  EXPECT_NE(result.output.find("missing"), std::string::npos) << result.output;
+  result = runCli("verify " + fs::path(dir).parent_path().string());  // a directory without results.h5
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  std::ofstream(dir + "/results.h5", std::ios::trunc) << "not hdf5";
+  result = runCli("verify " + dir);
+  EXPECT_EQ(result.exitCode, 3) << result.output;
+}
+
+TEST(OptimizeCommand, ASecondRunIntoALockedDirectoryExitsTwoNamingTheHolder) {
+  const std::string dir = freshDirectory("cli_locked");
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  const OptimizationRun holder(coarseConfig("psi1", 1), options);  // this process holds DIR/.lock
+  const CliResult result = runCli("optimize " + kCoarseFlags + " --iterations 1 --out " + dir);
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  EXPECT_NE(result.output.find("'" + dir + "' is in use"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("pid " + std::to_string(::getpid())), std::string::npos) << result.output;
+  EXPECT_EQ(result.output.find("iter "), std::string::npos) << result.output;
+}
+
+// A full disk, simulated by a file-size limit (RLIMIT_FSIZE: write(2) fails with EFBIG as it would
+// with ENOSPC) that the results file of some iteration exceeds: exit 3 naming the file, the file of
+// the iteration before stays complete, no temporary is left, and a resume finishes the run as if
+// nothing had happened.
+TEST(OptimizeCommand, AFullDiskExitsThreeAndKeepsTheLastCompleteResults) {
+  const ResultsData& reference = referenceResults(coarseConfig("psi1", 6), "psi1_6");
+  const std::string dir = freshDirectory("cli_full");
+  fs::create_directories(dir);
+  // The size of the file after k iterations (same structure, same size; HDF5 allocates in blocks,
+  // so it grows in steps): the limit goes into the first step after the first iteration.
+  std::vector<std::uintmax_t> sizes(1, 0);
+  for (std::size_t rows = 1; rows <= 6; ++rows) {
+    ResultsData partial = reference;
+    partial.history.resize(rows);
+    partial.densities.resize(rows);
+    partial.finished = false;
+    partial.finalModes.resize(partial.finalModes.rows(), 0);
+    partial.finalFrequenciesHz.clear();
+    const std::string probe = dir + "/probe.h5";
+    writeResultsFile(probe, partial);
+    sizes.push_back(fs::file_size(probe));
+    fs::remove(probe);
+  }
+  int failing = 2;
+  while (failing <= 6 && sizes[failing] == sizes[failing - 1]) ++failing;
+  ASSERT_LE(failing, 6) << "the results file does not grow over 6 iterations";
+  const rlim_t limit = (sizes[failing - 1] + sizes[failing]) / 2;
+  const std::string log = dir + ".log";
+  std::cout.flush();
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const rlimit fileSize{limit, limit};
+    setrlimit(RLIMIT_FSIZE, &fileSize);
+    signal(SIGXFSZ, SIG_IGN);  // a failed write, not a killed process
+    if (!std::freopen(log.c_str(), "w", stdout) || dup2(fileno(stdout), 2) < 0) std::_Exit(100);
+    const std::string command =
+        std::string(HINDSIGHT_CLI_PATH) + " optimize " + kCoarseFlags + " --iterations 6 --out " + dir;
+    execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    std::_Exit(101);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  std::ifstream logFile(log);
+  const std::string output((std::istreambuf_iterator<char>(logFile)), std::istreambuf_iterator<char>());
+  ASSERT_TRUE(WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 3) << output;
+  EXPECT_NE(output.find("storage failure"), std::string::npos) << output;
+  EXPECT_NE(output.find(dir + "/results.h5"), std::string::npos) << output;
+  EXPECT_EQ(completedIterationsWithPlainHdf5(dir + "/results.h5", 20, 4), failing - 1);
+  EXPECT_FALSE(hasTemporaries(dir + "/results.h5"));
+  EXPECT_EQ(runCli("verify " + dir).exitCode, 0);
+  const CliResult resumed = runCli("optimize --resume --out " + dir);
+  ASSERT_EQ(resumed.exitCode, 0) << resumed.output;
+  ResultsData finished = readResultsFile(dir + "/results.h5");
+  finished.configurationJson = reference.configurationJson;
+  expectSameResults(finished, reference);
 }
 #endif
 
