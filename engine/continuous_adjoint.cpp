@@ -196,6 +196,26 @@ class AdjointSystem {
   double linearizedAt_ = 0.0;
 };
 
+/// The backward error test's per-component rtol and atol over y = (lambda, mu), from the options.
+struct BackwardTolerances {
+  BackwardTolerances(const ContinuousAdjointOptions& options, int n, int np)
+      : relative(n + np), absolute(n + np) {
+    relative.head(n).setConstant(options.relativeTolerance);
+    if (options.absoluteTolerances.empty()) {
+      absolute.head(n).setConstant(options.absoluteTolerance);
+    } else {
+      absolute.head(n) = Eigen::Map<const Vector>(options.absoluteTolerances.data(), n);
+    }
+    relative.tail(np).setConstant(options.quadratureRelativeTolerance > 0.0
+                                      ? options.quadratureRelativeTolerance
+                                      : options.relativeTolerance);
+    absolute.tail(np).setConstant(options.quadratureAbsoluteTolerance > 0.0
+                                      ? options.quadratureAbsoluteTolerance
+                                      : options.absoluteTolerance);
+  }
+  Vector relative, absolute;
+};
+
 struct BackwardStatistics {
   std::int64_t steps = 0;
   std::int64_t rejected = 0;
@@ -205,8 +225,9 @@ struct BackwardStatistics {
 /// Hairer, Norsett & Wanner, Solving ODEs I, section II.4: a starting step for a method of `order`,
 /// from y(t1) and its slope f1 = f(t1, y).
 double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y, ConstVectorRef f1,
-                   int order, const ContinuousAdjointOptions& options) {
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+                   int order, const BackwardTolerances& tolerances) {
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   const double span = t1 - t0;
   const double d0 = weightedRmsNorm(y, y, y, rtol, atol);
   const double d1 = weightedRmsNorm(f1, y, y, rtol, atol);
@@ -223,11 +244,13 @@ double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y
 
 /// Dormand-Prince 5(4) from t1 down to t0; y holds y(t1) on entry and y(t0) on exit.
 BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& states, double t0, double t1,
-                                     VectorRef y, const ContinuousAdjointOptions& options) {
+                                     VectorRef y, const ContinuousAdjointOptions& options,
+                                     const BackwardTolerances& tolerances) {
   static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::Dopri5);
   const Eigen::Index m = y.size();
   const int stages = static_cast<int>(tableau.b.size());
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   Matrix k(m, stages);
   Vector stage(m), error(m);
   const Vector weightDifference = tableau.b - tableau.bEmbedded;
@@ -235,8 +258,8 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   double t = t1;
   system.evaluate(t, y, k.col(0));
 
-  double h =
-      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, k.col(0), 5, options);
+  double h = options.initialStep > 0.0 ? options.initialStep
+                                       : initialStep(system, t0, t1, y, k.col(0), 5, tolerances);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
@@ -276,11 +299,13 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
 /// weights. The error estimate (b - b_hat) covers lambda and mu; L-stable, so stiff adjoints take
 /// steps set by accuracy, not stability.
 BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, double t1, VectorRef y, int n,
-                                             const ContinuousAdjointOptions& options) {
+                                             const ContinuousAdjointOptions& options,
+                                             const BackwardTolerances& tolerances) {
   static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::TrBdf2);
   const int stages = static_cast<int>(tableau.b.size());
   const Eigen::Index np = y.size() - n;
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   Matrix k(n, stages), q(np, stages), newton(n, n);
   Vector stage(n), rhs(n), error(y.size()), next(y.size()), slope(y.size());
   const Vector weightDifference = tableau.b - tableau.bEmbedded;
@@ -295,7 +320,7 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
   // The starting step from the slope in t, dy/dt = -(k_1, q_1).
   slope << -k.col(0), -q.col(0);
   double h =
-      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, options);
+      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, tolerances);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
@@ -363,6 +388,25 @@ bool ContinuousAdjointOptions::IsValid(std::string* error) const {
         << " must be positive and finite";
     return fail();
   }
+  for (std::size_t i = 0; i < absoluteTolerances.size(); ++i) {
+    if (!(absoluteTolerances[i] > 0.0) || !std::isfinite(absoluteTolerances[i])) {
+      msg << "ContinuousAdjointOptions.absoluteTolerances[" << i << "] = " << absoluteTolerances[i]
+          << " must be positive and finite";
+      return fail();
+    }
+  }
+  if (quadratureRelativeTolerance != 0.0 &&
+      !(quadratureRelativeTolerance >= 1e-14 && quadratureRelativeTolerance < 1.0)) {
+    msg << "ContinuousAdjointOptions.quadratureRelativeTolerance = " << quadratureRelativeTolerance
+        << " must be 0 (use relativeTolerance) or in [1e-14, 1)";
+    return fail();
+  }
+  if (quadratureAbsoluteTolerance != 0.0 &&
+      (!(quadratureAbsoluteTolerance > 0.0) || !std::isfinite(quadratureAbsoluteTolerance))) {
+    msg << "ContinuousAdjointOptions.quadratureAbsoluteTolerance = " << quadratureAbsoluteTolerance
+        << " must be 0 (use absoluteTolerance) or positive and finite";
+    return fail();
+  }
   if (!(initialStep >= 0.0) || !std::isfinite(initialStep)) {
     msg << "ContinuousAdjointOptions.initialStep = " << initialStep << " must be in [0, t1 - t0]";
     return fail();
@@ -399,6 +443,13 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
     throw std::invalid_argument(
         "ContinuousAdjointOptions.method = 'trbdf2' needs a dense Jacobian, but problem '" + problem.name() +
         "' has hasDenseJacobian() == false; use 'dopri5'");
+  }
+  if (!options.absoluteTolerances.empty() &&
+      static_cast<int>(options.absoluteTolerances.size()) != problem.stateSize()) {
+    throw std::invalid_argument("ContinuousAdjointOptions.absoluteTolerances has " +
+                                std::to_string(options.absoluteTolerances.size()) + " entries, problem '" +
+                                problem.name() + "' has " + std::to_string(problem.stateSize()) +
+                                " states (one atol per adjoint component, or empty)");
   }
   if (options.initialStep > forward.t1 - forward.t0) {
     std::ostringstream msg;
@@ -471,10 +522,11 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                                     forwardResult.finalState, rhsEvaluations);
   }
   AdjointSystem system(problem, p, workspace.get(), *states);
+  const BackwardTolerances tolerances(options, n, np);
   const BackwardStatistics backward =
       backwardMethod == BackwardMethod::TrBdf2
-          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options)
-          : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
+          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options, tolerances)
+          : integrateBackward(system, *states, forward.t0, forward.t1, y, options, tolerances);
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
   result.summary.backwardSeconds = backwardTimer.seconds();

@@ -10,7 +10,8 @@
 //
 // Backward integrator (the choice, ContinuousAdjointOptions::method):
 //   "dopri5" (default): Dormand-Prince 5(4) on the augmented system (lambda, mu), with FSAL, an error
-//     test on lambda and mu together (weighted RMS norm, atol + rtol |y|) and Hairer's starting-step
+//     test on lambda and mu together (weighted RMS norm, atol_i + rtol_i |y_i|: lambda's tolerances,
+//     scalar or per component, and mu's quadrature tolerances) and Hairer's starting-step
 //     heuristic. Explicit: each step costs 6 evaluations of F_z^T lambda and F_p^T lambda and nothing
 //     is factorised; it works matrix-free (rhsStateVjp) and suits the non-stiff mechanical problems.
 //     On stiff problems (Robertson) the backward system is as stiff as the forward one and dopri5
@@ -47,6 +48,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 
@@ -59,9 +61,17 @@ struct ContinuousAdjointOptions {
   /// Backward integrator: "dopri5" (explicit, non-stiff, any problem) or "trbdf2" (L-stable, for
   /// stiff problems; needs a dense Jacobian); parsed with parseBackwardMethod().
   std::string method = "dopri5";
-  /// Tolerances of the backward error test on (lambda, mu). rtol in [1e-14, 1), atol > 0.
+  /// Tolerances of the backward error test on lambda (and on mu unless the quadrature ones below are
+  /// set). rtol in [1e-14, 1), atol > 0.
   double relativeTolerance = 1e-8;
   double absoluteTolerance = 1e-10;
+  /// Per-component atol of lambda (CVODES' CVodeSVtolerancesB): empty (default) uses
+  /// absoluteTolerance; otherwise stateSize() entries, each positive and finite.
+  std::vector<double> absoluteTolerances;
+  /// Tolerances of the gradient quadrature mu in the same error test (CVODES' CVodeQuadSStolerancesB):
+  /// 0 (default) means relativeTolerance / absoluteTolerance; otherwise rtol in [1e-14, 1), atol > 0.
+  double quadratureRelativeTolerance = 0.0;
+  double quadratureAbsoluteTolerance = 0.0;
   /// First backward step; 0 chooses it by Hairer's heuristic. In [0, t1 - t0].
   double initialStep = 0.0;
   /// A backward step smaller than minStep * max(1, |t|) is an underflow (NumericalError). In (0, 1e-3].

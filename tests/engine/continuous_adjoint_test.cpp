@@ -329,6 +329,72 @@ TEST(AdjointMethodOption, ParsesTheThreeNamesAndListsThemOnError) {
   }
 }
 
+TEST(ContinuousTolerances, PerComponentAndQuadratureTolerancesReachTheBackwardErrorTest) {
+  // Robertson over [0, 1e5] with the backward trbdf2: per-component atol equal to the scalar gives
+  // the scalar run's bits; a loose quadrature tolerance on mu, or a loose atol on lambda_2 alone,
+  // changes the backward step sequence (visible in the rejected steps and the gradient's bits).
+  Robertson problem(1e5);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options;
+  options.adjoint = AdjointMethod::Continuous;
+  options.integrator.method = "trbdf2";
+  options.integrator.t1 = 1e5;
+  options.integrator.adaptive = true;
+  options.integrator.step = 1e-6;
+  options.integrator.relativeTolerance = 1e-8;
+  options.integrator.absoluteTolerance = 1e-12;
+  options.continuous.method = "trbdf2";
+  options.continuous.relativeTolerance = 1e-8;
+  options.continuous.absoluteTolerance = 1e-12;
+  const GradientResult scalar = computeGradientByMethod(problem, p, options);
+  options.continuous.absoluteTolerances = {1e-12, 1e-12, 1e-12};
+  const GradientResult same = computeGradientByMethod(problem, p, options);
+  EXPECT_EQ(scalar.gradient, same.gradient);
+  EXPECT_EQ(scalar.summary.rejectedSteps, same.summary.rejectedSteps);
+  options.continuous.quadratureRelativeTolerance = 1e-3;
+  options.continuous.quadratureAbsoluteTolerance = 1e-3;
+  const GradientResult looseQuadrature = computeGradientByMethod(problem, p, options);
+  EXPECT_NE(scalar.gradient, looseQuadrature.gradient);
+  options.continuous.quadratureRelativeTolerance = 0.0;
+  options.continuous.quadratureAbsoluteTolerance = 0.0;
+  options.continuous.absoluteTolerances = {1e-12, 1e-3, 1e-12};
+  const GradientResult looseLambda2 = computeGradientByMethod(problem, p, options);
+  EXPECT_NE(scalar.gradient, looseLambda2.gradient);
+  // All of them still the same gradient to the loosest tolerance asked for.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(looseQuadrature.gradient(i), scalar.gradient(i), 1e-2 * std::abs(scalar.gradient(i)));
+  }
+}
+
+TEST(ContinuousBadInput, ToleranceFieldsAreNamed) {
+  ExponentialDecay problem;
+  GradientOptions options = tightOptions(AdjointMethod::Continuous, 1.0);
+  const auto message = [&]() -> std::string {
+    try {
+      computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "<no exception>";
+  };
+  options.continuous.quadratureRelativeTolerance = 2.0;
+  EXPECT_NE(message().find("ContinuousAdjointOptions.quadratureRelativeTolerance = 2 must be 0"),
+            std::string::npos)
+      << message();
+  options.continuous.quadratureRelativeTolerance = 0.0;
+  options.continuous.quadratureAbsoluteTolerance = -1.0;
+  EXPECT_NE(message().find("ContinuousAdjointOptions.quadratureAbsoluteTolerance = -1"), std::string::npos)
+      << message();
+  options.continuous.quadratureAbsoluteTolerance = 0.0;
+  options.continuous.absoluteTolerances = {-1.0};
+  EXPECT_NE(message().find("ContinuousAdjointOptions.absoluteTolerances[0] = -1 must be positive"),
+            std::string::npos)
+      << message();
+  options.continuous.absoluteTolerances = {1e-8, 1e-8};
+  EXPECT_NE(message().find("ContinuousAdjointOptions.absoluteTolerances has 2 entries"), std::string::npos)
+      << message();
+}
+
 TEST(ContinuousBadInput, BadOptionsNameTheField) {
   ExponentialDecay problem;
   GradientOptions options = tightOptions(AdjointMethod::Continuous, 1.0);
