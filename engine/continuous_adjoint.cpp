@@ -7,10 +7,23 @@
 #include <Eigen/LU>
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace hindsight {
 namespace {
+
+/// What to loosen when the backward steps cannot shrink further (see the header, "Stiff adjoints").
+std::string toleranceAdvice(const ContinuousAdjointOptions& options) {
+  std::ostringstream msg;
+  msg << "; the backward error test (ContinuousAdjointOptions.relativeTolerance = "
+      << options.relativeTolerance << ", absoluteTolerance" << (options.absoluteTolerances.empty() ? "" : "s")
+      << ") asks to resolve a layer"
+      << " of the adjoint narrower than that, typically the terminal layer of a stiff adjoint whose"
+      << " lambda(t1) = dphi/dz is off its slow manifold; loosen the backward tolerances, or use the discrete"
+      << " adjoint or CVODES";
+  return msg.str();
+}
 
 /// Throws NumericalError (with the time) when a backward integrator has used up its steps or its
 /// step size has underflowed; shared by the explicit and the implicit backward integrators.
@@ -22,9 +35,46 @@ void checkBackwardStep(std::int64_t attempts, const ContinuousAdjointOptions& op
   }
   if (h < options.minStep * std::max(1.0, std::abs(t))) {
     std::ostringstream msg;
-    msg << "continuous adjoint: backward step size underflow, h = " << h;
+    msg << "continuous adjoint: backward step size underflow, h = " << h
+        << " < ContinuousAdjointOptions.minStep * max(1, |t|) = "
+        << options.minStep * std::max(1.0, std::abs(t)) << toleranceAdvice(options);
     throw NumericalError(msg.str(), t);
   }
+}
+
+/// Where a backward step from t asking for size h ends: t - h, or t0 when that is (nearly) reached.
+/// Near a large |t| the times are spaced by ulp(t) (7.5e-9 at t = 4e7), so a step is a whole number
+/// of ulps; a retry 0.1 to 0.9 times a rejected step of a few ulps can round back onto the end just
+/// rejected (rejectedEnd) and would be retried unchanged until maxSteps. Such a retry ends one
+/// representable time closer to t instead; when the rejected step was a single ulp there is no
+/// smaller step, and the backward sweep stops at once with the reason. Elsewhere the retry ends
+/// above rejectedEnd anyway, so this changes no step that converged before.
+double backwardStepEnd(double t, double h, double t0, double rejectedEnd,
+                       const ContinuousAdjointOptions& options) {
+  double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+  // A step below half an ulp rounds onto t itself: a step of zero length, accepted with a zero error,
+  // would set h = 0 and fail; the smallest step is one ulp.
+  if (tNext >= t) tNext = std::nextafter(t, t0);
+  if (tNext <= rejectedEnd) {
+    tNext = std::nextafter(rejectedEnd, t);
+    if (tNext >= t) {
+      std::ostringstream msg;
+      msg << "continuous adjoint: a backward step of one unit in the last place of t (h = " << t - rejectedEnd
+          << ", the resolution of the time at t) was rejected" << toleranceAdvice(options);
+      throw NumericalError(msg.str(), t);
+    }
+  }
+  return tNext;
+}
+
+/// The first backward step: `h` from the options or the heuristic, but not below the underflow bound.
+/// The heuristic scales by atol where y(t1) has zeros (mu(t1) = 0, most of lambda(t1)), and with a
+/// steep adjoint slope there (a stiff terminal layer) it returns steps far below minStep * |t1|;
+/// starting at 100 times that bound lets the controller find the step the layer needs. Only a start
+/// that would have failed at once is changed.
+double firstBackwardStep(double h, double t1, double t0, const ContinuousAdjointOptions& options) {
+  const double bound = options.minStep * std::max(1.0, std::abs(t1));
+  return h < bound ? std::min(100.0 * bound, t1 - t0) : h;
 }
 
 /// Where the backward sweep gets z(t).
@@ -258,12 +308,15 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   double t = t1;
   system.evaluate(t, y, k.col(0));
 
-  double h = options.initialStep > 0.0 ? options.initialStep
-                                       : initialStep(system, t0, t1, y, k.col(0), 5, tolerances);
+  double h =
+      firstBackwardStep(options.initialStep > 0.0 ? options.initialStep
+                                                  : initialStep(system, t0, t1, y, k.col(0), 5, tolerances),
+                        t1, t0, options);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
+  double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
-    const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+    const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
       stage = y;
@@ -284,9 +337,11 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
       states.release(t);
       ++statistics.steps;
       h = controller.afterAccepted(hTaken, norm);
+      rejectedEnd = -std::numeric_limits<double>::infinity();
     } else {
       ++statistics.rejected;
       h = controller.afterRejected(hTaken, norm);
+      rejectedEnd = tNext;
     }
   }
   if (!y.allFinite()) throw NumericalError("continuous adjoint: non-finite adjoint state", t0);
@@ -319,12 +374,14 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
   system.parameterRate(y.head(n), q.col(0));
   // The starting step from the slope in t, dy/dt = -(k_1, q_1).
   slope << -k.col(0), -q.col(0);
-  double h =
-      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, tolerances);
+  double h = firstBackwardStep(
+      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, tolerances),
+      t1, t0, options);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
+  double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
-    const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+    const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
       const double ti = t - tableau.c(i) * hTaken;
@@ -347,6 +404,12 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
     error.head(n).noalias() = k * weightDifference;
     error.tail(np).noalias() = q * weightDifference;
     error *= hTaken;
+    if (options.filterErrorEstimate) {
+      // Shampine's filter: (I - h gamma F_z^T)^{-1} e, with the last stage's factorisation. It leaves
+      // the non-stiff components' estimate as it was and divides the stiff ones by ~h gamma |eig|,
+      // where the raw estimate is round-off in k_i = F_z^T lambda_i amplified by h ||F_z||.
+      error.head(n) = lu.solve(error.head(n));
+    }
     double norm = weightedRmsNorm(error, y, next, rtol, atol);
     if (!std::isfinite(norm) || !next.allFinite()) norm = 1e10;
     if (norm <= 1.0) {
@@ -356,9 +419,11 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
       q.col(0) = q.col(stages - 1);
       ++statistics.steps;
       h = controller.afterAccepted(hTaken, norm);
+      rejectedEnd = -std::numeric_limits<double>::infinity();
     } else {
       ++statistics.rejected;
       h = controller.afterRejected(hTaken, norm);
+      rejectedEnd = tNext;
     }
   }
   return statistics;

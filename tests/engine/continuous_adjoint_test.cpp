@@ -217,6 +217,98 @@ TEST(ContinuousStiff, RobertsonWithImplicitBackwardAgreesWithDiscreteAndCvodes) 
   }
 }
 
+/// Robertson over [0, 4e7] (hardening finding 9): forward trbdf2 at rtol 1e-10, backward trbdf2 at
+/// `backwardRtol`; minStep lowered so that the layer at t1 is not cut off by the default bound.
+GradientOptions stiffLongOptions(double backwardRtol) {
+  GradientOptions options;
+  options.adjoint = AdjointMethod::Continuous;
+  options.integrator.method = "trbdf2";
+  options.integrator.t1 = 4e7;
+  options.integrator.adaptive = true;
+  options.integrator.step = 1e-8;
+  options.integrator.relativeTolerance = 1e-10;
+  options.integrator.absoluteTolerance = 1e-14;
+  options.continuous.method = "trbdf2";
+  options.continuous.relativeTolerance = backwardRtol;
+  options.continuous.absoluteTolerance = 1e-14;
+  options.continuous.minStep = 1e-18;
+  options.continuous.maxSteps = 200'000;
+  return options;
+}
+
+std::string numericalErrorMessage(const Problem& problem, ConstVectorRef p, const GradientOptions& options) {
+  try {
+    computeGradientByMethod(problem, p, options);
+  } catch (const NumericalError& e) {
+    return e.what();
+  }
+  return "<no NumericalError>";
+}
+
+TEST(ContinuousStiff, TightBackwardToleranceOnRobertsonTo4e7IsBoundedByTheFilteredEstimate) {
+  // Unfiltered, the TR-BDF2 estimate of the stiff lambda_2 (eigenvalue ~ -1e4) is round-off in
+  // k = F_z^T lambda amplified by h ||F_z||: at rtol 1e-12 it caps the step near 1 s on [0, 4e7]
+  // and every attempt beyond is rejected; the sweep used up maxSteps before reaching t ~ 3.97e7
+  // (1.18 M rejections at rtol 1e-11 without the bound). Filtered, the same run takes a few hundred
+  // rejections and agrees with the discrete adjoint to the forward tolerance.
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-12);
+  EXPECT_NE(numericalErrorMessage(problem, p, options).find("more than maxSteps = 200000"),
+            std::string::npos);
+  options.continuous.filterErrorEstimate = true;
+  const GradientResult continuous = computeGradientByMethod(problem, p, options);
+  options.adjoint = AdjointMethod::Discrete;
+  const GradientResult discrete = computeGradientByMethod(problem, p, options);
+  const std::int64_t backwardRejected = continuous.summary.rejectedSteps - discrete.summary.rejectedSteps;
+  std::cout << "[ robertson 4e7 ] backward rejected " << backwardRejected << ", gradient "
+            << continuous.gradient.transpose() << " (discrete " << discrete.gradient.transpose() << ")\n";
+  EXPECT_LT(backwardRejected, 5000);  // observed 645
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(continuous.gradient(i), discrete.gradient(i), 1e-6 * std::abs(discrete.gradient(i))) << i;
+  }
+}
+
+TEST(ContinuousStiff, ABackwardLayerBelowTheTimeResolutionStopsAtOnceWithTheReason) {
+  // lambda(t1) = dphi/dz = (1, 0, 0) is off the adjoint's slow manifold: lambda_2 has a layer of
+  // width ~1e-4 at t1 = 4e7, where times are 7.45e-9 apart. At rtol 1e-13 the layer needs steps
+  // below that: once a one-ulp step is rejected the sweep stops and says why (before, a retry
+  // rounded back onto the rejected step and was repeated unchanged until maxSteps).
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-13);
+  options.continuous.filterErrorEstimate = true;
+  options.continuous.absoluteTolerance = 1e-16;
+  std::string message = numericalErrorMessage(problem, p, options);
+  EXPECT_NE(message.find("one unit in the last place of t"), std::string::npos) << message;
+  EXPECT_NE(message.find("ContinuousAdjointOptions.relativeTolerance = 1e-13"), std::string::npos) << message;
+  // With the default minStep the same layer at rtol 1e-11 hits the underflow bound, which names the
+  // fields too.
+  options = stiffLongOptions(1e-11);
+  options.continuous.minStep = ContinuousAdjointOptions{}.minStep;
+  message = numericalErrorMessage(problem, p, options);
+  EXPECT_NE(message.find("ContinuousAdjointOptions.minStep * max(1, |t|) = 4e-07"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("ContinuousAdjointOptions.relativeTolerance = 1e-11"), std::string::npos) << message;
+}
+
+TEST(ContinuousStiff, AStartingStepBelowTheBoundNoLongerFailsAtOnce) {
+  // Hairer's starting step scales by atol where y(t1) is zero; with lambda_2's steep slope at t1 it
+  // proposed 1e-12 at t1 = 4e7, below minStep |t1| = 4e-7, and every tolerance failed at once. The
+  // start is now raised to 100 times the bound and the controller finds the layer's step.
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-6);
+  options.continuous.minStep = ContinuousAdjointOptions{}.minStep;
+  const GradientResult continuous = computeGradientByMethod(problem, p, options);
+  options.adjoint = AdjointMethod::Discrete;
+  const GradientResult discrete = computeGradientByMethod(problem, p, options);
+  for (int i = 0; i < 3; ++i) {
+    // Observed 1.1e-4 relative: the order-2 backward sweep at rtol 1e-6 over eleven decades.
+    EXPECT_NEAR(continuous.gradient(i), discrete.gradient(i), 1e-3 * std::abs(discrete.gradient(i))) << i;
+  }
+}
+
 TEST(ContinuousSources, RestoredWindowAndHermiteEveryStepGiveTheSameGradient) {
   // Both build the cubic Hermite interpolant from z_n and F(t_n, z_n) on every forward step, one
   // through storage.interpolate(), the other from restored states: the same numbers to round-off.
