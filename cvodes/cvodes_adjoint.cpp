@@ -409,23 +409,24 @@ bool CvodesOptions::IsValid(std::string* error) const {
     return fail();
   }
   // The optional tolerances: 0 means "as the one it defaults to" (see the header).
-  const std::pair<const char*, double> relative[] = {
-      {"quadratureRelativeTolerance", quadratureRelativeTolerance},
-      {"backwardRelativeTolerance", backwardRelativeTolerance},
-      {"backwardQuadratureRelativeTolerance", backwardQuadratureRelativeTolerance}};
-  for (const auto& [name, value] : relative) {
-    if (value != 0.0 && !(value >= 1e-14 && value < 1.0)) {
-      msg << "CvodesOptions." << name << " = " << value << " must be 0 (the default) or in [1e-14, 1)";
-      return fail();
-    }
-  }
-  const std::pair<const char*, double> absolute[] = {
-      {"quadratureAbsoluteTolerance", quadratureAbsoluteTolerance},
-      {"backwardAbsoluteTolerance", backwardAbsoluteTolerance},
-      {"backwardQuadratureAbsoluteTolerance", backwardQuadratureAbsoluteTolerance}};
-  for (const auto& [name, value] : absolute) {
-    if (value != 0.0 && (!(value > 0.0) || !std::isfinite(value))) {
-      msg << "CvodesOptions." << name << " = " << value << " must be 0 (the default) or positive and finite";
+  struct Optional {
+    const char* name;
+    double value;
+    bool relative;
+  };
+  const Optional optional[] = {
+      {"quadratureRelativeTolerance", quadratureRelativeTolerance, true},
+      {"quadratureAbsoluteTolerance", quadratureAbsoluteTolerance, false},
+      {"backwardRelativeTolerance", backwardRelativeTolerance, true},
+      {"backwardAbsoluteTolerance", backwardAbsoluteTolerance, false},
+      {"backwardQuadratureRelativeTolerance", backwardQuadratureRelativeTolerance, true},
+      {"backwardQuadratureAbsoluteTolerance", backwardQuadratureAbsoluteTolerance, false}};
+  for (const Optional& o : optional) {
+    const bool valid = o.value == 0.0 || (o.relative ? o.value >= 1e-14 && o.value < 1.0
+                                                     : o.value > 0.0 && std::isfinite(o.value));
+    if (!valid) {
+      msg << "CvodesOptions." << o.name << " = " << o.value << " must be 0 (the default) or "
+          << (o.relative ? "in [1e-14, 1)" : "positive and finite");
       return fail();
     }
   }

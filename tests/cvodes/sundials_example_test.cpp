@@ -110,24 +110,33 @@ TEST(SundialsExample, CvodesRouteReproducesTheExamplesPrintedGradient) {
   }
 }
 
-TEST(SundialsExample, VectorToleranceChangesTheCvodesRunAndScalarOnesKeepIt) {
-  // The per-component atol is really used: with the scalar atol 1e-8 on y2 ~ 1e-5... 1e-11 (the
-  // example's 1e-14 is what resolves y2) the forward step sequence differs.
+/// The per-component atol is really used by `method`'s forward error test: with the scalar 1e-8 in
+/// place of the example's atol_2 = 1e-14 (which resolves y2 ~ 1e-5 ... 1e-11) the step sequence
+/// differs; per-component atol equal to the scalar gives the scalar run's bits.
+void expectVectorToleranceIsUsed(AdjointMethod method, std::vector<double>& (*atol)(GradientOptions&)) {
   ExampleRobertson problem;
-  GradientOptions vector = exampleOptions(AdjointMethod::Cvodes);
+  const GradientOptions vector = exampleOptions(method);
   GradientOptions scalar = vector;
-  scalar.cvodes.absoluteTolerances.clear();
-  scalar.cvodes.absoluteTolerance = 1e-8;
+  atol(scalar).clear();
+  scalar.cvodes.absoluteTolerance = scalar.integrator.absoluteTolerance = 1e-8;
+  GradientOptions same = scalar;
+  atol(same) = {1e-8, 1e-8, 1e-8};
   const GradientResult a = computeGradientByMethod(problem, kParameters, vector);
   const GradientResult b = computeGradientByMethod(problem, kParameters, scalar);
-  EXPECT_NE(a.summary.steps, b.summary.steps);
-  // Per-component atol equal to the scalar everywhere: CVodeSVtolerances gives CVodeSStolerances' run.
-  GradientOptions same = scalar;
-  same.cvodes.absoluteTolerances = {1e-8, 1e-8, 1e-8};
   const GradientResult c = computeGradientByMethod(problem, kParameters, same);
-  EXPECT_EQ(b.summary.steps, c.summary.steps);
+  EXPECT_NE(a.summary.steps, b.summary.steps);
+  EXPECT_EQ(b.times, c.times);
   EXPECT_EQ(b.objective, c.objective);
   EXPECT_EQ(b.gradient, c.gradient);
+}
+
+TEST(SundialsExample, VectorToleranceChangesTheRunAndScalarOnesKeepIt) {
+  expectVectorToleranceIsUsed(AdjointMethod::Cvodes, [](GradientOptions& o) -> std::vector<double>& {
+    return o.cvodes.absoluteTolerances;
+  });
+  expectVectorToleranceIsUsed(AdjointMethod::Discrete, [](GradientOptions& o) -> std::vector<double>& {
+    return o.integrator.absoluteTolerances;
+  });
 }
 
 TEST(SundialsExample, DiscreteAdjointWithTheSameVectorTolerancesAgrees) {
@@ -145,22 +154,9 @@ TEST(SundialsExample, DiscreteAdjointWithTheSameVectorTolerancesAgrees) {
   }
 }
 
-TEST(SundialsExample, DiscreteAdjointUsesTheVectorTolerance) {
-  // The example's atol_2 = 1e-14 resolves y2 (~1e-5 down to 1e-11): with the scalar atol 1e-8 in its
-  // place the adaptive trbdf2 takes another step sequence; equal entries give the scalar run's bits.
+TEST(SundialsExample, BadVectorTolerancesAreNamed) {
   ExampleRobertson problem;
-  GradientOptions vector = exampleOptions(AdjointMethod::Discrete);
-  GradientOptions scalar = vector;
-  scalar.integrator.absoluteTolerances.clear();
-  scalar.integrator.absoluteTolerance = 1e-8;
-  GradientOptions same = scalar;
-  same.integrator.absoluteTolerances = {1e-8, 1e-8, 1e-8};
-  const GradientResult a = computeGradientByMethod(problem, kParameters, vector);
-  const GradientResult b = computeGradientByMethod(problem, kParameters, scalar);
-  const GradientResult c = computeGradientByMethod(problem, kParameters, same);
-  EXPECT_NE(a.summary.steps, b.summary.steps);
-  EXPECT_EQ(b.times, c.times);
-  EXPECT_EQ(b.gradient, c.gradient);
+  GradientOptions same = exampleOptions(AdjointMethod::Discrete);
   same.integrator.absoluteTolerances = {1e-8, 1e-8};
   try {
     computeGradientByMethod(problem, kParameters, same);

@@ -217,20 +217,27 @@ TEST(ContinuousStiff, RobertsonWithImplicitBackwardAgreesWithDiscreteAndCvodes) 
   }
 }
 
-/// Robertson over [0, 4e7] (hardening finding 9): forward trbdf2 at rtol 1e-10, backward trbdf2 at
-/// `backwardRtol`; minStep lowered so that the layer at t1 is not cut off by the default bound.
-GradientOptions stiffLongOptions(double backwardRtol) {
+/// Robertson on [0, horizon] with adaptive trbdf2 forward (rtol, atol) and backward (rtol, atol).
+GradientOptions robertsonTrbdf2(double horizon, double step, double forwardRtol, double forwardAtol,
+                                double backwardRtol, double backwardAtol) {
   GradientOptions options;
   options.adjoint = AdjointMethod::Continuous;
   options.integrator.method = "trbdf2";
-  options.integrator.t1 = 4e7;
+  options.integrator.t1 = horizon;
   options.integrator.adaptive = true;
-  options.integrator.step = 1e-8;
-  options.integrator.relativeTolerance = 1e-10;
-  options.integrator.absoluteTolerance = 1e-14;
+  options.integrator.step = step;
+  options.integrator.relativeTolerance = forwardRtol;
+  options.integrator.absoluteTolerance = forwardAtol;
   options.continuous.method = "trbdf2";
   options.continuous.relativeTolerance = backwardRtol;
-  options.continuous.absoluteTolerance = 1e-14;
+  options.continuous.absoluteTolerance = backwardAtol;
+  return options;
+}
+
+/// Robertson over [0, 4e7] (hardening finding 9): forward rtol 1e-10, backward `backwardRtol`;
+/// minStep lowered so that the layer at t1 is not cut off by the default bound.
+GradientOptions stiffLongOptions(double backwardRtol) {
+  GradientOptions options = robertsonTrbdf2(4e7, 1e-8, 1e-10, 1e-14, backwardRtol, 1e-14);
   options.continuous.minStep = 1e-18;
   options.continuous.maxSteps = 200'000;
   return options;
@@ -427,17 +434,7 @@ TEST(ContinuousTolerances, PerComponentAndQuadratureTolerancesReachTheBackwardEr
   // changes the backward step sequence (visible in the rejected steps and the gradient's bits).
   Robertson problem(1e5);
   const Vector p = Robertson::nominalParameters();
-  GradientOptions options;
-  options.adjoint = AdjointMethod::Continuous;
-  options.integrator.method = "trbdf2";
-  options.integrator.t1 = 1e5;
-  options.integrator.adaptive = true;
-  options.integrator.step = 1e-6;
-  options.integrator.relativeTolerance = 1e-8;
-  options.integrator.absoluteTolerance = 1e-12;
-  options.continuous.method = "trbdf2";
-  options.continuous.relativeTolerance = 1e-8;
-  options.continuous.absoluteTolerance = 1e-12;
+  GradientOptions options = robertsonTrbdf2(1e5, 1e-6, 1e-8, 1e-12, 1e-8, 1e-12);
   const GradientResult scalar = computeGradientByMethod(problem, p, options);
   options.continuous.absoluteTolerances = {1e-12, 1e-12, 1e-12};
   const GradientResult same = computeGradientByMethod(problem, p, options);
