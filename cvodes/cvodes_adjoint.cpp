@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <exception>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 namespace hindsight {
@@ -172,8 +173,14 @@ class CvodesAdjointSolver final {
     }
     check(CVodeInit(memory_, &forwardRhs, options_.t0, z_), "CVodeInit", options_.t0);
     check(CVodeSetUserData(memory_, &data_), "CVodeSetUserData", options_.t0);
-    check(CVodeSStolerances(memory_, options_.relativeTolerance, options_.absoluteTolerance),
-          "CVodeSStolerances", options_.t0);
+    if (options_.absoluteTolerances.empty()) {
+      check(CVodeSStolerances(memory_, options_.relativeTolerance, options_.absoluteTolerance),
+            "CVodeSStolerances", options_.t0);
+    } else {
+      check(CVodeSVtolerances(memory_, options_.relativeTolerance,
+                              toleranceVector(options_.absoluteTolerances)),
+            "CVodeSVtolerances", options_.t0);
+    }
     check(CVodeSetMaxNumSteps(memory_, static_cast<long>(options_.maxSteps)), "CVodeSetMaxNumSteps",
           options_.t0);
     if (options_.initialStep > 0.0) {
@@ -189,7 +196,9 @@ class CvodesAdjointSolver final {
 
     N_VConst(0.0, quadrature_);
     check(CVodeQuadInit(memory_, &forwardQuadrature, quadrature_), "CVodeQuadInit", options_.t0);
-    check(CVodeQuadSStolerances(memory_, options_.relativeTolerance, options_.absoluteTolerance),
+    check(CVodeQuadSStolerances(memory_,
+                                orDefault(options_.quadratureRelativeTolerance, options_.relativeTolerance),
+                                orDefault(options_.quadratureAbsoluteTolerance, options_.absoluteTolerance)),
           "CVodeQuadSStolerances", options_.t0);
     check(CVodeSetQuadErrCon(memory_, options_.quadratureErrorControl ? SUNTRUE : SUNFALSE),
           "CVodeSetQuadErrCon", options_.t0);
@@ -243,8 +252,15 @@ class CvodesAdjointSolver final {
     void* backwardMemory = CVodeGetAdjCVodeBmem(memory_, which);
     if (backwardMemory == nullptr) throw NumericalError("CVodeGetAdjCVodeBmem returned null", t1);
     check(CVodeSetErrHandlerFn(backwardMemory, &errorHandler, &data_), "CVodeSetErrHandlerFn", t1);
-    check(CVodeSStolerancesB(memory_, which, options_.relativeTolerance, options_.absoluteTolerance),
-          "CVodeSStolerancesB", t1);
+    const double backwardRtol = orDefault(options_.backwardRelativeTolerance, options_.relativeTolerance);
+    const double backwardAtol = orDefault(options_.backwardAbsoluteTolerance, options_.absoluteTolerance);
+    if (options_.backwardAbsoluteTolerances.empty()) {
+      check(CVodeSStolerancesB(memory_, which, backwardRtol, backwardAtol), "CVodeSStolerancesB", t1);
+    } else {
+      check(CVodeSVtolerancesB(memory_, which, backwardRtol,
+                               toleranceVector(options_.backwardAbsoluteTolerances)),
+            "CVodeSVtolerancesB", t1);
+    }
     check(CVodeSetUserDataB(memory_, which, &data_), "CVodeSetUserDataB", t1);
     check(CVodeSetMaxNumStepsB(memory_, which, static_cast<long>(options_.maxSteps)), "CVodeSetMaxNumStepsB",
           t1);
@@ -256,7 +272,9 @@ class CvodesAdjointSolver final {
     checkLinear(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
     N_VConst(0.0, gradientQuadrature_);
     check(CVodeQuadInitB(memory_, which, &backwardQuadrature, gradientQuadrature_), "CVodeQuadInitB", t1);
-    check(CVodeQuadSStolerancesB(memory_, which, options_.relativeTolerance, options_.absoluteTolerance),
+    check(CVodeQuadSStolerancesB(memory_, which,
+                                 orDefault(options_.backwardQuadratureRelativeTolerance, backwardRtol),
+                                 orDefault(options_.backwardQuadratureAbsoluteTolerance, backwardAtol)),
           "CVodeQuadSStolerancesB", t1);
     check(CVodeSetQuadErrConB(memory_, which, options_.quadratureErrorControl ? SUNTRUE : SUNFALSE),
           "CVodeSetQuadErrConB", t1);
@@ -284,6 +302,17 @@ class CvodesAdjointSolver final {
     N_VConst(0.0, v);
     return v;
   }
+
+  /// An N_Vector holding `values` (CVODES copies the absolute tolerances it is given).
+  N_Vector toleranceVector(const std::vector<double>& values) {
+    N_Vector v = newVector(static_cast<int>(values.size()));
+    mutableView(v, static_cast<Eigen::Index>(values.size())) =
+        Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
+    return v;
+  }
+
+  /// A tolerance field left at 0 takes the tolerance it defaults to (see CvodesOptions).
+  static double orDefault(double value, double fallback) { return value > 0.0 ? value : fallback; }
 
   /// Adds one CVODES memory's rejected steps (error-test and Newton convergence failures), linear
   /// solver setups and Newton iterations to the summary.
@@ -379,6 +408,40 @@ bool CvodesOptions::IsValid(std::string* error) const {
     msg << "CvodesOptions.absoluteTolerance = " << absoluteTolerance << " must be positive and finite";
     return fail();
   }
+  // The optional tolerances: 0 means "as the one it defaults to" (see the header).
+  struct Optional {
+    const char* name;
+    double value;
+    bool relative;
+  };
+  const Optional optional[] = {
+      {"quadratureRelativeTolerance", quadratureRelativeTolerance, true},
+      {"quadratureAbsoluteTolerance", quadratureAbsoluteTolerance, false},
+      {"backwardRelativeTolerance", backwardRelativeTolerance, true},
+      {"backwardAbsoluteTolerance", backwardAbsoluteTolerance, false},
+      {"backwardQuadratureRelativeTolerance", backwardQuadratureRelativeTolerance, true},
+      {"backwardQuadratureAbsoluteTolerance", backwardQuadratureAbsoluteTolerance, false}};
+  for (const Optional& o : optional) {
+    const bool valid = o.value == 0.0 || (o.relative ? o.value >= 1e-14 && o.value < 1.0
+                                                     : o.value > 0.0 && std::isfinite(o.value));
+    if (!valid) {
+      msg << "CvodesOptions." << o.name << " = " << o.value << " must be 0 (the default) or "
+          << (o.relative ? "in [1e-14, 1)" : "positive and finite");
+      return fail();
+    }
+  }
+  const std::pair<const char*, const std::vector<double>*> vectors[] = {
+      {"absoluteTolerances", &absoluteTolerances},
+      {"backwardAbsoluteTolerances", &backwardAbsoluteTolerances}};
+  for (const auto& [name, values] : vectors) {
+    for (std::size_t i = 0; i < values->size(); ++i) {
+      if (!((*values)[i] > 0.0) || !std::isfinite((*values)[i])) {
+        msg << "CvodesOptions." << name << "[" << i << "] = " << (*values)[i]
+            << " must be positive and finite";
+        return fail();
+      }
+    }
+  }
   if (checkpointSteps < 1 || checkpointSteps > 1'000'000'000) {
     msg << "CvodesOptions.checkpointSteps = " << checkpointSteps << " must be in [1, 1e9]";
     return fail();
@@ -404,6 +467,16 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
   if (p.size() != problem.parameterSize()) {
     throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + " but '" +
                                 problem.name() + "' expects " + std::to_string(problem.parameterSize()));
+  }
+  for (const auto& [name, values] :
+       {std::make_pair("absoluteTolerances", &options.absoluteTolerances),
+        std::make_pair("backwardAbsoluteTolerances", &options.backwardAbsoluteTolerances)}) {
+    if (!values->empty() && static_cast<int>(values->size()) != problem.stateSize()) {
+      throw std::invalid_argument(std::string("CvodesOptions.") + name + " has " +
+                                  std::to_string(values->size()) + " entries, problem '" + problem.name() +
+                                  "' has " + std::to_string(problem.stateSize()) +
+                                  " states (one atol per state, or empty)");
+    }
   }
   if (!problem.hasDenseJacobian()) {
     throw std::invalid_argument("the CVODES route needs a dense Jacobian, but problem '" + problem.name() +

@@ -36,6 +36,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 
@@ -57,17 +58,33 @@ struct CvodesOptions {
   CvodesInterpolation interpolation = CvodesInterpolation::Hermite;
   double t0 = 0.0;
   double t1 = 1.0;
-  /// Scalar tolerances, used for the forward state and quadrature and the backward adjoint and
-  /// quadrature alike (CVodeSStolerances and its B / Quad variants). rtol in [1e-14, 1), atol > 0.
+  /// Tolerances of the forward state (CVodeSStolerances), rtol in [1e-14, 1), atol > 0; also of every
+  /// problem below whose own tolerance is left at 0.
   double relativeTolerance = 1e-6;
   double absoluteTolerance = 1e-9;
+  /// Per-component atol of the forward state (CVodeSVtolerances): empty (default) uses
+  /// absoluteTolerance; otherwise stateSize() entries, each positive and finite.
+  std::vector<double> absoluteTolerances;
+  /// Forward quadrature psi (CVodeQuadSStolerances); 0: relativeTolerance / absoluteTolerance.
+  double quadratureRelativeTolerance = 0.0;
+  double quadratureAbsoluteTolerance = 0.0;
+  /// Backward adjoint lambda (CVodeSStolerancesB); 0: relativeTolerance / absoluteTolerance.
+  double backwardRelativeTolerance = 0.0;
+  double backwardAbsoluteTolerance = 0.0;
+  /// Per-component atol of lambda (CVodeSVtolerancesB): empty uses the backward scalar; otherwise
+  /// stateSize() entries, each positive and finite.
+  std::vector<double> backwardAbsoluteTolerances;
+  /// Backward gradient quadrature (CVodeQuadSStolerancesB); 0: the backward rtol / scalar atol.
+  double backwardQuadratureRelativeTolerance = 0.0;
+  double backwardQuadratureAbsoluteTolerance = 0.0;
   /// Nd: integration steps between check points (CVodeAdjInit), in [1, 1e9].
   std::int64_t checkpointSteps = 100;
   /// mxstep of CVODES for the forward and the backward problem, in [1, 1e12].
   std::int64_t maxSteps = 100'000;
   /// First step size; 0 lets CVODES estimate it. In [0, t1 - t0].
   double initialStep = 0.0;
-  /// Include the quadratures (psi and the gradient) in the local error test.
+  /// Include the quadratures (psi and the gradient) in the local error test (CVodeSetQuadErrCon and
+  /// CVodeSetQuadErrConB); their tolerances matter only then.
   bool quadratureErrorControl = true;
 
   /// False with a message naming the field, its value and the allowed range.

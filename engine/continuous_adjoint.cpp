@@ -7,10 +7,23 @@
 #include <Eigen/LU>
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace hindsight {
 namespace {
+
+/// What to loosen when the backward steps cannot shrink further (see the header, "Stiff adjoints").
+std::string toleranceAdvice(const ContinuousAdjointOptions& options) {
+  std::ostringstream msg;
+  msg << "; the backward error test (ContinuousAdjointOptions.relativeTolerance = "
+      << options.relativeTolerance << ", absoluteTolerance" << (options.absoluteTolerances.empty() ? "" : "s")
+      << ") asks to resolve a layer"
+      << " of the adjoint narrower than that, typically the terminal layer of a stiff adjoint whose"
+      << " lambda(t1) = dphi/dz is off its slow manifold; loosen the backward tolerances, or use the discrete"
+      << " adjoint or CVODES";
+  return msg.str();
+}
 
 /// Throws NumericalError (with the time) when a backward integrator has used up its steps or its
 /// step size has underflowed; shared by the explicit and the implicit backward integrators.
@@ -22,9 +35,46 @@ void checkBackwardStep(std::int64_t attempts, const ContinuousAdjointOptions& op
   }
   if (h < options.minStep * std::max(1.0, std::abs(t))) {
     std::ostringstream msg;
-    msg << "continuous adjoint: backward step size underflow, h = " << h;
+    msg << "continuous adjoint: backward step size underflow, h = " << h
+        << " < ContinuousAdjointOptions.minStep * max(1, |t|) = "
+        << options.minStep * std::max(1.0, std::abs(t)) << toleranceAdvice(options);
     throw NumericalError(msg.str(), t);
   }
+}
+
+/// Where a backward step from t asking for size h ends: t - h, or t0 when that is (nearly) reached.
+/// Near a large |t| the times are spaced by ulp(t) (7.5e-9 at t = 4e7), so a step is a whole number
+/// of ulps; a retry 0.1 to 0.9 times a rejected step of a few ulps can round back onto the end just
+/// rejected (rejectedEnd) and would be retried unchanged until maxSteps. Such a retry ends one
+/// representable time closer to t instead; when the rejected step was a single ulp there is no
+/// smaller step, and the backward sweep stops at once with the reason. Elsewhere the retry ends
+/// above rejectedEnd anyway, so this changes no step that converged before.
+double backwardStepEnd(double t, double h, double t0, double rejectedEnd,
+                       const ContinuousAdjointOptions& options) {
+  double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+  // A step below half an ulp rounds onto t itself: a step of zero length, accepted with a zero error,
+  // would set h = 0 and fail; the smallest step is one ulp.
+  if (tNext >= t) tNext = std::nextafter(t, t0);
+  if (tNext <= rejectedEnd) {
+    tNext = std::nextafter(rejectedEnd, t);
+    if (tNext >= t) {
+      std::ostringstream msg;
+      msg << "continuous adjoint: a backward step of one unit in the last place of t (h = " << t - rejectedEnd
+          << ", the resolution of the time at t) was rejected" << toleranceAdvice(options);
+      throw NumericalError(msg.str(), t);
+    }
+  }
+  return tNext;
+}
+
+/// The first backward step: `h` from the options or the heuristic, but not below the underflow bound.
+/// The heuristic scales by atol where y(t1) has zeros (mu(t1) = 0, most of lambda(t1)), and with a
+/// steep adjoint slope there (a stiff terminal layer) it returns steps far below minStep * |t1|;
+/// starting at 100 times that bound lets the controller find the step the layer needs. Only a start
+/// that would have failed at once is changed.
+double firstBackwardStep(double h, double t1, double t0, const ContinuousAdjointOptions& options) {
+  const double bound = options.minStep * std::max(1.0, std::abs(t1));
+  return h < bound ? std::min(100.0 * bound, t1 - t0) : h;
 }
 
 /// Where the backward sweep gets z(t).
@@ -196,6 +246,26 @@ class AdjointSystem {
   double linearizedAt_ = 0.0;
 };
 
+/// The backward error test's per-component rtol and atol over y = (lambda, mu), from the options.
+struct BackwardTolerances {
+  BackwardTolerances(const ContinuousAdjointOptions& options, int n, int np)
+      : relative(n + np), absolute(n + np) {
+    relative.head(n).setConstant(options.relativeTolerance);
+    if (options.absoluteTolerances.empty()) {
+      absolute.head(n).setConstant(options.absoluteTolerance);
+    } else {
+      absolute.head(n) = Eigen::Map<const Vector>(options.absoluteTolerances.data(), n);
+    }
+    relative.tail(np).setConstant(options.quadratureRelativeTolerance > 0.0
+                                      ? options.quadratureRelativeTolerance
+                                      : options.relativeTolerance);
+    absolute.tail(np).setConstant(options.quadratureAbsoluteTolerance > 0.0
+                                      ? options.quadratureAbsoluteTolerance
+                                      : options.absoluteTolerance);
+  }
+  Vector relative, absolute;
+};
+
 struct BackwardStatistics {
   std::int64_t steps = 0;
   std::int64_t rejected = 0;
@@ -205,8 +275,9 @@ struct BackwardStatistics {
 /// Hairer, Norsett & Wanner, Solving ODEs I, section II.4: a starting step for a method of `order`,
 /// from y(t1) and its slope f1 = f(t1, y).
 double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y, ConstVectorRef f1,
-                   int order, const ContinuousAdjointOptions& options) {
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+                   int order, const BackwardTolerances& tolerances) {
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   const double span = t1 - t0;
   const double d0 = weightedRmsNorm(y, y, y, rtol, atol);
   const double d1 = weightedRmsNorm(f1, y, y, rtol, atol);
@@ -223,11 +294,13 @@ double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y
 
 /// Dormand-Prince 5(4) from t1 down to t0; y holds y(t1) on entry and y(t0) on exit.
 BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& states, double t0, double t1,
-                                     VectorRef y, const ContinuousAdjointOptions& options) {
+                                     VectorRef y, const ContinuousAdjointOptions& options,
+                                     const BackwardTolerances& tolerances) {
   static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::Dopri5);
   const Eigen::Index m = y.size();
   const int stages = static_cast<int>(tableau.b.size());
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   Matrix k(m, stages);
   Vector stage(m), error(m);
   const Vector weightDifference = tableau.b - tableau.bEmbedded;
@@ -236,11 +309,14 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   system.evaluate(t, y, k.col(0));
 
   double h =
-      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, k.col(0), 5, options);
+      firstBackwardStep(options.initialStep > 0.0 ? options.initialStep
+                                                  : initialStep(system, t0, t1, y, k.col(0), 5, tolerances),
+                        t1, t0, options);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
+  double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
-    const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+    const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
       stage = y;
@@ -261,9 +337,11 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
       states.release(t);
       ++statistics.steps;
       h = controller.afterAccepted(hTaken, norm);
+      rejectedEnd = -std::numeric_limits<double>::infinity();
     } else {
       ++statistics.rejected;
       h = controller.afterRejected(hTaken, norm);
+      rejectedEnd = tNext;
     }
   }
   if (!y.allFinite()) throw NumericalError("continuous adjoint: non-finite adjoint state", t0);
@@ -276,11 +354,13 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
 /// weights. The error estimate (b - b_hat) covers lambda and mu; L-stable, so stiff adjoints take
 /// steps set by accuracy, not stability.
 BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, double t1, VectorRef y, int n,
-                                             const ContinuousAdjointOptions& options) {
+                                             const ContinuousAdjointOptions& options,
+                                             const BackwardTolerances& tolerances) {
   static const ButcherTableau tableau = ButcherTableau::byMethod(IntegratorMethod::TrBdf2);
   const int stages = static_cast<int>(tableau.b.size());
   const Eigen::Index np = y.size() - n;
-  const double rtol = options.relativeTolerance, atol = options.absoluteTolerance;
+  const Vector& rtol = tolerances.relative;
+  const Vector& atol = tolerances.absolute;
   Matrix k(n, stages), q(np, stages), newton(n, n);
   Vector stage(n), rhs(n), error(y.size()), next(y.size()), slope(y.size());
   const Vector weightDifference = tableau.b - tableau.bEmbedded;
@@ -294,12 +374,14 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
   system.parameterRate(y.head(n), q.col(0));
   // The starting step from the slope in t, dy/dt = -(k_1, q_1).
   slope << -k.col(0), -q.col(0);
-  double h =
-      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, options);
+  double h = firstBackwardStep(
+      options.initialStep > 0.0 ? options.initialStep : initialStep(system, t0, t1, y, slope, 2, tolerances),
+      t1, t0, options);
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
+  double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
-    const double tNext = (t - h <= t0 || (t - h) - t0 < 1e-12 * h) ? t0 : t - h;
+    const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;
     for (int i = 1; i < stages; ++i) {
       const double ti = t - tableau.c(i) * hTaken;
@@ -322,6 +404,12 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
     error.head(n).noalias() = k * weightDifference;
     error.tail(np).noalias() = q * weightDifference;
     error *= hTaken;
+    if (options.filterErrorEstimate) {
+      // Shampine's filter: (I - h gamma F_z^T)^{-1} e, with the last stage's factorisation. It leaves
+      // the non-stiff components' estimate as it was and divides the stiff ones by ~h gamma |eig|,
+      // where the raw estimate is round-off in k_i = F_z^T lambda_i amplified by h ||F_z||.
+      error.head(n) = lu.solve(error.head(n));
+    }
     double norm = weightedRmsNorm(error, y, next, rtol, atol);
     if (!std::isfinite(norm) || !next.allFinite()) norm = 1e10;
     if (norm <= 1.0) {
@@ -331,9 +419,11 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
       q.col(0) = q.col(stages - 1);
       ++statistics.steps;
       h = controller.afterAccepted(hTaken, norm);
+      rejectedEnd = -std::numeric_limits<double>::infinity();
     } else {
       ++statistics.rejected;
       h = controller.afterRejected(hTaken, norm);
+      rejectedEnd = tNext;
     }
   }
   return statistics;
@@ -361,6 +451,25 @@ bool ContinuousAdjointOptions::IsValid(std::string* error) const {
   if (!(absoluteTolerance > 0.0) || !std::isfinite(absoluteTolerance)) {
     msg << "ContinuousAdjointOptions.absoluteTolerance = " << absoluteTolerance
         << " must be positive and finite";
+    return fail();
+  }
+  for (std::size_t i = 0; i < absoluteTolerances.size(); ++i) {
+    if (!(absoluteTolerances[i] > 0.0) || !std::isfinite(absoluteTolerances[i])) {
+      msg << "ContinuousAdjointOptions.absoluteTolerances[" << i << "] = " << absoluteTolerances[i]
+          << " must be positive and finite";
+      return fail();
+    }
+  }
+  if (quadratureRelativeTolerance != 0.0 &&
+      !(quadratureRelativeTolerance >= 1e-14 && quadratureRelativeTolerance < 1.0)) {
+    msg << "ContinuousAdjointOptions.quadratureRelativeTolerance = " << quadratureRelativeTolerance
+        << " must be 0 (use relativeTolerance) or in [1e-14, 1)";
+    return fail();
+  }
+  if (quadratureAbsoluteTolerance != 0.0 &&
+      (!(quadratureAbsoluteTolerance > 0.0) || !std::isfinite(quadratureAbsoluteTolerance))) {
+    msg << "ContinuousAdjointOptions.quadratureAbsoluteTolerance = " << quadratureAbsoluteTolerance
+        << " must be 0 (use absoluteTolerance) or positive and finite";
     return fail();
   }
   if (!(initialStep >= 0.0) || !std::isfinite(initialStep)) {
@@ -399,6 +508,13 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
     throw std::invalid_argument(
         "ContinuousAdjointOptions.method = 'trbdf2' needs a dense Jacobian, but problem '" + problem.name() +
         "' has hasDenseJacobian() == false; use 'dopri5'");
+  }
+  if (!options.absoluteTolerances.empty() &&
+      static_cast<int>(options.absoluteTolerances.size()) != problem.stateSize()) {
+    throw std::invalid_argument("ContinuousAdjointOptions.absoluteTolerances has " +
+                                std::to_string(options.absoluteTolerances.size()) + " entries, problem '" +
+                                problem.name() + "' has " + std::to_string(problem.stateSize()) +
+                                " states (one atol per adjoint component, or empty)");
   }
   if (options.initialStep > forward.t1 - forward.t0) {
     std::ostringstream msg;
@@ -471,10 +587,11 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
                                                     forwardResult.finalState, rhsEvaluations);
   }
   AdjointSystem system(problem, p, workspace.get(), *states);
+  const BackwardTolerances tolerances(options, n, np);
   const BackwardStatistics backward =
       backwardMethod == BackwardMethod::TrBdf2
-          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options)
-          : integrateBackward(system, *states, forward.t0, forward.t1, y, options);
+          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options, tolerances)
+          : integrateBackward(system, *states, forward.t0, forward.t1, y, options, tolerances);
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
   result.summary.backwardSeconds = backwardTimer.seconds();

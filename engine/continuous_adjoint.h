@@ -10,7 +10,8 @@
 //
 // Backward integrator (the choice, ContinuousAdjointOptions::method):
 //   "dopri5" (default): Dormand-Prince 5(4) on the augmented system (lambda, mu), with FSAL, an error
-//     test on lambda and mu together (weighted RMS norm, atol + rtol |y|) and Hairer's starting-step
+//     test on lambda and mu together (weighted RMS norm, atol_i + rtol_i |y_i|: lambda's tolerances,
+//     scalar or per component, and mu's quadrature tolerances) and Hairer's starting-step
 //     heuristic. Explicit: each step costs 6 evaluations of F_z^T lambda and F_p^T lambda and nothing
 //     is factorised; it works matrix-free (rhsStateVjp) and suits the non-stiff mechanical problems.
 //     On stiff problems (Robertson) the backward system is as stiff as the forward one and dopri5
@@ -19,6 +20,30 @@
 //     backward time. The lambda equation is linear, so each implicit stage is one LU solve with
 //     I - h gamma F_z^T (no Newton iteration); mu is a quadrature with the same weights. Needs a
 //     dense Jacobian; for stiff problems.
+//
+// Stiff adjoints (hardening finding 9; Robertson over [0, 4e7], forward trbdf2 rtol 1e-10, backward
+// trbdf2 rtol 1e-11: 1.18 M rejected backward steps; rtol 1e-12: more than maxSteps). Measured
+// causes, in the order the sweep meets them:
+//   1. A terminal layer narrower than the time resolution. lambda(t1) = dphi/dz is in general off the
+//      slow manifold of the stiff adjoint (Robertson: lambda_2 relaxes in ~1e-4 s), and near
+//      t1 = 4e7 times are ulp(t1) = 7.45e-9 apart, so a step is a whole number of ulps. A retry of a
+//      rejected step of a few ulps could round back onto the same end and was repeated unchanged
+//      until maxSteps. Now a retry ends at least one representable time closer, a step below half
+//      an ulp becomes one ulp, and a rejected one-ulp step stops the sweep at once with a message
+//      naming the tolerance fields; minStep (default 1e-14 |t|, i.e. ~54 ulps) usually stops it
+//      first, with the same advice.
+//   2. The starting-step heuristic scales by atol where y(t1) is zero (mu(t1) = 0, lambda_2,3) and
+//      returned ~1e-12 at t1 = 4e7, below minStep |t1|: every tolerance failed at once. A start below
+//      the bound is raised to 100 times the bound (only starts that failed before change).
+//   3. Round-off in the error estimate of the stiff components. TR-BDF2's estimate h sum (b_i -
+//      bhat_i) k_i with k_i = F_z^T lambda_i carries the round-off of lambda amplified by
+//      h ||F_z|| (||F_z|| ~ 1e4 on Robertson): at rtol 1e-12 it caps the step near 1 s over 4e7 s.
+//      filterErrorEstimate multiplies the estimate by (I - h gamma F_z^T)^{-1} (Shampine's filter,
+//      the stage factorisation is reused): 645 rejected steps at rtol 1e-12. Off by default only
+//      because it changes the step sequence of existing results.
+//   The forward Hermite interpolation error and the Newton tolerance were ruled out: the backward
+//   system is linear (no Newton), and the rejected estimates alternate in sign step to step, which a
+//   smooth interpolation error does not do.
 //
 // Forward states z(t) at the backward stage times come from the storage:
 //   - storage.canInterpolate() (e.g. "hermite:every=M"): storage.interpolate(t, z);
@@ -47,6 +72,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 
@@ -59,9 +85,22 @@ struct ContinuousAdjointOptions {
   /// Backward integrator: "dopri5" (explicit, non-stiff, any problem) or "trbdf2" (L-stable, for
   /// stiff problems; needs a dense Jacobian); parsed with parseBackwardMethod().
   std::string method = "dopri5";
-  /// Tolerances of the backward error test on (lambda, mu). rtol in [1e-14, 1), atol > 0.
+  /// Tolerances of the backward error test on lambda (and on mu unless the quadrature ones below are
+  /// set). rtol in [1e-14, 1), atol > 0.
   double relativeTolerance = 1e-8;
   double absoluteTolerance = 1e-10;
+  /// Per-component atol of lambda (CVODES' CVodeSVtolerancesB): empty (default) uses
+  /// absoluteTolerance; otherwise stateSize() entries, each positive and finite.
+  std::vector<double> absoluteTolerances;
+  /// Tolerances of the gradient quadrature mu in the same error test (CVODES' CVodeQuadSStolerancesB):
+  /// 0 (default) means relativeTolerance / absoluteTolerance; otherwise rtol in [1e-14, 1), atol > 0.
+  double quadratureRelativeTolerance = 0.0;
+  double quadratureAbsoluteTolerance = 0.0;
+  /// "trbdf2" only: filter the error estimate of lambda through (I - h gamma F_z^T)^{-1} (Shampine;
+  /// Hairer & Wanner, Solving ODEs II, IV.8), so that round-off in the stiff components, amplified by
+  /// h ||F_z||, does not reject steps (see "Stiff adjoints" above). Off by default: it changes the
+  /// step sequence, and the default keeps the earlier results' bits.
+  bool filterErrorEstimate = false;
   /// First backward step; 0 chooses it by Hairer's heuristic. In [0, t1 - t0].
   double initialStep = 0.0;
   /// A backward step smaller than minStep * max(1, |t|) is an underflow (NumericalError). In (0, 1e-3].

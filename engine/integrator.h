@@ -55,8 +55,13 @@ struct IntegratorOptions {
   /// Fixed step size (the grid uses N = ceil((t1 - t0)/step) equal steps), or the first step when adaptive.
   double step = 1e-3;
   bool adaptive = false;
+  /// Adaptive: the error test's rtol and atol (weightedRmsNorm, engine/step_controller.h), both > 0.
   double relativeTolerance = 1e-6;
   double absoluteTolerance = 1e-9;
+  /// Adaptive: per-component absolute tolerances of the state z (CVODES' CVodeSVtolerances); when
+  /// not empty they replace absoluteTolerance in the error test, need stateSize() entries, each
+  /// positive and finite, and the Newton test uses their smallest entry. Empty (default): the scalar.
+  std::vector<double> absoluteTolerances;
   /// Adaptive: a step below this size is an underflow (NumericalError with the time).
   double minStep = 1e-14;
   /// Adaptive: upper bound on the step size; 0 means t1 - t0.
@@ -149,7 +154,8 @@ std::unique_ptr<Integrator> createIntegrator(const Problem& problem, ConstVector
 void solveTransposedInPlace(const Eigen::PartialPivLU<Matrix>& lu, VectorRef x, VectorRef work);
 
 /// The checks every implementation's constructor makes: validates the options, checks that p has the
-/// problem's parameter size (std::invalid_argument naming both sizes), and returns the parsed method.
+/// problem's parameter size and absoluteTolerances (when given) its state size (std::invalid_argument
+/// naming both sizes), and returns the parsed method.
 IntegratorMethod checkedMethod(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options);
 
 }  // namespace hindsight

@@ -119,6 +119,12 @@ RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRe
   rhsWork_.resize(n_);
   zStart_.resize(n_);
   linearInState_ = problem.isLinearInState();
+  newtonAbsoluteTolerance_ = options.absoluteTolerance;
+  if (options.adaptive && !options.absoluteTolerances.empty()) {
+    absoluteTolerances_ = Eigen::Map<const Vector>(options.absoluteTolerances.data(), n_);
+    relativeTolerances_ = Vector::Constant(n_, options.relativeTolerance);
+    newtonAbsoluteTolerance_ = absoluteTolerances_.minCoeff();
+  }
   if (problem.hasDenseJacobian()) {
     jacobian_.resize(n_, n_);
     newtonMatrix_.resize(n_, n_);
@@ -194,7 +200,7 @@ void RungeKuttaIntegrator::solveImplicitStage(int i, double t, double h) {
     const double change = alpha * infNorm(delta_);
     if (!std::isfinite(change)) throw NewtonFailure("Newton iteration produced a non-finite stage", ti);
     // An affine F with an exact solve: the first step solves the stage (Problem::isLinearInState).
-    if (linearInState_ || change <= options_.newtonTolerance * (infNorm(Z) + options_.absoluteTolerance)) {
+    if (linearInState_ || change <= options_.newtonTolerance * (infNorm(Z) + newtonAbsoluteTolerance_)) {
       Z = base_ + alpha * K;
       return;
     }
@@ -245,7 +251,10 @@ double RungeKuttaIntegrator::step(double t, double h, VectorRef z, double* error
       const double weight = tableau_.b(i) - tableau_.bEmbedded(i);
       if (weight != 0.0) work_ += (h * weight) * stageSlopes_.col(i);
     }
-    *errorNorm = weightedRmsNorm(work_, zStart_, z, options_.relativeTolerance, options_.absoluteTolerance);
+    *errorNorm =
+        absoluteTolerances_.size() > 0
+            ? weightedRmsNorm(work_, zStart_, z, relativeTolerances_, absoluteTolerances_)
+            : weightedRmsNorm(work_, zStart_, z, options_.relativeTolerance, options_.absoluteTolerance);
   }
   return increment;
 }

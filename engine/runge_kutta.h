@@ -113,6 +113,10 @@ class RungeKuttaIntegrator final : public Integrator {
   Matrix jacobian_, newtonMatrix_;
   Eigen::PartialPivLU<Matrix> lu_;
   IntegratorCounters counters_;
+  // IntegratorOptions::absoluteTolerances as vectors for the error norm (empty: the scalar norm, so
+  // the default keeps its bits), and the atol of the Newton test.
+  Vector relativeTolerances_, absoluteTolerances_;
+  double newtonAbsoluteTolerance_ = 0.0;
 };
 
 }  // namespace hindsight

@@ -16,6 +16,18 @@ double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y
   return std::sqrt(sum / static_cast<double>(error.size()));
 }
 
+double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1,
+                       ConstVectorRef relativeTolerances, ConstVectorRef absoluteTolerances) {
+  double sum = 0.0;
+  for (Eigen::Index i = 0; i < error.size(); ++i) {
+    const double scale =
+        absoluteTolerances(i) + relativeTolerances(i) * std::max(std::abs(y0(i)), std::abs(y1(i)));
+    const double r = error(i) / scale;
+    sum += r * r;
+  }
+  return std::sqrt(sum / static_cast<double>(error.size()));
+}
+
 double StepSizeController::afterAccepted(double h, double norm) const {
   // A zero error estimate (e.g. a linear solution) allows the largest growth.
   const double factor = norm > 0.0 ? 0.9 * std::pow(norm, exponent_) : 5.0;

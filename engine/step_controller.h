@@ -5,7 +5,10 @@
 //
 // Error norm: the weighted RMS norm ||e|| = sqrt(mean_i (e_i / (atol + rtol max(|y0_i|, |y1_i|)))^2)
 // of an error estimate e over a step from y0 to y1 (Hairer, Norsett & Wanner, Solving ODEs I, II.4);
-// a step is acceptable when ||e|| <= 1.
+// a step is acceptable when ||e|| <= 1. The tolerances are scalars or, as in CVODES
+// (CVodeSVtolerances), per component: a component whose magnitude differs by orders from the others
+// (Robertson's y2 ~ 1e-5 beside y1, y3 ~ 1) needs its own atol_i, and a quadrature appended to a
+// state (the continuous adjoint's mu beside lambda) its own rtol and atol.
 //
 // Controller: the elementary (I-) controller h_new = h * 0.9 ||e||^(-1/(q+1)) for an estimate of
 // O(h^(q+1)), the factor clamped to [0.2, 5] after an accepted step and to [0.1, 0.9] after a rejected
@@ -19,6 +22,10 @@ namespace hindsight {
 /// The weighted RMS norm above; error, y0 and y1 have the same size (> 0).
 double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, double relativeTolerance,
                        double absoluteTolerance);
+/// The same with per-component tolerances: scale_i = atol_i + rtol_i max(|y0_i|, |y1_i|). With every
+/// rtol_i and atol_i equal to scalars it gives the scalar version's bits (same operations, same order).
+double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1,
+                       ConstVectorRef relativeTolerances, ConstVectorRef absoluteTolerances);
 
 class StepSizeController {
  public:

@@ -267,6 +267,23 @@ TEST(CvodesBadInput, EveryBadFieldIsNamedWithItsRange) {
       {[](CvodesOptions& o) { o.relativeTolerance = 0.0; }, "relativeTolerance", "[1e-14, 1)"},
       {[](CvodesOptions& o) { o.relativeTolerance = 2.0; }, "relativeTolerance", "[1e-14, 1)"},
       {[](CvodesOptions& o) { o.absoluteTolerance = -1.0; }, "absoluteTolerance", "positive"},
+      {[](CvodesOptions& o) {
+         o.absoluteTolerances = {1e-8, -1.0};
+       },
+       "absoluteTolerances[1] = -1", "positive"},
+      {[](CvodesOptions& o) { o.quadratureRelativeTolerance = 2.0; }, "quadratureRelativeTolerance",
+       "[1e-14, 1)"},
+      {[](CvodesOptions& o) { o.quadratureAbsoluteTolerance = -1.0; }, "quadratureAbsoluteTolerance",
+       "positive"},
+      {[](CvodesOptions& o) { o.backwardRelativeTolerance = 1e-20; }, "backwardRelativeTolerance",
+       "[1e-14, 1)"},
+      {[](CvodesOptions& o) { o.backwardAbsoluteTolerance = -1.0; }, "backwardAbsoluteTolerance", "positive"},
+      {[](CvodesOptions& o) { o.backwardAbsoluteTolerances = {0.0}; }, "backwardAbsoluteTolerances[0] = 0",
+       "positive"},
+      {[](CvodesOptions& o) { o.backwardQuadratureRelativeTolerance = -1.0; },
+       "backwardQuadratureRelativeTolerance", "[1e-14, 1)"},
+      {[](CvodesOptions& o) { o.backwardQuadratureAbsoluteTolerance = NAN; },
+       "backwardQuadratureAbsoluteTolerance", "positive"},
       {[](CvodesOptions& o) { o.checkpointSteps = 0; }, "checkpointSteps", "[1, 1e9]"},
       {[](CvodesOptions& o) { o.maxSteps = 0; }, "maxSteps", "[1, 1e12]"},
       {[](CvodesOptions& o) { o.initialStep = 5.0; }, "initialStep", "[0, t1 - t0"},
@@ -288,6 +305,15 @@ TEST(CvodesBadInput, EveryBadFieldIsNamedWithItsRange) {
 TEST(CvodesBadInput, WrongParameterSizeAndUnknownNames) {
   ExponentialDecay problem;
   EXPECT_THROW(computeGradientCvodes(problem, Vector::Ones(3), CvodesOptions{}), std::invalid_argument);
+  CvodesOptions options;
+  options.absoluteTolerances = {1e-8, 1e-8, 1e-8};  // ExponentialDecay has one state
+  try {
+    computeGradientCvodes(problem, Vector::Ones(problem.parameterSize()), options);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("CvodesOptions.absoluteTolerances has 3 entries"), std::string::npos)
+        << e.what();
+  }
   EXPECT_THROW(parseCvodesMethod("rk4"), std::invalid_argument);
   EXPECT_THROW(parseCvodesInterpolation("linear"), std::invalid_argument);
   EXPECT_EQ(parseCvodesMethod("adams"), CvodesMethod::Adams);

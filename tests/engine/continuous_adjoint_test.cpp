@@ -217,6 +217,105 @@ TEST(ContinuousStiff, RobertsonWithImplicitBackwardAgreesWithDiscreteAndCvodes) 
   }
 }
 
+/// Robertson on [0, horizon] with adaptive trbdf2 forward (rtol, atol) and backward (rtol, atol).
+GradientOptions robertsonTrbdf2(double horizon, double step, double forwardRtol, double forwardAtol,
+                                double backwardRtol, double backwardAtol) {
+  GradientOptions options;
+  options.adjoint = AdjointMethod::Continuous;
+  options.integrator.method = "trbdf2";
+  options.integrator.t1 = horizon;
+  options.integrator.adaptive = true;
+  options.integrator.step = step;
+  options.integrator.relativeTolerance = forwardRtol;
+  options.integrator.absoluteTolerance = forwardAtol;
+  options.continuous.method = "trbdf2";
+  options.continuous.relativeTolerance = backwardRtol;
+  options.continuous.absoluteTolerance = backwardAtol;
+  return options;
+}
+
+/// Robertson over [0, 4e7] (hardening finding 9): forward rtol 1e-10, backward `backwardRtol`;
+/// minStep lowered so that the layer at t1 is not cut off by the default bound.
+GradientOptions stiffLongOptions(double backwardRtol) {
+  GradientOptions options = robertsonTrbdf2(4e7, 1e-8, 1e-10, 1e-14, backwardRtol, 1e-14);
+  options.continuous.minStep = 1e-18;
+  options.continuous.maxSteps = 200'000;
+  return options;
+}
+
+std::string numericalErrorMessage(const Problem& problem, ConstVectorRef p, const GradientOptions& options) {
+  try {
+    computeGradientByMethod(problem, p, options);
+  } catch (const NumericalError& e) {
+    return e.what();
+  }
+  return "<no NumericalError>";
+}
+
+TEST(ContinuousStiff, TightBackwardToleranceOnRobertsonTo4e7IsBoundedByTheFilteredEstimate) {
+  // Unfiltered, the TR-BDF2 estimate of the stiff lambda_2 (eigenvalue ~ -1e4) is round-off in
+  // k = F_z^T lambda amplified by h ||F_z||: at rtol 1e-12 it caps the step near 1 s on [0, 4e7]
+  // and every attempt beyond is rejected; the sweep used up maxSteps before reaching t ~ 3.97e7
+  // (1.18 M rejections at rtol 1e-11 without the bound). Filtered, the same run takes a few hundred
+  // rejections and agrees with the discrete adjoint to the forward tolerance.
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-12);
+  EXPECT_NE(numericalErrorMessage(problem, p, options).find("more than maxSteps = 200000"),
+            std::string::npos);
+  options.continuous.filterErrorEstimate = true;
+  const GradientResult continuous = computeGradientByMethod(problem, p, options);
+  options.adjoint = AdjointMethod::Discrete;
+  const GradientResult discrete = computeGradientByMethod(problem, p, options);
+  const std::int64_t backwardRejected = continuous.summary.rejectedSteps - discrete.summary.rejectedSteps;
+  std::cout << "[ robertson 4e7 ] backward rejected " << backwardRejected << ", gradient "
+            << continuous.gradient.transpose() << " (discrete " << discrete.gradient.transpose() << ")\n";
+  EXPECT_LT(backwardRejected, 5000);  // observed 645
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(continuous.gradient(i), discrete.gradient(i), 1e-6 * std::abs(discrete.gradient(i))) << i;
+  }
+}
+
+TEST(ContinuousStiff, ABackwardLayerBelowTheTimeResolutionStopsAtOnceWithTheReason) {
+  // lambda(t1) = dphi/dz = (1, 0, 0) is off the adjoint's slow manifold: lambda_2 has a layer of
+  // width ~1e-4 at t1 = 4e7, where times are 7.45e-9 apart. At rtol 1e-13 the layer needs steps
+  // below that: once a one-ulp step is rejected the sweep stops and says why (before, a retry
+  // rounded back onto the rejected step and was repeated unchanged until maxSteps).
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-13);
+  options.continuous.filterErrorEstimate = true;
+  options.continuous.absoluteTolerance = 1e-16;
+  std::string message = numericalErrorMessage(problem, p, options);
+  EXPECT_NE(message.find("one unit in the last place of t"), std::string::npos) << message;
+  EXPECT_NE(message.find("ContinuousAdjointOptions.relativeTolerance = 1e-13"), std::string::npos) << message;
+  // With the default minStep the same layer at rtol 1e-11 hits the underflow bound, which names the
+  // fields too.
+  options = stiffLongOptions(1e-11);
+  options.continuous.minStep = ContinuousAdjointOptions{}.minStep;
+  message = numericalErrorMessage(problem, p, options);
+  EXPECT_NE(message.find("ContinuousAdjointOptions.minStep * max(1, |t|) = 4e-07"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("ContinuousAdjointOptions.relativeTolerance = 1e-11"), std::string::npos) << message;
+}
+
+TEST(ContinuousStiff, AStartingStepBelowTheBoundNoLongerFailsAtOnce) {
+  // Hairer's starting step scales by atol where y(t1) is zero; with lambda_2's steep slope at t1 it
+  // proposed 1e-12 at t1 = 4e7, below minStep |t1| = 4e-7, and every tolerance failed at once. The
+  // start is now raised to 100 times the bound and the controller finds the layer's step.
+  Robertson problem(4e7);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = stiffLongOptions(1e-6);
+  options.continuous.minStep = ContinuousAdjointOptions{}.minStep;
+  const GradientResult continuous = computeGradientByMethod(problem, p, options);
+  options.adjoint = AdjointMethod::Discrete;
+  const GradientResult discrete = computeGradientByMethod(problem, p, options);
+  for (int i = 0; i < 3; ++i) {
+    // Observed 1.1e-4 relative: the order-2 backward sweep at rtol 1e-6 over eleven decades.
+    EXPECT_NEAR(continuous.gradient(i), discrete.gradient(i), 1e-3 * std::abs(discrete.gradient(i))) << i;
+  }
+}
+
 TEST(ContinuousSources, RestoredWindowAndHermiteEveryStepGiveTheSameGradient) {
   // Both build the cubic Hermite interpolant from z_n and F(t_n, z_n) on every forward step, one
   // through storage.interpolate(), the other from restored states: the same numbers to round-off.
@@ -328,6 +427,62 @@ TEST(AdjointMethodOption, ParsesTheThreeNamesAndListsThemOnError) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("discrete, continuous, cvodes"), std::string::npos) << e.what();
   }
+}
+
+TEST(ContinuousTolerances, PerComponentAndQuadratureTolerancesReachTheBackwardErrorTest) {
+  // Robertson over [0, 1e5] with the backward trbdf2: per-component atol equal to the scalar gives
+  // the scalar run's bits; a loose quadrature tolerance on mu, or a loose atol on lambda_2 alone,
+  // changes the backward step sequence (visible in the rejected steps and the gradient's bits).
+  Robertson problem(1e5);
+  const Vector p = Robertson::nominalParameters();
+  GradientOptions options = robertsonTrbdf2(1e5, 1e-6, 1e-8, 1e-12, 1e-8, 1e-12);
+  const GradientResult scalar = computeGradientByMethod(problem, p, options);
+  options.continuous.absoluteTolerances = {1e-12, 1e-12, 1e-12};
+  const GradientResult same = computeGradientByMethod(problem, p, options);
+  EXPECT_EQ(scalar.gradient, same.gradient);
+  EXPECT_EQ(scalar.summary.rejectedSteps, same.summary.rejectedSteps);
+  options.continuous.quadratureRelativeTolerance = 1e-3;
+  options.continuous.quadratureAbsoluteTolerance = 1e-3;
+  const GradientResult looseQuadrature = computeGradientByMethod(problem, p, options);
+  EXPECT_NE(scalar.gradient, looseQuadrature.gradient);
+  options.continuous.quadratureRelativeTolerance = 0.0;
+  options.continuous.quadratureAbsoluteTolerance = 0.0;
+  options.continuous.absoluteTolerances = {1e-12, 1e-3, 1e-12};
+  const GradientResult looseLambda2 = computeGradientByMethod(problem, p, options);
+  EXPECT_NE(scalar.gradient, looseLambda2.gradient);
+  // All of them still the same gradient to the loosest tolerance asked for.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(looseQuadrature.gradient(i), scalar.gradient(i), 1e-2 * std::abs(scalar.gradient(i)));
+  }
+}
+
+TEST(ContinuousBadInput, ToleranceFieldsAreNamed) {
+  ExponentialDecay problem;
+  GradientOptions options = tightOptions(AdjointMethod::Continuous, 1.0);
+  const auto message = [&]() -> std::string {
+    try {
+      computeGradientByMethod(problem, Eigen::Vector2d(1.0, 1.0), options);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "<no exception>";
+  };
+  options.continuous.quadratureRelativeTolerance = 2.0;
+  EXPECT_NE(message().find("ContinuousAdjointOptions.quadratureRelativeTolerance = 2 must be 0"),
+            std::string::npos)
+      << message();
+  options.continuous.quadratureRelativeTolerance = 0.0;
+  options.continuous.quadratureAbsoluteTolerance = -1.0;
+  EXPECT_NE(message().find("ContinuousAdjointOptions.quadratureAbsoluteTolerance = -1"), std::string::npos)
+      << message();
+  options.continuous.quadratureAbsoluteTolerance = 0.0;
+  options.continuous.absoluteTolerances = {-1.0};
+  EXPECT_NE(message().find("ContinuousAdjointOptions.absoluteTolerances[0] = -1 must be positive"),
+            std::string::npos)
+      << message();
+  options.continuous.absoluteTolerances = {1e-8, 1e-8};
+  EXPECT_NE(message().find("ContinuousAdjointOptions.absoluteTolerances has 2 entries"), std::string::npos)
+      << message();
 }
 
 TEST(ContinuousBadInput, BadOptionsNameTheField) {
