@@ -3,7 +3,10 @@
 #include <hindsight/engine/runge_kutta.h>
 #include <hindsight/storage/storage_factory.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -14,10 +17,20 @@ namespace {
 
 using nlohmann::json;
 
+/// Who a value is for and how the user wrote it: messages say "<who> = <shown> ...". `who` is
+/// "config field 'rod.modeCount'" for a JSON file or --set, or the flag ("--move-limit") for a
+/// command-line flag; `shown` is the text the user gave (the JSON rendering for a file), so a value
+/// that does not survive parsing (1e-400 becomes 0) is still reported as written.
+struct Subject {
+  std::string who;
+  std::string shown;
+  std::string text;  ///< the user's text when there is one (--set, flags); empty for a JSON file
+};
+
 /// One configurable field: its JSON name, how to read it from JSON (with checks), how to write it.
 struct Field {
   std::string name;
-  std::function<void(Config&, const json&, const std::string&)> read;
+  std::function<void(Config&, const json&, const Subject&)> read;
   std::function<json(const Config&)> write;
 };
 
@@ -27,16 +40,26 @@ template <typename Member>
 Field realField(const std::string& name, Member member, double min, double max, bool openMin = false) {
   return Field{
       name,
-      [=](Config& c, const json& v, const std::string& full) {
+      [=](Config& c, const json& v, const Subject& s) {
+        std::ostringstream range;
+        range << (openMin ? "(" : "[") << min << ", " << max << "]";
         if (!v.is_number())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be a number");
+          throw std::invalid_argument(s.who + " = " + s.shown + " must be a number in " + range.str());
+        // JSON parsing turns 1e-400 into 0 and 1e400 into inf: report what the user wrote.
+        if (!s.text.empty()) {
+          errno = 0;
+          const double parsed = std::strtod(s.text.c_str(), nullptr);
+          if (errno == ERANGE) {
+            throw std::invalid_argument(s.who + " = " + s.text + " is outside the range of a double (it " +
+                                        (parsed == 0.0 ? "underflows to 0" : "overflows") +
+                                        "); allowed range " + range.str());
+          }
+        }
         const double x = v.get<double>();
         const bool low = openMin ? !(x > min) : !(x >= min);
         if (low || !(x <= max) || !std::isfinite(x)) {
-          std::ostringstream range;
-          range << (openMin ? "(" : "[") << min << ", " << max << "]";
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                      " is outside the allowed range " + range.str());
+          throw std::invalid_argument(s.who + " = " + s.shown + " is outside the allowed range " +
+                                      range.str());
         }
         member(c) = x;
       },
@@ -47,14 +70,16 @@ template <typename Member>
 Field integerField(const std::string& name, Member member, long min, long max) {
   return Field{
       name,
-      [=](Config& c, const json& v, const std::string& full) {
+      [=](Config& c, const json& v, const Subject& s) {
+        const std::string range = "[" + std::to_string(min) + ", " + std::to_string(max) + "]";
         if (!v.is_number_integer())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be an integer");
-        const long x = v.get<long>();
-        if (x < min || x > max) {
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                      " is outside the allowed range [" + std::to_string(min) + ", " +
-                                      std::to_string(max) + "]");
+          throw std::invalid_argument(s.who + " = " + s.shown + " must be an integer in " + range);
+        const bool fits = v.is_number_unsigned()
+                              ? v.get<unsigned long long>() <= static_cast<unsigned long long>(max)
+                              : true;
+        const long x = fits ? v.get<long>() : max;
+        if (!fits || x < min || x > max) {
+          throw std::invalid_argument(s.who + " = " + s.shown + " is outside the allowed range " + range);
         }
         member(c) = static_cast<int>(x);
       },
@@ -64,10 +89,9 @@ Field integerField(const std::string& name, Member member, long min, long max) {
 template <typename Member>
 Field boolField(const std::string& name, Member member) {
   return Field{name,
-               [=](Config& c, const json& v, const std::string& full) {
+               [=](Config& c, const json& v, const Subject& s) {
                  if (!v.is_boolean())
-                   throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                               " must be true or false");
+                   throw std::invalid_argument(s.who + " = " + s.shown + " must be true or false");
                  member(c) = v.get<bool>();
                },
                [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
@@ -75,26 +99,23 @@ Field boolField(const std::string& name, Member member) {
 
 template <typename Member>
 Field stringField(const std::string& name, Member member, std::vector<std::string> allowed) {
-  return Field{
-      name,
-      [=](Config& c, const json& v, const std::string& full) {
-        if (!v.is_string())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be a string");
-        const std::string s = v.get<std::string>();
-        if (!allowed.empty()) {
-          bool ok = false;
-          std::string list;
-          for (const auto& a : allowed) {
-            ok = ok || a == s;
-            list += (list.empty() ? "" : ", ") + a;
-          }
-          if (!ok)
-            throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                        " must be one of: " + list);
-        }
-        member(c) = s;
-      },
-      [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
+  return Field{name,
+               [=](Config& c, const json& v, const Subject& s) {
+                 std::string list;
+                 for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+                 // A flag's or --set's text is the string itself, even when it would parse as JSON (a storage
+                 // spec of "5" is rejected by the spec parser, not as "not a string").
+                 const json& given = !v.is_string() && !s.text.empty() ? json(s.text) : v;
+                 if (!given.is_string()) {
+                   throw std::invalid_argument(s.who + " = " + s.shown + " must be a string" +
+                                               (list.empty() ? "" : " (one of: " + list + ")"));
+                 }
+                 const std::string value = given.get<std::string>();
+                 if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), value) == allowed.end())
+                   throw std::invalid_argument(s.who + " = " + s.shown + " must be one of: " + list);
+                 member(c) = value;
+               },
+               [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
 }
 
 #define MEMBER(path) \
@@ -149,19 +170,43 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
 
 #undef MEMBER
 
-const Field& findField(const std::string& section, const std::string& name) {
+const std::vector<Field>& findSection(const std::string& section) {
+  std::string names;
   for (const auto& [sectionName, fields] : schema()) {
-    if (sectionName != section) continue;
-    std::string names;
-    for (const Field& f : fields) {
-      if (f.name == name) return f;
-      names += (names.empty() ? "" : ", ") + f.name;
-    }
-    throw std::invalid_argument("config field '" + section + "." + name + "' is unknown; fields of '" +
-                                section + "': " + names);
+    if (sectionName == section) return fields;
+    names += (names.empty() ? "" : ", ") + sectionName;
   }
-  throw std::invalid_argument("config section '" + section +
-                              "' is unknown; sections: rod, simulation, optimization");
+  throw std::invalid_argument("config section '" + section + "' is unknown; sections: " + names);
+}
+
+const Field& findField(const std::string& section, const std::string& name) {
+  const std::vector<Field>& fields = findSection(section);
+  std::string names;
+  for (const Field& f : fields) {
+    if (f.name == name) return f;
+    names += (names.empty() ? "" : ", ") + f.name;
+  }
+  throw std::invalid_argument("config field '" + section + "." + name + "' is unknown; fields of '" +
+                              section + "': " + names);
+}
+
+/// Reads `text` as --set does: JSON syntax, or a bare word taken as a string.
+json parseValueText(const std::string& text) {
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error&) {
+    return json(text);  // a bare word such as rk4
+  } catch (const json::out_of_range&) {
+    // 1e400: not a double; the field's check reports the user's text as out of range.
+    return json(std::numeric_limits<double>::infinity());
+  }
+}
+
+/// Splits "section.field".
+std::pair<std::string, std::string> splitKey(const std::string& key) {
+  const auto dot = key.find('.');
+  if (dot == std::string::npos) return {key, ""};
+  return {key.substr(0, dot), key.substr(dot + 1)};
 }
 
 }  // namespace
@@ -199,12 +244,15 @@ Config configFromJson(const nlohmann::json& in) {
   if (!in.is_object()) throw std::invalid_argument("configuration must be a JSON object");
   Config config;
   for (const auto& [section, value] : in.items()) {
+    findSection(section);  // an unknown section is named, even when it is empty
     if (!value.is_object()) {
-      findField(section, "");  // throws for an unknown section
-      throw std::invalid_argument("config section '" + section + "' must be a JSON object");
+      throw std::invalid_argument("config section '" + section + "' = " + render(value) +
+                                  " must be a JSON object of fields");
     }
-    for (const auto& [name, v] : value.items())
-      findField(section, name).read(config, v, section + "." + name);
+    for (const auto& [name, v] : value.items()) {
+      const std::string full = section + "." + name;
+      findField(section, name).read(config, v, {"config field '" + full + "'", render(v), ""});
+    }
   }
   config.validate();
   return config;
@@ -216,7 +264,7 @@ Config readConfigFile(const std::string& path) {
   json parsed;
   try {
     parsed = json::parse(file);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // also a number overflow such as 1e400
     throw std::invalid_argument("configuration file '" + path + "' is not valid JSON: " + e.what());
   }
   return configFromJson(parsed);
@@ -231,13 +279,14 @@ void applySetting(Config& config, const std::string& assignment) {
   const std::string section = assignment.substr(0, dot);
   const std::string name = assignment.substr(dot + 1, eq - dot - 1);
   const std::string text = assignment.substr(eq + 1);
-  json value;
-  try {
-    value = json::parse(text);
-  } catch (const json::parse_error&) {
-    value = text;  // a bare word such as rk4
-  }
-  findField(section, name).read(config, value, section + "." + name);
+  findField(section, name)
+      .read(config, parseValueText(text), {"config field '" + section + "." + name + "'", text, text});
+  config.validate();
+}
+
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text) {
+  const auto [section, name] = splitKey(key);
+  findField(section, name).read(config, parseValueText(text), {flag, text, text});
   config.validate();
 }
 

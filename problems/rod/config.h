@@ -59,5 +59,9 @@ Config configFromJson(const nlohmann::json& json);
 Config readConfigFile(const std::string& path);
 /// Applies "section.field=value" (value in JSON syntax; bare words are taken as strings).
 void applySetting(Config& config, const std::string& assignment);
+/// Applies a command-line flag that stands for one configuration field (`--move-limit 0.1` is
+/// optimization.moveLimit): the text is read as --set reads a value and checked by the same code, so
+/// a flag accepts exactly what its field accepts; messages name the flag and the allowed range.
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text);
 
 }  // namespace hindsight

@@ -77,6 +77,62 @@ TEST(Config, SetAssignmentsAreCheckedLikeTheFile) {
             std::string::npos);
 }
 
+// {"extra": {}} used to be accepted (an empty unknown section was never looked up), {"rod": 5} was
+// reported as the unknown field 'rod.', and 1e-400 was reported as the 0.0 it parses to.
+TEST(Config, SectionsAreCheckedByNameAndShapeAndValuesAreReportedAsWritten) {
+  const auto extra = errorOf([] { configFromJson(nlohmann::json::parse(R"({"extra": {}})")); });
+  EXPECT_NE(extra.find("section 'extra' is unknown; sections: rod, simulation, optimization"),
+            std::string::npos)
+      << extra;
+  const auto scalar = errorOf([] { configFromJson(nlohmann::json::parse(R"({"rod": 5})")); });
+  EXPECT_NE(scalar.find("section 'rod' = 5 must be a JSON object"), std::string::npos) << scalar;
+  Config config;
+  const auto tiny = errorOf([&] { applySetting(config, "simulation.step=1e-400"); });
+  EXPECT_NE(tiny.find("'simulation.step' = 1e-400 is outside the range of a double (it underflows to 0)"),
+            std::string::npos)
+      << tiny;
+  EXPECT_NE(tiny.find("(0, 1]"), std::string::npos) << tiny;
+  const auto huge = errorOf([&] { applySetting(config, "rod.length=1e400"); });
+  EXPECT_NE(huge.find("'rod.length' = 1e400 is outside the range of a double (it overflows)"),
+            std::string::npos)
+      << huge;
+  EXPECT_EQ(config.simulation.step, Config{}.simulation.step);
+}
+
+// A command-line flag is its config field: the same checks, the message names the flag and range.
+TEST(Config, FlagsAreCheckedAsTheirFieldsAndNamed) {
+  Config config;
+  applyFlag(config, "--move-limit", "optimization.moveLimit", "0.1");
+  applyFlag(config, "--storage", "simulation.storage", "binomial:checkpoints=20");
+  EXPECT_EQ(config.optimization.moveLimit, 0.1);
+  EXPECT_EQ(config.simulation.storage, "binomial:checkpoints=20");
+  const struct {
+    const char* flag;
+    const char* key;
+    const char* text;
+    const char* message;
+  } cases[] = {
+      {"--iterations", "optimization.iterations", "-1",
+       "--iterations = -1 is outside the allowed range [0, 100000]"},
+      {"--iterations", "optimization.iterations", "2.5",
+       "--iterations = 2.5 must be an integer in [0, 100000]"},
+      {"--move-limit", "optimization.moveLimit", "0", "--move-limit = 0 is outside the allowed range (0, 1]"},
+      {"--move-limit", "optimization.moveLimit", "nan", "--move-limit = nan must be a number in (0, 1]"},
+      {"--filter-radius", "optimization.filterRadius", "-1",
+       "--filter-radius = -1 is outside the allowed range [0, 1000]"},
+      {"--picture-every", "optimization.pictureEvery", "-2",
+       "--picture-every = -2 is outside the allowed range [0, 100000]"},
+      {"--objective", "optimization.objective", "psi3", "--objective = psi3 must be one of: psi1, psi2"},
+      {"--storage", "simulation.storage", "5", "unknown storage strategy"},
+  };
+  for (const auto& c : cases) {
+    const auto message = errorOf([&] { applyFlag(config, c.flag, c.key, c.text); });
+    EXPECT_NE(message.find(c.message), std::string::npos) << c.flag << " " << c.text << ": " << message;
+  }
+  EXPECT_EQ(config.optimization.moveLimit, 0.1);
+  EXPECT_EQ(config.optimization.iterations, 50);
+}
+
 TEST(Config, UnreadableOrMalformedFilesAreNamed) {
   EXPECT_NE(errorOf([] { readConfigFile("/nonexistent/config.json"); }).find("/nonexistent/config.json"),
             std::string::npos);
