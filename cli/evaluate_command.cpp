@@ -100,7 +100,7 @@ int runEvaluate(const EvaluateSettings& s) {
   s.flags.apply(config);
   // `--model full` alone: the full-order defaults (TR-BDF2, h = 1e-3 s; the model is far too stiff for
   // the reduced model's RK4 at 1e-4), unless the integrator or the step were chosen explicitly.
-  if (s.flags.given("--model") && config.simulation.model == "full" && s.configFile.empty() &&
+  if (s.flags.given("--model") && config.simulation.model == RodModel::Full && s.configFile.empty() &&
       !s.flags.given("--integrator")) {
     bool chosen = false;
     for (const auto& assignment : s.assignments) {
@@ -120,7 +120,7 @@ int runEvaluate(const EvaluateSettings& s) {
   const PistonRod rod(config);
   const Vector design = s.designFile.empty() ? rod.initialDesign() : readDesignFile(s.designFile, config.rod);
   const bool gradient = !s.gradientFile.empty();
-  if (config.simulation.model == "full") return runFullOrder(config, rod, design, s);
+  if (config.simulation.model == RodModel::Full) return runFullOrder(config, rod, design, s);
   // psi2 samples the trajectory at load times that must be grid points: with adaptive steps it
   // cannot be computed, and psi1 (with its gradient) is still worth reporting.
   const std::string psi2Skipped =
@@ -186,7 +186,7 @@ void registerEvaluate(CLI::App& app) {
                   "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx) to this HDF5 file");
   cmd->add_flag("--force", s->force, "overwrite an existing --gradient file (never the --design input)");
   s->flags.add(cmd, "--storage", "simulation.storage",
-               "trajectory storage spec, e.g. binomial:checkpoints=50", "SPEC");
+               "trajectory storage spec, e.g. binomial:checkpoints=50", "STORAGE");
   s->flags.add(cmd, "--integrator", "simulation.integrator", "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint",
                "TEXT");
   s->flags.add(cmd, "--adjoint", "simulation.adjoint", "discrete | continuous | cvodes", "TEXT");

@@ -47,7 +47,8 @@ Config buildConfig(const OptimizeSettings& s) {
     throw std::invalid_argument(
         "config field 'simulation.adaptive' = true: optimize evaluates psi2 at every "
         "iteration (optimization.objective = " +
-        config.optimization.objective + "), which needs fixed steps; set simulation.adaptive = false");
+        toString(config.optimization.objective) +
+        "), which needs fixed steps; set simulation.adaptive = false");
   }
   return config;
 }
@@ -61,8 +62,8 @@ int runOptimize(const OptimizeSettings& s) {
   OptimizationRun run(config, options);  // all remaining input checks, before any work
 
   const rod::RodConfig& rc = config.rod;
-  std::cout << "optimize " << config.optimization.objective << ": " << rc.elementsAlongLength << " x "
-            << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
+  std::cout << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength
+            << " x " << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
             << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
             << ", filter radius " << config.optimization.filterRadius << ", move limit "
             << config.optimization.moveLimit << "; results in " << run.resultsPath()

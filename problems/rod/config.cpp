@@ -97,26 +97,77 @@ Field boolField(const std::string& name, Member member) {
                [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
 }
 
+/// The string a choice field was given, checked against `allowed` (empty: any string).
+std::string readChoice(const json& v, const Subject& s, const std::vector<std::string>& allowed) {
+  std::string list;
+  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+  // A flag's or --set's text is the string itself, even when it would parse as JSON (a storage
+  // spec of "5" is rejected by the spec parser, not as "not a string").
+  const json& given = !v.is_string() && !s.text.empty() ? json(s.text) : v;
+  if (!given.is_string()) {
+    throw std::invalid_argument(s.who + " = " + s.shown + " must be a string" +
+                                (list.empty() ? "" : " (one of: " + list + ")"));
+  }
+  const std::string value = given.get<std::string>();
+  if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), value) == allowed.end())
+    throw std::invalid_argument(s.who + " = " + s.shown + " must be one of: " + list);
+  return value;
+}
+
 template <typename Member>
 Field stringField(const std::string& name, Member member, std::vector<std::string> allowed) {
   return Field{name,
-               [=](Config& c, const json& v, const Subject& s) {
-                 std::string list;
-                 for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-                 // A flag's or --set's text is the string itself, even when it would parse as JSON (a storage
-                 // spec of "5" is rejected by the spec parser, not as "not a string").
-                 const json& given = !v.is_string() && !s.text.empty() ? json(s.text) : v;
-                 if (!given.is_string()) {
-                   throw std::invalid_argument(s.who + " = " + s.shown + " must be a string" +
-                                               (list.empty() ? "" : " (one of: " + list + ")"));
-                 }
-                 const std::string value = given.get<std::string>();
-                 if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), value) == allowed.end())
-                   throw std::invalid_argument(s.who + " = " + s.shown + " must be one of: " + list);
-                 member(c) = value;
-               },
+               [=](Config& c, const json& v, const Subject& s) { member(c) = readChoice(v, s, allowed); },
                [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
 }
+
+/// A choice held as an enum; JSON holds its name.
+template <typename Member, typename Enum>
+Field enumField(const std::string& name, Member member, std::vector<std::string> names,
+                Enum (*parse)(const std::string&), std::string (*print)(Enum)) {
+  return Field{
+      name, [=](Config& c, const json& v, const Subject& s) { member(c) = parse(readChoice(v, s, names)); },
+      [=](const Config& c) { return json(print(member(const_cast<Config&>(c)))); }};
+}
+
+template <typename Enum>
+using Names = std::vector<std::pair<Enum, std::string>>;
+
+const Names<RodModel> kModels = {{RodModel::Reduced, "reduced"}, {RodModel::Full, "full"}};
+const Names<Objective> kObjectives = {{Objective::Psi1, "psi1"}, {Objective::Psi2, "psi2"}};
+const Names<rod::EigenvectorSensitivityMethod> kEigenvectorRoutes = {
+    {rod::EigenvectorSensitivityMethod::AdjointNelson, "adjoint-nelson"},
+    {rod::EigenvectorSensitivityMethod::NelsonPerVariable, "nelson"}};
+
+template <typename Enum>
+std::vector<std::string> namesOf(const Names<Enum>& names) {
+  std::vector<std::string> out;
+  for (const auto& entry : names) out.push_back(entry.second);
+  return out;
+}
+
+template <typename Enum>
+std::string nameOf(const Names<Enum>& names, Enum value) {
+  for (const auto& [e, name] : names) {
+    if (e == value) return name;
+  }
+  throw std::logic_error("config: an enum value without a name");
+}
+
+template <typename Enum>
+Enum parseName(const Names<Enum>& names, const std::string& name, const std::string& field) {
+  std::string list;
+  for (const auto& [e, n] : names) {
+    if (n == name) return e;
+    list += (list.empty() ? "" : ", ") + n;
+  }
+  throw std::invalid_argument("config field '" + field + "' = \"" + name + "\" must be one of: " + list);
+}
+
+std::string adjointName(AdjointMethod method) { return toString(method); }
+std::string modelName(RodModel model) { return toString(model); }
+std::string objectiveName(Objective objective) { return toString(objective); }
+std::string routeName(rod::EigenvectorSensitivityMethod route) { return toString(route); }
 
 #define MEMBER(path) \
   [](Config & c) -> auto& { return c.path; }
@@ -153,12 +204,15 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("relativeTolerance", MEMBER(simulation.relativeTolerance), 0.0, 1.0, true),
         realField("absoluteTolerance", MEMBER(simulation.absoluteTolerance), 0.0, 1.0, true),
         stringField("storage", MEMBER(simulation.storage), {}),
-        stringField("adjoint", MEMBER(simulation.adjoint), {"discrete", "continuous", "cvodes"}),
-        stringField("eigenvectorRoute", MEMBER(simulation.eigenvectorRoute), {"adjoint-nelson", "nelson"}),
-        stringField("model", MEMBER(simulation.model), {"reduced", "full"}),
+        enumField("adjoint", MEMBER(simulation.adjoint), adjointMethodNames(), parseAdjointMethod,
+                  adjointName),
+        enumField("eigenvectorRoute", MEMBER(simulation.eigenvectorRoute), namesOf(kEigenvectorRoutes),
+                  parseEigenvectorRoute, routeName),
+        enumField("model", MEMBER(simulation.model), namesOf(kModels), parseRodModel, modelName),
         boolField("fullOrderCoupling", MEMBER(simulation.fullOrderCoupling))}},
       {"optimization",
-       {stringField("objective", MEMBER(optimization.objective), {"psi1", "psi2"}),
+       {enumField("objective", MEMBER(optimization.objective), namesOf(kObjectives), parseObjective,
+                  objectiveName),
         integerField("iterations", MEMBER(optimization.iterations), 0, 100000),
         realField("volumeFraction", MEMBER(optimization.volumeFraction), 0.0, 1.0, true),
         realField("filterRadius", MEMBER(optimization.filterRadius), 0.0, 1000.0),
@@ -211,6 +265,17 @@ std::pair<std::string, std::string> splitKey(const std::string& key) {
 
 }  // namespace
 
+std::string toString(RodModel model) { return nameOf(kModels, model); }
+std::string toString(Objective objective) { return nameOf(kObjectives, objective); }
+std::string toString(rod::EigenvectorSensitivityMethod route) { return nameOf(kEigenvectorRoutes, route); }
+RodModel parseRodModel(const std::string& name) { return parseName(kModels, name, "simulation.model"); }
+Objective parseObjective(const std::string& name) {
+  return parseName(kObjectives, name, "optimization.objective");
+}
+rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name) {
+  return parseName(kEigenvectorRoutes, name, "simulation.eigenvectorRoute");
+}
+
 void Config::validate() const {
   rod.validate();
   if (optimization.volumeFraction >= 1.0 || optimization.volumeFraction <= 0.0) {
@@ -221,7 +286,8 @@ void Config::validate() const {
     throw std::invalid_argument("config field 'optimization.moveLimit' = " +
                                 std::to_string(optimization.moveLimit) + " must be in (0, 1]");
   }
-  if (simulation.adaptive && simulation.integrator != "dopri5" && simulation.integrator != "trbdf2") {
+  const IntegratorMethod method = parseIntegratorMethod(simulation.integrator);
+  if (simulation.adaptive && method != IntegratorMethod::Dopri5 && method != IntegratorMethod::TrBdf2) {
     throw std::invalid_argument(
         "config field 'simulation.adaptive' = true needs simulation.integrator dopri5 or "
         "trbdf2, not '" +

@@ -399,8 +399,9 @@ std::unique_ptr<NewtonSolver> FullOrderRodProblem::createNewtonSolver() const {
 
 FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef design, bool gradient) {
   const PistonRod reference(config);  // validates the configuration
-  if (config.simulation.adjoint != "discrete") {
-    throw std::invalid_argument("config field 'simulation.adjoint' = '" + config.simulation.adjoint +
+  if (config.simulation.adjoint != AdjointMethod::Discrete) {
+    throw std::invalid_argument("config field 'simulation.adjoint' = '" +
+                                toString(config.simulation.adjoint) +
                                 "': the full-order model supports only 'discrete'");
   }
   IntegratorOptions options = reference.integratorOptions();

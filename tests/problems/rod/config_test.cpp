@@ -133,6 +133,39 @@ TEST(Config, FlagsAreCheckedAsTheirFieldsAndNamed) {
   EXPECT_EQ(config.optimization.iterations, 50);
 }
 
+// The choices are enums in C++ and the same strings in JSON (--print-config is unchanged).
+TEST(Config, ChoicesAreEnumsWithTheirJsonNames) {
+  const nlohmann::json defaults = toJson(Config{});
+  EXPECT_EQ(defaults["simulation"]["adjoint"], "discrete");
+  EXPECT_EQ(defaults["simulation"]["eigenvectorRoute"], "adjoint-nelson");
+  EXPECT_EQ(defaults["simulation"]["model"], "reduced");
+  EXPECT_EQ(defaults["optimization"]["objective"], "psi1");
+  Config config;
+  applySetting(config, "simulation.adjoint=cvodes");
+  applySetting(config, "simulation.eigenvectorRoute=nelson");
+  applySetting(config, "simulation.model=full");
+  applySetting(config, "optimization.objective=psi2");
+  EXPECT_EQ(config.simulation.adjoint, AdjointMethod::Cvodes);
+  EXPECT_EQ(config.simulation.eigenvectorRoute, rod::EigenvectorSensitivityMethod::NelsonPerVariable);
+  EXPECT_EQ(config.simulation.model, RodModel::Full);
+  EXPECT_EQ(config.optimization.objective, Objective::Psi2);
+  const nlohmann::json json = toJson(config);
+  EXPECT_EQ(json["simulation"]["adjoint"], "cvodes");
+  EXPECT_EQ(json["simulation"]["eigenvectorRoute"], "nelson");
+  EXPECT_EQ(json["simulation"]["model"], "full");
+  EXPECT_EQ(json["optimization"]["objective"], "psi2");
+  EXPECT_EQ(toJson(configFromJson(json)), json);
+  for (const char* name : {"psi1", "psi2"}) EXPECT_EQ(toString(parseObjective(name)), name);
+  for (const char* name : {"reduced", "full"}) EXPECT_EQ(toString(parseRodModel(name)), name);
+  for (const char* name : {"adjoint-nelson", "nelson"})
+    EXPECT_EQ(toString(parseEigenvectorRoute(name)), name);
+  EXPECT_NE(errorOf([] { parseObjective("psi3"); }).find("optimization.objective"), std::string::npos);
+  EXPECT_NE(errorOf([&] {
+              applySetting(config, "optimization.objective=psi3");
+            }).find("must be one of: psi1, psi2"),
+            std::string::npos);
+}
+
 TEST(Config, UnreadableOrMalformedFilesAreNamed) {
   EXPECT_NE(errorOf([] { readConfigFile("/nonexistent/config.json"); }).find("/nonexistent/config.json"),
             std::string::npos);

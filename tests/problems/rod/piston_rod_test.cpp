@@ -73,7 +73,7 @@ TEST(PistonRod, Psi1GradientAtARandomDesignOnBothSidesOfTheMassLawKink) {
 TEST(PistonRod, BothEigenvectorRoutesGiveTheSameGradient) {
   Config config = coarseConfig();
   const PistonRod adjointNelson{config};
-  config.simulation.eigenvectorRoute = "nelson";
+  config.simulation.eigenvectorRoute = rod::EigenvectorSensitivityMethod::NelsonPerVariable;
   const PistonRod nelson{config};
   const Vector x = adjointNelson.initialDesign();
   const Vector a = adjointNelson.evaluate(x, {true, false, false}).dpsi1;
@@ -105,7 +105,7 @@ TEST(PistonRod, DiscreteContinuousAndCvodesAdjointsAgree) {
   const Vector x = PistonRod{config}.initialDesign();
   const Vector discrete = PistonRod{config}.evaluate(x, {true, true, true}).dpsi1;
   for (const std::string route : {"continuous", "cvodes"}) {
-    config.simulation.adjoint = route;
+    config.simulation.adjoint = parseAdjointMethod(route);
     const auto result = PistonRod{config}.evaluate(x, {true, true, true});
     EXPECT_EQ(result.summary.adjoint, route);
     EXPECT_LT((result.dpsi1 - discrete).norm(), 1e-6 * discrete.norm()) << route;

@@ -40,7 +40,7 @@ Config coarseConfig(const std::string& objective = "psi1", int iterations = 8) {
   config.rod.endTime = 0.5;
   config.rod.rampTime = 0.5;
   config.simulation.step = 2e-4;
-  config.optimization.objective = objective;
+  config.optimization.objective = parseObjective(objective);
   config.optimization.iterations = iterations;
   config.optimization.moveLimit = 0.1;
   return config;
