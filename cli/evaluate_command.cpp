@@ -187,7 +187,8 @@ void registerEvaluate(CLI::App& app) {
   cmd->add_flag("--force", s->force, "overwrite an existing --gradient file (never the --design input)");
   s->flags.add(cmd, "--storage", "simulation.storage",
                "trajectory storage spec, e.g. binomial:checkpoints=50", "STORAGE");
-  s->flags.add(cmd, "--integrator", "simulation.integrator", "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint",
+  s->flags.add(cmd, "--integrator", "simulation.integrator",
+               "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint | generalized-alpha | hht-alpha (reduced model)",
                "TEXT");
   s->flags.add(cmd, "--adjoint", "simulation.adjoint", "discrete | continuous | cvodes", "TEXT");
   s->flags.add(cmd, "--model", "simulation.model",

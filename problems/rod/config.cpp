@@ -198,11 +198,12 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("endTime", MEMBER(rod.endTime), 0.0, inf, true),
         integerField("eslSamples", MEMBER(rod.eslSamples), 1, 100000)}},
       {"simulation",
-       {stringField("integrator", MEMBER(simulation.integrator), ButcherTableau::names()),
+       {stringField("integrator", MEMBER(simulation.integrator), integratorMethodNames()),
         realField("step", MEMBER(simulation.step), 0.0, 1.0, true),
         boolField("adaptive", MEMBER(simulation.adaptive)),
         realField("relativeTolerance", MEMBER(simulation.relativeTolerance), 0.0, 1.0, true),
         realField("absoluteTolerance", MEMBER(simulation.absoluteTolerance), 0.0, 1.0, true),
+        realField("rhoInfinity", MEMBER(simulation.rhoInfinity), 0.0, 1.0),
         stringField("storage", MEMBER(simulation.storage), {}),
         enumField("adjoint", MEMBER(simulation.adjoint), adjointMethodNames(), parseAdjointMethod,
                   adjointName),
@@ -292,6 +293,12 @@ void Config::validate() const {
         "config field 'simulation.adaptive' = true needs simulation.integrator dopri5 or "
         "trbdf2, not '" +
         simulation.integrator + "'");
+  }
+  if (method == IntegratorMethod::HhtAlpha && simulation.rhoInfinity < 0.5) {
+    std::ostringstream message;
+    message << "config field 'simulation.rhoInfinity' = " << simulation.rhoInfinity
+            << " must be in [0.5, 1] for simulation.integrator = hht-alpha";
+    throw std::invalid_argument(message.str());
   }
   createStorage(simulation.storage);  // throws naming the bad part of the spec
 }

@@ -31,12 +31,16 @@ Objective parseObjective(const std::string& name);
 rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name);
 
 struct SimulationSettings {
-  std::string integrator = "rk4";    ///< rk4 | dopri5 | trbdf2 | sdirk2 | midpoint
+  /// rk4 | dopri5 | trbdf2 | sdirk2 | midpoint | generalized-alpha | hht-alpha (the last two: reduced
+  /// model only, fixed steps; the rod's modal slider-crank is a SecondOrderProblem)
+  std::string integrator = "rk4";
   double step = 1e-4;                ///< [s]; the grid is refined so that the ESL times are grid points
   bool adaptive = false;             ///< dopri5 / trbdf2 only; psi2 needs a fixed step
   double relativeTolerance = 1e-8;   ///< adaptive steps
   double absoluteTolerance = 1e-12;  ///< adaptive steps
-  std::string storage = "full";      ///< trajectory storage spec, e.g. binomial:checkpoints=50
+  /// generalized-alpha / hht-alpha: spectral radius at infinity, [0, 1] ([0.5, 1] for hht-alpha).
+  double rhoInfinity = 0.8;
+  std::string storage = "full";                     ///< trajectory storage spec, e.g. binomial:checkpoints=50
   AdjointMethod adjoint = AdjointMethod::Discrete;  ///< discrete | continuous | cvodes
   /// adjoint-nelson | nelson (Nelson per design variable, the paper's route)
   rod::EigenvectorSensitivityMethod eigenvectorRoute = rod::EigenvectorSensitivityMethod::AdjointNelson;

@@ -404,6 +404,12 @@ FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef
                                 toString(config.simulation.adjoint) +
                                 "': the full-order model supports only 'discrete'");
   }
+  if (!isRungeKutta(parseIntegratorMethod(config.simulation.integrator))) {
+    // The full-order rod is a first-order Problem; generalized-alpha needs a SecondOrderProblem.
+    throw std::invalid_argument("config field 'simulation.integrator' = '" + config.simulation.integrator +
+                                "' serves only simulation.model = reduced; the full-order model takes a "
+                                "Runge-Kutta method (trbdf2, midpoint, ...)");
+  }
   IntegratorOptions options = reference.integratorOptions();
   // The stage residual K - F(Z) of this stiff model has round-off ~1e-11 ||Z|| (F sums terms
   // omega_max^2 u far larger than itself), so the engine's default 1e-13 could not be met by a

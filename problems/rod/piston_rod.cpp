@@ -28,6 +28,7 @@ IntegratorOptions PistonRod::integratorOptions() const {
   options.adaptive = s.adaptive;
   options.relativeTolerance = s.relativeTolerance;
   options.absoluteTolerance = s.absoluteTolerance;
+  options.rhoInfinity = s.rhoInfinity;
   if (s.adaptive) {
     options.step = s.step;
   } else {

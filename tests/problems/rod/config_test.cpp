@@ -75,6 +75,11 @@ TEST(Config, SetAssignmentsAreCheckedLikeTheFile) {
             std::string::npos);
   EXPECT_NE(errorOf([&] { applySetting(config, "rod.poissonRatio=0.7"); }).find("rod.poissonRatio"),
             std::string::npos);
+  applySetting(config, "simulation.integrator=generalized-alpha");
+  EXPECT_NE(errorOf([&] {
+              applySetting(config, "simulation.rhoInfinity=1.5");
+            }).find("'simulation.rhoInfinity' = 1.5 is outside the allowed range [0, 1]"),
+            std::string::npos);
 }
 
 // {"extra": {}} used to be accepted (an empty unknown section was never looked up), {"rod": 5} was
