@@ -26,7 +26,7 @@ namespace {
 
 void optimize(benchmark::State& state, std::string objective) {
   Config config;
-  config.optimization.objective = objective;
+  config.optimization.objective = parseObjective(objective);
   OptimizationRunOptions options;
   options.outputDirectory = "/tmp/hindsight-optimize-bench/" + objective;
   options.force = true;

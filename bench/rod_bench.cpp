@@ -67,7 +67,8 @@ std::map<std::string, Vector>& designGradients() {
 
 void designRun(benchmark::State& state, int nx, int ny, std::string what) {
   Config config = meshConfig(nx, ny);
-  if (what == "gradient-nelson") config.simulation.eigenvectorRoute = "nelson";
+  if (what == "gradient-nelson")
+    config.simulation.eigenvectorRoute = rod::EigenvectorSensitivityMethod::NelsonPerVariable;
   const PistonRod rod(config);
   const Vector x = rod.initialDesign();
   PistonRod::Request request;

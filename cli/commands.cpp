@@ -40,6 +40,26 @@ nlohmann::json summaryToJson(const RunSummary& s) {
           {"io_seconds", s.ioSeconds}};
 }
 
+void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string& key,
+                      const std::string& description, const std::string& typeName) {
+  Entry& entry = entries_.emplace_back(Entry{flag, key, "", nullptr});
+  entry.option =
+      app->add_option(flag, entry.text, description + " (config field " + key + ")")->type_name(typeName);
+}
+
+void ConfigFlags::apply(Config& config) const {
+  for (const Entry& entry : entries_) {
+    if (entry.option->count() > 0) applyFlag(config, entry.flag, entry.key, entry.text);
+  }
+}
+
+bool ConfigFlags::given(const std::string& flag) const {
+  for (const Entry& entry : entries_) {
+    if (entry.flag == flag) return entry.option->count() > 0;
+  }
+  throw std::logic_error("ConfigFlags::given: no flag " + flag);
+}
+
 int runSelected(CLI::App& app) {
   for (const Command& command : commands()) {
     if (command.app->parsed()) return command.run();

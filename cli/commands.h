@@ -4,11 +4,14 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/rod/config.h>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <deque>
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace hindsight::cli {
@@ -22,6 +25,27 @@ struct Command {
 std::vector<Command>& commands();
 void registerCommands(CLI::App& app);
 int runSelected(CLI::App& app);
+
+/// Command-line flags that stand for configuration fields (`--move-limit` is optimization.moveLimit).
+/// CLI11 only collects their text; apply() hands the text of every flag that was given to
+/// applyFlag(), so a flag accepts exactly what its field accepts (the one validation path of
+/// problems/rod/config.cpp) and an absent flag leaves the configuration alone -- no sentinel values.
+class ConfigFlags {
+ public:
+  /// Registers `flag` on `app` for config field `key` ("section.field"); `typeName` is shown in --help.
+  void add(CLI::App* app, const std::string& flag, const std::string& key, const std::string& description,
+           const std::string& typeName);
+  /// Applies the given flags in registration order; throws std::invalid_argument naming the flag.
+  void apply(Config& config) const;
+  bool given(const std::string& flag) const;
+
+ private:
+  struct Entry {
+    std::string flag, key, text;
+    CLI::Option* option = nullptr;
+  };
+  std::deque<Entry> entries_;  // stable addresses: CLI11 writes into Entry::text
+};
 
 /// Runs `body`, translating exceptions into messages and exit codes.
 int guarded(const std::function<int()>& body);

@@ -1,5 +1,6 @@
 // `hindsight evaluate`: psi1, psi2, the volume fraction, the modes' frequencies and the run summary
 // of one piston-rod design; with --gradient, also dpsi1/dx, dpsi2/dx and dV/dx into an HDF5 file.
+// psi2 is skipped (and said so) with adaptive steps, which cannot place its load times.
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/piston_rod.h>
@@ -7,6 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -19,10 +23,8 @@ struct EvaluateSettings {
   std::vector<std::string> assignments;
   std::string designFile;
   std::string gradientFile;
-  std::string storage;
-  std::string integrator;
-  std::string adjoint;
-  std::string model;
+  ConfigFlags flags;  // --storage, --integrator, --adjoint, --model: applied after --set
+  bool force = false;
   bool json = false;
   bool printConfig = false;
 };
@@ -64,16 +66,42 @@ int runFullOrder(const Config& config, const PistonRod& rod, const Vector& desig
   return 0;
 }
 
+/// The --gradient file is written only after the whole computation: refuse a path that cannot be
+/// written, an existing file without --force, and the --design input always, before any work.
+void checkGradientFile(const EvaluateSettings& s) {
+  namespace fs = std::filesystem;
+  if (s.gradientFile.empty()) return;
+  const fs::path path(s.gradientFile);
+  std::error_code error;
+  if (!s.designFile.empty() && fs::exists(path, error) && fs::equivalent(path, s.designFile, error)) {
+    throw std::invalid_argument("--gradient '" + s.gradientFile +
+                                "' is the --design input; write the gradients to another file");
+  }
+  if (fs::is_directory(path, error))
+    throw std::invalid_argument("--gradient '" + s.gradientFile + "' is a directory");
+  if (fs::exists(path, error) && !s.force) {
+    throw std::invalid_argument("--gradient '" + s.gradientFile + "' exists; use --force to overwrite it");
+  }
+  const fs::path directory = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (!fs::is_directory(directory, error)) {
+    throw std::invalid_argument("--gradient '" + s.gradientFile + "': directory '" + directory.string() +
+                                "' does not exist");
+  }
+  // The file is written to a temporary name in the same directory and renamed (storage/atomic_file.h).
+  if (access(directory.c_str(), W_OK | X_OK) != 0) {
+    throw std::invalid_argument("--gradient '" + s.gradientFile + "': directory '" + directory.string() +
+                                "' is not writable");
+  }
+}
+
 int runEvaluate(const EvaluateSettings& s) {
   Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
   for (const auto& assignment : s.assignments) applySetting(config, assignment);
-  if (!s.storage.empty()) applySetting(config, "simulation.storage=\"" + s.storage + "\"");
-  if (!s.integrator.empty()) applySetting(config, "simulation.integrator=\"" + s.integrator + "\"");
-  if (!s.adjoint.empty()) applySetting(config, "simulation.adjoint=\"" + s.adjoint + "\"");
-  if (!s.model.empty()) applySetting(config, "simulation.model=\"" + s.model + "\"");
+  s.flags.apply(config);
   // `--model full` alone: the full-order defaults (TR-BDF2, h = 1e-3 s; the model is far too stiff for
   // the reduced model's RK4 at 1e-4), unless the integrator or the step were chosen explicitly.
-  if (s.model == "full" && s.configFile.empty() && s.integrator.empty()) {
+  if (s.flags.given("--model") && config.simulation.model == RodModel::Full && s.configFile.empty() &&
+      !s.flags.given("--integrator")) {
     bool chosen = false;
     for (const auto& assignment : s.assignments) {
       chosen = chosen || assignment.rfind("simulation.integrator", 0) == 0 ||
@@ -88,20 +116,30 @@ int runEvaluate(const EvaluateSettings& s) {
     std::cout << toJson(config).dump(2) << '\n';
     return 0;
   }
+  checkGradientFile(s);
   const PistonRod rod(config);
   const Vector design = s.designFile.empty() ? rod.initialDesign() : readDesignFile(s.designFile, config.rod);
   const bool gradient = !s.gradientFile.empty();
-  if (config.simulation.model == "full") return runFullOrder(config, rod, design, s);
-  const PistonRodEvaluation result = rod.evaluate(design, {gradient, true, gradient});
+  if (config.simulation.model == RodModel::Full) return runFullOrder(config, rod, design, s);
+  // psi2 samples the trajectory at load times that must be grid points: with adaptive steps it
+  // cannot be computed, and psi1 (with its gradient) is still worth reporting.
+  const std::string psi2Skipped =
+      config.simulation.adaptive
+          ? "psi2 needs fixed steps (its load times must be grid points) and simulation.adaptive = true"
+          : "";
+  const bool psi2 = psi2Skipped.empty();
+  const PistonRodEvaluation result = rod.evaluate(design, {gradient, psi2, gradient && psi2});
   if (gradient) {
-    writeDesignFields(
-        s.gradientFile, config.rod,
-        {{"dpsi1_dx", result.dpsi1}, {"dpsi2_dx", result.dpsi2}, {"dvolume_dx", result.dvolume}}, 0.0);
+    std::vector<std::pair<std::string, Vector>> fields = {{"dpsi1_dx", result.dpsi1}};
+    if (psi2) fields.emplace_back("dpsi2_dx", result.dpsi2);
+    fields.emplace_back("dvolume_dx", result.dvolume);
+    writeDesignFields(s.gradientFile, config.rod, fields, 0.0);
   }
   if (s.json) {
     nlohmann::json out;
     out["psi1"] = result.psi1;
-    out["psi2"] = result.psi2;
+    out["psi2"] = psi2 ? nlohmann::json(result.psi2) : nlohmann::json(nullptr);
+    if (!psi2) out["psi2_skipped"] = psi2Skipped;
     out["volume_fraction"] = result.volumeFraction;
     out["frequencies_hz"] = result.frequenciesHz;
     out["gap_ratio"] = result.gapRatio;
@@ -116,8 +154,13 @@ int runEvaluate(const EvaluateSettings& s) {
     std::cout << out.dump(2) << '\n';
     return 0;
   }
-  std::cout << std::setprecision(8) << "psi1: " << result.psi1 << "\npsi2: " << result.psi2
-            << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
+  std::cout << std::setprecision(8) << "psi1: " << result.psi1 << "\npsi2: ";
+  if (psi2) {
+    std::cout << result.psi2;
+  } else {
+    std::cout << "skipped: " << psi2Skipped;
+  }
+  std::cout << "\nvolume fraction: " << result.volumeFraction << "\ndesign variables: " << rod.designCount()
             << "\nfrequencies [Hz]:";
   for (double f : result.frequenciesHz) std::cout << ' ' << f;
   std::cout << "\nspectral gap lambda_{n+1}/lambda_n: " << result.gapRatio << '\n';
@@ -141,14 +184,17 @@ void registerEvaluate(CLI::App& app) {
                   "HDF5 file with dataset x of shape (ny, nx); default: uniform x0");
   cmd->add_option("--gradient", s->gradientFile,
                   "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx) to this HDF5 file");
-  cmd->add_option("--storage", s->storage, "trajectory storage spec (overrides simulation.storage)");
-  cmd->add_option("--integrator", s->integrator, "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint");
-  cmd->add_option("--adjoint", s->adjoint, "discrete | continuous | cvodes");
-  cmd->add_option(
-      "--model", s->model,
-      "reduced (floating frame, modal coordinates) | full (unreduced FE rod; overrides simulation.model; "
-      "without --config, --integrator or --set simulation.integrator/step it also selects trbdf2 "
-      "with h = 1e-3 s)");
+  cmd->add_flag("--force", s->force, "overwrite an existing --gradient file (never the --design input)");
+  s->flags.add(cmd, "--storage", "simulation.storage",
+               "trajectory storage spec, e.g. binomial:checkpoints=50", "STORAGE");
+  s->flags.add(cmd, "--integrator", "simulation.integrator",
+               "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint | generalized-alpha | hht-alpha (reduced model)",
+               "TEXT");
+  s->flags.add(cmd, "--adjoint", "simulation.adjoint", "discrete | continuous | cvodes", "TEXT");
+  s->flags.add(cmd, "--model", "simulation.model",
+               "reduced (floating frame, modal coordinates) | full (unreduced FE rod; without --config, "
+               "--integrator or --set simulation.integrator/step it also selects trbdf2 with h = 1e-3 s)",
+               "TEXT");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});

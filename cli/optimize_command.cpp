@@ -18,24 +18,20 @@ namespace {
 struct OptimizeSettings {
   std::string configFile;
   std::vector<std::string> settings;
-  std::string objective;
-  int iterations = -1;         // -1: from the configuration
-  double filterRadius = -1.0;  // < 0: from the configuration
-  int pictureEvery = -1;
-  double moveLimit = -1.0;  // <= 0: from the configuration
+  ConfigFlags flags;  // --objective, --iterations, ...: applied after --set
   std::string outputDirectory = "results";
   bool resume = false;
   bool force = false;
 };
 
-template <typename T>
-std::string jsonText(const T& value) {
-  return nlohmann::json(value).dump();
-}
-
 Config buildConfig(const OptimizeSettings& s) {
   Config config;
   const std::string stored = (std::filesystem::path(s.outputDirectory) / "results.h5").string();
+  if (s.resume && !s.force && !std::filesystem::exists(stored)) {  // both: OptimizationRun says they exclude
+    // Without this, a mistyped --out would start a fresh run of the configured length.
+    throw std::invalid_argument("--resume: there is no " + stored +
+                                " to continue (check --out, or start a new run without --resume)");
+  }
   if (!s.configFile.empty()) {
     config = readConfigFile(s.configFile);
   } else if (s.resume && std::filesystem::exists(stored)) {
@@ -43,12 +39,17 @@ Config buildConfig(const OptimizeSettings& s) {
     config = configFromJson(nlohmann::json::parse(readResultsConfiguration(stored)));
   }
   for (const std::string& assignment : s.settings) applySetting(config, assignment);
-  if (!s.objective.empty()) applySetting(config, "optimization.objective=" + jsonText(s.objective));
-  if (s.iterations >= 0) applySetting(config, "optimization.iterations=" + jsonText(s.iterations));
-  if (s.filterRadius >= 0.0) applySetting(config, "optimization.filterRadius=" + jsonText(s.filterRadius));
-  if (s.moveLimit > 0.0) applySetting(config, "optimization.moveLimit=" + jsonText(s.moveLimit));
-  if (s.pictureEvery >= 0) applySetting(config, "optimization.pictureEvery=" + jsonText(s.pictureEvery));
+  s.flags.apply(config);
   config.validate();
+  if (config.simulation.adaptive) {
+    // Every iteration records psi2 (and optimizes it for objective psi2); its load times must be
+    // grid points of a fixed-step grid.
+    throw std::invalid_argument(
+        "config field 'simulation.adaptive' = true: optimize evaluates psi2 at every "
+        "iteration (optimization.objective = " +
+        toString(config.optimization.objective) +
+        "), which needs fixed steps; set simulation.adaptive = false");
+  }
   return config;
 }
 
@@ -61,8 +62,8 @@ int runOptimize(const OptimizeSettings& s) {
   OptimizationRun run(config, options);  // all remaining input checks, before any work
 
   const rod::RodConfig& rc = config.rod;
-  std::cout << "optimize " << config.optimization.objective << ": " << rc.elementsAlongLength << " x "
-            << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
+  std::cout << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength
+            << " x " << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
             << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
             << ", filter radius " << config.optimization.filterRadius << ", move limit "
             << config.optimization.moveLimit << "; results in " << run.resultsPath()
@@ -91,16 +92,17 @@ void registerOptimize(CLI::App& app) {
       "Topology optimization of the piston rod (MMA; psi1 exact adjoint or psi2 equivalent static loads)");
   command->add_option("--config", s->configFile, "JSON configuration file (defaults: the paper's problem)");
   command->add_option("--set", s->settings, "section.field=value, applied after --config (repeatable)");
-  command->add_option("--objective", s->objective,
-                      "psi1 (integral compliance) | psi2 (equivalent static loads)");
-  command->add_option("--iterations", s->iterations, "MMA iterations (default: optimization.iterations, 50)");
-  command->add_option("--filter-radius", s->filterRadius,
-                      "density filter radius in elements; 0 = none (default, the paper's choice)");
-  command->add_option(
-      "--move-limit", s->moveLimit,
-      "MMA move limit in (0, 1] (default optimization.moveLimit, 0.5, Svanberg's standard value)");
-  command->add_option("--picture-every", s->pictureEvery,
-                      "a design picture every K iterations; 0 = final only");
+  s->flags.add(command, "--objective", "optimization.objective",
+               "psi1 (integral compliance) | psi2 (equivalent static loads)", "TEXT");
+  s->flags.add(command, "--iterations", "optimization.iterations",
+               "MMA iterations in [0, 100000] (default 50)", "INT");
+  s->flags.add(command, "--filter-radius", "optimization.filterRadius",
+               "density filter radius in elements, in [0, 1000]; 0 = none (default, the paper's choice)",
+               "FLOAT");
+  s->flags.add(command, "--move-limit", "optimization.moveLimit",
+               "MMA move limit in (0, 1] (default 0.5, Svanberg's standard value)", "FLOAT");
+  s->flags.add(command, "--picture-every", "optimization.pictureEvery",
+               "a design picture every K iterations, K in [0, 100000]; 0 = final only", "INT");
   command->add_option("--out", s->outputDirectory, "output directory")->capture_default_str();
   command->add_flag("--resume", s->resume, "continue DIR/results.h5");
   command->add_flag("--force", s->force, "overwrite DIR/results.h5");

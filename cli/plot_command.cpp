@@ -71,7 +71,7 @@ int runPlot(const PlotSettings& s) {
 void registerPlot(CLI::App& app) {
   auto s = std::make_shared<PlotSettings>();
   CLI::App* command = app.add_subcommand(
-      "plot", "psi1 over the iterations of one or two optimization runs (like the paper's Fig. 4)");
+      "plot", "psi1 over the iterations of one or two optimization runs (e.g. the psi1 and the psi2 route)");
   command->add_option("directories", s->directories, "result directories (DIR [DIR2])")
       ->required()
       ->expected(1, 2);

@@ -3,7 +3,10 @@
 #include <hindsight/engine/runge_kutta.h>
 #include <hindsight/storage/storage_factory.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -14,10 +17,20 @@ namespace {
 
 using nlohmann::json;
 
+/// Who a value is for and how the user wrote it: messages say "<who> = <shown> ...". `who` is
+/// "config field 'rod.modeCount'" for a JSON file or --set, or the flag ("--move-limit") for a
+/// command-line flag; `shown` is the text the user gave (the JSON rendering for a file), so a value
+/// that does not survive parsing (1e-400 becomes 0) is still reported as written.
+struct Subject {
+  std::string who;
+  std::string shown;
+  std::string text;  ///< the user's text when there is one (--set, flags); empty for a JSON file
+};
+
 /// One configurable field: its JSON name, how to read it from JSON (with checks), how to write it.
 struct Field {
   std::string name;
-  std::function<void(Config&, const json&, const std::string&)> read;
+  std::function<void(Config&, const json&, const Subject&)> read;
   std::function<json(const Config&)> write;
 };
 
@@ -27,16 +40,26 @@ template <typename Member>
 Field realField(const std::string& name, Member member, double min, double max, bool openMin = false) {
   return Field{
       name,
-      [=](Config& c, const json& v, const std::string& full) {
+      [=](Config& c, const json& v, const Subject& s) {
+        std::ostringstream range;
+        range << (openMin ? "(" : "[") << min << ", " << max << "]";
         if (!v.is_number())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be a number");
+          throw std::invalid_argument(s.who + " = " + s.shown + " must be a number in " + range.str());
+        // JSON parsing turns 1e-400 into 0 and 1e400 into inf: report what the user wrote.
+        if (!s.text.empty()) {
+          errno = 0;
+          const double parsed = std::strtod(s.text.c_str(), nullptr);
+          if (errno == ERANGE) {
+            throw std::invalid_argument(s.who + " = " + s.text + " is outside the range of a double (it " +
+                                        (parsed == 0.0 ? "underflows to 0" : "overflows") +
+                                        "); allowed range " + range.str());
+          }
+        }
         const double x = v.get<double>();
         const bool low = openMin ? !(x > min) : !(x >= min);
         if (low || !(x <= max) || !std::isfinite(x)) {
-          std::ostringstream range;
-          range << (openMin ? "(" : "[") << min << ", " << max << "]";
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                      " is outside the allowed range " + range.str());
+          throw std::invalid_argument(s.who + " = " + s.shown + " is outside the allowed range " +
+                                      range.str());
         }
         member(c) = x;
       },
@@ -47,14 +70,16 @@ template <typename Member>
 Field integerField(const std::string& name, Member member, long min, long max) {
   return Field{
       name,
-      [=](Config& c, const json& v, const std::string& full) {
+      [=](Config& c, const json& v, const Subject& s) {
+        const std::string range = "[" + std::to_string(min) + ", " + std::to_string(max) + "]";
         if (!v.is_number_integer())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be an integer");
-        const long x = v.get<long>();
-        if (x < min || x > max) {
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                      " is outside the allowed range [" + std::to_string(min) + ", " +
-                                      std::to_string(max) + "]");
+          throw std::invalid_argument(s.who + " = " + s.shown + " must be an integer in " + range);
+        const bool fits = v.is_number_unsigned()
+                              ? v.get<unsigned long long>() <= static_cast<unsigned long long>(max)
+                              : true;
+        const long x = fits ? v.get<long>() : max;
+        if (!fits || x < min || x > max) {
+          throw std::invalid_argument(s.who + " = " + s.shown + " is outside the allowed range " + range);
         }
         member(c) = static_cast<int>(x);
       },
@@ -64,38 +89,85 @@ Field integerField(const std::string& name, Member member, long min, long max) {
 template <typename Member>
 Field boolField(const std::string& name, Member member) {
   return Field{name,
-               [=](Config& c, const json& v, const std::string& full) {
+               [=](Config& c, const json& v, const Subject& s) {
                  if (!v.is_boolean())
-                   throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                               " must be true or false");
+                   throw std::invalid_argument(s.who + " = " + s.shown + " must be true or false");
                  member(c) = v.get<bool>();
                },
                [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
 }
 
+/// The string a choice field was given, checked against `allowed` (empty: any string).
+std::string readChoice(const json& v, const Subject& s, const std::vector<std::string>& allowed) {
+  std::string list;
+  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+  // A flag's or --set's text is the string itself, even when it would parse as JSON (a storage
+  // spec of "5" is rejected by the spec parser, not as "not a string").
+  const json& given = !v.is_string() && !s.text.empty() ? json(s.text) : v;
+  if (!given.is_string()) {
+    throw std::invalid_argument(s.who + " = " + s.shown + " must be a string" +
+                                (list.empty() ? "" : " (one of: " + list + ")"));
+  }
+  const std::string value = given.get<std::string>();
+  if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), value) == allowed.end())
+    throw std::invalid_argument(s.who + " = " + s.shown + " must be one of: " + list);
+  return value;
+}
+
 template <typename Member>
 Field stringField(const std::string& name, Member member, std::vector<std::string> allowed) {
-  return Field{
-      name,
-      [=](Config& c, const json& v, const std::string& full) {
-        if (!v.is_string())
-          throw std::invalid_argument("config field '" + full + "' = " + render(v) + " must be a string");
-        const std::string s = v.get<std::string>();
-        if (!allowed.empty()) {
-          bool ok = false;
-          std::string list;
-          for (const auto& a : allowed) {
-            ok = ok || a == s;
-            list += (list.empty() ? "" : ", ") + a;
-          }
-          if (!ok)
-            throw std::invalid_argument("config field '" + full + "' = " + render(v) +
-                                        " must be one of: " + list);
-        }
-        member(c) = s;
-      },
-      [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
+  return Field{name,
+               [=](Config& c, const json& v, const Subject& s) { member(c) = readChoice(v, s, allowed); },
+               [=](const Config& c) { return json(member(const_cast<Config&>(c))); }};
 }
+
+/// A choice held as an enum; JSON holds its name.
+template <typename Member, typename Enum>
+Field enumField(const std::string& name, Member member, std::vector<std::string> names,
+                Enum (*parse)(const std::string&), std::string (*print)(Enum)) {
+  return Field{
+      name, [=](Config& c, const json& v, const Subject& s) { member(c) = parse(readChoice(v, s, names)); },
+      [=](const Config& c) { return json(print(member(const_cast<Config&>(c)))); }};
+}
+
+template <typename Enum>
+using Names = std::vector<std::pair<Enum, std::string>>;
+
+const Names<RodModel> kModels = {{RodModel::Reduced, "reduced"}, {RodModel::Full, "full"}};
+const Names<Objective> kObjectives = {{Objective::Psi1, "psi1"}, {Objective::Psi2, "psi2"}};
+const Names<rod::EigenvectorSensitivityMethod> kEigenvectorRoutes = {
+    {rod::EigenvectorSensitivityMethod::AdjointNelson, "adjoint-nelson"},
+    {rod::EigenvectorSensitivityMethod::NelsonPerVariable, "nelson"}};
+
+template <typename Enum>
+std::vector<std::string> namesOf(const Names<Enum>& names) {
+  std::vector<std::string> out;
+  for (const auto& entry : names) out.push_back(entry.second);
+  return out;
+}
+
+template <typename Enum>
+std::string nameOf(const Names<Enum>& names, Enum value) {
+  for (const auto& [e, name] : names) {
+    if (e == value) return name;
+  }
+  throw std::logic_error("config: an enum value without a name");
+}
+
+template <typename Enum>
+Enum parseName(const Names<Enum>& names, const std::string& name, const std::string& field) {
+  std::string list;
+  for (const auto& [e, n] : names) {
+    if (n == name) return e;
+    list += (list.empty() ? "" : ", ") + n;
+  }
+  throw std::invalid_argument("config field '" + field + "' = \"" + name + "\" must be one of: " + list);
+}
+
+std::string adjointName(AdjointMethod method) { return toString(method); }
+std::string modelName(RodModel model) { return toString(model); }
+std::string objectiveName(Objective objective) { return toString(objective); }
+std::string routeName(rod::EigenvectorSensitivityMethod route) { return toString(route); }
 
 #define MEMBER(path) \
   [](Config & c) -> auto& { return c.path; }
@@ -126,18 +198,22 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("endTime", MEMBER(rod.endTime), 0.0, inf, true),
         integerField("eslSamples", MEMBER(rod.eslSamples), 1, 100000)}},
       {"simulation",
-       {stringField("integrator", MEMBER(simulation.integrator), ButcherTableau::names()),
+       {stringField("integrator", MEMBER(simulation.integrator), integratorMethodNames()),
         realField("step", MEMBER(simulation.step), 0.0, 1.0, true),
         boolField("adaptive", MEMBER(simulation.adaptive)),
         realField("relativeTolerance", MEMBER(simulation.relativeTolerance), 0.0, 1.0, true),
         realField("absoluteTolerance", MEMBER(simulation.absoluteTolerance), 0.0, 1.0, true),
+        realField("rhoInfinity", MEMBER(simulation.rhoInfinity), 0.0, 1.0),
         stringField("storage", MEMBER(simulation.storage), {}),
-        stringField("adjoint", MEMBER(simulation.adjoint), {"discrete", "continuous", "cvodes"}),
-        stringField("eigenvectorRoute", MEMBER(simulation.eigenvectorRoute), {"adjoint-nelson", "nelson"}),
-        stringField("model", MEMBER(simulation.model), {"reduced", "full"}),
+        enumField("adjoint", MEMBER(simulation.adjoint), adjointMethodNames(), parseAdjointMethod,
+                  adjointName),
+        enumField("eigenvectorRoute", MEMBER(simulation.eigenvectorRoute), namesOf(kEigenvectorRoutes),
+                  parseEigenvectorRoute, routeName),
+        enumField("model", MEMBER(simulation.model), namesOf(kModels), parseRodModel, modelName),
         boolField("fullOrderCoupling", MEMBER(simulation.fullOrderCoupling))}},
       {"optimization",
-       {stringField("objective", MEMBER(optimization.objective), {"psi1", "psi2"}),
+       {enumField("objective", MEMBER(optimization.objective), namesOf(kObjectives), parseObjective,
+                  objectiveName),
         integerField("iterations", MEMBER(optimization.iterations), 0, 100000),
         realField("volumeFraction", MEMBER(optimization.volumeFraction), 0.0, 1.0, true),
         realField("filterRadius", MEMBER(optimization.filterRadius), 0.0, 1000.0),
@@ -149,22 +225,57 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
 
 #undef MEMBER
 
-const Field& findField(const std::string& section, const std::string& name) {
+const std::vector<Field>& findSection(const std::string& section) {
+  std::string names;
   for (const auto& [sectionName, fields] : schema()) {
-    if (sectionName != section) continue;
-    std::string names;
-    for (const Field& f : fields) {
-      if (f.name == name) return f;
-      names += (names.empty() ? "" : ", ") + f.name;
-    }
-    throw std::invalid_argument("config field '" + section + "." + name + "' is unknown; fields of '" +
-                                section + "': " + names);
+    if (sectionName == section) return fields;
+    names += (names.empty() ? "" : ", ") + sectionName;
   }
-  throw std::invalid_argument("config section '" + section +
-                              "' is unknown; sections: rod, simulation, optimization");
+  throw std::invalid_argument("config section '" + section + "' is unknown; sections: " + names);
+}
+
+const Field& findField(const std::string& section, const std::string& name) {
+  const std::vector<Field>& fields = findSection(section);
+  std::string names;
+  for (const Field& f : fields) {
+    if (f.name == name) return f;
+    names += (names.empty() ? "" : ", ") + f.name;
+  }
+  throw std::invalid_argument("config field '" + section + "." + name + "' is unknown; fields of '" +
+                              section + "': " + names);
+}
+
+/// Reads `text` as --set does: JSON syntax, or a bare word taken as a string.
+json parseValueText(const std::string& text) {
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error&) {
+    return json(text);  // a bare word such as rk4
+  } catch (const json::out_of_range&) {
+    // 1e400: not a double; the field's check reports the user's text as out of range.
+    return json(std::numeric_limits<double>::infinity());
+  }
+}
+
+/// Splits "section.field".
+std::pair<std::string, std::string> splitKey(const std::string& key) {
+  const auto dot = key.find('.');
+  if (dot == std::string::npos) return {key, ""};
+  return {key.substr(0, dot), key.substr(dot + 1)};
 }
 
 }  // namespace
+
+std::string toString(RodModel model) { return nameOf(kModels, model); }
+std::string toString(Objective objective) { return nameOf(kObjectives, objective); }
+std::string toString(rod::EigenvectorSensitivityMethod route) { return nameOf(kEigenvectorRoutes, route); }
+RodModel parseRodModel(const std::string& name) { return parseName(kModels, name, "simulation.model"); }
+Objective parseObjective(const std::string& name) {
+  return parseName(kObjectives, name, "optimization.objective");
+}
+rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name) {
+  return parseName(kEigenvectorRoutes, name, "simulation.eigenvectorRoute");
+}
 
 void Config::validate() const {
   rod.validate();
@@ -176,11 +287,18 @@ void Config::validate() const {
     throw std::invalid_argument("config field 'optimization.moveLimit' = " +
                                 std::to_string(optimization.moveLimit) + " must be in (0, 1]");
   }
-  if (simulation.adaptive && simulation.integrator != "dopri5" && simulation.integrator != "trbdf2") {
+  const IntegratorMethod method = parseIntegratorMethod(simulation.integrator);
+  if (simulation.adaptive && method != IntegratorMethod::Dopri5 && method != IntegratorMethod::TrBdf2) {
     throw std::invalid_argument(
         "config field 'simulation.adaptive' = true needs simulation.integrator dopri5 or "
         "trbdf2, not '" +
         simulation.integrator + "'");
+  }
+  if (method == IntegratorMethod::HhtAlpha && simulation.rhoInfinity < 0.5) {
+    std::ostringstream message;
+    message << "config field 'simulation.rhoInfinity' = " << simulation.rhoInfinity
+            << " must be in [0.5, 1] for simulation.integrator = hht-alpha";
+    throw std::invalid_argument(message.str());
   }
   createStorage(simulation.storage);  // throws naming the bad part of the spec
 }
@@ -199,12 +317,15 @@ Config configFromJson(const nlohmann::json& in) {
   if (!in.is_object()) throw std::invalid_argument("configuration must be a JSON object");
   Config config;
   for (const auto& [section, value] : in.items()) {
+    findSection(section);  // an unknown section is named, even when it is empty
     if (!value.is_object()) {
-      findField(section, "");  // throws for an unknown section
-      throw std::invalid_argument("config section '" + section + "' must be a JSON object");
+      throw std::invalid_argument("config section '" + section + "' = " + render(value) +
+                                  " must be a JSON object of fields");
     }
-    for (const auto& [name, v] : value.items())
-      findField(section, name).read(config, v, section + "." + name);
+    for (const auto& [name, v] : value.items()) {
+      const std::string full = section + "." + name;
+      findField(section, name).read(config, v, {"config field '" + full + "'", render(v), ""});
+    }
   }
   config.validate();
   return config;
@@ -216,7 +337,7 @@ Config readConfigFile(const std::string& path) {
   json parsed;
   try {
     parsed = json::parse(file);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // also a number overflow such as 1e400
     throw std::invalid_argument("configuration file '" + path + "' is not valid JSON: " + e.what());
   }
   return configFromJson(parsed);
@@ -231,13 +352,14 @@ void applySetting(Config& config, const std::string& assignment) {
   const std::string section = assignment.substr(0, dot);
   const std::string name = assignment.substr(dot + 1, eq - dot - 1);
   const std::string text = assignment.substr(eq + 1);
-  json value;
-  try {
-    value = json::parse(text);
-  } catch (const json::parse_error&) {
-    value = text;  // a bare word such as rk4
-  }
-  findField(section, name).read(config, value, section + "." + name);
+  findField(section, name)
+      .read(config, parseValueText(text), {"config field '" + section + "." + name + "'", text, text});
+  config.validate();
+}
+
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text) {
+  const auto [section, name] = splitKey(key);
+  findField(section, name).read(config, parseValueText(text), {flag, text, text});
   config.validate();
 }
 

@@ -5,6 +5,8 @@
 // command line goes through the same checks.
 #pragma once
 
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
 
 #include <nlohmann/json.hpp>
@@ -13,25 +15,45 @@
 
 namespace hindsight {
 
+/// simulation.model: the modal slider-crank of docs/design.md §3 or the unreduced FE rod of §9.
+enum class RodModel { Reduced, Full };
+/// optimization.objective: psi1 (integral compliance) or psi2 (equivalent static loads).
+enum class Objective { Psi1, Psi2 };
+
+// The configuration's choices by name: the JSON strings, parsed and printed here only (the adjoint
+// route's names live with AdjointMethod in cvodes/gradient_routes.h). parse* throws
+// std::invalid_argument listing the names.
+std::string toString(RodModel model);
+std::string toString(Objective objective);
+std::string toString(rod::EigenvectorSensitivityMethod route);  ///< "adjoint-nelson" | "nelson"
+RodModel parseRodModel(const std::string& name);
+Objective parseObjective(const std::string& name);
+rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name);
+
 struct SimulationSettings {
-  std::string integrator = "rk4";    ///< rk4 | dopri5 | trbdf2 | sdirk2 | midpoint
+  /// rk4 | dopri5 | trbdf2 | sdirk2 | midpoint | generalized-alpha | hht-alpha (the last two: reduced
+  /// model only, fixed steps; the rod's modal slider-crank is a SecondOrderProblem)
+  std::string integrator = "rk4";
   double step = 1e-4;                ///< [s]; the grid is refined so that the ESL times are grid points
   bool adaptive = false;             ///< dopri5 / trbdf2 only; psi2 needs a fixed step
   double relativeTolerance = 1e-8;   ///< adaptive steps
   double absoluteTolerance = 1e-12;  ///< adaptive steps
-  std::string storage = "full";      ///< trajectory storage spec, e.g. binomial:checkpoints=50
-  std::string adjoint = "discrete";  ///< discrete | continuous | cvodes
-  std::string eigenvectorRoute = "adjoint-nelson";  ///< adjoint-nelson | nelson (the paper's route)
+  /// generalized-alpha / hht-alpha: spectral radius at infinity, [0, 1] ([0.5, 1] for hht-alpha).
+  double rhoInfinity = 0.8;
+  std::string storage = "full";                     ///< trajectory storage spec, e.g. binomial:checkpoints=50
+  AdjointMethod adjoint = AdjointMethod::Discrete;  ///< discrete | continuous | cvodes
+  /// adjoint-nelson | nelson (Nelson per design variable, the paper's route)
+  rod::EigenvectorSensitivityMethod eigenvectorRoute = rod::EigenvectorSensitivityMethod::AdjointNelson;
   /// reduced: the modal slider-crank of docs/design.md §3 (PistonRod); full: the unreduced FE rod in the
   /// rigid frame of docs/design.md §9 (rod::FullOrderRodProblem; needs an implicit integrator at usual
   /// steps).
-  std::string model = "reduced";
+  RodModel model = RodModel::Reduced;
   /// Full model only: keep the relative Coriolis, centrifugal and Euler terms (false drops them).
   bool fullOrderCoupling = true;
 };
 
 struct OptimizationSettings {
-  std::string objective = "psi1";  ///< psi1 (integral compliance) | psi2 (equivalent static loads)
+  Objective objective = Objective::Psi1;  ///< psi1 (integral compliance) | psi2 (equivalent static loads)
   int iterations = 50;
   double volumeFraction = 0.5;  ///< V/V0 bound, in (0, 1)
   double filterRadius = 0.0;    ///< density filter radius in elements; 0 = no filter (the paper's choice)
@@ -59,5 +81,9 @@ Config configFromJson(const nlohmann::json& json);
 Config readConfigFile(const std::string& path);
 /// Applies "section.field=value" (value in JSON syntax; bare words are taken as strings).
 void applySetting(Config& config, const std::string& assignment);
+/// Applies a command-line flag that stands for one configuration field (`--move-limit 0.1` is
+/// optimization.moveLimit): the text is read as --set reads a value and checked by the same code, so
+/// a flag accepts exactly what its field accepts; messages name the flag and the allowed range.
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text);
 
 }  // namespace hindsight

@@ -14,8 +14,9 @@
 namespace hindsight {
 
 /// Reads dataset `x` of shape (ny, nx). Throws std::invalid_argument naming the file when it cannot
-/// be opened, has no dataset x, has the wrong shape, or holds a design value outside
-/// [designLowerBound, 1] (naming the row and column).
+/// be opened, has no dataset x, has the wrong shape, holds a design value outside
+/// [designLowerBound, 1] or NaN, or an interface-column value other than 1 (naming the row, column
+/// and value).
 Vector readDesignFile(const std::string& path, const rod::RodConfig& config);
 
 /// Writes each (name, values over design variables) as a (ny, nx) dataset; interface columns get

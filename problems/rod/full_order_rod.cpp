@@ -399,9 +399,16 @@ std::unique_ptr<NewtonSolver> FullOrderRodProblem::createNewtonSolver() const {
 
 FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef design, bool gradient) {
   const PistonRod reference(config);  // validates the configuration
-  if (config.simulation.adjoint != "discrete") {
-    throw std::invalid_argument("config field 'simulation.adjoint' = '" + config.simulation.adjoint +
+  if (config.simulation.adjoint != AdjointMethod::Discrete) {
+    throw std::invalid_argument("config field 'simulation.adjoint' = '" +
+                                toString(config.simulation.adjoint) +
                                 "': the full-order model supports only 'discrete'");
+  }
+  if (!isRungeKutta(parseIntegratorMethod(config.simulation.integrator))) {
+    // The full-order rod is a first-order Problem; generalized-alpha needs a SecondOrderProblem.
+    throw std::invalid_argument("config field 'simulation.integrator' = '" + config.simulation.integrator +
+                                "' serves only simulation.model = reduced; the full-order model takes a "
+                                "Runge-Kutta method (trbdf2, midpoint, ...)");
   }
   IntegratorOptions options = reference.integratorOptions();
   // The stage residual K - F(Z) of this stiff model has round-off ~1e-11 ||Z|| (F sums terms

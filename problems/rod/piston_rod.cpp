@@ -28,6 +28,7 @@ IntegratorOptions PistonRod::integratorOptions() const {
   options.adaptive = s.adaptive;
   options.relativeTolerance = s.relativeTolerance;
   options.absoluteTolerance = s.absoluteTolerance;
+  options.rhoInfinity = s.rhoInfinity;
   if (s.adaptive) {
     options.step = s.step;
   } else {
@@ -81,14 +82,14 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   phase.restart();
   if (request.psi1Gradient) {
     GradientResult result;
-    if (config_.simulation.adjoint == "discrete") {
+    if (config_.simulation.adjoint == AdjointMethod::Discrete) {
       auto storage = createStorage(config_.simulation.storage);
       result = computeGradient(problem, p, options, *storage, observer);
     } else {
       // The continuous and CVODES routes take their own steps; the ESL samples come from a
       // separate fixed-step forward run when psi2 is asked for.
       GradientOptions routes;
-      routes.adjoint = parseAdjointMethod(config_.simulation.adjoint);
+      routes.adjoint = config_.simulation.adjoint;
       routes.integrator = options;
       routes.storage = config_.simulation.storage;
       routes.continuous.relativeTolerance = config_.simulation.relativeTolerance;
@@ -103,9 +104,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     out.summary = result.summary;
     out.simulationSeconds = phase.restart();
     rod::DesignGradientOptions chain;
-    chain.method = config_.simulation.eigenvectorRoute == "nelson"
-                       ? rod::EigenvectorSensitivityMethod::NelsonPerVariable
-                       : rod::EigenvectorSensitivityMethod::AdjointNelson;
+    chain.method = config_.simulation.eigenvectorRoute;
     out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain).gradient;
     out.chainSeconds = phase.seconds();
   } else {

@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-"""psi1 over the iterations of one or two hindsight topology optimizations, like Fig. 4 of Held,
-Knüfer & Seifried: the compliance history of each route and its final design.
+"""psi1 over the iterations of one or two hindsight topology optimizations (e.g. the psi1 and the
+psi2 route): the compliance history of each run and its final design.
 
 usage: plot_history.py RESULTS.h5 [RESULTS2.h5] --out FILE.png
 
-Reads the results files written by `hindsight optimize` (layout in problems/results_file.h) with h5py
+Reads the results files written by `hindsight optimize` (layout in problems/topopt/results_file.h) with h5py
 and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every file psi1 is drawn over
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
 stored design of every file (density 1 black, 0 white, joint A on the left).

@@ -114,7 +114,7 @@ IterationRecord TopologyOptimizer::step() {
   if (finished_) throw std::logic_error("TopologyOptimizer::step after the final evaluation");
   const Stopwatch stepTimer;
   const OptimizationSettings& settings = config().optimization;
-  const bool usePsi1 = settings.objective == "psi1";
+  const bool usePsi1 = settings.objective == Objective::Psi1;
   const bool update = state_.iteration < settings.iterations;
 
   PistonRod::Request request;
@@ -130,8 +130,9 @@ IterationRecord TopologyOptimizer::step() {
       evaluated = rod_.evaluate(physicalDesign(design), request);
       const double value = usePsi1 ? evaluated->psi1 : evaluated->psi2;
       if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * state_.objectiveScale)) {
-        throw NumericalError("objective " + settings.objective + " = " + std::to_string(value) + " exceeds " +
-                                 std::to_string(maxObjectiveGrowth) + " times its initial value",
+        throw NumericalError("objective " + toString(settings.objective) + " = " + std::to_string(value) +
+                                 " exceeds " + std::to_string(maxObjectiveGrowth) +
+                                 " times its initial value",
                              config().rod.endTime);
       }
     } catch (const NumericalError&) {
@@ -149,7 +150,7 @@ IterationRecord TopologyOptimizer::step() {
 
   const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
   if (!(std::isfinite(objective) && objective > 0.0)) {
-    throw NumericalError("objective " + settings.objective + " = " + std::to_string(objective) +
+    throw NumericalError("objective " + toString(settings.objective) + " = " + std::to_string(objective) +
                              " at iteration " + std::to_string(state_.iteration) +
                              " is not positive and finite",
                          config().rod.endTime);
@@ -163,7 +164,7 @@ IterationRecord TopologyOptimizer::step() {
     const Vector gradient =
         chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
     if (!gradient.allFinite()) {
-      throw NumericalError("the gradient of " + settings.objective + " at iteration " +
+      throw NumericalError("the gradient of " + toString(settings.objective) + " at iteration " +
                                std::to_string(state_.iteration) + " is not finite",
                            config().rod.endTime);
     }

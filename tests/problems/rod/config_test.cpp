@@ -75,6 +75,100 @@ TEST(Config, SetAssignmentsAreCheckedLikeTheFile) {
             std::string::npos);
   EXPECT_NE(errorOf([&] { applySetting(config, "rod.poissonRatio=0.7"); }).find("rod.poissonRatio"),
             std::string::npos);
+  applySetting(config, "simulation.integrator=generalized-alpha");
+  EXPECT_NE(errorOf([&] {
+              applySetting(config, "simulation.rhoInfinity=1.5");
+            }).find("'simulation.rhoInfinity' = 1.5 is outside the allowed range [0, 1]"),
+            std::string::npos);
+}
+
+// {"extra": {}} used to be accepted (an empty unknown section was never looked up), {"rod": 5} was
+// reported as the unknown field 'rod.', and 1e-400 was reported as the 0.0 it parses to.
+TEST(Config, SectionsAreCheckedByNameAndShapeAndValuesAreReportedAsWritten) {
+  const auto extra = errorOf([] { configFromJson(nlohmann::json::parse(R"({"extra": {}})")); });
+  EXPECT_NE(extra.find("section 'extra' is unknown; sections: rod, simulation, optimization"),
+            std::string::npos)
+      << extra;
+  const auto scalar = errorOf([] { configFromJson(nlohmann::json::parse(R"({"rod": 5})")); });
+  EXPECT_NE(scalar.find("section 'rod' = 5 must be a JSON object"), std::string::npos) << scalar;
+  Config config;
+  const auto tiny = errorOf([&] { applySetting(config, "simulation.step=1e-400"); });
+  EXPECT_NE(tiny.find("'simulation.step' = 1e-400 is outside the range of a double (it underflows to 0)"),
+            std::string::npos)
+      << tiny;
+  EXPECT_NE(tiny.find("(0, 1]"), std::string::npos) << tiny;
+  const auto huge = errorOf([&] { applySetting(config, "rod.length=1e400"); });
+  EXPECT_NE(huge.find("'rod.length' = 1e400 is outside the range of a double (it overflows)"),
+            std::string::npos)
+      << huge;
+  EXPECT_EQ(config.simulation.step, Config{}.simulation.step);
+}
+
+// A command-line flag is its config field: the same checks, the message names the flag and range.
+TEST(Config, FlagsAreCheckedAsTheirFieldsAndNamed) {
+  Config config;
+  applyFlag(config, "--move-limit", "optimization.moveLimit", "0.1");
+  applyFlag(config, "--storage", "simulation.storage", "binomial:checkpoints=20");
+  EXPECT_EQ(config.optimization.moveLimit, 0.1);
+  EXPECT_EQ(config.simulation.storage, "binomial:checkpoints=20");
+  const struct {
+    const char* flag;
+    const char* key;
+    const char* text;
+    const char* message;
+  } cases[] = {
+      {"--iterations", "optimization.iterations", "-1",
+       "--iterations = -1 is outside the allowed range [0, 100000]"},
+      {"--iterations", "optimization.iterations", "2.5",
+       "--iterations = 2.5 must be an integer in [0, 100000]"},
+      {"--move-limit", "optimization.moveLimit", "0", "--move-limit = 0 is outside the allowed range (0, 1]"},
+      {"--move-limit", "optimization.moveLimit", "nan", "--move-limit = nan must be a number in (0, 1]"},
+      {"--filter-radius", "optimization.filterRadius", "-1",
+       "--filter-radius = -1 is outside the allowed range [0, 1000]"},
+      {"--picture-every", "optimization.pictureEvery", "-2",
+       "--picture-every = -2 is outside the allowed range [0, 100000]"},
+      {"--objective", "optimization.objective", "psi3", "--objective = psi3 must be one of: psi1, psi2"},
+      {"--storage", "simulation.storage", "5", "unknown storage strategy"},
+  };
+  for (const auto& c : cases) {
+    const auto message = errorOf([&] { applyFlag(config, c.flag, c.key, c.text); });
+    EXPECT_NE(message.find(c.message), std::string::npos) << c.flag << " " << c.text << ": " << message;
+  }
+  EXPECT_EQ(config.optimization.moveLimit, 0.1);
+  EXPECT_EQ(config.optimization.iterations, 50);
+}
+
+// The choices are enums in C++ and the same strings in JSON (--print-config is unchanged).
+TEST(Config, ChoicesAreEnumsWithTheirJsonNames) {
+  const nlohmann::json defaults = toJson(Config{});
+  EXPECT_EQ(defaults["simulation"]["adjoint"], "discrete");
+  EXPECT_EQ(defaults["simulation"]["eigenvectorRoute"], "adjoint-nelson");
+  EXPECT_EQ(defaults["simulation"]["model"], "reduced");
+  EXPECT_EQ(defaults["optimization"]["objective"], "psi1");
+  Config config;
+  applySetting(config, "simulation.adjoint=cvodes");
+  applySetting(config, "simulation.eigenvectorRoute=nelson");
+  applySetting(config, "simulation.model=full");
+  applySetting(config, "optimization.objective=psi2");
+  EXPECT_EQ(config.simulation.adjoint, AdjointMethod::Cvodes);
+  EXPECT_EQ(config.simulation.eigenvectorRoute, rod::EigenvectorSensitivityMethod::NelsonPerVariable);
+  EXPECT_EQ(config.simulation.model, RodModel::Full);
+  EXPECT_EQ(config.optimization.objective, Objective::Psi2);
+  const nlohmann::json json = toJson(config);
+  EXPECT_EQ(json["simulation"]["adjoint"], "cvodes");
+  EXPECT_EQ(json["simulation"]["eigenvectorRoute"], "nelson");
+  EXPECT_EQ(json["simulation"]["model"], "full");
+  EXPECT_EQ(json["optimization"]["objective"], "psi2");
+  EXPECT_EQ(toJson(configFromJson(json)), json);
+  for (const char* name : {"psi1", "psi2"}) EXPECT_EQ(toString(parseObjective(name)), name);
+  for (const char* name : {"reduced", "full"}) EXPECT_EQ(toString(parseRodModel(name)), name);
+  for (const char* name : {"adjoint-nelson", "nelson"})
+    EXPECT_EQ(toString(parseEigenvectorRoute(name)), name);
+  EXPECT_NE(errorOf([] { parseObjective("psi3"); }).find("optimization.objective"), std::string::npos);
+  EXPECT_NE(errorOf([&] {
+              applySetting(config, "optimization.objective=psi3");
+            }).find("must be one of: psi1, psi2"),
+            std::string::npos);
 }
 
 TEST(Config, UnreadableOrMalformedFilesAreNamed) {

@@ -1,10 +1,12 @@
 #include <hindsight/problems/rod/design_io.h>
 
 #include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/storage/hdf5.h>
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 
 namespace hindsight {
 namespace {
@@ -53,6 +55,45 @@ TEST(DesignIo, BadFilesAreNamed) {
   writeDesignFields(path, config, {{"x", Vector::Constant(config.designCount(), 0.5)}}, 1.0);
   EXPECT_THROW(readDesignFile(path, other), std::invalid_argument);
   EXPECT_THROW(writeDesignFields("/nonexistent/dir/f.h5", config, {{"x", x}}, 1.0), StorageError);
+}
+
+// The interface columns hold 1 in every design; another value there used to be replaced by 1
+// silently. NaN densities are refused like any value outside [designLowerBound, 1].
+TEST(DesignIo, InterfaceColumnsOtherThanOneAndNanAreRefusedNamingTheElement) {
+  const rod::RodConfig config = coarse();
+  const std::string path = ::testing::TempDir() + "/interface_design.h5";
+  const Vector x = Vector::Constant(config.designCount(), 0.5);
+  const auto messageOf = [&] {
+    try {
+      readDesignFile(path, config);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("<accepted>");
+  };
+  writeDesignFields(path, config, {{"x", x}}, 0.25);  // both end columns hold 0.25
+  std::string message = messageOf();
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("x[0][0] (row 0, interface column 0) = 0.25"), std::string::npos) << message;
+
+  // Only the last column of the top row is wrong.
+  std::vector<double> grid = designToGrid(config, x, 1.0);
+  const int nx = config.elementsAlongLength, ny = config.elementsThroughHeight;
+  grid[static_cast<std::size_t>(ny - 1) * nx + nx - 1] = 0.5;
+  {
+    hdf5::Handle file = hdf5::createFile(path, H5F_ACC_TRUNC);
+    hdf5::writeDoubles(file.get(), "x", {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)}, grid.data());
+    hdf5::closeFile(file);
+  }
+  message = messageOf();
+  EXPECT_NE(message.find("x[3][6] (row 3, interface column 6) = 0.5 must be 1"), std::string::npos)
+      << message;
+
+  Vector nan = x;
+  nan(3) = std::numeric_limits<double>::quiet_NaN();
+  writeDesignFields(path, config, {{"x", nan}}, 1.0);
+  message = messageOf();
+  EXPECT_NE(message.find("= nan is outside"), std::string::npos) << message;
 }
 
 }  // namespace

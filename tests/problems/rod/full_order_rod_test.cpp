@@ -422,13 +422,13 @@ namespace {
 
 TEST(FullOrderRodConfig, ModelAndCouplingFieldsAreCheckedStrictly) {
   Config config;
-  EXPECT_EQ(config.simulation.model, "reduced");
+  EXPECT_EQ(config.simulation.model, RodModel::Reduced);
   EXPECT_TRUE(config.simulation.fullOrderCoupling);
   applySetting(config, "simulation.model=full");
   applySetting(config, "simulation.fullOrderCoupling=false");
-  EXPECT_EQ(config.simulation.model, "full");
+  EXPECT_EQ(config.simulation.model, RodModel::Full);
   EXPECT_FALSE(config.simulation.fullOrderCoupling);
-  EXPECT_EQ(configFromJson(toJson(config)).simulation.model, "full");
+  EXPECT_EQ(configFromJson(toJson(config)).simulation.model, RodModel::Full);
   try {
     applySetting(config, "simulation.model=half");
     FAIL() << "an unknown model was accepted";

@@ -73,7 +73,7 @@ TEST(PistonRod, Psi1GradientAtARandomDesignOnBothSidesOfTheMassLawKink) {
 TEST(PistonRod, BothEigenvectorRoutesGiveTheSameGradient) {
   Config config = coarseConfig();
   const PistonRod adjointNelson{config};
-  config.simulation.eigenvectorRoute = "nelson";
+  config.simulation.eigenvectorRoute = rod::EigenvectorSensitivityMethod::NelsonPerVariable;
   const PistonRod nelson{config};
   const Vector x = adjointNelson.initialDesign();
   const Vector a = adjointNelson.evaluate(x, {true, false, false}).dpsi1;
@@ -100,12 +100,39 @@ TEST(PistonRod, Psi1GradientOnTheFullMeshForASeededSampleOfElements) {
   EXPECT_TRUE(check.passed) << check.message;
 }
 
+// The reduced model is a SecondOrderProblem: generalized-alpha and HHT integrate it through
+// simulation.integrator, with their exact discrete adjoint and psi2 on the same fixed grid.
+TEST(PistonRod, GeneralizedAlphaServesTheReducedModel) {
+  Config config = coarseConfig();
+  const Vector x = PistonRod{config}.initialDesign();
+  const PistonRodEvaluation rk4 = PistonRod{config}.evaluate(x, {true, true, true});
+  for (const char* method : {"generalized-alpha", "hht-alpha"}) {
+    config.simulation.integrator = method;
+    config.simulation.rhoInfinity = 0.9;
+    const PistonRodEvaluation alpha = PistonRod{config}.evaluate(x, {true, true, true});
+    EXPECT_EQ(alpha.summary.method, method);
+    // Second order against fourth order at h = 2e-4 s.
+    EXPECT_NEAR(alpha.psi1, rk4.psi1, 1e-3 * rk4.psi1) << method;
+    EXPECT_NEAR(alpha.psi2, rk4.psi2, 1e-3 * rk4.psi2) << method;
+    EXPECT_LT((alpha.dpsi1 - rk4.dpsi1).norm(), 1e-2 * rk4.dpsi1.norm()) << method;
+  }
+  config.simulation.integrator = "hht-alpha";
+  config.simulation.rhoInfinity = 0.3;
+  try {
+    config.validate();
+    FAIL() << "hht-alpha with rhoInfinity 0.3 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'simulation.rhoInfinity' = 0.3"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("[0.5, 1]"), std::string::npos) << e.what();
+  }
+}
+
 TEST(PistonRod, DiscreteContinuousAndCvodesAdjointsAgree) {
   Config config = coarseConfig();
   const Vector x = PistonRod{config}.initialDesign();
   const Vector discrete = PistonRod{config}.evaluate(x, {true, true, true}).dpsi1;
   for (const std::string route : {"continuous", "cvodes"}) {
-    config.simulation.adjoint = route;
+    config.simulation.adjoint = parseAdjointMethod(route);
     const auto result = PistonRod{config}.evaluate(x, {true, true, true});
     EXPECT_EQ(result.summary.adjoint, route);
     EXPECT_LT((result.dpsi1 - discrete).norm(), 1e-6 * discrete.norm()) << route;

@@ -5,6 +5,8 @@
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/topology_optimizer.h>
 
+#include "support/run_cli.h"
+
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -40,7 +42,7 @@ Config coarseConfig(const std::string& objective = "psi1", int iterations = 8) {
   config.rod.endTime = 0.5;
   config.rod.rampTime = 0.5;
   config.simulation.step = 2e-4;
-  config.optimization.objective = objective;
+  config.optimization.objective = parseObjective(objective);
   config.optimization.iterations = iterations;
   config.optimization.moveLimit = 0.1;
   return config;
@@ -753,19 +755,8 @@ TEST(OptimizationRun, StaleTemporariesOfResultsAndPicturesAreRemovedOnStart) {
 
 #ifdef HINDSIGHT_CLI_PATH
 // The CLI: exit code 2 and a message naming the problem, before any work.
-struct CliResult {
-  int exitCode;
-  std::string output;
-};
-CliResult runCli(const std::string& arguments) {
-  const std::string command = std::string(HINDSIGHT_CLI_PATH) + " " + arguments + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string output;
-  char buffer[4096];
-  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
-}
+using testing::CliResult;
+using testing::runCli;
 
 TEST(OptimizeCommand, BadInputExitsWithCodeTwoAndNamesTheProblem) {
   const std::string dir = freshDirectory("cli");
@@ -779,11 +770,22 @@ TEST(OptimizeCommand, BadInputExitsWithCodeTwoAndNamesTheProblem) {
       {"--set optimization.volumeFraction=1.5 --out " + dir + "/o1", "optimization.volumeFraction"},
       {"--set optimization.volumeFraction=0 --out " + dir + "/o1", "optimization.volumeFraction"},
       {"--set rod.modeCount=0 --out " + dir + "/o1", "rod.modeCount"},
-      {"--objective psi3 --out " + dir + "/o1", "optimization.objective"},
+      {"--objective psi3 --out " + dir + "/o1", "--objective = psi3 must be one of: psi1, psi2"},
       {"--config " + dir + "/missing.json --out " + dir + "/o1", "missing.json"},
       {"--config " + dir + "/bad.json --out " + dir + "/o1", "objectiv"},
       {"--out " + dir + "/a_file/sub", "a_file"},
       {"--resume --force --out " + dir + "/o1", "--resume and --force"},
+      // Flags are checked as their config fields (they used to fall back to the defaults).
+      {"--iterations -1 --out " + dir + "/o1", "--iterations = -1 is outside the allowed range [0, 100000]"},
+      {"--move-limit 0 --out " + dir + "/o1", "--move-limit = 0 is outside the allowed range (0, 1]"},
+      {"--move-limit nan --out " + dir + "/o1", "--move-limit = nan must be a number in (0, 1]"},
+      {"--filter-radius -1 --out " + dir + "/o1",
+       "--filter-radius = -1 is outside the allowed range [0, 1000]"},
+      {"--picture-every -2 --out " + dir + "/o1", "--picture-every = -2 is outside the allowed range"},
+      // --resume with nothing to continue used to start a fresh run.
+      {"--resume --iterations 1 --out " + dir + "/nonexistent_dir", "--resume: there is no"},
+      {"--set simulation.integrator=dopri5 --set simulation.adaptive=true --out " + dir + "/o1",
+       "simulation.adaptive"},
   };
   for (const auto& c : cases) {
     const CliResult result = runCli("optimize " + c.arguments);
@@ -792,6 +794,7 @@ TEST(OptimizeCommand, BadInputExitsWithCodeTwoAndNamesTheProblem) {
     EXPECT_EQ(result.output.find("iter "), std::string::npos) << "work was done for " << c.arguments;
   }
   EXPECT_FALSE(fs::exists(dir + "/o1/results.h5"));
+  EXPECT_FALSE(fs::exists(dir + "/nonexistent_dir"));
 }
 
 // coarseConfig() as command-line flags.

@@ -14,7 +14,7 @@ namespace {
 
 IterationRecord runRoute(const std::string& objective) {
   Config config;
-  config.optimization.objective = objective;
+  config.optimization.objective = parseObjective(objective);
   TopologyOptimizer optimizer(config);
   IterationRecord record;
   while (!optimizer.finished()) record = optimizer.step();
