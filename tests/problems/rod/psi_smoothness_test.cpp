@@ -7,23 +7,15 @@
 
 #include <gtest/gtest.h>
 
+#include "support/random_design.h"
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <random>
+#include <vector>
 
 namespace hindsight {
 namespace {
-
-// The random design of tests/problems/rod/design_gradient_test.cpp on the 200 x 12 mesh: values on both
-// sides of the density-law threshold 0.1, at least 2e-3 away from it.
-Vector randomDesign(const rod::RodConfig& config, unsigned seed) {
-  std::mt19937 generator(seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design)
-    x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
-  return design;
-}
 
 // Element (row 2, column 31) of the (ny, nx) design grid (problems/rod/design_io.h): column i counts
 // all element columns, so design index d = (i - 1) ny + j.
@@ -38,7 +30,7 @@ double psi1(const PistonRod& rod, const Vector& x) { return rod.evaluate(x, {fal
 // 6.5e-14 after, i.e. ~7e-15 relative, the round-off of the integration.
 TEST(PsiSmoothness, Psi1ScatterUnderTinyDesignChangesIsRoundOff) {
   const PistonRod rod{Config{}};
-  const Vector x = randomDesign(rod.config().rod, 3);
+  const Vector x = testing::randomRodDesign(rod.config().rod, 3);  // psi1 = 9.63
   const int d = designIndexOf(rod.config().rod, 2, 31);
   double sk = 0, skk = 0, sp = 0, skp = 0;
   std::vector<double> values;
@@ -68,7 +60,7 @@ TEST(PsiSmoothness, Psi1ScatterUnderTinyDesignChangesIsRoundOff) {
 // 5.0e-7 (now truncation, O(h^2)).
 TEST(PsiSmoothness, SmallStepCentralDifferenceMatchesTheAdjointAtOneElement) {
   const PistonRod rod{Config{}};
-  const Vector x = randomDesign(rod.config().rod, 3);
+  const Vector x = testing::randomRodDesign(rod.config().rod, 3);  // psi1 = 9.63
   const int d = designIndexOf(rod.config().rod, 2, 31);
   const double adjoint = rod.evaluate(x, {true, false, false}).dpsi1(d);
   for (double h : {1e-5, 3e-4}) {
