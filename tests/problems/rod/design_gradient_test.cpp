@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/random_design.h"
+
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -27,14 +29,7 @@ RodConfig coarseConfig() {
 
 // Seeded random design with values on both sides of the density-law threshold 0.1, at least 2e-3 away
 // from it, so that central differences never straddle the kink.
-Vector randomDesign(const RodConfig& config, unsigned seed) {
-  std::mt19937 generator(seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design)
-    x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
-  return design;
-}
+Vector randomDesign(const RodConfig& config, unsigned seed) { return testing::randomRodDesign(config, seed); }
 
 Vector packedInvariants(const RodConfig& config, const Vector& design) {
   const FeModel model(config, design);

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/random_design.h"
+
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -21,14 +23,7 @@ RodConfig coarseConfig() {
   return config;
 }
 
-Vector randomDesign(const RodConfig& config, unsigned seed) {
-  std::mt19937 generator(seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design)
-    x = unit(generator) < 0.3 ? 0.02 + 0.078 * unit(generator) : 0.102 + 0.878 * unit(generator);
-  return design;
-}
+Vector randomDesign(const RodConfig& config, unsigned seed) { return testing::randomRodDesign(config, seed); }
 
 // Seeded modal coordinates standing in for q(t_k), scaled so that psi2 is O(1) for this mesh.
 Matrix modalSamples(int modes, int samples, unsigned seed) {

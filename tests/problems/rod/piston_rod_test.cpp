@@ -39,9 +39,11 @@ Config coarseConfig() {
   return config;
 }
 
-// Finite differences of psi1 carry the iterative eigensolver's noise (about 1e-11 relative in psi1,
+// Finite differences of psi1 carried the eigen-solve's round-off noise (about 1e-11 relative in psi1,
 // seen as an error that falls like 1/step), so the steps are larger than cbrt(eps) and the
-// tolerances are set just above that noise; a wrong term gives errors of 1e-2 and more.
+// tolerances were set just above that noise; a wrong term gives errors of 1e-2 and more. Since the
+// eigenpair refinement (modal_reduction.h) the noise is ~1e-14 (psi_smoothness_test.cpp); these
+// steps and tolerances were kept.
 void checkEveryElement(const PistonRod& rod, const Vector& x, double tolerance) {
   const auto result = rod.evaluate(x, {true, false, false});
   PistonRod::Request forwardOnly{false, false, false};
