@@ -118,6 +118,23 @@ std::vector<hsize_t> shapeOf(hid_t parent, const char* name, std::size_t rank) {
   return dims;
 }
 
+// The counts and sizes in the root attributes are only what the file claims. Before memory of that size
+// is allocated, the dataset must have exactly that shape and fit in the file (writeContents stores
+// every element uncompressed): a damaged file claiming 2^31 iterations is refused, not allocated for.
+void requireShape(hid_t file, hid_t parent, const char* name, const std::vector<hsize_t>& expected) {
+  if (shapeOf(parent, name, expected.size()) != expected) {
+    fail("dataset '" + hdf5::objectName(parent, name) + "' does not have the shape the attributes give");
+  }
+  hsize_t fileSize = 0;
+  if (H5Fget_filesize(file, &fileSize) < 0) fail("cannot read the file's size");
+  hsize_t bytes = sizeof(double);
+  for (const hsize_t d : expected) {
+    if (d != 0 && bytes > fileSize / d)
+      fail("dataset '" + hdf5::objectName(parent, name) + "' is larger than the file");
+    bytes *= d;
+  }
+}
+
 ResultsData readContents(hid_t file) {
   if (hdf5::readStringAttribute(file, "format") != kFormat) fail("not a hindsight topology results file");
   const int version = hdf5::readIntAttribute(file, "format_version");
@@ -136,6 +153,7 @@ ResultsData readContents(hid_t file) {
 
   {
     const hdf5::Handle group = hdf5::openGroup(file, "history");
+    requireShape(file, group.get(), "iteration", {rows});
     std::vector<int> iteration(rows);
     hdf5::read(group.get(), "iteration", H5T_NATIVE_INT, {rows}, iteration.data());
     data.history.resize(rows);
@@ -151,6 +169,7 @@ ResultsData readContents(hid_t file) {
   {
     const auto nx = static_cast<hsize_t>(data.nx);
     const auto ny = static_cast<hsize_t>(data.ny);
+    requireShape(file, file, "designs", {rows, ny, nx});
     std::vector<double> designs(rows * nx * ny);
     hdf5::read(file, "designs", H5T_NATIVE_DOUBLE, {rows, ny, nx}, designs.data());
     for (hsize_t k = 0; k < rows; ++k) {
@@ -162,6 +181,7 @@ ResultsData readContents(hid_t file) {
     const hdf5::Handle group = hdf5::openGroup(file, "state");
     const hsize_t size = shapeOf(group.get(), "design", 1)[0];
     if (size < 1) fail("dataset 'state/design' is empty");
+    requireShape(file, group.get(), "design", {size});
     data.state.design = readVector(group.get(), "design", size);
     data.state.mma.xold1 = readVector(group.get(), "mma_xold1", size);
     data.state.mma.xold2 = readVector(group.get(), "mma_xold2", size);
@@ -172,6 +192,7 @@ ResultsData readContents(hid_t file) {
   {
     const hdf5::Handle group = hdf5::openGroup(file, "final");
     const std::vector<hsize_t> dims = shapeOf(group.get(), "modes", 2);
+    requireShape(file, group.get(), "modes", dims);
     const hsize_t modeCount = dims[0];
     data.finalModes.resize(static_cast<Eigen::Index>(dims[1]), static_cast<Eigen::Index>(modeCount));
     hdf5::read(group.get(), "modes", H5T_NATIVE_DOUBLE, dims, data.finalModes.data());
