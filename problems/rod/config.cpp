@@ -21,7 +21,9 @@ struct Field {
   std::function<json(const Config&)> write;
 };
 
-std::string render(const json& value) { return value.dump(); }
+// Invalid UTF-8 (a --set value is raw command-line bytes) is replaced: a strict dump would throw
+// json::type_error from inside the error message meant to name the field.
+std::string render(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
 template <typename Member>
 Field realField(const std::string& name, Member member, double min, double max, bool openMin = false) {
@@ -216,7 +218,7 @@ Config readConfigFile(const std::string& path) {
   json parsed;
   try {
     parsed = json::parse(file);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers such as 1e400
     throw std::invalid_argument("configuration file '" + path + "' is not valid JSON: " + e.what());
   }
   return configFromJson(parsed);
@@ -234,8 +236,8 @@ void applySetting(Config& config, const std::string& assignment) {
   json value;
   try {
     value = json::parse(text);
-  } catch (const json::parse_error&) {
-    value = text;  // a bare word such as rk4
+  } catch (const json::exception&) {  // parse_error, and out_of_range for numbers such as 1e400
+    value = text;                     // a bare word such as rk4
   }
   findField(section, name).read(config, value, section + "." + name);
   config.validate();
