@@ -31,6 +31,7 @@ void expectDesignOrInvalidArgument(const std::string& path, const rod::RodConfig
     ADD_FAILURE() << "threw " << typeid(e).name() << " (" << e.what()
                   << ") instead of std::invalid_argument for " << what;
   }
+  EXPECT_EQ(fuzz::openHdf5Objects(), 0) << "identifiers left open after " << what;
 }
 
 // Files made with the C API: dataset x (or a look-alike name, or a group x) of any rank, shape and type,

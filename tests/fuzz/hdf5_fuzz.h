@@ -30,6 +30,10 @@ class QuietHdf5 {
   void* data_ = nullptr;
 };
 
+/// HDF5 identifiers (files, groups, datasets, attributes, ...) open in this process: a reader must
+/// close everything it opened, also when it throws half-way through a damaged file.
+inline ssize_t openHdf5Objects() { return H5Fget_obj_count(H5F_OBJ_ALL, H5F_OBJ_ALL); }
+
 /// Doubles a damaged file may hold: inside and at the edges of a design's range, and non-finite ones.
 inline double interestingDouble(Mutator& m) {
   static const std::vector<double> values = {0.5,

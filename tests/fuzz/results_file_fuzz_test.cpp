@@ -73,6 +73,7 @@ void expectStorageErrorNamingOr(Read&& read, const std::string& path, const std:
 void expectResultsOrStorageError(const std::string& path, const std::string& what) {
   expectStorageErrorNamingOr([&] { expectConsistent(readResultsFile(path), what); }, path, what);
   expectStorageErrorNamingOr([&] { readResultsConfiguration(path); }, path, what);
+  EXPECT_EQ(fuzz::openHdf5Objects(), 0) << "identifiers left open after " << what;
 }
 
 // Every object of the layout in results_file.h, by path.
