@@ -133,7 +133,9 @@ std::int64_t parseBytes(const std::string& text, const std::string& field) {
     scale = 1e6;
   else if (unit == "GB")
     scale = 1e9;
-  if (pos == 0 || scale == 0.0 || !(value > 0.0) || !std::isfinite(value) || value * scale > 9.0e18) {
+  // Less than one byte ("0.5", ".024") would truncate to a budget of 0, which no strategy can use.
+  if (pos == 0 || scale == 0.0 || !(value * scale >= 1.0) || !std::isfinite(value) ||
+      value * scale > 9.0e18) {
     throw std::invalid_argument(field + " = '" + text +
                                 "' is not a positive byte count (examples: 4096, 64KiB, 32MiB, 4GiB, 10MB)");
   }

@@ -86,8 +86,20 @@ Handle openAttribute(hid_t object, const std::string& name) {
       H5Aclose);
 }
 
+// H5Aread writes every element of the attribute, so one that a damaged or foreign file stores as an
+// array would overflow the caller's single value: refuse anything but exactly one element.
+void requireOneElement(hid_t object, hid_t attribute, const std::string& name) {
+  const std::string action = "cannot read attribute '" + name + "' of";
+  Handle space(checked(H5Aget_space(attribute), object, action), H5Sclose);
+  if (H5Sget_simple_extent_npoints(space.get()) != 1) {  // negative: HDF5 failed, also refused
+    throw Error("attribute '" + name + "' of '" + objectName(object, {}) + "' is not a single value",
+                fileName(object));
+  }
+}
+
 void readScalarAttribute(hid_t object, const std::string& name, hid_t memoryType, void* value) {
   Handle attribute = openAttribute(object, name);
+  requireOneElement(object, attribute.get(), name);
   checked(H5Aread(attribute.get(), memoryType, value), object, "cannot read attribute '" + name + "' of");
 }
 
@@ -362,6 +374,7 @@ std::string readStringAttribute(hid_t object, const std::string& name) {
     throw Error("attribute '" + name + "' of '" + objectName(object, {}) + "' is not a fixed-length string",
                 fileName(object));
   }
+  requireOneElement(object, attribute.get(), name);
   std::string value(H5Tget_size(type.get()), '\0');
   checked(H5Aread(attribute.get(), type.get(), value.data()), object, action);
   const auto end = value.find('\0');

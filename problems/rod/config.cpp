@@ -34,7 +34,9 @@ struct Field {
   std::function<json(const Config&)> write;
 };
 
-std::string render(const json& value) { return value.dump(); }
+// Invalid UTF-8 (a --set value is raw command-line bytes) is replaced: a strict dump would throw
+// json::type_error from inside the error message meant to name the field.
+std::string render(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
 template <typename Member>
 Field realField(const std::string& name, Member member, double min, double max, bool openMin = false) {

@@ -83,7 +83,7 @@ TEST(StorageProtocol, OnlineRestoresExactStatesWithNoStepCountAnnounced) {
       const long allocations = runProtocol(storage, steps, -1);
       // Online allocates a slot on its first use, so the backward sweep's extra slots do allocate
       // (documented); this also shows that the counter above is live.
-      if (c == 30 && steps == 777) EXPECT_GT(allocations, 0);
+      if (c == 30 && steps == 777 && testing::AllocationCounter::available()) EXPECT_GT(allocations, 0);
       EXPECT_EQ(
           revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
           revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))

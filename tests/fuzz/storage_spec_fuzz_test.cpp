@@ -1,0 +1,158 @@
+// Fuzzing the storage spec strings (storage/storage_spec.h, storage/storage_factory.h): a spec comes
+// from the command line or a configuration file, so createStorage must either build a strategy or
+// throw std::invalid_argument, whatever the text. A strategy it builds describes itself with spec(),
+// and that description must build the same strategy again (the CLI prints it and results files store
+// it, so a spec that does not read back would make a run unrepeatable).
+#include "fuzz/fuzz_support.h"
+
+#include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/storage_spec.h>
+
+namespace hindsight {
+namespace {
+
+std::vector<std::string> dictionary() {
+  std::vector<std::string> words = {":",
+                                    ",",
+                                    "=",
+                                    "==",
+                                    ",,",
+                                    "budget=",
+                                    "checkpoints=",
+                                    "every=",
+                                    "dir=",
+                                    "level=",
+                                    "chunk=",
+                                    "keep=",
+                                    "codec=",
+                                    "tolerance=",
+                                    "block=",
+                                    "ram=",
+                                    "disk=",
+                                    "0",
+                                    "-1",
+                                    "1e400",
+                                    "nan",
+                                    "inf",
+                                    "0x10",
+                                    "1e-320",
+                                    "9223372036854775807",
+                                    "9223372036854775808",
+                                    "18446744073709551616",
+                                    "0.5",
+                                    "KiB",
+                                    "MiB",
+                                    "GiB",
+                                    "TiB",
+                                    "kB",
+                                    "MB",
+                                    "GB",
+                                    "B",
+                                    "true",
+                                    "false",
+                                    "zfp",
+                                    "round",
+                                    " ",
+                                    "\t"};
+  for (const auto& name : storageStrategyNames()) words.push_back(name);
+  return words;
+}
+
+// Passes when `spec` builds a strategy whose own spec() builds an equal one, or throws
+// std::invalid_argument.
+void expectStorageOrInvalidArgument(const std::string& spec) {
+  std::unique_ptr<TrajectoryStorage> storage;
+  try {
+    storage = createStorage(spec);
+  } catch (const std::invalid_argument& e) {
+    EXPECT_GT(std::string(e.what()).size(), 0u);
+    return;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "createStorage threw " << typeid(e).name() << " (" << e.what()
+                  << ") instead of std::invalid_argument for '" << fuzz::printable(spec) << "'";
+    return;
+  }
+  ASSERT_NE(storage, nullptr) << spec;
+  const std::string canonical = storage->spec();
+  try {
+    EXPECT_EQ(createStorage(canonical)->spec(), canonical) << "from '" << fuzz::printable(spec) << "'";
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "'" << fuzz::printable(spec) << "' built a strategy whose spec '" << canonical
+                  << "' does not build again: " << e.what();
+  }
+}
+
+TEST(StorageSpecFuzz, SeedsBuildStrategies) {
+  const auto seeds = fuzz::seedLines("storage_specs.txt");
+  ASSERT_GE(seeds.size(), storageStrategyNames().size());
+  for (const auto& spec : seeds) {
+    EXPECT_NO_THROW(createStorage(spec)) << spec;
+    expectStorageOrInvalidArgument(spec);
+  }
+}
+
+TEST(StorageSpecFuzz, MutatedSpecs) {
+  const auto seeds = fuzz::seedLines("storage_specs.txt");
+  const auto words = dictionary();
+  fuzz::Mutator mutator(fuzz::seed(11));
+  for (int k = 0; k < fuzz::cases(6000); ++k) {
+    expectStorageOrInvalidArgument(mutator.mutate(mutator.pick(seeds), words, 5));
+    if (HasFailure()) return;  // the first failing input is the useful one
+  }
+}
+
+// Specs put together from the vocabulary alone: a name, then key=value pairs of any key and value.
+TEST(StorageSpecFuzz, RandomSpecs) {
+  const auto names = storageStrategyNames();
+  const std::vector<std::string> keys = {"budget", "checkpoints", "every", "dir", "level", "chunk", "keep",
+                                         "codec",  "tolerance",   "block", "ram", "disk",  "",      "x"};
+  const std::vector<std::string> values = {
+      "0",     "1",    "2",      "-1",       "22",    "23",     "1073741824", "1073741825", "0.5",
+      "0.49",  "0.51", "1e-300", "4.9e-324", "1e308", "1e400",  "nan",        "inf",        "-inf",
+      "1.5",   "4096", "4KiB",   "0.0001B",  "9e18",  "9.1e18", "8EiB",       "1 MiB",      "true",
+      "false", "zfp",  "round",  "/tmp",     "",      "=",      "a=b"};
+  fuzz::Mutator mutator(fuzz::seed(12));
+  for (int k = 0; k < fuzz::cases(6000); ++k) {
+    std::string spec = mutator.pick(names);
+    const std::size_t pairs = mutator.below(4);
+    for (std::size_t p = 0; p < pairs; ++p) {
+      spec += (p == 0 ? ":" : ",") + mutator.pick(keys) + "=" + mutator.pick(values);
+    }
+    expectStorageOrInvalidArgument(spec);
+    if (HasFailure()) return;
+  }
+}
+
+// StorageSpec's typed getters on their own, with any value text: a value or std::invalid_argument.
+TEST(StorageSpecFuzz, TypedGettersOnMutatedValues) {
+  const auto words = dictionary();
+  fuzz::Mutator mutator(fuzz::seed(13));
+  for (int k = 0; k < fuzz::cases(4000); ++k) {
+    const std::string value = mutator.mutate("1024", words, 4);
+    StorageSpec spec;
+    try {
+      spec = StorageSpec::parse("s:v=" + value);
+    } catch (const std::invalid_argument&) {
+      continue;
+    }
+    try {
+      const std::int64_t bytes = spec.bytes("v", 1);
+      EXPECT_GT(bytes, 0) << "'" << fuzz::printable(value) << "' accepted as a positive byte count";
+    } catch (const std::invalid_argument&) {
+    }
+    try {
+      const std::int64_t n = spec.integer("v", 0, -5, 5);
+      EXPECT_TRUE(n >= -5 && n <= 5) << fuzz::printable(value);
+    } catch (const std::invalid_argument&) {
+    }
+    try {
+      const double x = spec.real("v", 0.0, 0.0, 1.0);
+      EXPECT_TRUE(x >= 0.0 && x <= 1.0) << fuzz::printable(value);
+    } catch (const std::invalid_argument&) {
+    }
+    if (HasFailure()) return;
+  }
+}
+
+}  // namespace
+}  // namespace hindsight

@@ -1,0 +1,67 @@
+// readResultsFile on files whose attributes claim sizes the datasets do not have: it must refuse them
+// with StorageError before allocating what the attributes claim (2^31 - 1 iterations would be 8 GiB
+// of history; nx = ny = 2^31 - 1 overflowed the size of the designs buffer).
+#include <hindsight/problems/topopt/results_file.h>
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <chrono>
+#include <climits>
+
+namespace hindsight {
+namespace {
+
+ResultsData small() {
+  ResultsData data;
+  data.configurationJson = "{}";
+  data.nx = 4;
+  data.ny = 2;
+  for (int k = 0; k < 2; ++k) {
+    data.history.push_back(IterationRecord{});
+    data.densities.push_back(Vector::Constant(8, 0.5));
+  }
+  data.state.design = Vector::Constant(3, 0.5);
+  data.state.mma.xold1 = data.state.mma.xold2 = data.state.mma.low = data.state.mma.upp = data.state.design;
+  return data;
+}
+
+void setIntAttribute(const std::string& path, const char* name, int value) {
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  const hid_t attribute = H5Aopen(file, name, H5P_DEFAULT);
+  ASSERT_GE(attribute, 0);
+  ASSERT_GE(H5Awrite(attribute, H5T_NATIVE_INT, &value), 0);
+  H5Aclose(attribute);
+  H5Fclose(file);
+}
+
+TEST(ResultsFileDamage, ClaimedSizesAreCheckedBeforeAllocating) {
+  const std::string path = ::testing::TempDir() + "/hindsight_claimed_sizes.h5";
+  const struct {
+    const char* attribute;
+    int value;
+  } claims[] = {
+      {"completed_iterations", INT_MAX}, {"nx", INT_MAX}, {"ny", INT_MAX}, {"completed_iterations", 3}};
+  for (const auto& claim : claims) {
+    writeResultsFile(path, small());
+    setIntAttribute(path, claim.attribute, claim.value);
+    if (claim.attribute != std::string("completed_iterations")) setIntAttribute(path, "nx", INT_MAX);
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      readResultsFile(path);
+      ADD_FAILURE() << claim.attribute << " = " << claim.value << " accepted";
+    } catch (const StorageError& e) {
+      EXPECT_EQ(e.path(), path);
+      EXPECT_NE(std::string(e.what()).find("shape the attributes give"), std::string::npos) << e.what();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << claim.attribute << " = " << claim.value << ": " << typeid(e).name() << " " << e.what();
+    }
+    // Refused from the shapes, not after filling gigabytes.
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0)
+        << claim.attribute;
+  }
+}
+
+}  // namespace
+}  // namespace hindsight
