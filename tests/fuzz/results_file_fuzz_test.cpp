@@ -4,6 +4,7 @@
 // (path() and the message); never crash, never allocate what the file's attributes claim before the
 // datasets confirm it, never throw another type.
 #include "fuzz/hdf5_fuzz.h"
+#include "support/file_checks.h"
 
 #include <hindsight/problems/topopt/results_file.h>
 
@@ -76,27 +77,6 @@ void expectResultsOrStorageError(const std::string& path, const std::string& wha
   EXPECT_EQ(fuzz::openHdf5Objects(), 0) << "identifiers left open after " << what;
 }
 
-// Every object of the layout in results_file.h, by path.
-const std::vector<std::string>& datasets() {
-  static const std::vector<std::string> paths = {"history/iteration",
-                                                 "history/backtracks",
-                                                 "history/psi1",
-                                                 "history/psi2",
-                                                 "history/volume_fraction",
-                                                 "history/max_design_change",
-                                                 "history/evaluation_seconds",
-                                                 "history/mma_seconds",
-                                                 "history/total_seconds",
-                                                 "designs",
-                                                 "state/design",
-                                                 "state/mma_xold1",
-                                                 "state/mma_xold2",
-                                                 "state/mma_low",
-                                                 "state/mma_upp",
-                                                 "final/modes",
-                                                 "final/frequencies_hz"};
-  return paths;
-}
 const std::vector<std::string>& rootAttributes() {
   static const std::vector<std::string> names = {
       "format", "format_version", "configuration",  "completed_iterations", "finished", "nx",
@@ -141,13 +121,13 @@ TEST(ResultsFileFuzz, DamagedObjects) {
           break;
         }
         case 3: {
-          const std::string& name = mutator.pick(datasets());
+          const std::string& name = mutator.pick(testing::resultsDatasets());
           H5Ldelete(file, name.c_str(), H5P_DEFAULT);
           what += " " + name + " deleted;";
           break;
         }
         case 4: {
-          const std::string& name = mutator.pick(datasets());
+          const std::string& name = mutator.pick(testing::resultsDatasets());
           if (H5Ldelete(file, name.c_str(), H5P_DEFAULT) >= 0) {
             if (mutator.chance(0.2)) {
               const hid_t group = H5Gcreate2(file, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);

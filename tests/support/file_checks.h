@@ -9,8 +9,32 @@
 #include <filesystem>
 #include <set>
 #include <string>
+#include <vector>
 
 namespace hindsight::testing {
+
+/// Every dataset of a results file (the layout in problems/topopt/results_file.h), by path; each
+/// carries Fletcher32 and a content hash.
+inline const std::vector<std::string>& resultsDatasets() {
+  static const std::vector<std::string> paths = {"history/iteration",
+                                                 "history/backtracks",
+                                                 "history/psi1",
+                                                 "history/psi2",
+                                                 "history/volume_fraction",
+                                                 "history/max_design_change",
+                                                 "history/evaluation_seconds",
+                                                 "history/mma_seconds",
+                                                 "history/total_seconds",
+                                                 "designs",
+                                                 "state/design",
+                                                 "state/mma_xold1",
+                                                 "state/mma_xold2",
+                                                 "state/mma_low",
+                                                 "state/mma_upp",
+                                                 "final/modes",
+                                                 "final/frequencies_hz"};
+  return paths;
+}
 
 /// The names in a directory, to see that no temporary file was left behind.
 inline std::set<std::string> listing(const std::filesystem::path& directory) {

@@ -7,6 +7,8 @@
 
 #include "support/run_cli.h"
 
+#include "support/file_checks.h"
+
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -108,25 +110,6 @@ OptimizationRunSummary runQuietly(const Config& config, OptimizationRunOptions o
 
 // ---- corrupting a results file the way a disk, a tool or a person would ----
 
-// The datasets of a results file; each carries Fletcher32 and a content hash.
-const char* const kResultsDatasets[] = {"history/iteration",
-                                        "history/backtracks",
-                                        "history/psi1",
-                                        "history/psi2",
-                                        "history/volume_fraction",
-                                        "history/max_design_change",
-                                        "history/evaluation_seconds",
-                                        "history/mma_seconds",
-                                        "history/total_seconds",
-                                        "designs",
-                                        "state/design",
-                                        "state/mma_xold1",
-                                        "state/mma_xold2",
-                                        "state/mma_low",
-                                        "state/mma_upp",
-                                        "final/modes",
-                                        "final/frequencies_hz"};
-
 std::vector<double> readDoublesWithPlainHdf5(const std::string& path, const std::string& name) {
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
@@ -182,8 +165,8 @@ void overwriteFileBytes(const std::string& path, std::uint64_t offset, const voi
 void stripChecksums(const std::string& path) {
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   EXPECT_GE(H5Adelete(file, "content_hash"), 0);
-  for (const char* name : kResultsDatasets)
-    EXPECT_GE(H5Adelete_by_name(file, name, "content_hash", H5P_DEFAULT), 0);
+  for (const std::string& name : testing::resultsDatasets())
+    EXPECT_GE(H5Adelete_by_name(file, name.c_str(), "content_hash", H5P_DEFAULT), 0);
   const hid_t attribute = H5Aopen(file, "format_version", H5P_DEFAULT);
   const int version = 1;
   EXPECT_GE(H5Awrite(attribute, H5T_NATIVE_INT, &version), 0);
@@ -550,12 +533,12 @@ TEST(ResultsFile, EveryDatasetIsChecksummedAndASoundFileVerifies) {
   EXPECT_TRUE(verification.checksummed);
   EXPECT_EQ(verification.completedIterations, 3);
   EXPECT_EQ(verification.firstProblem(), nullptr);
-  ASSERT_EQ(verification.checks.size(), std::size(kResultsDatasets) + 1);  // and the root
+  ASSERT_EQ(verification.checks.size(), testing::resultsDatasets().size() + 1);  // and the root
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   EXPECT_GT(H5Aexists(file, "content_hash"), 0);
-  for (const char* name : kResultsDatasets) {
+  for (const std::string& name : testing::resultsDatasets()) {
     SCOPED_TRACE(name);
-    const hid_t dataset = H5Dopen2(file, name, H5P_DEFAULT);
+    const hid_t dataset = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
     const hid_t creation = H5Dget_create_plist(dataset);
     EXPECT_EQ(H5Pget_layout(creation), H5D_CHUNKED);
     EXPECT_GE(
@@ -869,7 +852,7 @@ TEST(VerifyCommand, ListsEveryDatasetAndNamesTheCorruptedOne) {
   const std::string dir = fs::path(path).parent_path().string();
   CliResult result = runCli("verify " + dir);
   EXPECT_EQ(result.exitCode, 0) << result.output;
-  for (const char* name : kResultsDatasets) {
+  for (const std::string& name : testing::resultsDatasets()) {
     EXPECT_NE(result.output.find("/" + std::string(name) + " "), std::string::npos) << name << "\n"
                                                                                     << result.output;
   }
@@ -877,7 +860,7 @@ TEST(VerifyCommand, ListsEveryDatasetAndNamesTheCorruptedOne) {
   for (std::size_t at = result.output.find(" OK\n"); at != std::string::npos;
        at = result.output.find(" OK\n", at + 1))
     ++oks;
-  EXPECT_EQ(oks, std::size(kResultsDatasets) + 1) << result.output;  // the datasets and the root
+  EXPECT_EQ(oks, testing::resultsDatasets().size() + 1) << result.output;  // the datasets and the root
   EXPECT_NE(result.output.find("sound"), std::string::npos) << result.output;
 
   setValueWithPlainHdf5(path, "designs", 80 + 5, 0.123);
