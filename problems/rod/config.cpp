@@ -266,6 +266,14 @@ std::pair<std::string, std::string> splitKey(const std::string& key) {
   return {key.substr(0, dot), key.substr(dot + 1)};
 }
 
+/// The one path of --set and of every config-backed flag: `text` read as --set reads it into the field
+/// `key` ("section.field"), errors naming `label` (the field or the flag), then the whole check.
+void applyText(Config& config, const std::string& key, const std::string& label, const std::string& text) {
+  const auto [section, name] = splitKey(key);
+  findField(section, name).read(config, parseValueText(text), {label, text, text});
+  config.validate();
+}
+
 }  // namespace
 
 std::string toString(RodModel model) { return nameOf(kModels, model); }
@@ -351,18 +359,12 @@ void applySetting(Config& config, const std::string& assignment) {
   if (eq == std::string::npos || dot == std::string::npos || dot > eq) {
     throw std::invalid_argument("--set '" + assignment + "' must have the form section.field=value");
   }
-  const std::string section = assignment.substr(0, dot);
-  const std::string name = assignment.substr(dot + 1, eq - dot - 1);
-  const std::string text = assignment.substr(eq + 1);
-  findField(section, name)
-      .read(config, parseValueText(text), {"config field '" + section + "." + name + "'", text, text});
-  config.validate();
+  const std::string key = assignment.substr(0, eq);
+  applyText(config, key, "config field '" + key + "'", assignment.substr(eq + 1));
 }
 
 void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text) {
-  const auto [section, name] = splitKey(key);
-  findField(section, name).read(config, parseValueText(text), {flag, text, text});
-  config.validate();
+  applyText(config, key, flag, text);
 }
 
 }  // namespace hindsight

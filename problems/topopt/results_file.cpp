@@ -428,21 +428,26 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
 
 // Reads and checks everything; structural failures (not a results file, missing attributes or
 // datasets, wrong ranks) throw hdf5::Error, everything else is recorded in `verification`.
-// The counts and sizes in the root attributes are only what the file claims. Before memory of that size
-// is allocated, the dataset must have exactly that shape and fit in the file (datasets are stored
-// uncompressed): a damaged file claiming 2^31 iterations is refused, not allocated for.
-void requireShape(hid_t file, hid_t parent, const char* name, const std::vector<hsize_t>& expected) {
-  if (hdf5::shape(hdf5::openDataset(parent, name).get()) != expected) {
-    fail("dataset '" + hdf5::objectName(parent, name) + "' does not have the shape the attributes give");
-  }
+// Sizes read from a file are only what the file claims. Before memory of that size is allocated, the
+// dataset must fit in the file (datasets are stored uncompressed): a damaged file claiming 2^31
+// iterations is refused, not allocated for.
+void requireFitsInFile(hid_t file, hid_t parent, const char* name, const std::vector<hsize_t>& dims) {
   hsize_t fileSize = 0;
   if (H5Fget_filesize(file, &fileSize) < 0) fail("cannot read the file's size");
   hsize_t bytes = sizeof(double);
-  for (const hsize_t d : expected) {
+  for (const hsize_t d : dims) {
     if (d != 0 && bytes > fileSize / d)
       fail("dataset '" + hdf5::objectName(parent, name) + "' is larger than the file");
     bytes *= d;
   }
+}
+
+// A shape the root attributes give must be the dataset's own, and fit in the file.
+void requireShape(hid_t file, hid_t parent, const char* name, const std::vector<hsize_t>& expected) {
+  if (hdf5::shape(hdf5::openDataset(parent, name).get()) != expected) {
+    fail("dataset '" + hdf5::objectName(parent, name) + "' does not have the shape the attributes give");
+  }
+  requireFitsInFile(file, parent, name, expected);
 }
 
 ResultsData readContents(hid_t file, ResultsVerification& verification) {
@@ -502,7 +507,7 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     const hdf5::Handle group = hdf5::openGroup(file, "state");
     const hsize_t size = reader.shapeOf(group.get(), "design", 1)[0];
     if (size < 1) fail("dataset '/state/design' is empty");
-    requireShape(file, group.get(), "design", {size});
+    requireFitsInFile(file, group.get(), "design", {size});
     data.state.design.setZero(static_cast<Eigen::Index>(size));
     reader.read(group.get(), "/state", "design", H5T_NATIVE_DOUBLE, {size}, data.state.design.data());
     for (const auto& [name, member] : kMmaVectors) {
@@ -515,7 +520,7 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
   {
     const hdf5::Handle group = hdf5::openGroup(file, "final");
     const std::vector<hsize_t> dims = reader.shapeOf(group.get(), "modes", 2);
-    requireShape(file, group.get(), "modes", dims);
+    requireFitsInFile(file, group.get(), "modes", dims);
     const hsize_t modeCount = dims[0];
     data.finalModes.setZero(static_cast<Eigen::Index>(dims[1]), static_cast<Eigen::Index>(modeCount));
     reader.read(group.get(), "/final", "modes", H5T_NATIVE_DOUBLE, dims, data.finalModes.data());
