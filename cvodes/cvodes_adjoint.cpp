@@ -1,4 +1,5 @@
 #include <hindsight/cvodes/cvodes_adjoint.h>
+#include <hindsight/engine/step_controller.h>
 #include <hindsight/engine/stopwatch.h>
 
 #include <cvodes/cvodes.h>
@@ -434,12 +435,10 @@ bool CvodesOptions::IsValid(std::string* error) const {
       {"absoluteTolerances", &absoluteTolerances},
       {"backwardAbsoluteTolerances", &backwardAbsoluteTolerances}};
   for (const auto& [name, values] : vectors) {
-    for (std::size_t i = 0; i < values->size(); ++i) {
-      if (!((*values)[i] > 0.0) || !std::isfinite((*values)[i])) {
-        msg << "CvodesOptions." << name << "[" << i << "] = " << (*values)[i]
-            << " must be positive and finite";
-        return fail();
-      }
+    if (const std::string entry = invalidToleranceEntry(*values, std::string("CvodesOptions.") + name);
+        !entry.empty()) {
+      msg << entry;
+      return fail();
     }
   }
   if (checkpointSteps < 1 || checkpointSteps > 1'000'000'000) {
@@ -471,12 +470,8 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
   for (const auto& [name, values] :
        {std::make_pair("absoluteTolerances", &options.absoluteTolerances),
         std::make_pair("backwardAbsoluteTolerances", &options.backwardAbsoluteTolerances)}) {
-    if (!values->empty() && static_cast<int>(values->size()) != problem.stateSize()) {
-      throw std::invalid_argument(std::string("CvodesOptions.") + name + " has " +
-                                  std::to_string(values->size()) + " entries, problem '" + problem.name() +
-                                  "' has " + std::to_string(problem.stateSize()) +
-                                  " states (one atol per state, or empty)");
-    }
+    requireOneTolerancePerState(*values, std::string("CvodesOptions.") + name, problem.name(),
+                                problem.stateSize(), "one atol per state, or empty");
   }
   if (!problem.hasDenseJacobian()) {
     throw std::invalid_argument("the CVODES route needs a dense Jacobian, but problem '" + problem.name() +

@@ -453,12 +453,11 @@ bool ContinuousAdjointOptions::IsValid(std::string* error) const {
         << " must be positive and finite";
     return fail();
   }
-  for (std::size_t i = 0; i < absoluteTolerances.size(); ++i) {
-    if (!(absoluteTolerances[i] > 0.0) || !std::isfinite(absoluteTolerances[i])) {
-      msg << "ContinuousAdjointOptions.absoluteTolerances[" << i << "] = " << absoluteTolerances[i]
-          << " must be positive and finite";
-      return fail();
-    }
+  if (const std::string entry =
+          invalidToleranceEntry(absoluteTolerances, "ContinuousAdjointOptions.absoluteTolerances");
+      !entry.empty()) {
+    msg << entry;
+    return fail();
   }
   if (quadratureRelativeTolerance != 0.0 &&
       !(quadratureRelativeTolerance >= 1e-14 && quadratureRelativeTolerance < 1.0)) {
@@ -509,13 +508,9 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
         "ContinuousAdjointOptions.method = 'trbdf2' needs a dense Jacobian, but problem '" + problem.name() +
         "' has hasDenseJacobian() == false; use 'dopri5'");
   }
-  if (!options.absoluteTolerances.empty() &&
-      static_cast<int>(options.absoluteTolerances.size()) != problem.stateSize()) {
-    throw std::invalid_argument("ContinuousAdjointOptions.absoluteTolerances has " +
-                                std::to_string(options.absoluteTolerances.size()) + " entries, problem '" +
-                                problem.name() + "' has " + std::to_string(problem.stateSize()) +
-                                " states (one atol per adjoint component, or empty)");
-  }
+  requireOneTolerancePerState(options.absoluteTolerances, "ContinuousAdjointOptions.absoluteTolerances",
+                              problem.name(), problem.stateSize(),
+                              "one atol per adjoint component, or empty");
   if (options.initialStep > forward.t1 - forward.t0) {
     std::ostringstream msg;
     msg << "ContinuousAdjointOptions.initialStep = " << options.initialStep

@@ -1,6 +1,8 @@
 #include <hindsight/engine/generalized_alpha.h>
 #include <hindsight/engine/integrator.h>
+
 #include <hindsight/engine/runge_kutta.h>
+#include <hindsight/engine/step_controller.h>
 
 #include <cmath>
 #include <sstream>
@@ -84,13 +86,10 @@ bool IntegratorOptions::IsValid(std::string* error) const {
           << " and absoluteTolerance = " << absoluteTolerance << " must be positive and finite";
       return fail(msg.str());
     }
-    for (std::size_t i = 0; i < absoluteTolerances.size(); ++i) {
-      if (!(absoluteTolerances[i] > 0.0) || !std::isfinite(absoluteTolerances[i])) {
-        msg << "IntegratorOptions.absoluteTolerances[" << i << "] = " << absoluteTolerances[i]
-            << " must be positive and finite";
-        return fail(msg.str());
-      }
-    }
+    if (const std::string entry =
+            invalidToleranceEntry(absoluteTolerances, "IntegratorOptions.absoluteTolerances");
+        !entry.empty())
+      return fail(entry);
     if (!(minStep > 0.0) || maxStep < 0.0) {
       msg << "IntegratorOptions: minStep = " << minStep << " must be positive and maxStep = " << maxStep
           << " non-negative";
@@ -163,12 +162,10 @@ IntegratorMethod checkedMethod(const Problem& problem, ConstVectorRef p, const I
     throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + ", problem '" +
                                 problem.name() + "' expects " + std::to_string(problem.parameterSize()));
   }
-  if (options.adaptive && !options.absoluteTolerances.empty() &&
-      static_cast<int>(options.absoluteTolerances.size()) != problem.stateSize()) {
-    throw std::invalid_argument("IntegratorOptions.absoluteTolerances has " +
-                                std::to_string(options.absoluteTolerances.size()) + " entries, problem '" +
-                                problem.name() + "' has " + std::to_string(problem.stateSize()) +
-                                " states (one atol per state, or empty for the scalar absoluteTolerance)");
+  if (options.adaptive) {
+    requireOneTolerancePerState(options.absoluteTolerances, "IntegratorOptions.absoluteTolerances",
+                                problem.name(), problem.stateSize(),
+                                "one atol per state, or empty for the scalar absoluteTolerance");
   }
   return parseIntegratorMethod(options.method);
 }

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
 namespace hindsight {
 
@@ -36,6 +38,26 @@ double StepSizeController::afterAccepted(double h, double norm) const {
 
 double StepSizeController::afterRejected(double h, double norm) const {
   return h * std::min(0.9, std::max(0.1, 0.9 * std::pow(norm, exponent_)));
+}
+
+std::string invalidToleranceEntry(const std::vector<double>& tolerances, const std::string& field) {
+  for (std::size_t i = 0; i < tolerances.size(); ++i) {
+    if (!(tolerances[i] > 0.0) || !std::isfinite(tolerances[i])) {
+      std::ostringstream msg;
+      msg << field << "[" << i << "] = " << tolerances[i] << " must be positive and finite";
+      return msg.str();
+    }
+  }
+  return {};
+}
+
+void requireOneTolerancePerState(const std::vector<double>& tolerances, const std::string& field,
+                                 const std::string& problemName, int stateSize, const std::string& meaning) {
+  if (!tolerances.empty() && static_cast<int>(tolerances.size()) != stateSize) {
+    throw std::invalid_argument(field + " has " + std::to_string(tolerances.size()) + " entries, problem '" +
+                                problemName + "' has " + std::to_string(stateSize) + " states (" + meaning +
+                                ")");
+  }
 }
 
 }  // namespace hindsight

@@ -17,6 +17,9 @@
 
 #include <hindsight/engine/types.h>
 
+#include <string>
+#include <vector>
+
 namespace hindsight {
 
 /// The weighted RMS norm above; error, y0 and y1 have the same size (> 0).
@@ -26,6 +29,16 @@ double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y
 /// rtol_i and atol_i equal to scalars it gives the scalar version's bits (same operations, same order).
 double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1,
                        ConstVectorRef relativeTolerances, ConstVectorRef absoluteTolerances);
+
+/// Per-component tolerances as options give them (an empty vector: use the scalar). The first entry
+/// that is not positive and finite, as "FIELD[i] = value must be positive and finite"; empty when all
+/// are. One check for every options struct that takes such a vector (integrator, continuous adjoint,
+/// CVODES).
+std::string invalidToleranceEntry(const std::vector<double>& tolerances, const std::string& field);
+/// Throws std::invalid_argument "FIELD has N entries, problem 'NAME' has M states (MEANING)" when a
+/// non-empty `tolerances` does not have one entry per state.
+void requireOneTolerancePerState(const std::vector<double>& tolerances, const std::string& field,
+                                 const std::string& problemName, int stateSize, const std::string& meaning);
 
 class StepSizeController {
  public:
