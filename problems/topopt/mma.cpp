@@ -111,6 +111,7 @@ Mma::Mma(int n, int m, const MmaOptions& options) : n_(n), m_(m), options_(optio
   reducedRhs_.setZero(m + 1);
   reducedSolution_.setZero(m + 1);
   reducedLu_ = Eigen::PartialPivLU<Matrix>(m + 1);
+  uniformRegularization_ = Vector::Constant(m + 1, options_.curvature_regularization);
 }
 
 void Mma::restore(const MmaState& state) {
@@ -127,8 +128,9 @@ void Mma::restore(const MmaState& state) {
   state_.upp = state.upp;
 }
 
-void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
-                 ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax, Vector& x) {
+void Mma::checkInputs(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                      ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
+                      const Vector& x) const {
   CheckSize("x", x.size(), n_);
   CheckSize("objective_gradient", objective_gradient.size(), n_);
   CheckSize("constraints", constraints.size(), m_);
@@ -162,7 +164,14 @@ void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVecto
     }
   }
 
-  buildApproximation(objective_gradient, constraints, constraint_jacobian, xmin, xmax, x);
+}
+
+void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                 ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax, Vector& x) {
+  checkInputs(objective, objective_gradient, constraints, constraint_jacobian, xmin, xmax, x);
+  updateAsymptotes(xmin, xmax, x);
+  buildApproximation(objective_gradient, constraints, constraint_jacobian, xmin, xmax, x,
+                     uniformRegularization_);
   solveSubproblem();
 
   state_.iteration += 1;
@@ -172,9 +181,7 @@ void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVecto
   x = xsub_.cwiseMax(xmin).cwiseMin(xmax);
 }
 
-void Mma::buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef constraints,
-                             ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
-                             const Vector& x) {
+void Mma::updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
   const MmaOptions& o = options_;
   const int k = state_.iteration + 1;  // the number of this iteration, counted from 1 as in the note
   Vector& low = state_.low;
@@ -204,26 +211,37 @@ void Mma::buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef c
         std::max({xmin(j), low(j) + o.asymptote_margin * (x(j) - low(j)), x(j) - o.move_limit * range});
     beta_(j) =
         std::min({xmax(j), upp(j) - o.asymptote_margin * (upp(j) - x(j)), x(j) + o.move_limit * range});
+  }
+}
 
+void Mma::buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                             ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
+                             const Vector& x, ConstVectorRef regularization) {
+  const Vector& low = state_.low;
+  const Vector& upp = state_.upp;
+  for (int j = 0; j < n_; ++j) {
+    const double range = xmax(j) - xmin(j);
     // Coefficients of f(x) ~ r + sum_j p_j / (upp_j - x_j) + q_j / (x_j - low_j): the positive part of
     // the derivative goes into p, the negative part into q, with a small share of each in the other
-    // and raa0 / range added to both so that the approximation is strictly convex.
+    // and rho_i / range added to both so that the approximation is strictly convex (rho_i = raa0 for
+    // MMA; GCMMA raises it per function until the approximation is conservative).
     const double ux = upp(j) - x(j);
     const double xl = x(j) - low(j);
     const double ux2 = ux * ux;
     const double xl2 = xl * xl;
-    const double regularization = o.curvature_regularization / range;
+    const double regularization0 = regularization(0) / range;
     const double g0 = objective_gradient(j);
     const double g0plus = std::max(g0, 0.0);
     const double g0minus = std::max(-g0, 0.0);
-    p0_(j) = ux2 * (kMainCurvature * g0plus + kMinorCurvature * g0minus + regularization);
-    q0_(j) = xl2 * (kMinorCurvature * g0plus + kMainCurvature * g0minus + regularization);
+    p0_(j) = ux2 * (kMainCurvature * g0plus + kMinorCurvature * g0minus + regularization0);
+    q0_(j) = xl2 * (kMinorCurvature * g0plus + kMainCurvature * g0minus + regularization0);
     for (int i = 0; i < m_; ++i) {
+      const double regularizationI = regularization(i + 1) / range;
       const double g = constraint_jacobian(i, j);
       const double gplus = std::max(g, 0.0);
       const double gminus = std::max(-g, 0.0);
-      P_(i, j) = ux2 * (kMainCurvature * gplus + kMinorCurvature * gminus + regularization);
-      Q_(i, j) = xl2 * (kMinorCurvature * gplus + kMainCurvature * gminus + regularization);
+      P_(i, j) = ux2 * (kMainCurvature * gplus + kMinorCurvature * gminus + regularizationI);
+      Q_(i, j) = xl2 * (kMinorCurvature * gplus + kMainCurvature * gminus + regularizationI);
     }
     uxInv_(j) = 1.0 / ux;
     xlInv_(j) = 1.0 / xl;
@@ -231,6 +249,65 @@ void Mma::buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef c
   // The constraint of the subproblem is g_i(x) <= b_i with g_i the p/q terms and
   // b_i = g_i(x^k) - f_i(x^k), so that the approximation equals f_i at x^k.
   for (int i = 0; i < m_; ++i) b_(i) = P_.row(i).dot(uxInv_) + Q_.row(i).dot(xlInv_) - constraints(i);
+}
+
+void Mma::beginConservativeIteration(double objective, ConstVectorRef objective_gradient,
+                                     ConstVectorRef constraints, ConstMatrixRef constraint_jacobian,
+                                     ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
+  checkInputs(objective, objective_gradient, constraints, constraint_jacobian, xmin, xmax, x);
+  updateAsymptotes(xmin, xmax, x);
+}
+
+void Mma::solveConservativeSubproblem(ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                                      ConstMatrixRef constraint_jacobian, ConstVectorRef xmin,
+                                      ConstVectorRef xmax, const Vector& x, ConstVectorRef regularization,
+                                      Vector& trial) {
+  CheckSize("regularization", regularization.size(), m_ + 1);
+  for (Eigen::Index i = 0; i < regularization.size(); ++i) {
+    if (!(regularization(i) > 0.0 && std::isfinite(regularization(i)))) {
+      std::ostringstream out;
+      out << "Mma: regularization(" << i << ") = " << regularization(i) << " must be > 0 and finite";
+      ThrowArgument(out.str());
+    }
+  }
+  buildApproximation(objective_gradient, constraints, constraint_jacobian, xmin, xmax, x, regularization);
+  solveSubproblem();
+  trial = xsub_.cwiseMax(xmin).cwiseMin(xmax);
+}
+
+double Mma::approximationChange(int i, const Vector& x, const Vector& trial) const {
+  // f~_i(trial) - f_i(x) = sum_j p_ij (1/(u_j - t_j) - 1/(u_j - x_j)) + q_ij (1/(t_j - l_j) - 1/(x_j - l_j)),
+  // written with the differences factored out so that no large terms cancel.
+  const Vector& low = state_.low;
+  const Vector& upp = state_.upp;
+  double sum = 0.0;
+  for (int j = 0; j < n_; ++j) {
+    const double p = i == 0 ? p0_(j) : P_(i - 1, j);
+    const double q = i == 0 ? q0_(j) : Q_(i - 1, j);
+    const double step = trial(j) - x(j);
+    sum += p * step / ((upp(j) - trial(j)) * (upp(j) - x(j))) -
+           q * step / ((trial(j) - low(j)) * (x(j) - low(j)));
+  }
+  return sum;
+}
+
+double Mma::conservativeDistance(const Vector& x, const Vector& trial, ConstVectorRef xmin,
+                                 ConstVectorRef xmax) const {
+  const Vector& low = state_.low;
+  const Vector& upp = state_.upp;
+  double sum = 0.0;
+  for (int j = 0; j < n_; ++j) {
+    const double step = trial(j) - x(j);
+    sum += (upp(j) - low(j)) * step * step /
+           ((upp(j) - trial(j)) * (trial(j) - low(j)) * (xmax(j) - xmin(j)));
+  }
+  return sum;
+}
+
+void Mma::finishConservativeIteration(const Vector& x) {
+  state_.iteration += 1;
+  state_.xold2 = state_.xold1;
+  state_.xold1 = x;
 }
 
 double Mma::subproblemResidual(double epsilon, double* max_abs) {

@@ -141,6 +141,33 @@ class Mma final {
   /// or iteration < 0.
   void restore(const MmaState& state);
 
+  // ---- The steps of one update, for conservative variants (GCMMA, problems/topopt/gcmma.h) ----
+  // update() is beginConservativeIteration + solveConservativeSubproblem with every rho_i = raa0
+  // (curvature_regularization) + finishConservativeIteration; GCMMA solves the subproblem several
+  // times with growing rho_i around the same x and asymptotes before it finishes the iteration.
+
+  /// Checks the inputs as update() does (same exceptions) and moves the asymptotes for the
+  /// iteration at x; the state's iteration count is unchanged until finishConservativeIteration.
+  void beginConservativeIteration(double objective, ConstVectorRef objective_gradient,
+                                  ConstVectorRef constraints, ConstMatrixRef constraint_jacobian,
+                                  ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x);
+  /// Builds the approximations with curvature regularization rho (m + 1 entries, objective first,
+  /// each > 0; it replaces raa0 of the note, rho_i / (xmax - xmin) is added to the p and q terms)
+  /// around x and writes the subproblem's minimizer to `trial` (within [xmin, xmax]).
+  void solveConservativeSubproblem(ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                                   ConstMatrixRef constraint_jacobian, ConstVectorRef xmin,
+                                   ConstVectorRef xmax, const Vector& x, ConstVectorRef regularization,
+                                   Vector& trial);
+  /// f~_i(trial) - f_i(x) of the last built approximation, i = 0 for the objective, 1..m for the
+  /// constraints.
+  double approximationChange(int i, const Vector& x, const Vector& trial) const;
+  /// Svanberg's d(trial) = sum_j (u_j - l_j)(t_j - x_j)^2 / ((u_j - t_j)(t_j - l_j)(xmax_j - xmin_j)):
+  /// raising rho_i by delta raises f~_i(trial) by exactly delta d(trial).
+  double conservativeDistance(const Vector& x, const Vector& trial, ConstVectorRef xmin,
+                              ConstVectorRef xmax) const;
+  /// Counts the iteration (x becomes xold1) as update() does.
+  void finishConservativeIteration(const Vector& x);
+
   /// Multipliers and solver diagnostics of the last update.
   const MmaSubproblemSummary& lastSubproblem() const { return sub_; }
 
@@ -149,10 +176,17 @@ class Mma final {
   const MmaOptions& options() const { return options_; }
 
  private:
-  // Asymptotes, move limits and the approximation coefficients p, q, b of one update.
+  // The argument checks of update().
+  void checkInputs(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                   ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
+                   const Vector& x) const;
+  // Asymptotes and move limits of one update.
+  void updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x);
+  // The approximation coefficients p, q, b of one update, with curvature regularization rho_i
+  // (m + 1 entries, objective first).
   void buildApproximation(ConstVectorRef objective_gradient, ConstVectorRef constraints,
                           ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
-                          const Vector& x);
+                          const Vector& x, ConstVectorRef regularization);
   // Primal-dual interior-point solution of the subproblem; leaves the solution in xsub_.
   void solveSubproblem();
   // Relaxed KKT residual of the subproblem at the current primal-dual point for barrier parameter
@@ -169,6 +203,7 @@ class Mma final {
 
   // Approximation data: p0, q0 (n); P, Q (m x n, rows contiguous); b (m); alpha, beta (n).
   Vector p0_, q0_, alpha_, beta_, b_;
+  Vector uniformRegularization_;  // m + 1 copies of curvature_regularization (plain MMA)
   RowMatrix P_, Q_;
 
   // Interior-point iterate: xsub_ (n), y, z, lambda, xsi, eta, mu, zeta, s (sizes as in the note).
