@@ -18,6 +18,7 @@ void registerCommands(CLI::App& app) {
   registerOptimize(app);
   registerPlot(app);
   registerVerify(app);
+  registerExport(app);
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {

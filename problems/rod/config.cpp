@@ -220,7 +220,13 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("volumeFraction", MEMBER(optimization.volumeFraction), 0.0, 1.0, true),
         realField("filterRadius", MEMBER(optimization.filterRadius), 0.0, 1000.0),
         integerField("pictureEvery", MEMBER(optimization.pictureEvery), 0, 100000),
-        realField("moveLimit", MEMBER(optimization.moveLimit), 0.0, 1.0, true)}},
+        realField("moveLimit", MEMBER(optimization.moveLimit), 0.0, 1.0, true),
+        stringField("method", MEMBER(optimization.method), {"mma", "gcmma"}),
+        realField("minFirstFrequency", MEMBER(optimization.minFirstFrequency), 0.0, 1e6),
+        realField("projectionBeta", MEMBER(optimization.projectionBeta), 0.0, 1000.0),
+        realField("projectionThreshold", MEMBER(optimization.projectionThreshold), 0.0, 1.0, true),
+        realField("projectionBetaMax", MEMBER(optimization.projectionBetaMax), 0.0, 1000.0, true),
+        integerField("projectionEvery", MEMBER(optimization.projectionEvery), 1, 100000)}},
   };
   return sections;
 }
@@ -296,6 +302,16 @@ void Config::validate() const {
   if (!(optimization.moveLimit > 0.0 && optimization.moveLimit <= 1.0)) {
     throw std::invalid_argument("config field 'optimization.moveLimit' = " +
                                 std::to_string(optimization.moveLimit) + " must be in (0, 1]");
+  }
+  if (!(optimization.projectionThreshold > 0.0 && optimization.projectionThreshold < 1.0)) {
+    throw std::invalid_argument("config field 'optimization.projectionThreshold' = " +
+                                std::to_string(optimization.projectionThreshold) + " must be in (0, 1)");
+  }
+  if (optimization.projectionBeta > 0.0 && optimization.projectionBetaMax < optimization.projectionBeta) {
+    throw std::invalid_argument("config field 'optimization.projectionBetaMax' = " +
+                                std::to_string(optimization.projectionBetaMax) +
+                                " must be >= optimization.projectionBeta = " +
+                                std::to_string(optimization.projectionBeta));
   }
   const IntegratorMethod method = parseIntegratorMethod(simulation.integrator);
   if (simulation.adaptive && method != IntegratorMethod::Dopri5 && method != IntegratorMethod::TrBdf2) {

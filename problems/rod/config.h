@@ -62,6 +62,19 @@ struct OptimizationSettings {
   /// values keep the inertia-loaded rod away from the soft, mechanism-like designs that large first
   /// steps reach (see problems/topology_optimizer.h).
   double moveLimit = 0.5;
+  /// mma | gcmma: plain MMA (the default) or GCMMA, whose inner iterations make every accepted design
+  /// feasible and no worse than the previous one (problems/topopt/gcmma.h).
+  std::string method = "mma";
+  /// Guard against mechanisms: the constraint lambda_1 >= (2 pi f)^2 on the first eigenvalue of the
+  /// pinned-roller rod [Hz]; 0 = off (the default).
+  double minFirstFrequency = 0.0;
+  /// Heaviside projection of the filtered density (problems/topopt/heaviside_projection.h): initial
+  /// beta, 0 = off (the default); threshold eta; beta doubles every projectionEvery iterations up to
+  /// projectionBetaMax.
+  double projectionBeta = 0.0;
+  double projectionThreshold = 0.5;
+  double projectionBetaMax = 32.0;
+  int projectionEvery = 10;
 };
 
 struct Config {

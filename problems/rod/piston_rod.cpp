@@ -48,6 +48,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
   const Vector p = rod::computeInvariants(model, basis).pack();
   for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
+  out.eigenvalues = basis.eigenvalues.head(basis.eigenmodeCount);
   out.gapRatio = basis.gapRatio;
   out.warning = basis.warning;
   out.modes = basis.modesFull;

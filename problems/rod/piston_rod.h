@@ -18,6 +18,7 @@ struct PistonRodEvaluation {
   double psi2 = 0.0;  ///< NaN when not requested
   double volumeFraction = 0.0;
   std::vector<double> frequenciesHz;
+  Vector eigenvalues;  ///< lambda_i = omega_i^2 [1/s^2] of the kept eigenmodes (ascending)
   double gapRatio = 0.0;
   std::string warning;             ///< spectral-gap warning, empty when the gap is comfortable
   Vector dpsi1;                    ///< d psi1 / dx over the design variables (empty unless requested)

@@ -1,6 +1,7 @@
 #include <hindsight/problems/topopt/optimization_run.h>
 
 #include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/pictures.h>
 #include <hindsight/storage/atomic_file.h>
 
@@ -93,6 +94,12 @@ std::string progressLine(const IterationRecord& r) {
   std::snprintf(line, sizeof line, "iter %3d  psi1 %.4f  psi2 %.4f  V/V0 %.4f  max|dx| %s  %.1f s",
                 r.iteration, r.psi1, r.psi2, r.volumeFraction, change, r.totalSeconds);
   std::string text = line;
+  if (!std::isnan(r.grayness)) {
+    char gray[32];
+    std::snprintf(gray, sizeof gray, "  gray %.3f", r.grayness);
+    text += gray;
+  }
+  if (r.innerIterations > 0) text += "  (" + std::to_string(r.innerIterations) + " GCMMA trials)";
   if (r.backtracks > 0)
     text += "  (" + std::to_string(r.backtracks) + " halvings after a diverged simulation)";
   return text;
@@ -193,7 +200,18 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
     if (pictureEvery > 0 && record.iteration % pictureEvery == 0) {
       writePictures("design_iter_" + std::to_string(record.iteration), grid);
     }
-    if (data_.finished) writePictures("design_final", grid);
+    if (data_.finished) {
+      writePictures("design_final", grid);
+      // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL).
+      DensityField field;
+      field.nx = config_.rod.elementsAlongLength;
+      field.ny = config_.rod.elementsThroughHeight;
+      field.values = grid;
+      field.cellWidthMm = 1000.0 * config_.rod.length / field.nx;
+      field.cellHeightMm = 1000.0 * config_.rod.height / field.ny;
+      exportGeometry((fs::path(options_.outputDirectory) / "design_final").string(), field, 0.5,
+                     1000.0 * config_.rod.thickness);
+    }
     record.totalSeconds = iterationTimer.seconds();
     data_.history.push_back(record);
     data_.densities.push_back(grid);

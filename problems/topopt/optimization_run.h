@@ -1,7 +1,8 @@
 // A complete, restartable topology-optimization run of the piston rod in an output directory: the
 // TopologyOptimizer loop, DIR/results.h5 after every iteration (problems/results_file.h, crash-safe),
 // a progress line per iteration, and pictures (DIR/design_iter_K.png/.vtk every
-// optimization.pictureEvery iterations, DIR/design_final.png/.vtk at the end).
+// optimization.pictureEvery iterations, DIR/design_final.png/.vtk at the end) and the final design's
+// geometry (DIR/design_final.svg/.dxf/.stl, the contour at density 0.5; problems/geometry_export.h).
 //
 // Every input check happens in the constructor, before any evaluation: the configuration (field named),
 // --resume together with --force, an output directory that cannot be created or written (probed by

@@ -27,6 +27,19 @@ const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
     {"mma_seconds", &IterationRecord::mmaSeconds},
     {"total_seconds", &IterationRecord::totalSeconds}};
 
+/// History columns added after format 2 appeared (issue 17): written always, read when present (a file
+/// written before has none; the records then hold NaN / 0), checked against [lower, upper] (NaN
+/// allowed: the grayness and frequency of a record can be unknown).
+struct AddedColumn {
+  const char* name;
+  double IterationRecord::*member;
+  double lower;
+  double upper;
+};
+const AddedColumn kAddedHistoryColumns[] = {
+    {"grayness", &IterationRecord::grayness, 0.0, 1.0},
+    {"first_frequency_hz", &IterationRecord::firstFrequencyHz, 0.0, std::numeric_limits<double>::max()}};
+
 /// The MMA state datasets in /state and the members they store.
 const std::pair<const char*, Vector MmaState::*> kMmaVectors[] = {{"mma_xold1", &MmaState::xold1},
                                                                   {"mma_xold2", &MmaState::xold2},
@@ -182,6 +195,12 @@ void writeContents(hid_t file, const ResultsData& data) {
       for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*member;
       writer.doubles(group.get(), "/history", name, {rows}, values.data());
     }
+    for (const AddedColumn& c : kAddedHistoryColumns) {
+      for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*(c.member);
+      writer.doubles(group.get(), "/history", c.name, {rows}, values.data());
+    }
+    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].innerIterations;
+    writer.ints(group.get(), "/history", "inner_iterations", column);
   }
   {
     const std::size_t cells = static_cast<std::size_t>(data.nx) * static_cast<std::size_t>(data.ny);
@@ -280,6 +299,13 @@ class Reader {
     return &add(object);
   }
   bool sound(const std::string& object) { return find(object)->problem.empty(); }
+  // True when `object` was read (or checked) already; an optional dataset that is absent was not.
+  bool has(const std::string& object) const {
+    for (const ResultsCheck& check : verification_.checks) {
+      if (check.object == object) return true;
+    }
+    return false;
+  }
   // Records the first problem of an object.
   void problem(const std::string& object, const std::string& what) {
     ResultsCheck* check = find(object);
@@ -373,6 +399,28 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
                                      : static_cast<std::size_t>(-1);
     checkRange(reader, object, column.data(), rows, positive ? std::numeric_limits<double>::min() : 0.0,
                member == &IterationRecord::volumeFraction ? 1.0 : kLargest, skipFrom);
+  }
+  for (const AddedColumn& c : kAddedHistoryColumns) {
+    const std::string object = std::string("/history/") + c.name;
+    if (!reader.has(object) || !reader.sound(object)) continue;
+    for (std::size_t k = 0; k < rows; ++k) {
+      const double v = data.history[k].*(c.member);
+      if (!std::isnan(v) && !(v >= c.lower && v <= c.upper)) {
+        reader.problem(object, "entry " + std::to_string(k) + " = " + describe(v) + " is outside [" +
+                                   describe(c.lower) + ", " + describe(c.upper) + "]");
+        break;
+      }
+    }
+  }
+  if (reader.has("/history/inner_iterations") && reader.sound("/history/inner_iterations")) {
+    for (std::size_t k = 0; k < rows; ++k) {
+      if (data.history[k].innerIterations < 0) {
+        reader.problem("/history/inner_iterations",
+                       "entry " + std::to_string(k) + " = " + std::to_string(data.history[k].innerIterations) +
+                           " is negative");
+        break;
+      }
+    }
   }
   for (std::size_t k = 0; k < data.densities.size(); ++k) {
     if (!reader.sound("/designs")) break;
@@ -490,6 +538,17 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     for (const auto& [name, member] : kHistoryColumns) {
       reader.read(group.get(), "/history", name, H5T_NATIVE_DOUBLE, {rows}, values.data());
       for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = values[k];
+    }
+    for (const AddedColumn& c : kAddedHistoryColumns) {
+      if (!hdf5::exists(group.get(), c.name)) continue;  // written before the column existed
+      requireShape(file, group.get(), c.name, {rows});
+      reader.read(group.get(), "/history", c.name, H5T_NATIVE_DOUBLE, {rows}, values.data());
+      for (hsize_t k = 0; k < rows; ++k) data.history[k].*(c.member) = values[k];
+    }
+    if (hdf5::exists(group.get(), "inner_iterations")) {
+      requireShape(file, group.get(), "inner_iterations", {rows});
+      reader.read(group.get(), "/history", "inner_iterations", H5T_NATIVE_INT, {rows}, column.data());
+      for (hsize_t k = 0; k < rows; ++k) data.history[k].innerIterations = column[k];
     }
   }
   {

@@ -1,6 +1,7 @@
 #include <hindsight/problems/topopt/topology_optimizer.h>
 
 #include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/rod/eigen_constraint.h>
 
 #include <algorithm>
 #include <cmath>
@@ -42,6 +43,12 @@ MmaOptions mmaOptions(const OptimizationSettings& settings) {
   return options;
 }
 
+// (2 pi f)^2: the eigenvalue bound of the frequency guard.
+double eigenvalueBound(double frequencyHz) {
+  const double omega = 2.0 * 3.14159265358979323846 * frequencyHz;
+  return omega * omega;
+}
+
 }  // namespace
 
 TopologyOptimizer::TopologyOptimizer(const Config& config)
@@ -49,7 +56,13 @@ TopologyOptimizer::TopologyOptimizer(const Config& config)
       rod_(config),
       filter_(config.rod.elementsAlongLength, config.rod.elementsThroughHeight,
               config.optimization.filterRadius, designMask(config.rod, designToGrid_)),
-      mma_(config.rod.designCount(), 1, mmaOptions(config.optimization)) {
+      mma_(config.rod.designCount(), config.optimization.minFirstFrequency > 0.0 ? 2 : 1,
+           mmaOptions(config.optimization)) {
+  if (config.optimization.method == "gcmma") {
+    GcmmaOptions options;
+    options.mma = mmaOptions(config.optimization);
+    gcmma_ = std::make_unique<Gcmma>(config.rod.designCount(), constraintCount(), options);
+  }
   state_.design = rod_.initialDesign();
   state_.mma = mma_.state();
 }
@@ -71,6 +84,7 @@ void TopologyOptimizer::restore(const OptimizerState& state) {
   }
   mma_.restore(state.mma);  // checks the MMA vectors
   state_ = state;
+  lastIteration_ = state.iteration;
   finished_ = false;
   last_.reset();
 }
@@ -102,9 +116,58 @@ Vector TopologyOptimizer::chainThroughFilter(ConstVectorRef gradient) const {
   return out;
 }
 
+int TopologyOptimizer::constraintCount() const {
+  return config().optimization.minFirstFrequency > 0.0 ? 2 : 1;
+}
+
+std::optional<HeavisideProjection> TopologyOptimizer::projectionAt(int iteration) const {
+  const OptimizationSettings& s = config().optimization;
+  if (!(s.projectionBeta > 0.0)) return std::nullopt;
+  return HeavisideProjection(
+      HeavisideProjection::continuationBeta(s.projectionBeta, s.projectionBetaMax, s.projectionEvery, iteration),
+      s.projectionThreshold, config().rod.designLowerBound);
+}
+
+Vector TopologyOptimizer::modelDesign(ConstVectorRef design, int iteration) const {
+  Vector filtered = physicalDesign(design);
+  const std::optional<HeavisideProjection> projection = projectionAt(iteration);
+  if (!projection) return filtered;
+  for (Eigen::Index d = 0; d < filtered.size(); ++d)
+    filtered(d) = std::clamp(projection->value(filtered(d)), config().rod.designLowerBound, 1.0);
+  return filtered;
+}
+
+Vector TopologyOptimizer::chainToDesign(ConstVectorRef gradient, ConstVectorRef design, int iteration) const {
+  const std::optional<HeavisideProjection> projection = projectionAt(iteration);
+  if (!projection) return chainThroughFilter(gradient);
+  const Vector filtered = physicalDesign(design);
+  Vector chained = gradient;
+  for (Eigen::Index d = 0; d < chained.size(); ++d) chained(d) *= projection->derivative(filtered(d));
+  return chainThroughFilter(chained);
+}
+
+Vector TopologyOptimizer::constraintsOf(const PistonRodEvaluation& evaluation, ConstVectorRef design,
+                                        int iteration, Matrix* jacobian) const {
+  const OptimizationSettings& settings = config().optimization;
+  Vector constraint(constraintCount());
+  constraint(0) = evaluation.volumeFraction / settings.volumeFraction - 1.0;
+  if (jacobian != nullptr) {
+    *jacobian = Matrix(constraintCount(), designCount());
+    jacobian->row(0) = chainToDesign(evaluation.dvolume / settings.volumeFraction, design, iteration).transpose();
+  }
+  if (settings.minFirstFrequency > 0.0) {
+    const double bound = eigenvalueBound(settings.minFirstFrequency);
+    const rod::FeModel model(config().rod, modelDesign(design, iteration));
+    const rod::FirstEigenvalue first = rod::firstEigenvalue(model, evaluation.eigenvalues, evaluation.modes);
+    constraint(1) = 1.0 - first.value / bound;
+    if (jacobian != nullptr) jacobian->row(1) = chainToDesign(-first.gradient / bound, design, iteration).transpose();
+  }
+  return constraint;
+}
+
 Vector TopologyOptimizer::densityGrid(ConstVectorRef design) const {
   const rod::RodConfig& rc = config().rod;
-  const Vector physical = physicalDesign(design);
+  const Vector physical = modelDesign(design, lastIteration_);
   Vector grid = Vector::Ones(rc.elementsAlongLength * rc.elementsThroughHeight);
   for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = physical(d);
   return grid;
@@ -127,7 +190,7 @@ IterationRecord TopologyOptimizer::step() {
   std::optional<PistonRodEvaluation> evaluated;
   while (!evaluated) {
     try {
-      evaluated = rod_.evaluate(physicalDesign(design), request);
+      evaluated = rod_.evaluate(modelDesign(design, state_.iteration), request);
       const double value = usePsi1 ? evaluated->psi1 : evaluated->psi2;
       if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * state_.objectiveScale)) {
         throw NumericalError("objective " + toString(settings.objective) + " = " + std::to_string(value) +
@@ -146,6 +209,8 @@ IterationRecord TopologyOptimizer::step() {
   record.psi1 = evaluation.psi1;
   record.psi2 = evaluation.psi2;
   record.volumeFraction = evaluation.volumeFraction;
+  record.grayness = grayness(modelDesign(design, state_.iteration));
+  if (!evaluation.frequenciesHz.empty()) record.firstFrequencyHz = evaluation.frequenciesHz.front();
   record.evaluationSeconds = stepTimer.seconds();
 
   const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
@@ -162,20 +227,48 @@ IterationRecord TopologyOptimizer::step() {
     const Stopwatch mmaTimer;
     const int n = designCount();
     const Vector gradient =
-        chainThroughFilter(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2) / next.objectiveScale;
+        chainToDesign(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2, design, state_.iteration) /
+        next.objectiveScale;
     if (!gradient.allFinite()) {
       throw NumericalError("the gradient of " + toString(settings.objective) + " at iteration " +
                                std::to_string(state_.iteration) + " is not finite",
                            config().rod.endTime);
     }
-    Vector constraint(1);
-    constraint(0) = evaluation.volumeFraction / settings.volumeFraction - 1.0;
-    const Matrix jacobian = chainThroughFilter(evaluation.dvolume / settings.volumeFraction).transpose();
+    Matrix jacobian;
+    const Vector constraint = constraintsOf(evaluation, design, state_.iteration, &jacobian);
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound);
     const Vector upper = Vector::Ones(n);
     Vector x = design;
-    mma_.restore(state_.mma);
-    mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
+    if (gcmma_) {
+      // Trials: values only, with the projection of this iteration (the approximations are of this
+      // iteration's functions).
+      PistonRod::Request trialRequest;
+      trialRequest.psi1Gradient = false;
+      trialRequest.psi2 = !usePsi1;
+      trialRequest.psi2Gradient = false;
+      const int iteration = state_.iteration;
+      const double scale = next.objectiveScale;
+      const Gcmma::Evaluate evaluate = [&](const Vector& trial, double& value, Vector& constraints) {
+        try {
+          const PistonRodEvaluation e = rod_.evaluate(modelDesign(trial, iteration), trialRequest);
+          const double psi = usePsi1 ? e.psi1 : e.psi2;
+          if (!(psi <= maxObjectiveGrowth * scale)) return false;  // a diverging response
+          value = psi / scale;
+          constraints = constraintsOf(e, trial, iteration, nullptr);
+          return true;
+        } catch (const NumericalError&) {
+          return false;  // a diverged simulation: not conservative
+        }
+      };
+      gcmma_->restore(state_.mma);
+      gcmma_->update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x, evaluate);
+      record.innerIterations = gcmma_->lastUpdate().inner_iterations;
+      next.mma = gcmma_->state();
+    } else {
+      mma_.restore(state_.mma);
+      mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
+      next.mma = mma_.state();
+    }
     if (!x.allFinite()) {
       throw NumericalError(
           "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
@@ -183,12 +276,12 @@ IterationRecord TopologyOptimizer::step() {
     }
     record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
     next.design = x;
-    next.mma = mma_.state();
     next.iteration += 1;
     record.mmaSeconds = mmaTimer.seconds();
   } else {
     finished_ = true;
   }
+  lastIteration_ = state_.iteration;
   state_ = std::move(next);
   last_ = std::move(evaluated);
   lastDesign_ = std::move(design);

@@ -29,6 +29,20 @@
 // bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
 // this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
 //
+// Opt-in additions of issue 17 (defaults keep every bit of the runs above):
+//  * optimization.method = gcmma: the update is GCMMA (problems/topopt/gcmma.h) instead of MMA; its
+//    trial designs are simulated (values only; a diverged or exploding trial counts as
+//    non-conservative), so every accepted design is feasible and its objective is no higher than the
+//    previous one. The record counts the trials (innerIterations).
+//  * optimization.minFirstFrequency = f > 0: a second constraint 1 - lambda_1(x) / (2 pi f)^2 <= 0 on the
+//    first eigenvalue of the pinned-roller rod, with its exact derivative
+//    (problems/rod/eigen_constraint.h; a repeated lambda_1 is guarded through its cluster mean).
+//  * optimization.projectionBeta = beta0 > 0: the model sees xMin + (1 - xMin) H(F x), the Heaviside
+//    projection of the filtered density (problems/topopt/heaviside_projection.h) with beta doubling
+//    every projectionEvery iterations up to projectionBetaMax; gradients are chained through H' and F^T.
+// Every record also holds the grayness (fraction of design elements the model sees in (0.1, 0.9)) and
+// the first natural frequency.
+//
 // Restart: everything that carries over between iterations is the OptimizerState (plain data). An
 // optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations
 // are deterministic, MMA restores exactly).
@@ -37,9 +51,12 @@
 #include <hindsight/problems/rod/config.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/topopt/density_filter.h>
+#include <hindsight/problems/topopt/gcmma.h>
+#include <hindsight/problems/topopt/heaviside_projection.h>
 #include <hindsight/problems/topopt/mma.h>
 
 #include <limits>
+#include <memory>
 #include <optional>
 
 namespace hindsight {
@@ -57,6 +74,12 @@ struct IterationRecord {
   double mmaSeconds = 0.0;
   double totalSeconds = 0.0;  ///< evaluation + MMA (OptimizationRun adds its picture writing)
   int backtracks = 0;         ///< halvings toward the previous design after a diverged simulation
+  /// Fraction of the design elements whose density (as the model sees it) is in (0.1, 0.9).
+  double grayness = std::numeric_limits<double>::quiet_NaN();
+  /// First natural frequency of the pinned-roller rod [Hz].
+  double firstFrequencyHz = std::numeric_limits<double>::quiet_NaN();
+  /// GCMMA: trial designs simulated in this iteration's update (0 for MMA and the final evaluation).
+  int innerIterations = 0;
 };
 
 /// What carries over between iterations.
@@ -108,13 +131,26 @@ class TopologyOptimizer final {
  private:
   Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
   Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
+  // The projection of iteration k; empty when optimization.projectionBeta = 0.
+  std::optional<HeavisideProjection> projectionAt(int iteration) const;
+  // What the model sees: the filtered design, projected when the projection is on.
+  Vector modelDesign(ConstVectorRef design, int iteration) const;
+  // d/dx of a function of the model design from its gradient g with respect to the model design.
+  Vector chainToDesign(ConstVectorRef gradient, ConstVectorRef design, int iteration) const;
+  int constraintCount() const;
+  // The constraint values (and, when jacobian is not null, their gradients over the design
+  // variables) of an evaluation of `design` in iteration k.
+  Vector constraintsOf(const PistonRodEvaluation& evaluation, ConstVectorRef design, int iteration,
+                       Matrix* jacobian) const;
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 
   PistonRod rod_;
   DensityFilter filter_;
   Mma mma_;
+  std::unique_ptr<Gcmma> gcmma_;  // optimization.method = gcmma
   OptimizerState state_;
+  int lastIteration_ = 0;  // the iteration of the last evaluated design (its projection)
   bool finished_ = false;
   std::optional<PistonRodEvaluation> last_;
   Vector lastDesign_;

@@ -1,0 +1,82 @@
+// `hindsight export DIR [--iso 0.5] [--iteration K] [--out STEM] [--force]`: the geometry of a design of
+// an optimization run as STEM.svg and STEM.dxf (2-D outline, millimetres) and STEM.stl (the outline
+// extruded by the rod thickness, watertight); problems/topopt/geometry_export.h. The design is the
+// element density field the model saw in iteration K (default: the last one) of DIR/results.h5, read
+// with every check of a resume. STEM defaults to DIR/design_final (finished run, last iteration) or
+// DIR/design_iter_K; existing files are overwritten only with --force. Exit 2 for bad input, 3 for a
+// corrupted results file or a failed write.
+#include <hindsight/problems/topopt/geometry_export.h>
+#include <hindsight/problems/topopt/results_file.h>
+#include "commands.h"
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <stdexcept>
+
+namespace hindsight::cli {
+namespace {
+
+struct ExportSettings {
+  std::string directory;
+  double iso = 0.5;
+  int iteration = -1;
+  std::string stem;
+  bool force = false;
+};
+
+int runExport(const ExportSettings& s) {
+  namespace fs = std::filesystem;
+  if (!fs::is_directory(s.directory)) throw std::invalid_argument("export: '" + s.directory + "' is not a directory");
+  if (!(s.iso > 0.0 && s.iso < 1.0))
+    throw std::invalid_argument("--iso " + std::to_string(s.iso) + " must be in (0, 1)");
+  const std::string path = (fs::path(s.directory) / "results.h5").string();
+  if (!fs::exists(path)) throw std::invalid_argument("export: '" + path + "' does not exist");
+  const ResultsData data = readResultsFile(path);  // StorageError (exit 3) when corrupted
+  const int rows = static_cast<int>(data.densities.size());
+  if (rows == 0) throw std::invalid_argument("export: " + path + " holds no iteration yet");
+  const int k = s.iteration < 0 ? rows - 1 : s.iteration;
+  if (k >= rows) {
+    throw std::invalid_argument("--iteration " + std::to_string(s.iteration) + " must be in [0, " +
+                                std::to_string(rows - 1) + "] (the iterations stored in " + path + ")");
+  }
+  const Config config = configFromJson(nlohmann::json::parse(data.configurationJson));
+  const std::string stem =
+      !s.stem.empty() ? s.stem
+                      : (fs::path(s.directory) /
+                         (data.finished && k == rows - 1 ? "design_final" : "design_iter_" + std::to_string(k)))
+                            .string();
+  for (const char* extension : {".svg", ".dxf", ".stl"}) {
+    if (!s.force && fs::exists(stem + extension))
+      throw std::invalid_argument(stem + extension + " exists; use --force to overwrite it");
+  }
+  DensityField field;
+  field.nx = data.nx;
+  field.ny = data.ny;
+  field.values = data.densities[static_cast<std::size_t>(k)];
+  field.cellWidthMm = 1000.0 * config.rod.length / data.nx;
+  field.cellHeightMm = 1000.0 * config.rod.height / data.ny;
+  const std::vector<std::string> written = exportGeometry(stem, field, s.iso, 1000.0 * config.rod.thickness);
+  const Outline outline = contourOutline(field, s.iso);
+  std::cout << "iteration " << k << ", iso " << s.iso << ": " << outline.loops.size() << " outline loops, area "
+            << outline.area() << " mm^2 of " << field.nx * field.cellWidthMm * field.ny * field.cellHeightMm
+            << " mm^2\n";
+  for (const std::string& file : written) std::cout << "wrote " << file << '\n';
+  return 0;
+}
+
+}  // namespace
+
+void registerExport(CLI::App& app) {
+  auto s = std::make_shared<ExportSettings>();
+  CLI::App* command = app.add_subcommand(
+      "export", "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL)");
+  command->add_option("directory", s->directory, "result directory (of hindsight optimize --out)")->required();
+  command->add_option("--iso", s->iso, "density of the contour, in (0, 1)")->capture_default_str();
+  command->add_option("--iteration", s->iteration, "iteration K of the history (default: the last)");
+  command->add_option("--out", s->stem, "output stem (default DIR/design_final or DIR/design_iter_K)");
+  command->add_flag("--force", s->force, "overwrite existing files");
+  commands().push_back({command, [s] { return guarded([&] { return runExport(*s); }); }});
+}
+
+}  // namespace hindsight::cli

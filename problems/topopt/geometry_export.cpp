@@ -1,0 +1,295 @@
+#include <hindsight/problems/topopt/geometry_export.h>
+
+#include <hindsight/storage/atomic_file.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace hindsight {
+namespace {
+
+// Crossings stay this fraction of an edge away from the samples (no vertex on a sample point).
+constexpr double kEdgeMargin = 1e-6;
+
+void checkField(const DensityField& f, double iso) {
+  if (f.nx < 1 || f.ny < 1)
+    throw std::invalid_argument("geometry export: nx = " + std::to_string(f.nx) + ", ny = " + std::to_string(f.ny) +
+                                " must be >= 1");
+  if (f.values.size() != static_cast<Eigen::Index>(f.nx) * f.ny)
+    throw std::invalid_argument("geometry export: the density field has " + std::to_string(f.values.size()) +
+                                " values, expected nx * ny = " + std::to_string(f.nx * f.ny));
+  if (!f.values.allFinite()) throw std::invalid_argument("geometry export: the density field is not finite");
+  if (!(f.cellWidthMm > 0.0 && f.cellHeightMm > 0.0 && std::isfinite(f.cellWidthMm) &&
+        std::isfinite(f.cellHeightMm)))
+    throw std::invalid_argument("geometry export: element width and height must be > 0");
+  if (!(iso > 0.0 && iso < 1.0)) {
+    std::ostringstream out;
+    out << "--iso " << iso << " must be in (0, 1)";
+    throw std::invalid_argument(out.str());
+  }
+}
+
+// The marching-squares decomposition: shared 2-D vertices, convex pieces (CCW vertex lists) and the
+// outline segments (inside on the left).
+struct Decomposition {
+  std::vector<Eigen::Vector2d> points;
+  std::vector<std::vector<int>> pieces;
+  std::vector<std::array<int, 2>> segments;
+};
+
+Decomposition decompose(const DensityField& f, double iso) {
+  checkField(f, iso);
+  // Samples (I, J), I = 0..nx+1, J = 0..ny+1: element (I-1, J-1) inside, void on the ring.
+  const int sx = f.nx + 2;
+  const int sy = f.ny + 2;
+  auto sample = [&](int i, int j) {
+    if (i < 1 || i > f.nx || j < 1 || j > f.ny) return 0.0;
+    return f.values((j - 1) * f.nx + (i - 1));
+  };
+  auto position = [&](int i, int j) {
+    return Eigen::Vector2d((i - 0.5) * f.cellWidthMm, (j - 0.5) * f.cellHeightMm);
+  };
+  Decomposition out;
+  std::vector<int> corner(static_cast<std::size_t>(sx) * sy, -1);
+  std::vector<int> horizontal(static_cast<std::size_t>(sx) * sy, -1);  // edge (I,J)-(I+1,J)
+  std::vector<int> vertical(static_cast<std::size_t>(sx) * sy, -1);    // edge (I,J)-(I,J+1)
+  auto cornerId = [&](int i, int j) {
+    int& id = corner[static_cast<std::size_t>(j) * sx + i];
+    if (id < 0) {
+      id = static_cast<int>(out.points.size());
+      out.points.push_back(position(i, j));
+    }
+    return id;
+  };
+  // Crossing on the edge from sample a = (i, j) to b = (i + di, j + dj), di + dj = 1.
+  auto crossingId = [&](int i, int j, bool alongX) {
+    int& id = (alongX ? horizontal : vertical)[static_cast<std::size_t>(j) * sx + i];
+    if (id < 0) {
+      const double va = sample(i, j);
+      const double vb = alongX ? sample(i + 1, j) : sample(i, j + 1);
+      const double t = std::clamp((iso - va) / (vb - va), kEdgeMargin, 1.0 - kEdgeMargin);
+      const Eigen::Vector2d a = position(i, j);
+      const Eigen::Vector2d b = alongX ? position(i + 1, j) : position(i, j + 1);
+      id = static_cast<int>(out.points.size());
+      out.points.push_back(a + t * (b - a));
+    }
+    return id;
+  };
+
+  for (int j = 0; j + 1 < sy; ++j) {
+    for (int i = 0; i + 1 < sx; ++i) {
+      const int ci[4] = {i, i + 1, i + 1, i};
+      const int cj[4] = {j, j, j + 1, j + 1};
+      bool in[4];
+      double sum = 0.0;
+      int count = 0;
+      for (int k = 0; k < 4; ++k) {
+        const double v = sample(ci[k], cj[k]);
+        in[k] = v >= iso;
+        sum += v;
+        count += in[k] ? 1 : 0;
+      }
+      if (count == 0) continue;
+      // Edge k joins corner k and k + 1: e0 bottom, e1 right, e2 top, e3 left (canonical ids).
+      auto edge = [&](int k) {
+        switch (k) {
+          case 0: return crossingId(i, j, true);
+          case 1: return crossingId(i + 1, j, false);
+          case 2: return crossingId(i, j + 1, true);
+          default: return crossingId(i, j, false);
+        }
+      };
+      const bool saddle = count == 2 && in[0] == in[2];
+      if (saddle && sum / 4.0 < iso) {
+        // Two separate corners: a triangle at each.
+        const int first = in[0] ? 0 : 1;
+        for (int k : {first, first + 2}) {
+          const int a = edge(k);
+          const int b = edge((k + 3) % 4);
+          out.pieces.push_back({cornerId(ci[k], cj[k]), a, b});
+          out.segments.push_back({a, b});
+        }
+        continue;
+      }
+      std::vector<int> piece;
+      std::vector<bool> isCrossing;
+      for (int k = 0; k < 4; ++k) {
+        if (in[k]) {
+          piece.push_back(cornerId(ci[k], cj[k]));
+          isCrossing.push_back(false);
+        }
+        if (in[k] != in[(k + 1) % 4]) {
+          piece.push_back(edge(k));
+          isCrossing.push_back(true);
+        }
+      }
+      const std::size_t size = piece.size();
+      for (std::size_t a = 0; a < size; ++a) {
+        const std::size_t b = (a + 1) % size;
+        if (isCrossing[a] && isCrossing[b]) out.segments.push_back({piece[a], piece[b]});
+      }
+      out.pieces.push_back(std::move(piece));
+    }
+  }
+  return out;
+}
+
+std::string formatNumber(double value) {
+  char buffer[40];
+  std::snprintf(buffer, sizeof buffer, "%.9g", value);
+  return buffer;
+}
+
+}  // namespace
+
+double Outline::area() const {
+  double twice = 0.0;
+  for (const auto& loop : loops) {
+    for (std::size_t a = 0; a < loop.size(); ++a) {
+      const Eigen::Vector2d& p = loop[a];
+      const Eigen::Vector2d& q = loop[(a + 1) % loop.size()];
+      twice += p.x() * q.y() - q.x() * p.y();
+    }
+  }
+  return 0.5 * twice;
+}
+
+Outline contourOutline(const DensityField& field, double iso) {
+  const Decomposition d = decompose(field, iso);
+  // Every crossing starts exactly one segment and ends exactly one: chain them into loops.
+  std::vector<int> next(d.points.size(), -1);
+  for (const auto& s : d.segments) next[static_cast<std::size_t>(s[0])] = s[1];
+  std::vector<bool> used(d.points.size(), false);
+  Outline outline;
+  for (const auto& s : d.segments) {
+    if (used[static_cast<std::size_t>(s[0])]) continue;
+    std::vector<Eigen::Vector2d> loop;
+    int v = s[0];
+    while (v >= 0 && !used[static_cast<std::size_t>(v)]) {
+      used[static_cast<std::size_t>(v)] = true;
+      loop.push_back(d.points[static_cast<std::size_t>(v)]);
+      v = next[static_cast<std::size_t>(v)];
+    }
+    outline.loops.push_back(std::move(loop));
+  }
+  return outline;
+}
+
+TriangleMesh extrudedSolid(const DensityField& field, double iso, double thicknessMm) {
+  if (!(thicknessMm > 0.0 && std::isfinite(thicknessMm)))
+    throw std::invalid_argument("geometry export: the thickness must be > 0 and finite");
+  const Decomposition d = decompose(field, iso);
+  TriangleMesh mesh;
+  const int count = static_cast<int>(d.points.size());
+  // Vertex v at the bottom (z = 0) is v, at the top (z = thickness) v + count; unused ones are removed below.
+  std::vector<Eigen::Vector3d> all(2 * static_cast<std::size_t>(count));
+  for (int v = 0; v < count; ++v) {
+    all[static_cast<std::size_t>(v)] = Eigen::Vector3d(d.points[v].x(), d.points[v].y(), 0.0);
+    all[static_cast<std::size_t>(v + count)] = Eigen::Vector3d(d.points[v].x(), d.points[v].y(), thicknessMm);
+  }
+  std::vector<std::array<int, 3>> triangles;
+  for (const auto& piece : d.pieces) {
+    for (std::size_t k = 1; k + 1 < piece.size(); ++k) {
+      triangles.push_back({piece[0] + count, piece[k] + count, piece[k + 1] + count});  // top, normal +z
+      triangles.push_back({piece[0], piece[k + 1], piece[k]});                          // bottom, normal -z
+    }
+  }
+  for (const auto& s : d.segments) {
+    // Inside on the left of a -> b: the wall's outward normal is (dy, -dx).
+    triangles.push_back({s[0], s[1], s[1] + count});
+    triangles.push_back({s[0], s[1] + count, s[0] + count});
+  }
+  std::vector<int> renumber(all.size(), -1);
+  for (auto& t : triangles) {
+    for (int& v : t) {
+      int& r = renumber[static_cast<std::size_t>(v)];
+      if (r < 0) {
+        r = static_cast<int>(mesh.vertices.size());
+        mesh.vertices.push_back(all[static_cast<std::size_t>(v)]);
+      }
+      v = r;
+    }
+  }
+  mesh.triangles = std::move(triangles);
+  return mesh;
+}
+
+void writeOutlineSvg(const std::string& path, const Outline& outline, double widthMm, double heightMm) {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
+    std::string text = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+    text += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + formatNumber(widthMm) + "mm\" height=\"" +
+            formatNumber(heightMm) + "mm\" viewBox=\"0 0 " + formatNumber(widthMm) + " " +
+            formatNumber(heightMm) + "\">\n";
+    text += "<!-- hindsight design outline, millimetres, y up in the model (flipped here) -->\n";
+    text += "<path fill=\"black\" fill-rule=\"evenodd\" stroke=\"none\" d=\"";
+    for (const auto& loop : outline.loops) {
+      for (std::size_t a = 0; a < loop.size(); ++a) {
+        text += (a == 0 ? "M" : " L") + formatNumber(loop[a].x()) + " " + formatNumber(heightMm - loop[a].y());
+      }
+      text += " Z ";
+    }
+    text += "\"/>\n</svg>\n";
+    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
+      return std::string("cannot write the SVG file: ") + std::strerror(errno);
+    return {};
+  });
+}
+
+void writeOutlineDxf(const std::string& path, const Outline& outline) {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
+    // AutoCAD R12 ASCII DXF: one closed POLYLINE per loop on layer OUTLINE; $INSUNITS 4 = millimetres.
+    std::string text = "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1009\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n";
+    text += "0\nSECTION\n2\nENTITIES\n";
+    for (const auto& loop : outline.loops) {
+      text += "0\nPOLYLINE\n8\nOUTLINE\n66\n1\n70\n1\n10\n0.0\n20\n0.0\n30\n0.0\n";
+      for (const Eigen::Vector2d& p : loop)
+        text += "0\nVERTEX\n8\nOUTLINE\n10\n" + formatNumber(p.x()) + "\n20\n" + formatNumber(p.y()) + "\n30\n0.0\n";
+      text += "0\nSEQEND\n8\nOUTLINE\n";
+    }
+    text += "0\nENDSEC\n0\nEOF\n";
+    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
+      return std::string("cannot write the DXF file: ") + std::strerror(errno);
+    return {};
+  });
+}
+
+void writeSolidStl(const std::string& path, const TriangleMesh& mesh) {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
+    std::string text = "solid hindsight_design\n";
+    for (const auto& t : mesh.triangles) {
+      const Eigen::Vector3d& a = mesh.vertices[static_cast<std::size_t>(t[0])];
+      const Eigen::Vector3d& b = mesh.vertices[static_cast<std::size_t>(t[1])];
+      const Eigen::Vector3d& c = mesh.vertices[static_cast<std::size_t>(t[2])];
+      Eigen::Vector3d n = (b - a).cross(c - a);
+      if (n.norm() > 0.0) n.normalize();
+      text += "facet normal " + formatNumber(n.x()) + " " + formatNumber(n.y()) + " " + formatNumber(n.z()) +
+              "\n outer loop\n";
+      for (const Eigen::Vector3d* p : {&a, &b, &c})
+        text += "  vertex " + formatNumber(p->x()) + " " + formatNumber(p->y()) + " " + formatNumber(p->z()) + "\n";
+      text += " endloop\nendfacet\n";
+    }
+    text += "endsolid hindsight_design\n";
+    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
+      return std::string("cannot write the STL file: ") + std::strerror(errno);
+    return {};
+  });
+}
+
+std::vector<std::string> exportGeometry(const std::string& stem, const DensityField& field, double iso,
+                                        double thicknessMm) {
+  const Outline outline = contourOutline(field, iso);
+  const TriangleMesh mesh = extrudedSolid(field, iso, thicknessMm);
+  const std::vector<std::string> paths = {stem + ".svg", stem + ".dxf", stem + ".stl"};
+  writeOutlineSvg(paths[0], outline, field.nx * field.cellWidthMm, field.ny * field.cellHeightMm);
+  writeOutlineDxf(paths[1], outline);
+  writeSolidStl(paths[2], mesh);
+  return paths;
+}
+
+}  // namespace hindsight

@@ -1,0 +1,72 @@
+// The geometry of a design for CAD: the contour of the density field at an iso value (default 0.5) as a
+// 2-D outline (SVG, DXF) and as a closed solid, the outline extruded by the rod thickness (STL).
+//
+// Method: marching squares on the element densities sampled at the element centres, with a ring of
+// void (density 0) around the grid so that every contour closes; crossings are interpolated linearly
+// along the sampling-grid edges (kept at least 1e-6 of an edge away from the samples, so no contour
+// vertex coincides with a sample point). A saddle cell is connected when the mean of its four
+// samples is >= iso. Inside means density >= iso. Each marching-squares cell contributes a convex
+// piece of the solid region (corners inside and crossings, counter-clockwise); the pieces tile the
+// region and share their vertices exactly along common cell edges. So:
+//   - the outline loops (SVG, DXF) are the piece edges between two crossings, chained: outer
+//     boundaries counter-clockwise, holes clockwise (y up);
+//   - the STL solid is every piece fan-triangulated as top (z = thickness) and bottom (z = 0) cap plus
+//     two triangles per outline segment as the wall: watertight by construction (every edge is shared
+//     by exactly two triangles, in opposite directions), outward normals.
+// Written by hand: no Debian package does marching squares to SVG, DXF and STL; the algorithm is small.
+//
+// Coordinates are millimetres: x along the rod from the left face (joint A side), y up from the bottom
+// face; element (column c, row r) spans [c w, (c+1) w] x [r h, (r+1) h] with w = L / nx, h = H / ny.
+// The region of a solid 0/1 design is the union of its solid elements up to corners cut by
+// marching squares (1/8 of an element per convex corner, added per concave one).
+//
+// Files are written atomically (storage/atomic_file.h): PATH is absent or complete.
+#pragma once
+
+#include <hindsight/engine/types.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+/// A density field on the rod's element grid: values[row * nx + column] (pictures.h numbering).
+struct DensityField {
+  int nx = 0;
+  int ny = 0;
+  Vector values;
+  double cellWidthMm = 1.0;
+  double cellHeightMm = 1.0;
+};
+
+/// Closed outline loops in millimetres; outer boundaries counter-clockwise, holes clockwise.
+struct Outline {
+  std::vector<std::vector<Eigen::Vector2d>> loops;
+  /// Signed shoelace area of all loops [mm^2]: the enclosed area (holes subtract).
+  double area() const;
+};
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<std::array<int, 3>> triangles;  ///< counter-clockwise seen from outside
+};
+
+/// The contour at `iso` (in (0, 1)) and the extruded solid of thickness `thicknessMm` (> 0).
+/// Throws std::invalid_argument naming the argument for a bad size, value or iso.
+Outline contourOutline(const DensityField& field, double iso);
+TriangleMesh extrudedSolid(const DensityField& field, double iso, double thicknessMm);
+
+/// Writers. Throw StorageError naming the path when the file cannot be written.
+void writeOutlineSvg(const std::string& path, const Outline& outline, double widthMm, double heightMm);
+void writeOutlineDxf(const std::string& path, const Outline& outline);
+void writeSolidStl(const std::string& path, const TriangleMesh& mesh);
+
+/// STEM.svg, STEM.dxf and STEM.stl of `field` at `iso`, extruded by thicknessMm. Returns the paths.
+std::vector<std::string> exportGeometry(const std::string& stem, const DensityField& field, double iso,
+                                        double thicknessMm);
+
+}  // namespace hindsight
