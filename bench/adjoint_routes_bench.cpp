@@ -1,7 +1,9 @@
 // Accuracy against cost of the three adjoint routes (docs/design.md §8): discrete (hindsight's
 // integrator transposed), continuous (own backward dopri5 over the storage) and CVODES, on the
 // nonlinear pendulum and on stiff Robertson kinetics, at several tolerances; for CVODES also
-// Nd in {10, 100, 1000} and both interpolation types.
+// Nd in {10, 100, 1000} and both interpolation types, configured as the CVODES user guide advises
+// (Adams: fixed-point iteration; BDF: Newton with a dense direct solver), and on the pendulum the
+// alternatives of bench::forEachCvodesVariant (Newton for Adams, GMRES for BDF, Anderson acceleration).
 //
 // Counters per benchmark: gradient_error (relative to a tight reference computed once, before any
 // timing: the discrete adjoint of rk4 at h = 1e-4 for the pendulum, of adaptive trbdf2 at
@@ -77,7 +79,7 @@ void run(benchmark::State& state, Case& (*problemCase)(), GradientOptions option
   options.integrator.t1 = c.horizon;
   GradientResult result;
   for (auto _ : state) {
-    result = computeGradientByMethod(*c.problem, c.p, options);
+    result = bench::gradientWithCounters(*c.problem, c.p, options, state);
     benchmark::DoNotOptimize(result.gradient.data());
   }
   state.counters["gradient_error"] = relativeError(c, result.gradient);

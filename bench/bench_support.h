@@ -23,8 +23,15 @@
 namespace hindsight::bench {
 
 /// Calls add(label, options) for every CVODES variant the benches compare, each a copy of `base` with
-/// the CVODES route: Adams and BDF x CV_HERMITE and CV_POLYNOMIAL x Nd in {10, 100, 1000};
-/// label = "cvodes-METHOD/INTERPOLATION-NdN".
+/// the CVODES route: Adams and BDF x CV_HERMITE and CV_POLYNOMIAL x Nd in {10, 100, 1000}, configured
+/// as the CVODES user guide advises (CvodesOptions defaults: Adams with fixed-point iteration, BDF with
+/// Newton and a dense direct solver, the problem's vector-Jacobian product in the backward rhs when it
+/// has one); label = "cvodes-METHOD/INTERPOLATION-NdN". At CV_HERMITE, Nd 100 also the alternatives,
+/// to show what each choice costs in the same run: "cvodes-adams-aa3" (Anderson acceleration, m = 3),
+/// "cvodes-adams-newton" (Newton + dense, the configuration before issue 13), "cvodes-METHOD-jacobian"
+/// (the dense F_z^T lambda in the backward rhs), "cvodes-bdf-gmres" (matrix-free Newton-GMRES),
+/// "cvodes-METHOD-noquaderr" (quadratures out of the error test: SUNDIALS' default errconQ = false,
+/// hindsight's default includes them).
 template <class Add>
 void forEachCvodesVariant(const GradientOptions& base, Add&& add) {
   for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
@@ -36,11 +43,54 @@ void forEachCvodesVariant(const GradientOptions& base, Add&& add) {
         cvodes.cvodes.method = method;
         cvodes.cvodes.interpolation = interpolation;
         cvodes.cvodes.checkpointSteps = nd;
-        add("cvodes-" + toString(method) + "/" + toString(interpolation) + "-Nd" + std::to_string(nd),
-            cvodes);
+        const std::string variant = "/" + toString(interpolation) + "-Nd" + std::to_string(nd);
+        add("cvodes-" + toString(method) + variant, cvodes);
+        if (interpolation != CvodesInterpolation::Hermite || nd != 100) continue;
+        GradientOptions alternative = cvodes;
+        alternative.cvodes.backwardProducts = CvodesBackwardProducts::Dense;
+        add("cvodes-" + toString(method) + "-jacobian" + variant, alternative);
+        alternative = cvodes;
+        alternative.cvodes.quadratureErrorControl = false;
+        add("cvodes-" + toString(method) + "-noquaderr" + variant, alternative);
+        if (method == CvodesMethod::Adams) {
+          alternative = cvodes;
+          alternative.cvodes.fixedPointAcceleration = 3;
+          add("cvodes-adams-aa3" + variant, alternative);
+          alternative = cvodes;
+          alternative.cvodes.nonlinearSolver = CvodesNonlinearSolver::Newton;
+          alternative.cvodes.linearSolver = CvodesLinearSolver::Dense;
+          alternative.cvodes.backwardProducts = CvodesBackwardProducts::Dense;
+          add("cvodes-adams-newton" + variant, alternative);
+        } else {
+          alternative = cvodes;
+          alternative.cvodes.linearSolver = CvodesLinearSolver::Gmres;
+          add("cvodes-bdf-gmres" + variant, alternative);
+        }
       }
     }
   }
+}
+
+/// computeGradientByMethod(), and for the CVODES route also its CvodesCounters as benchmark counters:
+/// bwd_rhs (lambda' evaluations), vjps (rhsStateVjp calls), nl_iters (nonlinear iterations, both
+/// problems), lin_iters (GMRES iterations), setups (linear-solver setups), recomputed_rhs (F during CVodeB).
+inline GradientResult gradientWithCounters(const Problem& problem, ConstVectorRef p, const GradientOptions& options,
+                                           benchmark::State& state) {
+  if (options.adjoint != AdjointMethod::Cvodes) return computeGradientByMethod(problem, p, options);
+  CvodesOptions cvodes = options.cvodes;
+  cvodes.t0 = options.integrator.t0;
+  cvodes.t1 = options.integrator.t1;
+  CvodesCounters counters;
+  GradientResult result = computeGradientCvodes(problem, p, cvodes, &counters);
+  state.counters["bwd_rhs"] = static_cast<double>(counters.backwardRhsEvaluations);
+  state.counters["vjps"] = static_cast<double>(counters.stateVjps);
+  state.counters["nl_iters"] =
+      static_cast<double>(counters.forwardNonlinearIterations + counters.backwardNonlinearIterations);
+  state.counters["lin_iters"] =
+      static_cast<double>(counters.forwardLinearIterations + counters.backwardLinearIterations);
+  state.counters["setups"] = static_cast<double>(result.summary.factorizations);
+  state.counters["recomputed_rhs"] = static_cast<double>(counters.recomputedRhsEvaluations);
+  return result;
 }
 
 /// Forward steps of the optimal schedule for `steps` steps under `spec`: revolve's T(N, c) for the

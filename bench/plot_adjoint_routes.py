@@ -5,7 +5,9 @@ Usage: /usr/bin/python3 bench/plot_adjoint_routes.py bench/adjoint_routes.json [
 
 Uses the median aggregates (run with --benchmark_repetitions=3). The PNG has one panel per problem:
 gradient relative error (against the tight reference of the benchmark) over CPU time per gradient,
-one line per route/variant through its tolerances. --table prints the medians as a Markdown table.
+one line per route/variant through its tolerances. --table prints the medians as a Markdown table;
+for CVODES it adds the backward right-hand sides (lambda'), the state VJPs, the nonlinear iterations
+and the linear-solver setups (counters of bench::gradientWithCounters; "-" for the other routes).
 """
 import collections
 import json
@@ -39,18 +41,28 @@ def load(path):
                 rhs=int(b["rhs_evals"]),
                 jac=int(b["jac_evals"]),
                 stored=int(b["stored"]),
+                bwd_rhs=b.get("bwd_rhs"),
+                vjps=b.get("vjps"),
+                nl_iters=b.get("nl_iters"),
+                setups=b.get("setups"),
             )
         )
     return data["context"], rows
 
 
+def count(value):
+    return "-" if value is None else str(int(value))
+
+
 def table(rows):
-    out = ["| problem | route | variant | rtol | gradient rel. error | CPU ms | wall ms | steps | F evals | F_z evals | stored |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| problem | route | variant | rtol | gradient rel. error | CPU ms | wall ms | steps | F evals | F_z evals | "
+           "stored | backward rhs | VJPs | nonlinear iters | setups |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(
             f"| {r['problem']} | {r['route']} | {r['variant']} | {r['rtol']:.0e} | {r['error']:.2e} | "
-            f"{r['cpu_ms']:.3f} | {r['real_ms']:.3f} | {r['steps']} | {r['rhs']} | {r['jac']} | {r['stored']} |"
+            f"{r['cpu_ms']:.3f} | {r['real_ms']:.3f} | {r['steps']} | {r['rhs']} | {r['jac']} | {r['stored']} | "
+            f"{count(r['bwd_rhs'])} | {count(r['vjps'])} | {count(r['nl_iters'])} | {count(r['setups'])} |"
         )
     return "\n".join(out)
 

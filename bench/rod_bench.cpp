@@ -11,7 +11,10 @@
 //                    lossy; baseline: the forward sweep alone. m20/T100 is 10^6 steps.
 //   rod_routes/...   peers on the same problem (200x12, 10 modes, T = 3 s): discrete adjoint (rk4 at
 //                    the default step; dopri5 adaptive), continuous adjoint (dopri5), CVODES (Adams and
-//                    BDF, Hermite and polynomial, Nd in {10, 100, 1000}); baselines: forward sweeps.
+//                    BDF, Hermite and polynomial, Nd in {10, 100, 1000}, configured as its user guide
+//                    advises, plus the alternatives of bench::forEachCvodesVariant at Hermite Nd 100);
+//                    baselines: forward sweeps. CVODES runs also report bwd_rhs, vjps, nl_iters,
+//                    lin_iters, setups and recomputed_rhs (bench::gradientWithCounters).
 //
 // Counters: steps, recomputed (steps re-integrated by the storage), ratio_to_revolve
 // ((N - 1 + recomputed) / T(N, c), Griewank & Walther), peak_bytes (held by the storage),
@@ -262,7 +265,7 @@ void routeGradient(benchmark::State& state, GradientOptions options) {
   GradientResult result;
   for (auto _ : state) {
     try {
-      result = computeGradientByMethod(*r.problem, r.p, options);
+      result = bench::gradientWithCounters(*r.problem, r.p, options, state);
     } catch (const std::exception& error) {
       state.SkipWithError(error.what());
       return;

@@ -7,7 +7,9 @@
 #include <nvector/nvector_serial.h>
 #include <sundials/sundials_context.h>
 #include <sunlinsol/sunlinsol_dense.h>
+#include <sunlinsol/sunlinsol_spgmr.h>
 #include <sunmatrix/sunmatrix_dense.h>
+#include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -20,7 +22,7 @@ namespace hindsight {
 namespace {
 
 /// The one owner of SUNDIALS objects (RAII): context, CVODES memory (forward, adjoint and backward),
-/// vectors, dense matrices and linear solvers. Nothing outside this class sees an N_Vector.
+/// vectors, dense matrices, linear and nonlinear solvers. Nothing outside this class sees an N_Vector.
 class CvodesAdjointSolver final {
   // ---- The callbacks SUNDIALS calls, and what they need (user_data). ----
   /// Everything the callbacks need; SUNDIALS hands it back as user_data.
@@ -30,8 +32,13 @@ class CvodesAdjointSolver final {
     std::unique_ptr<ProblemWorkspace> workspace;
     int n = 0;
     int np = 0;
-    Matrix jacobian;  // n x n scratch for F_z
-    std::int64_t rhsEvaluations = 0;
+    Matrix jacobian;  // n x n scratch for F_z (dense paths only)
+    bool backwardPhase = false;  // F calls during CVodeB are recomputations
+    std::int64_t forwardRhsEvaluations = 0;
+    std::int64_t recomputedRhsEvaluations = 0;
+    std::int64_t backwardRhsEvaluations = 0;
+    std::int64_t backwardQuadratureEvaluations = 0;
+    std::int64_t stateVjps = 0;
     std::int64_t jacobianEvaluations = 0;
     std::exception_ptr error;  // first exception thrown by the problem inside a callback
     std::string lastMessage;   // CVODES' error messages, "; "-separated (backward errors come in pairs)
@@ -62,7 +69,7 @@ class CvodesAdjointSolver final {
 
   static int forwardRhs(realtype t, N_Vector z, N_Vector zdot, void* userData) {
     return guarded(userData, [&](CallbackData& d) {
-      ++d.rhsEvaluations;
+      ++(d.backwardPhase ? d.recomputedRhsEvaluations : d.forwardRhsEvaluations);
       MutableMap f = mutableView(zdot, d.n);
       d.problem->rhs(t, view(z, d.n), d.p, f, d.workspace.get());
     });
@@ -85,8 +92,23 @@ class CvodesAdjointSolver final {
 
   // ---- Backward problem: lambda' = -F_z^T lambda - G_z^T, qB' = -(G_p + F_p^T lambda). ----
 
-  static int backwardRhs(realtype t, N_Vector z, N_Vector lambda, N_Vector lambdaDot, void* userData) {
+  /// F_z^T lambda by the problem's vector-Jacobian product: no Jacobian is formed.
+  static int backwardRhsVjp(realtype t, N_Vector z, N_Vector lambda, N_Vector lambdaDot, void* userData) {
     return guarded(userData, [&](CallbackData& d) {
+      ++d.backwardRhsEvaluations;
+      ++d.stateVjps;
+      const ConstMap zv = view(z, d.n);
+      MutableMap out = mutableView(lambdaDot, d.n);
+      d.problem->rhsStateVjp(t, zv, d.p, view(lambda, d.n), out, d.workspace.get());
+      out = -out;
+      d.problem->addIntegrandStateGradient(t, zv, d.p, -1.0, out, d.workspace.get());
+    });
+  }
+
+  /// F_z^T lambda from the dense Jacobian, for problems without a vector-Jacobian product.
+  static int backwardRhsDense(realtype t, N_Vector z, N_Vector lambda, N_Vector lambdaDot, void* userData) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.backwardRhsEvaluations;
       ++d.jacobianEvaluations;
       const ConstMap zv = view(z, d.n);
       d.problem->rhsJacobian(t, zv, d.p, d.jacobian, d.workspace.get());
@@ -96,8 +118,20 @@ class CvodesAdjointSolver final {
     });
   }
 
+  /// GMRES's product with the backward Jacobian: Jv = d(lambda')/d(lambda) v = -F_z^T v.
+  static int backwardJacobianTimesVector(N_Vector v, N_Vector jv, realtype t, N_Vector z, N_Vector, N_Vector,
+                                         void* userData, N_Vector) {
+    return guarded(userData, [&](CallbackData& d) {
+      ++d.stateVjps;
+      MutableMap out = mutableView(jv, d.n);
+      d.problem->rhsStateVjp(t, view(z, d.n), d.p, view(v, d.n), out, d.workspace.get());
+      out = -out;
+    });
+  }
+
   static int backwardQuadrature(realtype t, N_Vector z, N_Vector lambda, N_Vector qdot, void* userData) {
     return guarded(userData, [&](CallbackData& d) {
+      ++d.backwardQuadratureEvaluations;
       const ConstMap zv = view(z, d.n);
       MutableMap out = mutableView(qdot, d.np);
       out.setZero();
@@ -134,7 +168,13 @@ class CvodesAdjointSolver final {
     data_.workspace = problem.createWorkspace();
     data_.n = problem.stateSize();
     data_.np = problem.parameterSize();
-    data_.jacobian = Matrix::Zero(data_.n, data_.n);
+    if (problem.hasDenseJacobian()) data_.jacobian = Matrix::Zero(data_.n, data_.n);
+    fixedPoint_ = options.nonlinearSolver == CvodesNonlinearSolver::FixedPoint ||
+                  (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Adams);
+    gmres_ = options.linearSolver == CvodesLinearSolver::Gmres ||
+             (options.linearSolver == CvodesLinearSolver::Auto && !problem.hasDenseJacobian());
+    vjp_ = options.backwardProducts == CvodesBackwardProducts::Vjp ||
+           (options.backwardProducts == CvodesBackwardProducts::Auto && problem.hasStateVjp());
     if (SUNContext_Create(nullptr, &context_) != 0)
       throw NumericalError("SUNContext_Create failed", options.t0);
     z_ = newVector(data_.n);
@@ -147,6 +187,9 @@ class CvodesAdjointSolver final {
     if (memory_ != nullptr) CVodeFree(&memory_);  // also frees the adjoint and backward memories
     for (SUNLinearSolver solver : {solver_, solverB_}) {
       if (solver != nullptr) SUNLinSolFree(solver);
+    }
+    for (SUNNonlinearSolver solver : {nonlinear_, nonlinearB_}) {
+      if (solver != nullptr) SUNNonlinSolFree(solver);
     }
     for (SUNMatrix matrix : {matrix_, matrixB_}) {
       if (matrix != nullptr) SUNMatDestroy(matrix);
@@ -188,12 +231,23 @@ class CvodesAdjointSolver final {
       check(CVodeSetInitStep(memory_, options_.initialStep), "CVodeSetInitStep", options_.t0);
     }
     check(CVodeSetStopTime(memory_, options_.t1), "CVodeSetStopTime", options_.t0);
-    matrix_ = SUNDenseMatrix(data_.n, data_.n, context_);
-    solver_ = SUNLinSol_Dense(z_, matrix_, context_);
-    if (matrix_ == nullptr || solver_ == nullptr)
-      throw NumericalError("dense linear solver creation failed", 0);
-    checkLinear(CVodeSetLinearSolver(memory_, solver_, matrix_), "CVodeSetLinearSolver", options_.t0);
-    checkLinear(CVodeSetJacFn(memory_, &forwardJacobian), "CVodeSetJacFn", options_.t0);
+    if (fixedPoint_) {
+      nonlinear_ = SUNNonlinSol_FixedPoint(z_, options_.fixedPointAcceleration, context_);
+      if (nonlinear_ == nullptr) throw NumericalError("SUNNonlinSol_FixedPoint failed", options_.t0);
+      check(CVodeSetNonlinearSolver(memory_, nonlinear_), "CVodeSetNonlinearSolver", options_.t0);
+    } else if (gmres_) {
+      // Matrix-free Newton: the forward Jacobian-times-vector is CVODES' difference quotient of F.
+      solver_ = SUNLinSol_SPGMR(z_, SUN_PREC_NONE, 0, context_);
+      if (solver_ == nullptr) throw NumericalError("SUNLinSol_SPGMR failed", options_.t0);
+      checkLinear(CVodeSetLinearSolver(memory_, solver_, nullptr), "CVodeSetLinearSolver", options_.t0);
+    } else {
+      matrix_ = SUNDenseMatrix(data_.n, data_.n, context_);
+      solver_ = SUNLinSol_Dense(z_, matrix_, context_);
+      if (matrix_ == nullptr || solver_ == nullptr)
+        throw NumericalError("dense linear solver creation failed", 0);
+      checkLinear(CVodeSetLinearSolver(memory_, solver_, matrix_), "CVodeSetLinearSolver", options_.t0);
+      checkLinear(CVodeSetJacFn(memory_, &forwardJacobian), "CVodeSetJacFn", options_.t0);
+    }
 
     N_VConst(0.0, quadrature_);
     check(CVodeQuadInit(memory_, &forwardQuadrature, quadrature_), "CVodeQuadInit", options_.t0);
@@ -229,7 +283,7 @@ class CvodesAdjointSolver final {
     long steps = 0;
     check(CVodeGetNumSteps(memory_, &steps), "CVodeGetNumSteps", t);
     result.summary.steps = steps;
-    addWork(memory_, t, result.summary);
+    addWork(memory_, t, result.summary, forwardWork_);
     result.summary.statesStored = checkpoints;
     // Check points are listed newest first; CVodeB re-integrates every step before the last one.
     std::vector<CVadjCheckPointRec> records(static_cast<std::size_t>(checkpoints) + 2);
@@ -249,7 +303,8 @@ class CvodesAdjointSolver final {
       lambda.setZero();
       data_.problem->addTerminalGradient(finalState_, data_.p, lambda, gradient);  // lambda(t1) = dphi/dz
     }
-    check(CVodeInitB(memory_, which, &backwardRhs, t1, lambda_), "CVodeInitB", t1);
+    check(CVodeInitB(memory_, which, vjp_ ? &backwardRhsVjp : &backwardRhsDense, t1, lambda_), "CVodeInitB",
+          t1);
     void* backwardMemory = CVodeGetAdjCVodeBmem(memory_, which);
     if (backwardMemory == nullptr) throw NumericalError("CVodeGetAdjCVodeBmem returned null", t1);
     check(CVodeSetErrHandlerFn(backwardMemory, &errorHandler, &data_), "CVodeSetErrHandlerFn", t1);
@@ -265,12 +320,28 @@ class CvodesAdjointSolver final {
     check(CVodeSetUserDataB(memory_, which, &data_), "CVodeSetUserDataB", t1);
     check(CVodeSetMaxNumStepsB(memory_, which, static_cast<long>(options_.maxSteps)), "CVodeSetMaxNumStepsB",
           t1);
-    matrixB_ = SUNDenseMatrix(data_.n, data_.n, context_);
-    solverB_ = SUNLinSol_Dense(lambda_, matrixB_, context_);
-    if (matrixB_ == nullptr || solverB_ == nullptr)
-      throw NumericalError("dense linear solver creation failed", t1);
-    checkLinear(CVodeSetLinearSolverB(memory_, which, solverB_, matrixB_), "CVodeSetLinearSolverB", t1);
-    checkLinear(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
+    if (fixedPoint_) {
+      nonlinearB_ = SUNNonlinSol_FixedPoint(lambda_, options_.fixedPointAcceleration, context_);
+      if (nonlinearB_ == nullptr) throw NumericalError("SUNNonlinSol_FixedPoint failed", t1);
+      check(CVodeSetNonlinearSolverB(memory_, which, nonlinearB_), "CVodeSetNonlinearSolverB", t1);
+    } else if (gmres_) {
+      solverB_ = SUNLinSol_SPGMR(lambda_, SUN_PREC_NONE, 0, context_);
+      if (solverB_ == nullptr) throw NumericalError("SUNLinSol_SPGMR failed", t1);
+      checkLinear(CVodeSetLinearSolverB(memory_, which, solverB_, nullptr), "CVodeSetLinearSolverB", t1);
+      // -F_z^T v is the problem's own product; without one, CVODES' difference quotient of lambda'.
+      if (vjp_) {
+        checkLinear(CVodeSetJacTimesB(memory_, which, nullptr, &backwardJacobianTimesVector),
+                    "CVodeSetJacTimesB", t1);
+      }
+    } else {
+      // The Newton matrix I - gamma (-F_z^T) needs the Jacobian itself: formed at the setups only.
+      matrixB_ = SUNDenseMatrix(data_.n, data_.n, context_);
+      solverB_ = SUNLinSol_Dense(lambda_, matrixB_, context_);
+      if (matrixB_ == nullptr || solverB_ == nullptr)
+        throw NumericalError("dense linear solver creation failed", t1);
+      checkLinear(CVodeSetLinearSolverB(memory_, which, solverB_, matrixB_), "CVodeSetLinearSolverB", t1);
+      checkLinear(CVodeSetJacFnB(memory_, which, &backwardJacobian), "CVodeSetJacFnB", t1);
+    }
     N_VConst(0.0, gradientQuadrature_);
     check(CVodeQuadInitB(memory_, which, &backwardQuadrature, gradientQuadrature_), "CVodeQuadInitB", t1);
     check(CVodeQuadSStolerancesB(memory_, which,
@@ -280,6 +351,7 @@ class CvodesAdjointSolver final {
     check(CVodeSetQuadErrConB(memory_, which, options_.quadratureErrorControl ? SUNTRUE : SUNFALSE),
           "CVodeSetQuadErrConB", t1);
 
+    data_.backwardPhase = true;
     const int flag = CVodeB(memory_, options_.t0, CV_NORMAL);
     check(flag, "CVodeB", currentTime(backwardMemory, t1));
     double tB = t1;
@@ -289,11 +361,31 @@ class CvodesAdjointSolver final {
     data_.problem->addInitialStateVjp(data_.p, view(lambda_, data_.n), gradient);
     result.gradient = std::move(gradient);
 
-    addWork(backwardMemory, tB, result.summary);
+    addWork(backwardMemory, tB, result.summary, backwardWork_);
   }
 
-  std::int64_t rhsEvaluations() const { return data_.rhsEvaluations; }
+  std::int64_t rhsEvaluations() const { return data_.forwardRhsEvaluations + data_.recomputedRhsEvaluations; }
   std::int64_t jacobianEvaluations() const { return data_.jacobianEvaluations; }
+
+  CvodesCounters counters() const {
+    CvodesCounters c;
+    c.nonlinearSolver = fixedPoint_ ? "fixed-point" : "newton";
+    c.linearSolver = fixedPoint_ ? "none" : gmres_ ? "gmres" : "dense";
+    c.backwardProducts = vjp_ ? "vjp" : "dense";
+    c.forwardRhsEvaluations = data_.forwardRhsEvaluations;
+    c.recomputedRhsEvaluations = data_.recomputedRhsEvaluations;
+    c.backwardRhsEvaluations = data_.backwardRhsEvaluations;
+    c.backwardQuadratureEvaluations = data_.backwardQuadratureEvaluations;
+    c.stateVjps = data_.stateVjps;
+    c.denseJacobians = data_.jacobianEvaluations;
+    c.forwardNonlinearIterations = forwardWork_.iterations;
+    c.backwardNonlinearIterations = backwardWork_.iterations;
+    c.forwardLinearIterations = forwardWork_.linearIterations;
+    c.backwardLinearIterations = backwardWork_.linearIterations;
+    c.forwardConvergenceFailures = forwardWork_.convergenceFailures;
+    c.backwardConvergenceFailures = backwardWork_.convergenceFailures;
+    return c;
+  }
 
  private:
   N_Vector newVector(int size) {
@@ -315,17 +407,27 @@ class CvodesAdjointSolver final {
   /// A tolerance field left at 0 takes the tolerance it defaults to (see CvodesOptions).
   static double orDefault(double value, double fallback) { return value > 0.0 ? value : fallback; }
 
-  /// Adds one CVODES memory's rejected steps (error-test and Newton convergence failures), linear
-  /// solver setups and Newton iterations to the summary.
-  void addWork(void* memory, double t, RunSummary& summary) {
-    long errorTestFailures = 0, convergenceFailures = 0, setups = 0, iterations = 0;
+  /// One CVODES memory's nonlinear and linear work.
+  struct Work {
+    long iterations = 0, convergenceFailures = 0, linearIterations = 0;
+  };
+
+  /// Adds one CVODES memory's rejected steps (error-test and nonlinear convergence failures), linear
+  /// solver setups and nonlinear iterations to the summary; keeps them, with the GMRES iterations, in
+  /// `work`.
+  void addWork(void* memory, double t, RunSummary& summary, Work& work) {
+    long errorTestFailures = 0, setups = 0;
     check(CVodeGetNumErrTestFails(memory, &errorTestFailures), "CVodeGetNumErrTestFails", t);
-    check(CVodeGetNumNonlinSolvConvFails(memory, &convergenceFailures), "CVodeGetNumNonlinSolvConvFails", t);
+    check(CVodeGetNumNonlinSolvConvFails(memory, &work.convergenceFailures), "CVodeGetNumNonlinSolvConvFails",
+          t);
     check(CVodeGetNumLinSolvSetups(memory, &setups), "CVodeGetNumLinSolvSetups", t);
-    check(CVodeGetNumNonlinSolvIters(memory, &iterations), "CVodeGetNumNonlinSolvIters", t);
-    summary.rejectedSteps += errorTestFailures + convergenceFailures;
+    check(CVodeGetNumNonlinSolvIters(memory, &work.iterations), "CVodeGetNumNonlinSolvIters", t);
+    if (!fixedPoint_ && gmres_) {
+      checkLinear(CVodeGetNumLinIters(memory, &work.linearIterations), "CVodeGetNumLinIters", t);
+    }
+    summary.rejectedSteps += errorTestFailures + work.convergenceFailures;
     summary.factorizations += setups;
-    summary.newtonIterations += iterations;
+    summary.newtonIterations += work.iterations;
   }
 
   static double currentTime(void* memory, double fallback) {
@@ -365,6 +467,11 @@ class CvodesAdjointSolver final {
   void* memory_ = nullptr;
   SUNMatrix matrix_ = nullptr, matrixB_ = nullptr;
   SUNLinearSolver solver_ = nullptr, solverB_ = nullptr;
+  SUNNonlinearSolver nonlinear_ = nullptr, nonlinearB_ = nullptr;
+  bool fixedPoint_ = false;  // SUNNonlinSol_FixedPoint instead of CVODES' default Newton
+  bool gmres_ = false;       // Newton with SUNLinSol_SPGMR instead of SUNLinSol_Dense
+  bool vjp_ = false;         // backward rhs by rhsStateVjp()
+  Work forwardWork_, backwardWork_;
   std::vector<N_Vector> vectors_;
   N_Vector z_ = nullptr, quadrature_ = nullptr, lambda_ = nullptr, gradientQuadrature_ = nullptr;
   Vector finalState_;
@@ -385,7 +492,66 @@ CvodesInterpolation parseCvodesInterpolation(const std::string& name) {
                               "' is unknown; valid: hermite, polynomial");
 }
 
+CvodesNonlinearSolver parseCvodesNonlinearSolver(const std::string& name) {
+  if (name == "auto") return CvodesNonlinearSolver::Auto;
+  if (name == "newton") return CvodesNonlinearSolver::Newton;
+  if (name == "fixed-point") return CvodesNonlinearSolver::FixedPoint;
+  throw std::invalid_argument("CvodesOptions.nonlinearSolver = '" + name +
+                              "' is unknown; valid: auto, newton, fixed-point");
+}
+
+CvodesLinearSolver parseCvodesLinearSolver(const std::string& name) {
+  if (name == "auto") return CvodesLinearSolver::Auto;
+  if (name == "dense") return CvodesLinearSolver::Dense;
+  if (name == "gmres") return CvodesLinearSolver::Gmres;
+  throw std::invalid_argument("CvodesOptions.linearSolver = '" + name + "' is unknown; valid: auto, dense, gmres");
+}
+
+CvodesBackwardProducts parseCvodesBackwardProducts(const std::string& name) {
+  if (name == "auto") return CvodesBackwardProducts::Auto;
+  if (name == "vjp") return CvodesBackwardProducts::Vjp;
+  if (name == "dense") return CvodesBackwardProducts::Dense;
+  throw std::invalid_argument("CvodesOptions.backwardProducts = '" + name +
+                              "' is unknown; valid: auto, vjp, dense");
+}
+
 std::string toString(CvodesMethod method) { return method == CvodesMethod::Bdf ? "bdf" : "adams"; }
+
+std::string toString(CvodesNonlinearSolver solver) {
+  switch (solver) {
+    case CvodesNonlinearSolver::Auto:
+      return "auto";
+    case CvodesNonlinearSolver::Newton:
+      return "newton";
+    case CvodesNonlinearSolver::FixedPoint:
+      return "fixed-point";
+  }
+  return "unknown";
+}
+
+std::string toString(CvodesLinearSolver solver) {
+  switch (solver) {
+    case CvodesLinearSolver::Auto:
+      return "auto";
+    case CvodesLinearSolver::Dense:
+      return "dense";
+    case CvodesLinearSolver::Gmres:
+      return "gmres";
+  }
+  return "unknown";
+}
+
+std::string toString(CvodesBackwardProducts products) {
+  switch (products) {
+    case CvodesBackwardProducts::Auto:
+      return "auto";
+    case CvodesBackwardProducts::Vjp:
+      return "vjp";
+    case CvodesBackwardProducts::Dense:
+      return "dense";
+  }
+  return "unknown";
+}
 
 std::string toString(CvodesInterpolation interpolation) {
   return interpolation == CvodesInterpolation::Hermite ? "hermite" : "polynomial";
@@ -453,6 +619,10 @@ bool CvodesOptions::IsValid(std::string* error) const {
     msg << "CvodesOptions.initialStep = " << initialStep << " must be in [0, t1 - t0 = " << t1 - t0 << "]";
     return fail();
   }
+  if (fixedPointAcceleration < 0 || fixedPointAcceleration > 20) {
+    msg << "CvodesOptions.fixedPointAcceleration = " << fixedPointAcceleration << " must be in [0, 20]";
+    return fail();
+  }
   return true;
 }
 
@@ -461,7 +631,8 @@ void CvodesOptions::validate() const {
   if (!IsValid(&error)) throw std::invalid_argument(error);
 }
 
-GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, const CvodesOptions& options) {
+GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, const CvodesOptions& options,
+                                     CvodesCounters* counters) {
   options.validate();
   if (p.size() != problem.parameterSize()) {
     throw std::invalid_argument("parameter vector p has size " + std::to_string(p.size()) + " but '" +
@@ -473,9 +644,21 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
     requireOneTolerancePerState(*values, std::string("CvodesOptions.") + name, problem.name(),
                                 problem.stateSize(), "one atol per state, or empty");
   }
+  const bool newton = options.nonlinearSolver == CvodesNonlinearSolver::Newton ||
+                      (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Bdf);
   if (!problem.hasDenseJacobian()) {
-    throw std::invalid_argument("the CVODES route needs a dense Jacobian, but problem '" + problem.name() +
-                                "' has hasDenseJacobian() == false; use the discrete or continuous adjoint");
+    const auto refuse = [&](const std::string& field) {
+      throw std::invalid_argument("CvodesOptions." + field + " needs a dense Jacobian, but problem '" +
+                                  problem.name() + "' has hasDenseJacobian() == false; use " +
+                                  (field == "linearSolver" ? "gmres, auto or the fixed-point solver"
+                                                           : "vjp or auto"));
+    };
+    if (newton && options.linearSolver == CvodesLinearSolver::Dense) refuse("linearSolver");
+    if (options.backwardProducts == CvodesBackwardProducts::Dense) refuse("backwardProducts");
+  }
+  if (options.backwardProducts == CvodesBackwardProducts::Vjp && !problem.hasStateVjp()) {
+    throw std::invalid_argument("CvodesOptions.backwardProducts = vjp, but problem '" + problem.name() +
+                                "' has no rhsStateVjp() (hasStateVjp() == false); use dense or auto");
   }
   GradientResult result;
   result.summary.method = "cvodes-" + toString(options.method);
@@ -491,6 +674,7 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
   result.summary.backwardSeconds = backwardTimer.seconds();
   result.summary.rhsEvaluations = solver.rhsEvaluations();
   result.summary.jacobianEvaluations = solver.jacobianEvaluations();
+  if (counters != nullptr) *counters = solver.counters();
   return result;
 }
 

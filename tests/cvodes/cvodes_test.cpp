@@ -3,6 +3,7 @@
 // with the flag's name and the time; bad options give std::invalid_argument naming the field.
 #include <hindsight/cvodes/cvodes_adjoint.h>
 #include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/problems/classic/heat_equation.h>
 #include "support/engine_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -60,9 +61,14 @@ TEST_P(CvodesVariant, ExponentialDecayMatchesClosedForm) {
   EXPECT_EQ(static_cast<std::int64_t>(result.times.size()), result.summary.steps + 1);
   EXPECT_EQ(result.times.back(), horizon);
   EXPECT_GT(result.summary.rhsEvaluations, result.summary.steps);
-  EXPECT_GT(result.summary.jacobianEvaluations, 0);
-  EXPECT_GT(result.summary.newtonIterations, result.summary.steps);  // forward and backward Newton
-  EXPECT_GT(result.summary.factorizations, 0);
+  EXPECT_GT(result.summary.jacobianEvaluations, 0);  // no VJP here: the backward rhs forms F_z
+  EXPECT_GT(result.summary.newtonIterations, result.summary.steps);  // forward and backward iterations
+  // The advised solvers: Newton with dense LU for BDF, fixed-point iteration (no linear solver) for Adams.
+  if (GetParam().method == CvodesMethod::Bdf) {
+    EXPECT_GT(result.summary.factorizations, 0);
+  } else {
+    EXPECT_EQ(result.summary.factorizations, 0);
+  }
   EXPECT_EQ(result.summary.storage, "cvodes:checkpoints=50,interp=" + toString(GetParam().interpolation));
   EXPECT_GE(result.summary.statesStored, result.summary.steps / 50);
 }
@@ -142,6 +148,111 @@ TEST(CvodesStiff, RobertsonBdfAgreesWithAdaptiveTrBdf2DiscreteAdjoint) {
     std::cout << "[ robertson ] k" << i + 1 << " dpsi/dk: cvodes " << a << ", trbdf2 " << b << "\n";
     EXPECT_NEAR(a, b, 1e-4 * std::abs(b) + 1e-9) << "component " << i;
   }
+}
+
+TEST(CvodesSolvers, ExplicitNewtonAndFixedPointAgreeOnTheOscillatorAndReportTheirWork) {
+  // The same problem with each nonlinear solver, for both families: the gradients agree with the
+  // closed form, and the counters say which solver ran.
+  Oscillator problem;
+  const Vector p = Eigen::Vector3d(4.0, 0.4, 0.8);
+  const double horizon = 3.0;
+  const Vector exact = complexStepGradient(
+      [&](const Eigen::VectorXcd& x) { return Oscillator::exactObjective(x(0), x(1), x(2), horizon); }, p);
+  for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {
+    for (CvodesNonlinearSolver solver : {CvodesNonlinearSolver::Newton, CvodesNonlinearSolver::FixedPoint}) {
+      CvodesOptions options = tightOptions({method, CvodesInterpolation::Polynomial}, horizon);
+      options.nonlinearSolver = solver;
+      options.fixedPointAcceleration = method == CvodesMethod::Bdf ? 2 : 0;
+      CvodesCounters counters;
+      const GradientResult result = computeGradientCvodes(problem, p, options, &counters);
+      const std::string label = toString(method) + "/" + toString(solver);
+      EXPECT_LT((result.gradient - exact).norm(), 1e-7 * exact.norm()) << label;
+      EXPECT_EQ(counters.nonlinearSolver, toString(solver)) << label;
+      EXPECT_EQ(counters.backwardProducts, "dense") << label;  // Oscillator has no rhsStateVjp
+      EXPECT_EQ(counters.stateVjps, 0) << label;
+      EXPECT_EQ(counters.forwardRhsEvaluations + counters.recomputedRhsEvaluations,
+                result.summary.rhsEvaluations)
+          << label;
+      EXPECT_GT(counters.recomputedRhsEvaluations, 0) << label;
+      EXPECT_GT(counters.backwardQuadratureEvaluations, 0) << label;
+      if (solver == CvodesNonlinearSolver::FixedPoint) {
+        EXPECT_EQ(counters.linearSolver, "none") << label;
+        EXPECT_EQ(result.summary.factorizations, 0) << label;
+        EXPECT_EQ(counters.denseJacobians, counters.backwardRhsEvaluations) << label;  // only the rhs
+      } else {
+        EXPECT_EQ(counters.linearSolver, "dense") << label;
+        EXPECT_GT(result.summary.factorizations, 0) << label;
+        EXPECT_GT(counters.denseJacobians, counters.backwardRhsEvaluations) << label;  // plus the setups
+      }
+    }
+  }
+}
+
+TEST(CvodesSolvers, ProblemWithoutDenseJacobianRunsMatrixFreeAndAgreesWithTheDiscreteAdjoint) {
+  // The reaction-diffusion problem has only rhsStateVjp() and a tridiagonal Newton solver: CVODES runs
+  // BDF with Newton-GMRES (backward Jacobian-times-vector by the VJP, forward by CVODES' difference
+  // quotient) and Adams with fixed-point iteration, both with the VJP in the backward rhs, and never
+  // forms F_z.
+  HeatEquation problem(40, 2);
+  const Vector p = problem.nominalParameters();
+  const double horizon = 2.0;
+  IntegratorOptions own;
+  own.method = "trbdf2";
+  own.t1 = horizon;
+  own.adaptive = true;
+  own.step = 1e-4;
+  own.relativeTolerance = 1e-10;
+  own.absoluteTolerance = 1e-12;
+  const GradientResult discrete = gradientWithFullStorage(problem, p, own);
+  for (CvodesMethod method : {CvodesMethod::Bdf, CvodesMethod::Adams}) {
+    CvodesOptions options;
+    options.method = method;
+    options.t1 = horizon;
+    options.relativeTolerance = 1e-9;
+    options.absoluteTolerance = 1e-11;
+    CvodesCounters counters;
+    const GradientResult cvodes = computeGradientCvodes(problem, p, options, &counters);
+    const std::string label = toString(method);
+    EXPECT_LT((cvodes.gradient - discrete.gradient).norm(), 1e-6 * discrete.gradient.norm())
+        << label << ": " << cvodes.gradient.transpose() << " vs " << discrete.gradient.transpose();
+    EXPECT_NEAR(cvodes.objective, discrete.objective, 1e-7 * std::abs(discrete.objective)) << label;
+    EXPECT_EQ(cvodes.summary.jacobianEvaluations, 0) << label;
+    EXPECT_EQ(counters.denseJacobians, 0) << label;
+    EXPECT_EQ(counters.backwardProducts, "vjp") << label;
+    EXPECT_GE(counters.stateVjps, counters.backwardRhsEvaluations) << label;
+    if (method == CvodesMethod::Bdf) {
+      EXPECT_EQ(counters.linearSolver, "gmres") << label;
+      EXPECT_GT(counters.backwardLinearIterations, 0) << label;
+      EXPECT_GT(counters.stateVjps, counters.backwardRhsEvaluations) << label;  // GMRES products too
+    } else {
+      EXPECT_EQ(counters.linearSolver, "none") << label;
+      EXPECT_EQ(counters.stateVjps, counters.backwardRhsEvaluations) << label;
+    }
+  }
+  // The dense choices need the dense Jacobian it does not have: named, with what to use instead.
+  CvodesOptions dense;
+  dense.t1 = horizon;
+  dense.linearSolver = CvodesLinearSolver::Dense;
+  try {
+    computeGradientCvodes(problem, p, dense);
+    ADD_FAILURE() << "dense linear solver accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("CvodesOptions.linearSolver"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("gmres"), std::string::npos) << e.what();
+  }
+  dense.linearSolver = CvodesLinearSolver::Auto;
+  dense.backwardProducts = CvodesBackwardProducts::Dense;
+  try {
+    computeGradientCvodes(problem, p, dense);
+    ADD_FAILURE() << "dense backward products accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("CvodesOptions.backwardProducts"), std::string::npos) << e.what();
+  }
+  // Fixed point with the dense linear solver asked for: no linear solver is used, nothing is refused.
+  dense.backwardProducts = CvodesBackwardProducts::Auto;
+  dense.method = CvodesMethod::Adams;
+  dense.linearSolver = CvodesLinearSolver::Dense;
+  EXPECT_NO_THROW(computeGradientCvodes(problem, p, dense));
 }
 
 TEST(CvodesFailure, TooFewMaxStepsGivesNumericalErrorWithFlagNameAndTime) {
@@ -288,6 +399,8 @@ TEST(CvodesBadInput, EveryBadFieldIsNamedWithItsRange) {
       {[](CvodesOptions& o) { o.maxSteps = 0; }, "maxSteps", "[1, 1e12]"},
       {[](CvodesOptions& o) { o.initialStep = 5.0; }, "initialStep", "[0, t1 - t0"},
       {[](CvodesOptions& o) { o.t1 = o.t0; }, "t1", "greater than t0"},
+      {[](CvodesOptions& o) { o.fixedPointAcceleration = -1; }, "fixedPointAcceleration", "[0, 20]"},
+      {[](CvodesOptions& o) { o.fixedPointAcceleration = 21; }, "fixedPointAcceleration", "[0, 20]"},
   };
   for (const Case& c : cases) {
     CvodesOptions options;
@@ -314,6 +427,23 @@ TEST(CvodesBadInput, WrongParameterSizeAndUnknownNames) {
     EXPECT_NE(std::string(e.what()).find("CvodesOptions.absoluteTolerances has 3 entries"), std::string::npos)
         << e.what();
   }
+  // A VJP asked of a problem without one.
+  CvodesOptions vjp;
+  vjp.backwardProducts = CvodesBackwardProducts::Vjp;
+  try {
+    computeGradientCvodes(problem, Vector::Ones(problem.parameterSize()), vjp);
+    ADD_FAILURE() << "vjp accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("CvodesOptions.backwardProducts = vjp"), std::string::npos) << e.what();
+  }
+  for (const std::string name : {"auto", "newton", "fixed-point"})
+    EXPECT_EQ(toString(parseCvodesNonlinearSolver(name)), name);
+  for (const std::string name : {"auto", "dense", "gmres"}) EXPECT_EQ(toString(parseCvodesLinearSolver(name)), name);
+  for (const std::string name : {"auto", "vjp", "dense"})
+    EXPECT_EQ(toString(parseCvodesBackwardProducts(name)), name);
+  EXPECT_THROW(parseCvodesNonlinearSolver("functional"), std::invalid_argument);
+  EXPECT_THROW(parseCvodesLinearSolver("klu"), std::invalid_argument);
+  EXPECT_THROW(parseCvodesBackwardProducts("ad"), std::invalid_argument);
   EXPECT_THROW(parseCvodesMethod("rk4"), std::invalid_argument);
   EXPECT_THROW(parseCvodesInterpolation("linear"), std::invalid_argument);
   EXPECT_EQ(parseCvodesMethod("adams"), CvodesMethod::Adams);
