@@ -21,26 +21,6 @@ void registerCommands(CLI::App& app) {
   registerExport(app);
 }
 
-nlohmann::json summaryToJson(const RunSummary& s) {
-  return {{"method", s.method},
-          {"adjoint", s.adjoint},
-          {"storage", s.storage},
-          {"steps", s.steps},
-          {"rejected_steps", s.rejectedSteps},
-          {"rhs_evaluations", s.rhsEvaluations},
-          {"jacobian_evaluations", s.jacobianEvaluations},
-          {"factorizations", s.factorizations},
-          {"newton_iterations", s.newtonIterations},
-          {"recomputed_steps", s.recomputedSteps},
-          {"states_stored", s.statesStored},
-          {"peak_bytes_in_memory", s.peakBytesInMemory},
-          {"bytes_on_disk", s.bytesOnDisk},
-          {"compression_ratio", s.compressionRatio},
-          {"forward_seconds", s.forwardSeconds},
-          {"backward_seconds", s.backwardSeconds},
-          {"io_seconds", s.ioSeconds}};
-}
-
 void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string& key,
                       const std::string& description, const std::string& typeName) {
   Entry& entry = entries_.emplace_back(Entry{flag, key, "", nullptr});

@@ -50,9 +50,6 @@ class ConfigFlags {
 /// Runs `body`, translating exceptions into messages and exit codes.
 int guarded(const std::function<int()>& body);
 
-/// The run summary as a JSON object (same keys as RunSummary's fields, snake_case).
-nlohmann::json summaryToJson(const RunSummary& summary);
-
 void registerDemo(CLI::App& app);
 void registerEvaluate(CLI::App& app);
 void registerOptimize(CLI::App& app);

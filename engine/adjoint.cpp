@@ -1,5 +1,6 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/step_controller.h>
 #include <hindsight/engine/stopwatch.h>
 
@@ -64,6 +65,7 @@ struct ForwardSweep {
       return zdot;
     };
     const auto accept = [&](std::int64_t n, double t) {
+      pollInterrupt();
       if (storage != nullptr) storage->record(n, times[n], zPrevious, derivativeAtStart());
       times.push_back(t);
       if (observer) observer(n + 1, t, problemState(z));
@@ -235,6 +237,7 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
   Vector& z = sweep.zPrevious;
   const std::vector<double>& times = sweep.times;
   for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
+    pollInterrupt();
     storage.restore(step, z);
     sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
   }

@@ -1,5 +1,6 @@
 #include <hindsight/engine/continuous_adjoint.h>
 #include <hindsight/engine/grid_recomputer.h>
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/runge_kutta.h>
 #include <hindsight/engine/step_controller.h>
 #include <hindsight/engine/stopwatch.h>
@@ -315,6 +316,7 @@ BackwardStatistics integrateBackward(AdjointSystem& system, ForwardStates& state
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
+    pollInterrupt();
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;
@@ -380,6 +382,7 @@ BackwardStatistics integrateBackwardImplicit(AdjointSystem& system, double t0, d
   const StepSizeController controller(std::min(tableau.order, tableau.embeddedOrder));
   double rejectedEnd = -std::numeric_limits<double>::infinity();
   while (t > t0) {
+    pollInterrupt();
     checkBackwardStep(statistics.steps + statistics.rejected, options, t, h);
     const double tNext = backwardStepEnd(t, h, t0, rejectedEnd, options);
     const double hTaken = t - tNext;

@@ -54,6 +54,15 @@ std::unique_ptr<TrajectoryStorage> createStorage(const std::string& text) {
   throw std::invalid_argument("unknown storage strategy '" + spec.name() + "'; known: " + names);
 }
 
+std::vector<std::string> storageStrategyKeys(const std::string& name) {
+  for (const Entry& entry : registry()) {
+    if (name == entry.name) return entry.keys();
+  }
+  std::string names;
+  for (const auto& n : storageStrategyNames()) names += (names.empty() ? "" : ", ") + n;
+  throw std::invalid_argument("unknown storage strategy '" + name + "'; known: " + names);
+}
+
 std::vector<std::string> storageStrategyNames() {
   std::vector<std::string> names;
   for (const Entry& entry : registry()) names.emplace_back(entry.name);

@@ -18,4 +18,8 @@ std::unique_ptr<TrajectoryStorage> createStorage(const std::string& spec);
 /// Names of all strategies, for help texts.
 std::vector<std::string> storageStrategyNames();
 
+/// The spec keys strategy `name` accepts (storage/storage_docs.h documents them); throws
+/// std::invalid_argument for an unknown name, listing the known ones.
+std::vector<std::string> storageStrategyKeys(const std::string& name);
+
 }  // namespace hindsight

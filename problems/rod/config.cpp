@@ -383,4 +383,24 @@ void applyFlag(Config& config, const std::string& flag, const std::string& key, 
   applyText(config, key, flag, text);
 }
 
+nlohmann::json summaryToJson(const RunSummary& s) {
+  return {{"method", s.method},
+          {"adjoint", s.adjoint},
+          {"storage", s.storage},
+          {"steps", s.steps},
+          {"rejected_steps", s.rejectedSteps},
+          {"rhs_evaluations", s.rhsEvaluations},
+          {"jacobian_evaluations", s.jacobianEvaluations},
+          {"factorizations", s.factorizations},
+          {"newton_iterations", s.newtonIterations},
+          {"recomputed_steps", s.recomputedSteps},
+          {"states_stored", s.statesStored},
+          {"peak_bytes_in_memory", s.peakBytesInMemory},
+          {"bytes_on_disk", s.bytesOnDisk},
+          {"compression_ratio", s.compressionRatio},
+          {"forward_seconds", s.forwardSeconds},
+          {"backward_seconds", s.backwardSeconds},
+          {"io_seconds", s.ioSeconds}};
+}
+
 }  // namespace hindsight

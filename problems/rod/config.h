@@ -88,6 +88,9 @@ struct Config {
 
 /// The complete configuration as JSON (every field, defaults included).
 nlohmann::json toJson(const Config& config);
+/// The run summary as a JSON object (same keys as RunSummary's fields, snake_case): the CLI's --json
+/// output and the Python module's summary dict.
+nlohmann::json summaryToJson(const RunSummary& summary);
 /// Strict reading; fields that are absent keep their defaults.
 Config configFromJson(const nlohmann::json& json);
 /// Reads a JSON file; throws std::invalid_argument naming the file when it cannot be read or parsed.

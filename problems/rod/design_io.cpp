@@ -22,6 +22,40 @@ std::vector<double> designToGrid(const rod::RodConfig& config, ConstVectorRef va
   return grid;
 }
 
+Vector gridToDesign(const rod::RodConfig& config, const double* grid, const std::string& source) {
+  const int nx = config.elementsAlongLength, ny = config.elementsThroughHeight;
+  // The interface columns are rigid (not design variables) and hold 1; any other value there means
+  // the file is not the design the user thinks it is, so it is refused rather than replaced.
+  for (int j = 0; j < ny; ++j) {
+    for (const int i : {0, nx - 1}) {
+      const double v = grid[static_cast<std::size_t>(j) * nx + i];
+      if (v != 1.0) {
+        std::ostringstream value;
+        value << std::setprecision(17) << v;
+        throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" +
+                                    std::to_string(i) + "] (row " + std::to_string(j) +
+                                    ", interface column " + std::to_string(i) + ") = " + value.str() +
+                                    " must be 1: the end columns are not design variables");
+      }
+    }
+  }
+  Vector design(config.designCount());
+  for (int d = 0; d < config.designCount(); ++d) {
+    const int i = d / ny + 1, j = d % ny;
+    const double v = grid[static_cast<std::size_t>(j) * nx + i];
+    if (!(v >= config.designLowerBound && v <= 1.0)) {
+      std::ostringstream value;
+      value << std::setprecision(17) << v;
+      throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" +
+                                  std::to_string(i) + "] (row " + std::to_string(j) + ", column " +
+                                  std::to_string(i) + ") = " + value.str() + " is outside [" +
+                                  std::to_string(config.designLowerBound) + ", 1]");
+    }
+    design(d) = v;
+  }
+  return design;
+}
+
 Vector readDesignFile(const std::string& path, const rod::RodConfig& config) {
   const hdf5::ErrorSilencer quiet;
   const int nx = config.elementsAlongLength, ny = config.elementsThroughHeight;
@@ -45,36 +79,7 @@ Vector readDesignFile(const std::string& path, const rod::RodConfig& config) {
   } catch (const hdf5::Error& e) {
     throw std::invalid_argument("design file '" + path + "': " + e.what());
   }
-  // The interface columns are rigid (not design variables) and hold 1; any other value there means
-  // the file is not the design the user thinks it is, so it is refused rather than replaced.
-  for (int j = 0; j < ny; ++j) {
-    for (const int i : {0, nx - 1}) {
-      const double v = grid[static_cast<std::size_t>(j) * nx + i];
-      if (v != 1.0) {
-        std::ostringstream value;
-        value << std::setprecision(17) << v;
-        throw std::invalid_argument("design file '" + path + "': x[" + std::to_string(j) + "][" +
-                                    std::to_string(i) + "] (row " + std::to_string(j) +
-                                    ", interface column " + std::to_string(i) + ") = " + value.str() +
-                                    " must be 1: the end columns are not design variables");
-      }
-    }
-  }
-  Vector design(config.designCount());
-  for (int d = 0; d < config.designCount(); ++d) {
-    const int i = d / ny + 1, j = d % ny;
-    const double v = grid[static_cast<std::size_t>(j) * nx + i];
-    if (!(v >= config.designLowerBound && v <= 1.0)) {
-      std::ostringstream value;
-      value << std::setprecision(17) << v;
-      throw std::invalid_argument("design file '" + path + "': x[" + std::to_string(j) + "][" +
-                                  std::to_string(i) + "] (row " + std::to_string(j) + ", column " +
-                                  std::to_string(i) + ") = " + value.str() + " is outside [" +
-                                  std::to_string(config.designLowerBound) + ", 1]");
-    }
-    design(d) = v;
-  }
-  return design;
+  return gridToDesign(config, grid.data(), "design file '" + path + "'");
 }
 
 void writeDesignFields(const std::string& path, const rod::RodConfig& config,

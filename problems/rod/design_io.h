@@ -19,6 +19,11 @@ namespace hindsight {
 /// and value).
 Vector readDesignFile(const std::string& path, const rod::RodConfig& config);
 
+/// The design variables of a (ny, nx) row-major grid over all elements (nx * ny values), checked as
+/// readDesignFile checks dataset x: interface columns 1, design values in [designLowerBound, 1], no
+/// NaN. Throws std::invalid_argument whose message starts with `source` ("design file 'x.h5'").
+Vector gridToDesign(const rod::RodConfig& config, const double* grid, const std::string& source);
+
 /// Writes each (name, values over design variables) as a (ny, nx) dataset; interface columns get
 /// `interfaceValue` (1 for a design, 0 for a gradient). The file appears complete or not at all
 /// (written to a temporary name, fsynced, then renamed: storage/atomic_file.h). Throws StorageError

@@ -13,18 +13,14 @@ import argparse
 import json
 import sys
 
-import h5py
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
 
 def text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def load(path):
+    import h5py
+
     with h5py.File(path, "r") as f:
         if text(f.attrs["format"]) != "hindsight-topology-results":
             raise SystemExit(f"{path}: not a hindsight topology results file")
@@ -35,14 +31,12 @@ def load(path):
     return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished}
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("results", nargs="+", help="one or two results.h5 files")
-    parser.add_argument("--out", required=True, help="PNG file to write")
-    args = parser.parse_args()
-    if len(args.results) > 2:
-        parser.error("give one or two results files")
-    runs = [load(path) for path in args.results]
+def draw(runs, out=None):
+    """The figure of one or two runs, each a dict with config, history (columns), designs, finished (as
+    load() returns and hindsight.read_results() too); saved to `out` when given. Returns the figure.
+    Shared with the Python module (hindsight.plot_comparison), which reads the files with its own checked
+    reader."""
+    import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=(9, 4.2 + 1.0 * len(runs)))
     grid = fig.add_gridspec(1 + len(runs), 1, height_ratios=[4.0] + [1.0] * len(runs), hspace=0.6)
@@ -75,7 +69,23 @@ def main():
     # Logarithmic: the early transients of a run and the final factor between the routes both show.
     axis.set_yscale("log")
     axis.legend(fontsize=8)
-    fig.savefig(args.out, dpi=120, bbox_inches="tight")
+    if out is not None:
+        fig.savefig(out, dpi=120, bbox_inches="tight")
+    return fig
+
+
+def main():
+    import matplotlib
+
+    matplotlib.use("Agg")  # a file, no display; set here so that draw() leaves a notebook's backend alone
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("results", nargs="+", help="one or two results.h5 files")
+    parser.add_argument("--out", required=True, help="PNG file to write")
+    args = parser.parse_args()
+    if len(args.results) > 2:
+        parser.error("give one or two results files")
+    runs = [load(path) for path in args.results]
+    draw(runs, args.out)
     return 0
 
 

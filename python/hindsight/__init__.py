@@ -1,0 +1,181 @@
+"""hindsight from Python: exact adjoint gradients with interchangeable trajectory storage, the piston
+rod of Held, Knueffer & Seifried and its topology optimization (README "Python").
+
+    import hindsight
+    rod = hindsight.PistonRod(rod={"modeCount": 8})          # config dict and/or overrides
+    r = rod.evaluate(rod.x0, gradient=True, storage="binomial:checkpoints=50")
+    r.psi1, r.dpsi1_dx                                          # float, NumPy (ny, nx)
+
+    history = hindsight.optimize({"optimization": {"iterations": 10}}, out="run", callback=print)
+    hindsight.gradient(my_problem, p, integrator="rk4", step=1e-3)   # a problem written in Python
+    hindsight.storage_specs()                                   # strategies, keys, documentation
+    hindsight.read_results("run")                              # history, designs, configuration
+
+Errors: bad input raises ValueError with the CLI's message; numerical failures raise
+hindsight.NumericalError and storage failures hindsight.StorageError (both RuntimeError).
+"""
+import os as _os
+
+from . import _hindsight
+from ._hindsight import NumericalError, StorageError, storage_strategy_names
+
+__version__ = _hindsight.__version__
+__all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient",
+           "optimize", "read_results", "plot_comparison", "storage_specs", "storage_strategy_names",
+           "check_storage_spec", "config"]
+
+
+class Result(dict):
+    """A dict whose keys are also attributes: r.psi1 is r["psi1"]."""
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __dir__(self):
+        return list(self.keys()) + list(super().__dir__())
+
+    def __repr__(self):
+        def short(value):
+            shape = getattr(value, "shape", None)
+            return f"<array {shape}>" if shape is not None and len(shape) > 0 else repr(value)
+        return "Result(" + ", ".join(f"{k}={short(v)}" for k, v in self.items()) + ")"
+
+
+def config(config=None, **overrides):
+    """The complete configuration (every field, defaults included) as a dict, after the same checks as
+    the CLI's --config/--set: `config` is a dict of sections (the JSON file's content), a path to a JSON
+    file or None; overrides are sections given as dicts (rod={"modeCount": 8}) or "section.field" keys
+    (**{"simulation.step": 2e-4}). ValueError names the field and the allowed range."""
+    return _hindsight._make_config(config, **overrides)
+
+
+class PistonRod:
+    """The piston-rod model of `hindsight evaluate`. The configuration is checked at construction
+    (ValueError naming the field, as the CLI). Designs are NumPy arrays of shape (ny, nx) over all
+    elements: row 0 at the bottom, column 0 at joint A; the end columns are not design variables and
+    hold 1."""
+
+    def __init__(self, config=None, **overrides):
+        self._rod = _hindsight.PistonRod(config, **overrides)
+
+    @property
+    def config(self):
+        """The complete configuration as a dict."""
+        return self._rod.config
+
+    @property
+    def x0(self):
+        """The uniform initial design, shape (ny, nx)."""
+        return self._rod.x0
+
+    @property
+    def shape(self):
+        """(ny, nx) = (rod.elementsThroughHeight, rod.elementsAlongLength)."""
+        return self._rod.shape
+
+    @property
+    def design_count(self):
+        """Number of design variables (the inner columns' elements)."""
+        return self._rod.design_count
+
+    def design_variables(self, x):
+        """The design variables (1-D, the order of the C++ model) of a (ny, nx) design, checked."""
+        return self._rod.design_variables(x)
+
+    def design_grid(self, values, interface_value=1.0):
+        """The (ny, nx) array of design variables `values`; end columns get `interface_value`."""
+        return self._rod.design_grid(values, interface_value)
+
+    def evaluate(self, x=None, gradient=True, storage=None, adjoint=None, integrator=None, psi2=True):
+        """psi1, psi2, volume fraction and frequencies of design x (default x0); with gradient=True also
+        dpsi1_dx, dpsi2_dx, dvolume_dx as (ny, nx) arrays (0 in the end columns), exactly as
+        `hindsight evaluate --gradient` computes them. storage, adjoint and integrator override
+        simulation.storage / adjoint / integrator for this call (checked as the CLI's flags).
+        psi2 is None when skipped (psi2=False, or adaptive steps). The GIL is released meanwhile;
+        Ctrl-C raises KeyboardInterrupt."""
+        if x is None:
+            x = self.x0
+        return Result(self._rod._evaluate(x, gradient, storage, adjoint, integrator, psi2))
+
+    def __repr__(self):
+        ny, nx = self.shape
+        return f"PistonRod(ny={ny}, nx={nx}, design_count={self.design_count})"
+
+
+def optimize(config=None, out="results", resume=False, force=False, callback=None, verbose=False, **overrides):
+    """Runs the topology optimization of `hindsight optimize` into directory `out` (results.h5 after every
+    iteration, pictures, resumable). callback(record) is called after each iteration once it is on
+    disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
+    returning False stops the run (its results stay valid and resumable). verbose=True prints the
+    progress lines. Returns read_results(out) plus results_path and stopped_by_callback."""
+    return Result(_hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides))
+
+
+def read_results(path):
+    """A results directory (or its results.h5) read with every check of the C++ reader (StorageError
+    naming the dataset when one fails): history (dict of NumPy columns: iteration, psi1, psi2,
+    volume_fraction, max_design_change, backtracks, evaluation_seconds, mma_seconds, total_seconds),
+    designs (K, ny, nx), configuration (dict), finished, next_design, final_frequencies_hz, final_modes."""
+    path = _os.fspath(path)
+    if _os.path.isdir(path):
+        path = _os.path.join(path, "results.h5")
+    result = Result(_hindsight._read_results(path))
+    result["path"] = path
+    result["config"] = result["configuration"]  # the name the shared plotting code uses
+    return result
+
+
+def plot_comparison(*runs, out=None):
+    """The Fig.-4 comparison of `hindsight plot`: psi1 over the iterations of one or two runs (e.g. the
+    psi1 and the psi2 route) and their latest designs. Each run is a results directory or a
+    read_results() dict. Saves to `out` when given; returns the matplotlib figure."""
+    from . import _plot_history
+    if not 1 <= len(runs) <= 2:
+        raise ValueError("plot_comparison: give one or two runs")
+    loaded = [run if isinstance(run, dict) else read_results(run) for run in runs]
+    return _plot_history.draw(loaded, out)
+
+
+def gradient(problem, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="full", adjoint="discrete",
+             adaptive=False, rtol=1e-6, atol=1e-9):
+    """psi = int_t0^t1 G(t, z, p) dt + phi(z(t1), p) and dpsi/dp for z' = F(t, z, p), z(t0) = z0(p), a
+    problem written in Python. `problem` has attributes state_size and parameter_size and methods
+    (arrays are 1-D NumPy float64 copies):
+        initial_state(p) -> z0                 rhs(t, z, p) -> F
+        rhs_jacobian(t, z, p) -> dF/dz (n, n)  and/or  rhs_state_vjp(t, z, p, w) -> (dF/dz)^T w
+        rhs_parameter_vjp(t, z, p, w) -> (dF/dp)^T w
+        integrand(t, z, p) -> G                integrand_state_gradient(t, z, p) -> dG/dz
+        integrand_parameter_gradient(t, z, p) -> dG/dp
+    optional: initial_state_vjp(p, lam) -> (dz0/dp)^T lam, terminal(z, p) -> phi with
+    terminal_gradient(z, p) -> (dphi/dz, dphi/dp), name.
+    Returns Result(psi, gradient, times, summary). Runs the C++ engine (any integrator, storage spec or
+    adjoint route) calling back into Python, so it is slower than a C++ problem (README "Python")."""
+    import numpy as np
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    return Result(_hindsight._gradient(problem, p, integrator, float(step), float(t0), float(t1), storage,
+                                       adjoint, bool(adaptive), float(rtol), float(atol)))
+
+
+def classic_gradient(name, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="full", adjoint="discrete",
+                     adaptive=False, rtol=1e-6, atol=1e-9):
+    """gradient() for a C++ problem of problems/classic: "oscillator" (p = k, c, y0), "decay" (p = k, a) or
+    "pendulum" (p = m, L, c, th0). The reference for a problem written in Python (README "Python" measures
+    the overhead with it); the GIL is released."""
+    import numpy as np
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    return Result(_hindsight._classic_gradient(name, p, integrator, float(step), float(t0), float(t1), storage,
+                                               adjoint, bool(adaptive), float(rtol), float(atol)))
+
+
+def storage_specs():
+    """Every storage strategy of the C++ factory with its keys and their documentation: a list of dicts
+    (name, summary, exact, example, key_docs = {key: doc})."""
+    return [Result(entry) for entry in _hindsight._storage_specs()]
+
+
+def check_storage_spec(spec):
+    """Parses `spec` with the C++ factory: the normalized spec, or ValueError naming the bad key/value."""
+    return _hindsight._check_storage_spec(spec)

@@ -1,0 +1,594 @@
+// hindsight._hindsight: the C++ side of the Python module `hindsight` (python/hindsight/__init__.py
+// wraps it; README "Python"). Everything goes through the library's own code paths: configurations
+// through configFromJson/applySetting/applyFlag (the CLI's validation and messages), storage specs
+// through the factory, the rod through PistonRod::evaluate as `hindsight evaluate` calls it, the
+// optimization through OptimizationRun as `hindsight optimize` runs it, results through
+// readResultsFile with all its checks.
+//
+// Errors: std::invalid_argument -> ValueError (pybind11's own translation), NumericalError ->
+// hindsight.NumericalError, StorageError -> hindsight.StorageError (both RuntimeError subclasses),
+// other std::exception -> RuntimeError; the message is e.what(), as the CLI prints it.
+//
+// The GIL is released while C++ simulates (rod evaluation, optimization); meanwhile the engine's
+// interrupt poll (engine/interrupt.h) re-acquires it every ~50 ms on the main thread and runs
+// PyErr_CheckSignals, so Ctrl-C raises KeyboardInterrupt out of a long evaluation. A problem written
+// in Python keeps the GIL (its callbacks are Python code, which sees Ctrl-C itself).
+#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/engine/interrupt.h>
+#include <hindsight/engine/problem.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/rod/design_io.h>
+#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/topopt/optimization_run.h>
+#include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/storage/storage_docs.h>
+#include <hindsight/storage/storage_factory.h>
+
+#include <pybind11/functional.h>
+#include <pybind11/iostream.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <chrono>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+namespace py = pybind11;
+
+namespace hindsight::python {
+namespace {
+
+// ---- Interruption ------------------------------------------------------------------------------
+
+std::thread::id mainThread;
+std::atomic<std::int64_t> nextPollNanoseconds{0};
+
+std::int64_t nowNanoseconds() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+/// The engine's interrupt poll while the GIL is released: at most every 50 ms, on the main thread only
+/// (Python runs signal handlers there), take the GIL and let Python run its handlers; a pending
+/// exception (KeyboardInterrupt) is thrown as error_already_set, which unwinds the computation.
+void pollPythonSignals() {
+  const std::int64_t now = nowNanoseconds();
+  if (now < nextPollNanoseconds.load(std::memory_order_relaxed)) return;
+  if (std::this_thread::get_id() != mainThread) return;
+  nextPollNanoseconds.store(now + 50'000'000, std::memory_order_relaxed);
+  py::gil_scoped_acquire gil;
+  if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+}
+
+/// Releases the GIL and installs the poll for the scope of a C++ computation.
+class Simulating {
+ public:
+  Simulating() : previous_(setInterruptPoll(&pollPythonSignals)) { nextPollNanoseconds = 0; }
+  ~Simulating() { setInterruptPoll(previous_); }
+  Simulating(const Simulating&) = delete;
+  Simulating& operator=(const Simulating&) = delete;
+
+ private:
+  InterruptPoll previous_;
+  py::gil_scoped_release release_;  // released after the poll is installed, re-acquired first
+};
+
+// ---- Conversions -------------------------------------------------------------------------------
+
+nlohmann::json toCppJson(const py::handle& value) {
+  const py::object dumps = py::module_::import("json").attr("dumps");
+  return nlohmann::json::parse(dumps(value).cast<std::string>());
+}
+
+py::object toPython(const nlohmann::json& value) {
+  return py::module_::import("json").attr("loads")(value.dump());
+}
+
+/// A NumPy array owning `values` (moved, no copy), with the given shape.
+py::array_t<double> ownedArray(std::vector<double>&& values, std::vector<py::ssize_t> shape) {
+  auto* owned = new std::vector<double>(std::move(values));
+  py::capsule free(owned, [](void* p) { delete static_cast<std::vector<double>*>(p); });
+  return py::array_t<double>(shape, owned->data(), free);
+}
+
+py::array_t<double> vectorArray(const Vector& v) {
+  return ownedArray(std::vector<double>(v.data(), v.data() + v.size()), {v.size()});
+}
+
+py::array_t<double> gridArray(const rod::RodConfig& config, const Vector& field, double interfaceValue) {
+  return ownedArray(designToGrid(config, field, interfaceValue),
+                    {config.elementsThroughHeight, config.elementsAlongLength});
+}
+
+/// The configuration from a dict (the JSON file's content), a path to a JSON file or None, then the
+/// overrides: "section.field" = value, or section = {field: value, ...}. The overrides are merged into
+/// the JSON and the whole is read once by configFromJson (the reader of --config files: same checks,
+/// messages naming the field), so their order does not matter (rod.endTime with rod.rampTime).
+Config makeConfig(const py::object& config, const py::dict& overrides) {
+  nlohmann::json json = nlohmann::json::object();
+  if (py::isinstance<py::str>(config)) {
+    json = toJson(readConfigFile(config.cast<std::string>()));
+  } else if (!config.is_none()) {
+    if (!py::isinstance<py::dict>(config))
+      throw std::invalid_argument("config must be a dict (the JSON configuration), a file path or None");
+    json = toCppJson(config);
+  }
+  const auto assign = [&](const std::string& key, const py::handle& value) {
+    const auto dot = key.find('.');
+    if (dot == std::string::npos || dot == 0 || dot + 1 == key.size() || key.find('.', dot + 1) != std::string::npos)
+      throw std::invalid_argument("override '" + key + "' must have the form section.field");
+    nlohmann::json& section = json[key.substr(0, dot)];
+    if (section.is_null()) section = nlohmann::json::object();
+    if (!section.is_object()) throw std::invalid_argument("config section '" + key.substr(0, dot) + "' must be a dict");
+    section[key.substr(dot + 1)] = toCppJson(value);
+  };
+  for (const auto& [keyObject, value] : overrides) {
+    const std::string key = py::str(keyObject);
+    if (key.find('.') != std::string::npos) {
+      assign(key, value);
+    } else if (py::isinstance<py::dict>(value)) {
+      for (const auto& [field, fieldValue] : value.cast<py::dict>()) assign(key + "." + std::string(py::str(field)), fieldValue);
+    } else {
+      throw std::invalid_argument("override '" + key +
+                                  "' must be a section given as a dict (rod={'modeCount': 8}) or a "
+                                  "'section.field' key");
+    }
+  }
+  return configFromJson(json);
+}
+
+// ---- The rod -----------------------------------------------------------------------------------
+
+class PyPistonRod {
+ public:
+  explicit PyPistonRod(Config config) : rod_(std::move(config)) {}
+
+  const Config& config() const { return rod_.config(); }
+  py::object configDict() const { return toPython(toJson(config())); }
+
+  Vector design(const py::array_t<double, py::array::c_style | py::array::forcecast>& x) const {
+    const rod::RodConfig& c = config().rod;
+    if (x.ndim() == 2 && x.shape(0) == c.elementsThroughHeight && x.shape(1) == c.elementsAlongLength) {
+      return gridToDesign(c, x.data(), "design x");
+    }
+    throw std::invalid_argument("design x must have shape (ny, nx) = (" + std::to_string(c.elementsThroughHeight) +
+                                ", " + std::to_string(c.elementsAlongLength) + "): rod.elementsThroughHeight x "
+                                "rod.elementsAlongLength, end columns 1");
+  }
+
+  py::array_t<double> x0() const { return gridArray(config().rod, rod_.initialDesign(), 1.0); }
+
+  py::dict evaluate(const py::array_t<double, py::array::c_style | py::array::forcecast>& x, bool gradient,
+                    const py::object& storage, const py::object& adjoint, const py::object& integrator,
+                    bool psi2Wanted) const {
+    // The per-call choices go through the CLI's flag path (same validation, messages naming the key).
+    Config config = rod_.config();
+    if (!storage.is_none()) applyFlag(config, "storage", "simulation.storage", storage.cast<std::string>());
+    if (!adjoint.is_none()) applyFlag(config, "adjoint", "simulation.adjoint", adjoint.cast<std::string>());
+    if (!integrator.is_none())
+      applyFlag(config, "integrator", "simulation.integrator", integrator.cast<std::string>());
+    if (config.simulation.model == RodModel::Full)
+      throw std::invalid_argument("simulation.model = full is not offered by PistonRod.evaluate; use the CLI");
+    const PistonRod rod(config);
+    const Vector design = this->design(x);
+    // As `hindsight evaluate`: psi2 needs fixed steps.
+    const bool psi2 = psi2Wanted && !config.simulation.adaptive;
+    PistonRodEvaluation result;
+    {
+      Simulating simulating;
+      result = rod.evaluate(design, {gradient, psi2, gradient && psi2});
+    }
+    const rod::RodConfig& c = config.rod;
+    py::dict out;
+    out["psi1"] = result.psi1;
+    out["psi2"] = psi2 ? py::object(py::float_(result.psi2)) : py::object(py::none());
+    out["volume_fraction"] = result.volumeFraction;
+    out["frequencies_hz"] = ownedArray(std::vector<double>(result.frequenciesHz),
+                                       {static_cast<py::ssize_t>(result.frequenciesHz.size())});
+    out["gap_ratio"] = result.gapRatio;
+    out["warning"] = result.warning;
+    out["dpsi1_dx"] = gradient ? py::object(gridArray(c, result.dpsi1, 0.0)) : py::object(py::none());
+    out["dpsi2_dx"] = gradient && psi2 ? py::object(gridArray(c, result.dpsi2, 0.0)) : py::object(py::none());
+    out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
+                                                  : py::object(py::none());
+    out["summary"] = toPython(summaryToJson(result.summary));
+    py::dict seconds;
+    seconds["model"] = result.modelSeconds;
+    seconds["simulation"] = result.simulationSeconds;
+    seconds["chain"] = result.chainSeconds;
+    seconds["esl"] = result.eslSeconds;
+    out["seconds"] = seconds;
+    return out;
+  }
+
+ private:
+  PistonRod rod_;
+};
+
+// ---- Results and optimization ------------------------------------------------------------------
+
+py::dict recordDict(const IterationRecord& r) {
+  py::dict d;
+  d["iteration"] = r.iteration;
+  d["psi1"] = r.psi1;
+  d["psi2"] = r.psi2;
+  d["volume_fraction"] = r.volumeFraction;
+  d["max_design_change"] = r.maxDesignChange;
+  d["backtracks"] = r.backtracks;
+  d["evaluation_seconds"] = r.evaluationSeconds;
+  d["mma_seconds"] = r.mmaSeconds;
+  d["total_seconds"] = r.totalSeconds;
+  return d;
+}
+
+/// The history as columns (the names of /history/<column> in results.h5).
+py::dict historyColumns(const std::vector<IterationRecord>& history) {
+  const auto column = [&](auto member) {
+    std::vector<double> values;
+    values.reserve(history.size());
+    for (const IterationRecord& r : history) values.push_back(static_cast<double>(r.*member));
+    return ownedArray(std::move(values), {static_cast<py::ssize_t>(history.size())});
+  };
+  const auto integerColumn = [&](int IterationRecord::*member) {
+    py::array_t<std::int32_t> values(static_cast<py::ssize_t>(history.size()));
+    auto view = values.mutable_unchecked<1>();
+    for (std::size_t k = 0; k < history.size(); ++k) view(static_cast<py::ssize_t>(k)) = history[k].*member;
+    return values;
+  };
+  py::dict d;
+  d["iteration"] = integerColumn(&IterationRecord::iteration);
+  d["psi1"] = column(&IterationRecord::psi1);
+  d["psi2"] = column(&IterationRecord::psi2);
+  d["backtracks"] = integerColumn(&IterationRecord::backtracks);
+  d["volume_fraction"] = column(&IterationRecord::volumeFraction);
+  d["max_design_change"] = column(&IterationRecord::maxDesignChange);
+  d["evaluation_seconds"] = column(&IterationRecord::evaluationSeconds);
+  d["mma_seconds"] = column(&IterationRecord::mmaSeconds);
+  d["total_seconds"] = column(&IterationRecord::totalSeconds);
+  return d;
+}
+
+py::dict readResults(const std::string& path) {
+  ResultsData data;
+  {
+    py::gil_scoped_release release;
+    data = readResultsFile(path);
+  }
+  py::dict out;
+  out["history"] = historyColumns(data.history);
+  std::vector<double> designs;
+  designs.reserve(data.densities.size() * static_cast<std::size_t>(data.nx) * data.ny);
+  for (const Vector& grid : data.densities) designs.insert(designs.end(), grid.data(), grid.data() + grid.size());
+  out["designs"] = ownedArray(std::move(designs), {static_cast<py::ssize_t>(data.densities.size()), data.ny, data.nx});
+  out["configuration"] = py::module_::import("json").attr("loads")(data.configurationJson);
+  out["nx"] = data.nx;
+  out["ny"] = data.ny;
+  out["finished"] = data.finished;
+  out["checksummed"] = data.checksummed;
+  out["next_design"] = vectorArray(data.state.design);
+  out["final_frequencies_hz"] = data.finalFrequenciesHz;
+  // dofCount x modeCount in memory; the file's /final/modes is modeCount x dofCount (row = mode).
+  const Matrix modes = data.finalModes.transpose();
+  out["final_modes"] = ownedArray(std::vector<double>(modes.data(), modes.data() + modes.size()),
+                                  {static_cast<py::ssize_t>(modes.cols()), static_cast<py::ssize_t>(modes.rows())});
+  return out;
+}
+
+/// Stops an optimization from its callback (the callback returned False); not an error.
+struct StopRequested {};
+
+py::dict optimize(const Config& config, const std::string& out, bool resume, bool force,
+                  const py::object& callback, bool verbose) {
+  OptimizationRunOptions options;
+  options.outputDirectory = out;
+  options.resume = resume;
+  options.force = force;
+  if (!callback.is_none()) {
+    options.afterCommit = [&callback](const IterationRecord& record) {
+      py::gil_scoped_acquire gil;
+      const py::object answer = callback(recordDict(record));
+      if (py::isinstance<py::bool_>(answer) && !answer.cast<bool>()) throw StopRequested{};
+    };
+  }
+  OptimizationRun run(config, options);  // every input check, before any evaluation
+  bool stopped = false;
+  {
+    // Progress lines go to Python's sys.stdout (a notebook shows them), or nowhere.
+    std::ostringstream discard;
+    py::object stdoutObject = py::module_::import("sys").attr("stdout");
+    py::detail::pythonbuf buffer(stdoutObject);
+    std::ostream progress(&buffer);
+    Simulating simulating;
+    try {
+      run.run(verbose ? progress : static_cast<std::ostream&>(discard));
+    } catch (const StopRequested&) {
+      stopped = true;
+    }
+    progress.flush();
+  }
+  py::dict result = readResults(run.resultsPath());
+  result["results_path"] = run.resultsPath();
+  result["stopped_by_callback"] = stopped;
+  return result;
+}
+
+// ---- A problem written in Python ----------------------------------------------------------------
+
+/// Adapts a Python object with the methods of README "Python" to hindsight::Problem. Called with the
+/// GIL held (hindsight.gradient does not release it for a Python problem). Arrays handed to Python
+/// are copies (the engine's buffers are reused); results are checked for shape.
+class PythonProblem final : public Problem {
+ public:
+  explicit PythonProblem(py::object object) : object_(std::move(object)) {
+    stateSize_ = attribute("state_size").cast<int>();
+    parameterSize_ = attribute("parameter_size").cast<int>();
+    if (stateSize_ < 1) throw std::invalid_argument("problem.state_size must be >= 1");
+    if (parameterSize_ < 0) throw std::invalid_argument("problem.parameter_size must be >= 0");
+    name_ = py::hasattr(object_, "name") ? py::str(object_.attr("name")).cast<std::string>()
+                                         : py::str(py::type::of(object_).attr("__name__")).cast<std::string>();
+    hasJacobian_ = py::hasattr(object_, "rhs_jacobian");
+    hasStateVjp_ = py::hasattr(object_, "rhs_state_vjp");
+    if (!hasJacobian_ && !hasStateVjp_)
+      throw std::invalid_argument("problem needs rhs_jacobian(t, z, p) or rhs_state_vjp(t, z, p, w)");
+    for (const char* method : {"initial_state", "rhs", "rhs_parameter_vjp", "integrand", "integrand_state_gradient",
+                               "integrand_parameter_gradient"}) {
+      if (!py::hasattr(object_, method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
+    }
+    hasTerminal_ = py::hasattr(object_, "terminal");
+    if (hasTerminal_ && !py::hasattr(object_, "terminal_gradient"))
+      throw std::invalid_argument("problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
+    hasInitialVjp_ = py::hasattr(object_, "initial_state_vjp");
+  }
+
+  std::string name() const override { return name_; }
+  int stateSize() const override { return stateSize_; }
+  int parameterSize() const override { return parameterSize_; }
+  bool hasDenseJacobian() const override { return hasJacobian_; }
+  bool hasStateVjp() const override { return hasStateVjp_; }
+
+  void initialState(ConstVectorRef p, VectorRef z0) const override {
+    copyInto("initial_state", object_.attr("initial_state")(array(p)), z0);
+  }
+  void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const override {
+    if (!hasInitialVjp_) return;
+    addInto("initial_state_vjp", object_.attr("initial_state_vjp")(array(p), array(lambda0)), gradient, 1.0);
+  }
+  void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
+    copyInto("rhs", object_.attr("rhs")(t, array(z), array(p)), f);
+  }
+  void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
+                   ProblemWorkspace*) const override {
+    const auto result = checked("rhs_jacobian", object_.attr("rhs_jacobian")(t, array(z), array(p)), stateSize_,
+                                stateSize_);
+    const auto view = result.unchecked<2>();
+    for (int i = 0; i < stateSize_; ++i)
+      for (int j = 0; j < stateSize_; ++j) jacobian(i, j) = view(i, j);
+  }
+  void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                   ProblemWorkspace*) const override {
+    if (!hasStateVjp_) {  // from the Jacobian
+      Matrix jacobian(stateSize_, stateSize_);
+      rhsJacobian(t, z, p, jacobian, nullptr);
+      out.noalias() = jacobian.transpose() * w;
+      return;
+    }
+    copyInto("rhs_state_vjp", object_.attr("rhs_state_vjp")(t, array(z), array(p), array(w)), out);
+  }
+  void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
+                          ProblemWorkspace*) const override {
+    addInto("rhs_parameter_vjp", object_.attr("rhs_parameter_vjp")(t, array(z), array(p), array(w)), out, 1.0);
+  }
+  double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace*) const override {
+    return object_.attr("integrand")(t, array(z), array(p)).cast<double>();
+  }
+  void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
+                                 ProblemWorkspace*) const override {
+    addInto("integrand_state_gradient", object_.attr("integrand_state_gradient")(t, array(z), array(p)), out, scale);
+  }
+  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
+                                     ProblemWorkspace*) const override {
+    addInto("integrand_parameter_gradient", object_.attr("integrand_parameter_gradient")(t, array(z), array(p)), out,
+            scale);
+  }
+  double terminal(ConstVectorRef z, ConstVectorRef p) const override {
+    return hasTerminal_ ? object_.attr("terminal")(array(z), array(p)).cast<double>() : 0.0;
+  }
+  void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override {
+    if (!hasTerminal_) return;
+    const py::tuple both = object_.attr("terminal_gradient")(array(z), array(p));
+    if (both.size() != 2)
+      throw std::invalid_argument("problem.terminal_gradient must return (dphi/dz, dphi/dp)");
+    addInto("terminal_gradient[0]", both[0], gz, 1.0);
+    addInto("terminal_gradient[1]", both[1], gp, 1.0);
+  }
+
+ private:
+  py::object attribute(const char* name) const {
+    if (!py::hasattr(object_, name)) throw std::invalid_argument(std::string("problem needs an attribute ") + name);
+    return object_.attr(name);
+  }
+  static py::array_t<double> array(ConstVectorRef v) {
+    return py::array_t<double>(v.size(), v.data());  // a copy: the engine reuses its buffers
+  }
+  using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+  static Array checked(const char* method, const py::handle& value, py::ssize_t rows, py::ssize_t cols = -1) {
+    Array a = Array::ensure(value);
+    const bool ok = a && (cols < 0 ? (a.ndim() == 1 && a.shape(0) == rows)
+                                   : (a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == cols));
+    if (!ok) {
+      throw std::invalid_argument("problem." + std::string(method) + " must return an array of shape (" +
+                                  std::to_string(rows) + (cols < 0 ? ",)" : ", " + std::to_string(cols) + ")") +
+                                  ", got " + py::repr(value).cast<std::string>().substr(0, 80));
+    }
+    return a;
+  }
+  static void copyInto(const char* method, const py::handle& value, VectorRef out) {
+    const Array a = checked(method, value, out.size());
+    for (Eigen::Index i = 0; i < out.size(); ++i) out(i) = a.data()[i];
+  }
+  static void addInto(const char* method, const py::handle& value, VectorRef out, double scale) {
+    const Array a = checked(method, value, out.size());
+    for (Eigen::Index i = 0; i < out.size(); ++i) out(i) += scale * a.data()[i];
+  }
+
+  py::object object_;
+  std::string name_;
+  int stateSize_ = 0, parameterSize_ = 0;
+  bool hasJacobian_ = false, hasStateVjp_ = false, hasTerminal_ = false, hasInitialVjp_ = false;
+};
+
+GradientOptions gradientOptions(const std::string& integrator, double step, double t0, double t1,
+                                const std::string& storage, const std::string& adjoint, bool adaptive, double rtol,
+                                double atol) {
+  GradientOptions options;
+  options.adjoint = parseAdjointMethod(adjoint);
+  options.integrator.method = integrator;
+  options.integrator.step = step;
+  options.integrator.t0 = t0;
+  options.integrator.t1 = t1;
+  options.integrator.adaptive = adaptive;
+  options.integrator.relativeTolerance = rtol;
+  options.integrator.absoluteTolerance = atol;
+  options.storage = storage;
+  options.cvodes.relativeTolerance = rtol;
+  options.cvodes.absoluteTolerance = atol;
+  return options;
+}
+
+py::dict gradientDict(const GradientResult& result) {
+  py::dict out;
+  out["psi"] = result.objective;
+  out["gradient"] = vectorArray(result.gradient);
+  out["times"] = ownedArray(std::vector<double>(result.times), {static_cast<py::ssize_t>(result.times.size())});
+  out["summary"] = toPython(summaryToJson(result.summary));
+  return out;
+}
+
+Vector parameterVector(const py::array_t<double, py::array::c_style | py::array::forcecast>& p, int size,
+                       const std::string& what) {
+  if (p.ndim() != 1 || p.shape(0) != size) {
+    throw std::invalid_argument("p must be a 1-D array of " + what + " = " + std::to_string(size) + " values");
+  }
+  return Eigen::Map<const Vector>(p.data(), p.shape(0));
+}
+
+/// The C++ problems of problems/classic by name, for comparisons with a problem written in Python.
+py::dict classicGradient(const std::string& name, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                         const GradientOptions& options) {
+  std::unique_ptr<Problem> problem;
+  if (name == "oscillator") {
+    problem = std::make_unique<Oscillator>();
+  } else if (name == "decay") {
+    problem = std::make_unique<ExponentialDecay>();
+  } else if (name == "pendulum") {
+    problem = std::make_unique<Pendulum>();
+  } else {
+    throw std::invalid_argument("classic problem '" + name + "' is not offered; known: oscillator, decay, pendulum");
+  }
+  const Vector parameters = parameterVector(p, problem->parameterSize(), "the problem's parameter count");
+  GradientResult result;
+  {
+    Simulating simulating;
+    result = computeGradientByMethod(*problem, parameters, options);
+  }
+  return gradientDict(result);
+}
+
+py::dict gradient(const py::object& problem, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                  const std::string& integrator, double step, double t0, double t1, const std::string& storage,
+                  const std::string& adjoint, bool adaptive, double rtol, double atol) {
+  const PythonProblem adapter(problem);
+  const Vector parameters = parameterVector(p, adapter.parameterSize(), "problem.parameter_size");
+  const GradientOptions options = gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol);
+  return gradientDict(computeGradientByMethod(adapter, parameters, options));
+}
+
+py::list storageSpecs() {
+  py::list out;
+  for (const std::string& name : storageStrategyNames()) {
+    py::dict entry;
+    entry["name"] = name;
+    const StorageStrategyDoc* doc = findStorageStrategyDoc(name);
+    py::dict keys;
+    for (const std::string& key : storageStrategyKeys(name)) {
+      std::string text;
+      if (doc != nullptr) {
+        for (const StorageKeyDoc& k : doc->keys) {
+          if (k.key == key) text = k.doc;
+        }
+      }
+      keys[py::str(key)] = text;
+    }
+    entry["key_docs"] = keys;
+    entry["summary"] = doc != nullptr ? doc->summary : std::string();
+    entry["exact"] = doc != nullptr ? py::object(py::bool_(doc->exact)) : py::object(py::none());
+    entry["example"] = doc != nullptr ? doc->example : name;
+    out.append(entry);
+  }
+  return out;
+}
+
+}  // namespace
+}  // namespace hindsight::python
+
+PYBIND11_MODULE(_hindsight, m) {
+  using namespace hindsight;
+  using namespace hindsight::python;
+  m.doc() = "C++ side of the hindsight Python module; use the package `hindsight`.";
+  mainThread = std::this_thread::get_id();
+
+  // RuntimeError subclasses; registered after pybind11's own translators, so they win for these types.
+  py::register_exception<NumericalError>(m, "NumericalError", PyExc_RuntimeError).attr("__doc__") =
+      "A numerical failure of a simulation (Newton divergence, step-size underflow, non-finite state).";
+  py::register_exception<StorageError>(m, "StorageError", PyExc_RuntimeError).attr("__doc__") =
+      "A trajectory-storage or results-file failure (unwritable, full, corrupted, over budget).";
+
+  m.attr("__version__") = version();
+
+  py::class_<PyPistonRod>(m, "PistonRod")
+      .def(py::init([](const py::object& config, const py::kwargs& overrides) {
+             return PyPistonRod(makeConfig(config, overrides));
+           }),
+           py::arg("config") = py::none())
+      .def_property_readonly("config", &PyPistonRod::configDict)
+      .def_property_readonly("x0", &PyPistonRod::x0)
+      .def_property_readonly("design_count", [](const PyPistonRod& r) { return r.config().rod.designCount(); })
+      .def_property_readonly("shape", [](const PyPistonRod& r) {
+        return py::make_tuple(r.config().rod.elementsThroughHeight, r.config().rod.elementsAlongLength);
+      })
+      .def("design_variables", [](const PyPistonRod& r, const py::array_t<double, py::array::c_style |
+                                                                          py::array::forcecast>& x) {
+        return vectorArray(r.design(x));
+      })
+      .def("design_grid", [](const PyPistonRod& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& v,
+                             double interfaceValue) {
+        const Vector values = Eigen::Map<const Vector>(v.data(), v.size());
+        return gridArray(r.config().rod, values, interfaceValue);
+      }, py::arg("values"), py::arg("interface_value") = 1.0)
+      .def("_evaluate", &PyPistonRod::evaluate, py::arg("x"), py::arg("gradient"), py::arg("storage"),
+           py::arg("adjoint"), py::arg("integrator"), py::arg("psi2"));
+
+  m.def("_make_config", [](const py::object& config, const py::kwargs& overrides) {
+    return toPython(toJson(makeConfig(config, overrides)));
+  }, py::arg("config") = py::none());
+  m.def("_optimize", [](const py::object& config, const std::string& out, bool resume, bool force,
+                        const py::object& callback, bool verbose, const py::kwargs& overrides) {
+    return optimize(makeConfig(config, overrides), out, resume, force, callback, verbose);
+  });
+  m.def("_read_results", &readResults);
+  m.def("_gradient", &gradient);
+  m.def("_classic_gradient", [](const std::string& name, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                                const std::string& integrator, double step, double t0, double t1, const std::string& storage,
+                                const std::string& adjoint, bool adaptive, double rtol, double atol) {
+    return classicGradient(name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol));
+  });
+  m.def("_storage_specs", &storageSpecs);
+  m.def("storage_strategy_names", &storageStrategyNames, "Names of the storage strategies (the C++ factory's).");
+  m.def("_check_storage_spec", [](const std::string& spec) { return createStorage(spec)->spec(); },
+        "Parses a storage spec with the C++ factory; ValueError for a bad one. Returns the normalized spec.");
+}

@@ -1,0 +1,73 @@
+#include <hindsight/storage/storage_docs.h>
+
+namespace hindsight {
+namespace {
+
+const char* const kBudget = "bytes the strategy may hold in memory, e.g. 512MiB (default 4 GiB); exceeding it is a "
+                            "StorageError";
+
+}  // namespace
+
+const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
+  // Texts condensed from the header comment of each strategy (storage/*.h, engine/full_storage.h).
+  static const std::vector<StorageStrategyDoc> docs = {
+      {"full", "every step's state in memory; nothing is recomputed", true, "full", {{"budget", kBudget}}},
+      {"hermite",
+       "(z, z') at every M-th grid point, states in between from cubic Hermite interpolation; the gradient "
+       "error shrinks like (M h)^4",
+       false,
+       "hermite:every=4",
+       {{"every", "keep every M-th grid point, M in [1, 1e9] (default 10)"}, {"budget", kBudget}}},
+      {"disk",
+       "every step's state in an HDF5 file (chunked, shuffled, zstd), written and read by a background thread",
+       true,
+       "disk:dir=/tmp/hindsight",
+       {{"dir", "directory of the file, created if missing (required)"},
+        {"level", "zstd level in [1, 22] (default 3)"},
+        {"chunk", "states per HDF5 chunk and I/O buffer, in [1, 2^30] (default: about 1 MiB of states, at most 4096)"},
+        {"budget", "bytes of the I/O buffers held in memory (default 64 MiB)"},
+        {"keep", "true | false: keep the file after the backward sweep (default false)"}}},
+      {"lossy",
+       "every step's state in memory, compressed with a bounded error (ZFP absolute or mantissa rounding "
+       "relative); the gradient error is O(tolerance)",
+       false,
+       "lossy:codec=zfp,tolerance=1e-10",
+       {{"codec", "zfp (absolute error bound) | round (relative error bound, tolerance in (0, 0.5]); required"},
+        {"tolerance", "the error bound T > 0; required"},
+        {"budget", kBudget},
+        {"block", "states compressed together, in [1, 2^30] (default: about 256 KiB of states, at most 4096)"}}},
+      {"multilevel",
+       "states in memory up to a RAM budget, then in an HDF5 file up to a disk budget, then every k-th state "
+       "with recomputation of the others",
+       true,
+       "multilevel:ram=64MiB,disk=1GiB",
+       {{"ram", "bytes held in memory (required)"},
+        {"disk", "bytes of states written to the file, counted uncompressed (required)"},
+        {"dir", "directory of the file (default: the system temp directory)"},
+        {"level", "zstd level in [1, 22] (default 3)"},
+        {"keep", "true | false: keep the file after the backward sweep (default false)"}}},
+      {"binomial",
+       "revolve-optimal offline checkpointing for a known number of steps (Griewank & Walther 2000); fixed "
+       "steps only",
+       true,
+       "binomial:checkpoints=50",
+       {{"checkpoints", "number of checkpoints c in [1, 1e9] (default 1)"}, {"budget", kBudget}}},
+      {"online",
+       "checkpointing while the number of steps is unknown (adaptive steps), re-planned with the binomial "
+       "schedule once it is known",
+       true,
+       "online:checkpoints=50",
+       {{"checkpoints", "number of checkpoints c in [1, 1e9] (default: as many as the budget holds)"},
+        {"budget", kBudget}}},
+  };
+  return docs;
+}
+
+const StorageStrategyDoc* findStorageStrategyDoc(const std::string& name) {
+  for (const StorageStrategyDoc& doc : storageStrategyDocs()) {
+    if (doc.name == name) return &doc;
+  }
+  return nullptr;
+}
+
+}  // namespace hindsight
