@@ -8,6 +8,7 @@
 #include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
+#include <hindsight/problems/rod/scenarios.h>
 
 #include <nlohmann/json.hpp>
 
@@ -62,12 +63,18 @@ struct OptimizationSettings {
   /// values keep the inertia-loaded rod away from the soft, mechanism-like designs that large first
   /// steps reach (see problems/topology_optimizer.h).
   double moveLimit = 0.5;
+  /// With scenarios: sum (weighted sum of the scenarios' relative objectives) | max (the worst
+  /// scenario, MMA's bound formulation); problems/rod/scenarios.h. Written to JSON only when it
+  /// matters (scenarios given or max), so a configuration without scenarios reads and writes as before.
+  Aggregate aggregate = Aggregate::Sum;
 };
 
 struct Config {
   rod::RodConfig rod;
   SimulationSettings simulation;
   OptimizationSettings optimization;
+  /// Operating scenarios (problems/rod/scenarios.h); empty: the one scenario of `rod`.
+  std::vector<Scenario> scenarios;
 
   /// Checks every field; throws std::invalid_argument naming the field, value and range.
   void validate() const;

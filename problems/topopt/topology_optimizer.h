@@ -38,6 +38,7 @@
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/topopt/density_filter.h>
 #include <hindsight/problems/topopt/mma.h>
+#include <hindsight/problems/topopt/scenario_objective.h>
 
 #include <limits>
 #include <optional>
@@ -57,6 +58,12 @@ struct IterationRecord {
   double mmaSeconds = 0.0;
   double totalSeconds = 0.0;  ///< evaluation + MMA (OptimizationRun adds its picture writing)
   int backtracks = 0;         ///< halvings toward the previous design after a diverged simulation
+  /// With scenarios (problems/rod/scenarios.h): every scenario's psi1 and psi2, in scenario order;
+  /// psi1 and psi2 above are then those of the worst scenario (largest w_s psi_s / psi_s(x0) of the
+  /// optimized objective). Empty without scenarios.
+  std::vector<double> scenarioPsi1;
+  std::vector<double> scenarioPsi2;
+  int worstScenario = -1;  ///< index of the worst scenario (with scenarios), else -1
 };
 
 /// What carries over between iterations.
@@ -65,16 +72,28 @@ struct OptimizerState {
   Vector design;                ///< x_iteration, the design variables (designCount)
   MmaState mma;                 ///< MMA after `iteration` updates
   double objectiveScale = 0.0;  ///< psi(x0); 0 until the first evaluation
+  /// With scenarios: psi_s(x0) per scenario (empty until the first evaluation and without scenarios);
+  /// objectiveScale is then the aggregate at x0 (sum or max of the weights).
+  Vector scenarioScales;
+  /// With aggregate max: MMA's state of the bound variable z (xold1, xold2, low, upp); else empty.
+  Vector bound;
 };
 
 class TopologyOptimizer final {
  public:
-  /// Validates the configuration (std::invalid_argument naming the field). Starts from x0.
-  explicit TopologyOptimizer(const Config& config);
+  /// Validates the configuration (std::invalid_argument naming the field). Starts from x0. With
+  /// several processes (problems/topopt/communicator.h) every rank constructs one and calls step()
+  /// in lockstep; each evaluates its own scenarios and all hold the same state.
+  explicit TopologyOptimizer(const Config& config, const Communicator& communicator = Communicator::world());
 
-  const Config& config() const { return rod_.config(); }
-  const PistonRod& rod() const { return rod_; }
-  int designCount() const { return rod_.designCount(); }
+  /// The configuration (with its scenarios, if any).
+  const Config& config() const { return config_; }
+  /// The rod of the first scenario (the rod itself without scenarios).
+  const PistonRod& rod() const { return scenarios_.rod(0); }
+  const ScenarioObjective& scenarios() const { return scenarios_; }
+  int designCount() const { return config_.rod.designCount(); }
+  /// True with several scenarios and optimization.aggregate = max: MMA carries the bound variable z.
+  bool boundFormulation() const { return bound_; }
 
   const OptimizerState& state() const { return state_; }
   /// Continues from a stored state. Throws std::invalid_argument when sizes do not match the
@@ -90,7 +109,8 @@ class TopologyOptimizer final {
   /// (NumericalError, std::runtime_error) and leave the state unchanged.
   IterationRecord step();
 
-  /// The evaluation made by the last step() (modes, frequencies, gradients); empty before.
+  /// The evaluation made by the last step() (modes, frequencies, gradients) of the first scenario
+  /// this rank owns (rank 0: scenario 0); empty before, and on a rank that owns no scenario.
   const std::optional<PistonRodEvaluation>& lastEvaluation() const { return last_; }
   /// The design variables evaluated by the last step() (x_k after any backtracking); empty before.
   const Vector& lastEvaluatedDesign() const { return lastDesign_; }
@@ -107,11 +127,19 @@ class TopologyOptimizer final {
 
  private:
   Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
+  MmaState fullMmaState(const OptimizerState& state) const;  // state.mma with z's entries appended
   Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 
-  PistonRod rod_;
+  // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
+  void updateScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
+                       IterationRecord& record);
+
+  Config config_;
+  ScenarioObjective scenarios_;
+  bool multiple_;  // the configuration lists scenarios
+  bool bound_;     // multiple_ and aggregate max
   DensityFilter filter_;
   Mma mma_;
   OptimizerState state_;
