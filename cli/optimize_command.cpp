@@ -104,6 +104,12 @@ int runOptimize(const OptimizeSettings& s) {
               << ", psi2: " << first.psi2 << " -> " << last.psi2 << ", V/V0 " << last.volumeFraction << "; "
               << summary.history.size() << " evaluations, " << std::setprecision(4) << summary.wallSeconds
               << " s in this invocation\n";
+    if (!config.scenarios.empty() || world.parallel()) {
+      const TopologyOptimizer::Times& t = run.optimizer().times();
+      out << std::setprecision(4) << "rank 0: " << t.localSeconds << " s evaluating its scenarios, "
+          << t.exchangeSeconds << " s in the exchange of results (waiting included; smallest "
+          << t.smallestExchangeSeconds * 1e3 << " ms)\n";
+    }
   }
   return 0;
 }

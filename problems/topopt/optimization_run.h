@@ -59,6 +59,7 @@ class OptimizationRun {
   OptimizationRun(const Config& config, const OptimizationRunOptions& options);
 
   const std::string& resultsPath() const { return resultsPath_; }
+  const TopologyOptimizer& optimizer() const { return optimizer_; }
   /// Number of iterations found in the results file (0 for a fresh run).
   int resumedIterations() const { return static_cast<int>(data_.history.size()); }
 

@@ -7,7 +7,9 @@ usage: plot_history.py RESULTS.h5 [RESULTS2.h5] --out FILE.png
 Reads the results files written by `hindsight optimize` (layout in problems/topopt/results_file.h) with h5py
 and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every file psi1 is drawn over
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
-stored design of every file (density 1 black, 0 white, joint A on the left).
+stored design of every file (density 1 black, 0 white, joint A on the left). A run with operating
+scenarios (issue #15; /scenarios in the file) draws psi1 of every scenario (thin lines, named) and
+of the worst one (thick).
 """
 import argparse
 import json
@@ -31,8 +33,10 @@ def load(path):
         config = json.loads(text(f.attrs["configuration"]))
         history = {name: f["history"][name][()] for name in f["history"]}
         designs = f["designs"][()]
+        scenarios = f["scenarios"]["psi1"][()] if "scenarios" in f else None
         finished = int(f.attrs["finished"]) == 1
-    return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished}
+    return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished,
+            "scenarios": scenarios}
 
 
 def main():
@@ -54,6 +58,12 @@ def main():
         iterations = run["history"]["iteration"]
         psi1 = run["history"]["psi1"]
         color = colors[index % len(colors)]
+        if run["scenarios"] is not None:
+            names = [scenario["name"] for scenario in run["config"].get("scenarios", [])]
+            for s, name in enumerate(names):
+                axis.plot(iterations, run["scenarios"][:, s], "-", linewidth=0.8, alpha=0.7,
+                          label=f"{label}: psi1 of scenario {name}, final {run['scenarios'][-1, s]:.4g}")
+            label += " worst scenario"
         axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
         if objective == "psi2":
             axis.plot(iterations, run["history"]["psi2"], "--", color=color, label=f"{label}: psi2 (minimised)")

@@ -1,9 +1,9 @@
 #include <hindsight/problems/topopt/scenario_objective.h>
 
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/parallel.h>
 
 #include <exception>
-#include <limits>
 #include <stdexcept>
 
 namespace hindsight {
@@ -37,13 +37,16 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
   std::vector<std::optional<PistonRodEvaluation>> evaluations(mine.size());
   std::vector<std::exception_ptr> errors(mine.size());
   std::vector<int> status(mine.size(), kOk);
+  std::vector<double> times(mine.size(), 0.0);  // of a NumericalError
+  Stopwatch timer;
   parallelFor(static_cast<int>(mine.size()), [&](int k) {
     const auto slot = static_cast<std::size_t>(k);
     try {
       evaluations[slot] = rods_[static_cast<std::size_t>(mine[slot])].evaluate(design, request);
-    } catch (const NumericalError&) {
+    } catch (const NumericalError& e) {
       errors[slot] = std::current_exception();
       status[slot] = kNumerical;
+      times[slot] = e.time();
     } catch (...) {
       errors[slot] = std::current_exception();
       status[slot] = kFailed;
@@ -61,6 +64,7 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
   for (std::size_t k = 0; k < mine.size(); ++k) {
     double* p = send.data() + k * packet;
     p[0] = status[k];
+    p[1] = times[k];
     if (status[k] != kOk) continue;
     const PistonRodEvaluation& e = *evaluations[k];
     p[1] = e.psi1;
@@ -70,7 +74,9 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
     if (gradient) std::copy(g.data(), g.data() + n, p + 4);
     std::copy(e.dvolume.data(), e.dvolume.data() + n, p + 4 + n);
   }
+  const double localSeconds = timer.restart();
   const std::vector<double> all = communicator_.allGather(send);
+  const double exchangeSeconds = timer.seconds();
 
   // Rank r's packets come in its scenario order r, r + N, r + 2N, ...
   const int ranks = communicator_.size();
@@ -91,17 +97,22 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
       if (mine[k] != s) continue;
       try {
         std::rethrow_exception(errors[k]);
+      } catch (const NumericalError& e) {
+        text = e.what();
+        text = text.substr(0, text.rfind(" (at t = "));  // NumericalError adds it again below
       } catch (const std::exception& e) {
         text = e.what();
       } catch (...) {
         text = "an unknown exception";
       }
     }
-    if (code == kNumerical) throw NumericalError(who + ": " + text, std::numeric_limits<double>::quiet_NaN());
+    if (code == kNumerical) throw NumericalError(who + ": " + text, packets[static_cast<std::size_t>(s)][1]);
     throw std::runtime_error(who + ": " + text);
   }
 
   ScenarioResults out;
+  out.localSeconds = localSeconds;
+  out.exchangeSeconds = exchangeSeconds;
   for (int s = 0; s < total; ++s) {
     const double* p = packets[static_cast<std::size_t>(s)];
     out.psi1.push_back(p[1]);

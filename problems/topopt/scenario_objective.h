@@ -32,6 +32,8 @@ struct ScenarioResults {
   std::vector<Vector> gradient;  ///< per scenario: d psi_s / dx of the requested objective (or empty)
   double volumeFraction = 0.0;   ///< the design's (the same in every scenario)
   Vector dvolume;
+  double localSeconds = 0.0;     ///< this rank's evaluation of its own scenarios (wall)
+  double exchangeSeconds = 0.0;  ///< in the exchange, waiting for the slowest rank included (wall)
   /// This rank's full evaluation of the first scenario it owns (modes, frequencies); rank 0: scenario 0.
   std::optional<PistonRodEvaluation> local;
 };

@@ -183,6 +183,12 @@ IterationRecord TopologyOptimizer::step() {
     }
   }
   ScenarioResults& evaluation = *evaluated;
+  times_.localSeconds += evaluation.localSeconds;
+  times_.exchangeSeconds += evaluation.exchangeSeconds;
+  times_.smallestExchangeSeconds = times_.exchanges == 0 ? evaluation.exchangeSeconds
+                                                         : std::min(times_.smallestExchangeSeconds,
+                                                                    evaluation.exchangeSeconds);
+  ++times_.exchanges;
   record.psi1 = evaluation.psi1[0];
   record.psi2 = evaluation.psi2[0];
   record.volumeFraction = evaluation.volumeFraction;

@@ -115,6 +115,17 @@ class TopologyOptimizer final {
   /// The design variables evaluated by the last step() (x_k after any backtracking); empty before.
   const Vector& lastEvaluatedDesign() const { return lastDesign_; }
 
+  /// Wall time of this process over all step() calls: evaluating its own scenarios, and in the
+  /// exchange of the scenarios' results between ranks (waiting for the slowest rank included);
+  /// the smallest exchange of one step estimates the pure communication cost.
+  struct Times {
+    double localSeconds = 0.0;
+    double exchangeSeconds = 0.0;
+    double smallestExchangeSeconds = 0.0;
+    int exchanges = 0;
+  };
+  const Times& times() const { return times_; }
+
   /// Halvings toward the previous design before a failed simulation is reported.
   static constexpr int maxBacktracks = 10;
   /// An objective above this multiple of psi(x0) counts as a diverged response.
@@ -146,6 +157,7 @@ class TopologyOptimizer final {
   bool finished_ = false;
   std::optional<PistonRodEvaluation> last_;
   Vector lastDesign_;
+  Times times_;
 };
 
 }  // namespace hindsight
