@@ -4,6 +4,7 @@
 // change a bit, and a resumed scenario run equal to an uninterrupted one. The rank-count tests run
 // the real executable under mpirun (tests/mpi/, ctest label mpi).
 #include <hindsight/problems/rod/design_gradient.h>
+#include <hindsight/problems/rod/esl.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
@@ -14,6 +15,8 @@
 #include <hindsight/problems/topopt/topology_optimizer.h>
 
 #include <gtest/gtest.h>
+
+#include <Eigen/SparseCholesky>
 
 #include <unistd.h>
 #include <cstring>
@@ -251,6 +254,29 @@ TEST(Scenarios, TheChainOfEveryModeInParallelGivesTheSerialBits) {
     gradients.push_back(rod::computeDesignGradient(model, basis, weights).gradient);
   }
   EXPECT_TRUE(sameBits(gradients[0], gradients[1]));
+}
+
+TEST(Scenarios, EquivalentStaticLoadsInParallelGiveTheSerialBits) {
+  rod::RodConfig rc;
+  rc.elementsAlongLength = 40;
+  rc.elementsThroughHeight = 4;
+  const int designs = rc.designCount();
+  Vector design(designs);
+  for (int d = 0; d < designs; ++d) design(d) = 0.2 + 0.7 * ((d * 53) % 97) / 97.0;
+  const rod::FeModel model(rc, design);
+  Matrix loads(model.freeDofCount(), 37);  // 37 load cases: blocks of unequal width
+  for (Eigen::Index i = 0; i < loads.size(); ++i) loads.data()[i] = std::cos(0.37 * static_cast<double>(i));
+  std::vector<rod::EslResult> results;
+  for (int threads : {1, 2}) {
+    const ThreadLimit limit(threads);
+    results.push_back(rod::evaluateEsl(model, loads, 3.0));
+  }
+  EXPECT_TRUE(sameBits(results[0].value, results[1].value));
+  EXPECT_TRUE(sameBits(results[0].gradient, results[1].gradient));
+  // Every column is the solve of that load case alone (the block split cannot change a bit).
+  const Eigen::SimplicialLLT<rod::SparseMatrix> alone(model.stiffness());
+  const Vector column = alone.solve(Vector(loads.col(20)));
+  EXPECT_TRUE(sameBits(column, Vector(results[1].displacements.col(20))));
 }
 
 TEST(Scenarios, ResultsFileKeepsEveryScenarioAndAResumedRunIsBitIdentical) {
