@@ -9,7 +9,7 @@ and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every 
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
 stored design of every file (density 1 black, 0 white, joint A on the left). A run with operating
 scenarios (issue #15; /scenarios in the file) draws psi1 of every scenario (thin lines, named) and
-of the worst one (thick).
+the worst one of each iteration ringed.
 """
 import argparse
 import json
@@ -61,10 +61,13 @@ def main():
         if run["scenarios"] is not None:
             names = [scenario["name"] for scenario in run["config"].get("scenarios", [])]
             for s, name in enumerate(names):
-                axis.plot(iterations, run["scenarios"][:, s], "-", linewidth=0.8, alpha=0.7,
+                axis.plot(iterations, run["scenarios"][:, s], "-", marker=".",
                           label=f"{label}: psi1 of scenario {name}, final {run['scenarios'][-1, s]:.4g}")
-            label += " worst scenario"
-        axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
+            # The history's psi1 is the worst scenario's (largest w_s psi_s / psi_s(x0)): ringed.
+            axis.plot(iterations, psi1, "o", markerfacecolor="none", markeredgecolor="black",
+                      label=f"{label}: the worst scenario of each iteration")
+        else:
+            axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
         if objective == "psi2":
             axis.plot(iterations, run["history"]["psi2"], "--", color=color, label=f"{label}: psi2 (minimised)")
         if len(iterations) == 0:
