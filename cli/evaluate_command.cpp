@@ -3,6 +3,7 @@
 // psi2 is skipped (and said so) with adaptive steps, which cannot place its load times.
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
+#include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include "commands.h"
 
@@ -27,6 +28,7 @@ struct EvaluateSettings {
   bool force = false;
   bool json = false;
   bool printConfig = false;
+  int threads = 0;  // 0: the cores available
 };
 
 // The full-order model of docs/design.md §9: psi1,full, the volume fraction and the run summary (no psi2, no
@@ -95,6 +97,9 @@ void checkGradientFile(const EvaluateSettings& s) {
 }
 
 int runEvaluate(const EvaluateSettings& s) {
+  if (s.threads < 0)
+    throw std::invalid_argument("--threads = " + std::to_string(s.threads) + " is outside the allowed range [1, inf)");
+  const ThreadLimit threads(s.threads > 0 ? s.threads : availableThreads());
   Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
   for (const auto& assignment : s.assignments) applySetting(config, assignment);
   s.flags.apply(config);
@@ -196,6 +201,8 @@ void registerEvaluate(CLI::App& app) {
                "--integrator or --set simulation.integrator/step it also selects trbdf2 with h = 1e-3 s)",
                "TEXT");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
+  cmd->add_option("--threads", s->threads,
+                  "threads, >= 1 (default: the cores available); results are bitwise the same for every count");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});
 }

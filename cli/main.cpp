@@ -2,12 +2,15 @@
 #include "commands.h"
 
 #include <hindsight/engine/types.h>
+#include <hindsight/problems/topopt/communicator.h>
 
 #include <CLI/CLI.hpp>
 
 #include <iostream>
 
 int main(int argc, char** argv) {
+  // MPI for the process's lifetime when started by mpirun (issue #15); nothing otherwise.
+  const hindsight::MpiSession mpi(argc, argv);
   CLI::App app{
       "hindsight: exact adjoint gradients of flexible multibody systems, with interchangeable "
       "trajectory storage"};

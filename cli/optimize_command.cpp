@@ -1,6 +1,8 @@
 // `hindsight optimize`: topology optimization of the piston rod (docs/design.md §7) into an output
 // directory: DIR/results.h5 (crash-safe, resumable), progress lines on stdout, design pictures.
 // Every input is checked before the first evaluation; bad input exits with code 2.
+#include <hindsight/problems/rod/parallel.h>
+#include <hindsight/problems/topopt/communicator.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include "commands.h"
 
@@ -22,6 +24,7 @@ struct OptimizeSettings {
   std::string outputDirectory = "results";
   bool resume = false;
   bool force = false;
+  int threads = 0;  // 0: the cores available
 };
 
 Config buildConfig(const OptimizeSettings& s) {
@@ -54,15 +57,37 @@ Config buildConfig(const OptimizeSettings& s) {
 }
 
 int runOptimize(const OptimizeSettings& s) {
+  // Under mpirun every rank runs this; the checks below fail on every rank alike, and a check that
+  // only rank 0 makes (the output directory) is agreed on before any collective work.
+  const Communicator& world = Communicator::world();
+  if (s.threads < 0)
+    throw std::invalid_argument("--threads = " + std::to_string(s.threads) + " is outside the allowed range [1, inf)");
+  const ThreadLimit threads(s.threads > 0 ? s.threads : availableThreads());
   const Config config = buildConfig(s);
   OptimizationRunOptions options;
   options.outputDirectory = s.outputDirectory;
   options.resume = s.resume;
   options.force = s.force;
-  OptimizationRun run(config, options);  // all remaining input checks, before any work
+  std::unique_ptr<OptimizationRun> runPointer;
+  std::exception_ptr error;
+  try {
+    runPointer = std::make_unique<OptimizationRun>(config, options);  // all remaining input checks
+  } catch (...) {
+    error = std::current_exception();
+  }
+  world.agree(error);
+  OptimizationRun& run = *runPointer;
+  std::ostream quiet(nullptr);  // ranks other than 0 print nothing
+  std::ostream& out = world.isRoot() ? std::cout : quiet;
 
   const rod::RodConfig& rc = config.rod;
-  std::cout << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength
+  if (!config.scenarios.empty() || world.parallel()) {
+    out << "scenarios: " << (config.scenarios.empty() ? 1 : config.scenarios.size()) << " ("
+        << toString(config.optimization.aggregate) << "), " << world.size() << " rank(s), "
+        << (s.threads > 0 ? s.threads : availableThreads()) << " thread(s) per rank"
+        << (threadsSupported() ? "" : " (built without TBB: 1)") << std::endl;
+  }
+  out << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength
             << " x " << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
             << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
             << ", filter radius " << config.optimization.filterRadius << ", move limit "
@@ -71,14 +96,20 @@ int runOptimize(const OptimizeSettings& s) {
                     ? " (resumed after " + std::to_string(run.resumedIterations()) + " iterations)"
                     : std::string())
             << std::endl;
-  const OptimizationRunSummary summary = run.run(std::cout);
+  const OptimizationRunSummary summary = run.run(out);
   if (!summary.history.empty()) {
     const IterationRecord& first = summary.history.front();
     const IterationRecord& last = summary.history.back();
-    std::cout << std::setprecision(6) << "psi1: " << first.psi1 << " -> " << last.psi1
+    out << std::setprecision(6) << "psi1: " << first.psi1 << " -> " << last.psi1
               << ", psi2: " << first.psi2 << " -> " << last.psi2 << ", V/V0 " << last.volumeFraction << "; "
               << summary.history.size() << " evaluations, " << std::setprecision(4) << summary.wallSeconds
               << " s in this invocation\n";
+    if (!config.scenarios.empty() || world.parallel()) {
+      const TopologyOptimizer::Times& t = run.optimizer().times();
+      out << std::setprecision(4) << "rank 0: " << t.localSeconds << " s evaluating its scenarios, "
+          << t.exchangeSeconds << " s in the exchange of results (waiting included; smallest "
+          << t.smallestExchangeSeconds * 1e3 << " ms)\n";
+    }
   }
   return 0;
 }
@@ -105,6 +136,9 @@ void registerOptimize(CLI::App& app) {
                "a design picture every K iterations, K in [0, 100000]; 0 = final only", "INT");
   command->add_option("--out", s->outputDirectory, "output directory")->capture_default_str();
   command->add_flag("--resume", s->resume, "continue DIR/results.h5");
+  command->add_option("--threads", s->threads,
+                      "threads per process, >= 1 (default: the cores available); results are bitwise the same "
+                      "for every count");
   command->add_flag("--force", s->force, "overwrite DIR/results.h5");
   commands().push_back({command, [s] { return guarded([&] { return runOptimize(*s); }); }});
 }

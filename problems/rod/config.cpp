@@ -170,6 +170,7 @@ std::string adjointName(AdjointMethod method) { return toString(method); }
 std::string modelName(RodModel model) { return toString(model); }
 std::string objectiveName(Objective objective) { return toString(objective); }
 std::string routeName(rod::EigenvectorSensitivityMethod route) { return toString(route); }
+std::string aggregateName(Aggregate aggregate) { return toString(aggregate); }
 
 #define MEMBER(path) \
   [](Config & c) -> auto& { return c.path; }
@@ -226,7 +227,9 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("projectionBeta", MEMBER(optimization.projectionBeta), 0.0, 1000.0),
         realField("projectionThreshold", MEMBER(optimization.projectionThreshold), 0.0, 1.0, true),
         realField("projectionBetaMax", MEMBER(optimization.projectionBetaMax), 0.0, 1000.0, true),
-        integerField("projectionEvery", MEMBER(optimization.projectionEvery), 1, 100000)}},
+        integerField("projectionEvery", MEMBER(optimization.projectionEvery), 1, 100000),
+        enumField("aggregate", MEMBER(optimization.aggregate), {"sum", "max"}, parseAggregate,
+                  aggregateName)}},
   };
   return sections;
 }
@@ -295,6 +298,7 @@ rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name)
 
 void Config::validate() const {
   rod.validate();
+  validateScenarios(scenarios, rod);
   if (optimization.volumeFraction >= 1.0 || optimization.volumeFraction <= 0.0) {
     throw std::invalid_argument("config field 'optimization.volumeFraction' = " +
                                 std::to_string(optimization.volumeFraction) + " must be in (0, 1)");
@@ -333,9 +337,16 @@ nlohmann::json toJson(const Config& config) {
   json out = json::object();
   for (const auto& [section, fields] : schema()) {
     json s = json::object();
-    for (const Field& f : fields) s[f.name] = f.write(config);
+    for (const Field& f : fields) {
+      // Without scenarios the default aggregate is not written: such a configuration is the one of
+      // before (results files keep their bytes, and older results files resume).
+      if (f.name == "aggregate" && config.scenarios.empty() && config.optimization.aggregate == Aggregate::Sum)
+        continue;
+      s[f.name] = f.write(config);
+    }
     out[section] = s;
   }
+  if (!config.scenarios.empty()) out["scenarios"] = toJson(config.scenarios);
   return out;
 }
 
@@ -343,6 +354,10 @@ Config configFromJson(const nlohmann::json& in) {
   if (!in.is_object()) throw std::invalid_argument("configuration must be a JSON object");
   Config config;
   for (const auto& [section, value] : in.items()) {
+    if (section == "scenarios") {
+      config.scenarios = scenariosFromJson(value);
+      continue;
+    }
     findSection(section);  // an unknown section is named, even when it is empty
     if (!value.is_object()) {
       throw std::invalid_argument("config section '" + section + "' = " + render(value) +

@@ -8,6 +8,7 @@
 #include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
+#include <hindsight/problems/rod/scenarios.h>
 
 #include <nlohmann/json.hpp>
 
@@ -75,12 +76,18 @@ struct OptimizationSettings {
   double projectionThreshold = 0.5;
   double projectionBetaMax = 32.0;
   int projectionEvery = 10;
+  /// With scenarios: sum (weighted sum of the scenarios' relative objectives) | max (the worst
+  /// scenario, MMA's bound formulation); problems/rod/scenarios.h. Written to JSON only when it
+  /// matters (scenarios given or max), so a configuration without scenarios reads and writes as before.
+  Aggregate aggregate = Aggregate::Sum;
 };
 
 struct Config {
   rod::RodConfig rod;
   SimulationSettings simulation;
   OptimizationSettings optimization;
+  /// Operating scenarios (problems/rod/scenarios.h); empty: the one scenario of `rod`.
+  std::vector<Scenario> scenarios;
 
   /// Checks every field; throws std::invalid_argument naming the field, value and range.
   void validate() const;

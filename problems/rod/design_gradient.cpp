@@ -2,11 +2,14 @@
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/invariants.h>
+#include <hindsight/problems/rod/parallel.h>
 
 #include <Eigen/SparseLU>
 
+#include <algorithm>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace hindsight {
 namespace rod {
@@ -141,20 +144,24 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
 
   DesignGradientResult result;
   result.gradient = Vector::Zero(model.designCount());
-  for (int d = 0; d < model.designCount(); ++d) {
-    const int element = model.designToElement(d);
-    const double x = model.design()(d);
-    const std::array<int, 8> dofs = model.elementDofs(element);
-    const auto leftLocal = gatherRows(left, dofs);
-    const auto rightLocal = gatherRows(right, dofs);
-    const auto modesLocal = gatherRows(modes, dofs);
-    const double massPart =
-        massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
-    const double stiffnessPart =
-        stiffnessWeights.cwiseProduct(modesLocal.transpose() * model.unitStiffness() * modesLocal).sum();
-    result.gradient(d) =
-        model.simp().densityDerivative(x) * massPart + model.simp().stiffnessDerivative(x) * stiffnessPart;
-  }
+  // Every design variable's explicit part on its own: fixed blocks of variables in parallel threads.
+  const int designs = model.designCount();
+  parallelFor((designs + 255) / 256, [&](int block) {
+    for (int d = block * 256; d < std::min(designs, (block + 1) * 256); ++d) {
+      const int element = model.designToElement(d);
+      const double x = model.design()(d);
+      const std::array<int, 8> dofs = model.elementDofs(element);
+      const auto leftLocal = gatherRows(left, dofs);
+      const auto rightLocal = gatherRows(right, dofs);
+      const auto modesLocal = gatherRows(modes, dofs);
+      const double massPart =
+          massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
+      const double stiffnessPart =
+          stiffnessWeights.cwiseProduct(modesLocal.transpose() * model.unitStiffness() * modesLocal).sum();
+      result.gradient(d) =
+          model.simp().densityDerivative(x) * massPart + model.simp().stiffnessDerivative(x) * stiffnessPart;
+    }
+  });
 
   // dpsi/dphi_i as full-DOF columns, then restricted to the free DOFs.
   const Matrix massModes = massFull * modes;
@@ -169,20 +176,26 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
   modeGradientFull.row(model.jointBAxialDof()) += weights.b.transpose();
   const Matrix modeGradient = model.restrictColumnsToFree(modeGradientFull);
 
+  // The chain of every mode is independent (its own factorisation and solves): the modes run in
+  // parallel (problems/rod/parallel.h), each writing its own contribution column, which are then
+  // added in mode order, exactly the order of the serial loop -- bitwise equal for any thread count.
   const SparseMatrix& mass = model.mass();
-  for (int i = 0; i < n; ++i) {
+  Matrix contributions(model.designCount(), n);
+  std::vector<int> solves(static_cast<std::size_t>(n), 0);
+  parallelFor(n, [&](int i) {
+    auto contribution = contributions.col(i);
+    int& linearSolves = solves[static_cast<std::size_t>(i)];
     const double eigenvalue = basis.eigenvalues(i);
     const Vector& modeFree = basis.modesFree.col(i);
     const Vector gradientOfMode = modeGradient.col(i);
     const Vector massTimesMode = mass * modeFree;
     const double projection = gradientOfMode.dot(modeFree);
     const NelsonSystem system(model, eigenvalue, modeFree);
-    ++result.factorizations;
     const Vector modeFull = modes.col(i);
 
     if (options.method == EigenvectorSensitivityMethod::AdjointNelson) {
       const Vector adjoint = system.solve(gradientOfMode - projection * massTimesMode);
-      ++result.linearSolves;
+      ++linearSolves;
       const Vector adjointFull = model.extendToFull(adjoint);
       const double adjointMassMode = adjoint.dot(massTimesMode);
       for (int d = 0; d < model.designCount(); ++d) {
@@ -197,7 +210,7 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
         const double phiMassPhi = phi.dot(massPhi);
         const double eigenvalueDerivative =
             stiffnessSlope * phi.dot(stiffnessPhi) - eigenvalue * densitySlope * phiMassPhi;
-        result.gradient(d) +=
+        contribution(d) =
             -(stiffnessSlope * z.dot(stiffnessPhi) - eigenvalue * densitySlope * z.dot(massPhi)) +
             eigenvalueDerivative * (adjointMassMode + eigenvalueWeights(i)) -
             0.5 * projection * densitySlope * phiMassPhi;
@@ -214,12 +227,16 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
             stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
         const Vector v = system.solve(nelsonRightHandSide(model, dofs, phi, stiffnessSlope, densitySlope,
                                                           eigenvalue, eigenvalueDerivative, massTimesMode));
-        ++result.linearSolves;
+        ++linearSolves;
         const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
-        result.gradient(d) +=
-            gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
+        contribution(d) = gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
       }
     }
+  });
+  for (int i = 0; i < n; ++i) {
+    ++result.factorizations;
+    result.linearSolves += solves[static_cast<std::size_t>(i)];
+    for (int d = 0; d < model.designCount(); ++d) result.gradient(d) += contributions(d, i);
   }
   if (extras.explicitDesignGradient.size() != 0) result.gradient += extras.explicitDesignGradient;
   result.seconds = timer.seconds();

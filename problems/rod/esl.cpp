@@ -1,6 +1,10 @@
 #include <hindsight/problems/rod/esl.h>
 
+#include <hindsight/problems/rod/parallel.h>
+
 #include <Eigen/SparseCholesky>
+
+#include <algorithm>
 
 #include <cmath>
 #include <sstream>
@@ -40,17 +44,32 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
   const double weight = endTime / static_cast<double>(loads.cols());
 
   EslResult result;
-  result.displacements = factorization.solve(Matrix(loads));
+  // The load cases are independent: blocks of columns are solved in parallel threads
+  // (problems/rod/parallel.h). The sparse triangular solves treat every column on its own, so a
+  // block's columns get the bits of the whole solve, for any thread count.
+  result.displacements.resize(loads.rows(), loads.cols());
+  const int columns = static_cast<int>(loads.cols());
+  const int columnBlocks = std::min(columns, 8);
+  parallelFor(columnBlocks, [&](int b) {
+    const int begin = b * columns / columnBlocks;
+    const int end = (b + 1) * columns / columnBlocks;
+    result.displacements.middleCols(begin, end - begin) = factorization.solve(Matrix(loads.middleCols(begin, end - begin)));
+  });
   result.value = weight * loads.cwiseProduct(result.displacements).sum();
   const Matrix displacementsFull = model.extendColumnsToFull(result.displacements);
   result.gradient.resize(model.designCount());
-  for (int d = 0; d < model.designCount(); ++d) {
-    const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
+  // Every design variable's entry on its own: fixed blocks in parallel.
+  const int designs = model.designCount();
+  const int designBlocks = (designs + 255) / 256;
+  parallelFor(designBlocks, [&](int b) {
     Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, displacementsFull.cols());
-    for (int a = 0; a < 8; ++a) local.row(a) = displacementsFull.row(dofs[a]);
-    const double energy = local.cwiseProduct(model.unitStiffness() * local).sum();
-    result.gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
-  }
+    for (int d = b * 256; d < std::min(designs, (b + 1) * 256); ++d) {
+      const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
+      for (int a = 0; a < 8; ++a) local.row(a) = displacementsFull.row(dofs[a]);
+      const double energy = local.cwiseProduct(model.unitStiffness() * local).sum();
+      result.gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
+    }
+  });
   return result;
 }
 

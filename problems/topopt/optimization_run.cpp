@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/topopt/geometry_export.h>
+#include <hindsight/problems/topopt/communicator.h>
 #include <hindsight/problems/topopt/pictures.h>
 #include <hindsight/storage/atomic_file.h>
 
@@ -63,6 +64,12 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
   if (stored == wanted) return;
   std::string differences;
   for (const auto& [section, fields] : wanted.items()) {
+    if (!fields.is_object()) {  // scenarios: compared as a whole
+      if (!stored.contains(section) || stored[section] != fields)
+        differences += (differences.empty() ? "" : ", ") + section + " (requested " + fields.dump() + ", stored " +
+                       (stored.contains(section) ? stored[section].dump() : std::string("absent")) + ")";
+      continue;
+    }
     for (const auto& [field, value] : fields.items()) {
       const auto storedSection = stored.find(section);
       if (storedSection == stored.end() || !storedSection->contains(field) ||
@@ -83,7 +90,7 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
 
 }  // namespace
 
-std::string progressLine(const IterationRecord& r) {
+std::string progressLine(const IterationRecord& r, const std::vector<std::string>& scenarioNames) {
   char change[32];
   if (std::isnan(r.maxDesignChange)) {
     std::snprintf(change, sizeof change, "%5s", "final");
@@ -100,28 +107,34 @@ std::string progressLine(const IterationRecord& r) {
     text += gray;
   }
   if (r.innerIterations > 0) text += "  (" + std::to_string(r.innerIterations) + " GCMMA trials)";
+  if (r.worstScenario >= 0 && static_cast<std::size_t>(r.worstScenario) < scenarioNames.size())
+    text += "  worst: " + scenarioNames[static_cast<std::size_t>(r.worstScenario)];
   if (r.backtracks > 0)
     text += "  (" + std::to_string(r.backtracks) + " halvings after a diverged simulation)";
   return text;
 }
 
 OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOptions& options)
-    : config_(config), options_(options), optimizer_(config) {
+    : config_(config), options_(options), root_(Communicator::world().isRoot()), optimizer_(config) {
   if (options.resume && options.force) {
     throw std::invalid_argument(
         "--resume and --force exclude each other: continue the results or overwrite them");
   }
   if (options.pixelsPerElement < 1) throw std::invalid_argument("pixels per element must be >= 1");
-  prepareDirectory(options.outputDirectory);
-  lock_ = std::make_unique<DirectoryLock>(options.outputDirectory, "--out");
   resultsPath_ = (fs::path(options.outputDirectory) / "results.h5").string();
-  // Garbage of a crash during a write (results file or picture); with the lock held no other run
-  // writes here.
-  removeStaleTemporariesIn(options.outputDirectory);
+  // With several ranks (problems/topopt/communicator.h) rank 0 owns the directory: it alone locks,
+  // cleans and writes; the other ranks only read the results file to resume.
+  if (root_) {
+    prepareDirectory(options.outputDirectory);
+    lock_ = std::make_unique<DirectoryLock>(options.outputDirectory, "--out");
+    // Garbage of a crash during a write (results file or picture); with the lock held no other run
+    // writes here.
+    removeStaleTemporariesIn(options.outputDirectory);
+  }
 
   const rod::RodConfig& rc = config_.rod;
   const bool exists = fs::exists(resultsPath_);
-  if (exists && !options.resume && !options.force) {
+  if (exists && !options.resume && !options.force && root_) {
     throw std::invalid_argument(resultsPath_ +
                                 " exists; use --resume to continue it or --force to overwrite it");
   }
@@ -158,6 +171,9 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
     data_.state = optimizer_.state();
   }
   data_.configurationJson = toJson(config_).dump();
+  if (!config_.scenarios.empty()) {
+    for (const Scenario& s : config_.scenarios) scenarioNames_.push_back(s.name);
+  }
 }
 
 void OptimizationRun::writePictures(const std::string& stem, const Vector& grid) const {
@@ -180,7 +196,8 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
                 "only; the next write adds checksums"
              << std::endl;
   }
-  for (const IterationRecord& record : data_.history) progress << progressLine(record) << "  (stored)\n";
+  for (const IterationRecord& record : data_.history)
+    progress << progressLine(record, scenarioNames_) << "  (stored)\n";
   if (data_.finished) {
     progress << "the run in " << resultsPath_ << " is finished; nothing to do" << std::endl;
   }
@@ -191,32 +208,40 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
     const Vector grid = optimizer_.densityGrid(optimizer_.lastEvaluatedDesign());
     data_.state = optimizer_.state();
     data_.finished = optimizer_.finished();
-    if (data_.finished) {
+    if (data_.finished && optimizer_.lastEvaluation()) {  // rank 0 always has it (scenario 0)
       const PistonRodEvaluation& evaluation = *optimizer_.lastEvaluation();
       data_.finalModes = evaluation.modes;
       data_.finalFrequenciesHz = evaluation.frequenciesHz;
     }
-    // Pictures before the results file: after a crash in between, the resumed run rewrites them.
-    if (pictureEvery > 0 && record.iteration % pictureEvery == 0) {
-      writePictures("design_iter_" + std::to_string(record.iteration), grid);
-    }
-    if (data_.finished) {
-      writePictures("design_final", grid);
-      // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL).
-      DensityField field;
-      field.nx = config_.rod.elementsAlongLength;
-      field.ny = config_.rod.elementsThroughHeight;
-      field.values = grid;
-      field.cellWidthMm = 1000.0 * config_.rod.length / field.nx;
-      field.cellHeightMm = 1000.0 * config_.rod.height / field.ny;
-      exportGeometry((fs::path(options_.outputDirectory) / "design_final").string(), field, 0.5,
-                     1000.0 * config_.rod.thickness);
-    }
-    record.totalSeconds = iterationTimer.seconds();
     data_.history.push_back(record);
     data_.densities.push_back(grid);
-    writeResultsFile(resultsPath_, data_);
-    progress << progressLine(record) << std::endl;
+    std::exception_ptr error;
+    if (root_) {
+      try {
+        // Pictures before the results file: after a crash in between, the resumed run rewrites them.
+        if (pictureEvery > 0 && record.iteration % pictureEvery == 0) {
+          writePictures("design_iter_" + std::to_string(record.iteration), grid);
+        }
+        if (data_.finished) {
+          writePictures("design_final", grid);
+          // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL).
+          DensityField field;
+          field.nx = config_.rod.elementsAlongLength;
+          field.ny = config_.rod.elementsThroughHeight;
+          field.values = grid;
+          field.cellWidthMm = 1000.0 * config_.rod.length / field.nx;
+          field.cellHeightMm = 1000.0 * config_.rod.height / field.ny;
+          exportGeometry((fs::path(options_.outputDirectory) / "design_final").string(), field, 0.5,
+                         1000.0 * config_.rod.thickness);
+        }
+        data_.history.back().totalSeconds = record.totalSeconds = iterationTimer.seconds();
+        writeResultsFile(resultsPath_, data_);
+      } catch (...) {
+        error = std::current_exception();
+      }
+    }
+    Communicator::world().agree(error);  // a failed write stops every rank
+    progress << progressLine(record, scenarioNames_) << std::endl;
     if (options_.afterCommit) options_.afterCommit(record);
   }
   summary.history = data_.history;

@@ -60,6 +60,7 @@ class OptimizationRun {
   OptimizationRun(const Config& config, const OptimizationRunOptions& options);
 
   const std::string& resultsPath() const { return resultsPath_; }
+  const TopologyOptimizer& optimizer() const { return optimizer_; }
   /// Number of iterations found in the results file (0 for a fresh run).
   int resumedIterations() const { return static_cast<int>(data_.history.size()); }
 
@@ -73,13 +74,16 @@ class OptimizationRun {
   OptimizationRunOptions options_;
   std::unique_ptr<DirectoryLock> lock_;  // held from the constructor until the run is destroyed
   bool resumedUnverified_ = false;       // resumed from a format 1 file (no checksums)
+  bool root_ = true;                     // rank 0 (or the only process): writes the directory
+  std::vector<std::string> scenarioNames_;  // empty without scenarios
   std::string resultsPath_;
   ResultsData data_;
   TopologyOptimizer optimizer_;
 };
 
 /// The progress line of one iteration, e.g.
-/// "iter  12  psi1 0.0812  psi2 0.0795  V/V0 0.5000  max|dx| 0.113  2.4 s".
-std::string progressLine(const IterationRecord& record);
+/// "iter  12  psi1 0.0812  psi2 0.0795  V/V0 0.5000  max|dx| 0.113  2.4 s". With scenarios, psi1 and
+/// psi2 are the worst scenario's, named at the end ("worst: fast").
+std::string progressLine(const IterationRecord& record, const std::vector<std::string>& scenarioNames = {});
 
 }  // namespace hindsight

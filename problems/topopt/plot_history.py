@@ -7,7 +7,9 @@ usage: plot_history.py RESULTS.h5 [RESULTS2.h5] --out FILE.png
 Reads the results files written by `hindsight optimize` (layout in problems/topopt/results_file.h) with h5py
 and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every file psi1 is drawn over
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
-stored design of every file (density 1 black, 0 white, joint A on the left).
+stored design of every file (density 1 black, 0 white, joint A on the left). A run with operating
+scenarios (issue #15; /scenarios in the file) draws psi1 of every scenario (thin lines, named) and
+the worst one of each iteration ringed.
 """
 import argparse
 import json
@@ -27,8 +29,10 @@ def load(path):
         config = json.loads(text(f.attrs["configuration"]))
         history = {name: f["history"][name][()] for name in f["history"]}
         designs = f["designs"][()]
+        scenarios = f["scenarios"]["psi1"][()] if "scenarios" in f else None
         finished = int(f.attrs["finished"]) == 1
-    return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished}
+    return {"path": path, "config": config, "history": history, "designs": designs, "finished": finished,
+            "scenarios": scenarios}
 
 
 def draw(runs, out=None):
@@ -48,7 +52,16 @@ def draw(runs, out=None):
         iterations = run["history"]["iteration"]
         psi1 = run["history"]["psi1"]
         color = colors[index % len(colors)]
-        axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
+        if run["scenarios"] is not None:
+            names = [scenario["name"] for scenario in run["config"].get("scenarios", [])]
+            for s, name in enumerate(names):
+                axis.plot(iterations, run["scenarios"][:, s], "-", marker=".",
+                          label=f"{label}: psi1 of scenario {name}, final {run['scenarios'][-1, s]:.4g}")
+            # The history's psi1 is the worst scenario's (largest w_s psi_s / psi_s(x0)): ringed.
+            axis.plot(iterations, psi1, "o", markerfacecolor="none", markeredgecolor="black",
+                      label=f"{label}: the worst scenario of each iteration")
+        else:
+            axis.plot(iterations, psi1, "-", color=color, marker=".", label=f"{label}: psi1, final {psi1[-1]:.4f}")
         if objective == "psi2":
             axis.plot(iterations, run["history"]["psi2"], "--", color=color, label=f"{label}: psi2 (minimised)")
         if len(iterations) == 0:

@@ -230,6 +230,28 @@ void writeContents(hid_t file, const ResultsData& data) {
     writer.doubles(group.get(), "/final", "frequencies_hz", {data.finalFrequenciesHz.size()},
                    data.finalFrequenciesHz.data());
   }
+  const std::size_t scenarios = static_cast<std::size_t>(data.state.scenarioScales.size());
+  if (scenarios > 0) {
+    // Runs with scenarios (problems/rod/scenarios.h) only; a file without them is unchanged.
+    const hdf5::Handle group = hdf5::createGroup(file, "scenarios");
+    std::vector<double> table(rows * scenarios);
+    for (const auto& [name, member] : {std::pair<const char*, std::vector<double> IterationRecord::*>{
+                                           "psi1", &IterationRecord::scenarioPsi1},
+                                       {"psi2", &IterationRecord::scenarioPsi2}}) {
+      for (std::size_t k = 0; k < rows; ++k) {
+        const std::vector<double>& values = data.history[k].*member;
+        if (values.size() != scenarios)
+          throw std::invalid_argument("results: history row " + std::to_string(k) + " has " +
+                                      std::to_string(values.size()) + " scenario values, expected " +
+                                      std::to_string(scenarios));
+        std::copy(values.begin(), values.end(), table.begin() + static_cast<std::ptrdiff_t>(k * scenarios));
+      }
+      writer.doubles(group.get(), "/scenarios", name, {rows, scenarios}, table.data());
+    }
+    writer.doubles(group.get(), "/scenarios", "objective_scale", {scenarios}, data.state.scenarioScales.data());
+    writer.doubles(group.get(), "/scenarios", "bound", {static_cast<hsize_t>(data.state.bound.size())},
+                   data.state.bound.data());
+  }
   hdf5::writeStringAttribute(file, kHashAttribute, rootHash(root, writer.hashes));
 }
 
@@ -586,6 +608,31 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     data.finalFrequenciesHz.assign(modeCount, 0.0);
     reader.read(group.get(), "/final", "frequencies_hz", H5T_NATIVE_DOUBLE, {modeCount},
                 data.finalFrequenciesHz.data());
+  }
+  if (hdf5::exists(file, "scenarios")) {
+    const hdf5::Handle group = hdf5::openGroup(file, "scenarios");
+    const hsize_t scenarios = reader.shapeOf(group.get(), "objective_scale", 1)[0];
+    if (scenarios < 1) fail("dataset '/scenarios/objective_scale' is empty");
+    requireFitsInFile(file, group.get(), "objective_scale", {scenarios});
+    std::vector<double> table(rows * scenarios);
+    for (const auto& [name, member] : {std::pair<const char*, std::vector<double> IterationRecord::*>{
+                                           "psi1", &IterationRecord::scenarioPsi1},
+                                       {"psi2", &IterationRecord::scenarioPsi2}}) {
+      requireShape(file, group.get(), name, {rows, scenarios});
+      reader.read(group.get(), "/scenarios", name, H5T_NATIVE_DOUBLE, {rows, scenarios}, table.data());
+      for (hsize_t k = 0; k < rows; ++k)
+        data.history[k].*member = std::vector<double>(table.begin() + static_cast<std::ptrdiff_t>(k * scenarios),
+                                                      table.begin() + static_cast<std::ptrdiff_t>((k + 1) * scenarios));
+    }
+    data.state.scenarioScales.setZero(static_cast<Eigen::Index>(scenarios));
+    reader.read(group.get(), "/scenarios", "objective_scale", H5T_NATIVE_DOUBLE, {scenarios},
+                data.state.scenarioScales.data());
+    const hsize_t bound = reader.shapeOf(group.get(), "bound", 1)[0];
+    if (bound != 0 && bound != 4) fail("dataset '/scenarios/bound' must have 0 or 4 entries");
+    data.state.bound.setZero(static_cast<Eigen::Index>(bound));
+    reader.read(group.get(), "/scenarios", "bound", H5T_NATIVE_DOUBLE, {bound}, data.state.bound.data());
+    checkRange(reader, "/scenarios/objective_scale", data.state.scenarioScales, std::numeric_limits<double>::min(),
+               kLargest);
   }
   if (verification.checksummed) {
     // Over the stored dataset hashes: a mismatch here means the root attributes changed (a changed

@@ -51,20 +51,40 @@ double eigenvalueBound(double frequencyHz) {
 
 }  // namespace
 
-TopologyOptimizer::TopologyOptimizer(const Config& config)
+TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& communicator)
     : designToGrid_(makeDesignToGrid(validated(config).rod)),
-      rod_(config),
+      config_(config),
+      scenarios_(config, communicator),
+      multiple_(!config.scenarios.empty()),
+      bound_(multiple_ && config.optimization.aggregate == Aggregate::Max),
       filter_(config.rod.elementsAlongLength, config.rod.elementsThroughHeight,
               config.optimization.filterRadius, designMask(config.rod, designToGrid_)),
-      mma_(config.rod.designCount(), config.optimization.minFirstFrequency > 0.0 ? 2 : 1,
+      // The bound formulation: one more variable (z) and one constraint per scenario; the frequency
+      // guard adds one constraint (constraintCount()).
+      mma_(config.rod.designCount() + (bound_ ? 1 : 0), constraintCount() + (bound_ ? scenarios_.count() : 0),
            mmaOptions(config.optimization)) {
-  if (config.optimization.method == "gcmma") {
+  const OptimizationSettings& settings = config.optimization;
+  if ((settings.method == "gcmma" || settings.minFirstFrequency > 0.0) && (multiple_ || communicator.size() > 1)) {
+    // GCMMA's trial simulations and the eigenvalue constraint use the full evaluation of the one
+    // scenario, which only its owning rank holds; their multi-scenario forms are not written yet.
+    throw std::invalid_argument(std::string(settings.method == "gcmma" ? "optimization.method = gcmma"
+                                                                         : "optimization.minFirstFrequency > 0") +
+                                " works with one scenario in one process (no scenarios, no mpirun)");
+  }
+  if (settings.method == "gcmma") {
     GcmmaOptions options;
-    options.mma = mmaOptions(config.optimization);
+    options.mma = mmaOptions(settings);
     gcmma_ = std::make_unique<Gcmma>(config.rod.designCount(), constraintCount(), options);
   }
-  state_.design = rod_.initialDesign();
+  state_.design = scenarios_.rod(0).initialDesign();
   state_.mma = mma_.state();
+  if (bound_) {
+    // The design variables' part of the MMA state lives in state_.mma, z's in state_.bound.
+    const int n = designCount();
+    state_.bound = Vector::Zero(4);
+    for (Vector* v : {&state_.mma.xold1, &state_.mma.xold2, &state_.mma.low, &state_.mma.upp})
+      *v = Vector(v->head(n));
+  }
 }
 
 void TopologyOptimizer::restore(const OptimizerState& state) {
@@ -82,11 +102,33 @@ void TopologyOptimizer::restore(const OptimizerState& state) {
     throw std::invalid_argument("optimizer state: objective scale " + std::to_string(state.objectiveScale) +
                                 " must be positive and finite after the first iteration");
   }
-  mma_.restore(state.mma);  // checks the MMA vectors
+  if (multiple_ && state.iteration > 0 && state.scenarioScales.size() != scenarios_.count()) {
+    throw std::invalid_argument("optimizer state: " + std::to_string(state.scenarioScales.size()) +
+                                " scenario scales, the configuration has " + std::to_string(scenarios_.count()) +
+                                " scenarios");
+  }
+  if (bound_ != (state.bound.size() == 4)) {
+    throw std::invalid_argument("optimizer state: the bound variable's MMA state has " +
+                                std::to_string(state.bound.size()) + " entries, expected " +
+                                std::string(bound_ ? "4 (aggregate max)" : "0"));
+  }
+  mma_.restore(fullMmaState(state));  // checks the MMA vectors
   state_ = state;
   lastIteration_ = state.iteration;
   finished_ = false;
   last_.reset();
+}
+
+MmaState TopologyOptimizer::fullMmaState(const OptimizerState& state) const {
+  if (!bound_) return state.mma;
+  MmaState full = state.mma;
+  const Vector* parts[] = {&state.mma.xold1, &state.mma.xold2, &state.mma.low, &state.mma.upp};
+  Vector* out[] = {&full.xold1, &full.xold2, &full.low, &full.upp};
+  for (int k = 0; k < 4; ++k) {
+    out[k]->resize(parts[k]->size() + 1);
+    *out[k] << *parts[k], state.bound(k);
+  }
+  return full;
 }
 
 Vector TopologyOptimizer::physicalDesign(ConstVectorRef design) const {
@@ -146,19 +188,21 @@ Vector TopologyOptimizer::chainToDesign(ConstVectorRef gradient, ConstVectorRef 
   return chainThroughFilter(chained);
 }
 
-Vector TopologyOptimizer::constraintsOf(const PistonRodEvaluation& evaluation, ConstVectorRef design,
+Vector TopologyOptimizer::constraintsOf(double volumeFraction, ConstVectorRef dvolume,
+                                        const PistonRodEvaluation* evaluation, ConstVectorRef design,
                                         int iteration, Matrix* jacobian) const {
   const OptimizationSettings& settings = config().optimization;
   Vector constraint(constraintCount());
-  constraint(0) = evaluation.volumeFraction / settings.volumeFraction - 1.0;
+  constraint(0) = volumeFraction / settings.volumeFraction - 1.0;
   if (jacobian != nullptr) {
     *jacobian = Matrix(constraintCount(), designCount());
-    jacobian->row(0) = chainToDesign(evaluation.dvolume / settings.volumeFraction, design, iteration).transpose();
+    jacobian->row(0) = chainToDesign(dvolume / settings.volumeFraction, design, iteration).transpose();
   }
   if (settings.minFirstFrequency > 0.0) {
+    if (evaluation == nullptr) throw std::logic_error("the frequency guard needs the full evaluation");
     const double bound = eigenvalueBound(settings.minFirstFrequency);
     const rod::FeModel model(config().rod, modelDesign(design, iteration));
-    const rod::FirstEigenvalue first = rod::firstEigenvalue(model, evaluation.eigenvalues, evaluation.modes);
+    const rod::FirstEigenvalue first = rod::firstEigenvalue(model, evaluation->eigenvalues, evaluation->modes);
     constraint(1) = 1.0 - first.value / bound;
     if (jacobian != nullptr) jacobian->row(1) = chainToDesign(-first.gradient / bound, design, iteration).transpose();
   }
@@ -179,6 +223,7 @@ IterationRecord TopologyOptimizer::step() {
   const OptimizationSettings& settings = config().optimization;
   const bool usePsi1 = settings.objective == Objective::Psi1;
   const bool update = state_.iteration < settings.iterations;
+  const int scenarioCount = scenarios_.count();
 
   PistonRod::Request request;
   request.psi1Gradient = update && usePsi1;
@@ -187,16 +232,21 @@ IterationRecord TopologyOptimizer::step() {
   IterationRecord record;
   record.iteration = state_.iteration;
   Vector design = state_.design;
-  std::optional<PistonRodEvaluation> evaluated;
+  std::optional<ScenarioResults> evaluated;
   while (!evaluated) {
     try {
-      evaluated = rod_.evaluate(modelDesign(design, state_.iteration), request);
-      const double value = usePsi1 ? evaluated->psi1 : evaluated->psi2;
-      if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * state_.objectiveScale)) {
-        throw NumericalError("objective " + toString(settings.objective) + " = " + std::to_string(value) +
-                                 " exceeds " + std::to_string(maxObjectiveGrowth) +
-                                 " times its initial value",
-                             config().rod.endTime);
+      // Collective over the ranks: every rank gets every scenario's results or the same exception.
+      evaluated = scenarios_.evaluate(modelDesign(design, state_.iteration), request, usePsi1);
+      for (int s = 0; s < scenarioCount; ++s) {
+        const double value = usePsi1 ? evaluated->psi1[s] : evaluated->psi2[s];
+        const double scale = multiple_ ? (state_.iteration > 0 ? state_.scenarioScales(s) : 0.0)
+                                       : state_.objectiveScale;
+        if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * scale)) {
+          throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) +
+                                   "objective " + toString(settings.objective) + " = " + std::to_string(value) +
+                                   " exceeds " + std::to_string(maxObjectiveGrowth) + " times its initial value",
+                               scenarios_.rod(s).config().rod.endTime);
+        }
       }
     } catch (const NumericalError&) {
       if (state_.iteration == 0 || record.backtracks == maxBacktracks) throw;
@@ -205,88 +255,207 @@ IterationRecord TopologyOptimizer::step() {
       ++record.backtracks;
     }
   }
-  PistonRodEvaluation& evaluation = *evaluated;
-  record.psi1 = evaluation.psi1;
-  record.psi2 = evaluation.psi2;
+  ScenarioResults& evaluation = *evaluated;
+  times_.localSeconds += evaluation.localSeconds;
+  times_.exchangeSeconds += evaluation.exchangeSeconds;
+  times_.smallestExchangeSeconds = times_.exchanges == 0 ? evaluation.exchangeSeconds
+                                                         : std::min(times_.smallestExchangeSeconds,
+                                                                    evaluation.exchangeSeconds);
+  ++times_.exchanges;
+  record.psi1 = evaluation.psi1[0];
+  record.psi2 = evaluation.psi2[0];
   record.volumeFraction = evaluation.volumeFraction;
   record.grayness = grayness(modelDesign(design, state_.iteration));
-  if (!evaluation.frequenciesHz.empty()) record.firstFrequencyHz = evaluation.frequenciesHz.front();
+  if (evaluation.local && !evaluation.local->frequenciesHz.empty())
+    record.firstFrequencyHz = evaluation.local->frequenciesHz.front();
   record.evaluationSeconds = stepTimer.seconds();
 
-  const double objective = usePsi1 ? evaluation.psi1 : evaluation.psi2;
-  if (!(std::isfinite(objective) && objective > 0.0)) {
-    throw NumericalError("objective " + toString(settings.objective) + " = " + std::to_string(objective) +
-                             " at iteration " + std::to_string(state_.iteration) +
-                             " is not positive and finite",
-                         config().rod.endTime);
+  for (int s = 0; s < scenarioCount; ++s) {
+    const double objective = usePsi1 ? evaluation.psi1[s] : evaluation.psi2[s];
+    if (!(std::isfinite(objective) && objective > 0.0)) {
+      throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) + "objective " +
+                               toString(settings.objective) + " = " + std::to_string(objective) + " at iteration " +
+                               std::to_string(state_.iteration) + " is not positive and finite",
+                           scenarios_.rod(s).config().rod.endTime);
+    }
   }
   OptimizerState next = state_;
-  if (next.iteration == 0 && next.objectiveScale == 0.0) next.objectiveScale = objective;
-
-  if (update) {
-    const Stopwatch mmaTimer;
-    const int n = designCount();
-    const Vector gradient =
-        chainToDesign(usePsi1 ? evaluation.dpsi1 : evaluation.dpsi2, design, state_.iteration) /
-        next.objectiveScale;
-    if (!gradient.allFinite()) {
-      throw NumericalError("the gradient of " + toString(settings.objective) + " at iteration " +
-                               std::to_string(state_.iteration) + " is not finite",
-                           config().rod.endTime);
-    }
-    Matrix jacobian;
-    const Vector constraint = constraintsOf(evaluation, design, state_.iteration, &jacobian);
-    const Vector lower = Vector::Constant(n, config().rod.designLowerBound);
-    const Vector upper = Vector::Ones(n);
-    Vector x = design;
-    if (gcmma_) {
-      // Trials: values only, with the projection of this iteration (the approximations are of this
-      // iteration's functions).
-      PistonRod::Request trialRequest;
-      trialRequest.psi1Gradient = false;
-      trialRequest.psi2 = !usePsi1;
-      trialRequest.psi2Gradient = false;
-      const int iteration = state_.iteration;
-      const double scale = next.objectiveScale;
-      const Gcmma::Evaluate evaluate = [&](const Vector& trial, double& value, Vector& constraints) {
-        try {
-          const PistonRodEvaluation e = rod_.evaluate(modelDesign(trial, iteration), trialRequest);
-          const double psi = usePsi1 ? e.psi1 : e.psi2;
-          if (!(psi <= maxObjectiveGrowth * scale)) return false;  // a diverging response
-          value = psi / scale;
-          constraints = constraintsOf(e, trial, iteration, nullptr);
-          return true;
-        } catch (const NumericalError&) {
-          return false;  // a diverged simulation: not conservative
-        }
-      };
-      gcmma_->restore(state_.mma);
-      gcmma_->update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x, evaluate);
-      record.innerIterations = gcmma_->lastUpdate().inner_iterations;
-      next.mma = gcmma_->state();
-    } else {
-      mma_.restore(state_.mma);
-      mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
-      next.mma = mma_.state();
-    }
-    if (!x.allFinite()) {
-      throw NumericalError(
-          "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
-          config().rod.endTime);
-    }
-    record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
-    next.design = x;
-    next.iteration += 1;
-    record.mmaSeconds = mmaTimer.seconds();
+  if (multiple_) {
+    updateScenarios(evaluation, next, design, record);
   } else {
-    finished_ = true;
+    const double objective = usePsi1 ? evaluation.psi1[0] : evaluation.psi2[0];
+    if (next.iteration == 0 && next.objectiveScale == 0.0) next.objectiveScale = objective;
+
+    if (update) {
+      const Stopwatch mmaTimer;
+      const int n = designCount();
+      const Vector gradient = chainToDesign(evaluation.gradient[0], design, state_.iteration) / next.objectiveScale;
+      if (!gradient.allFinite()) {
+        throw NumericalError("the gradient of " + toString(settings.objective) + " at iteration " +
+                                 std::to_string(state_.iteration) + " is not finite",
+                             config().rod.endTime);
+      }
+      Matrix jacobian;
+      const Vector constraint = constraintsOf(evaluation.volumeFraction, evaluation.dvolume,
+                                              evaluation.local ? &*evaluation.local : nullptr, design,
+                                              state_.iteration, &jacobian);
+      const Vector lower = Vector::Constant(n, config().rod.designLowerBound);
+      const Vector upper = Vector::Ones(n);
+      Vector x = design;
+      if (gcmma_) {
+        // Trials: values only, with the projection of this iteration (the approximations are of this
+        // iteration's functions).
+        PistonRod::Request trialRequest;
+        trialRequest.psi1Gradient = false;
+        trialRequest.psi2 = !usePsi1;
+        trialRequest.psi2Gradient = false;
+        const int iteration = state_.iteration;
+        const double scale = next.objectiveScale;
+        const Gcmma::Evaluate evaluate = [&](const Vector& trial, double& value, Vector& constraints) {
+          try {
+            const PistonRodEvaluation e = scenarios_.rod(0).evaluate(modelDesign(trial, iteration), trialRequest);
+            const double psi = usePsi1 ? e.psi1 : e.psi2;
+            if (!(psi <= maxObjectiveGrowth * scale)) return false;  // a diverging response
+            value = psi / scale;
+            constraints = constraintsOf(e.volumeFraction, e.dvolume, &e, trial, iteration, nullptr);
+            return true;
+          } catch (const NumericalError&) {
+            return false;  // a diverged simulation: not conservative
+          }
+        };
+        gcmma_->restore(state_.mma);
+        gcmma_->update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x, evaluate);
+        record.innerIterations = gcmma_->lastUpdate().inner_iterations;
+        next.mma = gcmma_->state();
+      } else {
+        mma_.restore(state_.mma);
+        mma_.update(objective / next.objectiveScale, gradient, constraint, jacobian, lower, upper, x);
+        next.mma = mma_.state();
+      }
+      if (!x.allFinite()) {
+        throw NumericalError(
+            "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
+            config().rod.endTime);
+      }
+      record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
+      next.design = x;
+      next.iteration += 1;
+      record.mmaSeconds = mmaTimer.seconds();
+    }
   }
+  if (!update) finished_ = true;
   lastIteration_ = state_.iteration;
   state_ = std::move(next);
-  last_ = std::move(evaluated);
+  last_ = std::move(evaluation.local);
   lastDesign_ = std::move(design);
   record.totalSeconds = stepTimer.seconds();
   return record;
+}
+
+void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, OptimizerState& next,
+                                        const Vector& design, IterationRecord& record) {
+  const OptimizationSettings& settings = config().optimization;
+  const bool usePsi1 = settings.objective == Objective::Psi1;
+  const bool update = state_.iteration < settings.iterations;
+  const int count = scenarios_.count();
+  const std::vector<double>& values = usePsi1 ? evaluation.psi1 : evaluation.psi2;
+  if (next.iteration == 0 && next.scenarioScales.size() == 0) {
+    next.scenarioScales = Eigen::Map<const Vector>(values.data(), count);
+    double aggregate = 0.0;
+    for (int s = 0; s < count; ++s) {
+      aggregate = settings.aggregate == Aggregate::Max ? std::max(aggregate, scenarios_.weight(s))
+                                                       : aggregate + scenarios_.weight(s);
+    }
+    next.objectiveScale = aggregate;
+  }
+  // f_s = w_s psi_s / psi_s(x0), every sum in scenario order (the same bits for any rank count).
+  Vector relative(count);
+  for (int s = 0; s < count; ++s) relative(s) = scenarios_.weight(s) * values[s] / next.scenarioScales(s);
+  int worst = 0;
+  for (int s = 1; s < count; ++s) {
+    if (relative(s) > relative(worst)) worst = s;
+  }
+  record.scenarioPsi1 = evaluation.psi1;
+  record.scenarioPsi2 = evaluation.psi2;
+  record.worstScenario = worst;
+  record.psi1 = evaluation.psi1[worst];
+  record.psi2 = evaluation.psi2[worst];
+  if (!update) return;
+
+  const Stopwatch mmaTimer;
+  const int n = designCount();
+  std::vector<Vector> gradients(static_cast<std::size_t>(count));
+  for (int s = 0; s < count; ++s) {
+    gradients[s] = chainToDesign((scenarios_.weight(s) / next.scenarioScales(s)) * evaluation.gradient[s], design,
+                                 state_.iteration);
+    if (!gradients[s].allFinite()) {
+      throw NumericalError("scenario '" + scenarios_.name(s) + "': the gradient of " + toString(settings.objective) +
+                               " at iteration " + std::to_string(state_.iteration) + " is not finite",
+                           scenarios_.rod(s).config().rod.endTime);
+    }
+  }
+  const double volume = evaluation.volumeFraction / settings.volumeFraction - 1.0;
+  const Vector volumeGradient = chainToDesign(evaluation.dvolume / settings.volumeFraction, design, state_.iteration);
+  Vector x;
+  if (!bound_) {
+    double objective = 0.0;
+    Vector gradient = Vector::Zero(n);
+    for (int s = 0; s < count; ++s) {
+      objective += relative(s);
+      gradient += gradients[s];
+    }
+    Vector constraint(1);
+    constraint(0) = volume;
+    const Matrix jacobian = volumeGradient.transpose();
+    x = design;
+    mma_.restore(state_.mma);
+    mma_.update(objective, gradient, constraint, jacobian, Vector::Constant(n, config().rod.designLowerBound),
+                Vector::Ones(n), x);
+  } else {
+    // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
+    // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
+    // (the divergence guard keeps every f_s below that).
+    double largestWeight = 0.0;
+    for (int s = 0; s < count; ++s) largestWeight = std::max(largestWeight, scenarios_.weight(s));
+    Vector lower = Vector::Constant(n + 1, config().rod.designLowerBound);
+    Vector upper = Vector::Ones(n + 1);
+    lower(n) = 0.0;
+    upper(n) = maxObjectiveGrowth * largestWeight;
+    x.resize(n + 1);
+    x << design, std::min(relative(worst), upper(n));
+    Vector objectiveGradient = Vector::Zero(n + 1);
+    objectiveGradient(n) = 1.0;
+    Vector constraints(1 + count);
+    Matrix jacobian = Matrix::Zero(1 + count, n + 1);
+    constraints(0) = volume;
+    jacobian.row(0).head(n) = volumeGradient.transpose();
+    for (int s = 0; s < count; ++s) {
+      constraints(1 + s) = relative(s) - x(n);
+      jacobian.row(1 + s).head(n) = gradients[s].transpose();
+      jacobian(1 + s, n) = -1.0;
+    }
+    mma_.restore(fullMmaState(state_));
+    mma_.update(x(n), objectiveGradient, constraints, jacobian, lower, upper, x);
+  }
+  if (!x.allFinite()) {
+    throw NumericalError("the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
+                         config().rod.endTime);
+  }
+  record.maxDesignChange = (x.head(n) - design).cwiseAbs().maxCoeff();
+  next.design = x.head(n);
+  const MmaState& full = mma_.state();
+  next.mma = full;
+  if (bound_) {
+    next.bound = Vector(4);
+    const Vector* parts[] = {&full.xold1, &full.xold2, &full.low, &full.upp};
+    Vector* out[] = {&next.mma.xold1, &next.mma.xold2, &next.mma.low, &next.mma.upp};
+    for (int k = 0; k < 4; ++k) {
+      next.bound(k) = (*parts[k])(n);
+      *out[k] = Vector(parts[k]->head(n));
+    }
+  }
+  next.iteration += 1;
+  record.mmaSeconds = mmaTimer.seconds();
 }
 
 }  // namespace hindsight

@@ -54,6 +54,7 @@
 #include <hindsight/problems/topopt/gcmma.h>
 #include <hindsight/problems/topopt/heaviside_projection.h>
 #include <hindsight/problems/topopt/mma.h>
+#include <hindsight/problems/topopt/scenario_objective.h>
 
 #include <limits>
 #include <memory>
@@ -80,6 +81,12 @@ struct IterationRecord {
   double firstFrequencyHz = std::numeric_limits<double>::quiet_NaN();
   /// GCMMA: trial designs simulated in this iteration's update (0 for MMA and the final evaluation).
   int innerIterations = 0;
+  /// With scenarios (problems/rod/scenarios.h): every scenario's psi1 and psi2, in scenario order;
+  /// psi1 and psi2 above are then those of the worst scenario (largest w_s psi_s / psi_s(x0) of the
+  /// optimized objective). Empty without scenarios.
+  std::vector<double> scenarioPsi1;
+  std::vector<double> scenarioPsi2;
+  int worstScenario = -1;  ///< index of the worst scenario (with scenarios), else -1
 };
 
 /// What carries over between iterations.
@@ -88,16 +95,28 @@ struct OptimizerState {
   Vector design;                ///< x_iteration, the design variables (designCount)
   MmaState mma;                 ///< MMA after `iteration` updates
   double objectiveScale = 0.0;  ///< psi(x0); 0 until the first evaluation
+  /// With scenarios: psi_s(x0) per scenario (empty until the first evaluation and without scenarios);
+  /// objectiveScale is then the aggregate at x0 (sum or max of the weights).
+  Vector scenarioScales;
+  /// With aggregate max: MMA's state of the bound variable z (xold1, xold2, low, upp); else empty.
+  Vector bound;
 };
 
 class TopologyOptimizer final {
  public:
-  /// Validates the configuration (std::invalid_argument naming the field). Starts from x0.
-  explicit TopologyOptimizer(const Config& config);
+  /// Validates the configuration (std::invalid_argument naming the field). Starts from x0. With
+  /// several processes (problems/topopt/communicator.h) every rank constructs one and calls step()
+  /// in lockstep; each evaluates its own scenarios and all hold the same state.
+  explicit TopologyOptimizer(const Config& config, const Communicator& communicator = Communicator::world());
 
-  const Config& config() const { return rod_.config(); }
-  const PistonRod& rod() const { return rod_; }
-  int designCount() const { return rod_.designCount(); }
+  /// The configuration (with its scenarios, if any).
+  const Config& config() const { return config_; }
+  /// The rod of the first scenario (the rod itself without scenarios).
+  const PistonRod& rod() const { return scenarios_.rod(0); }
+  const ScenarioObjective& scenarios() const { return scenarios_; }
+  int designCount() const { return config_.rod.designCount(); }
+  /// True with several scenarios and optimization.aggregate = max: MMA carries the bound variable z.
+  bool boundFormulation() const { return bound_; }
 
   const OptimizerState& state() const { return state_; }
   /// Continues from a stored state. Throws std::invalid_argument when sizes do not match the
@@ -113,10 +132,22 @@ class TopologyOptimizer final {
   /// (NumericalError, std::runtime_error) and leave the state unchanged.
   IterationRecord step();
 
-  /// The evaluation made by the last step() (modes, frequencies, gradients); empty before.
+  /// The evaluation made by the last step() (modes, frequencies, gradients) of the first scenario
+  /// this rank owns (rank 0: scenario 0); empty before, and on a rank that owns no scenario.
   const std::optional<PistonRodEvaluation>& lastEvaluation() const { return last_; }
   /// The design variables evaluated by the last step() (x_k after any backtracking); empty before.
   const Vector& lastEvaluatedDesign() const { return lastDesign_; }
+
+  /// Wall time of this process over all step() calls: evaluating its own scenarios, and in the
+  /// exchange of the scenarios' results between ranks (waiting for the slowest rank included);
+  /// the smallest exchange of one step estimates the pure communication cost.
+  struct Times {
+    double localSeconds = 0.0;
+    double exchangeSeconds = 0.0;
+    double smallestExchangeSeconds = 0.0;
+    int exchanges = 0;
+  };
+  const Times& times() const { return times_; }
 
   /// Halvings toward the previous design before a failed simulation is reported.
   static constexpr int maxBacktracks = 10;
@@ -130,6 +161,7 @@ class TopologyOptimizer final {
 
  private:
   Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
+  MmaState fullMmaState(const OptimizerState& state) const;  // state.mma with z's entries appended
   Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
   // The projection of iteration k; empty when optimization.projectionBeta = 0.
   std::optional<HeavisideProjection> projectionAt(int iteration) const;
@@ -140,12 +172,20 @@ class TopologyOptimizer final {
   int constraintCount() const;
   // The constraint values (and, when jacobian is not null, their gradients over the design
   // variables) of an evaluation of `design` in iteration k.
-  Vector constraintsOf(const PistonRodEvaluation& evaluation, ConstVectorRef design, int iteration,
-                       Matrix* jacobian) const;
+  // `evaluation` (the full one, for the eigenvalues) may be null without the frequency guard.
+  Vector constraintsOf(double volumeFraction, ConstVectorRef dvolume, const PistonRodEvaluation* evaluation,
+                       ConstVectorRef design, int iteration, Matrix* jacobian) const;
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 
-  PistonRod rod_;
+  // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
+  void updateScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
+                       IterationRecord& record);
+
+  Config config_;
+  ScenarioObjective scenarios_;
+  bool multiple_;  // the configuration lists scenarios
+  bool bound_;     // multiple_ and aggregate max
   DensityFilter filter_;
   Mma mma_;
   std::unique_ptr<Gcmma> gcmma_;  // optimization.method = gcmma
@@ -154,6 +194,7 @@ class TopologyOptimizer final {
   bool finished_ = false;
   std::optional<PistonRodEvaluation> last_;
   Vector lastDesign_;
+  Times times_;
 };
 
 }  // namespace hindsight

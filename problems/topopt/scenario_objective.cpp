@@ -1,0 +1,130 @@
+#include <hindsight/problems/topopt/scenario_objective.h>
+
+#include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/rod/parallel.h>
+
+#include <exception>
+#include <stdexcept>
+
+namespace hindsight {
+namespace {
+
+enum Status { kOk = 0, kNumerical = 1, kFailed = 2 };
+
+std::vector<PistonRod> makeRods(const Config& config) {
+  std::vector<PistonRod> rods;
+  for (const Config& c : scenarioConfigs(config)) rods.emplace_back(c);
+  return rods;
+}
+
+}  // namespace
+
+ScenarioObjective::ScenarioObjective(const Config& config, const Communicator& communicator)
+    : cases_(scenarioCases(config)),
+      rods_(makeRods(config)),
+      communicator_(communicator),
+      named_(!config.scenarios.empty()) {}
+
+ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonRod::Request& request,
+                                            bool psi1Objective) const {
+  const int total = count();
+  const Eigen::Index n = design.size();
+  std::vector<int> mine;
+  for (int s = 0; s < total; ++s) {
+    if (owns(s)) mine.push_back(s);
+  }
+  // This rank's scenarios, in parallel threads; every outcome (value or exception) kept in its slot.
+  std::vector<std::optional<PistonRodEvaluation>> evaluations(mine.size());
+  std::vector<std::exception_ptr> errors(mine.size());
+  std::vector<int> status(mine.size(), kOk);
+  std::vector<double> times(mine.size(), 0.0);  // of a NumericalError
+  Stopwatch timer;
+  parallelFor(static_cast<int>(mine.size()), [&](int k) {
+    const auto slot = static_cast<std::size_t>(k);
+    try {
+      evaluations[slot] = rods_[static_cast<std::size_t>(mine[slot])].evaluate(design, request);
+    } catch (const NumericalError& e) {
+      errors[slot] = std::current_exception();
+      status[slot] = kNumerical;
+      times[slot] = e.time();
+    } catch (...) {
+      errors[slot] = std::current_exception();
+      status[slot] = kFailed;
+    }
+  });
+
+  // One process running the plain rod: the exception as it was, so that messages and exit codes are
+  // those of a run without scenarios.
+  if (!named_ && !communicator_.parallel() && errors[0]) std::rethrow_exception(errors[0]);
+
+  // Packet per owned scenario: status, psi1, psi2, volume fraction, gradient (n), dvolume (n).
+  const std::size_t packet = 4 + 2 * static_cast<std::size_t>(n);
+  std::vector<double> send(mine.size() * packet, 0.0);
+  const bool gradient = psi1Objective ? request.psi1Gradient : request.psi2Gradient;
+  for (std::size_t k = 0; k < mine.size(); ++k) {
+    double* p = send.data() + k * packet;
+    p[0] = status[k];
+    p[1] = times[k];
+    if (status[k] != kOk) continue;
+    const PistonRodEvaluation& e = *evaluations[k];
+    p[1] = e.psi1;
+    p[2] = e.psi2;
+    p[3] = e.volumeFraction;
+    const Vector& g = psi1Objective ? e.dpsi1 : e.dpsi2;
+    if (gradient) std::copy(g.data(), g.data() + n, p + 4);
+    std::copy(e.dvolume.data(), e.dvolume.data() + n, p + 4 + n);
+  }
+  const double localSeconds = timer.restart();
+  const std::vector<double> all = communicator_.allGather(send);
+  const double exchangeSeconds = timer.seconds();
+
+  // Rank r's packets come in its scenario order r, r + N, r + 2N, ...
+  const int ranks = communicator_.size();
+  std::vector<const double*> packets(static_cast<std::size_t>(total));
+  std::size_t offset = 0;
+  for (int r = 0; r < ranks; ++r) {
+    for (int s = r; s < total; s += ranks) {
+      packets[static_cast<std::size_t>(s)] = all.data() + offset;
+      offset += packet;
+    }
+  }
+  for (int s = 0; s < total; ++s) {  // the first failure in scenario order decides, on every rank
+    const int code = static_cast<int>(packets[static_cast<std::size_t>(s)][0]);
+    if (code == kOk) continue;
+    const std::string who = "scenario '" + name(s) + "'";
+    std::string text = "failed on rank " + std::to_string(s % ranks) + " (that rank reports the error)";
+    for (std::size_t k = 0; k < mine.size(); ++k) {
+      if (mine[k] != s) continue;
+      try {
+        std::rethrow_exception(errors[k]);
+      } catch (const NumericalError& e) {
+        text = e.what();
+        text = text.substr(0, text.rfind(" (at t = "));  // NumericalError adds it again below
+      } catch (const std::exception& e) {
+        text = e.what();
+      } catch (...) {
+        text = "an unknown exception";
+      }
+    }
+    if (code == kNumerical) throw NumericalError(who + ": " + text, packets[static_cast<std::size_t>(s)][1]);
+    throw std::runtime_error(who + ": " + text);
+  }
+
+  ScenarioResults out;
+  out.localSeconds = localSeconds;
+  out.exchangeSeconds = exchangeSeconds;
+  for (int s = 0; s < total; ++s) {
+    const double* p = packets[static_cast<std::size_t>(s)];
+    out.psi1.push_back(p[1]);
+    out.psi2.push_back(p[2]);
+    out.gradient.push_back(gradient ? Vector(Eigen::Map<const Vector>(p + 4, n)) : Vector());
+    if (s == 0) {
+      out.volumeFraction = p[3];
+      out.dvolume = Eigen::Map<const Vector>(p + 4 + n, n);
+    }
+  }
+  if (!mine.empty()) out.local = std::move(evaluations[0]);
+  return out;
+}
+
+}  // namespace hindsight

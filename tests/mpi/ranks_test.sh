@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# ctest label mpi (issue #15): the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
+# writes bitwise-equal histories and designs; a run whose rank is killed resumes (with 2 ranks) to
+# the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named.
+# Usage: ranks_test.sh HINDSIGHT MPIEXEC PYTHON WORKDIR. Runs as root too (CI): OpenMPI's
+# allow-run-as-root variables are set here; --oversubscribe because the machine may have 2 cores.
+set -euo pipefail
+hindsight=$1 mpiexec=$2 python=$3 work=$4
+here=$(cd "$(dirname "$0")" && pwd)
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+rm -rf "$work" && mkdir -p "$work" && cd "$work"
+config=$here/scenarios3.json
+same() { "$python" "$here/same_results.py" "$1/results.h5" "$2/results.h5"; }
+
+"$hindsight" optimize --config "$config" --iterations 3 --out D1 --threads 1 > D1.log
+"$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out D2 --threads 1 > D2.log
+"$hindsight" optimize --config "$config" --iterations 3 --out T2 --threads 2 > T2.log
+"$mpiexec" -np 3 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out D3 --threads 1 > D3.log
+same D1 D2
+same D1 T2
+same D1 D3
+grep -q "2 rank(s)" D2.log
+grep -q "worst: fast" D2.log
+
+# Kill rank 1 (SIGKILL) once the first iteration is on disk; resume with 2 ranks: the same bits.
+"$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out K --threads 1 \
+  > K.log 2>&1 &
+launcher=$!
+for _ in $(seq 1 600); do
+  if [ -f K/results.h5 ]; then break; fi
+  sleep 0.1
+done
+ranks=$(ps -o pid= --ppid "$launcher" || true)
+victim=$(for pid in $ranks; do
+  if tr '\0' '\n' < "/proc/$pid/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1"; then echo "$pid"; fi
+done)
+if [ -n "$victim" ]; then kill -9 $victim; fi
+wait "$launcher" && status=0 || status=$?
+echo "killed rank 1 (pid ${victim:-none, the run had ended}), mpirun exit $status"
+"$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out K --resume --threads 1 > K2.log
+same D1 K
+
+# A failing scenario (its simulation overflows at once) stops both ranks, named, exit code non-zero.
+sed 's/"crankSpeed": 47.12388980384690/"crankSpeed": 1e9/' "$config" > bad.json
+if "$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config bad.json --iterations 2 --out B > B.log 2>&1; then
+  echo "a failing scenario did not fail the run"; exit 1
+fi
+grep -q "numerical failure: scenario 'fast'" B.log
+echo "mpi ranks test: passed"
