@@ -196,6 +196,11 @@ class PyPistonRod {
     out["dpsi2_dx"] = gradient && psi2 ? py::object(gridArray(c, result.dpsi2, 0.0)) : py::object(py::none());
     out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
                                                   : py::object(py::none());
+    // The same derivatives over the design variables (the order of rod.design_variables), for
+    // optimizers that work on the variables (scipy.optimize).
+    out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
+    out["dpsi2_dv"] = gradient && psi2 ? py::object(vectorArray(result.dpsi2)) : py::object(py::none());
+    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
     out["summary"] = toPython(summaryToJson(result.summary));
     py::dict seconds;
     seconds["model"] = result.modelSeconds;
@@ -311,7 +316,7 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
     }
     progress.flush();
   }
-  py::dict result = readResults(run.resultsPath());
+  py::dict result;
   result["results_path"] = run.resultsPath();
   result["stopped_by_callback"] = stopped;
   return result;
