@@ -19,6 +19,7 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/rod/config.h>
 #include <hindsight/problems/rod/design_io.h>
+#include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
@@ -172,10 +173,9 @@ class PyPistonRod {
     if (!adjoint.is_none()) applyFlag(config, "adjoint", "simulation.adjoint", adjoint.cast<std::string>());
     if (!integrator.is_none())
       applyFlag(config, "integrator", "simulation.integrator", integrator.cast<std::string>());
-    if (config.simulation.model == RodModel::Full)
-      throw std::invalid_argument("simulation.model = full is not offered by PistonRod.evaluate; use the CLI");
     const PistonRod rod(config);
     const Vector design = this->design(x);
+    if (config.simulation.model == RodModel::Full) return evaluateFullOrder(config, design, gradient);
     // As `hindsight evaluate`: psi2 needs fixed steps.
     const bool psi2 = psi2Wanted && !config.simulation.adaptive;
     PistonRodEvaluation result;
@@ -208,10 +208,44 @@ class PyPistonRod {
     seconds["chain"] = result.chainSeconds;
     seconds["esl"] = result.eslSeconds;
     out["seconds"] = seconds;
+    out["model"] = "reduced";
     return out;
   }
 
  private:
+  /// The full-order model of docs/design.md §9, as `hindsight evaluate --model full`: psi1, its
+  /// gradient and the volume fraction (no psi2, no modes).
+  static py::dict evaluateFullOrder(const Config& config, const Vector& design, bool gradient) {
+    rod::FullOrderRodEvaluation result;
+    {
+      Simulating simulating;
+      result = rod::evaluateFullOrderRod(config, design, gradient);
+    }
+    const rod::RodConfig& c = config.rod;
+    py::dict out;
+    out["model"] = "full";
+    out["psi1"] = result.psi1;
+    out["psi2"] = py::none();
+    out["volume_fraction"] = result.volumeFraction;
+    out["frequencies_hz"] = py::none();
+    out["dpsi1_dx"] = gradient ? py::object(gridArray(c, result.dpsi1, 0.0)) : py::object(py::none());
+    out["dpsi2_dx"] = py::none();
+    out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
+                                                  : py::object(py::none());
+    out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
+    out["dpsi2_dv"] = py::none();
+    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
+    out["state_size"] = result.stateSize;
+    out["omega_max"] = result.omegaMax;
+    out["coupling"] = config.simulation.fullOrderCoupling;
+    out["summary"] = toPython(summaryToJson(result.summary));
+    py::dict seconds;
+    seconds["model"] = result.modelSeconds;
+    seconds["simulation"] = result.simulationSeconds;
+    out["seconds"] = seconds;
+    return out;
+  }
+
   PistonRod rod_;
 };
 
@@ -336,18 +370,18 @@ class PythonProblem final : public Problem {
     if (parameterSize_ < 0) throw std::invalid_argument("problem.parameter_size must be >= 0");
     name_ = py::hasattr(object_, "name") ? py::str(object_.attr("name")).cast<std::string>()
                                          : py::str(py::type::of(object_).attr("__name__")).cast<std::string>();
-    hasJacobian_ = py::hasattr(object_, "rhs_jacobian");
-    hasStateVjp_ = py::hasattr(object_, "rhs_state_vjp");
+    hasJacobian_ = has("rhs_jacobian");
+    hasStateVjp_ = has("rhs_state_vjp");
     if (!hasJacobian_ && !hasStateVjp_)
       throw std::invalid_argument("problem needs rhs_jacobian(t, z, p) or rhs_state_vjp(t, z, p, w)");
     for (const char* method : {"initial_state", "rhs", "rhs_parameter_vjp", "integrand", "integrand_state_gradient",
                                "integrand_parameter_gradient"}) {
-      if (!py::hasattr(object_, method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
+      if (!has(method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
     }
-    hasTerminal_ = py::hasattr(object_, "terminal");
-    if (hasTerminal_ && !py::hasattr(object_, "terminal_gradient"))
+    hasTerminal_ = has("terminal");
+    if (hasTerminal_ && !has("terminal_gradient"))
       throw std::invalid_argument("problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
-    hasInitialVjp_ = py::hasattr(object_, "initial_state_vjp");
+    hasInitialVjp_ = has("initial_state_vjp");
   }
 
   std::string name() const override { return name_; }
@@ -413,6 +447,8 @@ class PythonProblem final : public Problem {
   }
 
  private:
+  /// An optional method is present when the attribute exists and is not None.
+  bool has(const char* name) const { return py::hasattr(object_, name) && !object_.attr(name).is_none(); }
   py::object attribute(const char* name) const {
     if (!py::hasattr(object_, name)) throw std::invalid_argument(std::string("problem needs an attribute ") + name);
     return object_.attr(name);

@@ -9,7 +9,8 @@ import pytest
 import hindsight
 
 
-class Oscillator:
+class OscillatorByVjp:
+    """(dF/dz)^T w instead of the Jacobian: enough for explicit methods."""
     state_size = 2
     parameter_size = 3
     name = "python-oscillator"
@@ -23,8 +24,8 @@ class Oscillator:
     def rhs(self, t, z, p):
         return np.array([z[1], -p[0] * z[0] - p[1] * z[1]])
 
-    def rhs_jacobian(self, t, z, p):
-        return np.array([[0.0, 1.0], [-p[0], -p[1]]])
+    def rhs_state_vjp(self, t, z, p, w):
+        return np.array([-p[0] * w[1], w[0] - p[1] * w[1]])
 
     def rhs_parameter_vjp(self, t, z, p, w):
         return np.array([-z[0] * w[1], -z[1] * w[1], 0.0])
@@ -39,15 +40,12 @@ class Oscillator:
         return np.zeros(3)
 
 
-class OscillatorByVjp(Oscillator):
-    """The same with (dF/dz)^T w instead of the Jacobian (explicit methods need nothing else)."""
-    rhs_jacobian = None
+class Oscillator(OscillatorByVjp):
+    """With the dense Jacobian (implicit methods and CVODES need it); rhs_state_vjp = None: not given."""
+    rhs_state_vjp = None
 
-    def __init__(self):
-        del OscillatorByVjp.rhs_jacobian
-
-    def rhs_state_vjp(self, t, z, p, w):
-        return np.array([-p[0] * w[1], w[0] - p[1] * w[1]])
+    def rhs_jacobian(self, t, z, p):
+        return np.array([[0.0, 1.0], [-p[0], -p[1]]])
 
 
 def exact_psi(k, c, y0, T):

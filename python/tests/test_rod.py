@@ -112,3 +112,16 @@ def test_storage_specs_come_from_the_factory():
         assert hindsight.check_storage_spec(spec.example)
     binomial = next(s for s in specs if s.name == "binomial")
     assert "checkpoints" in binomial.key_docs and binomial.exact is True
+
+
+def test_full_order_model_equals_cli_bitwise(cli, tmp_path):
+    settings = {"model": "full", "integrator": "trbdf2", "step": 1e-3}
+    rod = hindsight.PistonRod(COARSE, simulation=settings)
+    r = rod.evaluate(gradient=True)
+    expected, fields = cli_evaluate(cli, tmp_path, COARSE_SET + ["--model", "full", "--integrator", "trbdf2",
+                                                                  "--set", "simulation.step=1e-3"])
+    assert r.model == expected["model"] == "full"
+    assert r.psi2 is None and r.frequencies_hz is None
+    assert r.state_size == expected["state_size"]
+    assert_bitwise(r.psi1, expected["psi1"])
+    assert_bitwise(r.dpsi1_dx, fields["dpsi1_dx"])
