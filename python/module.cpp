@@ -35,6 +35,7 @@
 #include <atomic>
 #include <chrono>
 #include <iostream>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -66,17 +67,40 @@ void pollPythonSignals() {
   if (PyErr_CheckSignals() != 0) throw py::error_already_set();
 }
 
-/// Releases the GIL and installs the poll for the scope of a C++ computation.
-class Simulating {
+/// Installs the poll while at least one computation runs: Python threads may run several at once (the
+/// GIL is released), and the last one to finish removes it.
+class PollInstallation {
  public:
-  Simulating() : previous_(setInterruptPoll(&pollPythonSignals)) { nextPollNanoseconds = 0; }
-  ~Simulating() { setInterruptPoll(previous_); }
-  Simulating(const Simulating&) = delete;
-  Simulating& operator=(const Simulating&) = delete;
+  PollInstallation() {
+    const std::lock_guard<std::mutex> lock(mutex());
+    if (count()++ == 0) {
+      nextPollNanoseconds = 0;
+      setInterruptPoll(&pollPythonSignals);
+    }
+  }
+  ~PollInstallation() {
+    const std::lock_guard<std::mutex> lock(mutex());
+    if (--count() == 0) setInterruptPoll(nullptr);
+  }
+  PollInstallation(const PollInstallation&) = delete;
+  PollInstallation& operator=(const PollInstallation&) = delete;
 
  private:
-  InterruptPoll previous_;
-  py::gil_scoped_release release_;  // released after the poll is installed, re-acquired first
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static int& count() {
+    static int n = 0;
+    return n;
+  }
+};
+
+/// Releases the GIL and installs the poll for the scope of a C++ computation.
+class Simulating {
+ private:
+  PollInstallation poll_;           // installed before the GIL is released,
+  py::gil_scoped_release release_;  // re-acquired before the poll is removed
 };
 
 // ---- Conversions -------------------------------------------------------------------------------
