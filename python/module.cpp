@@ -26,7 +26,6 @@
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 
-#include <pybind11/functional.h>
 #include <pybind11/iostream.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -34,9 +33,7 @@
 
 #include <atomic>
 #include <chrono>
-#include <iostream>
 #include <mutex>
-#include <sstream>
 #include <thread>
 
 namespace py = pybind11;
@@ -362,9 +359,9 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
   bool stopped = false;
   {
     // Progress lines go to Python's sys.stdout (a notebook shows them), or nowhere.
-    std::ostringstream discard;
+    std::ostream discard(nullptr);  // no buffer: output is dropped
     py::object stdoutObject = py::module_::import("sys").attr("stdout");
-    py::detail::pythonbuf buffer(stdoutObject);
+    py::detail::pythonbuf buffer(stdoutObject);  // what py::scoped_ostream_redirect uses; takes the GIL to write
     std::ostream progress(&buffer);
     Simulating simulating;
     try {

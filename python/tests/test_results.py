@@ -67,3 +67,11 @@ def test_plot_comparison(tmp_path):
     assert png.stat().st_size > 1000
     assert len(figure.axes) == 3
     assert a.history["psi1"][-1] > 0
+
+
+def test_verbose_prints_the_cli_progress_lines(tmp_path, capsys):
+    hindsight.optimize(CONFIG, out=tmp_path / "run", verbose=True)
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("iter")]
+    assert len(lines) == 4 and "psi1" in lines[0] and "V/V0" in lines[0], lines
+    hindsight.optimize(CONFIG, out=tmp_path / "quiet")
+    assert "iter" not in capsys.readouterr().out
