@@ -4,7 +4,6 @@ plot_comparison draws the Fig.-4 comparison."""
 import json
 import subprocess
 
-import numpy as np
 import pytest
 
 import hindsight

@@ -5,7 +5,6 @@ import subprocess
 
 import h5py
 import numpy as np
-import pytest
 
 import hindsight
 from conftest import COARSE, COARSE_SET
