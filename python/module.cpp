@@ -403,6 +403,19 @@ class PythonProblem final : public Problem {
     if (hasTerminal_ && !has("terminal_gradient"))
       throw std::invalid_argument("problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
     hasInitialVjp_ = has("initial_state_vjp");
+    // Bound methods looked up once: a getattr per call would cost more than the copies of z and p.
+    const auto lookup = [&](const char* name) { return has(name) ? py::object(object_.attr(name)) : py::object(py::none()); };
+    methods_.initial_state = lookup("initial_state");
+    methods_.initial_state_vjp = lookup("initial_state_vjp");
+    methods_.rhs = lookup("rhs");
+    methods_.rhs_jacobian = lookup("rhs_jacobian");
+    methods_.rhs_state_vjp = lookup("rhs_state_vjp");
+    methods_.rhs_parameter_vjp = lookup("rhs_parameter_vjp");
+    methods_.integrand = lookup("integrand");
+    methods_.integrand_state_gradient = lookup("integrand_state_gradient");
+    methods_.integrand_parameter_gradient = lookup("integrand_parameter_gradient");
+    methods_.terminal = lookup("terminal");
+    methods_.terminal_gradient = lookup("terminal_gradient");
   }
 
   std::string name() const override { return name_; }
@@ -412,18 +425,18 @@ class PythonProblem final : public Problem {
   bool hasStateVjp() const override { return hasStateVjp_; }
 
   void initialState(ConstVectorRef p, VectorRef z0) const override {
-    copyInto("initial_state", object_.attr("initial_state")(array(p)), z0);
+    copyInto("initial_state", methods_.initial_state(array(p)), z0);
   }
   void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const override {
     if (!hasInitialVjp_) return;
-    addInto("initial_state_vjp", object_.attr("initial_state_vjp")(array(p), array(lambda0)), gradient, 1.0);
+    addInto("initial_state_vjp", methods_.initial_state_vjp(array(p), array(lambda0)), gradient, 1.0);
   }
   void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
-    copyInto("rhs", object_.attr("rhs")(t, array(z), array(p)), f);
+    copyInto("rhs", methods_.rhs(t, array(z), array(p)), f);
   }
   void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
                    ProblemWorkspace*) const override {
-    const auto result = checked("rhs_jacobian", object_.attr("rhs_jacobian")(t, array(z), array(p)), stateSize_,
+    const auto result = checked("rhs_jacobian", methods_.rhs_jacobian(t, array(z), array(p)), stateSize_,
                                 stateSize_);
     const auto view = result.unchecked<2>();
     for (int i = 0; i < stateSize_; ++i)
@@ -437,30 +450,30 @@ class PythonProblem final : public Problem {
       out.noalias() = jacobian.transpose() * w;
       return;
     }
-    copyInto("rhs_state_vjp", object_.attr("rhs_state_vjp")(t, array(z), array(p), array(w)), out);
+    copyInto("rhs_state_vjp", methods_.rhs_state_vjp(t, array(z), array(p), array(w)), out);
   }
   void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                           ProblemWorkspace*) const override {
-    addInto("rhs_parameter_vjp", object_.attr("rhs_parameter_vjp")(t, array(z), array(p), array(w)), out, 1.0);
+    addInto("rhs_parameter_vjp", methods_.rhs_parameter_vjp(t, array(z), array(p), array(w)), out, 1.0);
   }
   double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace*) const override {
-    return object_.attr("integrand")(t, array(z), array(p)).cast<double>();
+    return methods_.integrand(t, array(z), array(p)).cast<double>();
   }
   void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                  ProblemWorkspace*) const override {
-    addInto("integrand_state_gradient", object_.attr("integrand_state_gradient")(t, array(z), array(p)), out, scale);
+    addInto("integrand_state_gradient", methods_.integrand_state_gradient(t, array(z), array(p)), out, scale);
   }
   void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                      ProblemWorkspace*) const override {
-    addInto("integrand_parameter_gradient", object_.attr("integrand_parameter_gradient")(t, array(z), array(p)), out,
+    addInto("integrand_parameter_gradient", methods_.integrand_parameter_gradient(t, array(z), array(p)), out,
             scale);
   }
   double terminal(ConstVectorRef z, ConstVectorRef p) const override {
-    return hasTerminal_ ? object_.attr("terminal")(array(z), array(p)).cast<double>() : 0.0;
+    return hasTerminal_ ? methods_.terminal(array(z), array(p)).cast<double>() : 0.0;
   }
   void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override {
     if (!hasTerminal_) return;
-    const py::tuple both = object_.attr("terminal_gradient")(array(z), array(p));
+    const py::tuple both = methods_.terminal_gradient(array(z), array(p));
     if (both.size() != 2)
       throw std::invalid_argument("problem.terminal_gradient must return (dphi/dz, dphi/dp)");
     addInto("terminal_gradient[0]", both[0], gz, 1.0);
@@ -499,6 +512,9 @@ class PythonProblem final : public Problem {
   }
 
   py::object object_;
+  struct Methods {
+    py::object initial_state, initial_state_vjp, rhs, rhs_jacobian, rhs_state_vjp, rhs_parameter_vjp, integrand, integrand_state_gradient, integrand_parameter_gradient, terminal, terminal_gradient;
+  } methods_;
   std::string name_;
   int stateSize_ = 0, parameterSize_ = 0;
   bool hasJacobian_ = false, hasStateVjp_ = false, hasTerminal_ = false, hasInitialVjp_ = false;
