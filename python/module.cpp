@@ -19,13 +19,13 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/rod/config.h>
 #include <hindsight/problems/rod/design_io.h>
+#include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 
-#include <pybind11/functional.h>
 #include <pybind11/iostream.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -33,8 +33,7 @@
 
 #include <atomic>
 #include <chrono>
-#include <iostream>
-#include <sstream>
+#include <mutex>
 #include <thread>
 
 namespace py = pybind11;
@@ -65,17 +64,40 @@ void pollPythonSignals() {
   if (PyErr_CheckSignals() != 0) throw py::error_already_set();
 }
 
-/// Releases the GIL and installs the poll for the scope of a C++ computation.
-class Simulating {
+/// Installs the poll while at least one computation runs: Python threads may run several at once (the
+/// GIL is released), and the last one to finish removes it.
+class PollInstallation {
  public:
-  Simulating() : previous_(setInterruptPoll(&pollPythonSignals)) { nextPollNanoseconds = 0; }
-  ~Simulating() { setInterruptPoll(previous_); }
-  Simulating(const Simulating&) = delete;
-  Simulating& operator=(const Simulating&) = delete;
+  PollInstallation() {
+    const std::lock_guard<std::mutex> lock(mutex());
+    if (count()++ == 0) {
+      nextPollNanoseconds = 0;
+      setInterruptPoll(&pollPythonSignals);
+    }
+  }
+  ~PollInstallation() {
+    const std::lock_guard<std::mutex> lock(mutex());
+    if (--count() == 0) setInterruptPoll(nullptr);
+  }
+  PollInstallation(const PollInstallation&) = delete;
+  PollInstallation& operator=(const PollInstallation&) = delete;
 
  private:
-  InterruptPoll previous_;
-  py::gil_scoped_release release_;  // released after the poll is installed, re-acquired first
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static int& count() {
+    static int n = 0;
+    return n;
+  }
+};
+
+/// Releases the GIL and installs the poll for the scope of a C++ computation.
+class Simulating {
+ private:
+  PollInstallation poll_;           // installed before the GIL is released,
+  py::gil_scoped_release release_;  // re-acquired before the poll is removed
 };
 
 // ---- Conversions -------------------------------------------------------------------------------
@@ -172,10 +194,9 @@ class PyPistonRod {
     if (!adjoint.is_none()) applyFlag(config, "adjoint", "simulation.adjoint", adjoint.cast<std::string>());
     if (!integrator.is_none())
       applyFlag(config, "integrator", "simulation.integrator", integrator.cast<std::string>());
-    if (config.simulation.model == RodModel::Full)
-      throw std::invalid_argument("simulation.model = full is not offered by PistonRod.evaluate; use the CLI");
     const PistonRod rod(config);
     const Vector design = this->design(x);
+    if (config.simulation.model == RodModel::Full) return evaluateFullOrder(config, design, gradient);
     // As `hindsight evaluate`: psi2 needs fixed steps.
     const bool psi2 = psi2Wanted && !config.simulation.adaptive;
     PistonRodEvaluation result;
@@ -196,6 +217,11 @@ class PyPistonRod {
     out["dpsi2_dx"] = gradient && psi2 ? py::object(gridArray(c, result.dpsi2, 0.0)) : py::object(py::none());
     out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
                                                   : py::object(py::none());
+    // The same derivatives over the design variables (the order of rod.design_variables), for
+    // optimizers that work on the variables (scipy.optimize).
+    out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
+    out["dpsi2_dv"] = gradient && psi2 ? py::object(vectorArray(result.dpsi2)) : py::object(py::none());
+    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
     out["summary"] = toPython(summaryToJson(result.summary));
     py::dict seconds;
     seconds["model"] = result.modelSeconds;
@@ -203,10 +229,44 @@ class PyPistonRod {
     seconds["chain"] = result.chainSeconds;
     seconds["esl"] = result.eslSeconds;
     out["seconds"] = seconds;
+    out["model"] = "reduced";
     return out;
   }
 
  private:
+  /// The full-order model of docs/design.md §9, as `hindsight evaluate --model full`: psi1, its
+  /// gradient and the volume fraction (no psi2, no modes).
+  static py::dict evaluateFullOrder(const Config& config, const Vector& design, bool gradient) {
+    rod::FullOrderRodEvaluation result;
+    {
+      Simulating simulating;
+      result = rod::evaluateFullOrderRod(config, design, gradient);
+    }
+    const rod::RodConfig& c = config.rod;
+    py::dict out;
+    out["model"] = "full";
+    out["psi1"] = result.psi1;
+    out["psi2"] = py::none();
+    out["volume_fraction"] = result.volumeFraction;
+    out["frequencies_hz"] = py::none();
+    out["dpsi1_dx"] = gradient ? py::object(gridArray(c, result.dpsi1, 0.0)) : py::object(py::none());
+    out["dpsi2_dx"] = py::none();
+    out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
+                                                  : py::object(py::none());
+    out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
+    out["dpsi2_dv"] = py::none();
+    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
+    out["state_size"] = result.stateSize;
+    out["omega_max"] = result.omegaMax;
+    out["coupling"] = config.simulation.fullOrderCoupling;
+    out["summary"] = toPython(summaryToJson(result.summary));
+    py::dict seconds;
+    seconds["model"] = result.modelSeconds;
+    seconds["simulation"] = result.simulationSeconds;
+    out["seconds"] = seconds;
+    return out;
+  }
+
   PistonRod rod_;
 };
 
@@ -299,9 +359,9 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
   bool stopped = false;
   {
     // Progress lines go to Python's sys.stdout (a notebook shows them), or nowhere.
-    std::ostringstream discard;
+    std::ostream discard(nullptr);  // no buffer: output is dropped
     py::object stdoutObject = py::module_::import("sys").attr("stdout");
-    py::detail::pythonbuf buffer(stdoutObject);
+    py::detail::pythonbuf buffer(stdoutObject);  // what py::scoped_ostream_redirect uses; takes the GIL to write
     std::ostream progress(&buffer);
     Simulating simulating;
     try {
@@ -311,7 +371,7 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
     }
     progress.flush();
   }
-  py::dict result = readResults(run.resultsPath());
+  py::dict result;
   result["results_path"] = run.resultsPath();
   result["stopped_by_callback"] = stopped;
   return result;
@@ -331,18 +391,31 @@ class PythonProblem final : public Problem {
     if (parameterSize_ < 0) throw std::invalid_argument("problem.parameter_size must be >= 0");
     name_ = py::hasattr(object_, "name") ? py::str(object_.attr("name")).cast<std::string>()
                                          : py::str(py::type::of(object_).attr("__name__")).cast<std::string>();
-    hasJacobian_ = py::hasattr(object_, "rhs_jacobian");
-    hasStateVjp_ = py::hasattr(object_, "rhs_state_vjp");
+    hasJacobian_ = has("rhs_jacobian");
+    hasStateVjp_ = has("rhs_state_vjp");
     if (!hasJacobian_ && !hasStateVjp_)
       throw std::invalid_argument("problem needs rhs_jacobian(t, z, p) or rhs_state_vjp(t, z, p, w)");
     for (const char* method : {"initial_state", "rhs", "rhs_parameter_vjp", "integrand", "integrand_state_gradient",
                                "integrand_parameter_gradient"}) {
-      if (!py::hasattr(object_, method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
+      if (!has(method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
     }
-    hasTerminal_ = py::hasattr(object_, "terminal");
-    if (hasTerminal_ && !py::hasattr(object_, "terminal_gradient"))
+    hasTerminal_ = has("terminal");
+    if (hasTerminal_ && !has("terminal_gradient"))
       throw std::invalid_argument("problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
-    hasInitialVjp_ = py::hasattr(object_, "initial_state_vjp");
+    hasInitialVjp_ = has("initial_state_vjp");
+    // Bound methods looked up once: a getattr per call would cost more than the copies of z and p.
+    const auto lookup = [&](const char* name) { return has(name) ? py::object(object_.attr(name)) : py::object(py::none()); };
+    methods_.initial_state = lookup("initial_state");
+    methods_.initial_state_vjp = lookup("initial_state_vjp");
+    methods_.rhs = lookup("rhs");
+    methods_.rhs_jacobian = lookup("rhs_jacobian");
+    methods_.rhs_state_vjp = lookup("rhs_state_vjp");
+    methods_.rhs_parameter_vjp = lookup("rhs_parameter_vjp");
+    methods_.integrand = lookup("integrand");
+    methods_.integrand_state_gradient = lookup("integrand_state_gradient");
+    methods_.integrand_parameter_gradient = lookup("integrand_parameter_gradient");
+    methods_.terminal = lookup("terminal");
+    methods_.terminal_gradient = lookup("terminal_gradient");
   }
 
   std::string name() const override { return name_; }
@@ -352,18 +425,18 @@ class PythonProblem final : public Problem {
   bool hasStateVjp() const override { return hasStateVjp_; }
 
   void initialState(ConstVectorRef p, VectorRef z0) const override {
-    copyInto("initial_state", object_.attr("initial_state")(array(p)), z0);
+    copyInto("initial_state", methods_.initial_state(array(p)), z0);
   }
   void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const override {
     if (!hasInitialVjp_) return;
-    addInto("initial_state_vjp", object_.attr("initial_state_vjp")(array(p), array(lambda0)), gradient, 1.0);
+    addInto("initial_state_vjp", methods_.initial_state_vjp(array(p), array(lambda0)), gradient, 1.0);
   }
   void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace*) const override {
-    copyInto("rhs", object_.attr("rhs")(t, array(z), array(p)), f);
+    copyInto("rhs", methods_.rhs(t, array(z), array(p)), f);
   }
   void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
                    ProblemWorkspace*) const override {
-    const auto result = checked("rhs_jacobian", object_.attr("rhs_jacobian")(t, array(z), array(p)), stateSize_,
+    const auto result = checked("rhs_jacobian", methods_.rhs_jacobian(t, array(z), array(p)), stateSize_,
                                 stateSize_);
     const auto view = result.unchecked<2>();
     for (int i = 0; i < stateSize_; ++i)
@@ -377,30 +450,30 @@ class PythonProblem final : public Problem {
       out.noalias() = jacobian.transpose() * w;
       return;
     }
-    copyInto("rhs_state_vjp", object_.attr("rhs_state_vjp")(t, array(z), array(p), array(w)), out);
+    copyInto("rhs_state_vjp", methods_.rhs_state_vjp(t, array(z), array(p), array(w)), out);
   }
   void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                           ProblemWorkspace*) const override {
-    addInto("rhs_parameter_vjp", object_.attr("rhs_parameter_vjp")(t, array(z), array(p), array(w)), out, 1.0);
+    addInto("rhs_parameter_vjp", methods_.rhs_parameter_vjp(t, array(z), array(p), array(w)), out, 1.0);
   }
   double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace*) const override {
-    return object_.attr("integrand")(t, array(z), array(p)).cast<double>();
+    return methods_.integrand(t, array(z), array(p)).cast<double>();
   }
   void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                  ProblemWorkspace*) const override {
-    addInto("integrand_state_gradient", object_.attr("integrand_state_gradient")(t, array(z), array(p)), out, scale);
+    addInto("integrand_state_gradient", methods_.integrand_state_gradient(t, array(z), array(p)), out, scale);
   }
   void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                      ProblemWorkspace*) const override {
-    addInto("integrand_parameter_gradient", object_.attr("integrand_parameter_gradient")(t, array(z), array(p)), out,
+    addInto("integrand_parameter_gradient", methods_.integrand_parameter_gradient(t, array(z), array(p)), out,
             scale);
   }
   double terminal(ConstVectorRef z, ConstVectorRef p) const override {
-    return hasTerminal_ ? object_.attr("terminal")(array(z), array(p)).cast<double>() : 0.0;
+    return hasTerminal_ ? methods_.terminal(array(z), array(p)).cast<double>() : 0.0;
   }
   void addTerminalGradient(ConstVectorRef z, ConstVectorRef p, VectorRef gz, VectorRef gp) const override {
     if (!hasTerminal_) return;
-    const py::tuple both = object_.attr("terminal_gradient")(array(z), array(p));
+    const py::tuple both = methods_.terminal_gradient(array(z), array(p));
     if (both.size() != 2)
       throw std::invalid_argument("problem.terminal_gradient must return (dphi/dz, dphi/dp)");
     addInto("terminal_gradient[0]", both[0], gz, 1.0);
@@ -408,6 +481,8 @@ class PythonProblem final : public Problem {
   }
 
  private:
+  /// An optional method is present when the attribute exists and is not None.
+  bool has(const char* name) const { return py::hasattr(object_, name) && !object_.attr(name).is_none(); }
   py::object attribute(const char* name) const {
     if (!py::hasattr(object_, name)) throw std::invalid_argument(std::string("problem needs an attribute ") + name);
     return object_.attr(name);
@@ -437,6 +512,9 @@ class PythonProblem final : public Problem {
   }
 
   py::object object_;
+  struct Methods {
+    py::object initial_state, initial_state_vjp, rhs, rhs_jacobian, rhs_state_vjp, rhs_parameter_vjp, integrand, integrand_state_gradient, integrand_parameter_gradient, terminal, terminal_gradient;
+  } methods_;
   std::string name_;
   int stateSize_ = 0, parameterSize_ = 0;
   bool hasJacobian_ = false, hasStateVjp_ = false, hasTerminal_ = false, hasInitialVjp_ = false;

@@ -92,7 +92,8 @@ class PistonRod:
     def evaluate(self, x=None, gradient=True, storage=None, adjoint=None, integrator=None, psi2=True):
         """psi1, psi2, volume fraction and frequencies of design x (default x0); with gradient=True also
         dpsi1_dx, dpsi2_dx, dvolume_dx as (ny, nx) arrays (0 in the end columns), exactly as
-        `hindsight evaluate --gradient` computes them. storage, adjoint and integrator override
+        `hindsight evaluate --gradient` computes them, and dpsi1_dv, dpsi2_dv, dvolume_dv over the
+        design variables (the order of design_variables(), for optimizers working on them). storage, adjoint and integrator override
         simulation.storage / adjoint / integrator for this call (checked as the CLI's flags).
         psi2 is None when skipped (psi2=False, or adaptive steps). The GIL is released meanwhile;
         Ctrl-C raises KeyboardInterrupt."""
@@ -111,7 +112,10 @@ def optimize(config=None, out="results", resume=False, force=False, callback=Non
     disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
     returning False stops the run (its results stay valid and resumable). verbose=True prints the
     progress lines. Returns read_results(out) plus results_path and stopped_by_callback."""
-    return Result(_hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides))
+    run = _hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides)
+    result = read_results(run["results_path"])
+    result["stopped_by_callback"] = run["stopped_by_callback"]
+    return result
 
 
 def read_results(path):

@@ -17,6 +17,8 @@ TINY = {"rod": {"elementsAlongLength": 8, "elementsThroughHeight": 2, "modeCount
 def cli():
     """The hindsight executable built with the module (ctest sets HINDSIGHT_CLI)."""
     path = os.environ.get("HINDSIGHT_CLI") or shutil.which("hindsight")
-    if not path or not os.path.exists(path):
-        pytest.fail("HINDSIGHT_CLI is not set to the hindsight executable (ctest sets it)")
+    if not path:
+        pytest.skip("no hindsight executable: built with HINDSIGHT_BUILD_CLI=OFF (ctest sets HINDSIGHT_CLI)")
+    if not os.path.exists(path):
+        pytest.fail(f"HINDSIGHT_CLI = {path} does not exist")
     return path

@@ -5,7 +5,6 @@ import subprocess
 
 import h5py
 import numpy as np
-import pytest
 
 import hindsight
 from conftest import COARSE, COARSE_SET
@@ -112,3 +111,37 @@ def test_storage_specs_come_from_the_factory():
         assert hindsight.check_storage_spec(spec.example)
     binomial = next(s for s in specs if s.name == "binomial")
     assert "checkpoints" in binomial.key_docs and binomial.exact is True
+
+
+def test_full_order_model_equals_cli_bitwise(cli, tmp_path):
+    # Half a second of the mechanism (the ramp up to speed): 500 implicit steps instead of 3000.
+    settings = {"model": "full", "integrator": "trbdf2", "step": 1e-3}
+    rod = hindsight.PistonRod(COARSE, simulation=settings, **{"rod.endTime": 0.5, "rod.rampTime": 0.4})
+    r = rod.evaluate(gradient=True)
+    expected, fields = cli_evaluate(cli, tmp_path, COARSE_SET + ["--model", "full", "--integrator", "trbdf2",
+                                                                  "--set", "simulation.step=1e-3",
+                                                                  "--set", "rod.rampTime=0.4", "--set", "rod.endTime=0.5"])
+    assert r.model == expected["model"] == "full"
+    assert r.psi2 is None and r.frequencies_hz is None
+    assert r.state_size == expected["state_size"]
+    assert_bitwise(r.psi1, expected["psi1"])
+    assert_bitwise(r.dpsi1_dx, fields["dpsi1_dx"])
+
+
+def test_evaluations_from_threads_equal_serial_ones():
+    from concurrent.futures import ThreadPoolExecutor
+
+    from conftest import TINY
+    rod = hindsight.PistonRod(TINY)
+    rng = np.random.default_rng(3)
+    designs = []
+    for _ in range(6):
+        x = rod.x0.copy()
+        x[:, 1:-1] = rng.uniform(0.1, 1.0, size=x[:, 1:-1].shape)
+        designs.append(x)
+    serial = [rod.evaluate(x, gradient=True) for x in designs]
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        parallel = list(pool.map(lambda x: rod.evaluate(x, gradient=True), designs))
+    for a, b in zip(serial, parallel):
+        assert_bitwise(a.psi1, b.psi1)
+        assert_bitwise(a.dpsi1_dx, b.dpsi1_dx)

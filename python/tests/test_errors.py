@@ -1,0 +1,117 @@
+"""C++ exceptions map to Python with the CLI's messages: bad input -> ValueError, numerical failures
+-> hindsight.NumericalError, storage failures -> hindsight.StorageError (both RuntimeError)."""
+import subprocess
+
+import numpy as np
+import pytest
+
+import hindsight
+from conftest import COARSE, COARSE_SET, TINY
+
+
+def cli_error(cli, args):
+    run = subprocess.run([cli, "evaluate"] + args, capture_output=True, text=True)
+    assert run.returncode == 2, run.stderr
+    prefix = "hindsight: error: "
+    assert run.stderr.startswith(prefix), run.stderr
+    return run.stderr[len(prefix):].strip()
+
+
+def test_exception_classes():
+    assert issubclass(hindsight.NumericalError, RuntimeError)
+    assert issubclass(hindsight.StorageError, RuntimeError)
+    assert not issubclass(hindsight.NumericalError, hindsight.StorageError)
+
+
+def test_bad_config_is_value_error_with_the_cli_message(cli):
+    with pytest.raises(ValueError) as error:
+        hindsight.PistonRod(rod={"modeCount": 0})
+    assert str(error.value) == cli_error(cli, ["--set", "rod.modeCount=0"])
+    assert "'rod.modeCount' = 0 is outside the allowed range [1, 40]" in str(error.value)
+    with pytest.raises(ValueError, match="unknown"):
+        hindsight.PistonRod(rod={"noSuchField": 1})
+    with pytest.raises(ValueError, match="section.field"):
+        hindsight.PistonRod(modeCount=4)
+
+
+def test_bad_flag_values_are_value_errors_naming_the_key(cli):
+    rod = hindsight.PistonRod(COARSE)
+    with pytest.raises(ValueError) as error:
+        rod.evaluate(gradient=False, storage="binomial:checkpoints=0")
+    # The CLI names its flag (--storage), the module the keyword (storage); the rest is the same text.
+    expected = cli_error(cli, COARSE_SET + ["--storage", "binomial:checkpoints=0"])
+    assert str(error.value) == expected.replace("--storage", "storage")
+    with pytest.raises(ValueError, match="discrete"):
+        rod.evaluate(gradient=False, adjoint="magic")
+
+
+def test_bad_designs_are_value_errors():
+    rod = hindsight.PistonRod(COARSE)
+    with pytest.raises(ValueError, match=r"shape \(ny, nx\) = \(4, 20\)"):
+        rod.evaluate(np.ones((20, 4)))
+    x = rod.x0.copy()
+    x[2, 5] = 1.5
+    with pytest.raises(ValueError, match=r"design x: x\[2\]\[5\] \(row 2, column 5\) = 1.5 is outside \[0.010000, 1\]"):
+        rod.evaluate(x)
+    x = rod.x0.copy()
+    x[0, 0] = 0.5
+    with pytest.raises(ValueError, match="end columns are not design variables"):
+        rod.evaluate(x)
+    x = rod.x0.copy()
+    x[1, 1] = np.nan
+    with pytest.raises(ValueError, match="nan"):
+        rod.evaluate(x)
+
+
+def test_storage_failure_is_storage_error():
+    rod = hindsight.PistonRod(TINY)
+    with pytest.raises(hindsight.StorageError, match="would exceed its budget of 16 B"):
+        rod.evaluate(gradient=True, storage="full:budget=16B")
+    with pytest.raises(hindsight.StorageError, match="cannot use directory '/proc/nonexistent/x'"):
+        rod.evaluate(gradient=True, storage="disk:dir=/proc/nonexistent/x")
+    # The module stays usable.
+    assert rod.evaluate(gradient=True).psi1 > 0
+
+
+def test_numerical_failure_is_numerical_error():
+    # An explicit step far beyond the stability limit of the rod's fastest mode: the state overflows.
+    rod = hindsight.PistonRod(TINY, simulation={"step": 1e-2}, rod={"endTime": 2.0, "rampTime": 1.0,
+                                                                     "eslSamples": 5})
+    with pytest.raises(hindsight.NumericalError, match=r"became non-finite \(at t = "):
+        rod.evaluate(gradient=True)
+
+
+def test_numerical_failure_of_a_python_problem():
+    class Blowup:
+        state_size, parameter_size = 1, 1
+
+        def initial_state(self, p):
+            return np.array([1.0])
+
+        def rhs(self, t, z, p):
+            return np.array([np.inf])
+
+        def rhs_jacobian(self, t, z, p):
+            return np.zeros((1, 1))
+
+        def rhs_parameter_vjp(self, t, z, p, w):
+            return np.zeros(1)
+
+        def integrand(self, t, z, p):
+            return 0.0
+
+        def integrand_state_gradient(self, t, z, p):
+            return np.zeros(1)
+
+        def integrand_parameter_gradient(self, t, z, p):
+            return np.zeros(1)
+
+    with pytest.raises(hindsight.NumericalError):
+        hindsight.gradient(Blowup(), np.ones(1))
+
+
+def test_unreadable_results_are_storage_errors(tmp_path):
+    bad = tmp_path / "results.h5"
+    bad.write_bytes(b"not hdf5")
+    with pytest.raises(hindsight.StorageError, match="results.h5"):
+        hindsight.read_results(tmp_path)

@@ -1,0 +1,46 @@
+"""Ctrl-C interrupts a long rod evaluation cleanly: KeyboardInterrupt, the GIL was released meanwhile
+(another Python thread ran), and the next evaluation works."""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+CHILD = textwrap.dedent("""
+    import sys, threading, time
+    import hindsight
+    from conftest import COARSE
+    # The coarse rod over 1000 s of simulated time: minutes of work if nothing interrupts it.
+    rod = hindsight.PistonRod(COARSE, rod={"endTime": 1000.0})
+    ticks = []
+    def tick():
+        while True:
+            ticks.append(time.monotonic())
+            time.sleep(0.01)
+    threading.Thread(target=tick, daemon=True).start()
+    print("start", flush=True)
+    try:
+        rod.evaluate(gradient=True)
+        print("finished without interruption", flush=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        print("interrupted, ticks", len(ticks), flush=True)
+    small = hindsight.PistonRod(COARSE, rod={"endTime": 2.5})
+    print("after", small.evaluate(gradient=True).psi1 > 0, flush=True)
+""")
+
+
+def test_ctrl_c_interrupts_an_evaluation():
+    child = subprocess.Popen([sys.executable, "-c", CHILD], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True, cwd=os.path.dirname(__file__))
+    assert child.stdout.readline().strip() == "start"
+    time.sleep(1.5)
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=300)
+    assert child.returncode == 0, (out, err)
+    lines = out.splitlines()
+    assert lines[0].startswith("interrupted, ticks"), out
+    # The ticker thread ran while C++ simulated: the GIL was released.
+    assert int(lines[0].split()[-1]) >= 20, out
+    assert lines[1] == "after True", out

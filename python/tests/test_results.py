@@ -1,0 +1,76 @@
+"""hindsight.optimize (with a per-iteration callback) runs what `hindsight optimize` runs: the same
+history and designs bit for bit (seconds excepted); read_results reads it with the C++ checks;
+plot_comparison draws the Fig.-4 comparison."""
+import json
+import subprocess
+
+import pytest
+
+import hindsight
+from conftest import TINY
+
+CONFIG = {**TINY, "optimization": {"iterations": 3}}
+EXACT_COLUMNS = ["iteration", "psi1", "psi2", "backtracks", "volume_fraction", "max_design_change"]
+
+
+def test_optimize_with_callback_equals_the_cli(cli, tmp_path):
+    seen = []
+    history = hindsight.optimize(CONFIG, out=tmp_path / "py", callback=lambda record: seen.append(record))
+    assert history.finished and history.checksummed
+    assert [r["iteration"] for r in seen] == list(history.history["iteration"]) == [0, 1, 2, 3]
+    assert seen[-1]["psi1"] == history.history["psi1"][-1]
+    assert history.designs.shape == (4, 2, 8)
+    assert history.configuration["optimization"]["iterations"] == 3
+
+    config_file = tmp_path / "config.json"
+    config_file.write_text(json.dumps(CONFIG))
+    subprocess.run([cli, "optimize", "--config", str(config_file), "--out", str(tmp_path / "cli")], check=True,
+                   capture_output=True)
+    expected = hindsight.read_results(tmp_path / "cli")
+    for column in EXACT_COLUMNS:
+        assert history.history[column].tobytes() == expected.history[column].tobytes(), column
+    assert history.designs.tobytes() == expected.designs.tobytes()
+    assert history.configuration == expected.configuration
+
+
+def test_callback_can_stop_and_the_run_resumes(tmp_path):
+    out = tmp_path / "run"
+    stopped = hindsight.optimize(CONFIG, out=out, callback=lambda record: record["iteration"] < 1)
+    assert stopped.stopped_by_callback and not stopped.finished
+    assert list(stopped.history["iteration"]) == [0, 1]
+    resumed = hindsight.optimize(CONFIG, out=out, resume=True)
+    whole = hindsight.optimize(CONFIG, out=tmp_path / "whole")
+    for column in EXACT_COLUMNS:
+        assert resumed.history[column].tobytes() == whole.history[column].tobytes(), column
+    # Without resume or force an existing run is refused (the CLI's message).
+    with pytest.raises(ValueError, match="--force"):
+        hindsight.optimize(CONFIG, out=out)
+
+
+def test_callback_exception_propagates_and_leaves_a_valid_file(tmp_path):
+    def fail(record):
+        if record["iteration"] == 1:
+            raise KeyError("stop here")
+
+    with pytest.raises(KeyError, match="stop here"):
+        hindsight.optimize(CONFIG, out=tmp_path / "run", callback=fail)
+    partial = hindsight.read_results(tmp_path / "run")
+    assert list(partial.history["iteration"]) == [0, 1]
+
+
+def test_plot_comparison(tmp_path):
+    a = hindsight.optimize(CONFIG, out=tmp_path / "a")
+    b = hindsight.optimize(CONFIG, out=tmp_path / "b", optimization={"objective": "psi2"})
+    png = tmp_path / "fig4.png"
+    figure = hindsight.plot_comparison(tmp_path / "a", b, out=png)
+    assert png.stat().st_size > 1000
+    assert len(figure.axes) == 3
+    assert a.history["psi1"][-1] > 0
+
+
+def test_verbose_prints_the_cli_progress_lines(tmp_path, capsys):
+    hindsight.optimize(CONFIG, out=tmp_path / "run", verbose=True)
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("iter")]
+    assert len(lines) == 4 and "psi1" in lines[0] and "V/V0" in lines[0], lines
+    hindsight.optimize(CONFIG, out=tmp_path / "quiet")
+    assert "iter" not in capsys.readouterr().out
