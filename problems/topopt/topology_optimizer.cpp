@@ -61,6 +61,7 @@ TopologyOptimizer::TopologyOptimizer(const Config& config)
   if (config.optimization.method == "gcmma") {
     GcmmaOptions options;
     options.mma = mmaOptions(config.optimization);
+    options.accept_descent = true;  // see GcmmaOptions::accept_descent
     gcmma_ = std::make_unique<Gcmma>(config.rod.designCount(), constraintCount(), options);
   }
   state_.design = rod_.initialDesign();
