@@ -86,6 +86,7 @@ void Gcmma::update(double objective, ConstVectorRef objective_gradient, ConstVec
       }
       const double distance = mma_.conservativeDistance(x, trial, xmin, xmax);
       bool conservative = true;
+      bool feasibleDescent = trialObjective < objective;  // descent acceptance (accept_descent)
       Vector grown = rho;
       for (int i = 0; i <= m_; ++i) {
         const double value = i == 0 ? objective : constraints(i - 1);
@@ -93,6 +94,7 @@ void Gcmma::update(double objective, ConstVectorRef objective_gradient, ConstVec
         const double approximation = value + mma_.approximationChange(i, x, trial);
         if (approximation + tolerance >= trialValue) continue;
         conservative = false;
+        if (i > 0 && trialValue > 0.0) feasibleDescent = false;
         const double delta = distance > 0.0 ? (trialValue - approximation) / distance : rho(i);
         grown(i) = std::min(kDeltaFactor * (rho(i) + delta), kMaxGrowth * rho(i));
       }
@@ -101,6 +103,7 @@ void Gcmma::update(double objective, ConstVectorRef objective_gradient, ConstVec
         conservative = false;
         grown(0) = 2.0 * rho(0);
       }
+      if (!conservative && options_.accept_descent && feasibleDescent) conservative = true;
       if (conservative) {
         summary_.accepted = true;
         break;

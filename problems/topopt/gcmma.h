@@ -20,6 +20,7 @@
 //    never increases, not even by the subproblem tolerance.
 //  * A trial whose evaluation fails (the caller returns false: a diverged simulation) counts as
 //    non-conservative in every function: every rho_i is multiplied by 10.
+//  * GcmmaOptions::accept_descent (off by default): see there.
 //  * After max_inner_iterations trials without an acceptable one the iteration keeps x_k (no move;
 //    Summary::accepted = false). The state advances as after a move of zero.
 // Between outer iterations GCMMA carries exactly the MMA state (rho restarts every outer iteration),
@@ -47,6 +48,14 @@ struct GcmmaOptions {
   double min_regularization = 1e-5;  ///< lower bound of rho_i (raa0 of MMA); > 0
   /// Conservative means f~_i(x^) + tolerance >= f_i(x^); 0.5 epsimin in the note. >= 0.
   double conservative_tolerance = 0.5e-7;
+  /// Descent acceptance (a declared variant, off by default): a trial is also accepted when it is
+  /// not conservative but feasible (f_i(x^) <= 0 for every constraint that is not conservative) and
+  /// its objective is below f0(x_k). The guarantee the caller sees is the same (accepted designs are
+  /// feasible and no worse), but steps are not shortened where the true functions are better than
+  /// the approximations; Svanberg's convergence proof does not cover it. The rod optimizer uses it:
+  /// psi1 of the modal rod is not smooth where eigenvalues cross the truncation (the kept mode set
+  /// changes), and pure GCMMA then shrinks its steps to nothing at such a kink.
+  bool accept_descent = false;
 
   bool IsValid(std::string* error) const;
 };

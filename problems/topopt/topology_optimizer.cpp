@@ -74,6 +74,7 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
   if (settings.method == "gcmma") {
     GcmmaOptions options;
     options.mma = mmaOptions(settings);
+    options.accept_descent = true;  // see GcmmaOptions::accept_descent
     gcmma_ = std::make_unique<Gcmma>(config.rod.designCount(), constraintCount(), options);
   }
   state_.design = scenarios_.rod(0).initialDesign();

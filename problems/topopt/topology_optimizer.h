@@ -159,16 +159,18 @@ class TopologyOptimizer final {
   /// solid end columns = 1); length nx * ny.
   Vector densityGrid(ConstVectorRef design) const;
 
+  /// What the model sees in iteration k for design variables x: the filtered design, projected when
+  /// optimization.projectionBeta > 0 (with the beta of iteration k); one entry per design variable.
+  Vector modelDesign(ConstVectorRef design, int iteration) const;
+  /// The chain rule through filter and projection: d phi / dx from d phi / d(modelDesign(x, k)).
+  Vector chainToDesign(ConstVectorRef gradient, ConstVectorRef design, int iteration) const;
+
  private:
   Vector physicalDesign(ConstVectorRef design) const;        // filtered design variables
   MmaState fullMmaState(const OptimizerState& state) const;  // state.mma with z's entries appended
   Vector chainThroughFilter(ConstVectorRef gradient) const;  // F^T on the design variables
   // The projection of iteration k; empty when optimization.projectionBeta = 0.
   std::optional<HeavisideProjection> projectionAt(int iteration) const;
-  // What the model sees: the filtered design, projected when the projection is on.
-  Vector modelDesign(ConstVectorRef design, int iteration) const;
-  // d/dx of a function of the model design from its gradient g with respect to the model design.
-  Vector chainToDesign(ConstVectorRef gradient, ConstVectorRef design, int iteration) const;
   int constraintCount() const;
   // The constraint values (and, when jacobian is not null, their gradients over the design
   // variables) of an evaluation of `design` in iteration k.

@@ -217,6 +217,24 @@ TEST(Gcmma, NonconvexObjectiveNeedsInnerIterationsAndNeverIncreases) {
   }
 }
 
+TEST(Gcmma, DescentAcceptanceKeepsFeasibleNeverWorseIteratesWithNoMoreTrials) {
+  const Problem p = WavyDisk();
+  GcmmaOptions options = TightOptions();
+  Gcmma strict(p.n, p.m, options);
+  options.accept_descent = true;
+  Gcmma descent(p.n, p.m, options);
+  const History a = RunGcmma(p, 200, 1e-9, strict, p.x0);
+  const History b = RunGcmma(p, 200, 1e-9, descent, p.x0);
+  int trialsA = 0, trialsB = 0;
+  for (int n : a.inner) trialsA += n;
+  for (int n : b.inner) trialsB += n;
+  std::cout << "[ wavy     ] trials: conservative " << trialsA << ", with descent acceptance " << trialsB
+            << "; f = " << b.objective.back() << "\n";
+  ExpectConservative(b, options.conservative_tolerance);
+  EXPECT_LE(trialsB, trialsA);
+  EXPECT_NEAR(b.objective.back(), a.objective.back(), 1e-6);
+}
+
 TEST(Gcmma, FailedTrialEvaluationsRaiseEveryRhoAndTheStepStaysShort) {
   const Problem p = TwoSpheres();
   Gcmma gcmma(p.n, p.m);

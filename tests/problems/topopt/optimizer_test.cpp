@@ -1,6 +1,7 @@
 // Topology optimization of the piston rod on a coarse mesh: the loop decreases psi1 and ends feasible,
 // both routes record psi1, a run killed at any moment leaves a readable results file and resumes bit
 // for bit, the --resume / --force rules and the bad-input errors (library and CLI exit codes).
+#include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/topology_optimizer.h>
@@ -958,6 +959,175 @@ TEST(OptimizeCommand, AFullDiskExitsThreeAndKeepsTheLastCompleteResults) {
   expectSameResults(finished, reference);
 }
 #endif
+
+
+// ---- issue 17: GCMMA, frequency guard, projection, geometry export ----
+
+TEST(TopologyOptimizer, GcmmaHistoryOnTheRodNeverIncreasesAndEveryAcceptedDesignIsFeasible) {
+  Config config = coarseConfig("psi1", 6);
+  config.optimization.method = "gcmma";
+  config.optimization.moveLimit = 0.5;  // the standard move limit, with which MMA needs step-backs here
+  TopologyOptimizer optimizer(config);
+  std::vector<IterationRecord> history;
+  while (!optimizer.finished()) history.push_back(optimizer.step());
+  ASSERT_EQ(history.size(), 7u);
+  for (std::size_t k = 0; k < history.size(); ++k) {
+    std::cout << progressLine(history[k]) << '\n';
+    EXPECT_EQ(history[k].backtracks, 0) << k;
+    if (k + 1 < history.size()) EXPECT_GE(history[k].innerIterations, 1) << k;
+    if (k == 0) continue;
+    // x0 is infeasible (V/V0 = 0.55); every accepted design satisfies the volume bound (to the
+    // conservativeness tolerance) and, from the first feasible one on, psi1 never increases.
+    EXPECT_LE(history[k].volumeFraction, 0.5 * (1.0 + 1e-7)) << k;
+    if (k >= 2) EXPECT_LE(history[k].psi1, history[k - 1].psi1) << k;
+  }
+  EXPECT_LT(history.back().psi1, 0.8 * history.front().psi1);
+  EXPECT_EQ(history.back().innerIterations, 0);  // the final evaluation makes no update
+}
+
+TEST(OptimizationRun, GcmmaExitAfterAnIterationThenResumeIsBitIdenticalAndExportsTheGeometry) {
+  Config config = coarseConfig("psi1", 4);
+  config.optimization.method = "gcmma";
+  const ResultsData& reference = referenceResults(config, "gcmma_4");
+  const std::string dir = freshDirectory("exit_gcmma");
+  EXPECT_FALSE(runInChild(config, dir, 1));
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  options.resume = true;
+  const OptimizationRunSummary summary = runQuietly(config, options);
+  EXPECT_EQ(summary.resumedFrom, 2);
+  const ResultsData resumed = readResultsFile(dir + "/results.h5");
+  expectSameResults(resumed, reference);
+  for (std::size_t k = 0; k < resumed.history.size(); ++k) {
+    EXPECT_EQ(resumed.history[k].innerIterations, reference.history[k].innerIterations) << k;
+    EXPECT_TRUE(sameBits(resumed.history[k].grayness, reference.history[k].grayness)) << k;
+    EXPECT_TRUE(sameBits(resumed.history[k].firstFrequencyHz, reference.history[k].firstFrequencyHz)) << k;
+    EXPECT_GE(resumed.history[k].grayness, 0.0);
+    EXPECT_GT(resumed.history[k].firstFrequencyHz, 0.0);
+  }
+  // The final design's geometry is written by every run; its outline encloses the solid fraction.
+  for (const char* file : {"design_final.svg", "design_final.dxf", "design_final.stl"})
+    EXPECT_TRUE(fs::exists(dir + "/" + file)) << file;
+  const Vector& grid = resumed.densities.back();
+  DensityField field;
+  field.nx = resumed.nx;
+  field.ny = resumed.ny;
+  field.values = grid;
+  field.cellWidthMm = 1000.0 * config.rod.length / field.nx;
+  field.cellHeightMm = 1000.0 * config.rod.height / field.ny;
+  int solid = 0;
+  for (Eigen::Index e = 0; e < grid.size(); ++e) solid += grid(e) >= 0.5 ? 1 : 0;
+  const double cell = field.cellWidthMm * field.cellHeightMm;
+  EXPECT_NEAR(contourOutline(field, 0.5).area(), solid * cell, field.nx * cell);
+}
+
+#ifdef HINDSIGHT_CLI_PATH
+TEST(ExportCommand, WritesAnyIterationAndRefusesToOverwriteWithoutForce) {
+  const std::string dir = freshDirectory("cli_export");
+  CliResult result = runCli("optimize " + kCoarseFlags + " --iterations 2 --out " + dir);
+  ASSERT_EQ(result.exitCode, 0) << result.output;
+  EXPECT_NE(result.output.find("  gray "), std::string::npos) << result.output;
+  // design_final.* exist from the run: no overwrite without --force.
+  result = runCli("export " + dir + " --iso 0.4");
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  EXPECT_NE(result.output.find("--force"), std::string::npos) << result.output;
+  result = runCli("export " + dir + " --iso 0.4 --force");
+  EXPECT_EQ(result.exitCode, 0) << result.output;
+  result = runCli("export " + dir + " --iteration 1");
+  ASSERT_EQ(result.exitCode, 0) << result.output;
+  for (const char* file : {"design_iter_1.svg", "design_iter_1.dxf", "design_iter_1.stl"})
+    EXPECT_TRUE(fs::exists(dir + "/" + file)) << file;
+  result = runCli("export " + dir + " --iteration 7");
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  EXPECT_NE(result.output.find("--iteration"), std::string::npos) << result.output;
+  result = runCli("export " + dir + " --iso 1.5 --force");
+  EXPECT_EQ(result.exitCode, 2) << result.output;
+  EXPECT_NE(result.output.find("--iso"), std::string::npos) << result.output;
+}
+#endif
+
+TEST(TopologyOptimizer, ChainThroughFilterAndProjectionMatchesFiniteDifferences) {
+  Config config = coarseConfig("psi1", 3);
+  config.optimization.filterRadius = 1.5;
+  config.optimization.projectionBeta = 4.0;
+  config.optimization.projectionBetaMax = 16.0;
+  config.optimization.projectionEvery = 2;
+  const TopologyOptimizer optimizer(config);
+  const int n = optimizer.designCount();
+  std::mt19937 generator(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Vector x(n), w(n);
+  for (int d = 0; d < n; ++d) {
+    x(d) = 0.05 + 0.9 * unit(generator);
+    w(d) = unit(generator) - 0.5;
+  }
+  for (int iteration : {0, 3}) {  // beta 4 and 8
+    // phi(x) = sum_d w_d m_d(x)^2 with m the model design: d phi / dm = 2 w m.
+    auto phi = [&](const Vector& v) { return w.dot(optimizer.modelDesign(v, iteration).cwiseAbs2()); };
+    const Vector m = optimizer.modelDesign(x, iteration);
+    const Vector gradient = optimizer.chainToDesign(2.0 * w.cwiseProduct(m), x, iteration);
+    const double h = 1e-6;
+    double worst = 0.0;
+    for (int d = 0; d < n; ++d) {
+      Vector plus = x, minus = x;
+      plus(d) += h;
+      minus(d) -= h;
+      worst = std::max(worst, std::abs((phi(plus) - phi(minus)) / (2.0 * h) - gradient(d)));
+    }
+    EXPECT_LT(worst, 1e-7 * gradient.cwiseAbs().maxCoeff()) << "iteration " << iteration;
+  }
+  // Continuation: beta0 2^floor(k / every), capped.
+  EXPECT_EQ(HeavisideProjection::continuationBeta(4.0, 16.0, 2, 0), 4.0);
+  EXPECT_EQ(HeavisideProjection::continuationBeta(4.0, 16.0, 2, 3), 8.0);
+  EXPECT_EQ(HeavisideProjection::continuationBeta(4.0, 16.0, 2, 100), 16.0);
+  // The projection pushes the filtered densities toward 0 and 1: less gray than the filter alone.
+  Config filterOnly = config;
+  filterOnly.optimization.projectionBeta = 0.0;
+  const TopologyOptimizer plain(filterOnly);
+  EXPECT_LT(grayness(optimizer.modelDesign(x, 100)), grayness(plain.modelDesign(x, 100)));
+  EXPECT_GE(optimizer.modelDesign(x, 0).minCoeff(), config.rod.designLowerBound);
+  EXPECT_LE(optimizer.modelDesign(x, 0).maxCoeff(), 1.0);
+}
+
+TEST(TopologyOptimizer, ProjectedRunDecreasesPsi1AndGetsCrisper) {
+  Config config = coarseConfig("psi1", 8);
+  config.optimization.filterRadius = 1.5;
+  config.optimization.projectionBeta = 2.0;
+  config.optimization.projectionEvery = 3;
+  TopologyOptimizer optimizer(config);
+  std::vector<IterationRecord> history;
+  while (!optimizer.finished()) history.push_back(optimizer.step());
+  EXPECT_LT(history.back().psi1, history.front().psi1);
+  EXPECT_LE(history.back().volumeFraction, 0.5 + 1e-6);
+  EXPECT_LT(history.back().grayness, history[1].grayness);
+}
+
+// The guard at work: x0 of the coarse rod has f1 = 36.6 Hz and the unguarded run ends at 66 Hz; a bound of
+// 70 Hz is violated throughout and
+// MMA restores it while it reduces psi1 (constraint value and derivative from eigen_constraint.h).
+// (On the divergence test's configuration the guard does not remove the step-back: the design that
+// diverges there has f1 = 8 Hz, so its divergence is not a low-frequency mechanism; on the 200 x 12
+// rod of the paper it is, see README "Optimizer robustness".)
+TEST(TopologyOptimizer, FrequencyGuardRestoresAViolatedFirstFrequencyBound) {
+  Config config = coarseConfig("psi1", 8);
+  config.optimization.minFirstFrequency = 70.0;
+  TopologyOptimizer optimizer(config);
+  std::vector<IterationRecord> history;
+  while (!optimizer.finished()) history.push_back(optimizer.step());
+  for (const IterationRecord& r : history) std::cout << progressLine(r) << "  f1 " << r.firstFrequencyHz << " Hz\n";
+  EXPECT_LT(history.front().firstFrequencyHz, 70.0);
+  EXPECT_GE(history.back().firstFrequencyHz, 70.0 * (1.0 - 1e-3));
+  EXPECT_LT(history.back().psi1, history.front().psi1);
+  // Both constraints are active now; with move limit 0.1 the volume settles more slowly (3 % over
+  // after 8 iterations).
+  EXPECT_LE(history.back().volumeFraction, 0.5 * 1.03);
+  // Without the guard the same run ends below the bound: the constraint is what holds it.
+  config.optimization.minFirstFrequency = 0.0;
+  TopologyOptimizer unguarded(config);
+  IterationRecord last;
+  while (!unguarded.finished()) last = unguarded.step();
+  EXPECT_LT(last.firstFrequencyHz, 70.0);
+}
 
 }  // namespace
 }  // namespace hindsight
