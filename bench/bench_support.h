@@ -28,7 +28,8 @@ namespace hindsight::bench {
 /// Newton and a dense direct solver, the problem's vector-Jacobian product in the backward rhs when it
 /// has one); label = "cvodes-METHOD/INTERPOLATION-NdN". At CV_HERMITE, Nd 100 also the alternatives,
 /// to show what each choice costs in the same run: "cvodes-adams-aa3" (Anderson acceleration, m = 3),
-/// "cvodes-adams-newton" (Newton + dense, the configuration before issue 13), "cvodes-METHOD-jacobian"
+/// "cvodes-adams-newton" (Newton + dense, the configuration before issue 13), "cvodes-adams-newton-vjp"
+/// (Newton + dense with the VJP in the backward rhs), "cvodes-METHOD-jacobian"
 /// (the dense F_z^T lambda in the backward rhs), "cvodes-bdf-gmres" (matrix-free Newton-GMRES),
 /// "cvodes-METHOD-noquaderr" (quadratures out of the error test: SUNDIALS' default errconQ = false,
 /// hindsight's default includes them).
@@ -61,6 +62,8 @@ void forEachCvodesVariant(const GradientOptions& base, Add&& add) {
           alternative.cvodes.linearSolver = CvodesLinearSolver::Dense;
           alternative.cvodes.backwardProducts = CvodesBackwardProducts::Dense;
           add("cvodes-adams-newton" + variant, alternative);
+          alternative.cvodes.backwardProducts = CvodesBackwardProducts::Auto;
+          add("cvodes-adams-newton-vjp" + variant, alternative);
         } else {
           alternative = cvodes;
           alternative.cvodes.linearSolver = CvodesLinearSolver::Gmres;
