@@ -1,5 +1,6 @@
-// Strategy "disk": every step's state in an HDF5 file, chunked, byte-shuffled and zstd-compressed,
-// written and read by a background thread (docs/design.md §6). Exact: restore() returns the recorded
+// Strategy "disk": every step's state in an HDF5 file, chunked, each chunk coded along time
+// (storage/time_codec.h; or byte-shuffled and zstd-compressed with codec=zstd), written and read by a
+// background thread (docs/design.md §6). Exact: restore() returns the recorded
 // bits, so gradients are bitwise identical to "full" storage; nothing is recomputed.
 //
 // Spec: disk:dir=PATH[,level=1..22][,chunk=STATES][,budget=BYTES][,keep=true|false][,codec=time|zstd]
