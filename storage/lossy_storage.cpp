@@ -138,6 +138,9 @@ void LossyStorage::doBegin() {
   const std::int64_t n = info().stateSize;
   std::int64_t block = options_.blockStates;
   if (block == 0) block = std::clamp<std::int64_t>((std::int64_t{256} << 10) / stateBytes(), 1, 4096);
+  // The time codec predicts from the previous states of the block: large states get at least 16 per
+  // block (e.g. the full-order rod, where 256 KiB would hold 3 states of 10^4 doubles).
+  if (options_.blockStates == 0 && options_.codec == Codec::kTime) block = std::max<std::int64_t>(block, 16);
   if (info().stepCount > 0) block = std::min(block, info().stepCount);
   blockStates_ = block;
   componentMajor_ = n <= block && options_.codec != Codec::kTime;  // the time codec takes rows

@@ -27,7 +27,8 @@
 //                RELATIVE bound, T in (0, 0.5] (Kloewer, Razinger, Dominguez, Duben & Palmer 2021).
 //   budget       bytes held in memory (default 4 GiB): the compressed blocks plus three work buffers
 //                of one block each (raw states, transposed/shuffled states, compressor output).
-//   block        states compressed together (default: about 256 KiB of states, at most 4096).
+//   block        states compressed together (default: about 256 KiB of states, at most 4096; at
+//                least 16 for the time codec).
 // States are compressed in blocks. When a block has at least as many states as a state has
 // components, it is stored component-major (each component's values over the block's steps are
 // contiguous), so smoothness in time helps the codecs even for tiny states; otherwise (large
