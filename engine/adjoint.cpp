@@ -170,6 +170,7 @@ void RunSummary::addStorageCounters(const StorageCounters& counters, std::size_t
   peakBytesInMemory = counters.peakBytesInMemory + static_cast<std::int64_t>(gridPoints) * 8;
   bytesOnDisk = counters.bytesOnDisk;
   compressionRatio = counters.compressionRatio();
+  gradientErrorEstimate = counters.gradientErrorEstimate;
   ioSeconds = counters.ioSeconds;
 }
 
@@ -195,6 +196,7 @@ void RunSummary::print(std::ostream& out) const {
       << "\nbytes on disk: " << formatBytes(bytesOnDisk) << "\ncompression ratio: " << compressionRatio
       << "\nforward seconds: " << forwardSeconds << "\nbackward seconds: " << backwardSeconds
       << "\nI/O seconds: " << ioSeconds << '\n';
+  if (gradientErrorEstimate >= 0.0) out << "gradient error estimate: " << gradientErrorEstimate << '\n';
 }
 
 ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,

@@ -31,6 +31,7 @@ struct RunSummary {
   std::int64_t peakBytesInMemory = 0;  ///< storage plus the time grid
   std::int64_t bytesOnDisk = 0;
   double compressionRatio = 1.0;
+  double gradientErrorEstimate = -1.0;  ///< from the storage (StorageCounters); -1: none made
   double forwardSeconds = 0.0;
   double backwardSeconds = 0.0;
   double ioSeconds = 0.0;

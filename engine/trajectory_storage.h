@@ -53,6 +53,9 @@ struct StorageCounters {
   std::int64_t uncompressedBytes = 0;  ///< raw size of what was compressed, for the ratio
   std::int64_t compressedBytes = 0;
   double ioSeconds = 0.0;
+  /// A lossy strategy's estimate of the relative 2-norm error of the gradient its restored states
+  /// cause (lossy:target=T, lossy:codec=time); -1 when the strategy makes none.
+  double gradientErrorEstimate = -1.0;
   /// uncompressedBytes / compressedBytes, or 1 when nothing was compressed.
   double compressionRatio() const {
     return compressedBytes > 0 ? static_cast<double>(uncompressedBytes) / static_cast<double>(compressedBytes)

@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/storage/hdf5.h>
+#include <hindsight/storage/time_codec.h>
 
 #include <zstd.h>
 
@@ -207,9 +208,17 @@ struct ChunkedStateFile::Impl {
   hdf5::Handle filteredChunks(int rank, const hsize_t* chunk) {
     hdf5::Handle dcpl = hdf5::propertyList(H5P_DATASET_CREATE);
     hdf5::check(H5Pset_chunk(dcpl.get(), rank, chunk), "chunk layout");
-    hdf5::check(H5Pset_shuffle(dcpl.get()), "shuffle filter");
     const unsigned level = static_cast<unsigned>(options.compressionLevel);
-    hdf5::check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level), "zstd filter 32015");
+    if (options.codec == StateFileOptions::Codec::kTime) {
+      const unsigned values[3] = {rank == 2 ? static_cast<unsigned>(chunk[1]) : 1u,
+                                  static_cast<unsigned>(options.timeOrder), level};
+      hdf5::check(H5Pset_filter(dcpl.get(), static_cast<H5Z_filter_t>(kTimeCodecFilterId), H5Z_FLAG_MANDATORY, 3,
+                                values),
+                  "time codec filter 306");
+    } else {
+      hdf5::check(H5Pset_shuffle(dcpl.get()), "shuffle filter");
+      hdf5::check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level), "zstd filter 32015");
+    }
     hdf5::check(H5Pset_fletcher32(dcpl.get()), "Fletcher32 filter");
     return dcpl;
   }
@@ -223,6 +232,7 @@ struct ChunkedStateFile::Impl {
 
   void create() {
     if (!ensureZstdFilter()) throw std::runtime_error("cannot register the zstd HDF5 filter (id 32015)");
+    if (!ensureTimeCodecFilter()) throw std::runtime_error("cannot register the time codec HDF5 filter (id 306)");
     file = hdf5::createFile(path, H5F_ACC_EXCL, "the trajectory file");
     created = true;
     const std::vector<hsize_t> dims = {0, static_cast<hsize_t>(n)};
@@ -240,6 +250,8 @@ struct ChunkedStateFile::Impl {
     hdf5::writeAttribute(file.get(), "t1", info.t1);
     hdf5::writeStringAttribute(file.get(), "hindsightVersion", version());
     hdf5::writeAttribute(file.get(), "chunkStates", chunkStates);
+    hdf5::writeStringAttribute(file.get(), "codec",
+                               options.codec == StateFileOptions::Codec::kTime ? "time" : "zstd");
   }
 
   void write(const Task& task) {
@@ -271,6 +283,8 @@ struct ChunkedStateFile::Impl {
   }
 
   void openRead() {
+    if (!ensureZstdFilter() || !ensureTimeCodecFilter())
+      throw std::runtime_error("cannot register the HDF5 filters 32015 and 306");
     file = hdf5::openFileReadOnly(path, "the trajectory file");
     states = hdf5::openDataset(file.get(), "states", uncachedAccess().get());
     const std::vector<hsize_t> dims = hdf5::shape(states.get());

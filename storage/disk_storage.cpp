@@ -36,6 +36,7 @@ std::unique_ptr<TrajectoryStorage> DiskStorage::create(const StorageSpec& spec) 
   options.chunkStates = spec.integer("chunk", 0, 1, std::int64_t{1} << 30);
   options.budgetBytes = spec.bytes("budget", kDefaultBudget);
   options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
+  options.timeCodec = spec.text("codec", "time", {"time", "zstd"}) == "time";
   return std::make_unique<DiskStorage>(std::move(options));
 }
 
@@ -45,6 +46,7 @@ std::string DiskStorage::spec() const {
   if (options_.chunkStates > 0) text += ",chunk=" + std::to_string(options_.chunkStates);
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.keepFile) text += ",keep=true";
+  if (!options_.timeCodec) text += ",codec=zstd";
   return text;
 }
 
@@ -83,6 +85,8 @@ void DiskStorage::doBegin() {
   fileOptions.chunkStates = chunk;
   fileOptions.bufferCount = bufferCount;
   fileOptions.keepFile = options_.keepFile;
+  fileOptions.codec = options_.timeCodec ? internal::StateFileOptions::Codec::kTime
+                                         : internal::StateFileOptions::Codec::kZstd;
   fileOptions.failWriteAfterChunks = options_.failWriteAfterChunks;
   file_ = std::make_unique<internal::ChunkedStateFile>(fileOptions, info());
   filePath_ = file_->path();

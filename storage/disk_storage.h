@@ -1,10 +1,14 @@
-// Strategy "disk": every step's state in an HDF5 file, chunked, byte-shuffled and zstd-compressed,
-// written and read by a background thread (docs/design.md §6). Exact: restore() returns the recorded
+// Strategy "disk": every step's state in an HDF5 file, chunked, each chunk coded along time
+// (storage/time_codec.h; or byte-shuffled and zstd-compressed with codec=zstd), written and read by a
+// background thread (docs/design.md §6). Exact: restore() returns the recorded
 // bits, so gradients are bitwise identical to "full" storage; nothing is recomputed.
 //
-// Spec: disk:dir=PATH[,level=1..22][,chunk=STATES][,budget=BYTES][,keep=true|false]
+// Spec: disk:dir=PATH[,level=1..22][,chunk=STATES][,budget=BYTES][,keep=true|false][,codec=time|zstd]
 //   dir     directory for the file (created if missing); required
 //   level   zstd level (default 3)
+//   codec   time (default): each chunk's states predicted along time, residuals coded losslessly
+//           (storage/time_codec.h, 2.4-3.3x on the rod); zstd: byte shuffle + zstd per chunk (the
+//           format before issue #14, 1.3-1.4x). Both restore every bit.
 //   chunk   states per HDF5 chunk and per I/O buffer (default: about 1 MiB of states, at most 4096)
 //   budget  bytes held in memory (default 64 MiB): the pool of up to three chunk buffers (one being
 //           filled or consumed, the others queued for writing or prefetched), charged with
@@ -52,6 +56,7 @@ class DiskStorage final : public TrajectoryStorage {
     std::int64_t chunkStates = 0;  ///< 0: automatic
     std::int64_t budgetBytes = kDefaultBudget;
     bool keepFile = false;
+    bool timeCodec = true;  ///< codec=time (true) or codec=zstd
     /// Test hook: writes of chunk K and later fail as on a full disk (-1: off).
     std::int64_t failWriteAfterChunks = -1;
     /// Test hook: called with the file's path after the forward sweep, when the file is complete and
@@ -67,7 +72,7 @@ class DiskStorage final : public TrajectoryStorage {
   ~DiskStorage() override;
 
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep"}; }
+  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep", "codec"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -52,8 +52,11 @@ bool LossyStorage::Options::IsValid(std::string* error) const {
   std::string message;
   if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
     message = "lossy.tolerance = " + shortest(tolerance) + " must be a positive number";
-  } else if (codec == Codec::kRound && tolerance > 0.5) {
-    message = "lossy.tolerance = " + shortest(tolerance) + " must be in (0, 0.5] for codec=round (relative)";
+  } else if ((codec == Codec::kRound || codec == Codec::kTime) && tolerance > 0.5) {
+    message = "lossy.tolerance = " + shortest(tolerance) + " must be in (0, 0.5] for codec=" +
+              (codec == Codec::kRound ? "round" : "time") + " (relative)";
+  } else if (target != 0.0 && !(target >= kMinTarget && target <= kMaxTarget)) {
+    message = "lossy.target = " + shortest(target) + " must be in [1e-14, 0.1]";
   } else if (budgetBytes <= 0) {
     message = "lossy.budget = " + std::to_string(budgetBytes) + " must be positive";
   } else if (blockStates < 0) {
@@ -71,20 +74,34 @@ LossyStorage::LossyStorage(Options options)
 
 std::unique_ptr<TrajectoryStorage> LossyStorage::create(const StorageSpec& spec) {
   Options options;
-  const std::string codec = spec.text("codec", "", {"zfp", "round"});
-  if (codec.empty()) throw std::invalid_argument("lossy.codec is required: zfp or round");
-  if (!spec.has("tolerance")) throw std::invalid_argument("lossy.tolerance is required, e.g. tolerance=1e-6");
-  options.codec = codec == "zfp" ? Codec::kZfp : Codec::kRound;
-  options.tolerance = spec.real("tolerance", 0.0, std::numeric_limits<double>::min(),
-                                codec == "round" ? 0.5 : std::numeric_limits<double>::max());
   options.budgetBytes = spec.bytes("budget", kDefaultBudget);
   options.blockStates = spec.integer("block", 0, 1, std::int64_t{1} << 30);
+  if (spec.has("target")) {
+    if (spec.has("codec") || spec.has("tolerance"))
+      throw std::invalid_argument("lossy.target sets codec and tolerance itself: give target or codec+tolerance");
+    options.target = spec.real("target", 0.0, kMinTarget, kMaxTarget);
+    options.codec = Codec::kTime;
+    options.tolerance = options.target / kGradientSensitivity;
+    return std::make_unique<LossyStorage>(options);
+  }
+  const std::string codec = spec.text("codec", "", {"zfp", "round", "time"});
+  if (codec.empty())
+    throw std::invalid_argument("lossy needs target=T (e.g. target=1e-6) or codec=zfp|round|time with tolerance");
+  if (!spec.has("tolerance")) throw std::invalid_argument("lossy.tolerance is required, e.g. tolerance=1e-6");
+  options.codec = codec == "zfp" ? Codec::kZfp : codec == "round" ? Codec::kRound : Codec::kTime;
+  options.tolerance = spec.real("tolerance", 0.0, std::numeric_limits<double>::min(),
+                                codec == "zfp" ? std::numeric_limits<double>::max() : 0.5);
   return std::make_unique<LossyStorage>(options);
 }
 
 std::string LossyStorage::spec() const {
-  std::string text = std::string("lossy:codec=") + (options_.codec == Codec::kZfp ? "zfp" : "round") +
-                     ",tolerance=" + shortest(options_.tolerance);
+  std::string text = options_.target > 0.0
+                         ? "lossy:target=" + shortest(options_.target)
+                         : std::string("lossy:codec=") +
+                               (options_.codec == Codec::kZfp     ? "zfp"
+                                : options_.codec == Codec::kRound ? "round"
+                                                                  : "time") +
+                               ",tolerance=" + shortest(options_.tolerance);
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.blockStates > 0) text += ",block=" + std::to_string(options_.blockStates);
   return text;
@@ -121,12 +138,24 @@ void LossyStorage::doBegin() {
   const std::int64_t n = info().stateSize;
   std::int64_t block = options_.blockStates;
   if (block == 0) block = std::clamp<std::int64_t>((std::int64_t{256} << 10) / stateBytes(), 1, 4096);
+  // The time codec predicts from the previous states of the block: large states get at least 16 per
+  // block (e.g. the full-order rod, where 256 KiB would hold 3 states of 10^4 doubles).
+  if (options_.blockStates == 0 && options_.codec == Codec::kTime) block = std::max<std::int64_t>(block, 16);
   if (info().stepCount > 0) block = std::min(block, info().stepCount);
   blockStates_ = block;
-  componentMajor_ = n <= block;
+  componentMajor_ = n <= block && options_.codec != Codec::kTime;  // the time codec takes rows
   const std::size_t values = static_cast<std::size_t>(block * n);
   std::size_t scratchBytes = ZSTD_compressBound(values * 8);
-  if (options_.codec == Codec::kZfp) {
+  worstRelativeError_ = 0.0;
+  if (options_.codec == Codec::kTime) {
+    timeCodec_ = std::make_unique<internal::TimeCodec>(static_cast<int>(n), block);
+    scratchBytes = timeCodec_->maxEncodedBytes();
+    // The codec's own work buffers: residuals, byte planes, one series, exceptions (worst case).
+    holdBytes(static_cast<std::int64_t>(values) * 16 + block * 8 + 2 * n * 8);
+    bounds_.assign(static_cast<std::size_t>(n), 0.0);
+    scale_.assign(static_cast<std::size_t>(n), 0.0);
+    mutableCounters().gradientErrorEstimate = 0.0;
+  } else if (options_.codec == Codec::kZfp) {
     ZfpRun run(nullptr, values, options_.tolerance, nullptr, 0);
     scratchBytes = zfp_stream_maximum_size(run.stream, run.field);
   }
@@ -162,7 +191,19 @@ void LossyStorage::compressBlock() {
     std::memcpy(work_.data(), raw_.data(), values * 8);
   }
   std::size_t size = 0;
-  if (options_.codec == Codec::kZfp) {
+  if (options_.codec == Codec::kTime) {
+    for (std::int64_t j = 0; j < n; ++j) {
+      double largest = 0.0;
+      for (std::int64_t i = 0; i < count; ++i) largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
+      scale_[static_cast<std::size_t>(j)] = std::isfinite(largest) ? largest : 0.0;
+      bounds_[static_cast<std::size_t>(j)] = options_.tolerance * scale_[static_cast<std::size_t>(j)];
+    }
+    double worst = 0.0;
+    size = timeCodec_->encodeBounded(raw_.data(), count, internal::TimeCodec::kBoundedOrder, bounds_.data(),
+                                     scratch_.data(), scale_.data(), &worst);
+    worstRelativeError_ = std::max(worstRelativeError_, worst);
+    mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;
+  } else if (options_.codec == Codec::kZfp) {
     ZfpRun run(work_.data(), values, options_.tolerance, scratch_.data(), scratch_.size());
     size = zfp_compress(run.stream, run.field);
     if (size == 0) throw StorageError("lossy storage: ZFP compression failed");
@@ -192,7 +233,10 @@ void LossyStorage::compressBlock() {
 void LossyStorage::decodeBlock(std::size_t index) {
   Block& block = blocks_[index];
   const std::size_t values = static_cast<std::size_t>(block.states * info().stateSize);
-  if (options_.codec == Codec::kZfp) {
+  if (options_.codec == Codec::kTime) {
+    timeCodec_->decode(block.data.get(), static_cast<std::size_t>(block.bytes), block.states, work_.data(),
+                       "lossy storage: a compressed block");
+  } else if (options_.codec == Codec::kZfp) {
     ZfpRun run(work_.data(), values, options_.tolerance, block.data.get(),
                static_cast<std::size_t>(block.bytes));
     if (zfp_decompress(run.stream, run.field) == 0)

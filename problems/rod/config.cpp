@@ -399,7 +399,7 @@ void applyFlag(Config& config, const std::string& flag, const std::string& key, 
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {
-  return {{"method", s.method},
+  nlohmann::json json = {{"method", s.method},
           {"adjoint", s.adjoint},
           {"storage", s.storage},
           {"steps", s.steps},
@@ -416,6 +416,8 @@ nlohmann::json summaryToJson(const RunSummary& s) {
           {"forward_seconds", s.forwardSeconds},
           {"backward_seconds", s.backwardSeconds},
           {"io_seconds", s.ioSeconds}};
+  if (s.gradientErrorEstimate >= 0.0) json["gradient_error_estimate"] = s.gradientErrorEstimate;
+  return json;
 }
 
 }  // namespace hindsight

@@ -4,6 +4,7 @@
 #include <hindsight/storage/chunked_state_file.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/time_codec.h>
 #include "support/storage_fixtures.h"
 
 #include <hdf5.h>
@@ -126,6 +127,7 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
   ScratchDirectory dir;
   DiskStorage::Options o = diskOptions(dir.path(), 16);
   o.keepFile = true;
+  o.timeCodec = false;  // codec=zstd: the format before issue #14 (the time codec's file: below)
   DiskStorage storage(o);
   std::vector<double> observed;
   const GradientResult result = computeGradient(
@@ -203,6 +205,7 @@ TEST(DiskStorage, StoredChunksAreStandardZstdFramesOfShuffledStates) {
   ScratchDirectory dir;
   DiskStorage::Options o = diskOptions(dir.path(), 16);
   o.keepFile = true;
+  o.timeCodec = false;
   DiskStorage storage(o);
   std::vector<double> observed;
   const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage,
@@ -278,6 +281,67 @@ TEST(DiskStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_THROW(createStorage("disk:dir=" + dir.path() + ",chunk=0"), std::invalid_argument);
   EXPECT_THROW(createStorage("disk:dir=" + dir.path() + ",keep=maybe"), std::invalid_argument);
   EXPECT_THROW(createStorage("disk:dir=" + dir.path() + ",colour=blue"), std::invalid_argument);
+  const std::string zstd = "disk:dir=" + dir.path() + ",codec=zstd";
+  EXPECT_EQ(createStorage(zstd)->spec(), zstd);
+  EXPECT_EQ(createStorage("disk:dir=" + dir.path() + ",codec=time")->spec(), "disk:dir=" + dir.path());
+  EXPECT_THROW(createStorage("disk:dir=" + dir.path() + ",codec=zfp"), std::invalid_argument);
+}
+
+// The default codec (time): /states and /times go through filter 306 (cd_values: values per row,
+// order, zstd level) and Fletcher32; read back through the plain HDF5 API with the filter registered,
+// they hold the observed trajectory bit for bit; both codecs give full storage's gradient bit for bit,
+// and the time codec needs fewer bytes than shuffle + zstd on a smooth trajectory.
+TEST(DiskStorage, TimeCodecFileHoldsTheTrajectoryBitForBitInFewerBytes) {
+  Pendulum problem;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
+  ScratchDirectory dir;
+  std::int64_t bytes[2] = {0, 0};
+  for (bool time : {true, false}) {
+    DiskStorage::Options o = diskOptions(dir.path(), 256);
+    o.keepFile = true;
+    o.timeCodec = time;
+    DiskStorage storage(o);
+    std::vector<double> observed;
+    const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage,
+                                                  [&](std::int64_t, double, ConstVectorRef z) {
+                                                    observed.insert(observed.end(), z.data(), z.data() + 2);
+                                                  });
+    EXPECT_TRUE(bitwiseEqual(result, reference)) << (time ? "time" : "zstd");
+    bytes[time ? 0 : 1] = storage.counters().compressedBytes;
+    ASSERT_TRUE(internal::ensureTimeCodecFilter());
+    const hid_t file = H5Fopen(storage.filePath().c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    EXPECT_EQ(readStringAttribute(file, "codec"), time ? "time" : "zstd");
+    const hid_t states = H5Dopen2(file, "states", H5P_DEFAULT);
+    if (time) {
+      const hid_t dcpl = H5Dget_create_plist(states);
+      ASSERT_EQ(H5Pget_nfilters(dcpl), 2);
+      unsigned flags = 0;
+      size_t count = 4;
+      unsigned values[4] = {0, 0, 0, 0};
+      char name[64];
+      unsigned config = 0;
+      EXPECT_EQ(H5Pget_filter2(dcpl, 0, &flags, &count, values, sizeof name, name, &config),
+                internal::kTimeCodecFilterId);
+      EXPECT_EQ(count, 3u);
+      EXPECT_EQ(values[0], 2u);
+      EXPECT_EQ(values[1], static_cast<unsigned>(internal::TimeCodec::kLosslessOrder));
+      EXPECT_EQ(values[2], 3u);
+      EXPECT_EQ(H5Pget_filter2(dcpl, 1, &flags, &count, values, sizeof name, name, &config), H5Z_FILTER_FLETCHER32);
+      H5Pclose(dcpl);
+    }
+    std::vector<double> stored(observed.size());
+    ASSERT_GE(H5Dread(states, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data()), 0);
+    EXPECT_EQ(std::memcmp(stored.data(), observed.data(), stored.size() * 8), 0);
+    const hid_t times = H5Dopen2(file, "times", H5P_DEFAULT);
+    std::vector<double> storedTimes(result.times.size());
+    ASSERT_GE(H5Dread(times, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, storedTimes.data()), 0);
+    EXPECT_EQ(storedTimes, result.times);
+    H5Dclose(times);
+    H5Dclose(states);
+    H5Fclose(file);
+  }
+  EXPECT_LT(2 * bytes[0], bytes[1]) << "time codec " << bytes[0] << " bytes, shuffle + zstd " << bytes[1];
 }
 
 // ---- faults ----

@@ -172,9 +172,76 @@ TEST(LossyStorage, MantissaRoundingIsToNearestTiesToEvenWithinItsBound) {
   EXPECT_EQ(special[2], std::numeric_limits<double>::max()) << "rounding must not overflow to infinity";
 }
 
+// lossy:target=T on the pendulum (rk4, 2000 steps): the achieved gradient error stays below T, the
+// reported estimate is at most T and at least the error made, and the ratio grows with T.
+// Measured: see tests/problems/classic/lossy_target_test.cpp and README "Compression along time".
+TEST(LossyTarget, AchievedGradientErrorStaysBelowTheTargetOnThePendulum) {
+  Pendulum problem;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
+  double previousRatio = HUGE_VAL;
+  for (double target : {1e-3, 1e-5, 1e-7, 1e-9}) {
+    auto storage = createStorage("lossy:target=" + ::testing::PrintToString(target));
+    const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), *storage);
+    EXPECT_EQ(result.objective, reference.objective) << "the forward sweep is not affected";
+    const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
+    EXPECT_GT(error, 0.0) << target;
+    EXPECT_LE(error, target) << target;
+    EXPECT_LE(result.summary.gradientErrorEstimate, target) << target;
+    EXPECT_GE(result.summary.gradientErrorEstimate, error) << target;
+    EXPECT_GT(result.summary.compressionRatio, 1.0) << target;
+    EXPECT_LT(result.summary.compressionRatio, previousRatio) << target;
+    previousRatio = result.summary.compressionRatio;
+  }
+}
+
+// codec=time restores every value within tolerance x max|component| over its block, whatever the
+// block size, and restores blocks in the backward sweep's order; its blocks are freed once decoded.
+TEST(LossyTarget, TimeCodecKeepsEveryValueWithinItsComponentsBlockScale) {
+  for (double tolerance : {1e-2, 1e-6, 1e-12}) {
+    for (std::int64_t block : {0, 1, 13}) {
+      LossyStorage::Options options = lossyOptions(LossyStorage::Codec::kTime, tolerance);
+      options.blockStates = block;
+      LossyStorage storage(options);
+      TrajectoryInfo info;
+      info.stateSize = 7;
+      info.t1 = 1.0;
+      testing::ForbiddenRecomputer recomputer;
+      storage.begin(info, recomputer);
+      const std::int64_t steps = 301;
+      std::mt19937_64 random(7);
+      std::vector<Vector> recorded;
+      for (std::int64_t step = 0; step < steps; ++step) {
+        recorded.push_back(syntheticState(step, random));
+        storage.record(step, 0.001 * step, recorded.back(), recorded.back());
+      }
+      storage.finish(steps, 1.0, recorded.back(), recorded.back());
+      const std::int64_t blockStates = block == 0 ? steps : block;  // 301 states of 56 bytes fit one default block
+      Vector z(7);
+      for (std::int64_t step = steps - 1; step >= 0; --step) {
+        storage.restore(step, z);
+        const std::int64_t first = step / blockStates * blockStates;
+        const std::int64_t last = std::min(steps, first + blockStates);
+        for (Eigen::Index i = 0; i < 7; ++i) {
+          double scale = 0.0;
+          for (std::int64_t k = first; k < last; ++k)
+            scale = std::max(scale, std::abs(recorded[static_cast<std::size_t>(k)](i)));
+          EXPECT_LE(std::abs(z(i) - recorded[static_cast<std::size_t>(step)](i)), tolerance * scale)
+              << "step " << step << ", component " << i << ", block " << block;
+        }
+      }
+      EXPECT_LE(storage.counters().gradientErrorEstimate, LossyStorage::kGradientSensitivity * tolerance);
+      EXPECT_EQ(storage.counters().uncompressedBytes, steps * 7 * 8);
+      EXPECT_EQ(storage.counters().bytesInMemory,
+                storage.counters().peakBytesInMemory - storage.counters().compressedBytes);
+    }
+  }
+}
+
 TEST(LossyStorage, SpecStringsRoundTripThroughTheFactory) {
   for (const std::string spec : {"lossy:codec=zfp,tolerance=1e-06", "lossy:codec=round,tolerance=0.0001",
-                                 "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64"}) {
+                                 "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64",
+                                 "lossy:target=1e-06", "lossy:target=0.001,block=100",
+                                 "lossy:codec=time,tolerance=1e-05"}) {
     EXPECT_EQ(createStorage(spec)->spec(), spec);
     EXPECT_FALSE(createStorage(spec)->isExact());
   }
@@ -184,6 +251,17 @@ TEST(LossyStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_THROW(createStorage("lossy:codec=round,tolerance=0.7"), std::invalid_argument);
   EXPECT_THROW(createStorage("lossy:codec=zfp,tolerance=-1"), std::invalid_argument);
   EXPECT_THROW(createStorage("lossy:codec=zfp,tolerance=0"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=0.5"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=0"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=1e-6,codec=zfp"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=1e-6,tolerance=1e-3"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:codec=time,tolerance=0.6"), std::invalid_argument);
+  try {
+    createStorage("lossy:target=2");
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("lossy.target"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
