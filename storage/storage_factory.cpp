@@ -16,9 +16,10 @@ namespace {
 
 // FullStorage lives in the engine, which knows nothing of spec strings; its spec is read here.
 std::unique_ptr<TrajectoryStorage> createFull(const StorageSpec& spec) {
-  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget));
+  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget),
+                                       spec.integer("stages", 0, 0, 1) == 1);
 }
-std::vector<std::string> fullKeys() { return {"budget"}; }
+std::vector<std::string> fullKeys() { return {"budget", "stages"}; }
 
 struct Entry {
   const char* name;
