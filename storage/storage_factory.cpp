@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/cams_checkpointing.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/hermite_storage.h>
 #include <hindsight/storage/lossy_storage.h>
@@ -36,6 +37,7 @@ const std::vector<Entry>& registry() {
       {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
       {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
       {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
+      {"cams", &CamsCheckpointing::keys, &CamsCheckpointing::create},
   };
   return entries;
 }
