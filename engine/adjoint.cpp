@@ -66,7 +66,14 @@ struct ForwardSweep {
     };
     const auto accept = [&](std::int64_t n, double t) {
       pollInterrupt();
-      if (storage != nullptr) storage->record(n, times[n], zPrevious, derivativeAtStart());
+      if (storage != nullptr) {
+        storage->record(n, times[n], zPrevious, derivativeAtStart());
+        if (stepData.size() > 0) {
+          // The stage values of the step just accepted, the bits the adjoint step would recompute.
+          integrator->saveStepData(stepData);
+          storage->recordStepData(n, stepData);
+        }
+      }
       times.push_back(t);
       if (observer) observer(n + 1, t, problemState(z));
     };
@@ -76,6 +83,8 @@ struct ForwardSweep {
       info.stateSize = integrator->stateSize();
       info.t0 = options.t0;
       info.t1 = options.t1;
+      if (storage->keepsStepData()) info.stepDataSize = integrator->stepDataSize();
+      stepData.resize(info.stepDataSize);
       if (!options.adaptive) {
         info.stepCount = options.replayTimes.empty()
                              ? static_cast<std::int64_t>(fixedGrid(options).size()) - 1
@@ -157,6 +166,7 @@ struct ForwardSweep {
   std::unique_ptr<Integrator> integrator;
   Vector parameters;
   Vector z, zPrevious, zdot;
+  Vector stepData;  ///< the stage values of a step, when the storage keeps them (issue #13)
   std::vector<double> times;
   double objective = 0.0;
   std::unique_ptr<StepRecomputer> recomputer;
@@ -241,7 +251,12 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
   for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
     pollInterrupt();
     storage.restore(step, z);
-    sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+    if (sweep.stepData.size() > 0 && storage.restoreStepData(step, sweep.stepData)) {
+      sweep.integrator->adjointStepFromData(times[step], times[step + 1] - times[step], z, sweep.stepData, lambda,
+                                            gradient);
+    } else {
+      sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+    }
   }
   // z holds z_0 again: the last restore was step 0.
   sweep.integrator->addInitialStateVjp(options.t0, z, lambda, gradient);

@@ -5,42 +5,64 @@
 
 namespace hindsight {
 
-FullStorage::FullStorage(std::int64_t budgetBytes) : TrajectoryStorage(budgetBytes) {}
+FullStorage::FullStorage(std::int64_t budgetBytes, bool stages) : TrajectoryStorage(budgetBytes), stages_(stages) {}
 
 std::string FullStorage::spec() const {
-  return budgetBytes() == kDefaultBudget ? "full" : "full:budget=" + std::to_string(budgetBytes());
+  std::string text = "full";
+  if (budgetBytes() != kDefaultBudget) text += ":budget=" + std::to_string(budgetBytes());
+  if (stages_) text += std::string(text == "full" ? ":" : ",") + "stages=1";
+  return text;
 }
 
 void FullStorage::doBegin() { blocks_.clear(); }
 
+double* FullStorage::row(std::int64_t step) {
+  Block& block = blocks_.back();
+  assert(step >= block.firstStep && step < block.firstStep + block.capacity);
+  return block.data.get() + (step - block.firstStep) * rowSize();
+}
+
 void FullStorage::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
   const std::int64_t n = info().stateSize;
+  const std::int64_t rowBytes = rowSize() * 8;
   if (blocks_.empty() || step >= blocks_.back().firstStep + blocks_.back().capacity) {
     std::int64_t capacity = kStatesPerBlock;
     if (info().stepCount > 0) capacity = std::min(capacity, info().stepCount - step);
-    capacity = std::max<std::int64_t>(
-        1, std::min(capacity, (budgetBytes() - counters().bytesInMemory) / stateBytes()));
-    holdBytes(capacity * stateBytes());
-    blocks_.push_back(
-        Block{step, capacity, std::unique_ptr<double[]>(new double[static_cast<std::size_t>(capacity * n)])});
+    capacity =
+        std::max<std::int64_t>(1, std::min(capacity, (budgetBytes() - counters().bytesInMemory) / rowBytes));
+    holdBytes(capacity * rowBytes);
+    blocks_.push_back(Block{step, capacity,
+                            std::unique_ptr<double[]>(new double[static_cast<std::size_t>(capacity * rowSize())])});
   }
-  Block& block = blocks_.back();
-  std::memcpy(block.data.get() + (step - block.firstStep) * n, z.data(), static_cast<std::size_t>(n) * 8);
+  std::memcpy(row(step), z.data(), static_cast<std::size_t>(n) * 8);
   ++mutableCounters().statesStored;
+}
+
+void FullStorage::doRecordStepData(std::int64_t step, ConstVectorRef data) {
+  std::memcpy(row(step) + info().stateSize, data.data(), static_cast<std::size_t>(data.size()) * 8);
+  ++mutableCounters().stepDataStored;
 }
 
 void FullStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {}
 
-void FullStorage::doRestore(std::int64_t step, VectorRef z) {
-  const std::int64_t n = info().stateSize;
-  Block& block = blocks_.back();
-  assert(step >= block.firstStep && step < block.firstStep + block.capacity);
-  std::memcpy(z.data(), block.data.get() + (step - block.firstStep) * n, static_cast<std::size_t>(n) * 8);
-  if (step == block.firstStep) {
-    // Free blocks as the backward sweep leaves them behind.
-    releaseBytes(block.capacity * stateBytes());
+void FullStorage::releaseBlockAfter(std::int64_t step) {
+  // Free blocks as the backward sweep leaves them behind.
+  if (step == blocks_.back().firstStep) {
+    releaseBytes(blocks_.back().capacity * rowSize() * 8);
     blocks_.pop_back();
   }
+}
+
+void FullStorage::doRestore(std::int64_t step, VectorRef z) {
+  std::memcpy(z.data(), row(step), static_cast<std::size_t>(info().stateSize) * 8);
+  // With step data, restoreStepData(step) follows and still reads the row.
+  if (info().stepDataSize == 0) releaseBlockAfter(step);
+}
+
+bool FullStorage::doRestoreStepData(std::int64_t step, VectorRef data) {
+  std::memcpy(data.data(), row(step) + info().stateSize, static_cast<std::size_t>(data.size()) * 8);
+  releaseBlockAfter(step);
+  return true;
 }
 
 }  // namespace hindsight

@@ -1,5 +1,7 @@
 // Strategy "full": every step's state in memory. Exact, no recomputation; memory N * n * 8 bytes.
-// Spec (storage/storage_factory.h): full[:budget=BYTES] (default budget 4 GiB). It lives in the engine
+// Spec (storage/storage_factory.h): full[:budget=BYTES][,stages=0|1] (default budget 4 GiB). With
+// stages=1 every step keeps its stage values too (issue #13; Integrator::stepDataSize(), 3 n doubles for
+// rk4), so no adjoint step evaluates the right-hand side; memory N (n + stepDataSize) * 8 bytes. It lives in the engine
 // because it needs nothing but memory: a program that links only hindsight::engine has a strategy. Works for
 // unknown N (adaptive steps): states are kept in blocks, so growth never copies what is already stored.
 #pragma once
@@ -14,16 +16,23 @@ namespace hindsight {
 class FullStorage final : public TrajectoryStorage {
  public:
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
-  explicit FullStorage(std::int64_t budgetBytes = kDefaultBudget);
+  explicit FullStorage(std::int64_t budgetBytes = kDefaultBudget, bool stages = false);
 
   std::string spec() const override;
   bool isExact() const override { return true; }
+  bool keepsStepData() const override { return stages_; }
 
  private:
   void doBegin() override;
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
+  void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
+  bool doRestoreStepData(std::int64_t step, VectorRef data) override;
+  /// Doubles per step: the state, and with step data its stage values.
+  std::int64_t rowSize() const { return info().stateSize + info().stepDataSize; }
+  double* row(std::int64_t step);
+  void releaseBlockAfter(std::int64_t step);
 
   // States live in blocks of up to kStatesPerBlock; a block is charged in full when it is
   // allocated and sized so that it never exceeds the budget or the known step count.
@@ -34,6 +43,7 @@ class FullStorage final : public TrajectoryStorage {
   };
   static constexpr std::int64_t kStatesPerBlock = 1024;
   std::vector<Block> blocks_;
+  bool stages_ = false;
 };
 
 }  // namespace hindsight

@@ -19,6 +19,7 @@ class GridRecomputer final : public StepRecomputer {
   void advance(std::int64_t step, VectorRef z) override {
     integrator_.step(times_[step], times_[step + 1] - times_[step], z);
   }
+  void stepData(VectorRef data) override { integrator_.saveStepData(data); }
 
  private:
   Integrator& integrator_;

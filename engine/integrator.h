@@ -129,6 +129,22 @@ class Integrator {
   /// sets lambda <- dpsi/dx_n and adds the step's contribution to gradient (size np).
   virtual void adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient) = 0;
 
+  /// Step data (issue #13): the doubles per step that let adjointStepFromData() run without evaluating
+  /// the right-hand side (a Runge-Kutta method's stage values); 0 when the method offers none.
+  virtual std::int64_t stepDataSize() const { return 0; }
+  /// The step data of the last step() (stepDataSize() doubles), the same bits that step computed.
+  virtual void saveStepData(VectorRef data) const {
+    (void)data;
+    throw std::logic_error("method '" + name() + "' has no step data");
+  }
+  /// adjointStep() with the step data saveStepData() gave after the step from x: the same arithmetic on
+  /// the same bits, so the result is bitwise that of adjointStep(), without recomputing the stages.
+  virtual void adjointStepFromData(double t, double h, ConstVectorRef x, ConstVectorRef data, VectorRef lambda,
+                                   VectorRef gradient) {
+    (void)data;
+    adjointStep(t, h, x, lambda, gradient);
+  }
+
   /// True when stateDerivative() is available (a storage that interpolates, Hermite, needs it).
   virtual bool hasStateDerivative() const = 0;
   /// dx/dt at (t, x) into xdot (counts one evaluation).

@@ -274,6 +274,30 @@ void RungeKuttaIntegrator::adjointStep(double t, double h, ConstVectorRef z, Vec
                                        VectorRef gradient) {
   assert(z.size() == n_ && lambda.size() == n_ && gradient.size() == p_.size());
   computeStages(t, h, z);
+  adjointFromStages(t, h, lambda, gradient);
+}
+
+std::int64_t RungeKuttaIntegrator::stepDataSize() const {
+  return static_cast<std::int64_t>(n_) * (stages_ - firstDataStage());
+}
+
+void RungeKuttaIntegrator::saveStepData(VectorRef data) const {
+  assert(data.size() == stepDataSize());
+  const int first = firstDataStage();
+  for (int i = first; i < stages_; ++i) data.segment(static_cast<Eigen::Index>(i - first) * n_, n_) = stageStates_.col(i);
+}
+
+void RungeKuttaIntegrator::adjointStepFromData(double t, double h, ConstVectorRef z, ConstVectorRef data,
+                                               VectorRef lambda, VectorRef gradient) {
+  assert(z.size() == n_ && data.size() == stepDataSize() && lambda.size() == n_ && gradient.size() == p_.size());
+  const int first = firstDataStage();
+  // With a_11 = 0 the first stage state is z_n: computeStages() copies it bit for bit, and so does this.
+  if (first == 1) stageStates_.col(0) = z;
+  for (int i = first; i < stages_; ++i) stageStates_.col(i) = data.segment(static_cast<Eigen::Index>(i - first) * n_, n_);
+  adjointFromStages(t, h, lambda, gradient);
+}
+
+void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient) {
   for (int i = stages_ - 1; i >= 0; --i) {
     const double ti = t + tableau_.c(i) * h;
     const double alpha = h * tableau_.a(i, i);

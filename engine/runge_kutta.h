@@ -80,6 +80,13 @@ class RungeKuttaIntegrator final : public Integrator {
   /// sets lambda <- dpsi/dz_n and adds the step's contribution to gradient (size np).
   void adjointStep(double t, double h, ConstVectorRef z, VectorRef lambda, VectorRef gradient) override;
 
+  /// The stage states Z_i of the step, column by column; Z_1 is left out when it is z_n itself (a_11 = 0),
+  /// so rk4 keeps 3 n doubles per step. The adjoint needs only the Z_i (K_i, x_{n+1} are not used).
+  std::int64_t stepDataSize() const override;
+  void saveStepData(VectorRef data) const override;
+  void adjointStepFromData(double t, double h, ConstVectorRef z, ConstVectorRef data, VectorRef lambda,
+                           VectorRef gradient) override;
+
   bool hasStateDerivative() const override { return true; }
   /// F(t, z) into f (counts one evaluation); for the storage's derivative and diagnostics.
   void stateDerivative(double t, ConstVectorRef z, VectorRef f) override;
@@ -93,6 +100,10 @@ class RungeKuttaIntegrator final : public Integrator {
  private:
   void computeStages(double t, double h, ConstVectorRef z);
   void solveImplicitStage(int i, double t, double h);
+  /// The transposed stages, given stageStates_ of the step from (t, h).
+  void adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient);
+  /// Columns of stageStates_ kept as step data: 1..s-1 when Z_1 = z_n (a_11 = 0), else 0..s-1.
+  int firstDataStage() const { return tableau_.a(0, 0) == 0.0 ? 1 : 0; }
   void jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w, VectorRef out,
                                 bool needDenseJacobian);
 

@@ -31,6 +31,12 @@ void TrajectoryStorage::begin(const TrajectoryInfo& info, StepRecomputer& recomp
   nextRecord_ = 0;
   nextRestore_ = -1;
   hashes_.clear();
+  stepDataHashes_.clear();
+  expectedStepDataCall_ = StepDataCall::kNone;
+  if (info.stepDataSize < 0) {
+    throw std::invalid_argument("TrajectoryInfo.stepDataSize must be >= 0, got " +
+                                std::to_string(info.stepDataSize));
+  }
   phase_ = Phase::kForward;
   doBegin();
 }
@@ -43,13 +49,45 @@ void TrajectoryStorage::record(std::int64_t step, double t, ConstVectorRef z, Co
                            ", got " + std::to_string(step));
   }
   assert(z.size() == info_.stateSize);
+  if (expectedStepDataCall_ != StepDataCall::kNone)
+    throw std::logic_error("TrajectoryStorage::record: recordStepData missing for the previous step");
   if (verifyRestores_) hashes_.push_back(hashState(z));
   doRecord(step, t, z, zdot);
   ++nextRecord_;
+  if (info_.stepDataSize > 0) expectedStepDataCall_ = StepDataCall::kRecord;
+}
+
+void TrajectoryStorage::recordStepData(std::int64_t step, ConstVectorRef data) {
+  if (expectedStepDataCall_ != StepDataCall::kRecord || step != nextRecord_ - 1 ||
+      data.size() != info_.stepDataSize) {
+    throw std::logic_error("TrajectoryStorage::recordStepData(" + std::to_string(step) +
+                           ") not right after record(" + std::to_string(step) + ") with stepDataSize doubles");
+  }
+  expectedStepDataCall_ = StepDataCall::kNone;
+  if (verifyRestores_) stepDataHashes_.push_back(hashState(data));
+  doRecordStepData(step, data);
+}
+
+bool TrajectoryStorage::restoreStepData(std::int64_t step, VectorRef data) {
+  if (expectedStepDataCall_ != StepDataCall::kRestore || step != nextRestore_ + 1 ||
+      data.size() != info_.stepDataSize) {
+    throw std::logic_error("TrajectoryStorage::restoreStepData(" + std::to_string(step) +
+                           ") not right after restore(" + std::to_string(step) + ") with stepDataSize doubles");
+  }
+  expectedStepDataCall_ = StepDataCall::kNone;
+  const bool restored = doRestoreStepData(step, data);
+  if (restored) {
+    ++counters_.stepDataRestored;
+    if (verifyRestores_ && isExact() && hashState(data) != stepDataHashes_[static_cast<std::size_t>(step)]) {
+      throw std::logic_error("storage '" + spec() + "' restored different step data for step " +
+                             std::to_string(step));
+    }
+  }
+  return restored;
 }
 
 void TrajectoryStorage::finish(std::int64_t stepCount, double t, ConstVectorRef z, ConstVectorRef zdot) {
-  if (phase_ != Phase::kForward || stepCount != nextRecord_) {
+  if (phase_ != Phase::kForward || stepCount != nextRecord_ || expectedStepDataCall_ != StepDataCall::kNone) {
     throw std::logic_error("TrajectoryStorage::finish: " + std::to_string(nextRecord_) +
                            " steps recorded, finish(" + std::to_string(stepCount) + ")");
   }
@@ -60,7 +98,7 @@ void TrajectoryStorage::finish(std::int64_t stepCount, double t, ConstVectorRef 
 }
 
 void TrajectoryStorage::restore(std::int64_t step, VectorRef z) {
-  if (phase_ != Phase::kBackward || step != nextRestore_) {
+  if (phase_ != Phase::kBackward || step != nextRestore_ || expectedStepDataCall_ != StepDataCall::kNone) {
     throw std::logic_error("TrajectoryStorage::restore: expected step " + std::to_string(nextRestore_) +
                            ", got " + std::to_string(step));
   }
@@ -70,6 +108,7 @@ void TrajectoryStorage::restore(std::int64_t step, VectorRef z) {
                            std::to_string(step));
   }
   --nextRestore_;
+  if (info_.stepDataSize > 0) expectedStepDataCall_ = StepDataCall::kRestore;
   if (nextRestore_ < 0) phase_ = Phase::kIdle;
 }
 

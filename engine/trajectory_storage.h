@@ -8,6 +8,17 @@
 //   restore(n, z)                           for n = N-1, N-2, ..., 0 during the backward sweep.
 // A strategy may recompute states from a checkpoint by calling recompute(n, z), which advances z
 // from grid point n to n+1 with exactly the step the forward sweep took, so the bits are the same.
+//
+// Step data (issue #13). Besides the state, a strategy may keep per step what the adjoint step needs
+// (the integrator's stage values; Integrator::stepDataSize()), so that the adjoint step evaluates no
+// right-hand side. When info().stepDataSize > 0 (the engine sets it only for a strategy whose
+// keepsStepData() is true and an integrator that offers step data), the protocol has two more calls:
+//   recordStepData(n, data)     right after every record(n, ...), the stage values of step n;
+//   restoreStepData(n, data)    right after every restore(n, z); true when `data` now holds the stage
+//                               values of step n (the adjoint step then uses them), false when the
+//                               strategy did not keep them for this step.
+// A strategy that recomputes step n may take its stage values with recomputedStepData() right after
+// recompute(n, z). Restored step data is hash-verified like states when verifyRestores is on.
 // The storage knows nothing of integrators beyond that callback (docs/design.md P 1).
 //
 // Every strategy has a byte budget it never exceeds: it charges the bytes it holds in memory with
@@ -20,6 +31,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -33,6 +45,9 @@ struct TrajectoryInfo {
   double t1 = 0.0;
   /// Number of steps N when it is known in advance (fixed step); -1 when it is not (adaptive).
   std::int64_t stepCount = -1;
+  /// Doubles of step data (stage values) per step the engine passes to recordStepData(); 0: none (the
+  /// strategy keeps no step data, or the integrator offers none, e.g. generalized-alpha).
+  std::int64_t stepDataSize = 0;
 };
 
 /// The callback through which a strategy recomputes forward steps.
@@ -41,6 +56,11 @@ class StepRecomputer {
   virtual ~StepRecomputer() = default;
   /// z <- z_{step+1}, given z = z_step; bitwise identical to the forward sweep's step.
   virtual void advance(std::int64_t step, VectorRef z) = 0;
+  /// The step data (stage values, TrajectoryInfo::stepDataSize doubles) of the step advance() just took.
+  virtual void stepData(VectorRef data) {
+    (void)data;
+    throw std::logic_error("this recomputer provides no step data");
+  }
 };
 
 /// Counters every strategy reports (docs/design.md §6); they end up in the run summary.
@@ -56,6 +76,8 @@ struct StorageCounters {
   /// A lossy strategy's estimate of the relative 2-norm error of the gradient its restored states
   /// cause (lossy:target=T, lossy:codec=time); -1 when the strategy makes none.
   double gradientErrorEstimate = -1.0;
+  std::int64_t stepDataStored = 0;    ///< steps whose step data (stage values) was kept, any sweep
+  std::int64_t stepDataRestored = 0;  ///< adjoint steps served from kept step data (no rhs evaluated)
   /// uncompressedBytes / compressedBytes, or 1 when nothing was compressed.
   double compressionRatio() const {
     return compressedBytes > 0 ? static_cast<double>(uncompressedBytes) / static_cast<double>(compressedBytes)
@@ -82,6 +104,10 @@ class TrajectoryStorage {
   void record(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot);
   void finish(std::int64_t stepCount, double t, ConstVectorRef z, ConstVectorRef zdot);
   void restore(std::int64_t step, VectorRef z);
+  /// True when the strategy keeps step data (stage values) when the integrator offers it (stages=1, cams).
+  virtual bool keepsStepData() const { return false; }
+  void recordStepData(std::int64_t step, ConstVectorRef data);
+  bool restoreStepData(std::int64_t step, VectorRef data);
 
   const StorageCounters& counters() const { return counters_; }
   std::int64_t budgetBytes() const { return budgetBytes_; }
@@ -110,6 +136,16 @@ class TrajectoryStorage {
   virtual void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) = 0;
   virtual void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) = 0;
   virtual void doRestore(std::int64_t step, VectorRef z) = 0;
+  /// Step data hooks (see the header comment); called only when info().stepDataSize > 0.
+  virtual void doRecordStepData(std::int64_t step, ConstVectorRef data) {
+    (void)step;
+    (void)data;
+  }
+  virtual bool doRestoreStepData(std::int64_t step, VectorRef data) {
+    (void)step;
+    (void)data;
+    return false;
+  }
 
   /// Charges bytes against the budget; throws StorageError naming the strategy when it would be exceeded.
   void holdBytes(std::int64_t bytes);
@@ -118,6 +154,9 @@ class TrajectoryStorage {
   bool fits(std::int64_t bytes) const { return bytes <= budgetBytes_ - counters_.bytesInMemory; }
   /// Advances z from grid point `step` to `step + 1` by recomputation, counted.
   void recompute(std::int64_t step, VectorRef z);
+  /// The step data of the step recompute() just took (info().stepDataSize doubles).
+  void recomputedStepData(VectorRef data) { recomputer_->stepData(data); }
+  std::int64_t stepDataBytes() const { return info_.stepDataSize * 8; }
   StorageCounters& mutableCounters() { return counters_; }
   std::int64_t stateBytes() const { return static_cast<std::int64_t>(info_.stateSize) * 8; }
 
@@ -136,6 +175,8 @@ class TrajectoryStorage {
   bool verifyRestores_ = true;
 #endif
   std::vector<std::uint64_t> hashes_;
+  std::vector<std::uint64_t> stepDataHashes_;
+  enum class StepDataCall { kNone, kRecord, kRestore } expectedStepDataCall_ = StepDataCall::kNone;
 };
 
 /// FNV-1a hash of the bytes of a state vector; used to verify recomputation bit for bit.

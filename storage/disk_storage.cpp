@@ -37,6 +37,7 @@ std::unique_ptr<TrajectoryStorage> DiskStorage::create(const StorageSpec& spec) 
   options.budgetBytes = spec.bytes("budget", kDefaultBudget);
   options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
   options.timeCodec = spec.text("codec", "time", {"time", "zstd"}) == "time";
+  options.stages = spec.integer("stages", 0, 0, 1) == 1;
   return std::make_unique<DiskStorage>(std::move(options));
 }
 
@@ -47,6 +48,7 @@ std::string DiskStorage::spec() const {
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.keepFile) text += ",keep=true";
   if (!options_.timeCodec) text += ",codec=zstd";
+  if (options_.stages) text += ",stages=1";
   return text;
 }
 
@@ -64,7 +66,11 @@ void DiskStorage::closeFile() {
 void DiskStorage::doBegin() {
   closeFile();
   heldBytes_ = 0;  // begin() has already released everything
-  const int n = info().stateSize;
+  // With step data a row is the state followed by the step's stage values.
+  TrajectoryInfo rowInfo = info();
+  rowInfo.stateSize = static_cast<int>(info().stateSize + info().stepDataSize);
+  row_.assign(info().stepDataSize > 0 ? static_cast<std::size_t>(rowInfo.stateSize) : 0, 0.0);
+  const int n = rowInfo.stateSize;
   const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
   const std::int64_t rows = info().stepCount >= 0 ? info().stepCount + 1 : std::int64_t{1} << 40;
   std::int64_t chunk = options_.chunkStates;
@@ -88,23 +94,40 @@ void DiskStorage::doBegin() {
   fileOptions.codec = options_.timeCodec ? internal::StateFileOptions::Codec::kTime
                                          : internal::StateFileOptions::Codec::kZstd;
   fileOptions.failWriteAfterChunks = options_.failWriteAfterChunks;
-  file_ = std::make_unique<internal::ChunkedStateFile>(fileOptions, info());
+  file_ = std::make_unique<internal::ChunkedStateFile>(fileOptions, rowInfo);
   filePath_ = file_->path();
 }
 
 void DiskStorage::doRecord(std::int64_t, double t, ConstVectorRef z, ConstVectorRef) {
   assert(file_);
-  file_->append(t, z.data());
   ++mutableCounters().statesStored;
+  if (!row_.empty()) {
+    std::copy(z.data(), z.data() + z.size(), row_.begin());  // appended with the stage values
+    rowTime_ = t;
+    return;
+  }
+  file_->append(t, z.data());
+}
+
+void DiskStorage::doRecordStepData(std::int64_t, ConstVectorRef data) {
+  std::copy(data.data(), data.data() + data.size(), row_.begin() + info().stateSize);
+  file_->append(rowTime_, row_.data());
+  ++mutableCounters().stepDataStored;
 }
 
 void DiskStorage::doFinish(double t, ConstVectorRef z, ConstVectorRef) {
   assert(file_);
-  file_->append(t, z.data());  // the final state too, so the file holds the whole trajectory
+  if (!row_.empty()) {
+    std::copy(z.data(), z.data() + z.size(), row_.begin());
+    std::fill(row_.begin() + info().stateSize, row_.end(), 0.0);
+    file_->append(t, row_.data());  // the final state too, so the file holds the whole trajectory
+  } else {
+    file_->append(t, z.data());  // the final state too, so the file holds the whole trajectory
+  }
   file_->finishWriting(stepCount());
   StorageCounters& c = mutableCounters();
   c.bytesOnDisk = file_->fileBytes();
-  c.uncompressedBytes = file_->rows() * stateBytes();
+  c.uncompressedBytes = file_->rows() * (stateBytes() + (row_.empty() ? 0 : stepDataBytes()));
   c.compressedBytes = file_->storedStateBytes();
   c.ioSeconds = file_->ioSeconds();
   if (options_.afterForwardSweep) options_.afterForwardSweep(filePath_);
@@ -117,11 +140,25 @@ void DiskStorage::doFinish(double t, ConstVectorRef z, ConstVectorRef) {
 
 void DiskStorage::doRestore(std::int64_t step, VectorRef z) {
   assert(file_);
+  if (!row_.empty()) {
+    file_->read(step, row_.data());
+    std::copy(row_.begin(), row_.begin() + z.size(), z.data());
+    return;  // restoreStepData(step) follows
+  }
   file_->read(step, z.data());
   if (step == 0) {
     mutableCounters().ioSeconds = file_->ioSeconds();
     closeFile();
   }
+}
+
+bool DiskStorage::doRestoreStepData(std::int64_t step, VectorRef data) {
+  std::copy(row_.begin() + info().stateSize, row_.end(), data.data());
+  if (step == 0) {
+    mutableCounters().ioSeconds = file_->ioSeconds();
+    closeFile();
+  }
+  return true;
 }
 
 }  // namespace hindsight

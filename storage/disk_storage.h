@@ -17,6 +17,9 @@
 //           (de)compressed are transient and not charged.
 //   keep    keep the file after the backward sweep (default false: it is removed after restore(0),
 //           or when the storage is destroyed or begins a new run)
+//   stages  1: every row holds the state and the step's stage values (issue #13), so no adjoint step
+//           evaluates the right-hand side; the file's rows are n + stepDataSize wide (the final row's
+//           stage part is zero). Default 0.
 // File format: see storage/chunked_state_file.h. The file holds rows 0..N (the final state too) and
 // is named "<dir>/hindsight-<pid>-<counter>-<clock>.h5", unique per run; filePath() gives it.
 //
@@ -57,6 +60,7 @@ class DiskStorage final : public TrajectoryStorage {
     std::int64_t budgetBytes = kDefaultBudget;
     bool keepFile = false;
     bool timeCodec = true;  ///< codec=time (true) or codec=zstd
+    bool stages = false;
     /// Test hook: writes of chunk K and later fail as on a full disk (-1: off).
     std::int64_t failWriteAfterChunks = -1;
     /// Test hook: called with the file's path after the forward sweep, when the file is complete and
@@ -72,10 +76,11 @@ class DiskStorage final : public TrajectoryStorage {
   ~DiskStorage() override;
 
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep", "codec"}; }
+  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep", "codec", "stages"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }
+  bool keepsStepData() const override { return options_.stages; }
 
   /// The file of the current or last run (empty before the first begin()).
   const std::string& filePath() const { return filePath_; }
@@ -87,6 +92,8 @@ class DiskStorage final : public TrajectoryStorage {
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
+  void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
+  bool doRestoreStepData(std::int64_t step, VectorRef data) override;
   void closeFile();
 
   Options options_;
@@ -94,6 +101,8 @@ class DiskStorage final : public TrajectoryStorage {
   std::string filePath_;
   std::int64_t chunkStates_ = 0;
   std::int64_t heldBytes_ = 0;
+  double rowTime_ = 0.0;
+  std::vector<double> row_;  // stages=1: one row, state then stage values (allocated in begin)
 };
 
 }  // namespace hindsight

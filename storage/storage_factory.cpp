@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/cams_checkpointing.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/hermite_storage.h>
 #include <hindsight/storage/lossy_storage.h>
@@ -16,9 +17,10 @@ namespace {
 
 // FullStorage lives in the engine, which knows nothing of spec strings; its spec is read here.
 std::unique_ptr<TrajectoryStorage> createFull(const StorageSpec& spec) {
-  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget));
+  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget),
+                                       spec.integer("stages", 0, 0, 1) == 1);
 }
-std::vector<std::string> fullKeys() { return {"budget"}; }
+std::vector<std::string> fullKeys() { return {"budget", "stages"}; }
 
 struct Entry {
   const char* name;
@@ -35,6 +37,7 @@ const std::vector<Entry>& registry() {
       {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
       {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
       {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
+      {"cams", &CamsCheckpointing::keys, &CamsCheckpointing::create},
   };
   return entries;
 }

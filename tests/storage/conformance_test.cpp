@@ -39,17 +39,24 @@ const std::vector<StrategyUnderTest>& strategiesUnderTest() {
   static const std::vector<StrategyUnderTest> list = {
       {"full"},
       {"full:budget=64MiB"},
+      {"full:stages=1"},
+      {"full:budget=64MiB,stages=1"},
       {"binomial:checkpoints=1", kNeedsStepCount},
       {"binomial:checkpoints=2", kNeedsStepCount},
       {"binomial:checkpoints=5", kNeedsStepCount},
       {"binomial:checkpoints=20,budget=16MiB", kNeedsStepCount},
       {"binomial:checkpoints=100", kNeedsStepCount},
+      {"cams:checkpoints=1", kNeedsStepCount},
+      {"cams:checkpoints=3", kNeedsStepCount},
+      {"cams:checkpoints=20", kNeedsStepCount},
+      {"cams:budget=64KiB", kNeedsStepCount},
       {"online:checkpoints=1"},
       {"online:checkpoints=3"},
       {"online:checkpoints=20"},
       {"online:budget=1MiB"},
       {"disk:dir=" + tmp + ",chunk=7"},
       {"disk:dir=" + tmp + ",level=1"},
+      {"disk:dir=" + tmp + ",chunk=7,stages=1"},
       {"multilevel:ram=64MiB,disk=1GiB,dir=" + tmp},
       {"multilevel:ram=24KiB,disk=16MiB,dir=" + tmp},
       {"multilevel:ram=64KiB,disk=128KiB,dir=" + tmp},
@@ -106,6 +113,15 @@ class Conformance : public ::testing::TestWithParam<std::string> {
     EXPECT_EQ(result.summary.recomputedSteps, counters.recomputedSteps);
     EXPECT_EQ(result.summary.steps, reference.summary.steps);
     if (StorageSpec::parse(GetParam()).name() == "full") EXPECT_EQ(counters.recomputedSteps, 0);
+    const std::string name = StorageSpec::parse(GetParam()).name();
+    if (storage->keepsStepData() && (name == "full" || name == "disk") && isRungeKutta(parseIntegratorMethod(options.method))) {
+      // Every step's stage values are kept: no adjoint step evaluates the right-hand side, so the run
+      // evaluates it exactly as often as the forward sweep alone (issue #13).
+      EXPECT_EQ(counters.stepDataRestored, result.summary.steps);
+      EXPECT_EQ(counters.stepDataStored, result.summary.steps);
+      EXPECT_EQ(result.summary.rhsEvaluations, simulate(problem, p, options).summary.rhsEvaluations);
+      EXPECT_LT(result.summary.rhsEvaluations, reference.summary.rhsEvaluations);
+    }
 
     // Reuse: begin() resets everything; the second run reproduces the first, counters included.
     const std::int64_t recomputed = counters.recomputedSteps;

@@ -1,0 +1,512 @@
+#include <hindsight/storage/cams_checkpointing.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <limits>
+#include <stdexcept>
+
+namespace hindsight {
+namespace cams {
+namespace {
+
+std::int64_t noCheckpointCost(std::int64_t l) { return l * (l + 1) / 2; }
+
+/// The least g(k) = A(k) + B(l - k) + c(k) over k in [1, l - 1], with A and B growing by at least `slope`
+/// >= 0 per unit of their argument (build() tracks the least growth of every row) and c(k) in [slack, 0].
+/// The costs are not convex in k (a record serves two steps, so parity shows), so this is an exact branch
+/// and bound: on [k1, k2], g(k) >= A(k1) + B(l - k2) + slope (k2 - k1) + slack, and a range whose bound
+/// cannot beat the best so far is skipped; `guess` seeds the incumbent.
+/// `exhaustive` evaluates every k (for the tests).
+template <typename A, typename B, typename C>
+std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const A& a, const B& b, const C& c,
+                                               std::int64_t slack, std::int64_t slope, std::int64_t guess) {
+  const auto g = [&](std::int64_t k) { return a(k) + b(l - k) + c(k); };
+  std::int64_t bestK = 1, best = g(1);
+  const auto consider = [&](std::int64_t k) {
+    const std::int64_t value = g(k);
+    if (value < best || (value == best && k < bestK)) best = value, bestK = k;
+  };
+  if (exhaustive) {
+    for (std::int64_t k = 2; k < l; ++k) consider(k);
+    return {bestK, best};
+  }
+  // An incumbent from a few probes, then the ranges left to right with an explicit stack.
+  for (std::int64_t k : {guess, guess + 1, guess - 1, l / 2, l - 1}) {
+    if (k >= 1 && k < l) consider(k);
+  }
+  std::int64_t stack[128][2];
+  int depth = 0;
+  stack[depth][0] = 1;
+  stack[depth][1] = l - 1;
+  ++depth;
+  while (depth > 0) {
+    --depth;
+    const std::int64_t k1 = stack[depth][0], k2 = stack[depth][1];
+    if (a(k1) + b(l - k2) + slope * (k2 - k1) + slack >= best) continue;
+    if (k2 - k1 < 8) {
+      for (std::int64_t k = k1; k <= k2; ++k) consider(k);
+      continue;
+    }
+    const std::int64_t mid = k1 + (k2 - k1) / 2;
+    // Left half on top, so it is searched first.
+    stack[depth][0] = mid + 1;
+    stack[depth][1] = k2;
+    ++depth;
+    stack[depth][0] = k1;
+    stack[depth][1] = mid;
+    ++depth;
+  }
+  return {bestK, best};
+}
+
+}  // namespace
+
+Plan::Plan(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits)
+    : steps_(steps), units_(memoryUnits), recordUnits_(recordUnits) {
+  build(false);
+}
+
+Plan Plan::exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits) {
+  Plan plan;
+  plan.steps_ = steps;
+  plan.units_ = memoryUnits;
+  plan.recordUnits_ = recordUnits;
+  plan.build(true);
+  return plan;
+}
+
+void Plan::build(bool exhaustiveSearch) {
+  if (steps_ < 1 || units_ < 1 || recordUnits_ < 1) {
+    throw std::invalid_argument("cams plan: steps = " + std::to_string(steps_) + ", memory units = " +
+                                std::to_string(units_) + " and record units = " + std::to_string(recordUnits_) +
+                                " must all be >= 1");
+  }
+  const std::int64_t N = steps_;
+  // More units than N records can use change nothing.
+  const std::int64_t M = std::min(units_, (N + 1) * recordUnits_);
+  if ((N + 1) > kMaxTableEntries / (M + 1) || N >= std::numeric_limits<std::int32_t>::max()) {
+    throw std::invalid_argument("cams: the plan for " + std::to_string(N) + " steps and " + std::to_string(M) +
+                                " state units needs more than " + std::to_string(kMaxTableEntries) +
+                                " table entries; lower cams.budget/cams.checkpoints or use binomial");
+  }
+  const std::int64_t w = recordUnits_;
+  const auto row = static_cast<std::size_t>(N + 1);
+  for (auto* table : {&decisions_[0], &decisions_[1], &decisions_[2], &decisions_[3]})
+    table->assign(row * static_cast<std::size_t>(M + 1), 0);
+  // Values: only rows m, m - 1, m - (w - 1) and m - w are read, so a ring of min(w, M) + 1 rows.
+  const std::int64_t ring = std::min(w, M) + 1;
+  std::vector<std::int64_t> values[4];
+  for (auto& v : values) v.assign(row * static_cast<std::size_t>(ring), 0);
+  // Table index: 2 * sweep + record (the anchor's kind).
+  const auto V = [&](int table, std::int64_t m, std::int64_t l) -> std::int64_t& {
+    return values[table][static_cast<std::size_t>(m % ring) * row + static_cast<std::size_t>(l)];
+  };
+  constexpr int kReplay = 0, kSweep = 2, kState = 0, kRecord = 1;
+  std::int64_t stateAnchor = std::numeric_limits<std::int64_t>::max();
+  std::int64_t recordAnchor = std::numeric_limits<std::int64_t>::max();
+  std::int64_t l0 = 1;
+  // The least growth V(l) - V(l - 1) of every row over the lengths built so far (l = 1: 1), a lower bound
+  // for the search's pruning (valid for any sign); the rows of smaller m are complete when they are read.
+  std::vector<std::int64_t> slopes[4];
+  for (auto& v : slopes) v.assign(static_cast<std::size_t>(M + 1), 1);
+  for (std::int64_t m = 0; m <= M; ++m) {
+    for (int table = 0; table < 4; ++table) {
+      V(table, m, 0) = 0;
+      V(table, m, 1) = 1;
+    }
+    const std::size_t base = static_cast<std::size_t>(m) * row;
+    // The split of the interval one step shorter seeds the search.
+    const auto guess = [&](int table) {
+      const std::int32_t d = decisions_[table][base + static_cast<std::size_t>(l0)];
+      return d == kUpgradeAnchor ? std::int64_t{0} : std::abs(static_cast<std::int64_t>(d));
+    };
+    for (std::int64_t l = 2; l <= N; ++l) {
+      l0 = l - 1;
+      for (int t = kState; t <= kRecord; ++t) {
+        // Replay interval (advancing costs), anchor kind t.
+        std::int64_t best = noCheckpointCost(l), decision = 0;
+        if (m >= 1) {
+          const auto a = minimize(
+              l, exhaustiveSearch, [&](std::int64_t k) { return k + V(kReplay + t, m, k); },
+              [&](std::int64_t j) { return V(kReplay + kState, m - 1, j); }, [](std::int64_t) { return 0; }, 0,
+              std::min(1 + slopes[kReplay + t][m], slopes[kReplay + kState][m - 1]), guess(kReplay + t));
+          if (a.second < best) best = a.second, decision = a.first;
+        }
+        if (m >= w) {
+          const auto b = minimize(
+              l, exhaustiveSearch, [&](std::int64_t k) { return k + V(kReplay + t, m, k); },
+              [&](std::int64_t j) { return V(kReplay + kRecord, m - w, j); },
+              [&](std::int64_t k) { return l - k >= 2 ? -1 : 0; }, -1,
+              std::min(1 + slopes[kReplay + t][m], slopes[kReplay + kRecord][m - w]), guess(kReplay + t));
+          if (b.second < best) best = b.second, decision = -b.first;
+        }
+        // Upgrade: the anchor (a state, on top of the stack) grows into the record of its step with w - 1 more
+        // units; the interval's first advance captures the stage values, and that step's adjoint is free.
+        if (t == kState && w >= 2 && m >= w - 1 && V(kReplay + kRecord, m - (w - 1), l) - 1 < best) {
+          best = V(kReplay + kRecord, m - (w - 1), l) - 1;
+          decision = kUpgradeAnchor;
+        }
+        slopes[kReplay + t][m] = std::min(slopes[kReplay + t][m], best - V(kReplay + t, m, l - 1));
+        V(kReplay + t, m, l) = best;
+        decisions_[kReplay + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
+      }
+      for (int t = kState; t <= kRecord; ++t) {
+        // Sweep interval (the forward sweep runs through it, storing the chain's checkpoints).
+        std::int64_t best = noCheckpointCost(l), decision = 0;
+        if (m >= 1) {
+          const auto a = minimize(
+              l, exhaustiveSearch, [&](std::int64_t k) { return V(kReplay + t, m, k); },
+              [&](std::int64_t j) { return V(kSweep + kState, m - 1, j); }, [](std::int64_t) { return 0; }, 0,
+              std::min(slopes[kReplay + t][m], slopes[kSweep + kState][m - 1]), guess(kSweep + t));
+          if (a.second < best) best = a.second, decision = a.first;
+        }
+        if (m >= w) {
+          const auto b = minimize(
+              l, exhaustiveSearch, [&](std::int64_t k) { return V(kReplay + t, m, k); },
+              [&](std::int64_t j) { return V(kSweep + kRecord, m - w, j); }, [](std::int64_t) { return -1; }, -1,
+              std::min(slopes[kReplay + t][m], slopes[kSweep + kRecord][m - w]), guess(kSweep + t));
+          if (b.second < best) best = b.second, decision = -b.first;
+        }
+        slopes[kSweep + t][m] = std::min(slopes[kSweep + t][m], best - V(kSweep + t, m, l - 1));
+        V(kSweep + t, m, l) = best;
+        decisions_[kSweep + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
+      }
+    }
+    // Row m is complete; the top-level optimum needs rows M - 1 and M - w, read before they are overwritten.
+    if (m == M - 1) stateAnchor = N + V(kSweep + kState, m, N);
+    if (m == M - w) recordAnchor = N + V(kSweep + kRecord, m, N) - 1;
+  }
+  // x_0 held as a state, or as a record (its stage values come free with the forward sweep's step 0).
+  anchorIsRecord_ = recordAnchor < stateAnchor;
+  optimum_ = std::min(stateAnchor, recordAnchor);
+  units_ = M;
+}
+
+std::int64_t Plan::decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const {
+  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_);
+  const auto index = static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
+  return decisions_[(sweep ? 2 : 0) + (recordAnchor ? 1 : 0)][index];
+}
+
+// ---- Executor ----
+
+void Executor::reset(const Plan* plan) {
+  plan_ = plan;
+  checkpoints_.clear();
+  tasks_.clear();
+  top_ = 0;
+  checkpoints_.reserve(static_cast<std::size_t>(std::min(plan->memoryUnits(), plan->steps()) + 1));
+  tasks_.reserve(static_cast<std::size_t>(2 * std::min(plan->memoryUnits(), plan->steps()) + 2));
+  const bool record = plan->anchorIsRecord();
+  chainPosition_ = 0;
+  chainLength_ = plan->steps();
+  chainUnits_ = plan->memoryUnits() - (record ? plan->recordUnits() : 1);
+  nextForward_ = 0;
+  nextForwardRecord_ = record;
+}
+
+std::int64_t Executor::push(std::int64_t position, bool record) {
+  const std::int64_t units = record ? plan_->recordUnits() : 1;
+  checkpoints_.push_back(Checkpoint{position, top_, record, false});
+  top_ += units;
+  assert(top_ <= plan_->memoryUnits());
+  return static_cast<std::int64_t>(checkpoints_.size()) - 1;
+}
+
+void Executor::pop() {
+  const Checkpoint& c = checkpoints_.back();
+  top_ = c.ref;
+  checkpoints_.pop_back();
+}
+
+std::int64_t Executor::recordForward(std::int64_t n, bool* isRecord) {
+  *isRecord = false;
+  if (n != nextForward_) return -1;
+  const bool record = nextForwardRecord_;
+  const std::int64_t index = push(n, record);
+  checkpoints_.back().filled = record;
+  if (n == 0) tasks_.push_back(Task{index, chainLength_, chainUnits_, true, -1});
+  // The next checkpoint of the chain: the sweep interval starting here.
+  const std::int64_t k = chainLength_ >= 2 ? plan_->decision(true, record, chainLength_, chainUnits_) : 0;
+  if (k == 0) {
+    nextForward_ = -1;
+  } else {
+    nextForwardRecord_ = k < 0;
+    const std::int64_t offset = k < 0 ? -k : k;
+    chainPosition_ = n + offset;
+    chainLength_ -= offset;
+    chainUnits_ -= k < 0 ? plan_->recordUnits() : 1;
+    nextForward_ = chainPosition_;
+  }
+  *isRecord = record;
+  return checkpoints_.back().ref;
+}
+
+// ---- Simulation without states ----
+
+namespace {
+
+struct CountingVisitor {
+  PlanCounts& counts;
+  const Executor& executor;
+  std::vector<Action>* actions;
+  void load(std::int64_t) {}
+  void advance(std::int64_t from, std::int64_t to) {
+    counts.recomputedSteps += to - from;
+    if (actions != nullptr) {
+      if (!actions->empty() && actions->back().kind == Action::Kind::Advance && actions->back().to == from)
+        actions->back().to = to;
+      else
+        actions->push_back(Action{Action::Kind::Advance, from, to, false});
+    }
+  }
+  void capture(std::int64_t, std::int64_t) { ++counts.recordsStored; }
+  void upgrade(std::int64_t, std::int64_t position) {
+    counts.peakUnits = std::max(counts.peakUnits, executor.heldUnits());
+    if (actions != nullptr) actions->push_back(Action{Action::Kind::StoreRecord, position, position, false});
+  }
+  void store(std::int64_t, std::int64_t position, bool record) {
+    if (!record) ++counts.statesStored;
+    counts.peakUnits = std::max(counts.peakUnits, executor.heldUnits());
+    if (actions != nullptr)
+      actions->push_back(Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, position, position, false});
+  }
+  void deliver(std::int64_t position, std::int64_t, bool filled) {
+    if (!filled) ++counts.adjointRecomputations;
+    if (actions != nullptr) actions->push_back(Action{Action::Kind::Deliver, position, position, filled});
+  }
+};
+
+}  // namespace
+
+PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
+  PlanCounts counts;
+  counts.steps = plan.steps();
+  counts.forwardSteps = plan.steps();
+  Executor executor;
+  executor.reset(&plan);
+  for (std::int64_t n = 0; n < plan.steps(); ++n) {
+    bool record = false;
+    if (executor.recordForward(n, &record) >= 0) {
+      if (record)
+        ++counts.recordsStored;
+      else
+        ++counts.statesStored;
+      counts.peakUnits = std::max(counts.peakUnits, executor.heldUnits());
+      if (actions != nullptr)
+        actions->push_back(Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, n, n, false});
+    }
+  }
+  CountingVisitor visitor{counts, executor, actions};
+  for (std::int64_t e = plan.steps() - 1; e >= 0; --e) executor.restoreStep(e, visitor);
+  return counts;
+}
+
+// ---- Brute force ----
+
+std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits) {
+  // States: per position a digit (0 none, 1 state, 2 record without stage values, 3 record with them),
+  // the current position (-1: none usable), the next adjoint step e (-1: done). 0-1 BFS on the costs.
+  const int N = static_cast<int>(steps);
+  if (N < 1 || N > 7) throw std::invalid_argument("bruteForceStepEvaluations: steps must be in [1, 7]");
+  std::int64_t digits = 1;
+  for (int i = 0; i < N; ++i) digits *= 4;
+  const std::int64_t curCount = N + 1, eCount = N + 1;
+  const std::int64_t total = digits * curCount * eCount;
+  std::vector<std::int64_t> dist(static_cast<std::size_t>(total), std::numeric_limits<std::int64_t>::max());
+  const auto encode = [&](std::int64_t held, int cur, int e) { return (held * curCount + (cur + 1)) * eCount + (e + 1); };
+  const auto digit = [](std::int64_t held, int p) { return static_cast<int>((held >> (2 * p)) & 3); };
+  const auto with = [](std::int64_t held, int p, int d) { return (held & ~(std::int64_t{3} << (2 * p))) | (std::int64_t{d} << (2 * p)); };
+  const auto units = [&](std::int64_t held) {
+    std::int64_t u = 0;
+    for (int p = 0; p < N; ++p) u += digit(held, p) == 0 ? 0 : (digit(held, p) == 1 ? 1 : recordUnits);
+    return u;
+  };
+  std::deque<std::int64_t> queue;
+  // Forward sweep: any set of states and (filled) records within the memory, at cost N.
+  std::int64_t configs = 1;
+  for (int i = 0; i < N; ++i) configs *= 3;
+  for (std::int64_t c = 0; c < configs; ++c) {
+    std::int64_t held = 0, rest = c;
+    for (int p = 0; p < N; ++p, rest /= 3) {
+      const int choice = static_cast<int>(rest % 3);
+      held = with(held, p, choice == 0 ? 0 : (choice == 1 ? 1 : 3));
+    }
+    if (units(held) > memoryUnits) continue;
+    const std::int64_t s = encode(held, -1, N - 1);
+    if (dist[static_cast<std::size_t>(s)] > steps) {
+      dist[static_cast<std::size_t>(s)] = steps;
+      queue.push_back(s);
+    }
+  }
+  std::int64_t best = std::numeric_limits<std::int64_t>::max();
+  while (!queue.empty()) {
+    const std::int64_t s = queue.front();
+    queue.pop_front();
+    const std::int64_t d = dist[static_cast<std::size_t>(s)];
+    const int e = static_cast<int>(s % eCount) - 1;
+    const int cur = static_cast<int>((s / eCount) % curCount) - 1;
+    const std::int64_t held = s / eCount / curCount;
+    if (e < 0) {
+      best = std::min(best, d);
+      continue;
+    }
+    const auto relax = [&](std::int64_t next, std::int64_t cost) {
+      if (dist[static_cast<std::size_t>(next)] > d + cost) {
+        dist[static_cast<std::size_t>(next)] = d + cost;
+        if (cost == 0)
+          queue.push_front(next);
+        else
+          queue.push_back(next);
+      }
+    };
+    // Adjoint step e: free with a filled record at e, else from the current state x_e at the cost of a step.
+    if (digit(held, e) == 3) relax(encode(held, cur, e - 1), 0);
+    if (cur == e) relax(encode(held, cur, e - 1), 1);
+    for (int p = 0; p < N; ++p) {
+      const int dp = digit(held, p);
+      if (dp != 0) {
+        relax(encode(held, p, e), 0);               // load
+        relax(encode(with(held, p, 0), cur, e), 0);  // delete
+      }
+    }
+    if (cur >= 0 && cur < N - 1) {
+      // Advance one step; it fills an unfilled record at cur.
+      const std::int64_t filled = digit(held, cur) == 2 ? with(held, cur, 3) : held;
+      relax(encode(filled, cur + 1, e), 1);
+    }
+    if (cur >= 0 && digit(held, cur) == 0) {
+      if (units(held) + 1 <= memoryUnits) relax(encode(with(held, cur, 1), cur, e), 0);
+      if (units(held) + recordUnits <= memoryUnits) relax(encode(with(held, cur, 2), cur, e), 0);
+    }
+  }
+  return best;
+}
+
+}  // namespace cams
+
+// ---- CamsCheckpointing ----
+
+CamsCheckpointing::CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
+    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints) {
+  if (checkpoints < 0 || checkpoints > kMaxCheckpoints) {
+    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints) + " must be an integer in [1, " +
+                                std::to_string(kMaxCheckpoints) + "]");
+  }
+}
+
+std::unique_ptr<TrajectoryStorage> CamsCheckpointing::create(const StorageSpec& spec) {
+  if (spec.has("checkpoints") == spec.has("budget")) {
+    throw std::invalid_argument("cams needs exactly one of cams.budget=BYTES (e.g. cams:budget=1MiB) and "
+                                "cams.checkpoints=C (the bytes of binomial:checkpoints=C), C in [1, " +
+                                std::to_string(kMaxCheckpoints) + "]");
+  }
+  if (spec.has("checkpoints")) {
+    return std::make_unique<CamsCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints), kDefaultBudget);
+  }
+  return std::make_unique<CamsCheckpointing>(0, spec.bytes("budget", 1));
+}
+
+std::string CamsCheckpointing::spec() const {
+  return checkpoints_ > 0 ? "cams:checkpoints=" + std::to_string(checkpoints_)
+                          : "cams:budget=" + std::to_string(budgetBytes());
+}
+
+void CamsCheckpointing::releaseAll() {
+  if (heldBytes_ > 0) releaseBytes(heldBytes_);
+  heldBytes_ = 0;
+  memory_.reset();
+}
+
+void CamsCheckpointing::doBegin() {
+  heldBytes_ = 0;  // the base class has released what a previous run held
+  releaseAll();
+  const std::int64_t steps = info().stepCount;
+  if (steps < 1) {
+    throw std::invalid_argument(
+        "cams checkpointing needs the number of steps in advance (TrajectoryInfo.stepCount = " + std::to_string(steps) +
+        ", adaptive steps); use 'online:budget=BYTES' for adaptive steps");
+  }
+  const std::int64_t n = info().stateSize;
+  units_ = checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes();
+  if (units_ < 1) {
+    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds not even one state of " +
+                                formatBytes(stateBytes()) + "; raise the budget");
+  }
+  // A record is the state and the step's stage values; with no step data, records are impossible.
+  const std::int64_t recordUnits =
+      info().stepDataSize > 0 ? 1 + (info().stepDataSize + n - 1) / n : std::numeric_limits<std::int32_t>::max();
+  if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits ||
+      plan_->memoryUnits() != std::min(units_, (steps + 1) * recordUnits)) {
+    plan_ = std::make_unique<cams::Plan>(steps, units_, recordUnits);
+  }
+  const std::int64_t held = std::min(units_, plan_->memoryUnits());
+  holdBytes(held * stateBytes());  // throws StorageError beyond the budget
+  heldBytes_ = held * stateBytes();
+  memory_.reset(new double[static_cast<std::size_t>(held * n)]);
+  executor_.reset(plan_.get());
+  pendingRecord_ = -1;
+  delivered_ = nullptr;
+}
+
+void CamsCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
+  bool record = false;
+  const std::int64_t ref = executor_.recordForward(step, &record);
+  pendingRecord_ = -1;
+  if (ref < 0) return;
+  const std::int64_t n = info().stateSize;
+  std::memcpy(memory_.get() + ref * n, z.data(), static_cast<std::size_t>(n) * 8);
+  ++mutableCounters().statesStored;
+  if (record) pendingRecord_ = ref;
+}
+
+void CamsCheckpointing::doRecordStepData(std::int64_t, ConstVectorRef data) {
+  if (pendingRecord_ < 0) return;
+  const std::int64_t n = info().stateSize;
+  std::memcpy(memory_.get() + pendingRecord_ * n + n, data.data(), static_cast<std::size_t>(data.size()) * 8);
+  ++mutableCounters().stepDataStored;
+  pendingRecord_ = -1;
+}
+
+void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
+
+void CamsCheckpointing::doRestore(std::int64_t step, VectorRef z) {
+  struct Visitor {
+    CamsCheckpointing& self;
+    VectorRef z;
+    std::int64_t n;
+    void load(std::int64_t ref) {
+      std::memcpy(z.data(), self.memory_.get() + ref * n, static_cast<std::size_t>(n) * 8);
+    }
+    void store(std::int64_t ref, std::int64_t, bool) {
+      std::memcpy(self.memory_.get() + ref * n, z.data(), static_cast<std::size_t>(n) * 8);
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
+    }
+    void upgrade(std::int64_t, std::int64_t) {}  // the state stays; the stage values come with capture()
+    void capture(std::int64_t ref, std::int64_t) {
+      const auto size = static_cast<Eigen::Index>(self.info().stepDataSize);
+      Eigen::Map<Vector> data(self.memory_.get() + ref * n + n, size);
+      self.recomputedStepData(data);
+      ++self.mutableCounters().stepDataStored;
+    }
+    void deliver(std::int64_t, std::int64_t ref, bool filled) {
+      self.delivered_ = filled ? self.memory_.get() + ref * n + n : nullptr;
+    }
+  } visitor{*this, z, info().stateSize};
+  executor_.restoreStep(step, visitor);
+  if (step == 0 && info().stepDataSize == 0) releaseAll();
+}
+
+bool CamsCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
+  const bool restored = delivered_ != nullptr;
+  if (restored) std::memcpy(data.data(), delivered_, static_cast<std::size_t>(data.size()) * 8);
+  delivered_ = nullptr;
+  if (step == 0) releaseAll();
+  return restored;
+}
+
+}  // namespace hindsight

@@ -1,0 +1,278 @@
+// Strategy "cams": optimal stage-aware checkpointing for a known number of steps N (issue #13).
+//
+// Spec: cams:budget=BYTES | cams:checkpoints=C   (exactly one; C in [1, 10^6]; checkpoints=C means the
+// byte budget of binomial:checkpoints=C, i.e. C + 1 states).
+//
+// Idea (Zhang & Constantinescu, "Optimal checkpointing for adjoint multistage time-stepping schemes",
+// arXiv 2106.13879, the CAMS algorithm behind PETSc's TSTrajectory "memory" type; Maddison's mixed
+// checkpointing in the checkpoint_schedules package): a checkpoint may hold either the state x_k
+// (1 memory unit = one state) or the step record of step k, the state plus the step's stage values
+// (w units; w = 1 + stepDataSize / n, 4 for rk4). The adjoint step of a step whose record is held
+// evaluates no right-hand side; every other adjoint step recomputes its step's stages. The stage values
+// of a record are captured the first time the schedule advances through its step (for free in the
+// forward sweep, and in the backward sweep because the part to the right of a checkpoint always
+// starts by advancing from it). The written-out model and recurrences below are hindsight's own (read
+// from the paper's idea, not its code).
+//
+// Cost model, counted in step evaluations (one step = its stages' right-hand sides): the forward sweep
+// (N), the recomputed steps, and one recomputation per adjoint step whose stage values are not held.
+// With x_0 of an interval held and m free units, F(l, m) is the least cost to reverse l steps:
+//   F(1, m) = 1;   F(l, m) = min of
+//     l (l + 1) / 2                                       (no checkpoint: replay from x_0 for every step)
+//     min_k  k + F(k, m) + F(l - k, m - 1)                 (state checkpoint at k, m >= 1)
+//     min_k  k + F(k, m) + F_R(l - k, m - w)               (record of step k, m >= w)
+//     F(l, m - (w - 1)) - 1                                (w >= 2: x_0, a state on top of the stack, grows
+//                                                          into the record of step 0, captured by the
+//                                                          interval's first advance)
+// with F_R(j, m) = F(j, m) - [j >= 2] (the record saves its step's adjoint recomputation; for j = 1 the
+// capture itself costs the advance it saves). H(l, m) is the same for the interval the forward sweep runs
+// through, where advancing is free: H(1, m) = 1 and the two checkpoint terms read F(k, m) + H(l - k, m - 1)
+// and F(k, m) + H(l - k, m - w) - 1. With M units in all, the whole run costs
+//   E(N, M) = N + min(H(N, M - 1), H(N, M - w) - 1)       (x_0 held as a state or as a record).
+// Without records (w > M) this is revolve with the working state (binomial:checkpoints=M-1), plus N
+// adjoint recomputations; records can only lower it. The k-searches assume that the cost terms are
+// convex in k and search for the sign change of their differences (O(log l)); a test checks the result
+// against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
+//
+// Memory: the checkpoints form a stack; the strategy allocates M units once in begin() and charges
+// them with holdBytes(). The plan tables (8 bytes per (l, m) pair for l <= N, m <= M, plus 2 x 8 bytes per
+// pair while they are built) are planning data, not trajectory data, and are not charged; begin()
+// refuses N (M + 1) > kMaxTableEntries with a message naming cams.budget.
+//
+// Preconditions: TrajectoryInfo.stepCount >= 1 (fixed steps); begin() throws std::invalid_argument
+// telling to use `online` for adaptive steps. With an integrator that offers no step data
+// (generalized-alpha) records are impossible and the plan is revolve's.
+#pragma once
+
+#include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/storage_spec.h>
+
+#include <cassert>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+namespace cams {
+
+/// Counts of a plan, as a real run reports them (all in steps; multiply by the right-hand sides per
+/// step for rhs evaluations).
+struct PlanCounts {
+  std::int64_t steps = 0;
+  std::int64_t forwardSteps = 0;           ///< N, the forward sweep
+  std::int64_t recomputedSteps = 0;        ///< advances in the backward sweep (counters().recomputedSteps)
+  std::int64_t adjointRecomputations = 0;  ///< adjoint steps without held stage values
+  std::int64_t statesStored = 0;           ///< state checkpoints written (any sweep)
+  std::int64_t recordsStored = 0;          ///< step records filled (counters().stepDataStored)
+  std::int64_t peakUnits = 0;              ///< most memory units held at once
+  /// forwardSteps + recomputedSteps + adjointRecomputations: the plan's cost E(N, M).
+  std::int64_t stepEvaluations() const { return forwardSteps + recomputedSteps + adjointRecomputations; }
+};
+
+/// One action of the schedule (for `hindsight schedule --actions` and tests).
+struct Action {
+  enum class Kind { StoreState, StoreRecord, Advance, Deliver } kind;
+  std::int64_t from = 0;  ///< Advance: from step `from` to `to`; Store*/Deliver: position in `from`
+  std::int64_t to = 0;
+  bool withStageValues = false;  ///< Deliver: the adjoint step gets held stage values
+};
+
+/// The optimal plan for N steps, M memory units and records of w units (w > M: no records). Pure and
+/// model-free. Throws std::invalid_argument when N < 1, M < 1, w < 1 or N (M + 1) > kMaxTableEntries.
+class Plan {
+ public:
+  static constexpr std::int64_t kMaxTableEntries = 12'500'000;
+  Plan(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+  /// The same plan from the exhaustive O(l) search over every split (for tests; small N only).
+  static Plan exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+
+  std::int64_t steps() const { return steps_; }
+  /// The units the plan uses: min(M, (N + 1) w) (more cannot help).
+  std::int64_t memoryUnits() const { return units_; }
+  std::int64_t recordUnits() const { return recordUnits_; }
+  /// E(N, M) from the recurrences.
+  std::int64_t optimalStepEvaluations() const { return optimum_; }
+  static constexpr std::int32_t kUpgradeAnchor = std::numeric_limits<std::int32_t>::min();
+  /// The decision for an interval: 0 no checkpoint, k > 0 state checkpoint at offset k, k < 0 record at -k,
+  /// kUpgradeAnchor: the anchor becomes a record (replay intervals only).
+  std::int64_t decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const;
+  bool anchorIsRecord() const { return anchorIsRecord_; }
+
+ private:
+  Plan() = default;
+  void build(bool exhaustiveSearch);
+  std::int64_t steps_ = 0, units_ = 0, recordUnits_ = 0, optimum_ = 0;
+  bool anchorIsRecord_ = false;
+  // Per (sweep, anchor kind) a table, row m holding l = 0..N; decisions as int32 (N < 2^31 is checked).
+  std::vector<std::int32_t> decisions_[4];
+};
+
+/// Runs the plan without states: counts, and optionally the action stream.
+PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
+
+/// Smallest cost over every schedule of the model by exhaustive enumeration of all action sequences
+/// (exponential; for tests with N <= 7).
+std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+
+/// The executor: drives a plan through a visitor with
+///   store(ref, position, isRecord)   copy the current state into a new checkpoint (stack offset ref);
+///   upgrade(ref, position)           the state checkpoint ref becomes a record (its stage values follow);
+///   capture(ref, step)               the stage values of `step` just advanced go into record `ref`;
+///   load(ref)                        copy checkpoint ref's state into the current state;
+///   advance(from, to)                recompute from position `from` to `to` (one step at a time: the
+///                                    executor calls capture right after the step a pending record needs);
+///   deliver(position, ref, filled)   the current state is x_position; ref >= 0 with filled: the
+///                                    record ref holds the step's stage values.
+/// Offsets are in units of one state; a record takes recordUnits consecutive units.
+class Executor {
+ public:
+  void reset(const Plan* plan);
+  /// Forward sweep: what to keep of x_n (n = 0..N-1 in order): -1 nothing, else the ref; *isRecord tells
+  /// whether the step's stage values (given by the forward sweep) go with it.
+  std::int64_t recordForward(std::int64_t n, bool* isRecord);
+  /// Backward sweep, e = N-1, ..., 0 in order.
+  template <typename Visitor>
+  void restoreStep(std::int64_t e, Visitor& visitor);
+  std::int64_t heldUnits() const { return top_; }
+
+ private:
+  struct Checkpoint {
+    std::int64_t position;
+    std::int64_t ref;
+    bool record;
+    bool filled;
+  };
+  struct Task {
+    std::int64_t anchor;  // index into checkpoints_
+    std::int64_t length;
+    std::int64_t units;   // free units
+    bool sweep;           // H mode: the forward sweep has run through (its checkpoints are stored)
+    std::int64_t next;    // no-checkpoint replay: the next position to deliver (-1: not started)
+  };
+  std::int64_t push(std::int64_t position, bool record);
+  void pop();
+  template <typename Visitor>
+  void advanceFrom(std::int64_t index, std::int64_t to, Visitor& visitor);
+
+  const Plan* plan_ = nullptr;
+  std::vector<Checkpoint> checkpoints_;
+  std::vector<Task> tasks_;
+  std::int64_t top_ = 0;  // units held
+  // Forward sweep: the chain of the sweep interval.
+  std::int64_t chainLength_ = 0, chainUnits_ = 0, chainPosition_ = 0, nextForward_ = 0;
+  bool nextForwardRecord_ = false;
+};
+
+template <typename Visitor>
+void Executor::advanceFrom(std::int64_t index, std::int64_t to, Visitor& visitor) {
+  Checkpoint& c = checkpoints_[static_cast<std::size_t>(index)];
+  visitor.load(c.ref);
+  for (std::int64_t k = c.position; k < to; ++k) {
+    visitor.advance(k, k + 1);
+    if (k == c.position && c.record && !c.filled) {
+      visitor.capture(c.ref, k);
+      c.filled = true;
+    }
+  }
+}
+
+template <typename Visitor>
+void Executor::restoreStep(std::int64_t e, Visitor& visitor) {
+  for (;;) {
+    Task& task = tasks_.back();
+    const Checkpoint anchor = checkpoints_[static_cast<std::size_t>(task.anchor)];
+    if (task.length == 1 || task.next == anchor.position) {
+      // Deliver the anchor itself; the interval is done.
+      assert(anchor.position == e);
+      visitor.load(anchor.ref);
+      visitor.deliver(anchor.position, anchor.ref, anchor.record && anchor.filled);
+      tasks_.pop_back();
+      pop();
+      return;
+    }
+    if (task.next > anchor.position) {
+      // No-checkpoint replay: advance from the anchor to the next position and deliver it.
+      const std::int64_t position = task.next;
+      assert(position == e);
+      --task.next;
+      advanceFrom(tasks_.back().anchor, position, visitor);
+      visitor.deliver(position, -1, false);
+      return;
+    }
+    const std::int64_t k = plan_->decision(task.sweep, anchor.record, task.length, task.units);
+    if (k == Plan::kUpgradeAnchor) {
+      Checkpoint& c = checkpoints_[static_cast<std::size_t>(task.anchor)];
+      assert(!task.sweep && !c.record && task.anchor + 1 == static_cast<std::int64_t>(checkpoints_.size()));
+      c.record = true;
+      c.filled = false;
+      top_ += plan_->recordUnits() - 1;
+      task.units -= plan_->recordUnits() - 1;
+      visitor.upgrade(c.ref, c.position);
+      continue;
+    }
+    if (k == 0) {
+      task.next = anchor.position + task.length - 1;
+      continue;
+    }
+    const bool record = k < 0;
+    const std::int64_t offset = record ? -k : k;
+    const std::int64_t units = record ? plan_->recordUnits() : 1;
+    // The left part keeps this task's anchor and units; the right part starts at the new checkpoint.
+    const Task left{task.anchor, offset, task.units, false, -1};
+    Task right{0, task.length - offset, task.units - units, task.sweep, -1};
+    tasks_.pop_back();
+    tasks_.push_back(left);
+    if (right.sweep) {
+      // The forward sweep stored it, right above the anchor on the stack, stage values included.
+      right.anchor = left.anchor + 1;
+      assert(checkpoints_[static_cast<std::size_t>(right.anchor)].position == anchor.position + offset);
+    } else {
+      advanceFrom(left.anchor, anchor.position + offset, visitor);
+      right.anchor = push(anchor.position + offset, record);
+      visitor.store(checkpoints_.back().ref, anchor.position + offset, record);
+    }
+    tasks_.push_back(right);
+  }
+}
+
+}  // namespace cams
+
+class CamsCheckpointing final : public TrajectoryStorage {
+ public:
+  static constexpr std::int64_t kMaxCheckpoints = 1'000'000;
+  /// The byte budget of cams:checkpoints=C (the strategy holds (C + 1) states of it), like binomial's.
+  static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
+  /// checkpoints > 0: the budget of binomial:checkpoints=C, (C + 1) states, fixed at begin(); otherwise
+  /// budgetBytes is the budget.
+  CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes);
+  static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  static std::vector<std::string> keys() { return {"checkpoints", "budget"}; }
+
+  std::string spec() const override;
+  bool isExact() const override { return true; }
+  bool keepsStepData() const override { return true; }
+  /// The plan of the current run (after begin()).
+  const cams::Plan* plan() const { return plan_.get(); }
+
+ private:
+  void doBegin() override;
+  void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
+  void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
+  void doRestore(std::int64_t step, VectorRef z) override;
+  bool doRestoreStepData(std::int64_t step, VectorRef data) override;
+  void releaseAll();
+
+  std::int64_t checkpoints_;
+  std::unique_ptr<cams::Plan> plan_;
+  cams::Executor executor_;
+  std::unique_ptr<double[]> memory_;  // units x n doubles
+  std::int64_t heldBytes_ = 0;
+  std::int64_t units_ = 0;
+  std::int64_t pendingRecord_ = -1;  // forward: ref of the record whose stage values come next
+  const double* delivered_ = nullptr;  // stage values for restoreStepData, or null
+};
+
+}  // namespace hindsight

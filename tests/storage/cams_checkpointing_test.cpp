@@ -1,0 +1,163 @@
+// The cams plan (storage/cams_checkpointing.h): its optimum against brute-force enumeration of every
+// schedule for tiny N, the fast split search against the exhaustive one, revolve when records do not
+// fit, "store everything" with an unlimited budget, the executor's counts against the plan's value, and
+// the strategy's counters in a real run against the plan.
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/storage/storage_factory.h>
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+namespace hindsight {
+namespace {
+
+constexpr int kNoRecords = 1000000;
+
+TEST(CamsPlan, OptimumEqualsBruteForceEnumerationOfAllSchedules) {
+  for (std::int64_t w : std::initializer_list<std::int64_t>{1, 2, 3, 4, kNoRecords}) {
+    for (std::int64_t n = 1; n <= 6; ++n) {
+      for (std::int64_t m = 1; m <= 6; ++m) {
+        const cams::Plan plan(n, m, w);
+        EXPECT_EQ(plan.optimalStepEvaluations(), cams::bruteForceStepEvaluations(n, m, w))
+            << "N = " << n << ", M = " << m << ", w = " << w;
+      }
+    }
+  }
+}
+
+TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearch) {
+  for (std::int64_t w : std::initializer_list<std::int64_t>{1, 2, 3, 4, 7, kNoRecords}) {
+    for (std::int64_t m : std::initializer_list<std::int64_t>{1, 2, 3, 5, 8, 13, 30}) {
+      const std::int64_t n = 150;
+      // Plan(n, ...) builds every interval length l <= n, so comparing E(l, m) for every l checks the tables.
+      for (std::int64_t l = 1; l <= n; l += (l < 40 ? 1 : 7)) {
+        EXPECT_EQ(cams::Plan(l, m, w).optimalStepEvaluations(),
+                  cams::Plan::exhaustive(l, m, w).optimalStepEvaluations())
+            << "N = " << l << ", M = " << m << ", w = " << w;
+      }
+    }
+  }
+}
+
+TEST(CamsPlan, WithoutRecordsItLiesBetweenRevolveWithCAndWithCPlusOneCheckpoints) {
+  // binomial:checkpoints=C holds C + 1 states (C slots and the working state x_{N-1}); its cost in steps is
+  // N + recomputed + N (every adjoint step recomputes its stages). The plan over the same C + 1 states
+  // without records may use the working state's memory as a slot too, so it is at most binomial's cost, and
+  // at least that of revolve with C + 1 slots and a free working state.
+  for (std::int64_t c : std::initializer_list<std::int64_t>{1, 2, 3, 5, 10, 20}) {
+    for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 7, 50, 200, 1000}) {
+      const auto cost = [n](std::int64_t checkpoints) {
+        return n + static_cast<std::int64_t>(revolve::simulateSchedule(n, checkpoints).recomputedSteps) + n;
+      };
+      const std::int64_t plan = cams::Plan(n, c + 1, kNoRecords).optimalStepEvaluations();
+      EXPECT_LE(plan, cost(c)) << "N = " << n << ", C = " << c;
+      EXPECT_GE(plan, cost(c + 1)) << "N = " << n << ", C = " << c;
+    }
+  }
+}
+
+TEST(CamsPlan, UnlimitedBudgetStoresEveryStepsRecordAndRecomputesNothing) {
+  for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 10, 100}) {
+    for (std::int64_t w : std::initializer_list<std::int64_t>{1, 4}) {
+      const cams::Plan plan(n, (n + 1) * w, w);
+      EXPECT_EQ(plan.optimalStepEvaluations(), n) << n;  // the forward sweep only
+      const cams::PlanCounts counts = cams::simulate(plan);
+      EXPECT_EQ(counts.recomputedSteps, 0);
+      EXPECT_EQ(counts.adjointRecomputations, 0);
+      EXPECT_EQ(counts.recordsStored, n);
+    }
+  }
+}
+
+TEST(CamsPlan, ExecutorAttainsThePlansOptimumWithinItsMemory) {
+  for (std::int64_t w : std::initializer_list<std::int64_t>{1, 2, 4, kNoRecords}) {
+    for (std::int64_t m : std::initializer_list<std::int64_t>{1, 2, 3, 6, 11, 51}) {
+      for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 5, 17, 100, 1000}) {
+        const cams::Plan plan(n, m, w);
+        const cams::PlanCounts counts = cams::simulate(plan);
+        EXPECT_EQ(counts.stepEvaluations(), plan.optimalStepEvaluations()) << n << " " << m << " " << w;
+        EXPECT_LE(counts.peakUnits, m);
+      }
+    }
+  }
+}
+
+TEST(CamsPlan, RecordsLowerTheCostBelowRevolveAtTheSameBytes) {
+  // rk4: a record is 4 states. 3000 steps, the budgets of binomial:checkpoints=10 and 50.
+  for (std::int64_t c : std::initializer_list<std::int64_t>{10, 50}) {
+    const std::int64_t n = 3000;
+    const ScheduleCounts binomial = revolve::simulateSchedule(n, c);
+    const std::int64_t revolveCost = n + static_cast<std::int64_t>(binomial.recomputedSteps) + n;
+    const cams::Plan plan(n, c + 1, 4);
+    EXPECT_LT(plan.optimalStepEvaluations(), revolveCost) << c;
+    EXPECT_EQ(cams::simulate(plan).stepEvaluations(), plan.optimalStepEvaluations());
+  }
+}
+
+TEST(CamsPlan, ActionStreamReplaysTheCounts) {
+  const cams::Plan plan(40, 5, 2);
+  std::vector<cams::Action> actions;
+  const cams::PlanCounts counts = cams::simulate(plan, &actions);
+  std::int64_t advanced = 0, delivered = 0, next = 39;
+  for (const auto& a : actions) {
+    if (a.kind == cams::Action::Kind::Advance) advanced += a.to - a.from;
+    if (a.kind == cams::Action::Kind::Deliver) {
+      EXPECT_EQ(a.from, next--);
+      ++delivered;
+    }
+  }
+  EXPECT_EQ(advanced, counts.recomputedSteps);
+  EXPECT_EQ(delivered, 40);
+}
+
+TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {
+  EXPECT_THROW(cams::Plan(0, 3, 1), std::invalid_argument);
+  EXPECT_THROW(cams::Plan(10, 0, 1), std::invalid_argument);
+  EXPECT_THROW(createStorage("cams"), std::invalid_argument);
+  EXPECT_THROW(createStorage("cams:checkpoints=3,budget=1MiB"), std::invalid_argument);
+  EXPECT_THROW(createStorage("cams:checkpoints=0"), std::invalid_argument);
+  try {
+    createStorage("cams:budget=0");
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cams.budget"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(createStorage("cams:checkpoints=7")->spec(), "cams:checkpoints=7");
+  EXPECT_EQ(createStorage("cams:budget=1MiB")->spec(), "cams:budget=1048576");
+}
+
+TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinomial) {
+  Pendulum problem;
+  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 4.0;
+  options.step = 4e-3;  // N = 1000
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  for (std::int64_t c : std::initializer_list<std::int64_t>{2, 10, 50}) {
+    auto binomial = createStorage("binomial:checkpoints=" + std::to_string(c));
+    const GradientResult b = computeGradient(problem, p, options, *binomial);
+    auto storage = createStorage("cams:checkpoints=" + std::to_string(c));
+    storage->setVerifyRestores(true);
+    const GradientResult r = computeGradient(problem, p, options, *storage);
+    EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+    EXPECT_EQ(r.objective, reference.objective);
+    EXPECT_LT(r.summary.rhsEvaluations, b.summary.rhsEvaluations) << c;
+    EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
+    const auto* cams = dynamic_cast<const CamsCheckpointing*>(storage.get());
+    const cams::PlanCounts counts = cams::simulate(*cams->plan());
+    EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps);
+    EXPECT_EQ(storage->counters().stepDataRestored, counts.steps - counts.adjointRecomputations);
+    // rk4 evaluates 4 right-hand sides per step, forward, recomputed and in the adjoint's recomputation.
+    EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
+  }
+}
+
+}  // namespace
+}  // namespace hindsight
