@@ -29,6 +29,13 @@
 // bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
 // this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
 //
+// Scenarios (issue #15; problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
+// `scenarios` list every scenario is evaluated (over MPI ranks and threads), f_s = w_s psi_s(x) /
+// psi_s(x0), and MMA minimizes sum_s f_s (aggregate sum) or, for aggregate max, z over (x, z) subject
+// to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
+// w_s], restarted at max_s f_s each iteration; its MMA state is OptimizerState::bound). The divergence
+// guard applies per scenario. Without scenarios the code path and the bits are those of before.
+//
 // Restart: everything that carries over between iterations is the OptimizerState (plain data). An
 // optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations
 // are deterministic, MMA restores exactly).
