@@ -17,6 +17,10 @@
 //   /state/mma_xold1, mma_xold2, mma_low, mma_upp   n each; attribute mma_iteration: the MMA state
 //   /final/modes           modeCount x dofCount, row k = mode k on all DOFs (fe_model.h DOF order), and
 //   /final/frequencies_hz  modeCount; both of the final design, empty (0 rows) until finished = 1
+//   /scenarios/psi1, psi2  K x S: every scenario's psi per iteration (only in runs with scenarios,
+//                          problems/rod/scenarios.h; the history's psi1/psi2 are then the worst one's)
+//   /scenarios/objective_scale  S: psi_s(x0);  /scenarios/bound  4 (aggregate max: MMA's xold1,
+//                          xold2, low, upp of the bound variable z) or 0
 // Every dataset is float64 (int32 where said), chunked with an unlimited first dimension, and carries
 // HDF5's Fletcher32 filter and an attribute content_hash.
 //

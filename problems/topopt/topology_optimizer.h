@@ -42,6 +42,12 @@
 //    every projectionEvery iterations up to projectionBetaMax; gradients are chained through H' and F^T.
 // Every record also holds the grayness (fraction of design elements the model sees in (0.1, 0.9)) and
 // the first natural frequency.
+// Scenarios (issue #15; problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
+// `scenarios` list every scenario is evaluated (over MPI ranks and threads), f_s = w_s psi_s(x) /
+// psi_s(x0), and MMA minimizes sum_s f_s (aggregate sum) or, for aggregate max, z over (x, z) subject
+// to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
+// w_s], restarted at max_s f_s each iteration; its MMA state is OptimizerState::bound). The divergence
+// guard applies per scenario. Without scenarios the code path and the bits are those of before.
 //
 // Restart: everything that carries over between iterations is the OptimizerState (plain data). An
 // optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations
