@@ -11,8 +11,8 @@
 //                run summary reports gradient_error_estimate = kGradientSensitivity x the largest
 //                relative state error actually made (<= T). kGradientSensitivity is calibrated, not
 //                derived: the measured ratio of gradient error to relative state error was at most
-//                0.07 on the rod (200x12, T = 3 and 10 s), 0.6 on the synthetic slider-crank of
-//                tests/problems/rod, 0.15 on the pendulum and 0.006 on the reaction-diffusion problem;
+//                0.09 on the rod (200x12, T = 3 and 10 s), 0.6 on the synthetic slider-crank of
+//                tests/problems/rod, 0.22 on the pendulum and 0.006 on the reaction-diffusion problem;
 //                the tests check achieved <= T on these (README "Compression along time"). It is a
 //                documented estimate, not a proof: a problem whose gradient is more sensitive to its
 //                states than these can exceed T, and components that fall by decades within a block
