@@ -76,6 +76,9 @@ void DiskStorage::doBegin() {
   std::int64_t chunk = options_.chunkStates;
   if (chunk == 0) {
     chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
+    // The time codec predicts each row from the previous rows of its chunk: at least 16 rows when
+    // the budget allows (the full-order rod's rows are 10^4-10^5 doubles).
+    if (options_.timeCodec) chunk = std::max<std::int64_t>(chunk, 16);
     chunk = std::min(chunk, std::max<std::int64_t>(1, budgetBytes() / (3 * rowBytes)));
   }
   chunk = std::min(chunk, rows);

@@ -9,7 +9,8 @@
 //   codec   time (default): each chunk's states predicted along time, residuals coded losslessly
 //           (storage/time_codec.h, 2.4-3.3x on the rod); zstd: byte shuffle + zstd per chunk (the
 //           format before issue #14, 1.3-1.4x). Both restore every bit.
-//   chunk   states per HDF5 chunk and per I/O buffer (default: about 1 MiB of states, at most 4096)
+//   chunk   states per HDF5 chunk and per I/O buffer (default: about 1 MiB of states, at most 4096,
+//           at least 16 with codec=time)
 //   budget  bytes held in memory (default 64 MiB): the pool of up to three chunk buffers (one being
 //           filled or consumed, the others queued for writing or prefetched), charged with
 //           holdBytes() at begin(); the default chunk shrinks to fit, an explicit one does not.

@@ -184,6 +184,7 @@ TEST(LossyTarget, AchievedGradientErrorStaysBelowTheTargetOnThePendulum) {
     const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), *storage);
     EXPECT_EQ(result.objective, reference.objective) << "the forward sweep is not affected";
     const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
+    ::testing::Test::RecordProperty("error_" + ::testing::PrintToString(target), ::testing::PrintToString(error));
     EXPECT_GT(error, 0.0) << target;
     EXPECT_LE(error, target) << target;
     EXPECT_LE(result.summary.gradientErrorEstimate, target) << target;
