@@ -87,8 +87,8 @@ TEST(CvodesRod, VjpPathGivesTheDenseGradientWithinTheToleranceAndFormsNoJacobian
               << ", VJPs " << vjpCounters.stateVjps << ", dense F_z " << vjpCounters.denseJacobians << " (dense path "
               << denseCounters.denseJacobians << ")\n";
     // The two paths differ by round-off in lambda', which can move CVODES' step choices: they agree to
-    // the tolerance, not to the bit. Measured over 1 s: 1.7e-12 (Adams) and 7.0e-12 (BDF) apart,
-    // 4e-11 and 1.7e-10 from the reference; a wrong term would be off by 1e-2 or more.
+    // the tolerance, not to the bit. Measured: 1.9e-11 (Adams) and 2.2e-13 (BDF) apart, 4.5e-10 and
+    // 3.8e-10 from the reference; a wrong term would be off by 1e-2 or more.
     EXPECT_LT(difference, 1e-9) << label;
     EXPECT_LT(error, 1e-8) << label;
     EXPECT_LT(relativeError(dense.gradient, r.reference), 1e-8) << label;
