@@ -77,8 +77,8 @@ void forEachCvodesVariant(const GradientOptions& base, Add&& add) {
 /// computeGradientByMethod(), and for the CVODES route also its CvodesCounters as benchmark counters:
 /// bwd_rhs (lambda' evaluations), vjps (rhsStateVjp calls), nl_iters (nonlinear iterations, both
 /// problems), lin_iters (GMRES iterations), setups (linear-solver setups), recomputed_rhs (F during CVodeB).
-inline GradientResult gradientWithCounters(const Problem& problem, ConstVectorRef p, const GradientOptions& options,
-                                           benchmark::State& state) {
+inline GradientResult gradientWithCounters(const Problem& problem, ConstVectorRef p,
+                                           const GradientOptions& options, benchmark::State& state) {
   if (options.adjoint != AdjointMethod::Cvodes) return computeGradientByMethod(problem, p, options);
   CvodesOptions cvodes = options.cvodes;
   cvodes.t0 = options.integrator.t0;

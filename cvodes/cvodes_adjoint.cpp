@@ -32,7 +32,7 @@ class CvodesAdjointSolver final {
     std::unique_ptr<ProblemWorkspace> workspace;
     int n = 0;
     int np = 0;
-    Matrix jacobian;  // n x n scratch for F_z (dense paths only)
+    Matrix jacobian;             // n x n scratch for F_z (dense paths only)
     bool backwardPhase = false;  // F calls during CVodeB are recomputations
     std::int64_t forwardRhsEvaluations = 0;
     std::int64_t recomputedRhsEvaluations = 0;
@@ -169,8 +169,9 @@ class CvodesAdjointSolver final {
     data_.n = problem.stateSize();
     data_.np = problem.parameterSize();
     if (problem.hasDenseJacobian()) data_.jacobian = Matrix::Zero(data_.n, data_.n);
-    fixedPoint_ = options.nonlinearSolver == CvodesNonlinearSolver::FixedPoint ||
-                  (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Adams);
+    fixedPoint_ =
+        options.nonlinearSolver == CvodesNonlinearSolver::FixedPoint ||
+        (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Adams);
     gmres_ = options.linearSolver == CvodesLinearSolver::Gmres ||
              (options.linearSolver == CvodesLinearSolver::Auto && !problem.hasDenseJacobian());
     vjp_ = options.backwardProducts == CvodesBackwardProducts::Vjp ||
@@ -504,7 +505,8 @@ CvodesLinearSolver parseCvodesLinearSolver(const std::string& name) {
   if (name == "auto") return CvodesLinearSolver::Auto;
   if (name == "dense") return CvodesLinearSolver::Dense;
   if (name == "gmres") return CvodesLinearSolver::Gmres;
-  throw std::invalid_argument("CvodesOptions.linearSolver = '" + name + "' is unknown; valid: auto, dense, gmres");
+  throw std::invalid_argument("CvodesOptions.linearSolver = '" + name +
+                              "' is unknown; valid: auto, dense, gmres");
 }
 
 CvodesBackwardProducts parseCvodesBackwardProducts(const std::string& name) {
@@ -644,14 +646,15 @@ GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, c
     requireOneTolerancePerState(*values, std::string("CvodesOptions.") + name, problem.name(),
                                 problem.stateSize(), "one atol per state, or empty");
   }
-  const bool newton = options.nonlinearSolver == CvodesNonlinearSolver::Newton ||
-                      (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Bdf);
+  const bool newton =
+      options.nonlinearSolver == CvodesNonlinearSolver::Newton ||
+      (options.nonlinearSolver == CvodesNonlinearSolver::Auto && options.method == CvodesMethod::Bdf);
   if (!problem.hasDenseJacobian()) {
     const auto refuse = [&](const std::string& field) {
-      throw std::invalid_argument("CvodesOptions." + field + " needs a dense Jacobian, but problem '" +
-                                  problem.name() + "' has hasDenseJacobian() == false; use " +
-                                  (field == "linearSolver" ? "gmres, auto or the fixed-point solver"
-                                                           : "vjp or auto"));
+      throw std::invalid_argument(
+          "CvodesOptions." + field + " needs a dense Jacobian, but problem '" + problem.name() +
+          "' has hasDenseJacobian() == false; use " +
+          (field == "linearSolver" ? "gmres, auto or the fixed-point solver" : "vjp or auto"));
     };
     if (newton && options.linearSolver == CvodesLinearSolver::Dense) refuse("linearSolver");
     if (options.backwardProducts == CvodesBackwardProducts::Dense) refuse("backwardProducts");

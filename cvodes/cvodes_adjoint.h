@@ -29,10 +29,11 @@
 // products; a problem without one needs rhsStateVjp() and runs fixed point or GMRES. p has
 // problem.parameterSize() entries. Dimensions: n = stateSize(), np = parameterSize().
 // Throws std::invalid_argument for bad options (naming the field and its range), a wrong p size or a
-// problem without the derivative a chosen solver needs (dense Jacobian or vector-Jacobian product); hindsight::NumericalError for every SUNDIALS return flag < 0,
-// carrying the flag's name (CVodeGetReturnFlagName) and the simulation time of the failure.
-// Exceptions thrown by the problem inside a SUNDIALS callback are caught there, make CVODES stop
-// with an unrecoverable flag, and are rethrown unchanged.
+// problem without the derivative a chosen solver needs (dense Jacobian or vector-Jacobian product);
+// hindsight::NumericalError for every SUNDIALS return flag < 0, carrying the flag's name
+// (CVodeGetReturnFlagName) and the simulation time of the failure. Exceptions thrown by the problem inside a
+// SUNDIALS callback are caught there, make CVODES stop with an unrecoverable flag, and are rethrown
+// unchanged.
 //
 // References: A. C. Hindmarsh, R. Serban et al., "User Documentation for CVODES" (SUNDIALS 6.4),
 // chapter "Using CVODES for adjoint sensitivity analysis"; Y. Cao, S. Li, L. Petzold, R. Serban,
@@ -131,17 +132,17 @@ struct CvodesOptions {
 
 /// What one CVODES gradient did, beyond RunSummary: every callback counted where it runs.
 struct CvodesCounters {
-  std::string nonlinearSolver;   ///< "newton" | "fixed-point" (after Auto is resolved)
-  std::string linearSolver;      ///< "dense" | "gmres" | "none" (fixed point)
-  std::string backwardProducts;  ///< "vjp" | "dense"
+  std::string nonlinearSolver;                ///< "newton" | "fixed-point" (after Auto is resolved)
+  std::string linearSolver;                   ///< "dense" | "gmres" | "none" (fixed point)
+  std::string backwardProducts;               ///< "vjp" | "dense"
   std::int64_t forwardRhsEvaluations = 0;     ///< F during CVodeF
   std::int64_t recomputedRhsEvaluations = 0;  ///< F during CVodeB (re-integration between check points)
   std::int64_t backwardRhsEvaluations = 0;    ///< lambda' evaluations
   std::int64_t backwardQuadratureEvaluations = 0;
-  std::int64_t stateVjps = 0;           ///< rhsStateVjp() calls (backward rhs and GMRES products)
-  std::int64_t denseJacobians = 0;      ///< rhsJacobian() calls, all purposes (= summary.jacobianEvaluations)
+  std::int64_t stateVjps = 0;       ///< rhsStateVjp() calls (backward rhs and GMRES products)
+  std::int64_t denseJacobians = 0;  ///< rhsJacobian() calls, all purposes (= summary.jacobianEvaluations)
   std::int64_t forwardNonlinearIterations = 0, backwardNonlinearIterations = 0;
-  std::int64_t forwardLinearIterations = 0, backwardLinearIterations = 0;  ///< GMRES iterations
+  std::int64_t forwardLinearIterations = 0, backwardLinearIterations = 0;        ///< GMRES iterations
   std::int64_t forwardConvergenceFailures = 0, backwardConvergenceFailures = 0;  ///< nonlinear solver
 };
 
@@ -152,10 +153,10 @@ struct CvodesCounters {
 /// recomputation phases) and jacobianEvaluations = every dense F_z evaluation (forward Jacobian,
 /// backward right-hand side on the dense path and backward Jacobian; 0 with the fixed-point solver and
 /// the problem's vector-Jacobian products), both counted in the callbacks; factorizations = the
-/// linear-solver setups of both problems (CVodeGetNumLinSolvSetups; 0 with the fixed-point solver); recomputedSteps = the forward
-/// steps before the last check point, which CVodeB re-integrates; statesStored = check points
-/// (CVodeF's ncheck). peakBytesInMemory stays 0: CVODES does not report the memory of its check
-/// points and data points. times is the forward grid (CVodeF in one-step mode up to the stop time t1).
+/// linear-solver setups of both problems (CVodeGetNumLinSolvSetups; 0 with the fixed-point solver);
+/// recomputedSteps = the forward steps before the last check point, which CVodeB re-integrates; statesStored
+/// = check points (CVodeF's ncheck). peakBytesInMemory stays 0: CVODES does not report the memory of its
+/// check points and data points. times is the forward grid (CVodeF in one-step mode up to the stop time t1).
 /// `counters`, when given, receives the CvodesCounters of the run.
 GradientResult computeGradientCvodes(const Problem& problem, ConstVectorRef p, const CvodesOptions& options,
                                      CvodesCounters* counters = nullptr);

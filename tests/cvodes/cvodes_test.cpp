@@ -434,11 +434,13 @@ TEST(CvodesBadInput, WrongParameterSizeAndUnknownNames) {
     computeGradientCvodes(problem, Vector::Ones(problem.parameterSize()), vjp);
     ADD_FAILURE() << "vjp accepted";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("CvodesOptions.backwardProducts = vjp"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("CvodesOptions.backwardProducts = vjp"), std::string::npos)
+        << e.what();
   }
   for (const std::string name : {"auto", "newton", "fixed-point"})
     EXPECT_EQ(toString(parseCvodesNonlinearSolver(name)), name);
-  for (const std::string name : {"auto", "dense", "gmres"}) EXPECT_EQ(toString(parseCvodesLinearSolver(name)), name);
+  for (const std::string name : {"auto", "dense", "gmres"})
+    EXPECT_EQ(toString(parseCvodesLinearSolver(name)), name);
   for (const std::string name : {"auto", "vjp", "dense"})
     EXPECT_EQ(toString(parseCvodesBackwardProducts(name)), name);
   EXPECT_THROW(parseCvodesNonlinearSolver("functional"), std::invalid_argument);

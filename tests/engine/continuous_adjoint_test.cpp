@@ -417,7 +417,8 @@ TEST(ContinuousMatrixFree, VectorJacobianProductsGiveTheDenseGradient) {
     EXPECT_LT((cvodesMatrixFree.gradient - cvodesDense.gradient).norm(), 1e-9 * cvodesDense.gradient.norm())
         << toString(method);
     // CVODES' own global error at rtol 1e-11 (polynomial interpolation) is ~1e-7 relative here.
-    EXPECT_LT((cvodesMatrixFree.gradient - dense.gradient).norm(), 1e-6 * dense.gradient.norm()) << toString(method);
+    EXPECT_LT((cvodesMatrixFree.gradient - dense.gradient).norm(), 1e-6 * dense.gradient.norm())
+        << toString(method);
     EXPECT_EQ(cvodesMatrixFree.summary.jacobianEvaluations, 0) << toString(method);
   }
   options.cvodes.linearSolver = CvodesLinearSolver::Dense;

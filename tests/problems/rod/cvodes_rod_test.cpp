@@ -77,18 +77,18 @@ TEST(CvodesRod, VjpPathGivesTheDenseGradientWithinTheToleranceAndFormsNoJacobian
     CvodesCounters vjpCounters, denseCounters;
     const GradientResult vjp =
         computeGradientCvodes(*r.problem, r.p, options(method, CvodesBackwardProducts::Auto), &vjpCounters);
-    const GradientResult dense =
-        computeGradientCvodes(*r.problem, r.p, options(method, CvodesBackwardProducts::Dense), &denseCounters);
+    const GradientResult dense = computeGradientCvodes(
+        *r.problem, r.p, options(method, CvodesBackwardProducts::Dense), &denseCounters);
     const std::string label = toString(method);
     const double difference = relativeError(vjp.gradient, dense.gradient);
     const double error = relativeError(vjp.gradient, r.reference);
     std::cout << "[ rod ] " << label << ": |g_vjp - g_dense|/|g| = " << difference
-              << ", |g_vjp - g_ref|/|g_ref| = " << error << ", backward rhs " << vjpCounters.backwardRhsEvaluations
-              << ", VJPs " << vjpCounters.stateVjps << ", dense F_z " << vjpCounters.denseJacobians << " (dense path "
-              << denseCounters.denseJacobians << ")\n";
+              << ", |g_vjp - g_ref|/|g_ref| = " << error << ", backward rhs "
+              << vjpCounters.backwardRhsEvaluations << ", VJPs " << vjpCounters.stateVjps << ", dense F_z "
+              << vjpCounters.denseJacobians << " (dense path " << denseCounters.denseJacobians << ")\n";
     // The two paths differ by round-off in lambda', which can move CVODES' step choices: they agree to
-    // the tolerance, not to the bit. Measured over 1 s: 1.7e-12 (Adams) and 7.0e-12 (BDF) apart,
-    // 4e-11 and 1.7e-10 from the reference; a wrong term would be off by 1e-2 or more.
+    // the tolerance, not to the bit. Measured: 1.9e-11 (Adams) and 2.2e-13 (BDF) apart, 4.5e-10 and
+    // 3.8e-10 from the reference; a wrong term would be off by 1e-2 or more.
     EXPECT_LT(difference, 1e-9) << label;
     EXPECT_LT(error, 1e-8) << label;
     EXPECT_LT(relativeError(dense.gradient, r.reference), 1e-8) << label;
@@ -117,9 +117,9 @@ TEST(CvodesRod, FixedPointAdamsConvergesOnTheRodAndMatchesTheDiscreteAdjoint) {
     CvodesCounters counters;
     const GradientResult result = computeGradientCvodes(*r.problem, r.p, o, &counters);
     const double error = relativeError(result.gradient, r.reference);
-    std::cout << "[ rod ] adams fixed point, Anderson m = " << acceleration << ": error " << error << ", steps "
-              << result.summary.steps << ", iterations " << counters.forwardNonlinearIterations << " + "
-              << counters.backwardNonlinearIterations << ", convergence failures "
+    std::cout << "[ rod ] adams fixed point, Anderson m = " << acceleration << ": error " << error
+              << ", steps " << result.summary.steps << ", iterations " << counters.forwardNonlinearIterations
+              << " + " << counters.backwardNonlinearIterations << ", convergence failures "
               << counters.forwardConvergenceFailures << " + " << counters.backwardConvergenceFailures << "\n";
     EXPECT_EQ(counters.nonlinearSolver, "fixed-point");
     EXPECT_EQ(counters.linearSolver, "none");
