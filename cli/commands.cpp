@@ -18,6 +18,7 @@ void registerCommands(CLI::App& app) {
   registerOptimize(app);
   registerPlot(app);
   registerVerify(app);
+  registerSchedule(app);
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {
@@ -37,7 +38,9 @@ nlohmann::json summaryToJson(const RunSummary& s) {
           {"compression_ratio", s.compressionRatio},
           {"forward_seconds", s.forwardSeconds},
           {"backward_seconds", s.backwardSeconds},
-          {"io_seconds", s.ioSeconds}};
+          {"io_seconds", s.ioSeconds},
+          {"predicted_storage_seconds", s.predictedStorageSeconds},
+          {"measured_storage_seconds", s.measuredStorageSeconds}};
 }
 
 void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string& key,

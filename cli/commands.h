@@ -58,5 +58,6 @@ void registerEvaluate(CLI::App& app);
 void registerOptimize(CLI::App& app);
 void registerPlot(CLI::App& app);
 void registerVerify(CLI::App& app);
+void registerSchedule(CLI::App& app);
 
 }  // namespace hindsight::cli

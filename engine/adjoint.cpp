@@ -169,6 +169,8 @@ void RunSummary::addStorageCounters(const StorageCounters& counters, std::size_t
   bytesOnDisk = counters.bytesOnDisk;
   compressionRatio = counters.compressionRatio();
   ioSeconds = counters.ioSeconds;
+  predictedStorageSeconds = counters.predictedSeconds;
+  measuredStorageSeconds = counters.scheduleSeconds;
 }
 
 namespace {
@@ -193,6 +195,10 @@ void RunSummary::print(std::ostream& out) const {
       << "\nbytes on disk: " << formatBytes(bytesOnDisk) << "\ncompression ratio: " << compressionRatio
       << "\nforward seconds: " << forwardSeconds << "\nbackward seconds: " << backwardSeconds
       << "\nI/O seconds: " << ioSeconds << '\n';
+  if (predictedStorageSeconds > 0.0 || measuredStorageSeconds > 0.0) {
+    out << "storage seconds predicted: " << predictedStorageSeconds
+        << "\nstorage seconds measured: " << measuredStorageSeconds << '\n';
+  }
 }
 
 ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,

@@ -53,6 +53,10 @@ struct StorageCounters {
   std::int64_t uncompressedBytes = 0;  ///< raw size of what was compressed, for the ratio
   std::int64_t compressedBytes = 0;
   double ioSeconds = 0.0;
+  /// A strategy that plans by a cost model (multilevel): the predicted and the measured seconds of its
+  /// own work, recomputation plus disk I/O; 0 for the others.
+  double predictedSeconds = 0.0;
+  double scheduleSeconds = 0.0;
   /// uncompressedBytes / compressedBytes, or 1 when nothing was compressed.
   double compressionRatio() const {
     return compressedBytes > 0 ? static_cast<double>(uncompressedBytes) / static_cast<double>(compressedBytes)

@@ -16,6 +16,8 @@
 namespace hindsight {
 namespace {
 constexpr std::int64_t kSlotsPerBlock = 256;
+// Forward steps timed (median) before the plan is chosen, when costs are measured.
+constexpr std::int64_t kProbeSteps = 16;
 }
 
 bool MultilevelStorage::Options::IsValid(std::string* error) const {
@@ -369,7 +371,7 @@ bool MultilevelStorage::canPlan() const {
   // Measured costs need RAM for the states recorded while forward steps are timed (see beginPlan).
   const Layout layout = layoutFor(info().stepCount, info().stateSize);
   return options_.costs || info().stepCount <= 1 || layout.diskSlots == 0 ||
-         std::min<std::int64_t>({4, info().stepCount - 1, (layout.ramSlots - 1) / 2}) >= 1;
+         std::min<std::int64_t>({kProbeSteps, info().stepCount - 1, (layout.ramSlots - 1) / 2}) >= 1;
 }
 
 void MultilevelStorage::beginPlan() {
@@ -399,7 +401,7 @@ void MultilevelStorage::beginPlan() {
   ScheduleCosts measured;
   measureDiskCosts(measured);
   costsInUse_ = measured;
-  probeSteps_ = std::min<std::int64_t>({4, steps - 1, (planRamSlots_ - 1) / 2});  // >= 1: canPlan()
+  probeSteps_ = std::min<std::int64_t>({kProbeSteps, steps - 1, (planRamSlots_ - 1) / 2});  // >= 1: canPlan()
   poolSlots_ = planRamSlots_;
   holdBytes(poolSlots_ * stateBytes());
   ramPool_.reset(new double[static_cast<std::size_t>(poolSlots_ * info().stateSize)]);
@@ -547,6 +549,8 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
   plan_.restoreStep(step, visitor);
   if (step == 0) {
     mutableCounters().ioSeconds = slotIoSeconds_;
+    mutableCounters().predictedSeconds = predictedSeconds();
+    mutableCounters().scheduleSeconds = measuredSeconds();
     slotFile_.reset();
     releaseBytes(poolSlots_ * stateBytes());
     ramPool_.reset();

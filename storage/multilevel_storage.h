@@ -9,7 +9,7 @@
 //   costs     the cost model of storage/schedule.h in seconds: forward step, adjoint step, disk write
 //             and disk read of one state. Default: measured at the start of each run -- a disk write
 //             and read of one state at begin(), and the forward step as the median time between the
-//             first (up to) four records, whose states wait in RAM until the plan is chosen.
+//             first (up to) 16 records, whose states wait in RAM until the plan is chosen.
 //   schedule  optimal (default): for fixed steps, the two-level plan of storage/schedule.h that is
 //             cheapest under the cost model (Disk-Revolve's leaves, or revolve over all slots with the
 //             long-lived checkpoints on disk); adaptive steps (N unknown) fall back to the stride, and

@@ -8,6 +8,7 @@
 #include <hindsight/storage/storage_spec.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -42,10 +43,15 @@ ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& f
 }
 
 std::string ScheduleCosts::text() const {
-  std::ostringstream out;
-  out.precision(17);
-  out << forwardStep << ':' << adjointStep << ':' << diskWrite << ':' << diskRead;
-  return out.str();
+  // Shortest text that reads back to the same doubles (the spec round-trips).
+  std::string out;
+  for (double value : {forwardStep, adjointStep, diskWrite, diskRead}) {
+    char buffer[32];
+    const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+    if (!out.empty()) out += ':';
+    out.append(buffer, result.ptr);
+  }
+  return out;
 }
 
 const char* levelName(StorageLevel level) { return level == StorageLevel::kRam ? "ram" : "disk"; }
@@ -454,6 +460,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.peakRamBytes = plan.ramSlotsUsed() * stateBytes;
     p.peakDiskBytes = plan.diskSlotsUsed() * stateBytes;
   } else {
+    // cams (issue #13 item 2): its model-free plan (storage/cams_checkpointing.h) goes here as one more
+    // branch, filling the same fields.
     throw std::invalid_argument("storage '" + name +
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
                                 "compression); predicted are full, disk, binomial, multilevel");

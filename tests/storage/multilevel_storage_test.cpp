@@ -206,7 +206,14 @@ TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_THROW(createStorage("multilevel:ram=-5,disk=1MiB"), std::invalid_argument);
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,level=0"), std::invalid_argument);
   const std::string planned = "multilevel:ram=65536,disk=1048576,costs=0.001:0.002:0.0001:0.0001";
-  EXPECT_EQ(createStorage(planned)->spec(), planned);
+  const std::string written = createStorage(planned)->spec();  // shortest text of each double
+  EXPECT_EQ(createStorage(written)->spec(), written);
+  auto reread = createStorage(written);
+  const auto& costs = *dynamic_cast<MultilevelStorage&>(*reread).options().costs;
+  EXPECT_EQ(costs.forwardStep, 0.001);
+  EXPECT_EQ(costs.adjointStep, 0.002);
+  EXPECT_EQ(costs.diskWrite, 0.0001);
+  EXPECT_EQ(costs.diskRead, 0.0001);
   EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,schedule=stride")->spec(),
             "multilevel:ram=65536,disk=1048576,schedule=stride");
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,schedule=revolve"), std::invalid_argument);
