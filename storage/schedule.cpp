@@ -37,8 +37,7 @@ ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& f
     if (used != part.size() || !std::isfinite(values[i]) || values[i] < 0.0) throw std::invalid_argument(expected);
     position = end + 1;
   }
-  if (text.find(':', text.rfind(':') + 1) != std::string::npos || values[0] <= 0.0)
-    throw std::invalid_argument(expected);
+  if (values[0] <= 0.0) throw std::invalid_argument(expected);
   return ScheduleCosts{values[0], values[1], values[2], values[3]};
 }
 
@@ -108,7 +107,6 @@ bool replayAffordable(std::int64_t length, std::int64_t ramSlots) {
 
 struct CountingVisitor {
   TwoLevelPlan::Counts& counts;
-  std::int64_t ramHeld = 0;
   void store(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites); }
   void load(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads); }
   void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += to - from; }
@@ -351,12 +349,6 @@ void TwoLevelPlan::rewind() { currentLeaf_ = -1; }
 
 // ---- predictions ----
 
-namespace {
-
-void requireKeys(const StorageSpec& spec, const std::vector<std::string>& keys) { spec.requireKeysIn(keys); }
-
-}  // namespace
-
 SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
                                    int stages, const ScheduleCosts* costs) {
   if (steps < 1) throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer >= 1");
@@ -466,7 +458,6 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
                                 "compression); predicted are full, disk, binomial, multilevel");
   }
-  (void)requireKeys;
   p.rhsEvaluations = static_cast<std::int64_t>(stages) * (2 * steps + p.recomputedSteps);
   p.scheduleCost = static_cast<double>(p.recomputedSteps) * model.forwardStep +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
@@ -492,7 +483,7 @@ struct PrintingVisitor {
 
 void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
                           const ScheduleCosts* costs, std::ostream& out) {
-  const SchedulePrediction prediction = predictSchedule(specText, steps, stateBytes, 1, costs);
+  predictSchedule(specText, steps, stateBytes, 1, costs);  // validates spec, sizes and budgets
   const std::string name = StorageSpec::parse(specText).name();
   PrintingVisitor visitor{out};
   if (name == "full" || name == "disk") {
@@ -525,7 +516,6 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
   const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
   TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
-  (void)prediction;
   for (std::int64_t k = 0; k < steps; ++k) {
     out << "record " << k << '\n';
     plan.recordForward(k, visitor);
