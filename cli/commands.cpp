@@ -19,6 +19,7 @@ void registerCommands(CLI::App& app) {
   registerPlot(app);
   registerVerify(app);
   registerExport(app);
+  registerSchedule(app);
 }
 
 void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string& key,

@@ -56,5 +56,6 @@ void registerOptimize(CLI::App& app);
 void registerPlot(CLI::App& app);
 void registerVerify(CLI::App& app);
 void registerExport(CLI::App& app);
+void registerSchedule(CLI::App& app);
 
 }  // namespace hindsight::cli

@@ -182,6 +182,8 @@ void RunSummary::addStorageCounters(const StorageCounters& counters, std::size_t
   compressionRatio = counters.compressionRatio();
   gradientErrorEstimate = counters.gradientErrorEstimate;
   ioSeconds = counters.ioSeconds;
+  predictedStorageSeconds = counters.predictedSeconds;
+  measuredStorageSeconds = counters.scheduleSeconds;
 }
 
 namespace {
@@ -207,6 +209,10 @@ void RunSummary::print(std::ostream& out) const {
       << "\nforward seconds: " << forwardSeconds << "\nbackward seconds: " << backwardSeconds
       << "\nI/O seconds: " << ioSeconds << '\n';
   if (gradientErrorEstimate >= 0.0) out << "gradient error estimate: " << gradientErrorEstimate << '\n';
+  if (predictedStorageSeconds > 0.0 || measuredStorageSeconds > 0.0) {
+    out << "storage seconds predicted: " << predictedStorageSeconds
+        << "\nstorage seconds measured: " << measuredStorageSeconds << '\n';
+  }
 }
 
 ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,

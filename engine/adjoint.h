@@ -35,6 +35,9 @@ struct RunSummary {
   double forwardSeconds = 0.0;
   double backwardSeconds = 0.0;
   double ioSeconds = 0.0;
+  /// The storage's predicted and measured seconds of recomputation + disk I/O (multilevel's plan; 0 else).
+  double predictedStorageSeconds = 0.0;
+  double measuredStorageSeconds = 0.0;
   /// Human-readable, one "key: value" per line.
   void print(std::ostream& out) const;
   /// Copies what the storage reports (recomputations, states, bytes, compression, I/O time); the time

@@ -78,6 +78,10 @@ struct StorageCounters {
   double gradientErrorEstimate = -1.0;
   std::int64_t stepDataStored = 0;    ///< steps whose step data (stage values) was kept, any sweep
   std::int64_t stepDataRestored = 0;  ///< adjoint steps served from kept step data (no rhs evaluated)
+  /// A strategy that plans by a cost model (multilevel): the predicted and the measured seconds of its
+  /// own work, recomputation plus disk I/O; 0 for the others.
+  double predictedSeconds = 0.0;
+  double scheduleSeconds = 0.0;
   /// uncompressedBytes / compressedBytes, or 1 when nothing was compressed.
   double compressionRatio() const {
     return compressedBytes > 0 ? static_cast<double>(uncompressedBytes) / static_cast<double>(compressedBytes)

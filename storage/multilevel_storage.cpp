@@ -2,13 +2,22 @@
 
 #include <hindsight/storage/chunked_state_file.h>
 
+#include <hindsight/engine/stopwatch.h>
+
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 
 namespace hindsight {
 namespace {
 constexpr std::int64_t kSlotsPerBlock = 256;
+// Forward steps timed (median) before the plan is chosen, when costs are measured.
+constexpr std::int64_t kProbeSteps = 16;
 }
 
 bool MultilevelStorage::Options::IsValid(std::string* error) const {
@@ -41,6 +50,8 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   options.directory = spec.text("dir", "");
   options.compressionLevel = static_cast<int>(spec.integer("level", 3, 1, 22));
   options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
+  options.stride = spec.text("schedule", "optimal", {"optimal", "stride"}) == "stride";
+  if (spec.has("costs")) options.costs = ScheduleCosts::parse(spec.text("costs", ""), "multilevel.costs");
   return std::make_unique<MultilevelStorage>(std::move(options));
 }
 
@@ -50,6 +61,8 @@ std::string MultilevelStorage::spec() const {
   if (!options_.directory.empty()) text += ",dir=" + options_.directory;
   if (options_.compressionLevel != 3) text += ",level=" + std::to_string(options_.compressionLevel);
   if (options_.keepFile) text += ",keep=true";
+  if (options_.costs) text += ",costs=" + options_.costs->text();
+  if (options_.stride) text += ",schedule=stride";
   return text;
 }
 
@@ -58,10 +71,10 @@ void MultilevelStorage::closeFile() {
     file_->close();
     file_.reset();
   }
+  slotFile_.reset();
 }
 
-void MultilevelStorage::doBegin() {
-  closeFile();
+void MultilevelStorage::beginStride() {
   slotBlocks_.clear();
   slots_.clear();
   freeSlots_.clear();
@@ -158,7 +171,7 @@ void MultilevelStorage::openFile() {
   filePath_ = file_->path();
 }
 
-void MultilevelStorage::doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef) {
+void MultilevelStorage::recordStride(std::int64_t step, double t, ConstVectorRef z) {
   const std::size_t bytes = static_cast<std::size_t>(info().stateSize) * 8;
   while (step % stride_ == 0) {
     if (slotsInUseByKept_ < ramKeptLimit_ && availableSlots() > 0) {
@@ -192,7 +205,7 @@ void MultilevelStorage::doRecord(std::int64_t step, double t, ConstVectorRef z, 
   }
 }
 
-void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
+void MultilevelStorage::finishStride() {
   StorageCounters& c = mutableCounters();
   c.statesStored = static_cast<std::int64_t>(kept_.size());
   statesInRam_ = slotsInUseByKept_;
@@ -222,7 +235,7 @@ void MultilevelStorage::releaseScratch() {
   scratch_.clear();
 }
 
-void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
+void MultilevelStorage::restoreStride(std::int64_t step, VectorRef z) {
   const std::size_t bytes = static_cast<std::size_t>(info().stateSize) * 8;
   while (kept_[static_cast<std::size_t>(cursor_)].step > step) --cursor_;
   const Kept& checkpoint = kept_[static_cast<std::size_t>(cursor_)];
@@ -256,6 +269,292 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
   if (step == 0 && file_) {
     mutableCounters().ioSeconds = file_->ioSeconds();
     closeFile();
+  }
+}
+
+// ---- schedule=optimal ----
+
+// The disk level of the plan: fixed-size slots of raw states in one file, written and read in any order
+// with pwrite/pread. Written by hand because the plan rewrites slots after reading others, which the
+// append-then-read chunked HDF5 file (storage/chunked_state_file.h) does not allow; the file lives for
+// one run and is removed at its end unless keep=true.
+struct MultilevelStorage::SlotFile {
+  std::string path;
+  int fd = -1;
+  std::int64_t slotBytes = 0;
+  std::int64_t writes = 0;
+  std::int64_t failAfter = -1;
+  bool keep = false;
+
+  SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter)
+      : slotBytes(bytes), failAfter(failWritesAfter), keep(keepFile) {
+    static std::atomic<std::int64_t> counter{0};
+    std::error_code ec;
+    std::filesystem::create_directories(directory, ec);
+    path = (std::filesystem::path(directory) / ("hindsight-multilevel-" + std::to_string(::getpid()) + "-" +
+                                                std::to_string(counter++) + ".slots"))
+               .string();
+    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0) throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)), path);
+  }
+  ~SlotFile() {
+    if (fd >= 0) ::close(fd);
+    if (!keep) ::unlink(path.c_str());
+  }
+  SlotFile(const SlotFile&) = delete;
+  SlotFile& operator=(const SlotFile&) = delete;
+
+  void write(std::int64_t slot, const double* z) {
+    if (failAfter >= 0 && writes >= failAfter) {
+      throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " + std::strerror(ENOSPC),
+                         path);
+    }
+    ++writes;
+    const char* data = reinterpret_cast<const char*>(z);
+    std::int64_t done = 0;
+    while (done < slotBytes) {
+      const ssize_t n = ::pwrite(fd, data + done, static_cast<std::size_t>(slotBytes - done), slot * slotBytes + done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " +
+                               std::strerror(n < 0 ? errno : ENOSPC),
+                           path);
+      }
+      done += n;
+    }
+  }
+  void read(std::int64_t slot, double* z) {
+    char* data = reinterpret_cast<char*>(z);
+    std::int64_t done = 0;
+    while (done < slotBytes) {
+      const ssize_t n = ::pread(fd, data + done, static_cast<std::size_t>(slotBytes - done), slot * slotBytes + done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        throw StorageError("multilevel: reading slot " + std::to_string(slot) + " failed: " +
+                               (n < 0 ? std::string(std::strerror(errno)) : std::string("file truncated")),
+                           path);
+      }
+      done += n;
+    }
+  }
+  std::int64_t size() const {
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(path, ec);
+    return ec ? 0 : static_cast<std::int64_t>(bytes);
+  }
+};
+
+MultilevelStorage::Layout MultilevelStorage::layoutFor(std::int64_t, int stateSize) const {
+  const std::int64_t bytes = static_cast<std::int64_t>(stateSize) * 8;
+  return Layout{budgetBytes() / bytes, options_.diskBytes / bytes};
+}
+
+void MultilevelStorage::doBegin() {
+  closeFile();
+  usesPlan_ = false;
+  ramPool_.reset();
+  poolSlots_ = 0;
+  probeSteps_ = 0;
+  probeTimes_.clear();
+  recomputeSeconds_ = 0.0;
+  slotIoSeconds_ = 0.0;
+  diskWrites_ = 0;
+  diskReads_ = 0;
+  if (options_.stride || info().stepCount < 0 || !canPlan()) {
+    beginStride();
+    return;
+  }
+  beginPlan();
+}
+
+bool MultilevelStorage::canPlan() const {
+  // Measured costs need RAM for the states recorded while forward steps are timed (see beginPlan).
+  const Layout layout = layoutFor(info().stepCount, info().stateSize);
+  return options_.costs || info().stepCount <= 1 || layout.diskSlots == 0 ||
+         std::min<std::int64_t>({kProbeSteps, info().stepCount - 1, (layout.ramSlots - 1) / 2}) >= 1;
+}
+
+void MultilevelStorage::beginPlan() {
+  usesPlan_ = true;
+  stride_ = 1;
+  kept_.clear();
+  diskRows_ = 0;
+  statesInRam_ = 0;
+  filePath_.clear();
+  const std::int64_t steps = info().stepCount;
+  const Layout layout = layoutFor(steps, info().stateSize);
+  planRamSlots_ = layout.ramSlots;
+  planDiskSlots_ = layout.diskSlots;
+  if (planRamSlots_ < 1 || (steps >= 2 && planRamSlots_ + planDiskSlots_ < 2)) {
+    throw StorageError("storage '" + spec() + "' cannot reverse " + std::to_string(steps) + " steps: RAM holds " +
+                       std::to_string(planRamSlots_) + " and disk " + std::to_string(planDiskSlots_) +
+                       " states of " + formatBytes(stateBytes()) +
+                       "; RAM must hold one state and both levels two; raise ram or disk");
+  }
+  if (options_.costs || steps == 1 || planDiskSlots_ == 0) {
+    // Costs given, or nothing to choose (without disk slots every plan is revolve in RAM).
+    choosePlan(options_.costs ? *options_.costs : ScheduleCosts{});
+    return;
+  }
+  // Measure: a disk write and read now, the forward step from the first records (buffered in the top
+  // slots of the RAM pool until the plan is chosen; the plan's first records use the bottom ones).
+  ScheduleCosts measured;
+  measureDiskCosts(measured);
+  costsInUse_ = measured;
+  probeSteps_ = std::min<std::int64_t>({kProbeSteps, steps - 1, (planRamSlots_ - 1) / 2});  // >= 1: canPlan()
+  poolSlots_ = planRamSlots_;
+  holdBytes(poolSlots_ * stateBytes());
+  ramPool_.reset(new double[static_cast<std::size_t>(poolSlots_ * info().stateSize)]);
+}
+
+void MultilevelStorage::measureDiskCosts(ScheduleCosts& costs) {
+  const std::string directory =
+      options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
+  SlotFile probe(directory, stateBytes(), false, -1);
+  std::vector<double> state(static_cast<std::size_t>(info().stateSize), 0.0);
+  std::vector<double> writes, reads;
+  for (int i = 0; i < 5; ++i) {
+    Stopwatch watch;
+    probe.write(0, state.data());
+    writes.push_back(watch.restart());
+    probe.read(0, state.data());
+    reads.push_back(watch.seconds());
+  }
+  std::sort(writes.begin(), writes.end());
+  std::sort(reads.begin(), reads.end());
+  costs.diskWrite = writes[2];
+  costs.diskRead = reads[2];
+}
+
+void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
+  costsInUse_ = costs;
+  const std::int64_t steps = info().stepCount;
+  plan_ = TwoLevelPlan::choose(steps, planRamSlots_, planDiskSlots_, costs);
+  plan_.rewind();
+  if (!ramPool_) {
+    poolSlots_ = plan_.ramSlotsUsed();
+    holdBytes(poolSlots_ * stateBytes());
+    ramPool_.reset(new double[static_cast<std::size_t>(poolSlots_ * info().stateSize)]);
+  }
+  if (plan_.diskSlotsUsed() > 0) {
+    const std::string directory =
+        options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
+    slotFile_ = std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile, options_.failWriteAfterChunks);
+    filePath_ = slotFile_->path;
+  }
+}
+
+
+void MultilevelStorage::recordPlanned(std::int64_t step, const double* z) {
+  struct Visitor {
+    MultilevelStorage& self;
+    const double* z;
+    void store(StorageLevel level, std::int64_t slot) {
+      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
+      if (level == StorageLevel::kRam) {
+        std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z, n * 8);
+      } else {
+        Stopwatch watch;
+        self.slotFile_->write(slot, z);
+        self.slotIoSeconds_ += watch.seconds();
+        ++self.diskWrites_;
+        self.diskRows_ = std::max(self.diskRows_, slot + 1);
+      }
+      ++self.mutableCounters().statesStored;
+    }
+    void load(StorageLevel, std::int64_t) {}
+    void advance(std::int64_t, std::int64_t) {}
+  } visitor{*this, z};
+  plan_.recordForward(step, visitor);
+}
+
+void MultilevelStorage::doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef) {
+  if (!usesPlan_) {
+    recordStride(step, t, z);
+    return;
+  }
+  const std::size_t n = static_cast<std::size_t>(info().stateSize);
+  if (probeSteps_ > 0) {
+    probeTimes_.push_back(std::chrono::duration<double>(Stopwatch::Clock::now().time_since_epoch()).count());
+    if (step < probeSteps_) {
+      std::memcpy(ramPool_.get() + static_cast<std::size_t>(poolSlots_ - 1 - step) * n, z.data(), n * 8);
+      return;
+    }
+    // step == probeSteps_: the forward step is the median of the intervals between records.
+    std::vector<double> intervals;
+    for (std::size_t i = 1; i < probeTimes_.size(); ++i) intervals.push_back(probeTimes_[i] - probeTimes_[i - 1]);
+    std::sort(intervals.begin(), intervals.end());
+    ScheduleCosts measured = costsInUse_;
+    const std::size_t m = intervals.size();
+    measured.forwardStep = std::max(1e-9, m % 2 ? intervals[m / 2] : 0.5 * (intervals[m / 2 - 1] + intervals[m / 2]));
+    measured.adjointStep = 0.0;  // not measurable before the backward sweep; it does not change the plan
+    choosePlan(measured);
+    std::vector<double> state(n);
+    for (std::int64_t k = 0; k < probeSteps_; ++k) {
+      std::memcpy(state.data(), ramPool_.get() + static_cast<std::size_t>(poolSlots_ - 1 - k) * n, n * 8);
+      recordPlanned(k, state.data());
+    }
+    probeSteps_ = 0;
+  }
+  recordPlanned(step, z.data());
+}
+
+void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
+  if (!usesPlan_) {
+    finishStride();
+    return;
+  }
+  StorageCounters& c = mutableCounters();
+  c.bytesOnDisk = slotFile_ ? slotFile_->size() : 0;
+  c.ioSeconds = slotIoSeconds_;
+  statesInRam_ = 0;
+}
+
+void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
+  if (!usesPlan_) {
+    restoreStride(step, z);
+    return;
+  }
+  struct Visitor {
+    MultilevelStorage& self;
+    VectorRef z;
+    void store(StorageLevel level, std::int64_t slot) {
+      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
+      if (level == StorageLevel::kRam) {
+        std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * 8);
+      } else {
+        Stopwatch watch;
+        self.slotFile_->write(slot, z.data());
+        self.slotIoSeconds_ += watch.seconds();
+        ++self.diskWrites_;
+      }
+    }
+    void load(StorageLevel level, std::int64_t slot) {
+      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
+      if (level == StorageLevel::kRam) {
+        std::memcpy(z.data(), self.ramPool_.get() + static_cast<std::size_t>(slot) * n, n * 8);
+      } else {
+        Stopwatch watch;
+        self.slotFile_->read(slot, z.data());
+        self.slotIoSeconds_ += watch.seconds();
+        ++self.diskReads_;
+      }
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      Stopwatch watch;
+      for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
+      self.recomputeSeconds_ += watch.seconds();
+    }
+  } visitor{*this, z};
+  plan_.restoreStep(step, visitor);
+  if (step == 0) {
+    mutableCounters().ioSeconds = slotIoSeconds_;
+    mutableCounters().predictedSeconds = predictedSeconds();
+    mutableCounters().scheduleSeconds = measuredSeconds();
+    slotFile_.reset();
+    releaseBytes(poolSlots_ * stateBytes());
+    ramPool_.reset();
+    poolSlots_ = 0;
   }
 }
 

@@ -1,17 +1,33 @@
-// Strategy "multilevel": states in memory up to a RAM budget, then in an HDF5 file up to a disk
-// budget, and when even both are too small for all N states, checkpoints every k-th state and
-// recomputes the others through recompute(step, z) (docs/design.md §6). Lossless: gradients are
-// bitwise identical to "full" storage, recomputation included.
+// Strategy "multilevel": states in RAM up to a RAM budget and on disk up to a disk budget, exact
+// (gradients bitwise identical to "full", recomputation included; docs/design.md §6).
 //
-// Spec: multilevel:ram=BYTES,disk=BYTES[,dir=PATH][,level=1..22][,keep=true|false]
-//   ram    bytes held in memory (the strategy's budget): kept states, the two chunk buffers of the
-//          disk tier (each at most ram/8) and the scratch states of the backward sweep
-//   disk   bytes of states (and their times) written to the file, counted uncompressed, so the
-//          file (compressed, plus a few KiB of HDF5 metadata) stays near or below it
-//   dir    directory of the file (default: the system temp directory); level, keep as for "disk"
-// The file has the format of storage/chunked_state_file.h: its rows are the kept states that went
-// to disk, /times gives their times. It is only created when RAM cannot hold the kept states.
+// Spec: multilevel:ram=BYTES,disk=BYTES[,costs=uf:ub:wd:rd][,schedule=optimal|stride][,dir=PATH]
+//                  [,level=1..22][,keep=true|false]
+//   ram       bytes held in memory (the strategy's budget)
+//   disk      bytes of states on disk (raw states for schedule=optimal; rows with their times,
+//             counted uncompressed, for schedule=stride)
+//   costs     the cost model of storage/schedule.h in seconds: forward step, adjoint step, disk write
+//             and disk read of one state. Default: measured at the start of each run -- a disk write
+//             and read of one state at begin(), and the forward step as the median time between the
+//             first (up to) 16 records, whose states wait in RAM until the plan is chosen.
+//   schedule  optimal (default): for fixed steps, the two-level plan of storage/schedule.h that is
+//             cheapest under the cost model (Disk-Revolve's leaves, or revolve over all slots with the
+//             long-lived checkpoints on disk); adaptive steps (N unknown) fall back to the stride, and
+//             so does a RAM of fewer than 3 states without costs= (no room to time forward steps).
+//             stride: the uniform stride of hindsight <= 0.13 (below), kept for comparison.
+//   dir       directory of the file (default: the system temp directory); level, keep as for "disk"
+//             (level only matters for schedule=stride, whose file is compressed).
+// schedule=optimal keeps its disk level in a file of fixed-size slots of raw states
+// ("hindsight-multilevel-*.slots", written and read with pwrite/pread: the plan rewrites and rereads
+// slots in any order, which the append-only compressed file cannot), RAM slots allocated once at
+// begin(). Changing the default from stride to optimal changes no gradient bit (both are exact), only
+// recomputed steps, disk traffic and time. The run's predicted schedule seconds (R uf + W wd + Q rd)
+// and the measured ones (time in recomputation and disk I/O) are reported by predictedSeconds() and
+// measuredSeconds(); plan() describes the plan.
 //
+// schedule=stride: the file has the format of storage/chunked_state_file.h: its rows are the kept
+// states that went to disk, /times gives their times. It is only created when RAM cannot hold the
+// kept states.
 // Placement: kept states fill RAM first, then the disk. Which states are kept:
 //   N known (fixed steps): the smallest stride k such that ceil(N / k) kept states plus k - 1
 //   scratch states fit into RAM and disk together (k = 1: everything kept, no recomputation);
@@ -21,15 +37,17 @@
 // are recomputed once into scratch slots of RAM when they fit (then each segment costs s - c
 // recomputed steps), otherwise in rounds that keep as many as fit (never wrong, only slower).
 // In the spirit of Stumm & Walther 2009, "MultiStage approaches for optimal offline checkpointing"
-// (SIAM J. Sci. Comput. 31(3)); this is not their optimal schedule but a uniform stride over two
-// levels, and Aupy & Herrmann's H-Revolve would reduce recomputation further.
+// (SIAM J. Sci. Comput. 31(3)).
 //
 // Faults as for "disk" (StorageError naming the file); thread-safety: one object, one thread, one
-// background I/O thread per run while the disk level is used.
+// background I/O thread per run while the disk level of schedule=stride is used.
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_spec.h>
+
+#include <optional>
 
 #include <memory>
 #include <string>
@@ -51,6 +69,10 @@ class MultilevelStorage final : public TrajectoryStorage {
     bool keepFile = false;
     /// Test hook passed to the disk level (see DiskStorage::Options).
     std::int64_t failWriteAfterChunks = -1;
+    /// The uniform stride instead of the cost-optimal plan (spec schedule=stride).
+    bool stride = false;
+    /// The cost model; measured at the start of each run when empty.
+    std::optional<ScheduleCosts> costs;
     bool IsValid(std::string* error) const;
   };
 
@@ -58,7 +80,27 @@ class MultilevelStorage final : public TrajectoryStorage {
   explicit MultilevelStorage(Options options);
   ~MultilevelStorage() override;
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"ram", "disk", "dir", "level", "keep"}; }
+  static std::vector<std::string> keys() {
+    return {"ram", "disk", "dir", "level", "keep", "costs", "schedule"};
+  }
+
+  /// Slots of each level schedule=optimal has for N steps of stateSize entries.
+  struct Layout {
+    std::int64_t ramSlots = 0;
+    std::int64_t diskSlots = 0;
+  };
+  Layout layoutFor(std::int64_t steps, int stateSize) const;
+  const Options& options() const { return options_; }
+  /// schedule=optimal with fixed steps in the current or last run: its plan, the costs it was chosen
+  /// by (given or measured), and the schedule's predicted and measured seconds (recomputation + disk).
+  bool usesPlan() const { return usesPlan_; }
+  const TwoLevelPlan& plan() const { return plan_; }
+  const ScheduleCosts& costs() const { return costsInUse_; }
+  double predictedSeconds() const { return usesPlan_ ? plan_.counts().cost(costsInUse_) : 0.0; }
+  double measuredSeconds() const { return recomputeSeconds_ + slotIoSeconds_; }
+  /// States written to and read from the disk level in the last run (schedule=optimal).
+  std::int64_t diskWrites() const { return diskWrites_; }
+  std::int64_t diskReads() const { return diskReads_; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }
@@ -76,6 +118,16 @@ class MultilevelStorage final : public TrajectoryStorage {
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
+
+  void beginStride();
+  void recordStride(std::int64_t step, double t, ConstVectorRef z);
+  void finishStride();
+  void restoreStride(std::int64_t step, VectorRef z);
+  bool canPlan() const;
+  void beginPlan();
+  void choosePlan(const ScheduleCosts& costs);
+  void recordPlanned(std::int64_t step, const double* z);
+  void measureDiskCosts(ScheduleCosts& costs);
 
   std::int64_t availableSlots() const;
   /// A free RAM slot; allocates a block of up to `wanted` slots when none is free.
@@ -112,6 +164,20 @@ class MultilevelStorage final : public TrajectoryStorage {
   std::int64_t cursor_ = -1;
   std::int64_t scratchFirst_ = 0;  // scratch holds states scratchFirst_ .. scratchFirst_ + size - 1
   std::vector<std::int64_t> scratch_;
+  // schedule=optimal.
+  struct SlotFile;
+  bool usesPlan_ = false;
+  TwoLevelPlan plan_;
+  ScheduleCosts costsInUse_;
+  std::int64_t planRamSlots_ = 0, planDiskSlots_ = 0;
+  std::unique_ptr<double[]> ramPool_;
+  std::int64_t poolSlots_ = 0;
+  std::unique_ptr<SlotFile> slotFile_;
+  std::int64_t probeSteps_ = 0;  // states buffered before the plan is chosen (costs measured)
+  std::vector<double> probeTimes_;
+  double recomputeSeconds_ = 0.0;
+  double slotIoSeconds_ = 0.0;
+  std::int64_t diskWrites_ = 0, diskReads_ = 0;
 };
 
 }  // namespace hindsight

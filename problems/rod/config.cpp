@@ -416,6 +416,10 @@ nlohmann::json summaryToJson(const RunSummary& s) {
           {"forward_seconds", s.forwardSeconds},
           {"backward_seconds", s.backwardSeconds},
           {"io_seconds", s.ioSeconds}};
+  if (s.predictedStorageSeconds > 0.0 || s.measuredStorageSeconds > 0.0) {
+    json["predicted_storage_seconds"] = s.predictedStorageSeconds;
+    json["measured_storage_seconds"] = s.measuredStorageSeconds;
+  }
   if (s.gradientErrorEstimate >= 0.0) json["gradient_error_estimate"] = s.gradientErrorEstimate;
   return json;
 }

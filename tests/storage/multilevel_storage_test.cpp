@@ -1,9 +1,13 @@
 // Strategy "multilevel": bitwise-identical gradients to "full" in each regime (all in RAM, RAM and
 // disk, checkpointing with a fixed or doubling stride), the RAM budget and the disk budget, the
-// number of recomputations, the file's lifetime and faults.
+// number of recomputations, the file's lifetime and faults -- for schedule=stride (levels()) and for
+// the default schedule=optimal (the two-level plan of storage/schedule.h; tests at the end; its
+// counters against the plan's prediction are in schedule_test.cpp).
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
+
+#include <optional>
 
 namespace hindsight {
 namespace {
@@ -20,6 +24,7 @@ MultilevelStorage::Options levels(std::int64_t ram, std::int64_t disk, const std
   options.ramBytes = ram;
   options.diskBytes = disk;
   options.directory = directory;
+  options.stride = true;
   return options;
 }
 
@@ -200,6 +205,124 @@ TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_THROW(createStorage("multilevel:disk=64KiB"), std::invalid_argument);
   EXPECT_THROW(createStorage("multilevel:ram=-5,disk=1MiB"), std::invalid_argument);
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,level=0"), std::invalid_argument);
+  const std::string planned = "multilevel:ram=65536,disk=1048576,costs=0.001:0.002:0.0001:0.0001";
+  const std::string written = createStorage(planned)->spec();  // shortest text of each double
+  EXPECT_EQ(createStorage(written)->spec(), written);
+  auto reread = createStorage(written);
+  const auto& costs = *dynamic_cast<MultilevelStorage&>(*reread).options().costs;
+  EXPECT_EQ(costs.forwardStep, 0.001);
+  EXPECT_EQ(costs.adjointStep, 0.002);
+  EXPECT_EQ(costs.diskWrite, 0.0001);
+  EXPECT_EQ(costs.diskRead, 0.0001);
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,schedule=stride")->spec(),
+            "multilevel:ram=65536,disk=1048576,schedule=stride");
+  EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,schedule=revolve"), std::invalid_argument);
+  EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:1:1"), std::invalid_argument);
+}
+
+// ---- schedule=optimal (the default) ----
+
+MultilevelStorage::Options planned(std::int64_t ram, std::int64_t disk, const std::string& directory,
+                                   std::optional<ScheduleCosts> costs) {
+  MultilevelStorage::Options options;
+  options.ramBytes = ram;
+  options.diskBytes = disk;
+  options.directory = directory;
+  options.costs = costs;
+  return options;
+}
+
+TEST(MultilevelPlan, BitwiseIdenticalToFullWithinBothBudgetsForMeasuredAndGivenCosts) {
+  Pendulum problem;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
+  const std::optional<ScheduleCosts> costChoices[] = {std::nullopt, ScheduleCosts{1, 1, 0, 0},
+                                                      ScheduleCosts{1, 1, 0.3, 0.3}, ScheduleCosts{1, 1, 50, 50}};
+  for (const Case& c : kCases) {
+    for (const auto& costs : costChoices) {
+      SCOPED_TRACE(std::string(c.name) + ", costs " + (costs ? costs->text() : "measured"));
+      ScratchDirectory dir;
+      MultilevelStorage storage(planned(c.ram, c.disk, dir.path(), costs));
+      storage.setVerifyRestores(true);
+      const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+      EXPECT_TRUE(bitwiseEqual(result, reference));
+      ASSERT_TRUE(storage.usesPlan());
+      EXPECT_LE(storage.counters().peakBytesInMemory, c.ram);
+      EXPECT_LE(storage.plan().diskSlotsUsed() * 16, c.disk);
+      EXPECT_EQ(storage.diskWrites() > 0, storage.plan().diskSlotsUsed() > 0);
+      EXPECT_EQ(storage.diskReads(), storage.plan().counts().diskReads);
+      EXPECT_EQ(result.summary.recomputedSteps, storage.plan().counts().recomputedSteps);
+      EXPECT_GE(storage.measuredSeconds(), 0.0);
+      if (!costs) EXPECT_GT(storage.costs().forwardStep, 0.0);
+      EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is gone after the backward sweep
+      ::testing::Test::RecordProperty(std::string(c.name) + " " + (costs ? costs->text() : "measured"),
+                                      storage.plan().describe() + "; recomputed " +
+                                          std::to_string(result.summary.recomputedSteps) + "; disk writes " +
+                                          std::to_string(storage.diskWrites()) + "; predicted s " +
+                                          std::to_string(storage.predictedSeconds()) + "; measured s " +
+                                          std::to_string(storage.measuredSeconds()));
+    }
+  }
+}
+
+TEST(MultilevelPlan, CheapDiskBeatsTheStrideAndAdaptiveStepsKeepTheStride) {
+  Pendulum problem;
+  ScratchDirectory dir;
+  // 8000 bytes of RAM (500 states), 12000 of disk: the stride recomputes; the plan far less.
+  MultilevelStorage stride(levels(8000, 12000, dir.path()));
+  MultilevelStorage plan(planned(8000, 12000, dir.path(), ScheduleCosts{1, 1, 0.1, 0.1}));
+  const GradientResult a = computeGradient(problem, pendulumParameters(), fixedStepRk4(), stride);
+  const GradientResult b = computeGradient(problem, pendulumParameters(), fixedStepRk4(), plan);
+  EXPECT_TRUE(bitwiseEqual(a, b));
+  EXPECT_LT(b.summary.recomputedSteps, a.summary.recomputedSteps);
+  MultilevelStorage adaptive(planned(8000, 12000, dir.path(), ScheduleCosts{1, 1, 0.1, 0.1}));
+  computeGradient(problem, pendulumParameters(), adaptiveTrBdf2(), adaptive);
+  EXPECT_FALSE(adaptive.usesPlan());
+}
+
+TEST(MultilevelPlan, KeptSlotFileAndFaultsAreStorageErrors) {
+  Pendulum problem;
+  const ScheduleCosts cheap{1, 1, 0.01, 0.01};
+  {
+    ScratchDirectory dir;
+    MultilevelStorage::Options options = planned(800, 1 << 20, dir.path(), cheap);
+    options.keepFile = true;
+    MultilevelStorage storage(options);
+    computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+    ASSERT_FALSE(storage.filePath().empty());
+    EXPECT_TRUE(std::filesystem::exists(storage.filePath()));
+    EXPECT_EQ(dir.entryCount(), 1u);
+  }
+  {
+    ScratchDirectory dir;
+    MultilevelStorage::Options options = planned(800, 1 << 20, dir.path(), cheap);
+    options.failWriteAfterChunks = 2;
+    {
+      MultilevelStorage storage(options);
+      try {
+        computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+        ADD_FAILURE() << "no StorageError";
+      } catch (const StorageError& e) {
+        EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+        EXPECT_NE(e.path().find(dir.path() + "/hindsight-multilevel-"), std::string::npos) << e.what();
+      }
+    }
+    EXPECT_EQ(dir.entryCount(), 0u);  // removed with the storage
+  }
+  {
+    MultilevelStorage storage(planned(800, 1 << 20, "/proc", cheap));
+    EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), StorageError);
+    MultilevelStorage measured(planned(800, 1 << 20, "/proc", std::nullopt));
+    EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), measured), StorageError);
+  }
+  {
+    MultilevelStorage storage(planned(10, 10, "/tmp", cheap));  // not a single 16-byte state fits
+    EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), StorageError);
+    // Two states of RAM cannot time forward steps: without costs= it keeps the stride, exactly.
+    MultilevelStorage tiny(planned(32, 1 << 20, "/tmp", std::nullopt));
+    const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), tiny);
+    EXPECT_FALSE(tiny.usesPlan());
+    EXPECT_TRUE(bitwiseEqual(result, fullReference(problem, pendulumParameters(), fixedStepRk4())));
+  }
 }
 
 }  // namespace

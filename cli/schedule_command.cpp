@@ -1,0 +1,117 @@
+// `hindsight schedule --storage SPEC --steps N --state-bytes B [--stages S] [--costs uf:ub:wd:rd]
+// [--json] [--actions]`: what a storage strategy will do for N fixed steps, without running a model
+// (storage/schedule.h: the same plan code the strategies execute). Prints forward and recomputed
+// steps, right-hand-side evaluations, reads and writes per level, peak bytes per level and the
+// predicted cost; --actions prints the action stream instead (one action per line). Exit 2 for bad
+// input, naming the flag and its allowed range.
+#include <hindsight/storage/schedule.h>
+#include "commands.h"
+
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <stdexcept>
+
+namespace hindsight::cli {
+namespace {
+
+struct ScheduleArgs {
+  std::string storage;
+  std::string steps;
+  std::string stateBytes;
+  int stages = 4;
+  std::string costs;
+  bool json = false;
+  bool actions = false;
+};
+
+std::int64_t parseSteps(const std::string& text) {
+  const std::string message = "--steps = '" + text + "' must be an integer in [1, 4e18] (e.g. 30000 or 1e9)";
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    throw std::invalid_argument(message);
+  }
+  if (used != text.size() || !std::isfinite(value) || value < 1.0 || value > 4e18 || std::floor(value) != value)
+    throw std::invalid_argument(message);
+  if (value > 9e15) {  // beyond doubles' integers: read the digits
+    try {
+      return std::stoll(text, &used);
+    } catch (const std::exception&) {
+      throw std::invalid_argument(message);
+    }
+  }
+  return static_cast<std::int64_t>(value);
+}
+
+std::string count(std::int64_t value) { return value < 0 ? std::string("not counted") : std::to_string(value); }
+
+int runSchedule(const ScheduleArgs& args) {
+  const std::int64_t steps = parseSteps(args.steps);
+  const std::int64_t stateBytes = parseBytes(args.stateBytes, "--state-bytes");
+  std::unique_ptr<ScheduleCosts> costs;
+  if (!args.costs.empty()) costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
+  if (args.actions) {
+    predictSchedule(args.storage, steps, stateBytes, args.stages, costs.get());  // validates first
+    writeScheduleActions(args.storage, steps, stateBytes, costs.get(), std::cout);
+    return 0;
+  }
+  const SchedulePrediction p = predictSchedule(args.storage, steps, stateBytes, args.stages, costs.get());
+  if (args.json) {
+    nlohmann::json out = {{"storage", p.strategy},
+                          {"plan", p.plan},
+                          {"steps", p.steps},
+                          {"stages", p.stages},
+                          {"state_bytes", stateBytes},
+                          {"forward_steps", p.forwardSteps},
+                          {"recomputed_steps", p.recomputedSteps},
+                          {"rhs_evaluations", p.rhsEvaluations},
+                          {"states_stored", p.statesStored},
+                          {"ram_writes", p.ramWrites},
+                          {"ram_reads", p.ramReads},
+                          {"disk_writes", p.diskWrites},
+                          {"disk_reads", p.diskReads},
+                          {"peak_ram_bytes", p.peakRamBytes},
+                          {"peak_disk_bytes", p.peakDiskBytes},
+                          {"schedule_cost", p.scheduleCost},
+                          {"total_cost", p.totalCost}};
+    std::cout << out.dump(2) << '\n';
+    return 0;
+  }
+  std::cout << "storage:           " << p.strategy << "\nplan:              " << p.plan
+            << "\nsteps:             " << p.steps << " (" << p.stages << " rhs per step, states of "
+            << formatBytes(stateBytes) << ")\nforward steps:     " << p.forwardSteps
+            << "\nrecomputed steps:  " << p.recomputedSteps << "\nrhs evaluations:   " << p.rhsEvaluations
+            << "\nstates stored:     " << p.statesStored << "\nram:               writes " << count(p.ramWrites)
+            << ", reads " << count(p.ramReads) << ", peak " << formatBytes(p.peakRamBytes)
+            << "\ndisk:              writes " << p.diskWrites << ", reads " << p.diskReads << ", peak "
+            << formatBytes(p.peakDiskBytes) << " (uncompressed)\npredicted cost:    " << std::setprecision(6)
+            << p.totalCost << " (schedule " << p.scheduleCost << " = recomputation + disk I/O)\n";
+  return 0;
+}
+
+}  // namespace
+
+void registerSchedule(CLI::App& app) {
+  auto args = std::make_shared<ScheduleArgs>();
+  CLI::App* command = app.add_subcommand(
+      "schedule", "What a storage strategy will do for N fixed steps, without running a model: recomputed "
+                  "steps, rhs evaluations, reads/writes and peak bytes per level, predicted cost");
+  command->add_option("--storage", args->storage, "storage spec, e.g. binomial:checkpoints=50")->required();
+  command->add_option("--steps", args->steps, "number of fixed steps N, 1..4e18 (1e9 style accepted)")->required();
+  command->add_option("--state-bytes", args->stateBytes, "bytes of one state, a multiple of 8 (e.g. 8000, 64KiB)")
+      ->required();
+  command->add_option("--stages", args->stages, "right-hand sides per step of the integrator, 1..64 (rk4: 4)")
+      ->capture_default_str();
+  command->add_option("--costs", args->costs,
+                      "cost model uf:ub:wd:rd: seconds of a forward step, an adjoint step, a disk write and a "
+                      "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=)");
+  command->add_flag("--json", args->json, "machine-readable output");
+  command->add_flag("--actions", args->actions, "print the action stream (record/restore/store/load/advance)");
+  commands().push_back({command, [args] { return guarded([&] { return runSchedule(*args); }); }});
+}
+
+}  // namespace hindsight::cli

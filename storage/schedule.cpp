@@ -1,0 +1,529 @@
+#include <hindsight/storage/schedule.h>
+
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/disk_storage.h>
+#include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/storage_spec.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace hindsight {
+
+// ---- ScheduleCosts ----
+
+ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& field) {
+  const std::string expected = field + " = '" + text +
+                               "' must be four non-negative numbers uf:ub:wd:rd (seconds of a forward step, "
+                               "an adjoint step, a disk write and a disk read of one state), uf > 0";
+  double values[4];
+  std::size_t position = 0;
+  for (int i = 0; i < 4; ++i) {
+    const std::size_t end = i < 3 ? text.find(':', position) : text.size();
+    if (end == std::string::npos) throw std::invalid_argument(expected);
+    const std::string part = text.substr(position, end - position);
+    std::size_t used = 0;
+    try {
+      values[i] = std::stod(part, &used);
+    } catch (const std::exception&) {
+      throw std::invalid_argument(expected);
+    }
+    if (used != part.size() || !std::isfinite(values[i]) || values[i] < 0.0) throw std::invalid_argument(expected);
+    position = end + 1;
+  }
+  if (values[0] <= 0.0) throw std::invalid_argument(expected);
+  return ScheduleCosts{values[0], values[1], values[2], values[3]};
+}
+
+std::string ScheduleCosts::text() const {
+  // Shortest text that reads back to the same doubles (the spec round-trips).
+  std::string out;
+  for (double value : {forwardStep, adjointStep, diskWrite, diskRead}) {
+    char buffer[32];
+    const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+    if (!out.empty()) out += ':';
+    out.append(buffer, result.ptr);
+  }
+  return out;
+}
+
+const char* levelName(StorageLevel level) { return level == StorageLevel::kRam ? "ram" : "disk"; }
+
+// ---- TwoLevelPlan ----
+
+namespace {
+
+std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
+  return static_cast<std::int64_t>(revolve::optimalForwardSteps(length, slots));
+}
+
+// The checkpoints BinomialSchedule::reset(length, slots, true) pushes in the first sweep (x_0 not
+// counted) and the position of the last one (0 when none). O(pushes) <= O(min(slots, length)).
+struct FirstSweep {
+  std::int64_t pushes = 0;
+  std::int64_t top = 0;
+};
+FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
+  FirstSweep sweep;
+  std::int64_t free = slots - 1;
+  while (length - sweep.top >= 2 && free > 0) {
+    const std::int64_t target = sweep.top + revolve::binomialSplit(length - sweep.top, free + 1);
+    if (target >= length - 1) break;
+    ++sweep.pushes;
+    sweep.top = target;
+    --free;
+  }
+  return sweep;
+}
+std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) { return firstSweep(length, slots).pushes; }
+
+// Replaying x_{N-1} is evaluated while the first sweep has at most this many pushes to walk through;
+// beyond, the working state is used (with that many slots one more slot changes little).
+constexpr std::int64_t kMaxReplayWalk = 4096;
+// Every length of the last leaf is tried up to this N.
+constexpr std::int64_t kExhaustiveLastLeaf = 2048;
+
+std::int64_t lastLeafSlots(std::int64_t length, std::int64_t ramSlots, bool replay) {
+  return std::min(replay ? ramSlots : ramSlots - 1, std::max<std::int64_t>(1, length - 1));
+}
+
+// Recomputed steps of the last leaf (working state, or x_{N-1} replayed from the top checkpoint).
+std::int64_t lastLeafRecomputed(std::int64_t length, std::int64_t ramSlots, bool replay) {
+  if (length < 2) return 0;
+  const std::int64_t slots = lastLeafSlots(length, ramSlots, replay);
+  const std::int64_t sweep = revolveSteps(length, slots) - (length - 1);
+  return replay ? sweep + (length - 1 - firstSweep(length, slots).top) : sweep;
+}
+
+bool replayAffordable(std::int64_t length, std::int64_t ramSlots) {
+  return std::min(length, ramSlots) <= kMaxReplayWalk;
+}
+
+struct CountingVisitor {
+  TwoLevelPlan::Counts& counts;
+  void store(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites); }
+  void load(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads); }
+  void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += to - from; }
+};
+
+}  // namespace
+
+TwoLevelPlan TwoLevelPlan::leaves(std::int64_t steps, std::int64_t ramSlots, std::int64_t leafCount,
+                                  std::int64_t lastLength, bool replayLast) {
+  if (steps < 1 || ramSlots < 2 || leafCount < 1 || leafCount > steps || lastLength < 1 ||
+      steps - lastLength < leafCount - 1 || (leafCount == 1 && lastLength != steps)) {
+    throw std::invalid_argument("two-level plan 'leaves' needs N >= 1, ram slots >= 2, 1 <= K <= N and a last "
+                                "leaf of 1..N-K+1 steps (N = " + std::to_string(steps) + ", ram slots = " +
+                                std::to_string(ramSlots) + ", K = " + std::to_string(leafCount) +
+                                ", last = " + std::to_string(lastLength) + ")");
+  }
+  TwoLevelPlan plan;
+  plan.kind_ = Kind::kLeaves;
+  plan.steps_ = steps;
+  plan.ramSlots_ = ramSlots;
+  plan.leafCount_ = leafCount;
+  plan.lastLength_ = lastLength;
+  plan.replayLast_ = replayLast && lastLength >= 2;
+  std::int64_t ram = lastLeafSlots(lastLength, ramSlots, plan.replayLast_) + (lastLength >= 2 && !plan.replayLast_ ? 1 : 0);
+  if (leafCount > 1) ram = std::max(ram, std::min(ramSlots, plan.leafLength(0)));
+  plan.ramSlotsUsed_ = ram;
+  plan.diskSlotsUsed_ = leafCount - 1;
+  plan.counts_ = plan.countLeaves();
+  return plan;
+}
+
+TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                    bool replayLast) {
+  if (steps < 1 || ramSlots < 1 || diskSlots < 0 || (steps >= 2 && ramSlots + diskSlots < 2)) {
+    throw std::invalid_argument("two-level plan 'allSlots' needs N >= 1, ram slots >= 1 and, for N >= 2, two "
+                                "slots in all (N = " + std::to_string(steps) + ", ram slots = " +
+                                std::to_string(ramSlots) + ", disk slots = " + std::to_string(diskSlots) + ")");
+  }
+  TwoLevelPlan plan;
+  plan.kind_ = Kind::kAllSlots;
+  plan.steps_ = steps;
+  plan.ramSlots_ = ramSlots;
+  plan.replayLast_ = replayLast && steps >= 2;
+  if (steps == 1) {
+    plan.revolveSlots_ = 1;
+    plan.diskSlotsUsed_ = 0;
+    plan.ramSlotsUsed_ = 1;
+  } else {
+    const std::int64_t ramCheckpoints = plan.replayLast_ ? ramSlots : ramSlots - 1;
+    plan.diskSlotsUsed_ = std::min(diskSlots, std::max<std::int64_t>(0, (steps - 1) - ramCheckpoints));
+    plan.revolveSlots_ = std::min(ramCheckpoints + plan.diskSlotsUsed_, steps - 1);
+    plan.ramSlotsUsed_ = plan.revolveSlots_ - plan.diskSlotsUsed_ + (plan.replayLast_ ? 0 : 1);
+  }
+  plan.counts_ = plan.countBySimulation();
+  return plan;
+}
+
+TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                  const ScheduleCosts& costs) {
+  if (steps < 1) throw std::invalid_argument("two-level plan: N = " + std::to_string(steps) + " must be >= 1");
+  if (steps >= 2 && (ramSlots < 1 || ramSlots + diskSlots < 2)) {
+    throw std::invalid_argument("two-level plan: " + std::to_string(ramSlots) + " RAM and " +
+                                std::to_string(diskSlots) +
+                                " disk slots cannot reverse N >= 2 steps; RAM must hold one state and both "
+                                "levels two");
+  }
+  // leaves(K) in closed form for every K (O(min(N, disk slots + 1)) evaluations of revolve's T).
+  const double write = costs.diskWrite + costs.diskRead;
+  double bestCost = std::numeric_limits<double>::infinity();
+  std::int64_t bestLeaves = 0;
+  std::int64_t bestLast = steps;
+  bool bestReplay = false;
+  if (ramSlots >= 2) {
+    // K - 1 balanced leaves over N - L steps and a last leaf of L steps (cheaper per step: the forward
+    // sweep is its first sweep). For a given L, cost(K) is linear in K wherever
+    // base = floor((N - L) / (K - 1)) is constant (the lengths and hence their revolve counts are fixed,
+    // only the number of long leaves moves), so the ends of those O(sqrt N) intervals are the only
+    // candidates. L runs over all of 1..N for N <= kExhaustiveLastLeaf, else over the breakpoints of
+    // the last leaf's revolve count (and the balanced plans, where L = floor(N / K), are added).
+    const auto lastCost = [&](std::int64_t length, bool* replay) {
+      const std::int64_t working = lastLeafRecomputed(length, ramSlots, false);
+      const std::int64_t replayed =
+          replayAffordable(length, ramSlots) ? lastLeafRecomputed(length, ramSlots, true) : working;
+      *replay = replayed < working;
+      return std::min(working, replayed);
+    };
+    const auto evaluate = [&](std::int64_t k, std::int64_t last, double lastRecomputed, bool replay) {
+      double recomputed = lastRecomputed;
+      if (k > 1) {
+        const std::int64_t rest = steps - last;
+        const std::int64_t base = rest / (k - 1), extra = rest % (k - 1);
+        recomputed += static_cast<double>(k - 1 - extra) *
+                      static_cast<double>(revolveSteps(base, std::min(ramSlots, base)));
+        if (extra > 0)
+          recomputed += static_cast<double>(extra) *
+                        static_cast<double>(revolveSteps(base + 1, std::min(ramSlots, base + 1)));
+      }
+      const double cost = recomputed * costs.forwardStep + static_cast<double>(k - 1) * write;
+      if (cost < bestCost) {
+        bestCost = cost;
+        bestLeaves = k;
+        bestLast = last;
+        bestReplay = replay;
+      }
+    };
+    const std::int64_t maxLeaves = std::min(steps, diskSlots + 1);
+    std::vector<std::int64_t> lasts;
+    if (steps <= kExhaustiveLastLeaf) {
+      for (std::int64_t l = 1; l <= steps; ++l) lasts.push_back(l);
+    } else {
+      // The balanced plans: K leaves of floor(N / K) or one more step, the last one the shortest.
+      for (std::int64_t k = 1; k <= maxLeaves;) {
+        const std::int64_t end = std::min(maxLeaves, steps / (steps / k));
+        for (std::int64_t kk : {k, end}) {
+          bool replay = false;
+          const std::int64_t last = steps / kk;
+          evaluate(kk, last, static_cast<double>(lastCost(last, &replay)), replay);
+        }
+        k = end + 1;
+      }
+      for (std::int64_t r = 1; r <= 8; ++r) {
+        for (std::int64_t s : {ramSlots - 1, ramSlots}) {
+          const auto b = revolve::beta(s, r);
+          if (b > static_cast<UnsignedInt128>(steps)) continue;
+          for (std::int64_t d = -1; d <= 1; ++d) lasts.push_back(static_cast<std::int64_t>(b) + d);
+        }
+      }
+      std::sort(lasts.begin(), lasts.end());
+      lasts.erase(std::unique(lasts.begin(), lasts.end()), lasts.end());
+    }
+    for (std::int64_t last : lasts) {
+      if (last < 1 || last > steps) continue;
+      bool replay = false;
+      const double lastRecomputed = static_cast<double>(lastCost(last, &replay));
+      if (last == steps) {
+        evaluate(1, last, lastRecomputed, replay);
+        continue;
+      }
+      const std::int64_t rest = steps - last;
+      const std::int64_t maxOthers = std::min(rest, maxLeaves - 1);
+      for (std::int64_t k = 1; k <= maxOthers;) {  // k = number of other leaves
+        const std::int64_t end = std::min(maxOthers, rest / (rest / k));
+        evaluate(k + 1, last, lastRecomputed, replay);
+        if (end != k) evaluate(end + 1, last, lastRecomputed, replay);
+        k = end + 1;
+      }
+    }
+  }
+  if (steps <= kMaxSimulatedSteps && (diskSlots > 0 || ramSlots < 2)) {
+    TwoLevelPlan all = allSlots(steps, ramSlots, diskSlots, false);
+    if (steps >= 2 && replayAffordable(steps, ramSlots + diskSlots)) {
+      TwoLevelPlan replayed = allSlots(steps, ramSlots, diskSlots, true);
+      if (replayed.counts().cost(costs) < all.counts().cost(costs)) all = std::move(replayed);
+    }
+    if (all.counts().cost(costs) < bestCost) return all;
+  }
+  if (bestLeaves == 0) {
+    throw std::invalid_argument("two-level plan: with one RAM slot and N = " + std::to_string(steps) +
+                                " > 2^24 steps no plan is counted; give RAM at least two states");
+  }
+  return leaves(steps, ramSlots, bestLeaves, bestLast, bestReplay);
+}
+
+std::string TwoLevelPlan::describe() const {
+  const std::string last = replayLast_ ? ", last state replayed" : ", working state";
+  if (kind_ == Kind::kAllSlots) {
+    return "revolve over all slots: " + std::to_string(revolveSlots_) + " checkpoints (the bottom " +
+           std::to_string(diskSlotsUsed_) + " on disk)" + last;
+  }
+  if (leafCount_ == 1) return "revolve in RAM: " + std::to_string(ramSlotsUsed_) + " states" + last;
+  const std::int64_t rest = steps_ - lastLength_;
+  const std::int64_t base = rest / (leafCount_ - 1);
+  return "leaves: " + std::to_string(leafCount_ - 1) + " of " + std::to_string(base) +
+         (rest % (leafCount_ - 1) ? "-" + std::to_string(base + 1) : std::string()) + " steps starting on disk, a last one of " +
+         std::to_string(lastLength_) + "; revolve over " + std::to_string(ramSlotsUsed_) + " RAM states in each" + last;
+}
+
+// Leaves 0..K-2 split N - L steps evenly (the first ones one step longer); leaf K-1 has L steps.
+std::int64_t TwoLevelPlan::leafStart(std::int64_t leaf) const {
+  if (leaf == leafCount_ - 1) return steps_ - lastLength_;
+  const std::int64_t rest = steps_ - lastLength_;
+  const std::int64_t base = rest / (leafCount_ - 1), extra = rest % (leafCount_ - 1);
+  return leaf * base + std::min(leaf, extra);
+}
+
+std::int64_t TwoLevelPlan::leafLength(std::int64_t leaf) const {
+  if (leaf == leafCount_ - 1) return lastLength_;
+  const std::int64_t rest = steps_ - lastLength_;
+  return rest / (leafCount_ - 1) + (leaf < rest % (leafCount_ - 1) ? 1 : 0);
+}
+
+std::int64_t TwoLevelPlan::leafOf(std::int64_t n) const {
+  const std::int64_t rest = steps_ - lastLength_;
+  if (n >= rest) return leafCount_ - 1;
+  const std::int64_t base = rest / (leafCount_ - 1), extra = rest % (leafCount_ - 1);
+  const std::int64_t longPart = extra * (base + 1);
+  return n < longPart ? n / (base + 1) : extra + (n - longPart) / base;
+}
+
+std::int64_t TwoLevelPlan::leafSlots(std::int64_t leaf) const {
+  const std::int64_t length = leafLength(leaf);
+  return leaf == leafCount_ - 1 ? lastLeafSlots(length, ramSlots_, replayLast_) : std::min(ramSlots_, length);
+}
+
+TwoLevelPlan::Counts TwoLevelPlan::countLeaves() const {
+  Counts c;
+  const std::int64_t k = leafCount_;
+  const std::int64_t last = lastLength_;
+  c.recomputedSteps = lastLeafRecomputed(last, ramSlots_, replayLast_);
+  if (k > 1) {
+    const std::int64_t rest = steps_ - last;
+    const std::int64_t base = rest / (k - 1), extra = rest % (k - 1);
+    c.recomputedSteps += (k - 1 - extra) * revolveSteps(base, std::min(ramSlots_, base));
+    if (extra > 0) c.recomputedSteps += extra * revolveSteps(base + 1, std::min(ramSlots_, base + 1));
+  }
+  const std::int64_t pushes = last >= 2 ? firstSweepPushes(last, leafSlots(k - 1)) : 0;
+  c.diskWrites = k - 1;
+  c.diskReads = k - 1;
+  c.statesStored = (k - 1) + 1 + pushes + (last >= 2 && !replayLast_ ? 1 : 0);
+  // RAM traffic: every restore loads one state (the working state counts as a RAM read), the leaves'
+  // first states are copied into RAM slot 0; revolve's stores in the backward sweep are counted by
+  // running the schedule when N is small enough (they cost nothing in the model).
+  c.ramReads = steps_;
+  c.ramWrites = -1;
+  return c;
+}
+
+TwoLevelPlan::Counts TwoLevelPlan::countBySimulation() {
+  Counts c;
+  CountingVisitor visitor{c};
+  rewind();
+  for (std::int64_t n = 0; n < steps_; ++n) recordForward(n, visitor);
+  c.statesStored = c.ramWrites + c.diskWrites;
+  for (std::int64_t e = steps_ - 1; e >= 0; --e) restoreStep(e, visitor);
+  rewind();
+  return c;
+}
+
+void TwoLevelPlan::rewind() { currentLeaf_ = -1; }
+
+// ---- predictions ----
+
+SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
+                                   int stages, const ScheduleCosts* costs) {
+  if (steps < 1) throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer >= 1");
+  if (stateBytes < 8 || stateBytes % 8 != 0) {
+    throw std::invalid_argument("--state-bytes = " + std::to_string(stateBytes) +
+                                " must be a positive multiple of 8 (8 bytes per state entry)");
+  }
+  if (stages < 1 || stages > 64)
+    throw std::invalid_argument("--stages = " + std::to_string(stages) + " must be an integer in [1, 64]");
+  const StorageSpec spec = StorageSpec::parse(specText);
+  auto storage = createStorage(specText);  // validates names, keys and values as a run would
+  const int n = static_cast<int>(stateBytes / 8);
+  ScheduleCosts model = costs ? *costs : ScheduleCosts{};
+  SchedulePrediction p;
+  p.strategy = storage->spec();
+  p.steps = steps;
+  p.stages = stages;
+  p.forwardSteps = steps;
+  const std::string& name = spec.name();
+  if (name == "full") {
+    const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
+    if (steps > budget / stateBytes) {
+      throw std::invalid_argument("full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
+                                  " exceed full.budget = " + formatBytes(budget));
+    }
+    p.plan = "every state in RAM";
+    p.statesStored = steps;
+    p.ramWrites = steps;
+    p.ramReads = steps;
+    p.peakRamBytes = steps * stateBytes;
+  } else if (name == "disk") {
+    // DiskStorage::doBegin: rows N + 1, chunk and buffer count from the budget.
+    const std::int64_t budget = spec.bytes("budget", DiskStorage::kDefaultBudget);
+    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
+    std::int64_t chunk = spec.integer("chunk", 0, 0, std::numeric_limits<std::int64_t>::max());
+    if (chunk == 0) {
+      chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
+      chunk = std::min(chunk, std::max<std::int64_t>(1, budget / (3 * rowBytes)));
+    }
+    chunk = std::min(chunk, steps + 1);
+    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(n, chunk);
+    if (bufferBytes > budget) {
+      throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(bufferBytes) +
+                                  " exceeds disk.budget = " + formatBytes(budget));
+    }
+    p.plan = "every state on disk, " + std::to_string(chunk) + " states per chunk";
+    p.statesStored = steps;
+    p.diskWrites = steps + 1;
+    p.diskReads = steps;
+    p.peakRamBytes = std::clamp<std::int64_t>(budget / bufferBytes, 1, 3) * bufferBytes;
+    p.peakDiskBytes = (steps + 1) * stateBytes;
+  } else if (name == "binomial") {
+    auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
+    const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
+    const std::int64_t states = slots + (steps >= 2 ? 1 : 0);
+    if (states > binomial.budgetBytes() / stateBytes) {
+      throw std::invalid_argument("binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
+                                  std::to_string(states) + " states of " + formatBytes(stateBytes) +
+                                  ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
+    }
+    p.plan = "revolve with " + std::to_string(slots) + " checkpoints + working state";
+    p.recomputedSteps = static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, slots)) - (steps - 1);
+    p.statesStored = 1 + (steps >= 2 ? firstSweepPushes(steps, slots) + 1 : 0);
+    p.ramReads = steps;
+    p.ramWrites = -1;
+    if (steps <= TwoLevelPlan::kMaxSimulatedSteps) {
+      const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
+      p.ramWrites = counts.checkpointWrites + (steps >= 2 ? 1 : 0);
+    }
+    p.peakRamBytes = states * stateBytes;
+  } else if (name == "multilevel") {
+    auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
+    if (multilevel.options().stride) {
+      throw std::invalid_argument("multilevel.schedule = stride is not predicted (its RAM blocks and scratch "
+                                  "rounds depend on the run); use schedule=optimal");
+    }
+    const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
+    if (planCosts == nullptr) {
+      throw std::invalid_argument("multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
+    }
+    model = *planCosts;  // the spec's own costs take precedence, as in a run
+    const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, n);
+    const TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
+    p.plan = plan.describe();
+    const TwoLevelPlan::Counts& c = plan.counts();
+    p.recomputedSteps = c.recomputedSteps;
+    p.statesStored = c.statesStored;
+    p.ramWrites = c.ramWrites;
+    p.ramReads = c.ramReads;
+    p.diskWrites = c.diskWrites;
+    p.diskReads = c.diskReads;
+    if (p.ramWrites < 0 && steps <= TwoLevelPlan::kMaxSimulatedSteps) {
+      TwoLevelPlan copy = plan;
+      TwoLevelPlan::Counts simulated;
+      CountingVisitor visitor{simulated};
+      for (std::int64_t k = 0; k < steps; ++k) copy.recordForward(k, visitor);
+      for (std::int64_t e = steps - 1; e >= 0; --e) copy.restoreStep(e, visitor);
+      p.ramWrites = simulated.ramWrites;
+      p.ramReads = simulated.ramReads;
+    }
+    p.peakRamBytes = plan.ramSlotsUsed() * stateBytes;
+    p.peakDiskBytes = plan.diskSlotsUsed() * stateBytes;
+  } else {
+    // cams (issue #13 item 2): its model-free plan (storage/cams_checkpointing.h) goes here as one more
+    // branch, filling the same fields.
+    throw std::invalid_argument("storage '" + name +
+                                "' is not predicted: its counters depend on the run (adaptive doubling, "
+                                "compression); predicted are full, disk, binomial, multilevel");
+  }
+  p.rhsEvaluations = static_cast<std::int64_t>(stages) * (2 * steps + p.recomputedSteps);
+  p.scheduleCost = static_cast<double>(p.recomputedSteps) * model.forwardStep +
+                   static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
+                   static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
+  p.totalCost = static_cast<double>(steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
+  return p;
+}
+
+namespace {
+
+struct PrintingVisitor {
+  std::ostream& out;
+  void store(StorageLevel level, std::int64_t slot) { out << "store " << levelName(level) << ' ' << slot << '\n'; }
+  void load(StorageLevel level, std::int64_t slot) { out << "load " << levelName(level) << ' ' << slot << '\n'; }
+  void advance(std::int64_t from, std::int64_t to) { out << "advance " << from << ' ' << to << '\n'; }
+  // BinomialSchedule's own visitor interface (binomial strategy).
+  void loadWorking() { out << "load ram working\n"; }
+  void load(std::int64_t slot) { load(StorageLevel::kRam, slot); }
+  void store(std::int64_t slot) { store(StorageLevel::kRam, slot); }
+};
+
+}  // namespace
+
+void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
+                          const ScheduleCosts* costs, std::ostream& out) {
+  predictSchedule(specText, steps, stateBytes, 1, costs);  // validates spec, sizes and budgets
+  const std::string name = StorageSpec::parse(specText).name();
+  PrintingVisitor visitor{out};
+  if (name == "full" || name == "disk") {
+    const char* level = name == "full" ? "ram" : "disk";
+    for (std::int64_t k = 0; k < steps; ++k) out << "record " << k << "\nstore " << level << ' ' << k << '\n';
+    for (std::int64_t e = steps - 1; e >= 0; --e) out << "restore " << e << "\nload " << level << ' ' << e << '\n';
+    return;
+  }
+  if (name == "binomial") {
+    auto storage = createStorage(specText);
+    const auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
+    const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
+    BinomialSchedule schedule;
+    schedule.reset(steps, slots, true);
+    for (std::int64_t k = 0; k < steps; ++k) {
+      out << "record " << k << '\n';
+      const std::int64_t slot = k == 0 ? 0 : schedule.recordForward(k);
+      if (slot >= 0) visitor.store(slot);
+      if (k == steps - 1 && steps >= 2) out << "store ram working\n";
+    }
+    for (std::int64_t e = steps - 1; e >= 0; --e) {
+      out << "restore " << e << '\n';
+      schedule.restoreStep(e, visitor);
+    }
+    return;
+  }
+  // multilevel (predictSchedule has rejected everything else)
+  auto storage = createStorage(specText);
+  auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
+  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
+  const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
+  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
+  for (std::int64_t k = 0; k < steps; ++k) {
+    out << "record " << k << '\n';
+    plan.recordForward(k, visitor);
+  }
+  for (std::int64_t e = steps - 1; e >= 0; --e) {
+    out << "restore " << e << '\n';
+    plan.restoreStep(e, visitor);
+  }
+}
+
+}  // namespace hindsight

@@ -1,0 +1,87 @@
+// `hindsight schedule` against `hindsight evaluate` on the rod (reduced model, rk4, 30000 fixed steps,
+// 64-byte states): the counters a real gradient run reports equal the schedule's prediction.
+#include "support/run_cli.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+#ifdef HINDSIGHT_CLI_PATH
+namespace hindsight {
+namespace {
+
+using testing::runCli;
+
+const std::string kCoarse =
+    "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 ";
+
+nlohmann::json lastJson(const std::string& output) { return nlohmann::json::parse(output.substr(output.find('{'))); }
+
+TEST(ScheduleCommand, PredictsTheCountersOfARealRodRun) {
+  const std::string dir = ::testing::TempDir() + "/schedule_command";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  for (const std::string storage :
+       {std::string("binomial:checkpoints=20"), std::string("full"), "multilevel:ram=2KiB,disk=64KiB,costs=1:1:0.2:0.2,dir=" + dir,
+        "multilevel:ram=2KiB,disk=1KiB,costs=1:1:0:0,dir=" + dir}) {
+    SCOPED_TRACE(storage);
+    const std::string gradient = dir + "/g.h5";
+    std::filesystem::remove(gradient);
+    const auto run = runCli("evaluate " + kCoarse + "--storage " + storage + " --gradient " + gradient + " --json");
+    ASSERT_EQ(run.exitCode, 0) << run.output;
+    const nlohmann::json summary = lastJson(run.output)["summary"];
+    const std::int64_t steps = summary["steps"].get<std::int64_t>();
+    const auto predicted = runCli("schedule --storage " + storage + " --steps " + std::to_string(steps) +
+                                  " --state-bytes 64 --stages 4 --json");
+    ASSERT_EQ(predicted.exitCode, 0) << predicted.output;
+    const nlohmann::json p = lastJson(predicted.output);
+    EXPECT_EQ(p["recomputed_steps"], summary["recomputed_steps"]);
+    EXPECT_EQ(p["rhs_evaluations"], summary["rhs_evaluations"]);
+    EXPECT_EQ(p["states_stored"], summary["states_stored"]);
+    // The run's peak also holds the time grid, N + 1 doubles.
+    EXPECT_EQ(p["peak_ram_bytes"].get<std::int64_t>() + (steps + 1) * 8,
+              summary["peak_bytes_in_memory"].get<std::int64_t>());
+    if (storage.rfind("multilevel", 0) == 0) {
+      EXPECT_DOUBLE_EQ(p["schedule_cost"].get<double>(), summary["predicted_storage_seconds"].get<double>());
+      EXPECT_GT(summary["measured_storage_seconds"].get<double>(), 0.0);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ScheduleCommand, BadFlagsNameTheFlagAndTheRange) {
+  const auto steps = runCli("schedule --storage full --steps 2.5 --state-bytes 64");
+  EXPECT_EQ(steps.exitCode, 2);
+  EXPECT_NE(steps.output.find("--steps"), std::string::npos) << steps.output;
+  const auto bytes = runCli("schedule --storage full --steps 10 --state-bytes 12");
+  EXPECT_EQ(bytes.exitCode, 2);
+  EXPECT_NE(bytes.output.find("--state-bytes"), std::string::npos) << bytes.output;
+  const auto stages = runCli("schedule --storage full --steps 10 --state-bytes 64 --stages 0");
+  EXPECT_EQ(stages.exitCode, 2);
+  EXPECT_NE(stages.output.find("--stages"), std::string::npos) << stages.output;
+  const auto costs = runCli("schedule --storage full --steps 10 --state-bytes 64 --costs 1:2:3");
+  EXPECT_EQ(costs.exitCode, 2);
+  EXPECT_NE(costs.output.find("--costs"), std::string::npos) << costs.output;
+  const auto needsCosts = runCli("schedule --storage multilevel:ram=1KiB,disk=1MiB --steps 1000 --state-bytes 64");
+  EXPECT_EQ(needsCosts.exitCode, 2);
+  EXPECT_NE(needsCosts.output.find("--costs"), std::string::npos) << needsCosts.output;
+  const auto unknown = runCli("schedule --storage revolve:checkpoints=3 --steps 10 --state-bytes 64");
+  EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_NE(unknown.output.find("unknown storage strategy"), std::string::npos) << unknown.output;
+}
+
+TEST(ScheduleCommand, ActionsAndABillionSteps) {
+  const auto actions = runCli("schedule --storage binomial:checkpoints=2 --steps 5 --state-bytes 16 --actions");
+  ASSERT_EQ(actions.exitCode, 0) << actions.output;
+  EXPECT_NE(actions.output.find("restore 0\nload ram 0\n"), std::string::npos) << actions.output;
+  const auto billion =
+      runCli("schedule --storage multilevel:ram=64MiB,disk=1TiB,costs=1e-4:2e-4:2e-5:1e-5 --steps 1e9 "
+             "--state-bytes 8000 --json");
+  ASSERT_EQ(billion.exitCode, 0) << billion.output;
+  EXPECT_EQ(lastJson(billion.output)["steps"].get<std::int64_t>(), 1'000'000'000);
+}
+
+}  // namespace
+}  // namespace hindsight
+#endif

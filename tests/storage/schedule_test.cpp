@@ -1,0 +1,361 @@
+// Schedules as data (storage/schedule.h): the two-level plan against a brute-force search over every
+// schedule of the game, free disk against revolve, closed-form counts against the schedule run without
+// states, predictions against real runs counter by counter, and N = 1e9.
+#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/schedule.h>
+#include <hindsight/storage/storage_factory.h>
+#include "support/storage_fixtures.h"
+
+#include <map>
+#include <queue>
+#include <sstream>
+#include <unordered_map>
+
+namespace hindsight {
+namespace {
+
+using testing::bitwiseEqual;
+using testing::fixedStepRk4;
+using testing::fullReference;
+using testing::pendulumParameters;
+using testing::ScratchDirectory;
+
+// The least cost R uf + W wd + Q rd over ALL schedules of the game of storage/schedule.h (Dijkstra
+// over: the positions' levels (none, RAM, disk), the next state to produce, the state at hand).
+double bruteForceOptimum(int steps, int ramSlots, int diskSlots, const ScheduleCosts& c) {
+  struct State {
+    std::uint32_t levels;  // base 3 digit per position: 0 none, 1 RAM, 2 disk
+    int next;              // forward sweep: steps; backward: the next position to produce
+    int at;                // position at hand, -1 none
+    std::uint64_t key(int n) const {
+      return (static_cast<std::uint64_t>(levels) * static_cast<std::uint64_t>(n + 2) + static_cast<std::uint64_t>(next + 1)) *
+                 static_cast<std::uint64_t>(n + 2) +
+             static_cast<std::uint64_t>(at + 1);
+    }
+  };
+  std::vector<std::uint32_t> power(static_cast<std::size_t>(steps) + 1, 1);
+  for (int i = 1; i <= steps; ++i) power[static_cast<std::size_t>(i)] = power[static_cast<std::size_t>(i) - 1] * 3;
+  const auto level = [&](std::uint32_t levels, int p) { return (levels / power[static_cast<std::size_t>(p)]) % 3; };
+  using Entry = std::pair<double, std::uint64_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
+  std::unordered_map<std::uint64_t, double> best;
+  std::unordered_map<std::uint64_t, State> states;
+  const auto push = [&](const State& s, double cost) {
+    const std::uint64_t key = s.key(steps);
+    auto it = best.find(key);
+    if (it != best.end() && it->second <= cost) return;
+    best[key] = cost;
+    states[key] = s;
+    queue.push({cost, key});
+  };
+  push(State{0, steps, 0}, 0.0);  // forward sweep at position 0
+  while (!queue.empty()) {
+    const auto [cost, key] = queue.top();
+    queue.pop();
+    if (best[key] < cost) continue;
+    const State s = states[key];
+    const bool forward = s.next == steps;
+    if (!forward && s.next < 0) return cost;
+    int ram = 0, disk = 0;
+    for (int p = 0; p < steps; ++p) {
+      ram += level(s.levels, p) == 1;
+      disk += level(s.levels, p) == 2;
+    }
+    // Store the state at hand.
+    if (s.at >= 0 && level(s.levels, s.at) == 0) {
+      if (ram < ramSlots) push(State{s.levels + power[static_cast<std::size_t>(s.at)], s.next, s.at}, cost);
+      if (disk < diskSlots) push(State{s.levels + 2 * power[static_cast<std::size_t>(s.at)], s.next, s.at}, cost + c.diskWrite);
+    }
+    // Discard a checkpoint.
+    for (int p = 0; p < steps; ++p) {
+      const std::uint32_t l = level(s.levels, p);
+      if (l != 0) push(State{s.levels - l * power[static_cast<std::size_t>(p)], s.next, s.at}, cost);
+    }
+    if (forward) {
+      if (s.at < steps - 1) push(State{s.levels, steps, s.at + 1}, cost);  // free: the forward sweep
+      else push(State{s.levels, steps - 1, -1}, cost);                      // x_{N-1} must be in a slot now
+      continue;
+    }
+    if (s.at == s.next) {
+      // Produce x_next; checkpoints after it are of no further use.
+      std::uint32_t levels = s.levels;
+      for (int p = s.next; p < steps; ++p) levels -= level(levels, p) * power[static_cast<std::size_t>(p)];
+      push(State{levels, s.next - 1, -1}, cost);
+      continue;
+    }
+    if (s.at >= 0 && s.at < s.next) push(State{s.levels, s.next, s.at + 1}, cost + c.forwardStep);
+    for (int p = 0; p <= s.next; ++p) {
+      const std::uint32_t l = level(s.levels, p);
+      if (l != 0 && p != s.at) push(State{s.levels, s.next, p}, cost + (l == 2 ? c.diskRead : 0.0));
+    }
+  }
+  return -1.0;
+}
+
+TEST(TwoLevelPlan, FreeDiskIsRevolveWithAllSlotsAndTheOptimumOfTheGame) {
+  for (int steps = 1; steps <= 7; ++steps) {
+    for (int ram = 1; ram <= 3; ++ram) {
+      for (int disk = 0; disk <= 2; ++disk) {
+        if (steps >= 2 && ram + disk < 2) continue;
+        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " + std::to_string(disk));
+        const ScheduleCosts free{1.0, 1.0, 0.0, 0.0};
+        const TwoLevelPlan plan = TwoLevelPlan::choose(steps, ram, disk, free);
+        const double optimum = bruteForceOptimum(steps, ram, disk, free);
+        EXPECT_EQ(plan.counts().cost(free), optimum);
+        // Free disk: as if every slot were RAM, at least as good as revolve (binomial) with all of them.
+        const TwoLevelPlan allRam = TwoLevelPlan::choose(steps, ram + disk, 0, ScheduleCosts{1, 1, 7, 7});
+        EXPECT_EQ(plan.counts().recomputedSteps, allRam.counts().recomputedSteps);
+        const std::int64_t checkpoints = std::min<std::int64_t>(ram + disk - 1, std::max(1, steps - 1));
+        if (steps >= 2 && ram + disk >= 2) {
+          EXPECT_LE(plan.counts().recomputedSteps,
+                    static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, checkpoints)) - (steps - 1));
+        }
+      }
+    }
+  }
+}
+
+TEST(TwoLevelPlan, EqualsTheBruteForceOptimumOverAllSchedules) {
+  // Costs in units of a forward step; the plan is never better than the optimum (it is a schedule of
+  // the game) and equal to it in each case below (RecordProperty lists the gaps of the others).
+  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1}, {1, 1, 2, 3}, {1, 1, 10, 10}, {1, 1, 0.2, 3}};
+  int compared = 0, equal = 0;
+  std::ostringstream gaps;
+  for (const ScheduleCosts& c : costs) {
+    for (int steps = 2; steps <= 7; ++steps) {
+      for (int ram = 2; ram <= 3; ++ram) {
+        for (int disk = 0; disk <= 3; ++disk) {
+          const TwoLevelPlan plan = TwoLevelPlan::choose(steps, ram, disk, c);
+          const double optimum = bruteForceOptimum(steps, ram, disk, c);
+          const double planned = plan.counts().cost(c);
+          EXPECT_GE(planned, optimum - 1e-12);
+          ++compared;
+          if (planned <= optimum + 1e-12) {
+            ++equal;
+          } else {
+            gaps << "N=" << steps << " ram=" << ram << " disk=" << disk << " costs=" << c.text() << ": plan "
+                 << planned << " optimum " << optimum << "; ";
+          }
+        }
+      }
+    }
+  }
+  ::testing::Test::RecordProperty("equal", std::to_string(equal) + " of " + std::to_string(compared));
+  ::testing::Test::RecordProperty("gaps", gaps.str());
+  EXPECT_EQ(equal, compared) << gaps.str();
+}
+
+TEST(TwoLevelPlan, ClosedFormCountsEqualTheScheduleRunWithoutStates) {
+  struct Counter {
+    TwoLevelPlan::Counts counts;
+    std::int64_t forwardStores = 0;
+    bool forward = true;
+    void store(StorageLevel level, std::int64_t) {
+      ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites);
+      if (forward) ++forwardStores;
+    }
+    void load(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads); }
+    void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += to - from; }
+  };
+  for (std::int64_t steps : {1, 2, 3, 7, 30, 101, 1000}) {
+    for (std::int64_t ram : {2, 3, 5, 40}) {
+      for (std::int64_t leaves : {1, 2, 3, 7, 64}) {
+       for (bool replay : {false, true}) {
+        if (leaves > steps) continue;
+        const std::int64_t last = leaves == 1 ? steps : std::max<std::int64_t>(1, steps / leaves + (replay ? 1 : -1));
+        if (steps - last < leaves - 1) continue;
+        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " K " + std::to_string(leaves) +
+                     (replay ? " replay" : ""));
+        TwoLevelPlan plan = TwoLevelPlan::leaves(steps, ram, leaves, last, replay);
+        Counter counter;
+        std::vector<std::int64_t> produced;
+        for (std::int64_t n = 0; n < steps; ++n) plan.recordForward(n, counter);
+        counter.forward = false;
+        for (std::int64_t e = steps - 1; e >= 0; --e) plan.restoreStep(e, counter);
+        EXPECT_EQ(counter.counts.recomputedSteps, plan.counts().recomputedSteps);
+        EXPECT_EQ(counter.counts.diskWrites, plan.counts().diskWrites);
+        EXPECT_EQ(counter.counts.diskReads, plan.counts().diskReads);
+        EXPECT_EQ(counter.counts.ramReads, plan.counts().ramReads);
+        EXPECT_EQ(counter.forwardStores, plan.counts().statesStored);
+       }
+      }
+    }
+  }
+}
+
+// Every restore must produce exactly x_e: run the plan on integers (state = position).
+TEST(TwoLevelPlan, EveryActionStreamProducesEachStateInTurnWithinItsSlots) {
+  struct Replay {
+    std::int64_t ramSlots, diskSlots;
+    std::vector<std::int64_t> ram, disk;
+    std::int64_t current = -1;
+    bool ok = true;
+    void store(StorageLevel level, std::int64_t slot) {
+      auto& v = level == StorageLevel::kRam ? ram : disk;
+      const std::int64_t limit = level == StorageLevel::kRam ? ramSlots : diskSlots;
+      if (slot < 0 || slot >= limit) ok = false;
+      else v[static_cast<std::size_t>(slot)] = current;
+    }
+    void load(StorageLevel level, std::int64_t slot) {
+      const auto& v = level == StorageLevel::kRam ? ram : disk;
+      current = v.at(static_cast<std::size_t>(slot));
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      if (current != from) ok = false;
+      current = to;
+    }
+  };
+  for (std::int64_t steps : {1, 2, 5, 33, 400}) {
+    for (std::int64_t ram : {1, 2, 4, 17}) {
+      for (std::int64_t disk : {0, 1, 3, 50}) {
+        for (const ScheduleCosts& c : {ScheduleCosts{1, 1, 0, 0}, ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 50, 50}}) {
+          if (steps >= 2 && ram + disk < 2) continue;
+          SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " + std::to_string(disk) +
+                       " costs " + c.text());
+          TwoLevelPlan plan = TwoLevelPlan::choose(steps, ram, disk, c);
+          ASSERT_LE(plan.ramSlotsUsed(), ram);
+          ASSERT_LE(plan.diskSlotsUsed(), disk);
+          Replay replay{plan.ramSlotsUsed(), plan.diskSlotsUsed(),
+                        std::vector<std::int64_t>(static_cast<std::size_t>(plan.ramSlotsUsed()), -1),
+                        std::vector<std::int64_t>(static_cast<std::size_t>(plan.diskSlotsUsed()), -1)};
+          for (std::int64_t n = 0; n < steps; ++n) {
+            replay.current = n;
+            plan.recordForward(n, replay);
+          }
+          for (std::int64_t e = steps - 1; e >= 0; --e) {
+            replay.current = -1;
+            plan.restoreStep(e, replay);
+            ASSERT_EQ(replay.current, e);
+          }
+          EXPECT_TRUE(replay.ok);
+        }
+      }
+    }
+  }
+}
+
+TEST(TwoLevelPlan, ExpensiveDiskKeepsToRamAndCheapDiskIsUsed) {
+  // 1000 steps, 10 RAM states, 1000 disk states: a disk as dear as 1000 forward steps is not worth it.
+  const TwoLevelPlan dear = TwoLevelPlan::choose(1000, 10, 1000, ScheduleCosts{1, 1, 1000, 1000});
+  EXPECT_EQ(dear.diskSlotsUsed(), 0);
+  const TwoLevelPlan cheap = TwoLevelPlan::choose(1000, 10, 1000, ScheduleCosts{1, 1, 0.01, 0.01});
+  EXPECT_GT(cheap.diskSlotsUsed(), 0);
+  EXPECT_LT(cheap.counts().recomputedSteps, dear.counts().recomputedSteps);
+}
+
+TEST(SchedulePrediction, HandlesABillionStepsInClosedForm) {
+  const ScheduleCosts costs{1e-4, 2e-4, 1e-5, 1e-5};
+  const std::int64_t n = 1'000'000'000;
+  const SchedulePrediction binomial = predictSchedule("binomial:checkpoints=100", n, 8000, 4, nullptr);
+  EXPECT_EQ(binomial.recomputedSteps,
+            static_cast<std::int64_t>(revolve::optimalForwardSteps(n, 100)) - (n - 1));
+  EXPECT_EQ(binomial.rhsEvaluations, 4 * (2 * n + binomial.recomputedSteps));
+  const SchedulePrediction multilevel = predictSchedule("multilevel:ram=64MiB,disk=1TiB", n, 8000, 4, &costs);
+  EXPECT_GT(multilevel.diskWrites, 0);
+  EXPECT_GT(multilevel.recomputedSteps, 0);
+  EXPECT_LE(multilevel.peakRamBytes, std::int64_t{64} << 20);
+  const SchedulePrediction disk = predictSchedule("disk:dir=/tmp", n, 8000, 4, nullptr);
+  EXPECT_EQ(disk.diskWrites, n + 1);
+}
+
+TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
+  const ScheduleCosts costs;
+  const auto message = [&](const std::string& spec, std::int64_t steps, std::int64_t bytes, int stages) {
+    try {
+      predictSchedule(spec, steps, bytes, stages, &costs);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("full", 0, 16, 4).find("--steps"), std::string::npos);
+  EXPECT_NE(message("full", 10, 12, 4).find("--state-bytes"), std::string::npos);
+  EXPECT_NE(message("full", 10, 16, 0).find("--stages"), std::string::npos);
+  EXPECT_NE(message("online:checkpoints=5", 10, 16, 4).find("not predicted"), std::string::npos);
+  EXPECT_NE(message("binomial", 10, 16, 4).find("binomial.checkpoints"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"), std::string::npos);
+  EXPECT_THROW(ScheduleCosts::parse("1:2:3", "--costs"), std::invalid_argument);
+  EXPECT_THROW(ScheduleCosts::parse("1:2:3:-4", "--costs"), std::invalid_argument);
+  EXPECT_THROW(ScheduleCosts::parse("0:2:3:4", "--costs"), std::invalid_argument);
+  EXPECT_THROW(ScheduleCosts::parse("1:2:3:4:5", "--costs"), std::invalid_argument);
+  EXPECT_THROW(ScheduleCosts::parse("1:x:3:4", "--costs"), std::invalid_argument);
+  const ScheduleCosts parsed = ScheduleCosts::parse("1e-4:2e-4:3e-5:0", "--costs");
+  EXPECT_EQ(parsed.forwardStep, 1e-4);
+  EXPECT_EQ(parsed.diskRead, 0.0);
+  EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,schedule=fast"), std::invalid_argument);
+  EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:2"), std::invalid_argument);
+}
+
+// The prediction against a real run of the pendulum (rk4, N = 2000 fixed steps, 16-byte states).
+TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
+  Pendulum problem;
+  const IntegratorOptions options = fixedStepRk4();
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  const std::int64_t steps = reference.summary.steps;
+  ASSERT_EQ(steps, 2000);
+  ScratchDirectory dir;
+  const ScheduleCosts costs{1.0, 1.0, 0.5, 0.5};
+  const std::vector<std::string> specs = {
+      "full",
+      "binomial:checkpoints=10",
+      "binomial:checkpoints=3000",
+      "disk:dir=" + dir.path(),
+      "multilevel:ram=400,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(),     // 25 RAM states, cheap disk
+      "multilevel:ram=400,disk=1MiB,costs=1:1:0:0,dir=" + dir.path(),         // free disk: revolve over all
+      "multilevel:ram=400,disk=320,costs=1:1:0:0,dir=" + dir.path(),          // 25 + 20 slots
+      "multilevel:ram=800,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(),     // dear disk: RAM only
+      "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),       // everything fits in RAM
+  };
+  for (const std::string& spec : specs) {
+    SCOPED_TRACE(spec);
+    auto storage = createStorage(spec);
+    storage->setVerifyRestores(true);
+    const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
+    EXPECT_TRUE(bitwiseEqual(result, reference));
+    const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
+    EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps) << p.plan;
+    EXPECT_EQ(p.statesStored, storage->counters().statesStored) << p.plan;
+    EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory) << p.plan;
+    EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations) << p.plan;
+    if (spec.rfind("disk", 0) == 0) EXPECT_EQ(p.peakDiskBytes, storage->counters().uncompressedBytes);
+    if (auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get())) {
+      EXPECT_TRUE(multilevel->usesPlan());
+      EXPECT_EQ(p.diskWrites, multilevel->diskWrites()) << p.plan;
+      EXPECT_EQ(p.diskReads, multilevel->diskReads()) << p.plan;
+      EXPECT_EQ(p.peakDiskBytes, multilevel->plan().diskSlotsUsed() * 16);
+      EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+      ::testing::Test::RecordProperty(spec, p.plan);
+    }
+  }
+}
+
+TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {
+  const ScheduleCosts costs{1, 1, 0.5, 0.5};
+  for (const std::string spec : {"full", "binomial:checkpoints=3", "multilevel:ram=64,disk=64", "disk:dir=/tmp"}) {
+    std::ostringstream out;
+    writeScheduleActions(spec, 12, 16, &costs, out);
+    const std::string text = out.str();
+    std::size_t records = 0, restores = 0, advances = 0;
+    std::istringstream lines(text);
+    std::string word, rest;
+    std::int64_t advanced = 0;
+    while (lines >> word) {
+      if (word == "record") ++records;
+      if (word == "restore") ++restores;
+      if (word == "advance") {
+        std::int64_t from = 0, to = 0;
+        lines >> from >> to;
+        advanced += to - from;
+        ++advances;
+      }
+      std::getline(lines, rest);
+    }
+    EXPECT_EQ(records, 12u) << spec;
+    EXPECT_EQ(restores, 12u) << spec;
+    EXPECT_EQ(advanced, predictSchedule(spec, 12, 16, 1, &costs).recomputedSteps) << spec;
+  }
+}
+
+}  // namespace
+}  // namespace hindsight
