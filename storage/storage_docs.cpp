@@ -11,7 +11,13 @@ const char* const kBudget = "bytes the strategy may hold in memory, e.g. 512MiB 
 const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
   // Texts condensed from the header comment of each strategy (storage/*.h, engine/full_storage.h).
   static const std::vector<StorageStrategyDoc> docs = {
-      {"full", "every step's state in memory; nothing is recomputed", true, "full", {{"budget", kBudget}}},
+      {"full",
+       "every step's state in memory; nothing is recomputed",
+       true,
+       "full",
+       {{"budget", kBudget},
+        {"stages", "0 | 1: keep each step's stage values too, so no adjoint step evaluates the right-hand side "
+                   "(default 0)"}}},
       {"hermite",
        "(z, z') at every M-th grid point, states in between from cubic Hermite interpolation; the gradient "
        "error shrinks like (M h)^4",
@@ -19,21 +25,27 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        "hermite:every=4",
        {{"every", "keep every M-th grid point, M in [1, 1e9] (default 10)"}, {"budget", kBudget}}},
       {"disk",
-       "every step's state in an HDF5 file (chunked, shuffled, zstd), written and read by a background thread",
+       "every step's state in an HDF5 file (chunked; lossless prediction along time, or shuffle + zstd), written "
+       "and read by a background thread",
        true,
        "disk:dir=/tmp/hindsight",
        {{"dir", "directory of the file, created if missing (required)"},
         {"level", "zstd level in [1, 22] (default 3)"},
         {"chunk", "states per HDF5 chunk and I/O buffer, in [1, 2^30] (default: about 1 MiB of states, at most 4096)"},
         {"budget", "bytes of the I/O buffers held in memory (default 64 MiB)"},
-        {"keep", "true | false: keep the file after the backward sweep (default false)"}}},
+        {"keep", "true | false: keep the file after the backward sweep (default false)"},
+        {"codec", "time (default): prediction along time, lossless residual coding | zstd: byte shuffle + zstd per "
+                  "chunk"},
+        {"stages", "0 | 1: each row holds the state and the step's stage values (default 0)"}}},
       {"lossy",
-       "every step's state in memory, compressed with a bounded error (ZFP absolute or mantissa rounding "
-       "relative); the gradient error is O(tolerance)",
+       "every step's state in memory, compressed with a bounded error (a gradient error target, or ZFP "
+       "absolute, mantissa rounding or time-prediction relative bounds); the gradient error is O(tolerance)",
        false,
        "lossy:codec=zfp,tolerance=1e-10",
-       {{"codec", "zfp (absolute error bound) | round (relative error bound, tolerance in (0, 0.5]); required"},
-        {"tolerance", "the error bound T > 0; required"},
+       {{"target", "the relative gradient error T accepted; chooses codec=time and its tolerance (give target or "
+                   "codec + tolerance)"},
+        {"codec", "zfp (absolute error bound) | round | time (relative error bounds, tolerance in (0, 0.5])"},
+        {"tolerance", "the error bound T > 0, with codec"},
         {"budget", kBudget},
         {"block", "states compressed together, in [1, 2^30] (default: about 256 KiB of states, at most 4096)"}}},
       {"multilevel",
@@ -45,7 +57,10 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
         {"disk", "bytes of states written to the file, counted uncompressed (required)"},
         {"dir", "directory of the file (default: the system temp directory)"},
         {"level", "zstd level in [1, 22] (default 3)"},
-        {"keep", "true | false: keep the file after the backward sweep (default false)"}}},
+        {"keep", "true | false: keep the file after the backward sweep (default false)"},
+        {"costs", "uf:ub:wd:rd, seconds of a forward step, an adjoint step, a disk write and a read (default: "
+                  "measured at the start of the run; storage/schedule.h)"},
+        {"schedule", "optimal (default, fixed steps) | stride"}}},
       {"binomial",
        "revolve-optimal offline checkpointing for a known number of steps (Griewank & Walther 2000); fixed "
        "steps only",
@@ -59,6 +74,14 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        "online:checkpoints=50",
        {{"checkpoints", "number of checkpoints c in [1, 1e9] (default: as many as the budget holds)"},
         {"budget", kBudget}}},
+      {"cams",
+       "optimal stage-aware checkpointing for a known number of steps (after Zhang & Constantinescu, CAMS): "
+       "checkpoints hold states or a step's stage values; fixed steps only",
+       true,
+       "cams:checkpoints=10",
+       {{"checkpoints", "C in [1, 1e6]: the byte budget of binomial:checkpoints=C (C + 1 states); exactly one of "
+                        "checkpoints, budget"},
+        {"budget", "bytes for the checkpoints; exactly one of checkpoints, budget"}}},
   };
   return docs;
 }
