@@ -52,11 +52,12 @@ def draw(runs, out=None):
         iterations = run["history"]["iteration"]
         psi1 = run["history"]["psi1"]
         color = colors[index % len(colors)]
-        if run["scenarios"] is not None:
+        scenarios = run.get("scenarios")  # hindsight.read_results() has none without scenarios
+        if scenarios is not None:
             names = [scenario["name"] for scenario in run["config"].get("scenarios", [])]
             for s, name in enumerate(names):
-                axis.plot(iterations, run["scenarios"][:, s], "-", marker=".",
-                          label=f"{label}: psi1 of scenario {name}, final {run['scenarios'][-1, s]:.4g}")
+                axis.plot(iterations, scenarios[:, s], "-", marker=".",
+                          label=f"{label}: psi1 of scenario {name}, final {scenarios[-1, s]:.4g}")
             # The history's psi1 is the worst scenario's (largest w_s psi_s / psi_s(x0)): ringed.
             axis.plot(iterations, psi1, "o", markerfacecolor="none", markeredgecolor="black",
                       label=f"{label}: the worst scenario of each iteration")
