@@ -69,6 +69,7 @@ int runSchedule(const ScheduleArgs& args) {
                           {"forward_steps", p.forwardSteps},
                           {"recomputed_steps", p.recomputedSteps},
                           {"rhs_evaluations", p.rhsEvaluations},
+                          {"adjoint_stage_recomputations", p.adjointRecomputations},
                           {"states_stored", p.statesStored},
                           {"ram_writes", p.ramWrites},
                           {"ram_reads", p.ramReads},

@@ -25,6 +25,7 @@
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/schedule.h>
 
 #include <pybind11/iostream.h>
 #include <pybind11/numpy.h>
@@ -34,6 +35,8 @@
 #include <atomic>
 #include <chrono>
 #include <mutex>
+#include <optional>
+#include <sstream>
 #include <thread>
 
 namespace py = pybind11;
@@ -666,6 +669,44 @@ PYBIND11_MODULE(_hindsight, m) {
     return classicGradient(name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol));
   });
   m.def("_storage_specs", &storageSpecs);
+  m.def("_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
+                        const std::string& costs, bool actions) {
+    // The model-free prediction of `hindsight schedule` (storage/schedule.h): the same code and checks.
+    std::optional<ScheduleCosts> parsed;
+    if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
+    SchedulePrediction p;
+    std::string stream;
+    {
+      py::gil_scoped_release release;
+      p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
+      if (actions) {
+        std::ostringstream out;
+        writeScheduleActions(spec, steps, stateBytes, parsed ? &*parsed : nullptr, out);
+        stream = out.str();
+      }
+    }
+    py::dict d;
+    d["storage"] = p.strategy;
+    d["plan"] = p.plan;
+    d["steps"] = p.steps;
+    d["stages"] = p.stages;
+    d["state_bytes"] = stateBytes;
+    d["forward_steps"] = p.forwardSteps;
+    d["recomputed_steps"] = p.recomputedSteps;
+    d["rhs_evaluations"] = p.rhsEvaluations;
+    d["adjoint_stage_recomputations"] = p.adjointRecomputations;
+    d["states_stored"] = p.statesStored;
+    d["ram_writes"] = p.ramWrites;
+    d["ram_reads"] = p.ramReads;
+    d["disk_writes"] = p.diskWrites;
+    d["disk_reads"] = p.diskReads;
+    d["peak_ram_bytes"] = p.peakRamBytes;
+    d["peak_disk_bytes"] = p.peakDiskBytes;
+    d["schedule_cost"] = p.scheduleCost;
+    d["total_cost"] = p.totalCost;
+    if (actions) d["actions"] = stream;
+    return d;
+  });
   m.def("storage_strategy_names", &storageStrategyNames, "Names of the storage strategies (the C++ factory's).");
   m.def("_check_storage_spec", [](const std::string& spec) { return createStorage(spec)->spec(); },
         "Parses a storage spec with the C++ factory; ValueError for a bad one. Returns the normalized spec.");

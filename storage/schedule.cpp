@@ -1,6 +1,7 @@
 #include <hindsight/storage/schedule.h>
 
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/storage/cams_checkpointing.h>
 #include <hindsight/storage/chunked_state_file.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
@@ -451,15 +452,47 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     }
     p.peakRamBytes = plan.ramSlotsUsed() * stateBytes;
     p.peakDiskBytes = plan.diskSlotsUsed() * stateBytes;
+  } else if (name == "cams") {
+    // The same model-free plan the strategy runs (storage/cams_checkpointing.h), with the step record of
+    // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
+    // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
+    const std::int64_t units = spec.has("checkpoints") ? spec.integer("checkpoints", 1, 1, CamsCheckpointing::kMaxCheckpoints) + 1
+                                                       : storage->budgetBytes() / stateBytes;
+    if (units < 1) {
+      throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds not even one state of " +
+                                  formatBytes(stateBytes));
+    }
+    const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+    const cams::Plan plan(steps, units, recordUnits);
+    std::vector<cams::Action> actions;
+    const cams::PlanCounts c = cams::simulate(plan, &actions);
+    // The strategy's statesStored counts the checkpoints of the forward sweep: the stores before the
+    // first adjoint step.
+    std::int64_t forwardStores = 0;
+    for (const cams::Action& a : actions) {
+      if (a.kind == cams::Action::Kind::Deliver) break;
+      if (a.kind != cams::Action::Kind::Advance) ++forwardStores;
+    }
+    p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
+             (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units; " +
+             std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
+             " adjoint steps recompute their stages";
+    p.recomputedSteps = c.recomputedSteps;
+    p.adjointRecomputations = c.adjointRecomputations;
+    p.statesStored = forwardStores;
+    p.ramWrites = c.statesStored + c.recordsStored;
+    p.ramReads = steps;
+    p.peakRamBytes = std::min(units, plan.memoryUnits()) * stateBytes;
   } else {
-    // cams (issue #13 item 2): its model-free plan (storage/cams_checkpointing.h) goes here as one more
-    // branch, filling the same fields.
     throw std::invalid_argument("storage '" + name +
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
-                                "compression); predicted are full, disk, binomial, multilevel");
+                                "compression); predicted are full, disk, binomial, multilevel, cams");
   }
-  p.rhsEvaluations = static_cast<std::int64_t>(stages) * (2 * steps + p.recomputedSteps);
-  p.scheduleCost = static_cast<double>(p.recomputedSteps) * model.forwardStep +
+  // An adjoint step re-evaluates its S stages unless it has them stored (cams records): S rhs for every
+  // forward, recomputed and stage-recomputing adjoint step.
+  const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps;
+  p.rhsEvaluations = static_cast<std::int64_t>(stages) * (steps + p.recomputedSteps + adjointRecomputations);
+  p.scheduleCost = static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) * model.forwardStep +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
   p.totalCost = static_cast<double>(steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
@@ -507,6 +540,26 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
     for (std::int64_t e = steps - 1; e >= 0; --e) {
       out << "restore " << e << '\n';
       schedule.restoreStep(e, visitor);
+    }
+    return;
+  }
+  if (name == "cams") {
+    // The records of rk4 (4 state units), as `hindsight schedule` predicts with its default --stages 4.
+    auto storage = createStorage(specText);
+    const StorageSpec spec = StorageSpec::parse(specText);
+    const std::int64_t units = spec.has("checkpoints") ? spec.integer("checkpoints", 1, 1, CamsCheckpointing::kMaxCheckpoints) + 1
+                                                       : storage->budgetBytes() / stateBytes;
+    std::vector<cams::Action> actions;
+    cams::simulate(cams::Plan(steps, units, 4), &actions);
+    for (const cams::Action& a : actions) {
+      switch (a.kind) {
+        case cams::Action::Kind::StoreState: out << "store ram state " << a.from << '\n'; break;
+        case cams::Action::Kind::StoreRecord: out << "store ram record " << a.from << '\n'; break;
+        case cams::Action::Kind::Advance: out << "advance " << a.from << ' ' << a.to << '\n'; break;
+        case cams::Action::Kind::Deliver:
+          out << "restore " << a.from << (a.withStageValues ? " with stages\n" : " recompute stages\n");
+          break;
+      }
     }
     return;
   }

@@ -70,7 +70,10 @@ struct SchedulePrediction {
   int stages = 0;              ///< right-hand sides per step of the integrator (explicit RK: its stages)
   std::int64_t forwardSteps = 0;
   std::int64_t recomputedSteps = 0;
-  std::int64_t rhsEvaluations = 0;  ///< stages * (forward + recomputed + adjoint steps)
+  std::int64_t rhsEvaluations = 0;  ///< stages * (forward + recomputed + adjoint steps without stored stages)
+  /// cams: adjoint steps that recompute their stages (no step record held); their forward-step cost is
+  /// part of scheduleCost (for cams, ub is the adjoint step given its stage values). 0 otherwise.
+  std::int64_t adjointRecomputations = 0;
   std::int64_t statesStored = 0;    ///< the strategy's statesStored counter
   std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
   std::int64_t peakRamBytes = 0;   ///< the strategy's peakBytesInMemory

@@ -21,7 +21,7 @@ from ._hindsight import NumericalError, StorageError, storage_strategy_names
 
 __version__ = _hindsight.__version__
 __all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient",
-           "optimize", "read_results", "plot_comparison", "storage_specs", "storage_strategy_names",
+           "optimize", "read_results", "plot_comparison", "storage_specs", "storage_strategy_names", "schedule",
            "check_storage_spec", "config"]
 
 
@@ -178,6 +178,15 @@ def storage_specs():
     """Every storage strategy of the C++ factory with its keys and their documentation: a list of dicts
     (name, summary, exact, example, key_docs = {key: doc})."""
     return [Result(entry) for entry in _hindsight._storage_specs()]
+
+
+def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
+    """What storage strategy `spec` will do for `steps` fixed steps of states of `state_bytes` bytes,
+    without running a model (the C++ of `hindsight schedule`; full, disk, binomial, multilevel, cams):
+    forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
+    peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
+    actions=True the dict also holds the action stream as text. ValueError names a bad argument."""
+    return Result(_hindsight._schedule(spec, int(steps), int(state_bytes), int(stages), costs or "", bool(actions)))
 
 
 def check_storage_spec(spec):

@@ -306,6 +306,8 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       "multilevel:ram=400,disk=320,costs=1:1:0:0,dir=" + dir.path(),          // 25 + 20 slots
       "multilevel:ram=800,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(),     // dear disk: RAM only
       "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),       // everything fits in RAM
+      "cams:checkpoints=10",                                                   // states and rk4 step records
+      "cams:budget=640",                                                       // 40 state units
   };
   for (const std::string& spec : specs) {
     SCOPED_TRACE(spec);
