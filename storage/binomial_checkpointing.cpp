@@ -158,8 +158,8 @@ std::int64_t BinomialSchedule::recordForward(std::int64_t n) {
 
 // ---- BinomialCheckpointing ----
 
-BinomialCheckpointing::BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
-    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints) {
+BinomialCheckpointing::BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool stages)
+    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints), stages_(stages) {
   if (checkpoints < 1 || checkpoints > kMaxCheckpoints) {
     throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints) +
                                 " must be an integer in [1, " + std::to_string(kMaxCheckpoints) + "]");
@@ -172,12 +172,14 @@ std::unique_ptr<TrajectoryStorage> BinomialCheckpointing::create(const StorageSp
                                 std::to_string(kMaxCheckpoints) + "], e.g. binomial:checkpoints=20");
   }
   return std::make_unique<BinomialCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints),
-                                                 spec.bytes("budget", kDefaultBudget));
+                                                 spec.bytes("budget", kDefaultBudget),
+                                                 spec.integer("stages", 0, 0, 1) == 1);
 }
 
 std::string BinomialCheckpointing::spec() const {
   std::string text = "binomial:checkpoints=" + std::to_string(checkpoints_);
   if (budgetBytes() != kDefaultBudget) text += ",budget=" + std::to_string(budgetBytes());
+  if (stages_) text += ",stages=1";
   return text;
 }
 
@@ -186,6 +188,9 @@ void BinomialCheckpointing::releaseAll() {
   heldBytes_ = 0;
   slots_.reset();
   working_.reset();
+  pending_.reset();
+  served_.reset();
+  pendingStep_ = servedStep_ = -1;
   slotCount_ = 0;
 }
 
@@ -202,15 +207,20 @@ void BinomialCheckpointing::doBegin() {
   }
   slotCount_ = std::min(checkpoints_, std::max<std::int64_t>(1, steps - 1));
   const std::int64_t states = slotCount_ + (steps >= 2 ? 1 : 0);
-  if (states > budgetBytes() / stateBytes()) {
+  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // pending_, served_
+  if (states > (budgetBytes() - recordBytes) / stateBytes()) {
     throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints_) + " needs " +
                                 std::to_string(slotCount_) + " checkpoints plus one working state of " +
                                 formatBytes(stateBytes()) + ", more than binomial.budget = " +
                                 formatBytes(budgetBytes()) + "; lower the checkpoints or raise the budget");
   }
   const auto n = static_cast<std::size_t>(info().stateSize);
-  holdBytes(states * stateBytes());
-  heldBytes_ = states * stateBytes();
+  holdBytes(states * stateBytes() + recordBytes);
+  heldBytes_ = states * stateBytes() + recordBytes;
+  if (recordBytes > 0) {
+    pending_.reset(new double[static_cast<std::size_t>(info().stepDataSize)]);
+    served_.reset(new double[static_cast<std::size_t>(info().stepDataSize)]);
+  }
   slots_.reset(new double[static_cast<std::size_t>(slotCount_) * n]);
   if (steps >= 2) working_.reset(new double[n]);
   schedule_.reset(steps, slotCount_, true);
@@ -231,6 +241,21 @@ void BinomialCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z
 
 void BinomialCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
 
+void BinomialCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
+  // Only the last forward step's stages are kept: its state is the working state, restored without
+  // recomputation, so nothing else would give them.
+  if (!served_ || step != info().stepCount - 1) return;
+  std::memcpy(served_.get(), data.data(), static_cast<std::size_t>(data.size()) * sizeof(double));
+  servedStep_ = step;
+  ++mutableCounters().stepDataStored;
+}
+
+bool BinomialCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
+  if (!served_ || servedStep_ != step) return false;
+  std::memcpy(data.data(), served_.get(), static_cast<std::size_t>(data.size()) * sizeof(double));
+  return true;
+}
+
 void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   struct Visitor {
     BinomialCheckpointing& self;
@@ -245,8 +270,20 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     }
     void advance(std::int64_t from, std::int64_t to) {
       for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
+      if (self.pending_ && to > from) {
+        // The stages of step to - 1, just computed: the adjoint step of to - 1 comes right after this
+        // restore's own adjoint step (the restore of to - 1 may recompute, so they wait in pending_).
+        self.recomputedStepData(Eigen::Map<Vector>(self.pending_.get(), self.info().stepDataSize));
+        self.pendingStep_ = to - 1;
+        ++self.mutableCounters().stepDataStored;
+      }
     }
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
+  if (pending_ && pendingStep_ == step) {
+    std::swap(pending_, served_);
+    servedStep_ = step;
+    pendingStep_ = -1;
+  }
   schedule_.restoreStep(step, visitor);
   if (step == 0) releaseAll();
 }

@@ -156,12 +156,17 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   static constexpr std::int64_t kMaxCheckpoints = 1'000'000'000;
   /// Throws std::invalid_argument when checkpoints is outside [1, kMaxCheckpoints].
-  explicit BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget);
+  /// stages: keep the stage values of the last recomputed step (and of the forward sweep's last step),
+  /// two step records in all, so the adjoint step that follows a recomputation evaluates no right-hand
+  /// side (issue #13). The schedule, and so the recomputed steps, are revolve's as without it.
+  explicit BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
+                                 bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget"}; }
+  static std::vector<std::string> keys() { return {"checkpoints", "budget", "stages"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }
+  bool keepsStepData() const override { return stages_; }
   std::int64_t checkpoints() const { return checkpoints_; }
 
  private:
@@ -169,9 +174,16 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
+  void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
+  bool doRestoreStepData(std::int64_t step, VectorRef data) override;
   void releaseAll();
 
   std::int64_t checkpoints_;
+  bool stages_;
+  // stages=1: the stage values of step pendingStep_ (the last step a restore recomputed) and of
+  // servedStep_ (the step the next adjoint step needs); -1 when none.
+  std::unique_ptr<double[]> pending_, served_;
+  std::int64_t pendingStep_ = -1, servedStep_ = -1;
   BinomialSchedule schedule_;
   std::unique_ptr<double[]> slots_;    // slotCount_ states, slot i at slots_ + i * n
   std::unique_ptr<double[]> working_;  // x_{N-1}

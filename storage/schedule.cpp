@@ -402,6 +402,10 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.peakRamBytes = std::clamp<std::int64_t>(budget / bufferBytes, 1, 3) * bufferBytes;
     p.peakDiskBytes = (steps + 1) * stateBytes;
   } else if (name == "binomial") {
+    if (spec.integer("stages", 0, 0, 1) == 1) {
+      throw std::invalid_argument("binomial.stages = 1 is not predicted: which adjoint steps find their stage "
+                                  "values depends on every restore's recomputation; predict binomial without it");
+    }
     auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
     const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
     const std::int64_t states = slots + (steps >= 2 ? 1 : 0);

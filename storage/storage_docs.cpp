@@ -66,7 +66,10 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        "steps only",
        true,
        "binomial:checkpoints=50",
-       {{"checkpoints", "number of checkpoints c in [1, 1e9] (default 1)"}, {"budget", kBudget}}},
+       {{"checkpoints", "number of checkpoints c in [1, 1e9] (default 1)"},
+        {"budget", kBudget},
+        {"stages", "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
+                   "recomputation evaluates no right-hand side (default 0)"}}},
       {"online",
        "checkpointing while the number of steps is unknown (adaptive steps), re-planned with the binomial "
        "schedule once it is known",
