@@ -50,7 +50,9 @@ struct ZfpRun {
 
 bool LossyStorage::Options::IsValid(std::string* error) const {
   std::string message;
-  if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
+  if (lossless && codec != Codec::kTime) {
+    message = "packed: lossless coding is the time codec's";
+  } else if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
     message = "lossy.tolerance = " + shortest(tolerance) + " must be a positive number";
   } else if ((codec == Codec::kRound || codec == Codec::kTime) && tolerance > 0.5) {
     message = "lossy.tolerance = " + shortest(tolerance) + " must be in (0, 0.5] for codec=" +
@@ -94,7 +96,26 @@ std::unique_ptr<TrajectoryStorage> LossyStorage::create(const StorageSpec& spec)
   return std::make_unique<LossyStorage>(options);
 }
 
+std::unique_ptr<TrajectoryStorage> LossyStorage::createPacked(const StorageSpec& spec) {
+  Options options;
+  options.codec = Codec::kTime;
+  options.lossless = true;
+  options.budgetBytes = spec.bytes("budget", kDefaultBudget);
+  options.blockStates = spec.integer("block", 0, 1, std::int64_t{1} << 30);
+  return std::make_unique<LossyStorage>(options);
+}
+
 std::string LossyStorage::spec() const {
+  if (options_.lossless) {
+    std::string text = "packed";
+    char separator = ':';
+    if (options_.budgetBytes != kDefaultBudget) {
+      text += separator + std::string("budget=") + std::to_string(options_.budgetBytes);
+      separator = ',';
+    }
+    if (options_.blockStates > 0) text += separator + std::string("block=") + std::to_string(options_.blockStates);
+    return text;
+  }
   std::string text = options_.target > 0.0
                          ? "lossy:target=" + shortest(options_.target)
                          : std::string("lossy:codec=") +
@@ -191,7 +212,9 @@ void LossyStorage::compressBlock() {
     std::memcpy(work_.data(), raw_.data(), values * 8);
   }
   std::size_t size = 0;
-  if (options_.codec == Codec::kTime) {
+  if (options_.lossless) {
+    size = timeCodec_->encode(raw_.data(), count, internal::TimeCodec::kLosslessOrder, scratch_.data());
+  } else if (options_.codec == Codec::kTime) {
     for (std::int64_t j = 0; j < n; ++j) {
       double largest = 0.0;
       for (std::int64_t i = 0; i < count; ++i) largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));

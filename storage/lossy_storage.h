@@ -71,6 +71,8 @@ class LossyStorage final : public TrajectoryStorage {
     double target = 0.0;      ///< > 0: the gradient error target (codec time, tolerance from it)
     std::int64_t budgetBytes = kDefaultBudget;
     std::int64_t blockStates = 0;  ///< 0: automatic
+    /// The strategy "packed": codec time without a bound, every bit restored (isExact() is true).
+    bool lossless = false;
     bool IsValid(std::string* error) const;
   };
 
@@ -78,9 +80,13 @@ class LossyStorage final : public TrajectoryStorage {
   explicit LossyStorage(Options options);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
   static std::vector<std::string> keys() { return {"codec", "tolerance", "budget", "block", "target"}; }
+  /// "packed[:budget=B,block=S]": every state in memory, coded losslessly along time (the same blocks,
+  /// codec and integrity checks as lossy:codec=time and disk's default codec, without quantization).
+  static std::unique_ptr<TrajectoryStorage> createPacked(const StorageSpec& spec);
+  static std::vector<std::string> packedKeys() { return {"budget", "block"}; }
 
   std::string spec() const override;
-  bool isExact() const override { return false; }
+  bool isExact() const override { return options_.lossless; }
 
   /// Mantissa bits kept by codec=round for a relative tolerance (0..52).
   static int keptMantissaBits(double relativeTolerance);

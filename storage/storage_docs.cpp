@@ -85,6 +85,14 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        {{"checkpoints", "C in [1, 1e6]: the byte budget of binomial:checkpoints=C (C + 1 states); exactly one of "
                         "checkpoints, budget"},
         {"budget", "bytes for the checkpoints; exactly one of checkpoints, budget"}}},
+      {"packed",
+       "every step's state in memory, coded losslessly along time in blocks (prediction + bit-difference "
+       "residuals + shuffle + zstd, the codec of disk); every bit restored",
+       true,
+       "packed",
+       {{"budget", "bytes of coded blocks held in memory, e.g. 512MiB (default 4 GiB); exceeding it is a "
+                   "StorageError"},
+        {"block", "states coded together, in [1, 2^30] (default: about 256 KiB of states, at least 16, at most 4096)"}}},
   };
   return docs;
 }

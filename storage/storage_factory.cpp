@@ -38,6 +38,7 @@ const std::vector<Entry>& registry() {
       {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
       {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
       {"cams", &CamsCheckpointing::keys, &CamsCheckpointing::create},
+      {"packed", &LossyStorage::packedKeys, &LossyStorage::createPacked},
   };
   return entries;
 }

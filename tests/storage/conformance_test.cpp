@@ -56,6 +56,8 @@ const std::vector<StrategyUnderTest>& strategiesUnderTest() {
       {"online:budget=1MiB"},
       {"disk:dir=" + tmp + ",chunk=7"},
       {"disk:dir=" + tmp + ",level=1"},
+      {"packed"},
+      {"packed:block=3"},
       {"binomial:checkpoints=5,stages=1", kNeedsStepCount},
       {"binomial:checkpoints=100,stages=1", kNeedsStepCount},
       {"disk:dir=" + tmp + ",chunk=7,stages=1"},
