@@ -188,9 +188,7 @@ void BinomialCheckpointing::releaseAll() {
   heldBytes_ = 0;
   slots_.reset();
   working_.reset();
-  pending_.reset();
-  served_.reset();
-  pendingStep_ = servedStep_ = -1;
+  recomputedStages_.reset(0);
   slotCount_ = 0;
 }
 
@@ -207,7 +205,7 @@ void BinomialCheckpointing::doBegin() {
   }
   slotCount_ = std::min(checkpoints_, std::max<std::int64_t>(1, steps - 1));
   const std::int64_t states = slotCount_ + (steps >= 2 ? 1 : 0);
-  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // pending_, served_
+  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
   if (states > (budgetBytes() - recordBytes) / stateBytes()) {
     throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints_) + " needs " +
                                 std::to_string(slotCount_) + " checkpoints plus one working state of " +
@@ -217,10 +215,7 @@ void BinomialCheckpointing::doBegin() {
   const auto n = static_cast<std::size_t>(info().stateSize);
   holdBytes(states * stateBytes() + recordBytes);
   heldBytes_ = states * stateBytes() + recordBytes;
-  if (recordBytes > 0) {
-    pending_.reset(new double[static_cast<std::size_t>(info().stepDataSize)]);
-    served_.reset(new double[static_cast<std::size_t>(info().stepDataSize)]);
-  }
+  recomputedStages_.reset(info().stepDataSize);
   slots_.reset(new double[static_cast<std::size_t>(slotCount_) * n]);
   if (steps >= 2) working_.reset(new double[n]);
   schedule_.reset(steps, slotCount_, true);
@@ -244,16 +239,13 @@ void BinomialCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
 void BinomialCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
   // Only the last forward step's stages are kept: its state is the working state, restored without
   // recomputation, so nothing else would give them.
-  if (!served_ || step != info().stepCount - 1) return;
-  std::memcpy(served_.get(), data.data(), static_cast<std::size_t>(data.size()) * sizeof(double));
-  servedStep_ = step;
+  if (!recomputedStages_.active() || step != info().stepCount - 1) return;
+  recomputedStages_.recordLast(step, data);
   ++mutableCounters().stepDataStored;
 }
 
 bool BinomialCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
-  if (!served_ || servedStep_ != step) return false;
-  std::memcpy(data.data(), served_.get(), static_cast<std::size_t>(data.size()) * sizeof(double));
-  return true;
+  return recomputedStages_.restore(step, data);
 }
 
 void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
@@ -270,20 +262,13 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     }
     void advance(std::int64_t from, std::int64_t to) {
       for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
-      if (self.pending_ && to > from) {
-        // The stages of step to - 1, just computed: the adjoint step of to - 1 comes right after this
-        // restore's own adjoint step (the restore of to - 1 may recompute, so they wait in pending_).
-        self.recomputedStepData(Eigen::Map<Vector>(self.pending_.get(), self.info().stepDataSize));
-        self.pendingStep_ = to - 1;
+      if (self.recomputedStages_.active() && to > from) {
+        self.recomputedStepData(self.recomputedStages_.pending(to - 1));
         ++self.mutableCounters().stepDataStored;
       }
     }
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
-  if (pending_ && pendingStep_ == step) {
-    std::swap(pending_, served_);
-    servedStep_ = step;
-    pendingStep_ = -1;
-  }
+  recomputedStages_.beginRestore(step);
   schedule_.restoreStep(step, visitor);
   if (step == 0) releaseAll();
 }

@@ -36,6 +36,7 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/recomputed_stages.h>
 #include <hindsight/storage/storage_spec.h>
 
 #include <cassert>
@@ -180,10 +181,7 @@ class BinomialCheckpointing final : public TrajectoryStorage {
 
   std::int64_t checkpoints_;
   bool stages_;
-  // stages=1: the stage values of step pendingStep_ (the last step a restore recomputed) and of
-  // servedStep_ (the step the next adjoint step needs); -1 when none.
-  std::unique_ptr<double[]> pending_, served_;
-  std::int64_t pendingStep_ = -1, servedStep_ = -1;
+  internal::RecomputedStages recomputedStages_;  // stages=1
   BinomialSchedule schedule_;
   std::unique_ptr<double[]> slots_;    // slotCount_ states, slot i at slots_ + i * n
   std::unique_ptr<double[]> working_;  // x_{N-1}

@@ -6,8 +6,8 @@
 
 namespace hindsight {
 
-OnlineCheckpointing::OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
-    : TrajectoryStorage(budgetBytes), requestedCheckpoints_(checkpoints) {
+OnlineCheckpointing::OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool stages)
+    : TrajectoryStorage(budgetBytes), requestedCheckpoints_(checkpoints), stages_(stages) {
   if (checkpoints < 0 || checkpoints > BinomialCheckpointing::kMaxCheckpoints) {
     throw std::invalid_argument("online.checkpoints = " + std::to_string(checkpoints) +
                                 " must be an integer in [1, " +
@@ -17,7 +17,8 @@ OnlineCheckpointing::OnlineCheckpointing(std::int64_t checkpoints, std::int64_t 
 
 std::unique_ptr<TrajectoryStorage> OnlineCheckpointing::create(const StorageSpec& spec) {
   const std::int64_t checkpoints = spec.integer("checkpoints", 0, 1, BinomialCheckpointing::kMaxCheckpoints);
-  return std::make_unique<OnlineCheckpointing>(checkpoints, spec.bytes("budget", kDefaultBudget));
+  return std::make_unique<OnlineCheckpointing>(checkpoints, spec.bytes("budget", kDefaultBudget),
+                                               spec.integer("stages", 0, 0, 1) == 1);
 }
 
 std::string OnlineCheckpointing::spec() const {
@@ -28,6 +29,7 @@ std::string OnlineCheckpointing::spec() const {
   } else {
     text += "budget=" + std::to_string(budgetBytes());
   }
+  if (stages_) text += ",stages=1";
   return text;
 }
 
@@ -66,6 +68,7 @@ void OnlineCheckpointing::releaseAll() {
   slots_.clear();
   working_.reset();
   workingValid_ = false;
+  recomputedStages_.reset(0);
 }
 
 double* OnlineCheckpointing::slot(std::int64_t index) {
@@ -83,7 +86,8 @@ double* OnlineCheckpointing::slot(std::int64_t index) {
 void OnlineCheckpointing::doBegin() {
   heldBytes_ = 0;  // the base class has released what a previous run held
   releaseAll();
-  const std::int64_t fitting = budgetBytes() / stateBytes() - 1;
+  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
+  const std::int64_t fitting = (budgetBytes() - recordBytes) / stateBytes() - 1;
   activeCheckpoints_ = requestedCheckpoints_ > 0 ? requestedCheckpoints_ : fitting;
   if (activeCheckpoints_ < 1 || activeCheckpoints_ > fitting) {
     throw std::invalid_argument(
@@ -99,8 +103,9 @@ void OnlineCheckpointing::doBegin() {
   spacing_ = 1;
   positions_.clear();
   interval_ = -1;
-  holdBytes(stateBytes());
-  heldBytes_ += stateBytes();
+  holdBytes(stateBytes() + recordBytes);
+  heldBytes_ += stateBytes() + recordBytes;
+  recomputedStages_.reset(info().stepDataSize);
   working_.reset(new double[static_cast<std::size_t>(info().stateSize)]);
 }
 
@@ -135,6 +140,17 @@ void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
   interval_ = static_cast<std::int64_t>(positions_.size());  // restore(N - 1) comes from the working state
+}
+
+void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
+  // N is unknown while recording: every step's stages replace the last ones, so the final step's
+  // (its state is restored from the working state, without recomputation) are held at the end.
+  if (!recomputedStages_.active()) return;
+  recomputedStages_.recordLast(step, data);
+}
+
+bool OnlineCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
+  return recomputedStages_.restore(step, data);
 }
 
 void OnlineCheckpointing::startInterval(std::int64_t j) {
@@ -176,8 +192,13 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     void store(std::int64_t slot) { std::memcpy(self.slot(slot + slotOffset), z.data(), bytes); }
     void advance(std::int64_t from, std::int64_t to) {
       for (std::int64_t k = from; k < to; ++k) self.recompute(offset + k, z);
+      if (self.recomputedStages_.active() && to > from) {
+        self.recomputedStepData(self.recomputedStages_.pending(offset + to - 1));
+        ++self.mutableCounters().stepDataStored;
+      }
     }
   } visitor{*this, z, bytes, intervalStart_, interval_};
+  recomputedStages_.beginRestore(step);
   schedule_.restoreStep(step - intervalStart_, visitor);
   if (step == 0) releaseAll();
 }

@@ -37,6 +37,7 @@
 #pragma once
 
 #include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/recomputed_stages.h>
 
 namespace hindsight {
 
@@ -45,12 +46,16 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   /// checkpoints = 0 derives c from the budget at begin(); otherwise in [1,
   /// BinomialCheckpointing::kMaxCheckpoints].
-  explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget);
+  /// stages: as binomial's (storage/recomputed_stages.h): the stage values of the last recomputed step
+  /// and of the forward sweep's last step, two step records charged to the budget.
+  explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
+                               bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget"}; }
+  static std::vector<std::string> keys() { return {"checkpoints", "budget", "stages"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }
+  bool keepsStepData() const override { return stages_; }
 
   /// The checkpoint count c of the current run (known after begin()).
   std::int64_t checkpoints() const { return activeCheckpoints_; }
@@ -68,12 +73,16 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) override;
   void doRestore(std::int64_t step, VectorRef z) override;
+  void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
+  bool doRestoreStepData(std::int64_t step, VectorRef data) override;
   double* slot(std::int64_t index);
   void commitWorkingState(std::int64_t position);
   void startInterval(std::int64_t j);
   void releaseAll();
 
   std::int64_t requestedCheckpoints_;
+  bool stages_;
+  internal::RecomputedStages recomputedStages_;  // stages=1
   std::int64_t activeCheckpoints_ = 0;
   std::int64_t forwardLimit_ = 0;
   std::int64_t spacing_ = 1;

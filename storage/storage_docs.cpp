@@ -76,7 +76,9 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        true,
        "online:checkpoints=50",
        {{"checkpoints", "number of checkpoints c in [1, 1e9] (default: as many as the budget holds)"},
-        {"budget", kBudget}}},
+        {"budget", kBudget},
+        {"stages", "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
+                   "recomputation evaluates no right-hand side (default 0)"}}},
       {"cams",
        "optimal stage-aware checkpointing for a known number of steps (after Zhang & Constantinescu, CAMS): "
        "checkpoints hold states or a step's stage values; fixed steps only",

@@ -58,6 +58,7 @@ const std::vector<StrategyUnderTest>& strategiesUnderTest() {
       {"disk:dir=" + tmp + ",level=1"},
       {"packed"},
       {"packed:block=3"},
+      {"online:checkpoints=3,stages=1"},
       {"binomial:checkpoints=5,stages=1", kNeedsStepCount},
       {"binomial:checkpoints=100,stages=1", kNeedsStepCount},
       {"disk:dir=" + tmp + ",chunk=7,stages=1"},
@@ -130,7 +131,7 @@ class Conformance : public ::testing::TestWithParam<std::string> {
       EXPECT_LT(result.summary.rhsEvaluations, reference.summary.rhsEvaluations);
     }
 
-    if (storage->keepsStepData() && name == "binomial" && isRungeKutta(parseIntegratorMethod(options.method)) &&
+    if (storage->keepsStepData() && (name == "binomial" || name == "online") && isRungeKutta(parseIntegratorMethod(options.method)) &&
         result.summary.steps > 2) {
       // Every restore that recomputes leaves the stages of the step before it, so the next adjoint
       // step finds them (issue #13); restores that load a checkpoint placed exactly there leave none.
