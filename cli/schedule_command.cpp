@@ -4,6 +4,7 @@
 // steps, right-hand-side evaluations, reads and writes per level, peak bytes per level and the
 // predicted cost; --actions prints the action stream instead (one action per line). Exit 2 for bad
 // input, naming the flag and its allowed range.
+#include <hindsight/problems/rod/config.h>
 #include <hindsight/storage/schedule.h>
 #include "commands.h"
 
@@ -61,24 +62,7 @@ int runSchedule(const ScheduleArgs& args) {
   }
   const SchedulePrediction p = predictSchedule(args.storage, steps, stateBytes, args.stages, costs.get());
   if (args.json) {
-    nlohmann::json out = {{"storage", p.strategy},
-                          {"plan", p.plan},
-                          {"steps", p.steps},
-                          {"stages", p.stages},
-                          {"state_bytes", stateBytes},
-                          {"forward_steps", p.forwardSteps},
-                          {"recomputed_steps", p.recomputedSteps},
-                          {"rhs_evaluations", p.rhsEvaluations},
-                          {"adjoint_stage_recomputations", p.adjointRecomputations},
-                          {"states_stored", p.statesStored},
-                          {"ram_writes", p.ramWrites},
-                          {"ram_reads", p.ramReads},
-                          {"disk_writes", p.diskWrites},
-                          {"disk_reads", p.diskReads},
-                          {"peak_ram_bytes", p.peakRamBytes},
-                          {"peak_disk_bytes", p.peakDiskBytes},
-                          {"schedule_cost", p.scheduleCost},
-                          {"total_cost", p.totalCost}};
+    const nlohmann::json out = scheduleToJson(p, stateBytes);
     std::cout << out.dump(2) << '\n';
     return 0;
   }

@@ -685,25 +685,7 @@ PYBIND11_MODULE(_hindsight, m) {
         stream = out.str();
       }
     }
-    py::dict d;
-    d["storage"] = p.strategy;
-    d["plan"] = p.plan;
-    d["steps"] = p.steps;
-    d["stages"] = p.stages;
-    d["state_bytes"] = stateBytes;
-    d["forward_steps"] = p.forwardSteps;
-    d["recomputed_steps"] = p.recomputedSteps;
-    d["rhs_evaluations"] = p.rhsEvaluations;
-    d["adjoint_stage_recomputations"] = p.adjointRecomputations;
-    d["states_stored"] = p.statesStored;
-    d["ram_writes"] = p.ramWrites;
-    d["ram_reads"] = p.ramReads;
-    d["disk_writes"] = p.diskWrites;
-    d["disk_reads"] = p.diskReads;
-    d["peak_ram_bytes"] = p.peakRamBytes;
-    d["peak_disk_bytes"] = p.peakDiskBytes;
-    d["schedule_cost"] = p.scheduleCost;
-    d["total_cost"] = p.totalCost;
+    py::dict d = toPython(scheduleToJson(p, stateBytes)).cast<py::dict>();
     if (actions) d["actions"] = stream;
     return d;
   });

@@ -430,7 +430,7 @@ void CamsCheckpointing::doBegin() {
         ", adaptive steps); use 'online:budget=BYTES' for adaptive steps");
   }
   const std::int64_t n = info().stateSize;
-  units_ = checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes();
+  units_ = memoryUnits(stateBytes());
   if (units_ < 1) {
     throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds not even one state of " +
                                 formatBytes(stateBytes()) + "; raise the budget");

@@ -253,6 +253,10 @@ class CamsCheckpointing final : public TrajectoryStorage {
   std::string spec() const override;
   bool isExact() const override { return true; }
   bool keepsStepData() const override { return true; }
+  /// Memory units (states) the strategy has for states of stateBytes: C + 1, or the budget's states.
+  std::int64_t memoryUnits(std::int64_t stateBytes) const {
+    return checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes;
+  }
   /// The plan of the current run (after begin()).
   const cams::Plan* plan() const { return plan_.get(); }
 

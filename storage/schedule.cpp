@@ -460,8 +460,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     // The same model-free plan the strategy runs (storage/cams_checkpointing.h), with the step record of
     // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
     // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
-    const std::int64_t units = spec.has("checkpoints") ? spec.integer("checkpoints", 1, 1, CamsCheckpointing::kMaxCheckpoints) + 1
-                                                       : storage->budgetBytes() / stateBytes;
+    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).memoryUnits(stateBytes);
     if (units < 1) {
       throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds not even one state of " +
                                   formatBytes(stateBytes));
@@ -550,9 +549,7 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   if (name == "cams") {
     // The records of rk4 (4 state units), as `hindsight schedule` predicts with its default --stages 4.
     auto storage = createStorage(specText);
-    const StorageSpec spec = StorageSpec::parse(specText);
-    const std::int64_t units = spec.has("checkpoints") ? spec.integer("checkpoints", 1, 1, CamsCheckpointing::kMaxCheckpoints) + 1
-                                                       : storage->budgetBytes() / stateBytes;
+    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).memoryUnits(stateBytes);
     std::vector<cams::Action> actions;
     cams::simulate(cams::Plan(steps, units, 4), &actions);
     for (const cams::Action& a : actions) {

@@ -398,6 +398,27 @@ void applyFlag(Config& config, const std::string& flag, const std::string& key, 
   applyText(config, key, flag, text);
 }
 
+nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateBytes) {
+  return {{"storage", p.strategy},
+          {"plan", p.plan},
+          {"steps", p.steps},
+          {"stages", p.stages},
+          {"state_bytes", stateBytes},
+          {"forward_steps", p.forwardSteps},
+          {"recomputed_steps", p.recomputedSteps},
+          {"rhs_evaluations", p.rhsEvaluations},
+          {"adjoint_stage_recomputations", p.adjointRecomputations},
+          {"states_stored", p.statesStored},
+          {"ram_writes", p.ramWrites},
+          {"ram_reads", p.ramReads},
+          {"disk_writes", p.diskWrites},
+          {"disk_reads", p.diskReads},
+          {"peak_ram_bytes", p.peakRamBytes},
+          {"peak_disk_bytes", p.peakDiskBytes},
+          {"schedule_cost", p.scheduleCost},
+          {"total_cost", p.totalCost}};
+}
+
 nlohmann::json summaryToJson(const RunSummary& s) {
   nlohmann::json json = {{"method", s.method},
           {"adjoint", s.adjoint},

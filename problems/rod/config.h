@@ -9,6 +9,7 @@
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
 #include <hindsight/problems/rod/scenarios.h>
+#include <hindsight/storage/schedule.h>
 
 #include <nlohmann/json.hpp>
 
@@ -98,6 +99,9 @@ nlohmann::json toJson(const Config& config);
 /// The run summary as a JSON object (same keys as RunSummary's fields, snake_case): the CLI's --json
 /// output and the Python module's summary dict.
 nlohmann::json summaryToJson(const RunSummary& summary);
+/// The fields of a schedule prediction (storage/schedule.h) as `hindsight schedule --json` prints them
+/// and hindsight.schedule() returns them; stateBytes is the state size the prediction was made for.
+nlohmann::json scheduleToJson(const SchedulePrediction& prediction, std::int64_t stateBytes);
 /// Strict reading; fields that are absent keep their defaults.
 Config configFromJson(const nlohmann::json& json);
 /// Reads a JSON file; throws std::invalid_argument naming the file when it cannot be read or parsed.
