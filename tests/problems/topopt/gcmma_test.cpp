@@ -5,6 +5,8 @@
 // argument checking.
 #include <hindsight/problems/topopt/gcmma.h>
 
+#include "support/svanberg_problems.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,13 +19,12 @@
 namespace hindsight {
 namespace {
 
-struct Problem {
-  int n = 0;
-  int m = 0;
-  Vector xmin, xmax, x0;
-  // f0, df0, f, df at x; the gradients may be null (values only, the trial evaluations).
-  std::function<void(const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df)> evaluate;
-};
+using Problem = testing::OptimizationProblem;
+using testing::CantileverBeam;
+using testing::kBeamCompliance;
+using testing::kBeamWeight;
+using testing::kSphereCenters;
+using testing::TwoSpheres;
 
 struct History {
   std::vector<double> objective;   // f0 of every accepted iterate, x0 first
@@ -85,30 +86,8 @@ void ExpectConservative(const History& h, double tolerance) {
   }
 }
 
-// Svanberg (1987), sec. 6: the cantilever beam of five segments (as in mma_test.cpp); x0 = 5 lies on
+// Svanberg (1987), sec. 6: the cantilever beam (tests/support/svanberg_problems.h); x0 = 5 lies on
 // the deflection constraint (f1(x0) = 0).
-constexpr double kBeamWeight = 0.0624;
-const double kBeamCompliance[5] = {61.0, 37.0, 19.0, 7.0, 1.0};
-
-Problem CantileverBeam() {
-  Problem p;
-  p.n = 5;
-  p.m = 1;
-  p.xmin = Vector::Constant(5, 1.0);
-  p.xmax = Vector::Constant(5, 10.0);
-  p.x0 = Vector::Constant(5, 5.0);
-  p.evaluate = [](const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df) {
-    *f0 = kBeamWeight * x.sum();
-    if (df0 != nullptr) df0->setConstant(kBeamWeight);
-    (*f)(0) = -1.0;
-    for (int j = 0; j < 5; ++j) {
-      (*f)(0) += kBeamCompliance[j] / (x(j) * x(j) * x(j));
-      if (df != nullptr) (*df)(0, j) = -3.0 * kBeamCompliance[j] / (x(j) * x(j) * x(j) * x(j));
-    }
-  };
-  return p;
-}
-
 TEST(Gcmma, CantileverBeamOfSvanberg1987IsFeasibleAndMonotoneAllTheWay) {
   const Problem p = CantileverBeam();
   Gcmma gcmma(p.n, p.m, TightOptions());
@@ -129,29 +108,6 @@ TEST(Gcmma, CantileverBeamOfSvanberg1987IsFeasibleAndMonotoneAllTheWay) {
 
 // Svanberg (2007): minimize |x|^2 subject to two spheres of radius 3; both nonlinear constraints are
 // active at the optimum (2.0175, 1.7800, 1.2375).
-const double kSphereCenters[2][3] = {{5.0, 2.0, 1.0}, {3.0, 4.0, 3.0}};
-
-Problem TwoSpheres() {
-  Problem p;
-  p.n = 3;
-  p.m = 2;
-  p.xmin = Vector::Zero(3);
-  p.xmax = Vector::Constant(3, 5.0);
-  p.x0 = (Vector(3) << 4.0, 3.0, 2.0).finished();
-  p.evaluate = [](const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df) {
-    *f0 = x.squaredNorm();
-    if (df0 != nullptr) *df0 = 2.0 * x;
-    for (int i = 0; i < 2; ++i) {
-      (*f)(i) = -9.0;
-      for (int j = 0; j < 3; ++j) {
-        (*f)(i) += (x(j) - kSphereCenters[i][j]) * (x(j) - kSphereCenters[i][j]);
-        if (df != nullptr) (*df)(i, j) = 2.0 * (x(j) - kSphereCenters[i][j]);
-      }
-    }
-  };
-  return p;
-}
-
 TEST(Gcmma, TwoSpheresOfSvanberg2007ReachTheKktPointThroughFeasibleIterates) {
   const Problem p = TwoSpheres();
   Gcmma gcmma(p.n, p.m, TightOptions());

@@ -3,6 +3,7 @@
 #include <hindsight/problems/topopt/mma.h>
 
 #include "support/allocation_counting.h"
+#include "support/svanberg_problems.h"
 
 #include <gtest/gtest.h>
 
@@ -17,13 +18,12 @@
 namespace hindsight {
 namespace {
 
-// A test problem: evaluates f0, its gradient, the constraints and their Jacobian at x.
-struct Problem {
-  int n = 0;
-  int m = 0;
-  Vector xmin, xmax, x0;
-  std::function<void(const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df)> evaluate;
-};
+using Problem = testing::OptimizationProblem;
+using testing::CantileverBeam;
+using testing::kBeamCompliance;
+using testing::kBeamWeight;
+using testing::kSphereCenters;
+using testing::TwoSpheres;
 
 struct RunResult {
   Vector x;
@@ -55,31 +55,7 @@ RunResult Optimize(const Problem& problem, int max_iterations, double tolerance,
   return result;
 }
 
-// Svanberg (1987), sec. 6: cantilever beam of five hollow square segments, wall thickness fixed,
-// x_j the outer side of segment j. Minimize the weight 0.0624 sum x_j subject to the tip deflection
-// 61/x1^3 + 37/x2^3 + 19/x3^3 + 7/x4^3 + 1/x5^3 <= 1, with 1 <= x_j <= 10 and x_j = 5 at the start.
-constexpr double kBeamWeight = 0.0624;
-const double kBeamCompliance[5] = {61.0, 37.0, 19.0, 7.0, 1.0};
-
-Problem CantileverBeam() {
-  Problem p;
-  p.n = 5;
-  p.m = 1;
-  p.xmin = Vector::Constant(5, 1.0);
-  p.xmax = Vector::Constant(5, 10.0);
-  p.x0 = Vector::Constant(5, 5.0);
-  p.evaluate = [](const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df) {
-    *f0 = kBeamWeight * x.sum();
-    df0->setConstant(kBeamWeight);
-    (*f)(0) = -1.0;
-    for (int j = 0; j < 5; ++j) {
-      (*f)(0) += kBeamCompliance[j] / (x(j) * x(j) * x(j));
-      (*df)(0, j) = -3.0 * kBeamCompliance[j] / (x(j) * x(j) * x(j) * x(j));
-    }
-  };
-  return p;
-}
-
+// Svanberg (1987), sec. 6: the cantilever beam (tests/support/svanberg_problems.h).
 TEST(Mma, CantileverBeamOfSvanberg1987) {
   const RunResult r = Optimize(CantileverBeam(), 200, 1e-9);
   EXPECT_LT(r.iterations, 200);
@@ -105,32 +81,7 @@ TEST(Mma, CantileverBeamOfSvanberg1987) {
   for (int j = 0; j < 5; ++j) EXPECT_NEAR(r.x(j), paper[j], 1e-3) << j;
 }
 
-// Svanberg (2007), the toy problem of the note: minimize x1^2 + x2^2 + x3^2 subject to
-// (x1-5)^2 + (x2-2)^2 + (x3-1)^2 <= 9 and (x1-3)^2 + (x2-4)^2 + (x3-3)^2 <= 9, 0 <= x_j <= 5,
-// starting from x = (4, 3, 2). Both constraints are active at the optimum.
-const double kSphereCenters[2][3] = {{5.0, 2.0, 1.0}, {3.0, 4.0, 3.0}};
-
-Problem TwoSpheres() {
-  Problem p;
-  p.n = 3;
-  p.m = 2;
-  p.xmin = Vector::Zero(3);
-  p.xmax = Vector::Constant(3, 5.0);
-  p.x0 = (Vector(3) << 4.0, 3.0, 2.0).finished();
-  p.evaluate = [](const Vector& x, double* f0, Vector* df0, Vector* f, Matrix* df) {
-    *f0 = x.squaredNorm();
-    *df0 = 2.0 * x;
-    for (int i = 0; i < 2; ++i) {
-      (*f)(i) = -9.0;
-      for (int j = 0; j < 3; ++j) {
-        (*f)(i) += (x(j) - kSphereCenters[i][j]) * (x(j) - kSphereCenters[i][j]);
-        (*df)(i, j) = 2.0 * (x(j) - kSphereCenters[i][j]);
-      }
-    }
-  };
-  return p;
-}
-
+// Svanberg (2007): the two spheres (tests/support/svanberg_problems.h).
 TEST(Mma, TwoSpheresOfSvanberg2007) {
   Mma mma(3, 2);
   const RunResult r = Optimize(TwoSpheres(), 200, 1e-10, &mma);
