@@ -1,6 +1,7 @@
 #include <hindsight/storage/cams_checkpointing.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -13,16 +14,53 @@ namespace {
 
 std::int64_t noCheckpointCost(std::int64_t l) { return l * (l + 1) / 2; }
 
-/// The least g(k) = A(k) + B(l - k) + c(k) over k in [1, l - 1], with A and B growing by at least `slope`
-/// >= 0 per unit of their argument (build() tracks the least growth of every row) and c(k) in [slack, 0].
-/// The costs are not convex in k (a record serves two steps, so parity shows), so this is an exact branch
-/// and bound: on [k1, k2], g(k) >= A(k1) + B(l - k2) + slope (k2 - k1) + slack, and a range whose bound
-/// cannot beat the best so far is skipped; `guess` seeds the incumbent.
-/// `exhaustive` evaluates every k (for the tests).
-template <typename A, typename B, typename C>
-std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const A& a, const B& b, const C& c,
-                                               std::int64_t slack, std::int64_t slope, std::int64_t guess) {
-  const auto g = [&](std::int64_t k) { return a(k) + b(l - k) + c(k); };
+/// The greatest convex minorant of a row V(0..l), built as l grows (Andrew's monotone chain: a point
+/// removes the vertices it makes non-convex). The rows are not convex (a record serves two steps, so
+/// parity shows in the increments), but they stay within a few units of their minorant, which makes it a
+/// tight lower bound for the split search. Hand-written: a dozen lines that no package offers for
+/// integer points appended in order.
+class Minorant {
+ public:
+  void reset() {
+    x_.clear();
+    y_.clear();
+  }
+  void push(std::int64_t x, std::int64_t y) {
+    while (x_.size() >= 2) {
+      const std::size_t n = x_.size();
+      // Keep vertex n - 1 only if it lies strictly below the chord from vertex n - 2 to (x, y).
+      const double cross = static_cast<double>(x_[n - 1] - x_[n - 2]) * static_cast<double>(y - y_[n - 2]) -
+                           static_cast<double>(y_[n - 1] - y_[n - 2]) * static_cast<double>(x - x_[n - 2]);
+      if (cross > 0) break;
+      x_.pop_back();
+      y_.pop_back();
+    }
+    x_.push_back(x);
+    y_.push_back(y);
+  }
+  /// The minorant at k (0 <= k <= the last x pushed).
+  double at(std::int64_t k) const {
+    const auto it = std::upper_bound(x_.begin(), x_.end(), k);
+    const std::size_t i = static_cast<std::size_t>(it - x_.begin());
+    if (i >= x_.size()) return static_cast<double>(y_.back());
+    const std::size_t j = i - 1;
+    return static_cast<double>(y_[j]) + static_cast<double>(y_[i] - y_[j]) * static_cast<double>(k - x_[j]) /
+                                            static_cast<double>(x_[i] - x_[j]);
+  }
+
+ private:
+  std::vector<std::int64_t> x_, y_;
+};
+
+/// The least g(k) = a(k) + b(l - k) + c(k) over k in [1, l - 1] and the first k attaining it (ties: the
+/// smallest k the search evaluates; the exhaustive search's smallest k may differ, the value not).
+/// h(k) <= g(k) is convex in k (the rows' minorants plus c's least value), so the k that can still beat
+/// the incumbent form one interval around h's minimum: found by bisection, then scanned, and the scan
+/// stops once g reaches ceil(min h). Exact: only k with h(k) >= the incumbent (which cannot improve it)
+/// are skipped. `exhaustive` evaluates every k (for the tests).
+template <typename G, typename H>
+std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const G& g, const H& h,
+                                               std::int64_t guess) {
   std::int64_t bestK = 1, best = g(1);
   const auto consider = [&](std::int64_t k) {
     const std::int64_t value = g(k);
@@ -32,31 +70,37 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
     for (std::int64_t k = 2; k < l; ++k) consider(k);
     return {bestK, best};
   }
-  // An incumbent from a few probes, then the ranges left to right with an explicit stack.
-  for (std::int64_t k : {guess, guess + 1, guess - 1, l / 2, l - 1}) {
+  for (std::int64_t k : {guess, guess + 1, l - 1}) {
     if (k >= 1 && k < l) consider(k);
   }
-  std::int64_t stack[128][2];
-  int depth = 0;
-  stack[depth][0] = 1;
-  stack[depth][1] = l - 1;
-  ++depth;
-  while (depth > 0) {
-    --depth;
-    const std::int64_t k1 = stack[depth][0], k2 = stack[depth][1];
-    if (a(k1) + b(l - k2) + slope * (k2 - k1) + slack >= best) continue;
-    if (k2 - k1 < 8) {
-      for (std::int64_t k = k1; k <= k2; ++k) consider(k);
-      continue;
-    }
-    const std::int64_t mid = k1 + (k2 - k1) / 2;
-    // Left half on top, so it is searched first.
-    stack[depth][0] = mid + 1;
-    stack[depth][1] = k2;
-    ++depth;
-    stack[depth][0] = k1;
-    stack[depth][1] = mid;
-    ++depth;
+  // A lower bound on the integer g(k) from h, robust to the rounding of h's divisions.
+  const auto bound = [&](std::int64_t k) { return static_cast<std::int64_t>(std::ceil(h(k) - 1e-6)); };
+  // h's minimum: the first k with h(k + 1) >= h(k) (h convex).
+  std::int64_t lo = 1, hi = l - 1;
+  while (lo < hi) {
+    const std::int64_t mid = lo + (hi - lo) / 2;
+    if (h(mid + 1) >= h(mid))
+      hi = mid;
+    else
+      lo = mid + 1;
+  }
+  const std::int64_t kMin = lo;
+  const std::int64_t floorValue = bound(kMin);
+  if (floorValue >= best) return {bestK, best};
+  // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin).
+  lo = 1, hi = kMin;
+  while (lo < hi) {
+    const std::int64_t mid = lo + (hi - lo) / 2;
+    if (bound(mid) < best)
+      hi = mid;
+    else
+      lo = mid + 1;
+  }
+  for (std::int64_t k = lo; k < l; ++k) {
+    if (k > kMin && bound(k) >= best) break;  // bounds rise from kMin on
+    const std::int64_t value = g(k);
+    if (value < best) best = value, bestK = k;
+    if (best == floorValue) break;
   }
   return {bestK, best};
 }
@@ -107,14 +151,18 @@ void Plan::build(bool exhaustiveSearch) {
   std::int64_t stateAnchor = std::numeric_limits<std::int64_t>::max();
   std::int64_t recordAnchor = std::numeric_limits<std::int64_t>::max();
   std::int64_t l0 = 1;
-  // The least growth V(l) - V(l - 1) of every row over the lengths built so far (l = 1: 1), a lower bound
-  // for the search's pruning (valid for any sign); the rows of smaller m are complete when they are read.
-  std::vector<std::int64_t> slopes[4];
-  for (auto& v : slopes) v.assign(static_cast<std::size_t>(M + 1), 1);
+  // The convex minorant of every row in the ring, grown with the row (lower bounds for the search).
+  std::vector<Minorant> minorants(static_cast<std::size_t>(4 * ring));
+  const auto Mn = [&](int table, std::int64_t m) -> Minorant& {
+    return minorants[static_cast<std::size_t>(table * ring + m % ring)];
+  };
   for (std::int64_t m = 0; m <= M; ++m) {
     for (int table = 0; table < 4; ++table) {
       V(table, m, 0) = 0;
       V(table, m, 1) = 1;
+      Mn(table, m).reset();
+      Mn(table, m).push(0, 0);
+      Mn(table, m).push(1, 1);
     }
     const std::size_t base = static_cast<std::size_t>(m) * row;
     // The split of the interval one step shorter seeds the search.
@@ -124,54 +172,48 @@ void Plan::build(bool exhaustiveSearch) {
     };
     for (std::int64_t l = 2; l <= N; ++l) {
       l0 = l - 1;
-      for (int t = kState; t <= kRecord; ++t) {
-        // Replay interval (advancing costs), anchor kind t.
-        std::int64_t best = noCheckpointCost(l), decision = 0;
-        if (m >= 1) {
-          const auto a = minimize(
-              l, exhaustiveSearch, [&](std::int64_t k) { return k + V(kReplay + t, m, k); },
-              [&](std::int64_t j) { return V(kReplay + kState, m - 1, j); }, [](std::int64_t) { return 0; }, 0,
-              std::min(1 + slopes[kReplay + t][m], slopes[kReplay + kState][m - 1]), guess(kReplay + t));
-          if (a.second < best) best = a.second, decision = a.first;
+      for (int sweep = 0; sweep <= 1; ++sweep) {
+        // sweep = 0: replay interval (advancing to a checkpoint costs its steps); 1: the forward sweep runs
+        // through the interval (advancing is free, its checkpoints are stored on the way).
+        const int own = sweep == 1 ? kSweep : kReplay;
+        const std::int64_t advance = sweep == 1 ? 0 : 1;
+        for (int t = kState; t <= kRecord; ++t) {
+          std::int64_t best = noCheckpointCost(l), decision = 0;
+          const Minorant& left = Mn(kReplay + t, m);
+          if (m >= 1) {
+            // State checkpoint at k: the left part keeps the anchor, the right part starts at the state.
+            const Minorant& right = Mn(own + kState, m - 1);
+            const auto a = minimize(
+                l, exhaustiveSearch,
+                [&](std::int64_t k) { return advance * k + V(kReplay + t, m, k) + V(own + kState, m - 1, l - k); },
+                [&](std::int64_t k) { return static_cast<double>(advance * k) + left.at(k) + right.at(l - k); },
+                guess(own + t));
+            if (a.second < best) best = a.second, decision = a.first;
+          }
+          if (m >= w) {
+            // Record of step k: it saves that step's adjoint recomputation (in a replay interval only when
+            // the right part has two steps or more: for one step the capture costs the advance it saves).
+            const Minorant& right = Mn(own + kRecord, m - w);
+            const auto b = minimize(
+                l, exhaustiveSearch,
+                [&](std::int64_t k) {
+                  return advance * k + V(kReplay + t, m, k) + V(own + kRecord, m - w, l - k) -
+                         (sweep == 1 || l - k >= 2 ? 1 : 0);
+                },
+                [&](std::int64_t k) { return static_cast<double>(advance * k - 1) + left.at(k) + right.at(l - k); },
+                guess(own + t));
+            if (b.second < best) best = b.second, decision = -b.first;
+          }
+          // Upgrade: the anchor (a state, on top of the stack) grows into the record of its step with w - 1
+          // more units; the interval's first advance captures the stage values, and that step's adjoint is free.
+          if (sweep == 0 && t == kState && w >= 2 && m >= w - 1 && V(kReplay + kRecord, m - (w - 1), l) - 1 < best) {
+            best = V(kReplay + kRecord, m - (w - 1), l) - 1;
+            decision = kUpgradeAnchor;
+          }
+          V(own + t, m, l) = best;
+          Mn(own + t, m).push(l, best);
+          decisions_[own + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
         }
-        if (m >= w) {
-          const auto b = minimize(
-              l, exhaustiveSearch, [&](std::int64_t k) { return k + V(kReplay + t, m, k); },
-              [&](std::int64_t j) { return V(kReplay + kRecord, m - w, j); },
-              [&](std::int64_t k) { return l - k >= 2 ? -1 : 0; }, -1,
-              std::min(1 + slopes[kReplay + t][m], slopes[kReplay + kRecord][m - w]), guess(kReplay + t));
-          if (b.second < best) best = b.second, decision = -b.first;
-        }
-        // Upgrade: the anchor (a state, on top of the stack) grows into the record of its step with w - 1 more
-        // units; the interval's first advance captures the stage values, and that step's adjoint is free.
-        if (t == kState && w >= 2 && m >= w - 1 && V(kReplay + kRecord, m - (w - 1), l) - 1 < best) {
-          best = V(kReplay + kRecord, m - (w - 1), l) - 1;
-          decision = kUpgradeAnchor;
-        }
-        slopes[kReplay + t][m] = std::min(slopes[kReplay + t][m], best - V(kReplay + t, m, l - 1));
-        V(kReplay + t, m, l) = best;
-        decisions_[kReplay + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
-      }
-      for (int t = kState; t <= kRecord; ++t) {
-        // Sweep interval (the forward sweep runs through it, storing the chain's checkpoints).
-        std::int64_t best = noCheckpointCost(l), decision = 0;
-        if (m >= 1) {
-          const auto a = minimize(
-              l, exhaustiveSearch, [&](std::int64_t k) { return V(kReplay + t, m, k); },
-              [&](std::int64_t j) { return V(kSweep + kState, m - 1, j); }, [](std::int64_t) { return 0; }, 0,
-              std::min(slopes[kReplay + t][m], slopes[kSweep + kState][m - 1]), guess(kSweep + t));
-          if (a.second < best) best = a.second, decision = a.first;
-        }
-        if (m >= w) {
-          const auto b = minimize(
-              l, exhaustiveSearch, [&](std::int64_t k) { return V(kReplay + t, m, k); },
-              [&](std::int64_t j) { return V(kSweep + kRecord, m - w, j); }, [](std::int64_t) { return -1; }, -1,
-              std::min(slopes[kReplay + t][m], slopes[kSweep + kRecord][m - w]), guess(kSweep + t));
-          if (b.second < best) best = b.second, decision = -b.first;
-        }
-        slopes[kSweep + t][m] = std::min(slopes[kSweep + t][m], best - V(kSweep + t, m, l - 1));
-        V(kSweep + t, m, l) = best;
-        decisions_[kSweep + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
       }
     }
     // Row m is complete; the top-level optimum needs rows M - 1 and M - w, read before they are overwritten.
