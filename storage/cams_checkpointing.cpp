@@ -241,6 +241,7 @@ void Executor::reset(const Plan* plan) {
   top_ = 0;
   checkpoints_.reserve(static_cast<std::size_t>(std::min(plan->memoryUnits(), plan->steps()) + 1));
   tasks_.reserve(static_cast<std::size_t>(2 * std::min(plan->memoryUnits(), plan->steps()) + 2));
+  limit_ = plan->memoryUnits();
   const bool record = plan->anchorIsRecord();
   chainPosition_ = 0;
   chainLength_ = plan->steps();
@@ -249,11 +250,25 @@ void Executor::reset(const Plan* plan) {
   nextForwardRecord_ = record;
 }
 
+void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
+                             std::int64_t units) {
+  assert(length >= 1 && length <= plan->steps() && units >= 0);
+  plan_ = plan;
+  checkpoints_.clear();
+  tasks_.clear();
+  units = std::min(units, plan->memoryUnits());  // more cannot help
+  checkpoints_.push_back(Checkpoint{position, ref, false, false});
+  top_ = ref + 1;
+  limit_ = top_ + units;
+  tasks_.push_back(Task{0, length, units, false, -1});
+  nextForward_ = -1;
+}
+
 std::int64_t Executor::push(std::int64_t position, bool record) {
   const std::int64_t units = record ? plan_->recordUnits() : 1;
   checkpoints_.push_back(Checkpoint{position, top_, record, false});
   top_ += units;
-  assert(top_ <= plan_->memoryUnits());
+  assert(top_ <= limit_);
   return static_cast<std::int64_t>(checkpoints_.size()) - 1;
 }
 
@@ -332,6 +347,7 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
   for (std::int64_t n = 0; n < plan.steps(); ++n) {
     bool record = false;
     if (executor.recordForward(n, &record) >= 0) {
+      ++counts.forwardStores;
       if (record)
         ++counts.recordsStored;
       else
@@ -343,6 +359,87 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
   }
   CountingVisitor visitor{counts, executor, actions};
   for (std::int64_t e = plan.steps() - 1; e >= 0; --e) executor.restoreStep(e, visitor);
+  return counts;
+}
+
+// ---- Online mode ----
+
+OnlineInterval onlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t memoryUnits,
+                              std::int64_t step) {
+  assert(!positions.empty() && step < steps - 1);
+  std::int64_t j = static_cast<std::int64_t>(positions.size()) - 1;
+  while (positions[static_cast<std::size_t>(j)] > step) --j;
+  OnlineInterval interval;
+  interval.index = j;
+  interval.start = positions[static_cast<std::size_t>(j)];
+  const std::int64_t end =
+      j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
+  interval.length = end - interval.start;
+  interval.units = memoryUnits - j - 1;
+  return interval;
+}
+
+std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps) {
+  std::int64_t longest = 0;
+  for (std::size_t j = 0; j < positions.size(); ++j)
+    longest = std::max(longest, (j + 1 < positions.size() ? positions[j + 1] : steps - 1) - positions[j]);
+  return longest;
+}
+
+std::vector<std::int64_t> onlinePositions(std::int64_t steps, std::int64_t memoryUnits, std::int64_t* statesStored,
+                                          std::int64_t* peakUnits) {
+  internal::OnlinePlacement placement;
+  placement.reset(memoryUnits - 1);
+  std::int64_t stored = 0, peak = 1;
+  for (std::int64_t step = 1; step < steps; ++step) {
+    if (placement.isCandidate(step - 1) && placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
+      ++stored;
+      peak = std::max(peak, static_cast<std::int64_t>(placement.positions().size()) + 1);
+    }
+  }
+  if (statesStored != nullptr) *statesStored = stored + 1;  // and x_{N-1}, the working state
+  if (peakUnits != nullptr) *peakUnits = peak;
+  return placement.positions();
+}
+
+const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
+                            std::int64_t recordUnits) {
+  const std::int64_t length = std::max<std::int64_t>(longest, 1);
+  const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
+  if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
+      cached->memoryUnits() < std::min(units, (length + 1) * recordUnits)) {
+    cached = std::make_unique<Plan>(length, units, recordUnits);
+  }
+  return *cached;
+}
+
+PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits,
+                          std::unique_ptr<Plan>* plan) {
+  if (steps < 1 || memoryUnits < 2)
+    throw std::invalid_argument("cams online mode: steps = " + std::to_string(steps) + " and memory units = " +
+                                std::to_string(memoryUnits) + " must be >= 1 and >= 2");
+  PlanCounts counts;
+  counts.steps = steps;
+  counts.forwardSteps = steps;
+  const std::vector<std::int64_t> positions =
+      onlinePositions(steps, memoryUnits, &counts.forwardStores, &counts.peakUnits);
+  counts.statesStored = counts.forwardStores;
+  counts.adjointRecomputations = 1;  // step N - 1, from the working state
+  if (steps == 1) return counts;
+  std::unique_ptr<Plan> local;
+  std::unique_ptr<Plan>& cached = plan != nullptr ? *plan : local;
+  const Plan& intervalPlan = onlineIntervalPlan(cached, longestOnlineInterval(positions, steps), memoryUnits, recordUnits);
+  Executor executor;
+  CountingVisitor visitor{counts, executor, nullptr};
+  std::int64_t start = steps;
+  for (std::int64_t e = steps - 2; e >= 0; --e) {
+    if (e < start) {
+      const OnlineInterval interval = onlineInterval(positions, steps, memoryUnits, e);
+      executor.beginInterval(&intervalPlan, interval.start, interval.index, interval.length, interval.units);
+      start = interval.start;
+    }
+    executor.restoreStep(e, visitor);
+  }
   return counts;
 }
 
@@ -431,8 +528,8 @@ std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUn
 
 // ---- CamsCheckpointing ----
 
-CamsCheckpointing::CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes)
-    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints) {
+CamsCheckpointing::CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool online)
+    : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints), online_(online) {
   if (checkpoints < 0 || checkpoints > kMaxCheckpoints) {
     throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints) + " must be an integer in [1, " +
                                 std::to_string(kMaxCheckpoints) + "]");
@@ -445,15 +542,18 @@ std::unique_ptr<TrajectoryStorage> CamsCheckpointing::create(const StorageSpec& 
                                 "cams.checkpoints=C (the bytes of binomial:checkpoints=C), C in [1, " +
                                 std::to_string(kMaxCheckpoints) + "]");
   }
+  const bool online = spec.integer("online", 0, 0, 1) == 1;
   if (spec.has("checkpoints")) {
-    return std::make_unique<CamsCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints), kDefaultBudget);
+    return std::make_unique<CamsCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints), kDefaultBudget,
+                                               online);
   }
-  return std::make_unique<CamsCheckpointing>(0, spec.bytes("budget", 1));
+  return std::make_unique<CamsCheckpointing>(0, spec.bytes("budget", 1), online);
 }
 
 std::string CamsCheckpointing::spec() const {
-  return checkpoints_ > 0 ? "cams:checkpoints=" + std::to_string(checkpoints_)
-                          : "cams:budget=" + std::to_string(budgetBytes());
+  return (checkpoints_ > 0 ? "cams:checkpoints=" + std::to_string(checkpoints_)
+                           : "cams:budget=" + std::to_string(budgetBytes())) +
+         (online_ ? ",online=1" : "");
 }
 
 void CamsCheckpointing::releaseAll() {
@@ -466,53 +566,94 @@ void CamsCheckpointing::doBegin() {
   heldBytes_ = 0;  // the base class has released what a previous run held
   releaseAll();
   const std::int64_t steps = info().stepCount;
-  if (steps < 1) {
-    throw std::invalid_argument(
-        "cams checkpointing needs the number of steps in advance (TrajectoryInfo.stepCount = " + std::to_string(steps) +
-        ", adaptive steps); use 'online:budget=BYTES' for adaptive steps");
-  }
+  onlineRun_ = online_ || steps < 1;
   const std::int64_t n = info().stateSize;
   units_ = memoryUnits(stateBytes());
-  if (units_ < 1) {
-    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds not even one state of " +
-                                formatBytes(stateBytes()) + "; raise the budget");
+  if (units_ < (onlineRun_ ? 2 : 1)) {
+    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units_) +
+                                " states of " + formatBytes(stateBytes()) + "; " +
+                                (onlineRun_ ? "the online mode (adaptive steps or online=1) needs two" : "at least one") +
+                                " is needed; raise the budget");
   }
   // A record is the state and the step's stage values; with no step data, records are impossible.
-  const std::int64_t recordUnits =
+  recordUnits_ =
       info().stepDataSize > 0 ? 1 + (info().stepDataSize + n - 1) / n : std::numeric_limits<std::int32_t>::max();
-  if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits ||
-      plan_->memoryUnits() != std::min(units_, (steps + 1) * recordUnits)) {
-    plan_ = std::make_unique<cams::Plan>(steps, units_, recordUnits);
+  delivered_ = nullptr;
+  pendingRecord_ = -1;
+  if (onlineRun_) {
+    // All M units are held from the start (the forward sweep may fill them before thinning).
+    holdBytes(units_ * stateBytes());
+    heldBytes_ = units_ * stateBytes();
+    memory_.reset(new double[static_cast<std::size_t>(units_ * n)]);
+    placement_.reset(units_ - 1);
+    workingValid_ = false;
+    intervalStart_ = -1;
+    return;
+  }
+  const std::int64_t capped = std::min(units_, (steps + 1) * recordUnits_);
+  if ((steps + 1) > cams::Plan::kMaxTableEntries / (capped + 1)) {
+    throw std::invalid_argument("cams: the optimal plan for " + std::to_string(steps) + " steps and " +
+                                std::to_string(capped) + " state units needs more than " +
+                                std::to_string(cams::Plan::kMaxTableEntries) +
+                                " table entries; add online=1 (cams:...,online=1: online placement, optimal "
+                                "reversal of each interval) or lower cams.budget/cams.checkpoints");
+  }
+  if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits_ || plan_->memoryUnits() != capped) {
+    plan_ = std::make_unique<cams::Plan>(steps, units_, recordUnits_);
   }
   const std::int64_t held = std::min(units_, plan_->memoryUnits());
   holdBytes(held * stateBytes());  // throws StorageError beyond the budget
   heldBytes_ = held * stateBytes();
   memory_.reset(new double[static_cast<std::size_t>(held * n)]);
   executor_.reset(plan_.get());
-  pendingRecord_ = -1;
-  delivered_ = nullptr;
 }
 
 void CamsCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
+  const std::int64_t n = info().stateSize;
+  const auto bytes = static_cast<std::size_t>(n) * 8;
+  if (onlineRun_) {
+    // The working state (unit M - 1) holds the last recorded state; it becomes a candidate when the next
+    // record shows it was not the last (internal::OnlinePlacement, as `online` places its checkpoints).
+    double* working = memory_.get() + (units_ - 1) * n;
+    if (workingValid_ && placement_.isCandidate(step - 1)) {
+      const std::int64_t slot = placement_.commit(step - 1, [&](std::int64_t from, std::int64_t to) {
+        if (from != to) std::memcpy(memory_.get() + to * n, memory_.get() + from * n, bytes);
+      });
+      if (slot >= 0) {
+        std::memcpy(memory_.get() + slot * n, working, bytes);
+        ++mutableCounters().statesStored;
+      }
+    }
+    std::memcpy(working, z.data(), bytes);
+    workingValid_ = true;
+    return;
+  }
   bool record = false;
   const std::int64_t ref = executor_.recordForward(step, &record);
   pendingRecord_ = -1;
   if (ref < 0) return;
-  const std::int64_t n = info().stateSize;
-  std::memcpy(memory_.get() + ref * n, z.data(), static_cast<std::size_t>(n) * 8);
+  std::memcpy(memory_.get() + ref * n, z.data(), bytes);
   ++mutableCounters().statesStored;
   if (record) pendingRecord_ = ref;
 }
 
 void CamsCheckpointing::doRecordStepData(std::int64_t, ConstVectorRef data) {
-  if (pendingRecord_ < 0) return;
+  if (pendingRecord_ < 0) return;  // (the online mode keeps no records in the forward sweep)
   const std::int64_t n = info().stateSize;
   std::memcpy(memory_.get() + pendingRecord_ * n + n, data.data(), static_cast<std::size_t>(data.size()) * 8);
   ++mutableCounters().stepDataStored;
   pendingRecord_ = -1;
 }
 
-void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
+void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
+  if (!onlineRun_) return;
+  ++mutableCounters().statesStored;  // x_{N-1}, the working state (as `online` counts it)
+  const std::int64_t steps = stepCount();
+  if (steps >= 2) {
+    cams::onlineIntervalPlan(intervalPlan_, cams::longestOnlineInterval(placement_.positions(), steps), units_,
+                             recordUnits_);
+  }
+}
 
 void CamsCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   struct Visitor {
@@ -539,6 +680,22 @@ void CamsCheckpointing::doRestore(std::int64_t step, VectorRef z) {
       self.delivered_ = filled ? self.memory_.get() + ref * n + n : nullptr;
     }
   } visitor{*this, z, info().stateSize};
+  if (onlineRun_) {
+    const std::int64_t n = info().stateSize;
+    if (workingValid_) {
+      assert(step == stepCount() - 1);
+      std::memcpy(z.data(), memory_.get() + (units_ - 1) * n, static_cast<std::size_t>(n) * 8);
+      workingValid_ = false;
+      delivered_ = nullptr;
+      if (step == 0 && info().stepDataSize == 0) releaseAll();
+      return;
+    }
+    if (intervalStart_ < 0 || step < intervalStart_) {
+      const cams::OnlineInterval interval = cams::onlineInterval(placement_.positions(), stepCount(), units_, step);
+      executor_.beginInterval(intervalPlan_.get(), interval.start, interval.index, interval.length, interval.units);
+      intervalStart_ = interval.start;
+    }
+  }
   executor_.restoreStep(step, visitor);
   if (step == 0 && info().stepDataSize == 0) releaseAll();
 }

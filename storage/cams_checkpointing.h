@@ -1,7 +1,7 @@
 // Strategy "cams": optimal stage-aware checkpointing for a known number of steps N (issue #13).
 //
-// Spec: cams:budget=BYTES | cams:checkpoints=C   (exactly one; C in [1, 10^6]; checkpoints=C means the
-// byte budget of binomial:checkpoints=C, i.e. C + 1 states).
+// Spec: cams:budget=BYTES | cams:checkpoints=C   [,online=1]   (exactly one of budget and checkpoints;
+// C in [1, 10^6]; checkpoints=C means the byte budget of binomial:checkpoints=C, i.e. C + 1 states).
 //
 // Idea (Zhang & Constantinescu, "Optimal checkpointing for adjoint multistage time-stepping schemes",
 // arXiv 2106.13879, the CAMS algorithm behind PETSc's TSTrajectory "memory" type; Maddison's mixed
@@ -43,12 +43,15 @@
 // pair while they are built) are planning data, not trajectory data, and are not charged; begin()
 // refuses N (M + 1) > kMaxTableEntries with a message naming cams.budget.
 //
-// Preconditions: TrajectoryInfo.stepCount >= 1 (fixed steps); begin() throws std::invalid_argument
-// telling to use `online` for adaptive steps. With an integrator that offers no step data
-// (generalized-alpha) records are impossible and the plan is revolve's.
+// Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
+// cams::OnlineInterval below (checkpoints placed as `online` places them, each interval reversed by the
+// optimal plan for its length and the units left; M >= 2 units needed). Without online=1, fixed steps whose
+// table exceeds kMaxTableEntries are refused with a message pointing to online=1. With an integrator that
+// offers no step data (generalized-alpha) records are impossible and the plan is revolve's.
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/storage/online_placement.h>
 #include <hindsight/storage/storage_spec.h>
 
 #include <cassert>
@@ -69,6 +72,7 @@ struct PlanCounts {
   std::int64_t recomputedSteps = 0;        ///< advances in the backward sweep (counters().recomputedSteps)
   std::int64_t adjointRecomputations = 0;  ///< adjoint steps without held stage values
   std::int64_t statesStored = 0;           ///< state checkpoints written (any sweep)
+  std::int64_t forwardStores = 0;          ///< what the forward sweep stores (counters().statesStored)
   std::int64_t recordsStored = 0;          ///< step records filled (counters().stepDataStored)
   std::int64_t peakUnits = 0;              ///< most memory units held at once
   /// forwardSteps + recomputedSteps + adjointRecomputations: the plan's cost E(N, M).
@@ -116,6 +120,35 @@ class Plan {
 /// Runs the plan without states: counts, and optionally the action stream.
 PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 
+/// Online mode (adaptive steps, or cams:...,online=1): the forward sweep keeps checkpoints by the rule of
+/// `online` (storage/online_placement.h) with c = M - 1 of the M units, the last state being the working
+/// state; once N is known, the intervals between held checkpoints are reversed last to first, interval j
+/// by the plan's replay tables with the M - j - 1 units not held by checkpoints 0..j. One plan serves all
+/// intervals: its rows hold every length up to the longest interval and every unit count up to M - 1.
+struct OnlineInterval {
+  std::int64_t index = 0;   ///< j
+  std::int64_t start = 0;   ///< its checkpoint's position
+  std::int64_t length = 0;  ///< steps to reverse
+  std::int64_t units = 0;   ///< free units above the checkpoint
+};
+/// The interval holding `step` (< N - 1) among the held positions.
+OnlineInterval onlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t memoryUnits,
+                              std::int64_t step);
+/// The longest interval the forward placement leaves for N steps and c checkpoints (0 for N <= 1).
+std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps);
+/// The forward placement of N steps with c = M - 1 checkpoints, without states; statesStored counts the
+/// checkpoint writes and x_{N-1}, peakUnits the most states held at once (both optional).
+std::vector<std::int64_t> onlinePositions(std::int64_t steps, std::int64_t memoryUnits, std::int64_t* statesStored,
+                                          std::int64_t* peakUnits);
+/// The plan for intervals up to `longest` steps with M - 1 units, reusing `cached` when it covers them
+/// (the rows of a plan do not depend on its N).
+const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
+                               std::int64_t recordUnits);
+/// Counts of the online mode for N fixed steps (as a run with cams:...,online=1 reports them); the plan is
+/// built for the longest interval (or reused when `plan` already covers it).
+PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits,
+                          std::unique_ptr<Plan>* plan = nullptr);
+
 /// Smallest cost over every schedule of the model by exhaustive enumeration of all action sequences
 /// (exponential; for tests with N <= 7).
 std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
@@ -133,6 +166,11 @@ std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUn
 class Executor {
  public:
   void reset(const Plan* plan);
+  /// Online mode: reverse only the interval [position, position + length) from the state checkpoint at
+  /// `position` (unit ref, held by the caller below ref + 1), with `units` free units above it, by the
+  /// plan's replay tables (decisions for any length <= plan->steps() and units <= plan->memoryUnits()).
+  void beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
+                     std::int64_t units);
   /// Forward sweep: what to keep of x_n (n = 0..N-1 in order): -1 nothing, else the ref; *isRecord tells
   /// whether the step's stage values (given by the forward sweep) go with it.
   std::int64_t recordForward(std::int64_t n, bool* isRecord);
@@ -164,6 +202,7 @@ class Executor {
   std::vector<Checkpoint> checkpoints_;
   std::vector<Task> tasks_;
   std::int64_t top_ = 0;  // units held
+  std::int64_t limit_ = 0;  // top_ never exceeds it
   // Forward sweep: the chain of the sweep interval.
   std::int64_t chainLength_ = 0, chainUnits_ = 0, chainPosition_ = 0, nextForward_ = 0;
   bool nextForwardRecord_ = false;
@@ -184,6 +223,7 @@ void Executor::advanceFrom(std::int64_t index, std::int64_t to, Visitor& visitor
 
 template <typename Visitor>
 void Executor::restoreStep(std::int64_t e, Visitor& visitor) {
+  static_cast<void>(e);  // read by the asserts only
   for (;;) {
     Task& task = tasks_.back();
     const Checkpoint anchor = checkpoints_[static_cast<std::size_t>(task.anchor)];
@@ -250,9 +290,10 @@ class CamsCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   /// checkpoints > 0: the budget of binomial:checkpoints=C, (C + 1) states, fixed at begin(); otherwise
   /// budgetBytes is the budget.
-  CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes);
+  /// online: the online mode (cams::OnlineInterval) even for fixed steps; adaptive steps always use it.
+  CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool online = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget"}; }
+  static std::vector<std::string> keys() { return {"checkpoints", "budget", "online"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }
@@ -261,8 +302,12 @@ class CamsCheckpointing final : public TrajectoryStorage {
   std::int64_t memoryUnits(std::int64_t stateBytes) const {
     return checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes;
   }
-  /// The plan of the current run (after begin()).
-  const cams::Plan* plan() const { return plan_.get(); }
+  /// The plan of the current run (after begin(); in the online mode after the forward sweep), or null.
+  const cams::Plan* plan() const { return onlineRun_ ? intervalPlan_.get() : plan_.get(); }
+  /// Whether the spec asks for the online mode (online=1).
+  bool onlineRequested() const { return online_; }
+  /// Whether the current run uses the online mode.
+  bool onlineRun() const { return onlineRun_; }
 
  private:
   void doBegin() override;
@@ -274,7 +319,16 @@ class CamsCheckpointing final : public TrajectoryStorage {
   void releaseAll();
 
   std::int64_t checkpoints_;
+  bool online_;
+  bool onlineRun_ = false;
   std::unique_ptr<cams::Plan> plan_;
+  // Online mode: the forward placement, the working state (unit units_ - 1), the interval plan (kept
+  // across runs while it covers the longest interval), the interval being reversed.
+  internal::OnlinePlacement placement_;
+  bool workingValid_ = false;
+  std::int64_t recordUnits_ = 0;
+  std::unique_ptr<cams::Plan> intervalPlan_;
+  std::int64_t intervalStart_ = -1;
   cams::Executor executor_;
   std::unique_ptr<double[]> memory_;  // units x n doubles
   std::int64_t heldBytes_ = 0;

@@ -36,11 +36,7 @@ std::string OnlineCheckpointing::spec() const {
 std::int64_t OnlineCheckpointing::finalSpacing(std::int64_t steps, std::int64_t c) {
   // Positions 0..N-2 become checkpoint candidates (N - 1 stays the working state). No thinning while at
   // most c of them arrive; the first one (at position c) doubles d, and so does every later one at F d.
-  if (steps - 2 < c) return 1;
-  const std::int64_t forward = forwardCheckpoints(c);
-  std::int64_t spacing = 2;
-  while (forward * spacing <= steps - 2) spacing *= 2;
-  return spacing;
+  return internal::OnlinePlacement::finalSpacing(steps, c);
 }
 
 UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c) {
@@ -99,9 +95,7 @@ void OnlineCheckpointing::doBegin() {
         (requestedCheckpoints_ > 0 ? " or lower the checkpoints" : ""));
   }
   activeCheckpoints_ = std::min(activeCheckpoints_, BinomialCheckpointing::kMaxCheckpoints);
-  forwardLimit_ = forwardCheckpoints(activeCheckpoints_);
-  spacing_ = 1;
-  positions_.clear();
+  placement_.reset(activeCheckpoints_);
   interval_ = -1;
   holdBytes(stateBytes() + recordBytes);
   heldBytes_ += stateBytes() + recordBytes;
@@ -112,34 +106,25 @@ void OnlineCheckpointing::doBegin() {
 void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
   // The working state holds the last recorded state; it becomes a checkpoint candidate only when the
   // next record shows that it was not the last one (so N <= c + 1 states fit without thinning).
-  if (workingValid_ && (step - 1) % spacing_ == 0) commitWorkingState(step - 1);
+  if (workingValid_ && placement_.isCandidate(step - 1)) commitWorkingState(step - 1);
   std::memcpy(working_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   workingValid_ = true;
 }
 
 void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
-  // While d = 1 every state is kept, up to c of them; afterwards at most F. Thinning keeps the multiples
-  // of 2d, which sit in the even slots, and doubles d; it may cascade (c even: c -> c/2 = F -> F/2).
-  while (static_cast<std::int64_t>(positions_.size()) >=
-         (spacing_ == 1 ? activeCheckpoints_ : forwardLimit_)) {
-    std::size_t kept = 0;
-    for (std::size_t i = 0; i < positions_.size(); i += 2, ++kept) {
-      positions_[kept] = positions_[i];
-      std::swap(slots_[kept], slots_[i]);
-    }
-    positions_.resize(kept);
-    spacing_ *= 2;
-    if (position % spacing_ != 0) return;
-  }
-  std::memcpy(slot(static_cast<std::int64_t>(positions_.size())), working_.get(),
-              static_cast<std::size_t>(info().stateSize) * sizeof(double));
-  positions_.push_back(position);
+  // Thinning keeps the multiples of 2d, which sit in the even slots (internal::OnlinePlacement).
+  const std::int64_t index =
+      placement_.commit(position, [this](std::int64_t from, std::int64_t to) {
+        std::swap(slots_[static_cast<std::size_t>(to)], slots_[static_cast<std::size_t>(from)]);
+      });
+  if (index < 0) return;
+  std::memcpy(slot(index), working_.get(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   ++mutableCounters().statesStored;
 }
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
-  interval_ = static_cast<std::int64_t>(positions_.size());  // restore(N - 1) comes from the working state
+  interval_ = static_cast<std::int64_t>(placement_.positions().size());  // restore(N - 1) comes from the working state
 }
 
 void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
@@ -155,10 +140,10 @@ bool OnlineCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
 
 void OnlineCheckpointing::startInterval(std::int64_t j) {
   interval_ = j;
-  intervalStart_ = positions_[static_cast<std::size_t>(j)];
-  const std::int64_t end = j + 1 < static_cast<std::int64_t>(positions_.size())
-                               ? positions_[static_cast<std::size_t>(j + 1)]
-                               : stepCount() - 1;
+  const std::vector<std::int64_t>& positions = placement_.positions();
+  intervalStart_ = positions[static_cast<std::size_t>(j)];
+  const std::int64_t end =
+      j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : stepCount() - 1;
   schedule_.reset(end - intervalStart_, activeCheckpoints_ - j, false);
 }
 
@@ -174,11 +159,11 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     if (step == 0) releaseAll();
     return;
   }
-  if (interval_ == static_cast<std::int64_t>(positions_.size()) || step < intervalStart_) {
+  if (interval_ == static_cast<std::int64_t>(placement_.positions().size()) || step < intervalStart_) {
     // The previous interval is done: the next one is the last held checkpoint at or before `step`
     // (a checkpoint at N - 1 starts an interval of no steps and is skipped).
     std::int64_t j = interval_ - 1;
-    while (positions_[static_cast<std::size_t>(j)] > step) --j;
+    while (placement_.positions()[static_cast<std::size_t>(j)] > step) --j;
     startInterval(j);
   }
   struct Visitor {

@@ -37,6 +37,7 @@
 #pragma once
 
 #include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/online_placement.h>
 #include <hindsight/storage/recomputed_stages.h>
 
 namespace hindsight {
@@ -60,7 +61,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   /// The checkpoint count c of the current run (known after begin()).
   std::int64_t checkpoints() const { return activeCheckpoints_; }
   /// Forward-sweep checkpoint limit F = ceil(c / 2).
-  static std::int64_t forwardCheckpoints(std::int64_t c) { return (c + 1) / 2; }
+  static std::int64_t forwardCheckpoints(std::int64_t c) { return internal::OnlinePlacement::forwardCheckpoints(c); }
   /// The final spacing d of the forward sweep for N steps.
   static std::int64_t finalSpacing(std::int64_t steps, std::int64_t c);
   /// (N - 1) + recomputed steps of this algorithm for N steps and c checkpoints, without states.
@@ -84,9 +85,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   bool stages_;
   internal::RecomputedStages recomputedStages_;  // stages=1
   std::int64_t activeCheckpoints_ = 0;
-  std::int64_t forwardLimit_ = 0;
-  std::int64_t spacing_ = 1;
-  std::vector<std::int64_t> positions_;           // forward checkpoints, slot i holds positions_[i]
+  internal::OnlinePlacement placement_;           // forward checkpoints, slot i holds positions()[i]
   std::vector<std::unique_ptr<double[]>> slots_;  // allocated on first use
   std::unique_ptr<double[]> working_;
   std::int64_t heldBytes_ = 0;

@@ -466,26 +466,39 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
                                   formatBytes(stateBytes));
     }
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+    if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
+      // The online mode: online placement, each interval reversed by the optimal plan.
+      if (units < 2) {
+        throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds " +
+                                    std::to_string(units) + " states of " + formatBytes(stateBytes) +
+                                    "; the online mode needs two");
+      }
+      std::unique_ptr<cams::Plan> intervalPlan;
+      const cams::PlanCounts c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
+      p.plan = "cams online: " + std::to_string(units) + " state units, online placement, intervals of at most " +
+               std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally; " +
+               std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
+               " adjoint steps recompute their stages";
+      p.recomputedSteps = c.recomputedSteps;
+      p.adjointRecomputations = c.adjointRecomputations;
+      p.statesStored = c.forwardStores;
+      p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
+      p.ramReads = steps;
+      p.peakRamBytes = units * stateBytes;
+    } else {
     const cams::Plan plan(steps, units, recordUnits);
-    std::vector<cams::Action> actions;
-    const cams::PlanCounts c = cams::simulate(plan, &actions);
-    // The strategy's statesStored counts the checkpoints of the forward sweep: the stores before the
-    // first adjoint step.
-    std::int64_t forwardStores = 0;
-    for (const cams::Action& a : actions) {
-      if (a.kind == cams::Action::Kind::Deliver) break;
-      if (a.kind != cams::Action::Kind::Advance) ++forwardStores;
-    }
+    const cams::PlanCounts c = cams::simulate(plan);
     p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
              (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units; " +
              std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
              " adjoint steps recompute their stages";
     p.recomputedSteps = c.recomputedSteps;
     p.adjointRecomputations = c.adjointRecomputations;
-    p.statesStored = forwardStores;
+    p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
     p.ramWrites = c.statesStored + c.recordsStored;
     p.ramReads = steps;
     p.peakRamBytes = std::min(units, plan.memoryUnits()) * stateBytes;
+    }
   } else {
     throw std::invalid_argument("storage '" + name +
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
@@ -549,6 +562,10 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   if (name == "cams") {
     // The records of rk4 (4 state units), as `hindsight schedule` predicts with its default --stages 4.
     auto storage = createStorage(specText);
+    if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
+      throw std::invalid_argument("--actions prints offline plans; cams with online=1 thins its checkpoints "
+                                  "during the forward sweep (print its counts without --actions)");
+    }
     const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).memoryUnits(stateBytes);
     std::vector<cams::Action> actions;
     cams::simulate(cams::Plan(steps, units, 4), &actions);

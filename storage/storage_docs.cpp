@@ -80,13 +80,16 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
         {"stages", "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
                    "recomputation evaluates no right-hand side (default 0)"}}},
       {"cams",
-       "optimal stage-aware checkpointing for a known number of steps (after Zhang & Constantinescu, CAMS): "
-       "checkpoints hold states or a step's stage values; fixed steps only",
+       "optimal stage-aware checkpointing (after Zhang & Constantinescu, CAMS): checkpoints hold states or a "
+       "step's stage values; fixed steps get the optimal plan, adaptive steps (or online=1) the online mode: "
+       "checkpoints placed as online places them, each interval reversed by the optimal plan",
        true,
        "cams:checkpoints=10",
        {{"checkpoints", "C in [1, 1e6]: the byte budget of binomial:checkpoints=C (C + 1 states); exactly one of "
                         "checkpoints, budget"},
-        {"budget", "bytes for the checkpoints; exactly one of checkpoints, budget"}}},
+        {"budget", "bytes for the checkpoints; exactly one of checkpoints, budget"},
+        {"online", "0 or 1 (default 0): the online mode for fixed steps too (plans in seconds at N = 1e6; "
+                   "adaptive steps always use it)"}}},
       {"packed",
        "every step's state in memory, coded losslessly along time in blocks (prediction + bit-difference "
        "residuals + shuffle + zstd, the codec of disk); every bit restored",

@@ -7,6 +7,8 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
@@ -157,6 +159,108 @@ TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinom
     // rk4 evaluates 4 right-hand sides per step, forward, recomputed and in the adjoint's recomputation.
     EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
   }
+}
+
+TEST(CamsOnline, NeverCostsMoreThanOnlineWithRevolvePerIntervalAndRecordsLowerIt) {
+  // Same placement as `online` with c = M - 1 checkpoints; each interval gets the optimal plan with at
+  // least the units online's revolve gets, and online's adjoint steps all recompute their stages.
+  for (std::int64_t c : std::initializer_list<std::int64_t>{1, 2, 3, 10, 50}) {
+    for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 7, 100, 1000, 5000}) {
+      const std::int64_t online =
+          n + static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(n, c)) - (n - 1) + n;
+      const cams::PlanCounts withoutRecords = cams::simulateOnline(n, c + 1, kNoRecords);
+      EXPECT_LE(withoutRecords.stepEvaluations(), online) << "N = " << n << ", C = " << c;
+      EXPECT_EQ(withoutRecords.adjointRecomputations, n);
+      const cams::PlanCounts rk4 = cams::simulateOnline(n, c + 1, 4);
+      EXPECT_LE(rk4.stepEvaluations(), withoutRecords.stepEvaluations()) << "N = " << n << ", C = " << c;
+      EXPECT_LE(rk4.peakUnits, c + 1);
+    }
+  }
+  // Where records fit, they pay: rk4 records at 5000 steps and 50 checkpoints.
+  EXPECT_LT(cams::simulateOnline(5000, 51, 4).stepEvaluations(), cams::simulateOnline(5000, 51, kNoRecords).stepEvaluations());
+}
+
+TEST(CamsOnline, PlacementIsOnlines) {
+  for (std::int64_t c : std::initializer_list<std::int64_t>{1, 4, 9}) {
+    for (std::int64_t n : std::initializer_list<std::int64_t>{2, 10, 77, 1000}) {
+      std::int64_t stored = 0, peak = 0;
+      const std::vector<std::int64_t> positions = cams::onlinePositions(n, c + 1, &stored, &peak);
+      const std::int64_t d = OnlineCheckpointing::finalSpacing(n, c);
+      ASSERT_FALSE(positions.empty());
+      for (std::size_t j = 0; j < positions.size(); ++j) EXPECT_EQ(positions[j], static_cast<std::int64_t>(j) * d);
+      EXPECT_LE(peak, c + 1);
+      EXPECT_LE(cams::longestOnlineInterval(positions, n), d);
+    }
+  }
+}
+
+TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
+  Pendulum problem;
+  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 4.0;
+  options.step = 4e-3;  // N = 1000
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  for (std::int64_t c : std::initializer_list<std::int64_t>{1, 3, 10, 50}) {
+    auto storage = createStorage("cams:checkpoints=" + std::to_string(c) + ",online=1");
+    storage->setVerifyRestores(true);
+    // Twice: the second run reuses the interval plan.
+    for (int run = 0; run < 2; ++run) {
+      const GradientResult r = computeGradient(problem, p, options, *storage);
+      EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+      EXPECT_EQ(r.objective, reference.objective);
+      EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
+      const cams::PlanCounts counts = cams::simulateOnline(1000, c + 1, 4);
+      EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps) << c;
+      EXPECT_EQ(storage->counters().statesStored, counts.forwardStores) << c;
+      EXPECT_EQ(storage->counters().stepDataRestored, counts.steps - counts.adjointRecomputations) << c;
+      EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations()) << c;
+      // hindsight schedule predicts the same counts without the model.
+      const SchedulePrediction predicted =
+          predictSchedule("cams:checkpoints=" + std::to_string(c) + ",online=1", 1000, 8 * problem.stateSize(), 4, nullptr);
+      EXPECT_EQ(predicted.recomputedSteps, storage->counters().recomputedSteps) << c;
+      EXPECT_EQ(predicted.rhsEvaluations, r.summary.rhsEvaluations) << c;
+      EXPECT_EQ(predicted.statesStored, storage->counters().statesStored) << c;
+    }
+  }
+  // Adaptive steps (N unknown while recording): the online mode without being asked for it.
+  options.adaptive = true;
+  options.method = "dopri5";
+  FullStorage fullAdaptive;
+  const GradientResult adaptiveReference = computeGradient(problem, p, options, fullAdaptive);
+  auto storage = createStorage("cams:checkpoints=5");
+  storage->setVerifyRestores(true);
+  const GradientResult r = computeGradient(problem, p, options, *storage);
+  EXPECT_TRUE(dynamic_cast<const CamsCheckpointing&>(*storage).onlineRun());
+  EXPECT_EQ(std::memcmp(r.gradient.data(), adaptiveReference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_GT(storage->counters().recomputedSteps, 0);
+}
+
+TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
+  Pendulum problem;
+  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 4.0;
+  options.step = 4e-3;
+  auto one = createStorage("cams:budget=24,online=1");  // at most one state (the pendulum has 2 or 4 doubles)
+  try {
+    computeGradient(problem, p, options, *one);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("online mode"), std::string::npos) << e.what();
+  }
+  options.step = 4.0 / 2e6;  // N = 2e6 with 11 units: beyond the offline table
+  auto offline = createStorage("cams:checkpoints=10");
+  try {
+    computeGradient(problem, p, options, *offline);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("online=1"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(createStorage("cams:checkpoints=7,online=1")->spec(), "cams:checkpoints=7,online=1");
 }
 
 }  // namespace
