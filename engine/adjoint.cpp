@@ -184,6 +184,9 @@ void RunSummary::addStorageCounters(const StorageCounters& counters, std::size_t
   ioSeconds = counters.ioSeconds;
   predictedStorageSeconds = counters.predictedSeconds;
   measuredStorageSeconds = counters.scheduleSeconds;
+  stepDataStored = counters.stepDataStored;
+  stepDataRestored = counters.stepDataRestored;
+  planningSeconds = counters.planningSeconds;
 }
 
 namespace {
@@ -213,6 +216,9 @@ void RunSummary::print(std::ostream& out) const {
     out << "storage seconds predicted: " << predictedStorageSeconds
         << "\nstorage seconds measured: " << measuredStorageSeconds << '\n';
   }
+  if (stepDataStored > 0 || stepDataRestored > 0)
+    out << "step data stored: " << stepDataStored << "\nstep data restored: " << stepDataRestored << '\n';
+  if (planningSeconds > 0.0) out << "planning seconds: " << planningSeconds << '\n';
 }
 
 ForwardResult simulate(const Problem& problem, ConstVectorRef p, const IntegratorOptions& options,

@@ -38,6 +38,11 @@ struct RunSummary {
   /// The storage's predicted and measured seconds of recomputation + disk I/O (multilevel's plan; 0 else).
   double predictedStorageSeconds = 0.0;
   double measuredStorageSeconds = 0.0;
+  /// Step data (stage values) the storage kept and served (StorageCounters), and the seconds it spent
+  /// planning (cams; included in forwardSeconds or backwardSeconds).
+  std::int64_t stepDataStored = 0;
+  std::int64_t stepDataRestored = 0;
+  double planningSeconds = 0.0;
   /// Human-readable, one "key: value" per line.
   void print(std::ostream& out) const;
   /// Copies what the storage reports (recomputations, states, bytes, compression, I/O time); the time

@@ -82,6 +82,8 @@ struct StorageCounters {
   /// own work, recomputation plus disk I/O; 0 for the others.
   double predictedSeconds = 0.0;
   double scheduleSeconds = 0.0;
+  /// Seconds spent building a plan (cams), part of the sweep that built it (begin(): the forward sweep).
+  double planningSeconds = 0.0;
   /// uncompressedBytes / compressedBytes, or 1 when nothing was compressed.
   double compressionRatio() const {
     return compressedBytes > 0 ? static_cast<double>(uncompressedBytes) / static_cast<double>(compressedBytes)

@@ -1,5 +1,7 @@
 #include <hindsight/storage/cams_checkpointing.h>
 
+#include <hindsight/engine/stopwatch.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -599,7 +601,9 @@ void CamsCheckpointing::doBegin() {
                                 "reversal of each interval) or lower cams.budget/cams.checkpoints");
   }
   if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits_ || plan_->memoryUnits() != capped) {
+    const Stopwatch planning;
     plan_ = std::make_unique<cams::Plan>(steps, units_, recordUnits_);
+    mutableCounters().planningSeconds += planning.seconds();
   }
   const std::int64_t held = std::min(units_, plan_->memoryUnits());
   holdBytes(held * stateBytes());  // throws StorageError beyond the budget
@@ -650,8 +654,10 @@ void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, the working state (as `online` counts it)
   const std::int64_t steps = stepCount();
   if (steps >= 2) {
+    const Stopwatch planning;
     cams::onlineIntervalPlan(intervalPlan_, cams::longestOnlineInterval(placement_.positions(), steps), units_,
                              recordUnits_);
+    mutableCounters().planningSeconds += planning.seconds();
   }
 }
 

@@ -442,6 +442,11 @@ nlohmann::json summaryToJson(const RunSummary& s) {
     json["measured_storage_seconds"] = s.measuredStorageSeconds;
   }
   if (s.gradientErrorEstimate >= 0.0) json["gradient_error_estimate"] = s.gradientErrorEstimate;
+  if (s.stepDataStored > 0 || s.stepDataRestored > 0) {
+    json["step_data_stored"] = s.stepDataStored;
+    json["step_data_restored"] = s.stepDataRestored;
+  }
+  if (s.planningSeconds > 0.0) json["planning_seconds"] = s.planningSeconds;
   return json;
 }
 

@@ -156,6 +156,11 @@ TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinom
     const cams::PlanCounts counts = cams::simulate(*cams->plan());
     EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps);
     EXPECT_EQ(storage->counters().stepDataRestored, counts.steps - counts.adjointRecomputations);
+    // The run summary carries the step data counts and the planning time (part of the forward sweep).
+    EXPECT_EQ(r.summary.stepDataRestored, storage->counters().stepDataRestored);
+    EXPECT_EQ(r.summary.stepDataStored, storage->counters().stepDataStored);
+    EXPECT_GT(r.summary.planningSeconds, 0.0);
+    EXPECT_LE(r.summary.planningSeconds, r.summary.forwardSeconds);
     // rk4 evaluates 4 right-hand sides per step, forward, recomputed and in the adjoint's recomputation.
     EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
   }
