@@ -65,7 +65,9 @@ std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
 }
 
 // The checkpoints BinomialSchedule::reset(length, slots, true) pushes in the first sweep (x_0 not
-// counted) and the position of the last one (0 when none). O(pushes) <= O(min(slots, length)).
+// counted) and the position of the last one (0 when none). Once the rest fits the free slots
+// (l <= free + 2, repetition number 1) every split is 1 and positions top + 1 .. length - 2 are all
+// pushed: counted at once, so this takes O(pushes while r >= 2), not O(min(slots, length)).
 struct FirstSweep {
   std::int64_t pushes = 0;
   std::int64_t top = 0;
@@ -74,6 +76,13 @@ FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
   FirstSweep sweep;
   std::int64_t free = slots - 1;
   while (length - sweep.top >= 2 && free > 0) {
+    if (length - sweep.top <= free + 2) {
+      if (length - sweep.top >= 3) {
+        sweep.pushes += length - sweep.top - 2;
+        sweep.top = length - 2;
+      }
+      break;
+    }
     const std::int64_t target = sweep.top + revolve::binomialSplit(length - sweep.top, free + 1);
     if (target >= length - 1) break;
     ++sweep.pushes;

@@ -344,6 +344,11 @@ TEST(SchedulePrediction, BinomialWritesInClosedFormEqualTheScheduleRun) {
     const std::int64_t slots = std::min(c, std::max<std::int64_t>(1, steps - 1));
     const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
     EXPECT_EQ(p.ramWrites, counts.checkpointWrites + (steps >= 2 ? 1 : 0)) << "N " << steps << " c " << c;
+    BinomialSchedule schedule;  // the first sweep's pushes (statesStored, and stepDataStored with stages=1)
+    schedule.reset(steps, slots, true);
+    std::int64_t pushes = 0;
+    for (std::int64_t n = 1; n < steps; ++n) pushes += schedule.recordForward(n) >= 0 ? 1 : 0;
+    EXPECT_EQ(p.statesStored, 1 + (steps >= 2 ? pushes + 1 : 0)) << "N " << steps << " c " << c;
   };
   for (std::int64_t steps = 1; steps <= 300; ++steps)
     for (std::int64_t c = 1; c <= 14; ++c) check(steps, c);
@@ -422,6 +427,14 @@ TEST(SchedulePrediction, BinomialStagesHandleABillionSteps) {
   EXPECT_EQ(p.stepDataRestored, n - (plain.ramWrites - 1));
   EXPECT_GT(p.stepDataRestored, n / 2);
   EXPECT_EQ(p.rhsEvaluations, 4 * (2 * n + p.recomputedSteps - p.stepDataRestored));
+  // As many checkpoints as steps: no recomputation, every state but x_{N-1} a checkpoint (its restore and
+  // the working state's recompute nothing), only the last adjoint step served; counted without a walk.
+  const SchedulePrediction all =
+      predictSchedule("binomial:checkpoints=1000000000,budget=1000GiB,stages=1", n, 160, 4, nullptr);
+  EXPECT_EQ(all.recomputedSteps, 0);
+  EXPECT_EQ(all.statesStored, n);
+  EXPECT_EQ(all.stepDataRestored, 1);
+  EXPECT_EQ(all.rhsEvaluations, 4 * (2 * n - 1));
 }
 
 // binomial:stages=1 against real pendulum runs (rk4): N from 1 to 2000 fixed steps, few and many
