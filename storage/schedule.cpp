@@ -430,28 +430,35 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   p.stages = stages;
   p.forwardSteps = steps;
   const std::string& name = spec.name();
+  // full and disk with stages=1: every row the state and its step's S - 1 stage states (an explicit
+  // Runge-Kutta method's Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
+  const bool stageRows = (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
+  const int rowDoubles = stageRows ? n * stages : n;
+  if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
   if (name == "full") {
     const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
-    if (steps > budget / stateBytes) {
+    if (steps > budget / (8 * rowDoubles)) {
       throw std::invalid_argument("full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
+                                  (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
+                                             : std::string()) +
                                   " exceed full.budget = " + formatBytes(budget));
     }
-    p.plan = "every state in RAM";
+    p.plan = stageRows ? "every state and its step's stage values in RAM" : "every state in RAM";
     p.statesStored = steps;
     p.ramWrites = steps;
     p.ramReads = steps;
-    p.peakRamBytes = steps * stateBytes;
+    p.peakRamBytes = steps * 8 * rowDoubles;
   } else if (name == "disk") {
     // DiskStorage::doBegin: rows N + 1, chunk and buffer count from the budget.
     const std::int64_t budget = spec.bytes("budget", DiskStorage::kDefaultBudget);
-    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
+    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, 1);
     std::int64_t chunk = spec.integer("chunk", 0, 0, std::numeric_limits<std::int64_t>::max());
     if (chunk == 0) {
       chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
       chunk = std::min(chunk, std::max<std::int64_t>(1, budget / (3 * rowBytes)));
     }
     chunk = std::min(chunk, steps + 1);
-    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(n, chunk);
+    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, chunk);
     if (bufferBytes > budget) {
       throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(bufferBytes) +
                                   " exceeds disk.budget = " + formatBytes(budget));
@@ -461,7 +468,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.diskWrites = steps + 1;
     p.diskReads = steps;
     p.peakRamBytes = std::clamp<std::int64_t>(budget / bufferBytes, 1, 3) * bufferBytes;
-    p.peakDiskBytes = (steps + 1) * stateBytes;
+    p.peakDiskBytes = (steps + 1) * 8 * rowDoubles;
   } else if (name == "binomial") {
     auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
     const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
@@ -582,7 +589,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
                                 "compression); predicted are full, disk, binomial, multilevel, cams");
   }
-  // An adjoint step re-evaluates its S stages unless it has them stored (cams records, binomial stages=1):
+  // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
   // S rhs for every forward, recomputed and stage-recomputing adjoint step.
   const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
   p.rhsEvaluations = static_cast<std::int64_t>(stages) * (steps + p.recomputedSteps + adjointRecomputations);
