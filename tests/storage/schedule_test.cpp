@@ -309,6 +309,7 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),       // everything fits in RAM
       "cams:checkpoints=10",                                                   // states and rk4 step records
       "cams:budget=640",                                                       // 40 state units
+      "cams:checkpoints=10,online=1",                                          // online placement
       "full:stages=1",                                                         // every step's stages
       "disk:dir=" + dir.path() + ",chunk=64,stages=1",
       "disk:dir=" + dir.path() + ",stages=1",
