@@ -70,6 +70,9 @@ int runSchedule(const ScheduleArgs& args) {
             << "\nsteps:             " << p.steps << " (" << p.stages << " rhs per step, states of "
             << formatBytes(stateBytes) << ")\nforward steps:     " << p.forwardSteps
             << "\nrecomputed steps:  " << p.recomputedSteps << "\nrhs evaluations:   " << p.rhsEvaluations
+            << (p.stepDataStored > 0 ? "\nstage values:      " + std::to_string(p.stepDataStored) + " step records stored, " +
+                                           std::to_string(p.stepDataRestored) + " adjoint steps served (no rhs)"
+                                     : std::string())
             << "\nstates stored:     " << p.statesStored << "\nram:               writes " << count(p.ramWrites)
             << ", reads " << count(p.ramReads) << ", peak " << formatBytes(p.peakRamBytes)
             << "\ndisk:              writes " << p.diskWrites << ", reads " << p.diskReads << ", peak "

@@ -65,7 +65,9 @@ std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
 }
 
 // The checkpoints BinomialSchedule::reset(length, slots, true) pushes in the first sweep (x_0 not
-// counted) and the position of the last one (0 when none). O(pushes) <= O(min(slots, length)).
+// counted) and the position of the last one (0 when none). Once the rest fits the free slots
+// (l <= free + 2, repetition number 1) every split is 1 and positions top + 1 .. length - 2 are all
+// pushed: counted at once, so this takes O(pushes while r >= 2), not O(min(slots, length)).
 struct FirstSweep {
   std::int64_t pushes = 0;
   std::int64_t top = 0;
@@ -74,6 +76,13 @@ FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
   FirstSweep sweep;
   std::int64_t free = slots - 1;
   while (length - sweep.top >= 2 && free > 0) {
+    if (length - sweep.top <= free + 2) {
+      if (length - sweep.top >= 3) {
+        sweep.pushes += length - sweep.top - 2;
+        sweep.top = length - 2;
+      }
+      break;
+    }
     const std::int64_t target = sweep.top + revolve::binomialSplit(length - sweep.top, free + 1);
     if (target >= length - 1) break;
     ++sweep.pushes;
@@ -83,6 +92,58 @@ FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
   return sweep;
 }
 std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) { return firstSweep(length, slots).pushes; }
+
+// True when BinomialSchedule (reset(length, slots, true)) produces x_1 by recomputation, i.e. never
+// stores position 1: the leftmost parts m = binomialSplit(l, s) keep all s slots until l <= s + 1
+// (r = 1), where every position but the last is stored, so x_1 is stored unless that part has 2 steps
+// (or s = 1). O(r) splits.
+bool recomputesSecondState(std::int64_t length, std::int64_t slots) {
+  if (length < 3) return false;  // N = 2: x_1 is the working state
+  if (slots < 2) return true;
+  std::int64_t l = length;
+  while (l >= 2 && revolve::repetitionNumber(l, slots) >= 2) l = revolve::binomialSplit(l, slots);
+  return l == 2;
+}
+
+// Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
+// and the backward sweep's stores; the working state not included), revolve::simulateSchedule's
+// checkpointWrites in closed form. W(l, s), the stores at positions >= 1 while reversing l steps whose
+// first state is held, with s slots (the first sweep stores exactly what the restore of l - 1 would),
+// follows the schedule's split m = binomialSplit(l, s):
+//     W(l, s) = [l - m >= 2] + W(l - m, s - 1) + W(m, s),   W(1, s) = W(l, 1) = 0,
+// and W(l, s) = l - 2 when l <= s + 1 (r = 1: every position but the last is stored). On an exact
+// binomial length, W(beta(s, r), s) = beta(s - 1, r) - 1 (W + 1 obeys Pascal's rule with ones on the
+// border). With r the repetition number of l, binomialSplit takes m = beta(s, r - 1) (the left part
+// exact) or m = l - beta(s - 1, r - 1) (the right part exact), so one part is closed form and the
+// other continues with s - 1 or with a smaller r: O(s + r) iterations. The tests compare it with
+// revolve::simulateSchedule.
+std::int64_t revolveWrites(std::int64_t length, std::int64_t slots) {
+  const auto exactWrites = [](std::int64_t s, std::int64_t r) {  // W(beta(s, r), s)
+    return s <= 1 ? std::int64_t{0} : static_cast<std::int64_t>(revolve::beta(s - 1, r)) - 1;
+  };
+  std::int64_t writes = 1;  // x_0
+  std::int64_t l = length, s = slots;
+  while (l >= 2 && s >= 2) {
+    const std::int64_t r = revolve::repetitionNumber(l, s);
+    if (r <= 1) {
+      writes += l - 2;
+      break;
+    }
+    const std::int64_t m = revolve::binomialSplit(l, s);
+    if (l - m >= 2) ++writes;
+    if (static_cast<UnsignedInt128>(m) == revolve::beta(s, r - 1)) {
+      writes += exactWrites(s, r - 1);
+      l -= m;
+      --s;
+    } else {
+      if (static_cast<UnsignedInt128>(l - m) != revolve::beta(s - 1, r - 1))
+        throw std::logic_error("revolveWrites: binomialSplit left no part of binomial length");
+      writes += exactWrites(s - 1, r - 1);
+      l = m;
+    }
+  }
+  return writes;
+}
 
 // Replaying x_{N-1} is evaluated while the first sweep has at most this many pushes to walk through;
 // beyond, the working state is used (with that many slots one more slot changes little).
@@ -369,28 +430,35 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   p.stages = stages;
   p.forwardSteps = steps;
   const std::string& name = spec.name();
+  // full and disk with stages=1: every row the state and its step's S - 1 stage states (an explicit
+  // Runge-Kutta method's Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
+  const bool stageRows = (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
+  const int rowDoubles = stageRows ? n * stages : n;
+  if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
   if (name == "full") {
     const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
-    if (steps > budget / stateBytes) {
+    if (steps > budget / (8 * rowDoubles)) {
       throw std::invalid_argument("full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
+                                  (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
+                                             : std::string()) +
                                   " exceed full.budget = " + formatBytes(budget));
     }
-    p.plan = "every state in RAM";
+    p.plan = stageRows ? "every state and its step's stage values in RAM" : "every state in RAM";
     p.statesStored = steps;
     p.ramWrites = steps;
     p.ramReads = steps;
-    p.peakRamBytes = steps * stateBytes;
+    p.peakRamBytes = steps * 8 * rowDoubles;
   } else if (name == "disk") {
     // DiskStorage::doBegin: rows N + 1, chunk and buffer count from the budget.
     const std::int64_t budget = spec.bytes("budget", DiskStorage::kDefaultBudget);
-    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
+    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, 1);
     std::int64_t chunk = spec.integer("chunk", 0, 0, std::numeric_limits<std::int64_t>::max());
     if (chunk == 0) {
       chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
       chunk = std::min(chunk, std::max<std::int64_t>(1, budget / (3 * rowBytes)));
     }
     chunk = std::min(chunk, steps + 1);
-    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(n, chunk);
+    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, chunk);
     if (bufferBytes > budget) {
       throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(bufferBytes) +
                                   " exceeds disk.budget = " + formatBytes(budget));
@@ -400,30 +468,43 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.diskWrites = steps + 1;
     p.diskReads = steps;
     p.peakRamBytes = std::clamp<std::int64_t>(budget / bufferBytes, 1, 3) * bufferBytes;
-    p.peakDiskBytes = (steps + 1) * stateBytes;
+    p.peakDiskBytes = (steps + 1) * 8 * rowDoubles;
   } else if (name == "binomial") {
-    if (spec.integer("stages", 0, 0, 1) == 1) {
-      throw std::invalid_argument("binomial.stages = 1 is not predicted: which adjoint steps find their stage "
-                                  "values depends on every restore's recomputation; predict binomial without it");
-    }
     auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
     const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
     const std::int64_t states = slots + (steps >= 2 ? 1 : 0);
-    if (states > binomial.budgetBytes() / stateBytes) {
+    // stages=1 (storage/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
+    // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
+    const bool keepStages = spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
+    const std::int64_t recordBytes = keepStages ? 2 * (stages - 1) * stateBytes : 0;
+    if (recordBytes > binomial.budgetBytes() || states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
       throw std::invalid_argument("binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
                                   std::to_string(states) + " states of " + formatBytes(stateBytes) +
+                                  (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
                                   ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
     }
-    p.plan = "revolve with " + std::to_string(slots) + " checkpoints + working state";
+    const std::int64_t firstPushes = steps >= 2 ? firstSweepPushes(steps, slots) : 0;
+    const std::int64_t writes = revolveWrites(steps, slots);
+    p.plan = "revolve with " + std::to_string(slots) + " checkpoints + working state" +
+             (keepStages ? ", stages of the last recomputed step kept" : "");
     p.recomputedSteps = static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, slots)) - (steps - 1);
-    p.statesStored = 1 + (steps >= 2 ? firstSweepPushes(steps, slots) + 1 : 0);
+    p.statesStored = 1 + (steps >= 2 ? firstPushes + 1 : 0);
     p.ramReads = steps;
-    p.ramWrites = -1;
-    if (steps <= TwoLevelPlan::kMaxSimulatedSteps) {
-      const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
-      p.ramWrites = counts.checkpointWrites + (steps >= 2 ? 1 : 0);
+    p.ramWrites = writes + (steps >= 2 ? 1 : 0);
+    if (keepStages) {
+      // RecomputedStages' rule: the adjoint step of e has its stages when e = N - 1 (the forward sweep's
+      // last step) or when the restore of e + 1 recomputed (its last step is e -> e + 1). The restores
+      // that recompute nothing are those of the working state x_{N-1} and of every checkpoint position
+      // >= 1 (each stored once and loaded once, directly): `writes` restores of x_1 .. x_{N-1}. Each
+      // restore that recomputes stores stage values after every advance (one more than its checkpoint
+      // stores); summed over the backward sweep with the forward sweep's one record that is N - 1 minus
+      // the first sweep's pushes. The adjoint step of 0 is never served, though: the restore of x_0
+      // releases the records (releaseAll) before the engine asks for its stage values, so the restore of
+      // x_1 counts as one that leaves nothing when it recomputed.
+      p.stepDataRestored = steps == 1 ? 0 : steps - writes - (recomputesSecondState(steps, slots) ? 1 : 0);
+      p.stepDataStored = steps == 1 ? 1 : steps - 1 - firstPushes;
     }
-    p.peakRamBytes = states * stateBytes;
+    p.peakRamBytes = states * stateBytes + recordBytes;
   } else if (name == "multilevel") {
     auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
     if (multilevel.options().stride) {
@@ -481,6 +562,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
                " adjoint steps recompute their stages";
       p.recomputedSteps = c.recomputedSteps;
       p.adjointRecomputations = c.adjointRecomputations;
+      p.stepDataStored = c.recordsStored;
+      p.stepDataRestored = steps - c.adjointRecomputations;
       p.statesStored = c.forwardStores;
       p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
       p.ramReads = steps;
@@ -494,6 +577,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
              " adjoint steps recompute their stages";
     p.recomputedSteps = c.recomputedSteps;
     p.adjointRecomputations = c.adjointRecomputations;
+    p.stepDataStored = c.recordsStored;
+    p.stepDataRestored = steps - c.adjointRecomputations;
     p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
     p.ramWrites = c.statesStored + c.recordsStored;
     p.ramReads = steps;
@@ -504,9 +589,9 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
                                 "compression); predicted are full, disk, binomial, multilevel, cams");
   }
-  // An adjoint step re-evaluates its S stages unless it has them stored (cams records): S rhs for every
-  // forward, recomputed and stage-recomputing adjoint step.
-  const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps;
+  // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
+  // S rhs for every forward, recomputed and stage-recomputing adjoint step.
+  const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
   p.rhsEvaluations = static_cast<std::int64_t>(stages) * (steps + p.recomputedSteps + adjointRecomputations);
   p.scheduleCost = static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) * model.forwardStep +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +

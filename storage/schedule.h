@@ -74,6 +74,9 @@ struct SchedulePrediction {
   /// cams: adjoint steps that recompute their stages (no step record held); their forward-step cost is
   /// part of scheduleCost (for cams, ub is the adjoint step given its stage values). 0 otherwise.
   std::int64_t adjointRecomputations = 0;
+  /// Step data (stage values, `stages=1` and cams' records): the strategy's stepDataStored counter (step
+  /// records filled, any sweep) and stepDataRestored (adjoint steps served from them, evaluating no rhs).
+  std::int64_t stepDataStored = 0, stepDataRestored = 0;
   std::int64_t statesStored = 0;    ///< the strategy's statesStored counter
   std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
   std::int64_t peakRamBytes = 0;   ///< the strategy's peakBytesInMemory
@@ -266,7 +269,8 @@ void TwoLevelPlan::replayLast(std::int64_t start, std::int64_t e, Visitor& visit
 }
 
 /// Predictions for the strategies whose counters follow from N alone (fixed steps): full, disk,
-/// binomial, multilevel (schedule=optimal). `costs` may be omitted (nullptr) for all but multilevel
+/// binomial (also stages=1, for an explicit Runge-Kutta method of `stages` stages), multilevel
+/// (schedule=optimal), cams. `costs` may be omitted (nullptr) for all but multilevel
 /// without costs= in its spec. Throws std::invalid_argument naming the field for bad input and for
 /// strategies whose counters depend on the run (online, lossy, hermite, multilevel schedule=stride).
 SchedulePrediction predictSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,

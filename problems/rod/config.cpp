@@ -408,6 +408,8 @@ nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateByt
           {"recomputed_steps", p.recomputedSteps},
           {"rhs_evaluations", p.rhsEvaluations},
           {"adjoint_stage_recomputations", p.adjointRecomputations},
+          {"step_data_stored", p.stepDataStored},
+          {"step_data_restored", p.stepDataRestored},
           {"states_stored", p.statesStored},
           {"ram_writes", p.ramWrites},
           {"ram_reads", p.ramReads},

@@ -3,6 +3,7 @@
 // states, predictions against real runs counter by counter, and N = 1e9.
 #include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/recomputed_stages.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
@@ -308,6 +309,10 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),       // everything fits in RAM
       "cams:checkpoints=10",                                                   // states and rk4 step records
       "cams:budget=640",                                                       // 40 state units
+      "cams:checkpoints=10,online=1",                                          // online placement
+      "full:stages=1",                                                         // every step's stages
+      "disk:dir=" + dir.path() + ",chunk=64,stages=1",
+      "disk:dir=" + dir.path() + ",stages=1",
   };
   for (const std::string& spec : specs) {
     SCOPED_TRACE(spec);
@@ -320,6 +325,8 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
     EXPECT_EQ(p.statesStored, storage->counters().statesStored) << p.plan;
     EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory) << p.plan;
     EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations) << p.plan;
+    EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored) << p.plan;
+    EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored) << p.plan;
     if (spec.rfind("disk", 0) == 0) EXPECT_EQ(p.peakDiskBytes, storage->counters().uncompressedBytes);
     if (auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get())) {
       EXPECT_TRUE(multilevel->usesPlan());
@@ -330,6 +337,161 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       ::testing::Test::RecordProperty(spec, p.plan);
     }
   }
+}
+
+// revolve's checkpoint writes in closed form (binomial's ram_writes, and with stages=1 the adjoint steps
+// that find their stages) against the schedule run step by step without states.
+TEST(SchedulePrediction, BinomialWritesInClosedFormEqualTheScheduleRun) {
+  const auto check = [](std::int64_t steps, std::int64_t c) {
+    const SchedulePrediction p =
+        predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
+    const std::int64_t slots = std::min(c, std::max<std::int64_t>(1, steps - 1));
+    const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
+    EXPECT_EQ(p.ramWrites, counts.checkpointWrites + (steps >= 2 ? 1 : 0)) << "N " << steps << " c " << c;
+    BinomialSchedule schedule;  // the first sweep's pushes (statesStored, and stepDataStored with stages=1)
+    schedule.reset(steps, slots, true);
+    std::int64_t pushes = 0;
+    for (std::int64_t n = 1; n < steps; ++n) pushes += schedule.recordForward(n) >= 0 ? 1 : 0;
+    EXPECT_EQ(p.statesStored, 1 + (steps >= 2 ? pushes + 1 : 0)) << "N " << steps << " c " << c;
+  };
+  for (std::int64_t steps = 1; steps <= 300; ++steps)
+    for (std::int64_t c = 1; c <= 14; ++c) check(steps, c);
+  for (std::int64_t steps : {1000, 4097, 30000, 100003, 1000000})
+    for (std::int64_t c : {1, 2, 3, 7, 10, 50, 999, 5000}) check(steps, c);
+}
+
+// binomial:stages=1 without a model: the strategy's own rule (internal::RecomputedStages, as
+// BinomialCheckpointing drives it) over the schedule it runs, with one-double "stage values".
+struct StageCounts {
+  std::int64_t stored = 0, restored = 0;
+};
+StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
+  const std::int64_t slots = std::min(c, std::max<std::int64_t>(1, steps - 1));
+  BinomialSchedule schedule;
+  schedule.reset(steps, slots, true);
+  internal::RecomputedStages stages;
+  stages.reset(1);
+  StageCounts counts;
+  Vector data(1);
+  data(0) = 0.0;
+  for (std::int64_t n = 1; n < steps; ++n) schedule.recordForward(n);
+  stages.recordLast(steps - 1, data);  // doRecordStepData keeps the last forward step's stages
+  ++counts.stored;
+  struct Visitor {
+    internal::RecomputedStages& stages;
+    StageCounts& counts;
+    void loadWorking() {}
+    void load(std::int64_t) {}
+    void store(std::int64_t) {}
+    void advance(std::int64_t from, std::int64_t to) {
+      if (to > from) {
+        stages.pending(to - 1);
+        ++counts.stored;
+      }
+    }
+  } visitor{stages, counts};
+  for (std::int64_t e = steps - 1; e >= 0; --e) {
+    stages.beginRestore(e);
+    schedule.restoreStep(e, visitor);
+    if (e == 0) stages.reset(0);  // doRestore's releaseAll() at step 0, before restoreStepData(0)
+    if (stages.restore(e, data)) ++counts.restored;
+  }
+  return counts;
+}
+
+TEST(SchedulePrediction, BinomialStagesEqualTheStrategysRuleRunWithoutStates) {
+  const auto check = [](std::int64_t steps, std::int64_t c) {
+    const std::string spec = "binomial:checkpoints=" + std::to_string(c) + ",stages=1";
+    const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, nullptr);
+    const SchedulePrediction plain = predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
+    const StageCounts rule = binomialStagesByRule(steps, c);
+    SCOPED_TRACE("N " + std::to_string(steps) + " c " + std::to_string(c));
+    EXPECT_EQ(p.stepDataStored, rule.stored);
+    EXPECT_EQ(p.stepDataRestored, rule.restored);
+    EXPECT_EQ(p.recomputedSteps, plain.recomputedSteps);  // the schedule is revolve's as without stages
+    EXPECT_EQ(p.rhsEvaluations, plain.rhsEvaluations - 4 * rule.restored);
+    EXPECT_EQ(p.peakRamBytes, plain.peakRamBytes + 2 * 3 * 16);  // two rk4 step records of 3 stage states
+    // One stage (explicit Euler): no step data, nothing kept, as without stages=1.
+    const SchedulePrediction euler = predictSchedule(spec, steps, 16, 1, nullptr);
+    EXPECT_EQ(euler.stepDataRestored, 0);
+    EXPECT_EQ(euler.rhsEvaluations, predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 1,
+                                                    nullptr).rhsEvaluations);
+  };
+  for (std::int64_t steps = 1; steps <= 200; ++steps)
+    for (std::int64_t c = 1; c <= 12; ++c) check(steps, c);
+  for (std::int64_t steps : {1000, 30000, 100003})
+    for (std::int64_t c : {1, 2, 10, 50, 5000}) check(steps, c);
+}
+
+TEST(SchedulePrediction, BinomialStagesHandleABillionSteps) {
+  const std::int64_t n = 1'000'000'000;
+  const SchedulePrediction plain = predictSchedule("binomial:checkpoints=10", n, 160, 4, nullptr);
+  const SchedulePrediction p = predictSchedule("binomial:checkpoints=10,stages=1", n, 160, 4, nullptr);
+  EXPECT_GT(plain.ramWrites, 0);  // counted in closed form beyond the 2^24 steps a simulation would take
+  EXPECT_EQ(p.stepDataRestored, n - (plain.ramWrites - 1));
+  EXPECT_GT(p.stepDataRestored, n / 2);
+  EXPECT_EQ(p.rhsEvaluations, 4 * (2 * n + p.recomputedSteps - p.stepDataRestored));
+  // As many checkpoints as steps: no recomputation, every state but x_{N-1} a checkpoint (its restore and
+  // the working state's recompute nothing), only the last adjoint step served; counted without a walk.
+  const SchedulePrediction all =
+      predictSchedule("binomial:checkpoints=1000000000,budget=1000GiB,stages=1", n, 160, 4, nullptr);
+  EXPECT_EQ(all.recomputedSteps, 0);
+  EXPECT_EQ(all.statesStored, n);
+  EXPECT_EQ(all.stepDataRestored, 1);
+  EXPECT_EQ(all.rhsEvaluations, 4 * (2 * n - 1));
+}
+
+// binomial:stages=1 against real pendulum runs (rk4): N from 1 to 2000 fixed steps, few and many
+// checkpoints (N < C + 2 included), counter by counter, the gradient bitwise equal to `full`.
+TEST(SchedulePrediction, BinomialStagesAgreeExactlyWithRealRuns) {
+  Pendulum problem;
+  const ScheduleCosts costs;
+  for (int wanted : {1, 2, 3, 4, 5, 12, 37, 2000}) {
+    IntegratorOptions options = fixedStepRk4();
+    options.t1 = 2e-3 * wanted;
+    const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+    const std::int64_t steps = reference.summary.steps;
+    ASSERT_GE(steps, 1);
+    for (int c : {1, 2, 3, 10, 50, 3000}) {
+      for (const std::string keep : {",stages=1", ""}) {
+        const std::string spec = "binomial:checkpoints=" + std::to_string(c) + keep;
+        SCOPED_TRACE(spec + " N " + std::to_string(steps));
+        auto storage = createStorage(spec);
+        storage->setVerifyRestores(true);  // states and restored stage values hash-verified
+        const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
+        EXPECT_TRUE(bitwiseEqual(result, reference));
+        const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
+        EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps);
+        EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations);
+        EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored);
+        EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored);
+        EXPECT_EQ(p.statesStored, storage->counters().statesStored);
+        EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory);
+        if (!keep.empty() && steps >= 2) EXPECT_GT(p.stepDataRestored, 0);
+      }
+    }
+  }
+}
+
+TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
+  // 11 states of 16 bytes fit 176 bytes; with stages=1 the two rk4 records (2 x 48 bytes) do not.
+  EXPECT_NO_THROW(predictSchedule("binomial:checkpoints=10,budget=176", 100, 16, 4, nullptr));
+  try {
+    predictSchedule("binomial:checkpoints=10,budget=176,stages=1", 100, 16, 4, nullptr);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("binomial.budget"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(predictSchedule("binomial:checkpoints=10,budget=272,stages=1", 100, 16, 4, nullptr));
+  // A real run refuses the same budget.
+  Pendulum problem;
+  IntegratorOptions options = fixedStepRk4();
+  options.t1 = 0.2;  // 100 steps
+  auto tight = createStorage("binomial:checkpoints=10,budget=271,stages=1");
+  EXPECT_THROW(computeGradient(problem, pendulumParameters(), options, *tight), std::invalid_argument);
+  auto fits = createStorage("binomial:checkpoints=10,budget=272,stages=1");
+  EXPECT_NO_THROW(computeGradient(problem, pendulumParameters(), options, *fits));
+  EXPECT_EQ(fits->counters().peakBytesInMemory, 272);
 }
 
 TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {

@@ -8,6 +8,7 @@
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/synthetic_rod.h"
 
@@ -77,6 +78,38 @@ TEST(StageAwareStorage, ReducedRodCamsNeedsFewerRhsThanBinomialAtTheSameBytes) {
     EXPECT_LE(cams->counters().peakBytesInMemory, binomial->counters().peakBytesInMemory) << c;
     EXPECT_EQ(std::memcmp(r.gradient.data(), b.gradient.data(), sizeof(double) * static_cast<std::size_t>(p.size())),
               0);
+  }
+}
+
+// `hindsight schedule` (storage/schedule.h) predicts binomial:stages=1 without a model: on the reduced rod
+// (rk4, N = 1000) every counter of the run, for few and many checkpoints.
+TEST(StageAwareStorage, ReducedRodBinomialStagesAsPredicted) {
+  const testing::SyntheticRod body(3, 1.0, 7);
+  const SliderCrankProblem problem(3, 1.0, CrankMotion{});
+  const Vector p = body.invariants();
+  IntegratorOptions options;
+  options.t1 = 1.0;
+  options.step = 1e-3;  // N = 1000
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  const std::int64_t stateBytes = 8 * problem.stateSize();
+  for (int c : {2, 10, 50, 2000}) {
+    const std::string spec = "binomial:checkpoints=" + std::to_string(c) + ",stages=1";
+    SCOPED_TRACE(spec);
+    const auto storage = createStorage(spec);
+    storage->setVerifyRestores(true);
+    const GradientResult result = computeGradient(problem, p, options, *storage);
+    EXPECT_EQ(std::memcmp(result.gradient.data(), reference.gradient.data(),
+                          sizeof(double) * static_cast<std::size_t>(p.size())),
+              0);
+    const SchedulePrediction predicted = predictSchedule(spec, result.summary.steps, stateBytes, 4, nullptr);
+    EXPECT_EQ(predicted.recomputedSteps, result.summary.recomputedSteps);
+    EXPECT_EQ(predicted.rhsEvaluations, result.summary.rhsEvaluations);
+    EXPECT_EQ(predicted.stepDataStored, storage->counters().stepDataStored);
+    EXPECT_EQ(predicted.stepDataRestored, storage->counters().stepDataRestored);
+    EXPECT_EQ(predicted.statesStored, storage->counters().statesStored);
+    EXPECT_EQ(predicted.peakRamBytes, storage->counters().peakBytesInMemory);
+    EXPECT_GT(predicted.stepDataRestored, 0);
   }
 }
 
