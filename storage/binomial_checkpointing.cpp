@@ -245,7 +245,9 @@ void BinomialCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef d
 }
 
 bool BinomialCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
-  return recomputedStages_.restore(step, data);
+  const bool restored = recomputedStages_.restore(step, data);
+  if (step == 0) releaseAll();  // (restore(0) keeps the records for this call)
+  return restored;
 }
 
 void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
@@ -270,7 +272,7 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
   recomputedStages_.beginRestore(step);
   schedule_.restoreStep(step, visitor);
-  if (step == 0) releaseAll();
+  if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
 }
 
 }  // namespace hindsight

@@ -135,7 +135,9 @@ void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef dat
 }
 
 bool OnlineCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
-  return recomputedStages_.restore(step, data);
+  const bool restored = recomputedStages_.restore(step, data);
+  if (step == 0) releaseAll();  // (restore(0) keeps the records for this call)
+  return restored;
 }
 
 void OnlineCheckpointing::startInterval(std::int64_t j) {
@@ -156,7 +158,7 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     working_.reset();
     releaseBytes(stateBytes());
     heldBytes_ -= stateBytes();
-    if (step == 0) releaseAll();
+    if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
     return;
   }
   if (interval_ == static_cast<std::int64_t>(placement_.positions().size()) || step < intervalStart_) {
@@ -185,7 +187,7 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   } visitor{*this, z, bytes, intervalStart_, interval_};
   recomputedStages_.beginRestore(step);
   schedule_.restoreStep(step - intervalStart_, visitor);
-  if (step == 0) releaseAll();
+  if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
 }
 
 }  // namespace hindsight

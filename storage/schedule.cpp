@@ -93,18 +93,6 @@ FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
 }
 std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) { return firstSweep(length, slots).pushes; }
 
-// True when BinomialSchedule (reset(length, slots, true)) produces x_1 by recomputation, i.e. never
-// stores position 1: the leftmost parts m = binomialSplit(l, s) keep all s slots until l <= s + 1
-// (r = 1), where every position but the last is stored, so x_1 is stored unless that part has 2 steps
-// (or s = 1). O(r) splits.
-bool recomputesSecondState(std::int64_t length, std::int64_t slots) {
-  if (length < 3) return false;  // N = 2: x_1 is the working state
-  if (slots < 2) return true;
-  std::int64_t l = length;
-  while (l >= 2 && revolve::repetitionNumber(l, slots) >= 2) l = revolve::binomialSplit(l, slots);
-  return l == 2;
-}
-
 // Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
 // and the backward sweep's stores; the working state not included), revolve::simulateSchedule's
 // checkpointWrites in closed form. W(l, s), the stores at positions >= 1 while reversing l steps whose
@@ -498,10 +486,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       // >= 1 (each stored once and loaded once, directly): `writes` restores of x_1 .. x_{N-1}. Each
       // restore that recomputes stores stage values after every advance (one more than its checkpoint
       // stores); summed over the backward sweep with the forward sweep's one record that is N - 1 minus
-      // the first sweep's pushes. The adjoint step of 0 is never served, though: the restore of x_0
-      // releases the records (releaseAll) before the engine asks for its stage values, so the restore of
-      // x_1 counts as one that leaves nothing when it recomputed.
-      p.stepDataRestored = steps == 1 ? 0 : steps - writes - (recomputesSecondState(steps, slots) ? 1 : 0);
+      // the first sweep's pushes. N = 1: the forward sweep's record serves the only adjoint step.
+      p.stepDataRestored = steps == 1 ? 1 : steps - writes;
       p.stepDataStored = steps == 1 ? 1 : steps - 1 - firstPushes;
     }
     p.peakRamBytes = states * stateBytes + recordBytes;

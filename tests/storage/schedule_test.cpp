@@ -393,8 +393,7 @@ StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
   for (std::int64_t e = steps - 1; e >= 0; --e) {
     stages.beginRestore(e);
     schedule.restoreStep(e, visitor);
-    if (e == 0) stages.reset(0);  // doRestore's releaseAll() at step 0, before restoreStepData(0)
-    if (stages.restore(e, data)) ++counts.restored;
+    if (stages.restore(e, data)) ++counts.restored;  // (the release at step 0 comes after restoreStepData(0))
   }
   return counts;
 }
