@@ -5,7 +5,8 @@ import hindsight
 
 
 @pytest.mark.parametrize("spec", ["full", "binomial:checkpoints=10", "cams:checkpoints=10", "cams:budget=640",
-                                  "binomial:checkpoints=10,stages=1", "binomial:checkpoints=1,stages=1"])
+                                  "binomial:checkpoints=10,stages=1", "binomial:checkpoints=1,stages=1",
+                                  "cams:checkpoints=10,online=1"])
 def test_prediction_equals_a_real_run(spec):
     # The C++ pendulum: 4 parameters, state (theta, omega) = 16 bytes, rk4 with 2000 fixed steps.
     run = hindsight.classic_gradient("pendulum", [1.0, 1.0, 0.1, 0.5], step=1e-3, t1=2.0, storage=spec)
@@ -22,6 +23,8 @@ def test_cams_needs_fewer_rhs_than_binomial_at_equal_bytes():
     cams = hindsight.schedule("cams:checkpoints=10", 30000, state_bytes=160)
     assert cams.peak_ram_bytes <= binomial.peak_ram_bytes
     assert cams.rhs_evaluations < binomial.rhs_evaluations
+    online = hindsight.schedule("cams:checkpoints=10,online=1", 30000, state_bytes=160)
+    assert cams.rhs_evaluations < online.rhs_evaluations < binomial.rhs_evaluations
 
 
 def test_actions_and_errors():
