@@ -259,6 +259,9 @@ void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64
   checkpoints_.clear();
   tasks_.clear();
   units = std::min(units, plan->memoryUnits());  // more cannot help
+  // At most one checkpoint per unit or step, two tasks per checkpoint: no allocation while restoring.
+  checkpoints_.reserve(static_cast<std::size_t>(std::min(units, length) + 2));
+  tasks_.reserve(static_cast<std::size_t>(2 * std::min(units, length) + 2));
   checkpoints_.push_back(Checkpoint{position, ref, false, false});
   top_ = ref + 1;
   limit_ = top_ + units;
@@ -583,7 +586,9 @@ void CamsCheckpointing::doBegin() {
   delivered_ = nullptr;
   pendingRecord_ = -1;
   if (onlineRun_) {
-    // All M units are held from the start (the forward sweep may fill them before thinning).
+    // All M units are held from the start (the forward sweep may fill them before thinning); N is unknown,
+    // so M is capped like online's checkpoints (10^6 + 1 states), not by (N + 1) w as offline.
+    units_ = onlineMemoryUnits(stateBytes());
     holdBytes(units_ * stateBytes());
     heldBytes_ = units_ * stateBytes();
     memory_.reset(new double[static_cast<std::size_t>(units_ * n)]);

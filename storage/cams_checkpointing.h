@@ -39,9 +39,11 @@
 // against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
 //
 // Memory: the checkpoints form a stack; the strategy allocates M units once in begin() and charges
-// them with holdBytes(). The plan tables (8 bytes per (l, m) pair for l <= N, m <= M, plus 2 x 8 bytes per
-// pair while they are built) are planning data, not trajectory data, and are not charged; begin()
-// refuses N (M + 1) > kMaxTableEntries with a message naming cams.budget.
+// them with holdBytes(): offline at most (N + 1) w units; the online mode, where N is unknown, at most
+// 10^6 + 1 units, all at begin() (a budget of B bytes allocates min(B, 10^6 + 1 states)). The plan
+// tables (16 bytes per (l, m) pair for l <= N, m <= M, plus the values of w + 1 rows while they are
+// built) are planning data, not trajectory data, and are not charged; begin() refuses
+// N (M + 1) > kMaxTableEntries with a message naming online=1.
 //
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
 // cams::OnlineInterval below (checkpoints placed as `online` places them, each interval reversed by the
@@ -54,6 +56,7 @@
 #include <hindsight/storage/online_placement.h>
 #include <hindsight/storage/storage_spec.h>
 
+#include <algorithm>
 #include <cassert>
 #include <cstdint>
 #include <limits>
@@ -301,6 +304,10 @@ class CamsCheckpointing final : public TrajectoryStorage {
   /// Memory units (states) the strategy has for states of stateBytes: C + 1, or the budget's states.
   std::int64_t memoryUnits(std::int64_t stateBytes) const {
     return checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes;
+  }
+  /// The units of the online mode: memoryUnits, at most 10^6 + 1 (N is unknown when they are allocated).
+  std::int64_t onlineMemoryUnits(std::int64_t stateBytes) const {
+    return std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1);
   }
   /// The plan of the current run (after begin(); in the online mode after the forward sweep), or null.
   const cams::Plan* plan() const { return onlineRun_ ? intervalPlan_.get() : plan_.get(); }

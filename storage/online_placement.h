@@ -6,6 +6,7 @@
 // reaching the limit drops every other checkpoint and doubles d (repeated if needed).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -29,6 +30,8 @@ class OnlinePlacement {
     limit_ = forwardCheckpoints(checkpoints);
     spacing_ = 1;
     positions_.clear();
+    // No allocation while recording, up to 2^16 checkpoints (a budget-derived c can be far larger than N).
+    positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(checkpoints, 1 << 16)));
   }
   std::int64_t spacing() const { return spacing_; }
   /// The held positions; position i is in slot i.

@@ -535,6 +535,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
     if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
       // The online mode: online placement, each interval reversed by the optimal plan.
+      const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).onlineMemoryUnits(stateBytes);
       if (units < 2) {
         throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds " +
                                     std::to_string(units) + " states of " + formatBytes(stateBytes) +

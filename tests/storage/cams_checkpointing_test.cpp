@@ -266,6 +266,15 @@ TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
     EXPECT_NE(std::string(e.what()).find("online=1"), std::string::npos) << e.what();
   }
   EXPECT_EQ(createStorage("cams:checkpoints=7,online=1")->spec(), "cams:checkpoints=7,online=1");
+  // A budget far beyond N: the online mode (N unknown when it allocates) holds at most 10^6 + 1 states.
+  options.step = 4e-3;
+  auto large = createStorage("cams:budget=1GiB,online=1");
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  const GradientResult r = computeGradient(problem, p, options, *large);
+  EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_EQ(large->counters().peakBytesInMemory,
+            (CamsCheckpointing::kMaxCheckpoints + 1) * 8 * problem.stateSize());
 }
 
 }  // namespace
