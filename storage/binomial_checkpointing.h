@@ -75,6 +75,8 @@ class BinomialSchedule {
   /// state after the first sweep) and records the first sweep through recordForward(); otherwise the
   /// first restoreStep() performs the first sweep itself by advancing from slot 0.
   void reset(std::int64_t length, std::int64_t slots, bool workingStateHoldsLast);
+  /// Capacity for schedules of up to `slots` slots, so that later reset()s allocate nothing.
+  void reserve(std::int64_t slots) { stack_.reserve(static_cast<std::size_t>(slots)); }
 
   /// First sweep, for positions n = 1, 2, ..., length - 1 in order: the slot into which the state at n
   /// is to be copied, or -1 when the schedule does not keep it (position 0 goes to slot 0).

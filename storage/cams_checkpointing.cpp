@@ -252,6 +252,12 @@ void Executor::reset(const Plan* plan) {
   nextForwardRecord_ = record;
 }
 
+void Executor::reserve(std::int64_t checkpoints) {
+  // At most one checkpoint per unit or step above the anchor, two tasks per checkpoint.
+  checkpoints_.reserve(static_cast<std::size_t>(checkpoints + 2));
+  tasks_.reserve(static_cast<std::size_t>(2 * checkpoints + 2));
+}
+
 void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
                              std::int64_t units) {
   assert(length >= 1 && length <= plan->steps() && units >= 0);
@@ -259,9 +265,7 @@ void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64
   checkpoints_.clear();
   tasks_.clear();
   units = std::min(units, plan->memoryUnits());  // more cannot help
-  // At most one checkpoint per unit or step, two tasks per checkpoint: no allocation while restoring.
-  checkpoints_.reserve(static_cast<std::size_t>(std::min(units, length) + 2));
-  tasks_.reserve(static_cast<std::size_t>(2 * std::min(units, length) + 2));
+  reserve(std::min(units, length));
   checkpoints_.push_back(Checkpoint{position, ref, false, false});
   top_ = ref + 1;
   limit_ = top_ + units;
@@ -660,9 +664,11 @@ void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   const std::int64_t steps = stepCount();
   if (steps >= 2) {
     const Stopwatch planning;
-    cams::onlineIntervalPlan(intervalPlan_, cams::longestOnlineInterval(placement_.positions(), steps), units_,
-                             recordUnits_);
+    const std::int64_t longest = cams::longestOnlineInterval(placement_.positions(), steps);
+    cams::onlineIntervalPlan(intervalPlan_, longest, units_, recordUnits_);
     mutableCounters().planningSeconds += planning.seconds();
+    executor_.reserve(std::min(units_, longest + 1));  // no allocation in the restores
+
   }
 }
 

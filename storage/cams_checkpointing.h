@@ -174,6 +174,8 @@ class Executor {
   /// plan's replay tables (decisions for any length <= plan->steps() and units <= plan->memoryUnits()).
   void beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
                      std::int64_t units);
+  /// Capacity for intervals of up to `checkpoints` checkpoints above their anchor (no allocation later).
+  void reserve(std::int64_t checkpoints);
   /// Forward sweep: what to keep of x_n (n = 0..N-1 in order): -1 nothing, else the ref; *isRecord tells
   /// whether the step's stage values (given by the forward sweep) go with it.
   std::int64_t recordForward(std::int64_t n, bool* isRecord);

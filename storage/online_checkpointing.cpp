@@ -96,6 +96,7 @@ void OnlineCheckpointing::doBegin() {
   }
   activeCheckpoints_ = std::min(activeCheckpoints_, BinomialCheckpointing::kMaxCheckpoints);
   placement_.reset(activeCheckpoints_);
+  slots_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(activeCheckpoints_, 1 << 16)));
   interval_ = -1;
   holdBytes(stateBytes() + recordBytes);
   heldBytes_ += stateBytes() + recordBytes;
@@ -124,6 +125,8 @@ void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
+  // Every interval has at most d steps: the schedules of the backward sweep fit this capacity.
+  schedule_.reserve(std::min(activeCheckpoints_, placement_.spacing() + 1));
   interval_ = static_cast<std::int64_t>(placement_.positions().size());  // restore(N - 1) comes from the working state
 }
 
