@@ -3,7 +3,6 @@
 #include <hindsight/engine/stopwatch.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -16,11 +15,14 @@ namespace {
 
 std::int64_t noCheckpointCost(std::int64_t l) { return l * (l + 1) / 2; }
 
+__extension__ typedef __int128 Wide;  // exact products of table values (up to ~N^2 / 2) and segment lengths (up to N)
+
 /// The greatest convex minorant of a row V(0..l), built as l grows (Andrew's monotone chain: a point
 /// removes the vertices it makes non-convex). The rows are not convex (a record serves two steps, so
 /// parity shows in the increments), but they stay within a few units of their minorant, which makes it a
-/// tight lower bound for the split search. Hand-written: a dozen lines that no package offers for
-/// integer points appended in order.
+/// tight lower bound for the split search. All arithmetic is exact (integers, 128-bit products): a
+/// rounded bound could prune the optimum. Hand-written: a dozen lines that no package offers for integer
+/// points appended in order.
 class Minorant {
  public:
   void reset() {
@@ -31,8 +33,8 @@ class Minorant {
     while (x_.size() >= 2) {
       const std::size_t n = x_.size();
       // Keep vertex n - 1 only if it lies strictly below the chord from vertex n - 2 to (x, y).
-      const double cross = static_cast<double>(x_[n - 1] - x_[n - 2]) * static_cast<double>(y - y_[n - 2]) -
-                           static_cast<double>(y_[n - 1] - y_[n - 2]) * static_cast<double>(x - x_[n - 2]);
+      const Wide cross = static_cast<Wide>(x_[n - 1] - x_[n - 2]) * (y - y_[n - 2]) -
+                         static_cast<Wide>(y_[n - 1] - y_[n - 2]) * (x - x_[n - 2]);
       if (cross > 0) break;
       x_.pop_back();
       y_.pop_back();
@@ -40,28 +42,52 @@ class Minorant {
     x_.push_back(x);
     y_.push_back(y);
   }
-  /// The minorant at k (0 <= k <= the last x pushed).
-  double at(std::int64_t k) const {
-    const auto it = std::upper_bound(x_.begin(), x_.end(), k);
-    const std::size_t i = static_cast<std::size_t>(it - x_.begin());
-    if (i >= x_.size()) return static_cast<double>(y_.back());
-    const std::size_t j = i - 1;
-    return static_cast<double>(y_[j]) + static_cast<double>(y_[i] - y_[j]) * static_cast<double>(k - x_[j]) /
-                                            static_cast<double>(x_[i] - x_[j]);
+  /// The segment (x0, y0, dx, dy) holding [k, k + 1] (k < the last x), or ending at k = the last x.
+  struct Segment {
+    std::int64_t x0, y0, dx, dy;
+    /// The minorant at k as numerator over dx.
+    Wide numerator(std::int64_t k) const { return static_cast<Wide>(y0) * dx + static_cast<Wide>(dy) * (k - x0); }
+  };
+  Segment segment(std::int64_t k) const {
+    assert(x_.size() >= 2 && k >= 0 && k <= x_.back());
+    std::size_t j = static_cast<std::size_t>(std::upper_bound(x_.begin(), x_.end(), k) - x_.begin()) - 1;
+    if (j + 1 == x_.size()) --j;
+    return Segment{x_[j], y_[j], x_[j + 1] - x_[j], y_[j + 1] - y_[j]};
   }
 
  private:
   std::vector<std::int64_t> x_, y_;
 };
 
+/// h(k) = s k + c + A(k) + B(l - k) for the rows' minorants A and B: convex in k, at most g(k).
+struct LowerBound {
+  std::int64_t l, s, c;
+  const Minorant& a;
+  const Minorant& b;
+  /// ceil(h(k)), exactly.
+  std::int64_t ceiling(std::int64_t k) const {
+    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
+    const Wide den = static_cast<Wide>(sa.dx) * sb.dx;
+    const Wide num = static_cast<Wide>(s * k + c) * den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
+    const Wide q = num / den;  // truncated towards zero; den > 0
+    return static_cast<std::int64_t>(q * den < num ? q + 1 : q);
+  }
+  /// h(k + 1) >= h(k), exactly (k + 1 <= the last x of a).
+  bool risesAfter(std::int64_t k) const {
+    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k - 1);
+    return static_cast<Wide>(s) * sa.dx * sb.dx + static_cast<Wide>(sa.dy) * sb.dx -
+               static_cast<Wide>(sb.dy) * sa.dx >= 0;
+  }
+};
+
 /// The least g(k) = a(k) + b(l - k) + c(k) over k in [1, l - 1] and the first k attaining it (ties: the
 /// smallest k the search evaluates; the exhaustive search's smallest k may differ, the value not).
-/// h(k) <= g(k) is convex in k (the rows' minorants plus c's least value), so the k that can still beat
-/// the incumbent form one interval around h's minimum: found by bisection, then scanned, and the scan
-/// stops once g reaches ceil(min h). Exact: only k with h(k) >= the incumbent (which cannot improve it)
-/// are skipped. `exhaustive` evaluates every k (for the tests).
-template <typename G, typename H>
-std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const G& g, const H& h,
+/// h(k) <= g(k) (LowerBound) is convex in k, so the k that can still beat the incumbent form one
+/// interval around h's minimum: found by bisection, then scanned, and the scan stops once g reaches
+/// ceil(min h). Exact: only k with ceil(h(k)) >= the incumbent (which cannot improve it) are skipped.
+/// `exhaustive` evaluates every k (for the tests).
+template <typename G>
+std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const G& g, const LowerBound& h,
                                                std::int64_t guess) {
   std::int64_t bestK = 1, best = g(1);
   const auto consider = [&](std::int64_t k) {
@@ -75,31 +101,29 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
   for (std::int64_t k : {guess, guess + 1, l - 1}) {
     if (k >= 1 && k < l) consider(k);
   }
-  // A lower bound on the integer g(k) from h, robust to the rounding of h's divisions.
-  const auto bound = [&](std::int64_t k) { return static_cast<std::int64_t>(std::ceil(h(k) - 1e-6)); };
   // h's minimum: the first k with h(k + 1) >= h(k) (h convex).
   std::int64_t lo = 1, hi = l - 1;
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (h(mid + 1) >= h(mid))
+    if (h.risesAfter(mid))
       hi = mid;
     else
       lo = mid + 1;
   }
   const std::int64_t kMin = lo;
-  const std::int64_t floorValue = bound(kMin);
+  const std::int64_t floorValue = h.ceiling(kMin);
   if (floorValue >= best) return {bestK, best};
   // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin).
   lo = 1, hi = kMin;
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (bound(mid) < best)
+    if (h.ceiling(mid) < best)
       hi = mid;
     else
       lo = mid + 1;
   }
   for (std::int64_t k = lo; k < l; ++k) {
-    if (k > kMin && bound(k) >= best) break;  // bounds rise from kMin on
+    if (k > kMin && h.ceiling(k) >= best) break;  // bounds rise from kMin on
     const std::int64_t value = g(k);
     if (value < best) best = value, bestK = k;
     if (best == floorValue) break;
@@ -188,8 +212,7 @@ void Plan::build(bool exhaustiveSearch) {
             const auto a = minimize(
                 l, exhaustiveSearch,
                 [&](std::int64_t k) { return advance * k + V(kReplay + t, m, k) + V(own + kState, m - 1, l - k); },
-                [&](std::int64_t k) { return static_cast<double>(advance * k) + left.at(k) + right.at(l - k); },
-                guess(own + t));
+                LowerBound{l, advance, 0, left, right}, guess(own + t));
             if (a.second < best) best = a.second, decision = a.first;
           }
           if (m >= w) {
@@ -202,8 +225,7 @@ void Plan::build(bool exhaustiveSearch) {
                   return advance * k + V(kReplay + t, m, k) + V(own + kRecord, m - w, l - k) -
                          (sweep == 1 || l - k >= 2 ? 1 : 0);
                 },
-                [&](std::int64_t k) { return static_cast<double>(advance * k - 1) + left.at(k) + right.at(l - k); },
-                guess(own + t));
+                LowerBound{l, advance, -1, left, right}, guess(own + t));
             if (b.second < best) best = b.second, decision = -b.first;
           }
           // Upgrade: the anchor (a state, on top of the stack) grows into the record of its step with w - 1
