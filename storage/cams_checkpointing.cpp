@@ -417,22 +417,6 @@ std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, s
   return longest;
 }
 
-std::vector<std::int64_t> onlinePositions(std::int64_t steps, std::int64_t memoryUnits, std::int64_t* statesStored,
-                                          std::int64_t* peakUnits) {
-  internal::OnlinePlacement placement;
-  placement.reset(memoryUnits - 1);
-  std::int64_t stored = 0, peak = 1;
-  for (std::int64_t step = 1; step < steps; ++step) {
-    if (placement.isCandidate(step - 1) && placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
-      ++stored;
-      peak = std::max(peak, static_cast<std::int64_t>(placement.positions().size()) + 1);
-    }
-  }
-  if (statesStored != nullptr) *statesStored = stored + 1;  // and x_{N-1}, the working state
-  if (peakUnits != nullptr) *peakUnits = peak;
-  return placement.positions();
-}
-
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                             std::int64_t recordUnits) {
   const std::int64_t length = std::max<std::int64_t>(longest, 1);
@@ -453,7 +437,9 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
   counts.steps = steps;
   counts.forwardSteps = steps;
   const std::vector<std::int64_t> positions =
-      onlinePositions(steps, memoryUnits, &counts.forwardStores, &counts.peakUnits);
+      internal::OnlinePlacement::simulate(steps, memoryUnits - 1, &counts.forwardStores, &counts.peakUnits);
+  ++counts.forwardStores;  // and x_{N-1}, the working state
+  ++counts.peakUnits;
   counts.statesStored = counts.forwardStores;
   counts.adjointRecomputations = 1;  // step N - 1, from the working state
   if (steps == 1) return counts;

@@ -139,10 +139,6 @@ OnlineInterval onlineInterval(const std::vector<std::int64_t>& positions, std::i
                               std::int64_t step);
 /// The longest interval the forward placement leaves for N steps and c checkpoints (0 for N <= 1).
 std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps);
-/// The forward placement of N steps with c = M - 1 checkpoints, without states; statesStored counts the
-/// checkpoint writes and x_{N-1}, peakUnits the most states held at once (both optional).
-std::vector<std::int64_t> onlinePositions(std::int64_t steps, std::int64_t memoryUnits, std::int64_t* statesStored,
-                                          std::int64_t* peakUnits);
 /// The plan for intervals up to `longest` steps with M - 1 units, reusing `cached` when it covers them
 /// (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,

@@ -79,22 +79,27 @@ double* OnlineCheckpointing::slot(std::int64_t index) {
   return memory.get();
 }
 
-void OnlineCheckpointing::doBegin() {
-  heldBytes_ = 0;  // the base class has released what a previous run held
-  releaseAll();
-  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
-  const std::int64_t fitting = (budgetBytes() - recordBytes) / stateBytes() - 1;
-  activeCheckpoints_ = requestedCheckpoints_ > 0 ? requestedCheckpoints_ : fitting;
-  if (activeCheckpoints_ < 1 || activeCheckpoints_ > fitting) {
+std::int64_t OnlineCheckpointing::checkpointsFor(std::int64_t stateBytes, std::int64_t recordBytes) const {
+  const std::int64_t fitting = (budgetBytes() - recordBytes) / stateBytes - 1;
+  const std::int64_t c = requestedCheckpoints_ > 0 ? requestedCheckpoints_ : fitting;
+  if (c < 1 || c > fitting) {
     throw std::invalid_argument(
         "online checkpointing needs " +
         (requestedCheckpoints_ > 0 ? "online.checkpoints = " + std::to_string(requestedCheckpoints_)
                                    : std::string("at least one checkpoint")) +
-        " plus one working state of " + formatBytes(stateBytes()) +
+        " plus one working state of " + formatBytes(stateBytes) +
+        (recordBytes > 0 ? " and two step records of " + formatBytes(recordBytes / 2) : std::string()) +
         " within online.budget = " + formatBytes(budgetBytes()) + "; raise the budget" +
         (requestedCheckpoints_ > 0 ? " or lower the checkpoints" : ""));
   }
-  activeCheckpoints_ = std::min(activeCheckpoints_, BinomialCheckpointing::kMaxCheckpoints);
+  return std::min(c, BinomialCheckpointing::kMaxCheckpoints);
+}
+
+void OnlineCheckpointing::doBegin() {
+  heldBytes_ = 0;  // the base class has released what a previous run held
+  releaseAll();
+  const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
+  activeCheckpoints_ = checkpointsFor(stateBytes(), recordBytes);
   placement_.reset(activeCheckpoints_);
   slots_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(activeCheckpoints_, 1 << 16)));
   interval_ = -1;

@@ -58,6 +58,12 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   bool isExact() const override { return true; }
   bool keepsStepData() const override { return stages_; }
 
+  /// The checkpoint count c for states of stateBytes and recordBytes of step records (stages=1): the
+  /// requested one, or what the budget holds besides the working state; at most kMaxCheckpoints.
+  /// Throws std::invalid_argument naming online.checkpoints/online.budget when it does not fit.
+  std::int64_t checkpointsFor(std::int64_t stateBytes, std::int64_t recordBytes) const;
+  /// Whether stages=1.
+  bool keepsStages() const { return stages_; }
   /// The checkpoint count c of the current run (known after begin()).
   std::int64_t checkpoints() const { return activeCheckpoints_; }
   /// Forward-sweep checkpoint limit F = ceil(c / 2).

@@ -25,6 +25,25 @@ class OnlinePlacement {
     return spacing;
   }
 
+  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
+  /// positions at its end; *stores counts the checkpoint writes, *peak the most checkpoints held at once
+  /// (both optional).
+  static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores,
+                                            std::int64_t* peak) {
+    OnlinePlacement placement;
+    placement.reset(c);
+    std::int64_t written = 0, most = 0;
+    for (std::int64_t step = 1; step < steps; ++step) {
+      if (placement.isCandidate(step - 1) && placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
+        ++written;
+        most = std::max(most, static_cast<std::int64_t>(placement.positions().size()));
+      }
+    }
+    if (stores != nullptr) *stores = written;
+    if (peak != nullptr) *peak = most;
+    return placement.positions();
+  }
+
   void reset(std::int64_t checkpoints) {
     checkpoints_ = checkpoints;
     limit_ = forwardCheckpoints(checkpoints);

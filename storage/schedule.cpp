@@ -5,6 +5,9 @@
 #include <hindsight/storage/chunked_state_file.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/online_placement.h>
+#include <hindsight/storage/recomputed_stages.h>
 #include <hindsight/storage/storage_factory.h>
 #include <hindsight/storage/storage_spec.h>
 
@@ -491,6 +494,80 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       p.stepDataStored = steps == 1 ? 1 : steps - 1 - firstPushes;
     }
     p.peakRamBytes = states * stateBytes + recordBytes;
+  } else if (name == "online") {
+    // OnlineCheckpointing for N fixed steps: its placement (internal::OnlinePlacement), then each interval
+    // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
+    // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
+    auto& online = dynamic_cast<OnlineCheckpointing&>(*storage);
+    const bool keepStages = online.keepsStages() && stages > 1;
+    const std::int64_t recordBytes = keepStages ? 2 * (stages - 1) * stateBytes : 0;  // two step records
+    const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
+    std::int64_t forwardStores = 0;
+    const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(steps, c, &forwardStores, nullptr);
+    p.plan = "online placement (final spacing " + std::to_string(internal::OnlinePlacement::finalSpacing(steps, c)) +
+             "), revolve per interval, " + std::to_string(c) + " checkpoints + working state" +
+             (keepStages ? ", stages of the last recomputed step kept" : "");
+    p.recomputedSteps = static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(steps, c)) - (steps - 1);
+    p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
+    p.ramReads = steps;
+    // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
+    // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
+    p.peakRamBytes = (std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) * stateBytes + recordBytes;
+    p.ramWrites = -1;
+    if (keepStages && steps > TwoLevelPlan::kMaxSimulatedSteps) {
+      throw std::invalid_argument("online.stages = 1 is predicted up to " +
+                                  std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
+                                  " steps (its served adjoint steps are counted by running the schedules); "
+                                  "--steps = " + std::to_string(steps));
+    }
+    if (steps <= TwoLevelPlan::kMaxSimulatedSteps) {
+      // The backward sweep as OnlineCheckpointing::doRestore runs it, with RecomputedStages' rule for
+      // stages=1 (one-double "stage values": only which step they belong to matters).
+      struct Simulation {
+        internal::RecomputedStages stages;
+        bool keep;
+        std::int64_t offset = 0, stores = 0, stepDataStored = 0;
+        void loadWorking() {}
+        void load(std::int64_t) {}
+        void store(std::int64_t) { ++stores; }
+        void advance(std::int64_t from, std::int64_t to) {
+          if (keep && to > from) {
+            stages.pending(offset + to - 1);
+            ++stepDataStored;
+          }
+        }
+      } sim;
+      sim.keep = keepStages;
+      sim.stages.reset(keepStages ? 1 : 0);
+      std::int64_t served = 0;
+      Vector data = Vector::Zero(1);
+      if (keepStages) sim.stages.recordLast(steps - 1, data);
+      if (keepStages && sim.stages.restore(steps - 1, data)) ++served;  // x_{N-1}: the working state
+      BinomialSchedule schedule;
+      std::int64_t interval = static_cast<std::int64_t>(positions.size()), start = steps;
+      for (std::int64_t e = steps - 2; e >= 0; --e) {
+        if (e < start) {
+          // The last held checkpoint at or before e, as OnlineCheckpointing::doRestore finds it.
+          std::int64_t j = interval - 1;
+          while (positions[static_cast<std::size_t>(j)] > e) --j;
+          interval = j;
+          start = positions[static_cast<std::size_t>(interval)];
+          const std::int64_t end = interval + 1 < static_cast<std::int64_t>(positions.size())
+                                       ? positions[static_cast<std::size_t>(interval + 1)]
+                                       : steps - 1;
+          schedule.reset(end - start, c - interval, false);
+          sim.offset = start;
+        }
+        if (keepStages) sim.stages.beginRestore(e);
+        schedule.restoreStep(e - start, sim);
+        if (keepStages && sim.stages.restore(e, data)) ++served;
+      }
+      p.ramWrites = forwardStores + sim.stores + 1;
+      if (keepStages) {
+        p.stepDataStored = sim.stepDataStored;
+        p.stepDataRestored = served;
+      }
+    }
   } else if (name == "multilevel") {
     auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
     if (multilevel.options().stride) {
@@ -574,7 +651,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   } else {
     throw std::invalid_argument("storage '" + name +
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "
-                                "compression); predicted are full, disk, binomial, multilevel, cams");
+                                "compression); predicted are full, disk, binomial, online, multilevel, cams");
   }
   // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
   // S rhs for every forward, recomputed and stage-recomputing adjoint step.
@@ -630,6 +707,10 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
       schedule.restoreStep(e, visitor);
     }
     return;
+  }
+  if (name == "online") {
+    throw std::invalid_argument("--actions prints offline plans; online thins its checkpoints during the forward "
+                                "sweep (print its counts without --actions)");
   }
   if (name == "cams") {
     // The records of rk4 (4 state units), as `hindsight schedule` predicts with its default --stages 4.

@@ -182,7 +182,7 @@ def storage_specs():
 
 def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
     """What storage strategy `spec` will do for `steps` fixed steps of states of `state_bytes` bytes,
-    without running a model (the C++ of `hindsight schedule`; full, disk, binomial, multilevel, cams incl. online=1):
+    without running a model (the C++ of `hindsight schedule`; full, disk, binomial, online, multilevel, cams incl. online=1):
     forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
     peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
     actions=True the dict also holds the action stream as text. ValueError names a bad argument."""

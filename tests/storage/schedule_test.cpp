@@ -4,6 +4,7 @@
 #include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/recomputed_stages.h>
+#include <hindsight/storage/online_checkpointing.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
@@ -273,7 +274,8 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_NE(message("full", 0, 16, 4).find("--steps"), std::string::npos);
   EXPECT_NE(message("full", 10, 12, 4).find("--state-bytes"), std::string::npos);
   EXPECT_NE(message("full", 10, 16, 0).find("--stages"), std::string::npos);
-  EXPECT_NE(message("online:checkpoints=5", 10, 16, 4).find("not predicted"), std::string::npos);
+  EXPECT_NE(message("hermite:every=4", 10, 16, 4).find("not predicted"), std::string::npos);
+  EXPECT_NE(message("online:checkpoints=5,budget=40", 10, 16, 4).find("online.budget"), std::string::npos);
   EXPECT_NE(message("binomial", 10, 16, 4).find("binomial.checkpoints"), std::string::npos);
   EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"), std::string::npos);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3", "--costs"), std::invalid_argument);
@@ -470,6 +472,44 @@ TEST(SchedulePrediction, BinomialStagesAgreeExactlyWithRealRuns) {
       }
     }
   }
+}
+
+TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
+  // online (fixed steps here, so the run can be compared; the strategy does not use N while recording),
+  // with and without stages=1, by checkpoints and by budget: every counter the prediction reports.
+  Pendulum problem;
+  const ScheduleCosts costs;
+  for (int wanted : {1, 2, 3, 4, 5, 12, 37, 2000}) {
+    IntegratorOptions options = fixedStepRk4();
+    options.t1 = 2e-3 * wanted;
+    const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+    const std::int64_t steps = reference.summary.steps;
+    for (const std::string base : {"online:checkpoints=1", "online:checkpoints=2", "online:checkpoints=3",
+                                   "online:checkpoints=10", "online:checkpoints=50", "online:budget=400"}) {
+      for (const std::string keep : {",stages=1", ""}) {
+        const std::string spec = base + keep;
+        SCOPED_TRACE(spec + " N " + std::to_string(steps));
+        auto storage = createStorage(spec);
+        storage->setVerifyRestores(true);
+        const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
+        EXPECT_TRUE(bitwiseEqual(result, reference));
+        const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
+        EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps);
+        EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations);
+        EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored);
+        EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored);
+        EXPECT_EQ(p.statesStored, storage->counters().statesStored);
+        EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory);
+      }
+    }
+  }
+  // Without stages, N = 10^9 in closed form (RAM writes then not counted); with them, a clear limit.
+  const SchedulePrediction big = predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs);
+  EXPECT_EQ(big.recomputedSteps + 999'999'999,
+            static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000'000, 100)));
+  EXPECT_EQ(big.ramWrites, -1);
+  EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
+  EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, nullptr, std::cout), std::invalid_argument);
 }
 
 TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
