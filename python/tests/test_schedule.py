@@ -6,7 +6,7 @@ import hindsight
 
 @pytest.mark.parametrize("spec", ["full", "binomial:checkpoints=10", "cams:checkpoints=10", "cams:budget=640",
                                   "binomial:checkpoints=10,stages=1", "binomial:checkpoints=1,stages=1",
-                                  "cams:checkpoints=10,online=1"])
+                                  "cams:checkpoints=10,online=1", "online:checkpoints=10", "online:checkpoints=3,stages=1"])
 def test_prediction_equals_a_real_run(spec):
     # The C++ pendulum: 4 parameters, state (theta, omega) = 16 bytes, rk4 with 2000 fixed steps.
     run = hindsight.classic_gradient("pendulum", [1.0, 1.0, 0.1, 0.5], step=1e-3, t1=2.0, storage=spec)
