@@ -339,6 +339,23 @@ py::dict readResults(const std::string& path) {
   const Matrix modes = data.finalModes.transpose();
   out["final_modes"] = ownedArray(std::vector<double>(modes.data(), modes.data() + modes.size()),
                                   {static_cast<py::ssize_t>(modes.cols()), static_cast<py::ssize_t>(modes.rows())});
+  if (!data.history.empty() && !data.history.front().scenarioPsi1.empty()) {
+    // Runs with scenarios (/scenarios in the file): every scenario's psi per iteration, K x S, as
+    // `hindsight plot` draws them ("scenarios" is the name the shared plotting code reads), and psi_s(x0).
+    const auto table = [&data](std::vector<double> IterationRecord::*member) {
+      const std::size_t scenarios = (data.history.front().*member).size();
+      std::vector<double> values;
+      values.reserve(data.history.size() * scenarios);
+      for (const IterationRecord& record : data.history) {
+        values.insert(values.end(), (record.*member).begin(), (record.*member).end());
+      }
+      return ownedArray(std::move(values), {static_cast<py::ssize_t>(data.history.size()),
+                                            static_cast<py::ssize_t>(scenarios)});
+    };
+    out["scenarios"] = table(&IterationRecord::scenarioPsi1);
+    out["scenario_psi2"] = table(&IterationRecord::scenarioPsi2);
+    out["scenario_objective_scale"] = vectorArray(data.state.scenarioScales);
+  }
   return out;
 }
 

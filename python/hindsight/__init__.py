@@ -122,7 +122,10 @@ def read_results(path):
     """A results directory (or its results.h5) read with every check of the C++ reader (StorageError
     naming the dataset when one fails): history (dict of NumPy columns: iteration, psi1, psi2,
     volume_fraction, max_design_change, backtracks, evaluation_seconds, mma_seconds, total_seconds),
-    designs (K, ny, nx), configuration (dict), finished, next_design, final_frequencies_hz, final_modes."""
+    designs (K, ny, nx), configuration (dict), finished, next_design, final_frequencies_hz, final_modes;
+    for runs with scenarios also scenarios (K, S: every scenario's psi1 per iteration, in the order of
+    configuration["scenarios"]), scenario_psi2 (K, S) and scenario_objective_scale (S: psi_s(x0)); the
+    history's psi1/psi2 are then the worst scenario's."""
     path = _os.fspath(path)
     if _os.path.isdir(path):
         path = _os.path.join(path, "results.h5")

@@ -74,3 +74,25 @@ def test_verbose_prints_the_cli_progress_lines(tmp_path, capsys):
     assert len(lines) == 4 and "psi1" in lines[0] and "V/V0" in lines[0], lines
     hindsight.optimize(CONFIG, out=tmp_path / "quiet")
     assert "iter" not in capsys.readouterr().out
+
+
+def test_read_results_gives_every_scenarios_history(tmp_path):
+    config = {**TINY, "optimization": {"iterations": 2, "aggregate": "max"},
+              "scenarios": [{"name": "slow", "crankSpeed": 15.0}, {"name": "fast", "crankSpeed": 40.0}]}
+    run = hindsight.optimize(config, out=tmp_path / "run")
+    result = hindsight.read_results(tmp_path / "run")
+    assert result.scenarios.shape == (3, 2) and result.scenario_psi2.shape == (3, 2)
+    assert result.scenario_objective_scale.shape == (2,)
+    # psi grows with the crank speed; the history holds the worst scenario's psi1 (relative to its psi(x0)).
+    assert (result.scenarios[:, 1] > result.scenarios[:, 0]).all()
+    relative = result.scenarios / result.scenario_objective_scale
+    for k in range(3):
+        assert result.history["psi1"][k] == result.scenarios[k, relative[k].argmax()]
+    assert run.history["psi1"].tobytes() == result.history["psi1"].tobytes()
+    # The shared plotting code draws them (as `hindsight plot` does).
+    figure = hindsight.plot_comparison(result, out=tmp_path / "scenarios.png")
+    assert (tmp_path / "scenarios.png").stat().st_size > 0
+    assert any("scenario slow" in line.get_label() for line in figure.axes[0].get_lines())
+    # A run without scenarios has none of these keys.
+    plain = hindsight.optimize(CONFIG, out=tmp_path / "plain")
+    assert "scenarios" not in plain and "scenarios" not in hindsight.read_results(tmp_path / "plain")
