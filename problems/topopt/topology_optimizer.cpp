@@ -64,12 +64,19 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
       mma_(config.rod.designCount() + (bound_ ? 1 : 0), constraintCount() + (bound_ ? scenarios_.count() : 0),
            mmaOptions(config.optimization)) {
   const OptimizationSettings& settings = config.optimization;
-  if ((settings.method == "gcmma" || settings.minFirstFrequency > 0.0) && (multiple_ || communicator.size() > 1)) {
-    // GCMMA's trial simulations and the eigenvalue constraint use the full evaluation of the one
-    // scenario, which only its owning rank holds; their multi-scenario forms are not written yet.
-    throw std::invalid_argument(std::string(settings.method == "gcmma" ? "optimization.method = gcmma"
-                                                                         : "optimization.minFirstFrequency > 0") +
-                                " works with one scenario in one process (no scenarios, no mpirun)");
+  if (settings.method == "gcmma" && (multiple_ || communicator.size() > 1)) {
+    // GCMMA's trial simulations use the full evaluation of the one scenario, which only its owning rank
+    // holds; its multi-scenario form is not written yet.
+    throw std::invalid_argument("optimization.method = gcmma works with one scenario in one process (no scenarios, "
+                                "no mpirun)");
+  }
+  if (settings.minFirstFrequency > 0.0 && communicator.size() > scenarios_.count()) {
+    // The eigenvalue constraint depends on the design only (a scenario changes the mechanism, not the
+    // rod), so every rank computes it from the full evaluation of a scenario it owns: it needs one.
+    throw std::invalid_argument("optimization.minFirstFrequency > 0 needs every MPI rank to own a scenario: " +
+                                std::to_string(communicator.size()) + " ranks for " +
+                                std::to_string(scenarios_.count()) + " scenario(s); run with at most " +
+                                std::to_string(scenarios_.count()) + " ranks");
   }
   if (settings.method == "gcmma") {
     GcmmaOptions options;
@@ -397,6 +404,18 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
   }
   const double volume = evaluation.volumeFraction / settings.volumeFraction - 1.0;
   const Vector volumeGradient = chainToDesign(evaluation.dvolume / settings.volumeFraction, design, state_.iteration);
+  // The frequency guard (constraint 1 when on): from this rank's full evaluation of a scenario it owns;
+  // the eigenpairs are the design's, the same in every scenario and on every rank.
+  const int guards = settings.minFirstFrequency > 0.0 ? 1 : 0;
+  double guardValue = 0.0;
+  Vector guardGradient;
+  if (guards > 0) {
+    if (!evaluation.local) throw std::logic_error("the frequency guard needs a full evaluation on every rank");
+    Matrix rows;
+    guardValue = constraintsOf(evaluation.volumeFraction, evaluation.dvolume, &*evaluation.local, design,
+                               state_.iteration, &rows)(1);
+    guardGradient = rows.row(1).transpose();
+  }
   Vector x;
   if (!bound_) {
     double objective = 0.0;
@@ -405,9 +424,14 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
       objective += relative(s);
       gradient += gradients[s];
     }
-    Vector constraint(1);
+    Vector constraint(1 + guards);
     constraint(0) = volume;
-    const Matrix jacobian = volumeGradient.transpose();
+    Matrix jacobian(1 + guards, n);
+    jacobian.row(0) = volumeGradient.transpose();
+    if (guards > 0) {
+      constraint(1) = guardValue;
+      jacobian.row(1) = guardGradient.transpose();
+    }
     x = design;
     mma_.restore(state_.mma);
     mma_.update(objective, gradient, constraint, jacobian, Vector::Constant(n, config().rod.designLowerBound),
@@ -426,14 +450,18 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
     x << design, std::min(relative(worst), upper(n));
     Vector objectiveGradient = Vector::Zero(n + 1);
     objectiveGradient(n) = 1.0;
-    Vector constraints(1 + count);
-    Matrix jacobian = Matrix::Zero(1 + count, n + 1);
+    Vector constraints(1 + guards + count);
+    Matrix jacobian = Matrix::Zero(1 + guards + count, n + 1);
     constraints(0) = volume;
     jacobian.row(0).head(n) = volumeGradient.transpose();
+    if (guards > 0) {
+      constraints(1) = guardValue;
+      jacobian.row(1).head(n) = guardGradient.transpose();
+    }
     for (int s = 0; s < count; ++s) {
-      constraints(1 + s) = relative(s) - x(n);
-      jacobian.row(1 + s).head(n) = gradients[s].transpose();
-      jacobian(1 + s, n) = -1.0;
+      constraints(1 + guards + s) = relative(s) - x(n);
+      jacobian.row(1 + guards + s).head(n) = gradients[s].transpose();
+      jacobian(1 + guards + s, n) = -1.0;
     }
     mma_.restore(fullMmaState(state_));
     mma_.update(x(n), objectiveGradient, constraints, jacobian, lower, upper, x);

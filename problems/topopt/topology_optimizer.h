@@ -47,7 +47,9 @@
 // psi_s(x0), and MMA minimizes sum_s f_s (aggregate sum) or, for aggregate max, z over (x, z) subject
 // to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
 // w_s], restarted at max_s f_s each iteration; its MMA state is OptimizerState::bound). The divergence
-// guard applies per scenario. Without scenarios the code path and the bits are those of before.
+// guard applies per scenario; the frequency guard is one constraint of the design (every rank evaluates it
+// from a scenario it owns, so at most as many ranks as scenarios). Without scenarios the code path and
+// the bits are those of before.
 //
 // Restart: everything that carries over between iterations is the OptimizerState (plain data). An
 // optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ctest label mpi (issue #15): the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
 # writes bitwise-equal histories and designs; a run whose rank is killed resumes (with 2 ranks) to
-# the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named.
+# the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named; the
+# frequency guard gives the same bits on 1 and 2 ranks.
 # Usage: ranks_test.sh HINDSIGHT MPIEXEC PYTHON WORKDIR. Runs as root too (CI): OpenMPI's
 # allow-run-as-root variables are set here; --oversubscribe because the machine may have 2 cores.
 set -euo pipefail
@@ -46,4 +47,16 @@ if "$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config bad.json --it
   echo "a failing scenario did not fail the run"; exit 1
 fi
 grep -q "numerical failure: scenario 'fast'" B.log
+# The frequency guard (70 Hz, violated at x0: 36.6 Hz) with scenarios: each rank computes it from a scenario
+# it owns (the eigenpairs are the design's); 2 ranks give the bits of 1. More ranks than scenarios: refused.
+guard=(--set optimization.minFirstFrequency=70)
+"$hindsight" optimize --config "$config" --iterations 3 --out G1 --threads 1 "${guard[@]}" > G1.log
+"$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out G2 --threads 1 \
+  "${guard[@]}" > G2.log
+same G1 G2
+if "$mpiexec" -np 4 --oversubscribe "$hindsight" optimize --config "$config" --iterations 1 --out G4 "${guard[@]}" \
+  > G4.log 2>&1; then
+  echo "4 ranks for 3 scenarios with the frequency guard were accepted"; exit 1
+fi
+grep -q "minFirstFrequency > 0 needs every MPI rank to own a scenario" G4.log
 echo "mpi ranks test: passed"
