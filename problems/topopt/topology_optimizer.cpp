@@ -64,11 +64,10 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
       mma_(config.rod.designCount() + (bound_ ? 1 : 0), constraintCount() + (bound_ ? scenarios_.count() : 0),
            mmaOptions(config.optimization)) {
   const OptimizationSettings& settings = config.optimization;
-  if (settings.method == "gcmma" && (multiple_ || communicator.size() > 1)) {
-    // GCMMA's trial simulations use the full evaluation of the one scenario, which only its owning rank
-    // holds; its multi-scenario form is not written yet.
-    throw std::invalid_argument("optimization.method = gcmma works with one scenario in one process (no scenarios, "
-                                "no mpirun)");
+  if (settings.method == "gcmma" && !multiple_ && communicator.size() > 1) {
+    // Without scenarios a run has one rank's work; GCMMA's trials would be simulated by every rank.
+    throw std::invalid_argument("optimization.method = gcmma under mpirun needs scenarios (the ranks share "
+                                "their evaluations); without them run one process");
   }
   if (settings.minFirstFrequency > 0.0 && communicator.size() > scenarios_.count()) {
     // The eigenvalue constraint depends on the design only (a scenario changes the mechanism, not the
@@ -82,7 +81,10 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
     GcmmaOptions options;
     options.mma = mmaOptions(settings);
     options.accept_descent = true;  // see GcmmaOptions::accept_descent
-    gcmma_ = std::make_unique<Gcmma>(config.rod.designCount(), constraintCount(), options);
+    // With scenarios the trials evaluate every scenario (collectively over the ranks) and the problem is
+    // that of MMA's (the bound formulation: z and one constraint per scenario more).
+    gcmma_ = std::make_unique<Gcmma>(config.rod.designCount() + (bound_ ? 1 : 0),
+                                     constraintCount() + (bound_ ? scenarios_.count() : 0), options);
   }
   state_.design = scenarios_.rod(0).initialDesign();
   state_.mma = mma_.state();
@@ -433,9 +435,15 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
       jacobian.row(1) = guardGradient.transpose();
     }
     x = design;
-    mma_.restore(state_.mma);
-    mma_.update(objective, gradient, constraint, jacobian, Vector::Constant(n, config().rod.designLowerBound),
-                Vector::Ones(n), x);
+    const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
+    if (gcmma_) {
+      gcmma_->restore(state_.mma);
+      gcmma_->update(objective, gradient, constraint, jacobian, lower, upper, x, scenarioTrials(next));
+      record.innerIterations = gcmma_->lastUpdate().inner_iterations;
+    } else {
+      mma_.restore(state_.mma);
+      mma_.update(objective, gradient, constraint, jacobian, lower, upper, x);
+    }
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
     // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
@@ -463,8 +471,14 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
       jacobian.row(1 + guards + s).head(n) = gradients[s].transpose();
       jacobian(1 + guards + s, n) = -1.0;
     }
-    mma_.restore(fullMmaState(state_));
-    mma_.update(x(n), objectiveGradient, constraints, jacobian, lower, upper, x);
+    if (gcmma_) {
+      gcmma_->restore(fullMmaState(state_));
+      gcmma_->update(x(n), objectiveGradient, constraints, jacobian, lower, upper, x, scenarioTrials(next));
+      record.innerIterations = gcmma_->lastUpdate().inner_iterations;
+    } else {
+      mma_.restore(fullMmaState(state_));
+      mma_.update(x(n), objectiveGradient, constraints, jacobian, lower, upper, x);
+    }
   }
   if (!x.allFinite()) {
     throw NumericalError("the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
@@ -472,7 +486,7 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
   }
   record.maxDesignChange = (x.head(n) - design).cwiseAbs().maxCoeff();
   next.design = x.head(n);
-  const MmaState& full = mma_.state();
+  const MmaState& full = gcmma_ ? gcmma_->state() : mma_.state();
   next.mma = full;
   if (bound_) {
     next.bound = Vector(4);
@@ -485,6 +499,45 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
   }
   next.iteration += 1;
   record.mmaSeconds = mmaTimer.seconds();
+}
+
+Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) const {
+  // GCMMA's trial points (x, or (x, z) for the bound formulation): every scenario evaluated at x without
+  // gradients, collectively over the ranks (every rank gets the same values or the same failure, so
+  // every rank's GCMMA takes the same path); the functions of MMA's problem from them.
+  return [this, &next](const Vector& trial, double& value, Vector& constraints) {
+    const OptimizationSettings& settings = config().optimization;
+    const bool usePsi1 = settings.objective == Objective::Psi1;
+    const int n = designCount(), count = scenarios_.count(), guards = settings.minFirstFrequency > 0.0 ? 1 : 0;
+    PistonRod::Request request;
+    request.psi1Gradient = false;
+    request.psi2 = !usePsi1;
+    request.psi2Gradient = false;
+    const Vector design = trial.head(n);
+    try {
+      const ScenarioResults r = scenarios_.evaluate(modelDesign(design, state_.iteration), request, usePsi1);
+      Vector relative(count);
+      for (int s = 0; s < count; ++s) {
+        const double psi = usePsi1 ? r.psi1[s] : r.psi2[s];
+        if (!(psi <= maxObjectiveGrowth * next.scenarioScales(s))) return false;  // a diverging response
+        relative(s) = scenarios_.weight(s) * psi / next.scenarioScales(s);
+      }
+      const Vector own = constraintsOf(r.volumeFraction, r.dvolume, r.local ? &*r.local : nullptr, design,
+                                       state_.iteration, nullptr);
+      constraints.resize(1 + guards + (bound_ ? count : 0));
+      constraints.head(1 + guards) = own;
+      if (bound_) {
+        value = trial(n);
+        for (int s = 0; s < count; ++s) constraints(1 + guards + s) = relative(s) - trial(n);
+      } else {
+        value = 0.0;
+        for (int s = 0; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
+      }
+      return true;
+    } catch (const NumericalError&) {
+      return false;  // a diverged simulation (in any scenario, on every rank alike): not conservative
+    }
+  };
 }
 
 }  // namespace hindsight

@@ -33,7 +33,9 @@
 //  * optimization.method = gcmma: the update is GCMMA (problems/topopt/gcmma.h) instead of MMA; its
 //    trial designs are simulated (values only; a diverged or exploding trial counts as
 //    non-conservative), so every accepted design is feasible and its objective is no higher than the
-//    previous one. The record counts the trials (innerIterations).
+//    previous one. The record counts the trials (innerIterations). With scenarios a trial evaluates every
+//    scenario, collectively over the MPI ranks, and GCMMA solves MMA's problem of that aggregate
+//    (scenarioTrials); under mpirun GCMMA needs scenarios.
 //  * optimization.minFirstFrequency = f > 0: a second constraint 1 - lambda_1(x) / (2 pi f)^2 <= 0 on the
 //    first eigenvalue of the pinned-roller rod, with its exact derivative
 //    (problems/rod/eigen_constraint.h; a repeated lambda_1 is guarded through its cluster mean).
@@ -189,6 +191,8 @@ class TopologyOptimizer final {
   std::vector<int> designToGrid_;
 
   // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
+  /// GCMMA's trial evaluations with scenarios (collective over the ranks).
+  Gcmma::Evaluate scenarioTrials(const OptimizerState& next) const;
   void updateScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
                        IterationRecord& record);
 

@@ -2,7 +2,7 @@
 # ctest label mpi (issue #15): the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
 # writes bitwise-equal histories and designs; a run whose rank is killed resumes (with 2 ranks) to
 # the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named; the
-# frequency guard gives the same bits on 1 and 2 ranks.
+# frequency guard and GCMMA give the same bits on 1 and 2 ranks.
 # Usage: ranks_test.sh HINDSIGHT MPIEXEC PYTHON WORKDIR. Runs as root too (CI): OpenMPI's
 # allow-run-as-root variables are set here; --oversubscribe because the machine may have 2 cores.
 set -euo pipefail
@@ -59,4 +59,11 @@ if "$mpiexec" -np 4 --oversubscribe "$hindsight" optimize --config "$config" --i
   echo "4 ranks for 3 scenarios with the frequency guard were accepted"; exit 1
 fi
 grep -q "minFirstFrequency > 0 needs every MPI rank to own a scenario" G4.log
+
+# GCMMA with scenarios: its trials are evaluated collectively; 2 ranks give the bits of 1.
+gcmma=(--set optimization.method=gcmma)
+"$hindsight" optimize --config "$config" --iterations 3 --out C1 --threads 1 "${gcmma[@]}" > C1.log
+"$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out C2 --threads 1 \
+  "${gcmma[@]}" > C2.log
+same C1 C2
 echo "mpi ranks test: passed"
