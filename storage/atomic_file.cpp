@@ -96,6 +96,13 @@ void writeFileAtomically(const std::string& path, const std::function<void(const
   if (!error.empty()) throw StorageError(error, path);
 }
 
+void writeBytesAtomically(const std::string& path, const void* data, std::size_t size, const std::string& what) {
+  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
+    if (std::fwrite(data, 1, size, file) != size) return "cannot write " + what + ": " + std::strerror(errno);
+    return {};
+  });
+}
+
 void writeStreamAtomically(const std::string& path, const std::function<std::string(std::FILE*)>& write) {
   writeFileAtomically(path, [&](const std::string& temporary) {
     std::FILE* file = std::fopen(temporary.c_str(), "wb");

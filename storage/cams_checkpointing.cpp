@@ -573,6 +573,19 @@ std::string CamsCheckpointing::spec() const {
          (online_ ? ",online=1" : "");
 }
 
+std::int64_t CamsCheckpointing::usableUnits(std::int64_t stateBytes, bool online) const {
+  const std::int64_t units = online ? std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1) : memoryUnits(stateBytes);
+  if (units < (online ? 2 : 1)) {
+    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units) +
+                                " state(s) of " + formatBytes(stateBytes) + "; " +
+                                (online ? "the online mode (adaptive steps or online=1) needs two, a checkpoint and "
+                                          "the working state"
+                                        : "cams needs at least one") +
+                                "; raise the budget");
+  }
+  return units;
+}
+
 void CamsCheckpointing::releaseAll() {
   if (heldBytes_ > 0) releaseBytes(heldBytes_);
   heldBytes_ = 0;
@@ -585,13 +598,7 @@ void CamsCheckpointing::doBegin() {
   const std::int64_t steps = info().stepCount;
   onlineRun_ = online_ || steps < 1;
   const std::int64_t n = info().stateSize;
-  units_ = memoryUnits(stateBytes());
-  if (units_ < (onlineRun_ ? 2 : 1)) {
-    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units_) +
-                                " states of " + formatBytes(stateBytes()) + "; " +
-                                (onlineRun_ ? "the online mode (adaptive steps or online=1) needs two" : "at least one") +
-                                " is needed; raise the budget");
-  }
+  units_ = usableUnits(stateBytes(), onlineRun_);
   // A record is the state and the step's stage values; with no step data, records are impossible.
   recordUnits_ =
       info().stepDataSize > 0 ? 1 + (info().stepDataSize + n - 1) / n : std::numeric_limits<std::int32_t>::max();
@@ -599,8 +606,7 @@ void CamsCheckpointing::doBegin() {
   pendingRecord_ = -1;
   if (onlineRun_) {
     // All M units are held from the start (the forward sweep may fill them before thinning); N is unknown,
-    // so M is capped like online's checkpoints (10^6 + 1 states), not by (N + 1) w as offline.
-    units_ = onlineMemoryUnits(stateBytes());
+    // so M is capped like online's checkpoints (usableUnits), not by (N + 1) w as offline.
     holdBytes(units_ * stateBytes());
     heldBytes_ = units_ * stateBytes();
     memory_.reset(new double[static_cast<std::size_t>(units_ * n)]);

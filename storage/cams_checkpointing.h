@@ -303,10 +303,10 @@ class CamsCheckpointing final : public TrajectoryStorage {
   std::int64_t memoryUnits(std::int64_t stateBytes) const {
     return checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes;
   }
-  /// The units of the online mode: memoryUnits, at most 10^6 + 1 (N is unknown when they are allocated).
-  std::int64_t onlineMemoryUnits(std::int64_t stateBytes) const {
-    return std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1);
-  }
+  /// The units a run uses for states of stateBytes: memoryUnits, in the online mode at most 10^6 + 1 (N
+  /// is unknown when they are allocated). Throws std::invalid_argument naming cams.budget when they are
+  /// fewer than the mode needs (one; the online mode two: a checkpoint and the working state).
+  std::int64_t usableUnits(std::int64_t stateBytes, bool online) const;
   /// The plan of the current run (after begin(); in the online mode after the forward sweep), or null.
   const cams::Plan* plan() const { return onlineRun_ ? intervalPlan_.get() : plan_.get(); }
   /// Whether the spec asks for the online mode (online=1).

@@ -604,50 +604,35 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     // The same model-free plan the strategy runs (storage/cams_checkpointing.h), with the step record of
     // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
     // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
-    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).memoryUnits(stateBytes);
-    if (units < 1) {
-      throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds not even one state of " +
-                                  formatBytes(stateBytes));
-    }
+    const auto& strategy = dynamic_cast<CamsCheckpointing&>(*storage);
+    const bool online = strategy.onlineRequested();
+    const std::int64_t units = strategy.usableUnits(stateBytes, online);
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
-    if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
-      // The online mode: online placement, each interval reversed by the optimal plan.
-      const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).onlineMemoryUnits(stateBytes);
-      if (units < 2) {
-        throw std::invalid_argument("cams.budget = " + formatBytes(storage->budgetBytes()) + " holds " +
-                                    std::to_string(units) + " states of " + formatBytes(stateBytes) +
-                                    "; the online mode needs two");
-      }
+    cams::PlanCounts c;
+    if (online) {
+      // Online placement, each interval reversed by the optimal plan.
       std::unique_ptr<cams::Plan> intervalPlan;
-      const cams::PlanCounts c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
+      c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
       p.plan = "cams online: " + std::to_string(units) + " state units, online placement, intervals of at most " +
-               std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally; " +
-               std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
-               " adjoint steps recompute their stages";
-      p.recomputedSteps = c.recomputedSteps;
-      p.adjointRecomputations = c.adjointRecomputations;
-      p.stepDataStored = c.recordsStored;
-      p.stepDataRestored = steps - c.adjointRecomputations;
-      p.statesStored = c.forwardStores;
+               std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally";
       p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
-      p.ramReads = steps;
       p.peakRamBytes = units * stateBytes;
     } else {
-    const cams::Plan plan(steps, units, recordUnits);
-    const cams::PlanCounts c = cams::simulate(plan);
-    p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
-             (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units; " +
-             std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
-             " adjoint steps recompute their stages";
+      const cams::Plan plan(steps, units, recordUnits);
+      c = cams::simulate(plan);
+      p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
+               (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units";
+      p.ramWrites = c.statesStored + c.recordsStored;
+      p.peakRamBytes = std::min(units, plan.memoryUnits()) * stateBytes;
+    }
+    p.plan += "; " + std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
+              " adjoint steps recompute their stages";
     p.recomputedSteps = c.recomputedSteps;
     p.adjointRecomputations = c.adjointRecomputations;
     p.stepDataStored = c.recordsStored;
     p.stepDataRestored = steps - c.adjointRecomputations;
     p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
-    p.ramWrites = c.statesStored + c.recordsStored;
     p.ramReads = steps;
-    p.peakRamBytes = std::min(units, plan.memoryUnits()) * stateBytes;
-    }
   } else {
     throw std::invalid_argument("storage '" + name +
                                 "' is not predicted: its counters depend on the run (adaptive doubling, "

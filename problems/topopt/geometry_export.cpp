@@ -221,64 +221,52 @@ TriangleMesh extrudedSolid(const DensityField& field, double iso, double thickne
 }
 
 void writeOutlineSvg(const std::string& path, const Outline& outline, double widthMm, double heightMm) {
-  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
-    std::string text = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-    text += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + formatNumber(widthMm) + "mm\" height=\"" +
-            formatNumber(heightMm) + "mm\" viewBox=\"0 0 " + formatNumber(widthMm) + " " +
-            formatNumber(heightMm) + "\">\n";
-    text += "<!-- hindsight design outline, millimetres, y up in the model (flipped here) -->\n";
-    text += "<path fill=\"black\" fill-rule=\"evenodd\" stroke=\"none\" d=\"";
-    for (const auto& loop : outline.loops) {
-      for (std::size_t a = 0; a < loop.size(); ++a) {
-        text += (a == 0 ? "M" : " L") + formatNumber(loop[a].x()) + " " + formatNumber(heightMm - loop[a].y());
-      }
-      text += " Z ";
+  std::string text = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  text += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + formatNumber(widthMm) + "mm\" height=\"" +
+          formatNumber(heightMm) + "mm\" viewBox=\"0 0 " + formatNumber(widthMm) + " " +
+          formatNumber(heightMm) + "\">\n";
+  text += "<!-- hindsight design outline, millimetres, y up in the model (flipped here) -->\n";
+  text += "<path fill=\"black\" fill-rule=\"evenodd\" stroke=\"none\" d=\"";
+  for (const auto& loop : outline.loops) {
+    for (std::size_t a = 0; a < loop.size(); ++a) {
+      text += (a == 0 ? "M" : " L") + formatNumber(loop[a].x()) + " " + formatNumber(heightMm - loop[a].y());
     }
-    text += "\"/>\n</svg>\n";
-    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
-      return std::string("cannot write the SVG file: ") + std::strerror(errno);
-    return {};
-  });
+    text += " Z ";
+  }
+  text += "\"/>\n</svg>\n";
+  writeBytesAtomically(path, text.data(), text.size(), "the SVG file");
 }
 
 void writeOutlineDxf(const std::string& path, const Outline& outline) {
-  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
-    // AutoCAD R12 ASCII DXF: one closed POLYLINE per loop on layer OUTLINE; $INSUNITS 4 = millimetres.
-    std::string text = "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1009\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n";
-    text += "0\nSECTION\n2\nENTITIES\n";
-    for (const auto& loop : outline.loops) {
-      text += "0\nPOLYLINE\n8\nOUTLINE\n66\n1\n70\n1\n10\n0.0\n20\n0.0\n30\n0.0\n";
-      for (const Eigen::Vector2d& p : loop)
-        text += "0\nVERTEX\n8\nOUTLINE\n10\n" + formatNumber(p.x()) + "\n20\n" + formatNumber(p.y()) + "\n30\n0.0\n";
-      text += "0\nSEQEND\n8\nOUTLINE\n";
-    }
-    text += "0\nENDSEC\n0\nEOF\n";
-    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
-      return std::string("cannot write the DXF file: ") + std::strerror(errno);
-    return {};
-  });
+  // AutoCAD R12 ASCII DXF: one closed POLYLINE per loop on layer OUTLINE; $INSUNITS 4 = millimetres.
+  std::string text = "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1009\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n";
+  text += "0\nSECTION\n2\nENTITIES\n";
+  for (const auto& loop : outline.loops) {
+    text += "0\nPOLYLINE\n8\nOUTLINE\n66\n1\n70\n1\n10\n0.0\n20\n0.0\n30\n0.0\n";
+    for (const Eigen::Vector2d& p : loop)
+      text += "0\nVERTEX\n8\nOUTLINE\n10\n" + formatNumber(p.x()) + "\n20\n" + formatNumber(p.y()) + "\n30\n0.0\n";
+    text += "0\nSEQEND\n8\nOUTLINE\n";
+  }
+  text += "0\nENDSEC\n0\nEOF\n";
+  writeBytesAtomically(path, text.data(), text.size(), "the DXF file");
 }
 
 void writeSolidStl(const std::string& path, const TriangleMesh& mesh) {
-  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
-    std::string text = "solid hindsight_design\n";
-    for (const auto& t : mesh.triangles) {
-      const Eigen::Vector3d& a = mesh.vertices[static_cast<std::size_t>(t[0])];
-      const Eigen::Vector3d& b = mesh.vertices[static_cast<std::size_t>(t[1])];
-      const Eigen::Vector3d& c = mesh.vertices[static_cast<std::size_t>(t[2])];
-      Eigen::Vector3d n = (b - a).cross(c - a);
-      if (n.norm() > 0.0) n.normalize();
-      text += "facet normal " + formatNumber(n.x()) + " " + formatNumber(n.y()) + " " + formatNumber(n.z()) +
-              "\n outer loop\n";
-      for (const Eigen::Vector3d* p : {&a, &b, &c})
-        text += "  vertex " + formatNumber(p->x()) + " " + formatNumber(p->y()) + " " + formatNumber(p->z()) + "\n";
-      text += " endloop\nendfacet\n";
-    }
-    text += "endsolid hindsight_design\n";
-    if (std::fwrite(text.data(), 1, text.size(), file) != text.size())
-      return std::string("cannot write the STL file: ") + std::strerror(errno);
-    return {};
-  });
+  std::string text = "solid hindsight_design\n";
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3d& a = mesh.vertices[static_cast<std::size_t>(t[0])];
+    const Eigen::Vector3d& b = mesh.vertices[static_cast<std::size_t>(t[1])];
+    const Eigen::Vector3d& c = mesh.vertices[static_cast<std::size_t>(t[2])];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() > 0.0) n.normalize();
+    text += "facet normal " + formatNumber(n.x()) + " " + formatNumber(n.y()) + " " + formatNumber(n.z()) +
+            "\n outer loop\n";
+    for (const Eigen::Vector3d* p : {&a, &b, &c})
+      text += "  vertex " + formatNumber(p->x()) + " " + formatNumber(p->y()) + " " + formatNumber(p->z()) + "\n";
+    text += " endloop\nendfacet\n";
+  }
+  text += "endsolid hindsight_design\n";
+  writeBytesAtomically(path, text.data(), text.size(), "the STL file");
 }
 
 std::vector<std::string> exportGeometry(const std::string& stem, const DensityField& field, double iso,

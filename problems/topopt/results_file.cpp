@@ -705,11 +705,7 @@ void writeResultsFile(const std::string& path, const ResultsData& data) {
   } catch (const hdf5::Error& e) {
     rethrow(e, path);
   }
-  writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
-    if (std::fwrite(image.data(), 1, image.size(), file) != image.size())
-      return std::string("cannot write the results file: ") + std::strerror(errno);
-    return {};
-  });
+  writeBytesAtomically(path, image.data(), image.size(), "the results file");
 }
 
 ResultsVerification verifyResultsFile(const std::string& path) {
