@@ -20,6 +20,16 @@ namespace {
 
 constexpr int kNoRecords = 1000000;
 
+// The real runs below: the pendulum with rk4 and N = 1000 fixed steps.
+Vector runParameters() { return Eigen::Vector4d(1.5, 0.8, 0.3, 1.2); }
+IntegratorOptions thousandRk4Steps() {
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 4.0;
+  options.step = 4e-3;
+  return options;
+}
+
 TEST(CamsPlan, OptimumEqualsBruteForceEnumerationOfAllSchedules) {
   for (std::int64_t w : std::initializer_list<std::int64_t>{1, 2, 3, 4, kNoRecords}) {
     for (std::int64_t n = 1; n <= 6; ++n) {
@@ -135,11 +145,8 @@ TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {
 
 TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinomial) {
   Pendulum problem;
-  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
-  IntegratorOptions options;
-  options.method = "rk4";
-  options.t1 = 4.0;
-  options.step = 4e-3;  // N = 1000
+  const Vector p = runParameters();
+  IntegratorOptions options = thousandRk4Steps();
   FullStorage full;
   const GradientResult reference = computeGradient(problem, p, options, full);
   for (std::int64_t c : std::initializer_list<std::int64_t>{2, 10, 50}) {
@@ -201,11 +208,8 @@ TEST(CamsOnline, PlacementIsOnlines) {
 
 TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
   Pendulum problem;
-  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
-  IntegratorOptions options;
-  options.method = "rk4";
-  options.t1 = 4.0;
-  options.step = 4e-3;  // N = 1000
+  const Vector p = runParameters();
+  IntegratorOptions options = thousandRk4Steps();
   FullStorage full;
   const GradientResult reference = computeGradient(problem, p, options, full);
   for (std::int64_t c : std::initializer_list<std::int64_t>{1, 3, 10, 50}) {
@@ -245,11 +249,8 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
 
 TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
   Pendulum problem;
-  const Eigen::Vector4d p(1.5, 0.8, 0.3, 1.2);
-  IntegratorOptions options;
-  options.method = "rk4";
-  options.t1 = 4.0;
-  options.step = 4e-3;
+  const Vector p = runParameters();
+  IntegratorOptions options = thousandRk4Steps();
   auto one = createStorage("cams:budget=24,online=1");  // at most one state (the pendulum has 2 or 4 doubles)
   try {
     computeGradient(problem, p, options, *one);

@@ -290,6 +290,30 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:2"), std::invalid_argument);
 }
 
+// Runs `spec` on the pendulum (rk4, fixed steps, 16-byte states), checks its gradient against `reference`
+// bit for bit and every counter a prediction shares with a run against the run's; returns the prediction
+// and the storage for the checks of one strategy.
+struct PredictedRun {
+  SchedulePrediction prediction;
+  std::unique_ptr<TrajectoryStorage> storage;
+};
+PredictedRun expectPredictionEqualsRun(const std::string& spec, const IntegratorOptions& options,
+                                       const GradientResult& reference, const ScheduleCosts& costs) {
+  Pendulum problem;
+  auto storage = createStorage(spec);
+  storage->setVerifyRestores(true);  // states and restored stage values hash-verified
+  const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
+  EXPECT_TRUE(bitwiseEqual(result, reference));
+  const SchedulePrediction p = predictSchedule(spec, reference.summary.steps, 16, 4, &costs);
+  EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps) << p.plan;
+  EXPECT_EQ(p.statesStored, storage->counters().statesStored) << p.plan;
+  EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory) << p.plan;
+  EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations) << p.plan;
+  EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored) << p.plan;
+  EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored) << p.plan;
+  return {p, std::move(storage)};
+}
+
 // The prediction against a real run of the pendulum (rk4, N = 2000 fixed steps, 16-byte states).
 TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
   Pendulum problem;
@@ -318,17 +342,7 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
   };
   for (const std::string& spec : specs) {
     SCOPED_TRACE(spec);
-    auto storage = createStorage(spec);
-    storage->setVerifyRestores(true);
-    const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
-    EXPECT_TRUE(bitwiseEqual(result, reference));
-    const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
-    EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps) << p.plan;
-    EXPECT_EQ(p.statesStored, storage->counters().statesStored) << p.plan;
-    EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory) << p.plan;
-    EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations) << p.plan;
-    EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored) << p.plan;
-    EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored) << p.plan;
+    const auto [p, storage] = expectPredictionEqualsRun(spec, options, reference, costs);
     if (spec.rfind("disk", 0) == 0) EXPECT_EQ(p.peakDiskBytes, storage->counters().uncompressedBytes);
     if (auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get())) {
       EXPECT_TRUE(multilevel->usesPlan());
@@ -457,17 +471,7 @@ TEST(SchedulePrediction, BinomialStagesAgreeExactlyWithRealRuns) {
       for (const std::string keep : {",stages=1", ""}) {
         const std::string spec = "binomial:checkpoints=" + std::to_string(c) + keep;
         SCOPED_TRACE(spec + " N " + std::to_string(steps));
-        auto storage = createStorage(spec);
-        storage->setVerifyRestores(true);  // states and restored stage values hash-verified
-        const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
-        EXPECT_TRUE(bitwiseEqual(result, reference));
-        const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
-        EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps);
-        EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations);
-        EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored);
-        EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored);
-        EXPECT_EQ(p.statesStored, storage->counters().statesStored);
-        EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory);
+        const SchedulePrediction p = expectPredictionEqualsRun(spec, options, reference, costs).prediction;
         if (!keep.empty() && steps >= 2) EXPECT_GT(p.stepDataRestored, 0);
       }
     }
@@ -489,17 +493,7 @@ TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
       for (const std::string keep : {",stages=1", ""}) {
         const std::string spec = base + keep;
         SCOPED_TRACE(spec + " N " + std::to_string(steps));
-        auto storage = createStorage(spec);
-        storage->setVerifyRestores(true);
-        const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
-        EXPECT_TRUE(bitwiseEqual(result, reference));
-        const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, &costs);
-        EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps);
-        EXPECT_EQ(p.rhsEvaluations, result.summary.rhsEvaluations);
-        EXPECT_EQ(p.stepDataStored, storage->counters().stepDataStored);
-        EXPECT_EQ(p.stepDataRestored, storage->counters().stepDataRestored);
-        EXPECT_EQ(p.statesStored, storage->counters().statesStored);
-        EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory);
+        expectPredictionEqualsRun(spec, options, reference, costs);
       }
     }
   }
