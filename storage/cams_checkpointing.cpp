@@ -395,28 +395,6 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 
 // ---- Online mode ----
 
-OnlineInterval onlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t memoryUnits,
-                              std::int64_t step) {
-  assert(!positions.empty() && step < steps - 1);
-  std::int64_t j = static_cast<std::int64_t>(positions.size()) - 1;
-  while (positions[static_cast<std::size_t>(j)] > step) --j;
-  OnlineInterval interval;
-  interval.index = j;
-  interval.start = positions[static_cast<std::size_t>(j)];
-  const std::int64_t end =
-      j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
-  interval.length = end - interval.start;
-  interval.units = memoryUnits - j - 1;
-  return interval;
-}
-
-std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps) {
-  std::int64_t longest = 0;
-  for (std::size_t j = 0; j < positions.size(); ++j)
-    longest = std::max(longest, (j + 1 < positions.size() ? positions[j + 1] : steps - 1) - positions[j]);
-  return longest;
-}
-
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                             std::int64_t recordUnits) {
   const std::int64_t length = std::max<std::int64_t>(longest, 1);
@@ -445,15 +423,17 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
   if (steps == 1) return counts;
   std::unique_ptr<Plan> local;
   std::unique_ptr<Plan>& cached = plan != nullptr ? *plan : local;
-  const Plan& intervalPlan = onlineIntervalPlan(cached, longestOnlineInterval(positions, steps), memoryUnits, recordUnits);
+  const Plan& intervalPlan =
+      onlineIntervalPlan(cached, internal::OnlinePlacement::longestInterval(positions, steps), memoryUnits, recordUnits);
   Executor executor;
   CountingVisitor visitor{counts, executor, nullptr};
-  std::int64_t start = steps;
+  internal::OnlinePlacement::Interval interval{static_cast<std::int64_t>(positions.size()), steps, 0};
   for (std::int64_t e = steps - 2; e >= 0; --e) {
-    if (e < start) {
-      const OnlineInterval interval = onlineInterval(positions, steps, memoryUnits, e);
-      executor.beginInterval(&intervalPlan, interval.start, interval.index, interval.length, interval.units);
-      start = interval.start;
+    if (e < interval.start) {
+      // Interval j: its checkpoint in unit j, the units above it free.
+      interval = internal::OnlinePlacement::intervalOf(positions, steps, e, interval.index);
+      executor.beginInterval(&intervalPlan, interval.start, interval.index, interval.length,
+                             memoryUnits - interval.index - 1);
     }
     executor.restoreStep(e, visitor);
   }
@@ -678,7 +658,7 @@ void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   const std::int64_t steps = stepCount();
   if (steps >= 2) {
     const Stopwatch planning;
-    const std::int64_t longest = cams::longestOnlineInterval(placement_.positions(), steps);
+    const std::int64_t longest = internal::OnlinePlacement::longestInterval(placement_.positions(), steps);
     cams::onlineIntervalPlan(intervalPlan_, longest, units_, recordUnits_);
     mutableCounters().planningSeconds += planning.seconds();
     executor_.reserve(std::min(units_, longest + 1));  // no allocation in the restores
@@ -722,9 +702,13 @@ void CamsCheckpointing::doRestore(std::int64_t step, VectorRef z) {
       return;
     }
     if (intervalStart_ < 0 || step < intervalStart_) {
-      const cams::OnlineInterval interval = cams::onlineInterval(placement_.positions(), stepCount(), units_, step);
-      executor_.beginInterval(intervalPlan_.get(), interval.start, interval.index, interval.length, interval.units);
+      // As cams::simulateOnline: interval j's checkpoint in unit j, the units above it free.
+      const internal::OnlinePlacement::Interval interval = internal::OnlinePlacement::intervalOf(
+          placement_.positions(), stepCount(), step, intervalStart_ < 0 ? units_ : intervalIndex_);
+      executor_.beginInterval(intervalPlan_.get(), interval.start, interval.index, interval.length,
+                              units_ - interval.index - 1);
       intervalStart_ = interval.start;
+      intervalIndex_ = interval.index;
     }
   }
   executor_.restoreStep(step, visitor);

@@ -46,7 +46,7 @@
 // N (M + 1) > kMaxTableEntries with a message naming online=1.
 //
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
-// cams::OnlineInterval below (checkpoints placed as `online` places them, each interval reversed by the
+// the online mode below (checkpoints placed as `online` places them, each interval reversed by the
 // optimal plan for its length and the units left; M >= 2 units needed). Without online=1, fixed steps whose
 // table exceeds kMaxTableEntries are refused with a message pointing to online=1. With an integrator that
 // offers no step data (generalized-alpha) records are impossible and the plan is revolve's.
@@ -128,17 +128,7 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 /// state; once N is known, the intervals between held checkpoints are reversed last to first, interval j
 /// by the plan's replay tables with the M - j - 1 units not held by checkpoints 0..j. One plan serves all
 /// intervals: its rows hold every length up to the longest interval and every unit count up to M - 1.
-struct OnlineInterval {
-  std::int64_t index = 0;   ///< j
-  std::int64_t start = 0;   ///< its checkpoint's position
-  std::int64_t length = 0;  ///< steps to reverse
-  std::int64_t units = 0;   ///< free units above the checkpoint
-};
-/// The interval holding `step` (< N - 1) among the held positions.
-OnlineInterval onlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t memoryUnits,
-                              std::int64_t step);
-/// The longest interval the forward placement leaves for N steps and c checkpoints (0 for N <= 1).
-std::int64_t longestOnlineInterval(const std::vector<std::int64_t>& positions, std::int64_t steps);
+///
 /// The plan for intervals up to `longest` steps with M - 1 units, reusing `cached` when it covers them
 /// (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
@@ -291,7 +281,7 @@ class CamsCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   /// checkpoints > 0: the budget of binomial:checkpoints=C, (C + 1) states, fixed at begin(); otherwise
   /// budgetBytes is the budget.
-  /// online: the online mode (cams::OnlineInterval) even for fixed steps; adaptive steps always use it.
+  /// online: the online mode (cams::simulateOnline) even for fixed steps; adaptive steps always use it.
   CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool online = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
   static std::vector<std::string> keys() { return {"checkpoints", "budget", "online"}; }
@@ -333,7 +323,7 @@ class CamsCheckpointing final : public TrajectoryStorage {
   bool workingValid_ = false;
   std::int64_t recordUnits_ = 0;
   std::unique_ptr<cams::Plan> intervalPlan_;
-  std::int64_t intervalStart_ = -1;
+  std::int64_t intervalStart_ = -1, intervalIndex_ = 0;
   cams::Executor executor_;
   std::unique_ptr<double[]> memory_;  // units x n doubles
   std::int64_t heldBytes_ = 0;

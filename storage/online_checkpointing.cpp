@@ -148,15 +148,6 @@ bool OnlineCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
   return restored;
 }
 
-void OnlineCheckpointing::startInterval(std::int64_t j) {
-  interval_ = j;
-  const std::vector<std::int64_t>& positions = placement_.positions();
-  intervalStart_ = positions[static_cast<std::size_t>(j)];
-  const std::int64_t end =
-      j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : stepCount() - 1;
-  schedule_.reset(end - intervalStart_, activeCheckpoints_ - j, false);
-}
-
 void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   const auto bytes = static_cast<std::size_t>(info().stateSize) * sizeof(double);
   if (workingValid_) {
@@ -170,11 +161,12 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     return;
   }
   if (interval_ == static_cast<std::int64_t>(placement_.positions().size()) || step < intervalStart_) {
-    // The previous interval is done: the next one is the last held checkpoint at or before `step`
-    // (a checkpoint at N - 1 starts an interval of no steps and is skipped).
-    std::int64_t j = interval_ - 1;
-    while (placement_.positions()[static_cast<std::size_t>(j)] > step) --j;
-    startInterval(j);
+    // The previous interval is done: the next one is the last held checkpoint at or before `step`.
+    const internal::OnlinePlacement::Interval interval =
+        internal::OnlinePlacement::intervalOf(placement_.positions(), stepCount(), step, interval_);
+    interval_ = interval.index;
+    intervalStart_ = interval.start;
+    schedule_.reset(interval.length, activeCheckpoints_ - interval.index, false);
   }
   struct Visitor {
     OnlineCheckpointing& self;

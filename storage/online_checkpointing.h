@@ -84,7 +84,6 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   bool doRestoreStepData(std::int64_t step, VectorRef data) override;
   double* slot(std::int64_t index);
   void commitWorkingState(std::int64_t position);
-  void startInterval(std::int64_t j);
   void releaseAll();
 
   std::int64_t requestedCheckpoints_;

@@ -44,6 +44,31 @@ class OnlinePlacement {
     return placement.positions();
   }
 
+  /// An interval of the backward sweep: from held position `start` (index `index`) over `length` steps, to
+  /// the next held position or N - 1.
+  struct Interval {
+    std::int64_t index, start, length;
+  };
+  /// The interval holding `step` (< N - 1): the last held position at or before it, searched downwards
+  /// from index `below` - 1 (the previous interval's index, or positions.size()), so the lookups of a whole
+  /// backward sweep cost O(positions) in total.
+  static Interval intervalOf(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t step,
+                             std::int64_t below) {
+    std::int64_t j = std::min(below, static_cast<std::int64_t>(positions.size())) - 1;
+    while (positions[static_cast<std::size_t>(j)] > step) --j;
+    const std::int64_t start = positions[static_cast<std::size_t>(j)];
+    const std::int64_t end =
+        j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
+    return Interval{j, start, end - start};
+  }
+  /// The longest interval of a placement of N steps (0 for N <= 1).
+  static std::int64_t longestInterval(const std::vector<std::int64_t>& positions, std::int64_t steps) {
+    std::int64_t longest = 0;
+    for (std::size_t j = 0; j < positions.size(); ++j)
+      longest = std::max(longest, (j + 1 < positions.size() ? positions[j + 1] : steps - 1) - positions[j]);
+    return longest;
+  }
+
   void reset(std::int64_t checkpoints) {
     checkpoints_ = checkpoints;
     limit_ = forwardCheckpoints(checkpoints);

@@ -544,22 +544,16 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       if (keepStages) sim.stages.recordLast(steps - 1, data);
       if (keepStages && sim.stages.restore(steps - 1, data)) ++served;  // x_{N-1}: the working state
       BinomialSchedule schedule;
-      std::int64_t interval = static_cast<std::int64_t>(positions.size()), start = steps;
+      internal::OnlinePlacement::Interval interval{static_cast<std::int64_t>(positions.size()), steps, 0};
       for (std::int64_t e = steps - 2; e >= 0; --e) {
-        if (e < start) {
-          // The last held checkpoint at or before e, as OnlineCheckpointing::doRestore finds it.
-          std::int64_t j = interval - 1;
-          while (positions[static_cast<std::size_t>(j)] > e) --j;
-          interval = j;
-          start = positions[static_cast<std::size_t>(interval)];
-          const std::int64_t end = interval + 1 < static_cast<std::int64_t>(positions.size())
-                                       ? positions[static_cast<std::size_t>(interval + 1)]
-                                       : steps - 1;
-          schedule.reset(end - start, c - interval, false);
-          sim.offset = start;
+        if (e < interval.start) {
+          // As OnlineCheckpointing::doRestore: interval j by revolve with c - j slots.
+          interval = internal::OnlinePlacement::intervalOf(positions, steps, e, interval.index);
+          schedule.reset(interval.length, c - interval.index, false);
+          sim.offset = interval.start;
         }
         if (keepStages) sim.stages.beginRestore(e);
-        schedule.restoreStep(e - start, sim);
+        schedule.restoreStep(e - interval.start, sim);
         if (keepStages && sim.stages.restore(e, data)) ++served;
       }
       p.ramWrites = forwardStores + sim.stores + 1;

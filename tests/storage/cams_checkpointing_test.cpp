@@ -201,7 +201,7 @@ TEST(CamsOnline, PlacementIsOnlines) {
       ASSERT_FALSE(positions.empty());
       for (std::size_t j = 0; j < positions.size(); ++j) EXPECT_EQ(positions[j], static_cast<std::int64_t>(j) * d);
       EXPECT_LE(peak, c);
-      EXPECT_LE(cams::longestOnlineInterval(positions, n), d);
+      EXPECT_LE(internal::OnlinePlacement::longestInterval(positions, n), d);
     }
   }
 }
