@@ -404,20 +404,13 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
                            scenarios_.rod(s).config().rod.endTime);
     }
   }
-  const double volume = evaluation.volumeFraction / settings.volumeFraction - 1.0;
-  const Vector volumeGradient = chainToDesign(evaluation.dvolume / settings.volumeFraction, design, state_.iteration);
-  // The frequency guard (constraint 1 when on): from this rank's full evaluation of a scenario it owns;
-  // the eigenpairs are the design's, the same in every scenario and on every rank.
-  const int guards = settings.minFirstFrequency > 0.0 ? 1 : 0;
-  double guardValue = 0.0;
-  Vector guardGradient;
-  if (guards > 0) {
-    if (!evaluation.local) throw std::logic_error("the frequency guard needs a full evaluation on every rank");
-    Matrix rows;
-    guardValue = constraintsOf(evaluation.volumeFraction, evaluation.dvolume, &*evaluation.local, design,
-                               state_.iteration, &rows)(1);
-    guardGradient = rows.row(1).transpose();
-  }
+  // The design's constraints (volume; the frequency guard when on, from this rank's full evaluation of a
+  // scenario it owns: the eigenpairs are the design's, the same in every scenario and on every rank).
+  Matrix ownJacobian;
+  const Vector own = constraintsOf(evaluation.volumeFraction, evaluation.dvolume,
+                                   evaluation.local ? &*evaluation.local : nullptr, design, state_.iteration,
+                                   &ownJacobian);
+  const Eigen::Index owned = own.size();
   Vector x;
   if (!bound_) {
     double objective = 0.0;
@@ -426,14 +419,8 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
       objective += relative(s);
       gradient += gradients[s];
     }
-    Vector constraint(1 + guards);
-    constraint(0) = volume;
-    Matrix jacobian(1 + guards, n);
-    jacobian.row(0) = volumeGradient.transpose();
-    if (guards > 0) {
-      constraint(1) = guardValue;
-      jacobian.row(1) = guardGradient.transpose();
-    }
+    const Vector& constraint = own;
+    const Matrix& jacobian = ownJacobian;
     x = design;
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
     if (gcmma_) {
@@ -458,18 +445,14 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
     x << design, std::min(relative(worst), upper(n));
     Vector objectiveGradient = Vector::Zero(n + 1);
     objectiveGradient(n) = 1.0;
-    Vector constraints(1 + guards + count);
-    Matrix jacobian = Matrix::Zero(1 + guards + count, n + 1);
-    constraints(0) = volume;
-    jacobian.row(0).head(n) = volumeGradient.transpose();
-    if (guards > 0) {
-      constraints(1) = guardValue;
-      jacobian.row(1).head(n) = guardGradient.transpose();
-    }
+    Vector constraints(owned + count);
+    Matrix jacobian = Matrix::Zero(owned + count, n + 1);
+    constraints.head(owned) = own;
+    jacobian.topLeftCorner(owned, n) = ownJacobian;
     for (int s = 0; s < count; ++s) {
-      constraints(1 + guards + s) = relative(s) - x(n);
-      jacobian.row(1 + guards + s).head(n) = gradients[s].transpose();
-      jacobian(1 + guards + s, n) = -1.0;
+      constraints(owned + s) = relative(s) - x(n);
+      jacobian.row(owned + s).head(n) = gradients[s].transpose();
+      jacobian(owned + s, n) = -1.0;
     }
     if (gcmma_) {
       gcmma_->restore(fullMmaState(state_));
@@ -508,7 +491,7 @@ Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) co
   return [this, &next](const Vector& trial, double& value, Vector& constraints) {
     const OptimizationSettings& settings = config().optimization;
     const bool usePsi1 = settings.objective == Objective::Psi1;
-    const int n = designCount(), count = scenarios_.count(), guards = settings.minFirstFrequency > 0.0 ? 1 : 0;
+    const int n = designCount(), count = scenarios_.count();
     PistonRod::Request request;
     request.psi1Gradient = false;
     request.psi2 = !usePsi1;
@@ -524,11 +507,12 @@ Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) co
       }
       const Vector own = constraintsOf(r.volumeFraction, r.dvolume, r.local ? &*r.local : nullptr, design,
                                        state_.iteration, nullptr);
-      constraints.resize(1 + guards + (bound_ ? count : 0));
-      constraints.head(1 + guards) = own;
+      const Eigen::Index owned = own.size();  // volume, and the frequency guard when on
+      constraints.resize(owned + (bound_ ? count : 0));
+      constraints.head(owned) = own;
       if (bound_) {
         value = trial(n);
-        for (int s = 0; s < count; ++s) constraints(1 + guards + s) = relative(s) - trial(n);
+        for (int s = 0; s < count; ++s) constraints(owned + s) = relative(s) - trial(n);
       } else {
         value = 0.0;
         for (int s = 0; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
