@@ -21,46 +21,25 @@ struct ScheduleArgs {
   std::string storage;
   std::string steps;
   std::string stateBytes;
-  int stages = 4;
+  std::string stages = "4";
   std::string costs;
   bool json = false;
   bool actions = false;
 };
 
-std::int64_t parseSteps(const std::string& text) {
-  const std::string message = "--steps = '" + text + "' must be an integer in [1, 4e18] (e.g. 30000 or 1e9)";
-  std::size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    throw std::invalid_argument(message);
-  }
-  if (used != text.size() || !std::isfinite(value) || value < 1.0 || value > 4e18 || std::floor(value) != value)
-    throw std::invalid_argument(message);
-  if (value > 9e15) {  // beyond doubles' integers: read the digits
-    try {
-      return std::stoll(text, &used);
-    } catch (const std::exception&) {
-      throw std::invalid_argument(message);
-    }
-  }
-  return static_cast<std::int64_t>(value);
-}
-
 std::string count(std::int64_t value) { return value < 0 ? std::string("not counted") : std::to_string(value); }
 
 int runSchedule(const ScheduleArgs& args) {
-  const std::int64_t steps = parseSteps(args.steps);
+  const std::int64_t steps = parseScheduleInteger(args.steps, "--steps", 1, kMaxScheduleSteps);
   const std::int64_t stateBytes = parseBytes(args.stateBytes, "--state-bytes");
+  const int stages = static_cast<int>(parseScheduleInteger(args.stages, "--stages", 1, kMaxScheduleStages));
   std::unique_ptr<ScheduleCosts> costs;
   if (!args.costs.empty()) costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
   if (args.actions) {
-    predictSchedule(args.storage, steps, stateBytes, args.stages, costs.get());  // validates first
-    writeScheduleActions(args.storage, steps, stateBytes, costs.get(), std::cout);
+    writeScheduleActions(args.storage, steps, stateBytes, stages, costs.get(), std::cout);  // validates first
     return 0;
   }
-  const SchedulePrediction p = predictSchedule(args.storage, steps, stateBytes, args.stages, costs.get());
+  const SchedulePrediction p = predictSchedule(args.storage, steps, stateBytes, stages, costs.get());
   if (args.json) {
     const nlohmann::json out = scheduleToJson(p, stateBytes);
     std::cout << out.dump(2) << '\n';
@@ -89,10 +68,10 @@ void registerSchedule(CLI::App& app) {
       "schedule", "What a storage strategy will do for N fixed steps, without running a model: recomputed "
                   "steps, rhs evaluations, reads/writes and peak bytes per level, predicted cost");
   command->add_option("--storage", args->storage, "storage spec, e.g. binomial:checkpoints=50")->required();
-  command->add_option("--steps", args->steps, "number of fixed steps N, 1..4e18 (1e9 style accepted)")->required();
-  command->add_option("--state-bytes", args->stateBytes, "bytes of one state, a multiple of 8 (e.g. 8000, 64KiB)")
+  command->add_option("--steps", args->steps, "number of fixed steps N, an integer in [1, 4e18] (1e9 style accepted)")->required();
+  command->add_option("--state-bytes", args->stateBytes, "bytes of one state, a multiple of 8 in [8, 16 GiB - 8] (e.g. 8000, 64KiB)")
       ->required();
-  command->add_option("--stages", args->stages, "right-hand sides per step of the integrator, 1..64 (rk4: 4)")
+  command->add_option("--stages", args->stages, "right-hand sides per step of the integrator, an integer in [1, 64] (rk4: 4)")
       ->capture_default_str();
   command->add_option("--costs", args->costs,
                       "cost model uf:ub:wd:rd: seconds of a forward step, an adjoint step, a disk write and a "

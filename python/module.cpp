@@ -698,7 +698,7 @@ PYBIND11_MODULE(_hindsight, m) {
       p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
       if (actions) {
         std::ostringstream out;
-        writeScheduleActions(spec, steps, stateBytes, parsed ? &*parsed : nullptr, out);
+        writeScheduleActions(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, out);
         stream = out.str();
       }
     }

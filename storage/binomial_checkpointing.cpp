@@ -59,6 +59,12 @@ UnsignedInt128 optimalForwardSteps(std::int64_t steps, std::int64_t checkpoints)
   return static_cast<UnsignedInt128>(r) * static_cast<UnsignedInt128>(steps) - next;
 }
 
+UnsignedInt128 optimalRecomputedSteps(std::int64_t steps, std::int64_t slots) {
+  assert(steps >= 1 && slots >= 1);
+  // T(N + 1, S) >= N for N >= 1 (the first sweep), so the difference is a count.
+  return optimalForwardSteps(steps + 1, slots) - static_cast<UnsignedInt128>(steps);
+}
+
 std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots) {
   assert(steps >= 2 && slots >= 2);
   const std::int64_t r = repetitionNumber(steps, slots);
@@ -187,7 +193,6 @@ void BinomialCheckpointing::releaseAll() {
   if (heldBytes_ > 0) releaseBytes(heldBytes_);
   heldBytes_ = 0;
   slots_.reset();
-  working_.reset();
   recomputedStages_.reset(0);
   slotCount_ = 0;
 }
@@ -203,13 +208,15 @@ void BinomialCheckpointing::doBegin() {
         std::to_string(steps) +
         ", adaptive steps); use 'online:budget=BYTES' or 'online:checkpoints=C' for adaptive steps");
   }
-  slotCount_ = std::min(checkpoints_, std::max<std::int64_t>(1, steps - 1));
-  const std::int64_t states = slotCount_ + (steps >= 2 ? 1 : 0);
+  // C + 1 slots (the checkpoints and what revolve calls the working state), at most one per position
+  // 0..N-1: revolve over N + 1 positions whose first sweep is the forward sweep (see the header).
+  slotCount_ = std::min(checkpoints_ + 1, steps);
+  const std::int64_t states = slotCount_;
   const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
-  if (states > (budgetBytes() - recordBytes) / stateBytes()) {
+  if (recordBytes > budgetBytes() || states > (budgetBytes() - recordBytes) / stateBytes()) {
     throw std::invalid_argument("binomial.checkpoints = " + std::to_string(checkpoints_) + " needs " +
-                                std::to_string(slotCount_) + " checkpoints plus one working state of " +
-                                formatBytes(stateBytes()) + ", more than binomial.budget = " +
+                                std::to_string(states) + " states of " + formatBytes(stateBytes()) +
+                                " (the checkpoints and one more slot), more than binomial.budget = " +
                                 formatBytes(budgetBytes()) + "; lower the checkpoints or raise the budget");
   }
   const auto n = static_cast<std::size_t>(info().stateSize);
@@ -217,8 +224,7 @@ void BinomialCheckpointing::doBegin() {
   heldBytes_ = states * stateBytes() + recordBytes;
   recomputedStages_.reset(info().stepDataSize);
   slots_.reset(new double[static_cast<std::size_t>(slotCount_) * n]);
-  if (steps >= 2) working_.reset(new double[n]);
-  schedule_.reset(steps, slotCount_, true);
+  schedule_.reset(steps + 1, slotCount_, true);
 }
 
 void BinomialCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
@@ -228,17 +234,13 @@ void BinomialCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z
     std::memcpy(slots_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * sizeof(double));
     ++mutableCounters().statesStored;
   }
-  if (step == info().stepCount - 1 && working_) {
-    std::memcpy(working_.get(), z.data(), n * sizeof(double));
-    ++mutableCounters().statesStored;
-  }
 }
 
 void BinomialCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {}
 
 void BinomialCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
-  // Only the last forward step's stages are kept: its state is the working state, restored without
-  // recomputation, so nothing else would give them.
+  // Only the last forward step's stages are kept: no restore recomputes the step x_{N-1} -> x_N (x_N is
+  // revolve's current state, never asked for), so nothing else would give them.
   if (!recomputedStages_.active() || step != info().stepCount - 1) return;
   recomputedStages_.recordLast(step, data);
   ++mutableCounters().stepDataStored;
@@ -255,7 +257,7 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     BinomialCheckpointing& self;
     VectorRef z;
     std::size_t n;
-    void loadWorking() { std::memcpy(z.data(), self.working_.get(), n * sizeof(double)); }
+    void loadWorking() {}  // x_N: the schedule's end position, never restored
     void load(std::int64_t slot) {
       std::memcpy(z.data(), self.slots_.get() + static_cast<std::size_t>(slot) * n, n * sizeof(double));
     }
@@ -271,6 +273,7 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     }
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
   recomputedStages_.beginRestore(step);
+  if (step == info().stepCount - 1) schedule_.restoreStep(step + 1, visitor);  // x_N: nothing to do
   schedule_.restoreStep(step, visitor);
   if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
 }

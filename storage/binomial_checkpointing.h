@@ -18,18 +18,27 @@
 // (the two lines add up to r l - beta(s + 1, r - 1) by Pascal's rule). binomialSplit() picks the
 // largest such m. With one slot the interval is replayed from its start for every step.
 //
-// What is counted. T(N, c) counts the advances of revolve: the first sweep x_0 -> x_{N-1} (N - 1
-// steps) plus every recomputed step; the step x_{N-1} -> x_N is part of the first "youturn" (the
-// engine's adjoint step recomputes its stages anyway) and is not counted. In hindsight's terms:
-//     (N - 1) + counters().recomputedSteps == T(N, c)          exactly, for every N >= 1 and c >= 1.
-// Like revolve, the strategy keeps, besides the c checkpoints, the current ("working") state: the last
-// recorded state x_{N-1}, held from record(N - 1) until restore(N - 1). Memory is therefore
-// min(c, max(1, N - 1)) checkpoints plus one working state, all charged with holdBytes(); begin()
-// throws std::invalid_argument naming binomial.checkpoints and binomial.budget when they do not fit.
+// What is counted, and the slots. Revolve's setting charges c checkpoints but not its "current" state,
+// which reaches x_{N-1} at the end of the first sweep and is consumed at once by the first adjoint step.
+// Here the forward sweep goes on to x_N and every state the storage keeps is charged: the states x_e are
+// asked for in the order N-1, ..., 0, each from a slot plus advances (docs/design.md §6, "the game").
+// With S slots the least number of recomputed steps of that game is
+//     R(N, S) = T(N + 1, S) - N,
+// revolve with S checkpoints over N + 1 positions (0..N) whose first sweep 0 -> N is the forward sweep
+// itself: x_N plays revolve's current state and is never asked for. The tests confirm R by exhaustive
+// search over every schedule of the game (small N and S) and by a dynamic programme over first splits.
+// R(N, S) = T(N, S) - (N - 1) + (r(N + 1, S) - 1): one recomputed step per repetition more than revolve
+// counts with its uncharged current state, and far fewer than T(N, S - 1) - (N - 1), what revolve over
+// S - 1 slots reaches when the S-th parks x_{N-1} (a "working state") for the whole forward sweep.
+// `binomial:checkpoints=C` holds S = C + 1 states (min(C + 1, N) when N is small): the C checkpoints
+// and the state that revolve would call the working state are all slots of the schedule above. So
+//     counters().recomputedSteps == T(N + 1, min(C + 1, N)) - N      exactly, for every N >= 1, C >= 1,
+// and peakBytesInMemory == min(C + 1, N) states, all charged with holdBytes(); begin() throws
+// std::invalid_argument naming binomial.checkpoints and binomial.budget when they do not fit.
 //
 // Preconditions: TrajectoryInfo.stepCount >= 1 (fixed step or replayed grid); begin() throws
 // std::invalid_argument telling to use `online` when it is -1 (adaptive steps).
-// Complexity: T(N, c) - (N - 1) recomputed steps in total; restores and records allocate nothing (all
+// Complexity: T(N + 1, C + 1) - N recomputed steps in total; restores and records allocate nothing (all
 // slots are allocated in begin(), a test counts heap allocations); each schedule decision costs
 // O(min(c, r) log r) products of 128-bit saturating binomials, so N up to 2^62 and c up to 10^9 do not
 // overflow.
@@ -57,6 +66,9 @@ UnsignedInt128 beta(std::int64_t c, std::int64_t r);
 std::int64_t repetitionNumber(std::int64_t steps, std::int64_t checkpoints);
 /// T(N, c) = r N - beta(c + 1, r - 1): least number of forward steps (revolve's count, see above).
 UnsignedInt128 optimalForwardSteps(std::int64_t steps, std::int64_t checkpoints);
+/// R(N, S) = T(N + 1, S) - N: least number of recomputed steps when every kept state is charged and
+/// the forward sweep ends at x_N (see above). Preconditions: steps >= 1, slots >= 1.
+UnsignedInt128 optimalRecomputedSteps(std::int64_t steps, std::int64_t slots);
 /// The first checkpoint's offset m (1 <= m < l) for reversing l >= 2 steps with s >= 2 slots, one of
 /// them holding the interval's first state; optimal in the sense of T(l, s) = m + T(l-m, s-1) + T(m, s).
 std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots);
@@ -185,8 +197,7 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   bool stages_;
   internal::RecomputedStages recomputedStages_;  // stages=1
   BinomialSchedule schedule_;
-  std::unique_ptr<double[]> slots_;    // slotCount_ states, slot i at slots_ + i * n
-  std::unique_ptr<double[]> working_;  // x_{N-1}
+  std::unique_ptr<double[]> slots_;  // slotCount_ states, slot i at slots_ + i * n
   std::int64_t slotCount_ = 0;
   std::int64_t heldBytes_ = 0;
 };

@@ -555,6 +555,13 @@ std::string CamsCheckpointing::spec() const {
 
 std::int64_t CamsCheckpointing::usableUnits(std::int64_t stateBytes, bool online) const {
   const std::int64_t units = online ? std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1) : memoryUnits(stateBytes);
+  if (checkpoints_ > 0 && units > budgetBytes() / stateBytes) {
+    // As binomial:checkpoints=C refuses C + 1 states beyond its budget, so does the same byte budget here.
+    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints_) + " needs " +
+                                std::to_string(units) + " states of " + formatBytes(stateBytes) +
+                                ", more than the budget of binomial:checkpoints=" + std::to_string(checkpoints_) +
+                                " (" + formatBytes(budgetBytes()) + "); lower the checkpoints or use cams:budget=BYTES");
+  }
   if (units < (online ? 2 : 1)) {
     throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units) +
                                 " state(s) of " + formatBytes(stateBytes) + "; " +

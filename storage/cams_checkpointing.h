@@ -29,8 +29,9 @@
 // through, where advancing is free: H(1, m) = 1 and the two checkpoint terms read F(k, m) + H(l - k, m - 1)
 // and F(k, m) + H(l - k, m - w) - 1. With M units in all, the whole run costs
 //   E(N, M) = N + min(H(N, M - 1), H(N, M - w) - 1)       (x_0 held as a state or as a record).
-// Without records (w > M) this is revolve with the working state (binomial:checkpoints=M-1), plus N
-// adjoint recomputations; records can only lower it. The k-searches are exact: the rows are not convex
+// Without records (w > M) this is the optimum over M slots of storage/binomial_checkpointing.h
+// (binomial:checkpoints=M-1: revolve with M slots over the positions 0..N, T(N + 1, M) - N recomputed
+// steps), plus N adjoint recomputations; records can only lower it (tests compare both strategies). The k-searches are exact: the rows are not convex
 // in l (a record serves two steps, so parity shows), but each row stays within a few units of its
 // greatest convex minorant, kept as the row grows; the minorants give a convex lower bound of the cost in
 // k (computed exactly, in 128-bit integer arithmetic: a rounded bound could prune the optimum), so only

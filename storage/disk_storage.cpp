@@ -3,6 +3,7 @@
 #include <hindsight/storage/chunked_state_file.h>
 
 #include <algorithm>
+#include <limits>
 
 namespace hindsight {
 
@@ -63,16 +64,8 @@ void DiskStorage::closeFile() {
   }
 }
 
-void DiskStorage::doBegin() {
-  closeFile();
-  heldBytes_ = 0;  // begin() has already released everything
-  // With step data a row is the state followed by the step's stage values.
-  TrajectoryInfo rowInfo = info();
-  rowInfo.stateSize = static_cast<int>(info().stateSize + info().stepDataSize);
-  row_.assign(info().stepDataSize > 0 ? static_cast<std::size_t>(rowInfo.stateSize) : 0, 0.0);
-  const int n = rowInfo.stateSize;
-  const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(n, 1);
-  const std::int64_t rows = info().stepCount >= 0 ? info().stepCount + 1 : std::int64_t{1} << 40;
+DiskStorage::Layout DiskStorage::layoutFor(std::int64_t rowDoubles, std::int64_t rows) const {
+  const std::int64_t rowBytes = (rowDoubles + 1) * 8;  // ChunkedStateFile::bufferBytes of one row
   std::int64_t chunk = options_.chunkStates;
   if (chunk == 0) {
     chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
@@ -82,8 +75,29 @@ void DiskStorage::doBegin() {
     chunk = std::min(chunk, std::max<std::int64_t>(1, budgetBytes() / (3 * rowBytes)));
   }
   chunk = std::min(chunk, rows);
-  const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(n, chunk);
-  const int bufferCount = static_cast<int>(std::clamp<std::int64_t>(budgetBytes() / bufferBytes, 1, 3));
+  Layout layout;
+  layout.chunkStates = chunk;
+  // A chunk= beyond what any budget holds saturates (begin() then refuses it by the budget).
+  layout.bufferBytes = chunk > std::numeric_limits<std::int64_t>::max() / rowBytes
+                           ? std::numeric_limits<std::int64_t>::max()
+                           : chunk * rowBytes;
+  layout.bufferCount = static_cast<int>(std::clamp<std::int64_t>(budgetBytes() / layout.bufferBytes, 1, 3));
+  return layout;
+}
+
+void DiskStorage::doBegin() {
+  closeFile();
+  heldBytes_ = 0;  // begin() has already released everything
+  // With step data a row is the state followed by the step's stage values.
+  TrajectoryInfo rowInfo = info();
+  rowInfo.stateSize = static_cast<int>(info().stateSize + info().stepDataSize);
+  row_.assign(info().stepDataSize > 0 ? static_cast<std::size_t>(rowInfo.stateSize) : 0, 0.0);
+  const int n = rowInfo.stateSize;
+  const std::int64_t rows = info().stepCount >= 0 ? info().stepCount + 1 : std::int64_t{1} << 40;
+  const Layout layout = layoutFor(n, rows);
+  const std::int64_t chunk = layout.chunkStates;
+  const std::int64_t bufferBytes = layout.bufferBytes;
+  const int bufferCount = layout.bufferCount;
   holdBytes(bufferCount * bufferBytes);  // throws StorageError when not even one buffer fits
   heldBytes_ = bufferCount * bufferBytes;
   chunkStates_ = chunk;

@@ -88,6 +88,15 @@ class DiskStorage final : public TrajectoryStorage {
   /// States per chunk of the current or last run.
   std::int64_t chunkStates() const { return chunkStates_; }
 
+  /// The chunk and buffer sizes begin() uses for rows of `rowDoubles` doubles and `rows` rows (N + 1
+  /// for N fixed steps); `hindsight schedule` predicts with the same rule (storage/schedule.h).
+  struct Layout {
+    std::int64_t chunkStates = 0;
+    std::int64_t bufferBytes = 0;
+    int bufferCount = 0;
+  };
+  Layout layoutFor(std::int64_t rowDoubles, std::int64_t rows) const;
+
  private:
   void doBegin() override;
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;

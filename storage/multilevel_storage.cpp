@@ -46,6 +46,13 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   }
   Options options;
   options.ramBytes = spec.bytes("ram", 0);
+  const std::string disk = spec.text("disk", "");
+  if (disk.find_first_of("123456789") == std::string::npos && disk.find('0') != std::string::npos) {
+    // "0", "0B", "0KiB": no disk level. Refused with a pointer to the strategies for RAM alone.
+    throw std::invalid_argument("multilevel.disk = '" + disk +
+                                "': multilevel needs a disk level (a positive byte count, e.g. disk=4GiB); for "
+                                "RAM alone use binomial:checkpoints=C or cams:budget=BYTES");
+  }
   options.diskBytes = spec.bytes("disk", 0);
   options.directory = spec.text("dir", "");
   options.compressionLevel = static_cast<int>(spec.integer("level", 3, 1, 22));

@@ -20,11 +20,70 @@
 
 namespace hindsight {
 
+// ---- parsing ----
+
+std::int64_t parseScheduleInteger(const std::string& text, const std::string& field, std::int64_t minimum,
+                                  std::int64_t maximum) {
+  const std::string message = field + " = '" + text + "' must be an integer in [" + std::to_string(minimum) +
+                              ", " + std::to_string(maximum) + "] (digits, or exact scientific notation as 1e9)";
+  // mantissa digits [. digits] [e|E [+] digits], read exactly in 128 bits (no double rounding: 9.5e15
+  // is 9500000000000000, 1e17 is not 1).
+  __extension__ typedef __int128 Wide;
+  const Wide limit = static_cast<Wide>(1) << 100;
+  std::size_t i = 0;
+  Wide mantissa = 0;
+  int digits = 0, fraction = 0;
+  const auto digit = [&](char c) { return c >= '0' && c <= '9'; };
+  while (i < text.size() && digit(text[i])) {
+    if (mantissa >= limit) throw std::invalid_argument(message);
+    mantissa = mantissa * 10 + (text[i] - '0');
+    ++digits;
+    ++i;
+  }
+  if (i < text.size() && text[i] == '.') {
+    ++i;
+    while (i < text.size() && digit(text[i])) {
+      if (mantissa >= limit) throw std::invalid_argument(message);
+      mantissa = mantissa * 10 + (text[i] - '0');
+      ++digits;
+      ++fraction;
+      ++i;
+    }
+  }
+  if (digits == 0) throw std::invalid_argument(message);
+  long exponent = 0;
+  if (i < text.size() && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < text.size() && text[i] == '+') ++i;
+    const std::size_t first = i;
+    while (i < text.size() && digit(text[i])) {
+      exponent = exponent * 10 + (text[i] - '0');
+      if (exponent > 40) throw std::invalid_argument(message);
+      ++i;
+    }
+    if (i == first) throw std::invalid_argument(message);
+  }
+  if (i != text.size()) throw std::invalid_argument(message);
+  long shift = exponent - fraction;
+  for (; shift < 0; ++shift) {
+    if (mantissa % 10 != 0) throw std::invalid_argument(message);  // not an integer
+    mantissa /= 10;
+  }
+  for (; shift > 0; --shift) {
+    if (mantissa > static_cast<Wide>(maximum)) break;
+    mantissa *= 10;
+  }
+  if (shift > 0 && mantissa != 0) throw std::invalid_argument(message);
+  if (mantissa < static_cast<Wide>(minimum) || mantissa > static_cast<Wide>(maximum))
+    throw std::invalid_argument(message);
+  return static_cast<std::int64_t>(mantissa);
+}
+
 // ---- ScheduleCosts ----
 
 ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& field) {
   const std::string expected = field + " = '" + text +
-                               "' must be four non-negative numbers uf:ub:wd:rd (seconds of a forward step, "
+                               "' must be four numbers uf:ub:wd:rd in [0, 1e30] (seconds of a forward step, "
                                "an adjoint step, a disk write and a disk read of one state), uf > 0";
   double values[4];
   std::size_t position = 0;
@@ -38,7 +97,8 @@ ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& f
     } catch (const std::exception&) {
       throw std::invalid_argument(expected);
     }
-    if (used != part.size() || !std::isfinite(values[i]) || values[i] < 0.0) throw std::invalid_argument(expected);
+    if (used != part.size() || !(values[i] >= 0.0 && values[i] <= kMaxScheduleCost))
+      throw std::invalid_argument(expected);
     position = end + 1;
   }
   if (values[0] <= 0.0) throw std::invalid_argument(expected);
@@ -402,15 +462,44 @@ void TwoLevelPlan::rewind() { currentLeaf_ = -1; }
 
 // ---- predictions ----
 
+namespace {
+
+// Counts and bytes of a prediction are int64; every product and sum that could leave that range is
+// computed in 128 bits and refused with a message naming the quantity instead of wrapping around.
+constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
+// online's placement (internal::OnlinePlacement::simulate) walks the forward sweep step by step.
+constexpr std::int64_t kMaxOnlineSteps = std::int64_t{1} << 30;
+
+std::int64_t checkedCount(UnsignedInt128 value, const std::string& what) {
+  if (value > static_cast<UnsignedInt128>(kMaxCount)) {
+    throw std::invalid_argument(what + " = " + revolve::toString(value) +
+                                " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
+  }
+  return static_cast<std::int64_t>(value);
+}
+
+std::int64_t checkedProduct(std::int64_t a, std::int64_t b, const std::string& what) {
+  assert(a >= 0 && b >= 0);
+  return checkedCount(static_cast<UnsignedInt128>(a) * static_cast<UnsignedInt128>(b), what);
+}
+
+}  // namespace
+
 SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
                                    int stages, const ScheduleCosts* costs) {
-  if (steps < 1) throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer >= 1");
-  if (stateBytes < 8 || stateBytes % 8 != 0) {
-    throw std::invalid_argument("--state-bytes = " + std::to_string(stateBytes) +
-                                " must be a positive multiple of 8 (8 bytes per state entry)");
+  if (steps < 1 || steps > kMaxScheduleSteps) {
+    throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer in [1, " +
+                                std::to_string(kMaxScheduleSteps) + "]");
   }
-  if (stages < 1 || stages > 64)
-    throw std::invalid_argument("--stages = " + std::to_string(stages) + " must be an integer in [1, 64]");
+  if (stateBytes < 8 || stateBytes % 8 != 0 || stateBytes > kMaxScheduleStateBytes) {
+    throw std::invalid_argument("--state-bytes = " + std::to_string(stateBytes) +
+                                " must be a multiple of 8 in [8, " + std::to_string(kMaxScheduleStateBytes) +
+                                "] (8 bytes per state entry, at most 2^31 - 1 entries as a run allows)");
+  }
+  if (stages < 1 || stages > kMaxScheduleStages) {
+    throw std::invalid_argument("--stages = " + std::to_string(stages) + " must be an integer in [1, " +
+                                std::to_string(kMaxScheduleStages) + "]");
+  }
   const StorageSpec spec = StorageSpec::parse(specText);
   auto storage = createStorage(specText);  // validates names, keys and values as a run would
   const int n = static_cast<int>(stateBytes / 8);
@@ -424,8 +513,13 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   // full and disk with stages=1: every row the state and its step's S - 1 stage states (an explicit
   // Runge-Kutta method's Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
   const bool stageRows = (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
-  const int rowDoubles = stageRows ? n * stages : n;
+  const std::int64_t rowDoubles = stageRows ? std::int64_t{n} * stages : n;
   if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
+  if (rowDoubles > std::numeric_limits<int>::max()) {
+    throw std::invalid_argument(name + ".stages = 1: a row of the state and its " + std::to_string(stages - 1) +
+                                " stage states has " + std::to_string(rowDoubles) +
+                                " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
+  }
   if (name == "full") {
     const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
     if (steps > budget / (8 * rowDoubles)) {
@@ -438,81 +532,87 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.statesStored = steps;
     p.ramWrites = steps;
     p.ramReads = steps;
-    p.peakRamBytes = steps * 8 * rowDoubles;
+    p.peakRamBytes = steps * 8 * rowDoubles;  // <= full.budget (checked above)
   } else if (name == "disk") {
-    // DiskStorage::doBegin: rows N + 1, chunk and buffer count from the budget.
-    const std::int64_t budget = spec.bytes("budget", DiskStorage::kDefaultBudget);
-    const std::int64_t rowBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, 1);
-    std::int64_t chunk = spec.integer("chunk", 0, 0, std::numeric_limits<std::int64_t>::max());
-    if (chunk == 0) {
-      chunk = std::clamp<std::int64_t>((std::int64_t{1} << 20) / rowBytes, 1, 4096);
-      chunk = std::min(chunk, std::max<std::int64_t>(1, budget / (3 * rowBytes)));
+    // DiskStorage's own rule (DiskStorage::layoutFor): rows N + 1, chunk and buffer count from the budget.
+    const auto& disk = dynamic_cast<DiskStorage&>(*storage);
+    const DiskStorage::Layout layout = disk.layoutFor(rowDoubles, checkedCount(static_cast<UnsignedInt128>(steps) + 1, "rows"));
+    if (layout.bufferBytes > disk.budgetBytes()) {
+      throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(layout.bufferBytes) +
+                                  " exceeds disk.budget = " + formatBytes(disk.budgetBytes()));
     }
-    chunk = std::min(chunk, steps + 1);
-    const std::int64_t bufferBytes = internal::ChunkedStateFile::bufferBytes(rowDoubles, chunk);
-    if (bufferBytes > budget) {
-      throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(bufferBytes) +
-                                  " exceeds disk.budget = " + formatBytes(budget));
-    }
-    p.plan = "every state on disk, " + std::to_string(chunk) + " states per chunk";
+    p.plan = "every state on disk, " + std::to_string(layout.chunkStates) + " states per chunk";
     p.statesStored = steps;
-    p.diskWrites = steps + 1;
+    p.diskWrites = checkedCount(static_cast<UnsignedInt128>(steps) + 1, "disk writes");
     p.diskReads = steps;
-    p.peakRamBytes = std::clamp<std::int64_t>(budget / bufferBytes, 1, 3) * bufferBytes;
-    p.peakDiskBytes = (steps + 1) * 8 * rowDoubles;
+    p.peakRamBytes = layout.bufferCount * layout.bufferBytes;
+    p.peakDiskBytes = checkedProduct(p.diskWrites, 8 * rowDoubles, "disk bytes");
   } else if (name == "binomial") {
+    // BinomialCheckpointing: revolve with S = min(C + 1, N) slots over the N + 1 positions 0..N, its first
+    // sweep the forward sweep (storage/binomial_checkpointing.h).
     auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
-    const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
-    const std::int64_t states = slots + (steps >= 2 ? 1 : 0);
+    const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
+    const std::int64_t states = slots;
     // stages=1 (storage/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
     // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
     const bool keepStages = spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
-    const std::int64_t recordBytes = keepStages ? 2 * (stages - 1) * stateBytes : 0;
+    const std::int64_t recordBytes = keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
     if (recordBytes > binomial.budgetBytes() || states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
       throw std::invalid_argument("binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
                                   std::to_string(states) + " states of " + formatBytes(stateBytes) +
                                   (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
                                   ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
     }
-    const std::int64_t firstPushes = steps >= 2 ? firstSweepPushes(steps, slots) : 0;
-    const std::int64_t writes = revolveWrites(steps, slots);
-    p.plan = "revolve with " + std::to_string(slots) + " checkpoints + working state" +
+    // The count first: beyond 2^63 it is refused before the O(slots + r) walks below.
+    p.recomputedSteps = checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
+    const std::int64_t firstPushes = firstSweepPushes(steps + 1, slots);
+    const std::int64_t writes = revolveWrites(steps + 1, slots);
+    p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N, x_N never restored)" +
              (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.recomputedSteps = static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, slots)) - (steps - 1);
-    p.statesStored = 1 + (steps >= 2 ? firstPushes + 1 : 0);
+    p.statesStored = 1 + firstPushes;
     p.ramReads = steps;
-    p.ramWrites = writes + (steps >= 2 ? 1 : 0);
+    p.ramWrites = writes;
     if (keepStages) {
       // RecomputedStages' rule: the adjoint step of e has its stages when e = N - 1 (the forward sweep's
-      // last step) or when the restore of e + 1 recomputed (its last step is e -> e + 1). The restores
-      // that recompute nothing are those of the working state x_{N-1} and of every checkpoint position
-      // >= 1 (each stored once and loaded once, directly): `writes` restores of x_1 .. x_{N-1}. Each
-      // restore that recomputes stores stage values after every advance (one more than its checkpoint
-      // stores); summed over the backward sweep with the forward sweep's one record that is N - 1 minus
-      // the first sweep's pushes. N = 1: the forward sweep's record serves the only adjoint step.
-      p.stepDataRestored = steps == 1 ? 1 : steps - writes;
-      p.stepDataStored = steps == 1 ? 1 : steps - 1 - firstPushes;
+      // last step, never recomputed) or when the restore of e + 1 recomputed (its last step is
+      // e -> e + 1). The restores that recompute nothing are those of the checkpoint positions, each
+      // stored once and loaded once directly: `writes` - 1 of them among x_1 .. x_{N-1}. A restore that
+      // recomputes stores stage values after every advance (one more than its checkpoint stores); summed
+      // over the backward sweep with the forward sweep's one record that is N minus the first sweep's
+      // pushes.
+      p.stepDataRestored = steps - writes + 1;
+      p.stepDataStored = steps - firstPushes;
     }
-    p.peakRamBytes = states * stateBytes + recordBytes;
+    p.peakRamBytes = checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
   } else if (name == "online") {
     // OnlineCheckpointing for N fixed steps: its placement (internal::OnlinePlacement), then each interval
     // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
     // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
     auto& online = dynamic_cast<OnlineCheckpointing&>(*storage);
+    if (steps > kMaxOnlineSteps) {
+      throw std::invalid_argument("online is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
+                                  " (2^30; its placement is simulated step by step); --steps = " + std::to_string(steps));
+    }
     const bool keepStages = online.keepsStages() && stages > 1;
-    const std::int64_t recordBytes = keepStages ? 2 * (stages - 1) * stateBytes : 0;  // two step records
+    const std::int64_t recordBytes =
+        keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "online: bytes of two step records") : 0;
     const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
     std::int64_t forwardStores = 0;
     const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(steps, c, &forwardStores, nullptr);
     p.plan = "online placement (final spacing " + std::to_string(internal::OnlinePlacement::finalSpacing(steps, c)) +
              "), revolve per interval, " + std::to_string(c) + " checkpoints + working state" +
              (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.recomputedSteps = static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(steps, c)) - (steps - 1);
+    p.recomputedSteps = checkedCount(OnlineCheckpointing::predictedForwardSteps(steps, c) -
+                                         static_cast<UnsignedInt128>(steps - 1),
+                                     "recomputed steps");
     p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
     p.ramReads = steps;
     // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
     // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
-    p.peakRamBytes = (std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) * stateBytes + recordBytes;
+    p.peakRamBytes = checkedCount(static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
+                                          static_cast<UnsignedInt128>(stateBytes) +
+                                      static_cast<UnsignedInt128>(recordBytes),
+                                  "peak RAM bytes");
     p.ramWrites = -1;
     if (keepStages && steps > TwoLevelPlan::kMaxSimulatedSteps) {
       throw std::invalid_argument("online.stages = 1 is predicted up to " +
@@ -592,14 +692,18 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       p.ramWrites = simulated.ramWrites;
       p.ramReads = simulated.ramReads;
     }
-    p.peakRamBytes = plan.ramSlotsUsed() * stateBytes;
-    p.peakDiskBytes = plan.diskSlotsUsed() * stateBytes;
+    p.peakRamBytes = checkedProduct(plan.ramSlotsUsed(), stateBytes, "peak RAM bytes");
+    p.peakDiskBytes = checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
   } else if (name == "cams") {
     // The same model-free plan the strategy runs (storage/cams_checkpointing.h), with the step record of
     // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
     // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
     const auto& strategy = dynamic_cast<CamsCheckpointing&>(*storage);
     const bool online = strategy.onlineRequested();
+    if (online && steps > kMaxOnlineSteps) {
+      throw std::invalid_argument("cams with online=1 is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
+                                  " (2^30; its placement is simulated step by step); --steps = " + std::to_string(steps));
+    }
     const std::int64_t units = strategy.usableUnits(stateBytes, online);
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
     cams::PlanCounts c;
@@ -610,14 +714,14 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       p.plan = "cams online: " + std::to_string(units) + " state units, online placement, intervals of at most " +
                std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally";
       p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
-      p.peakRamBytes = units * stateBytes;
+      p.peakRamBytes = checkedProduct(units, stateBytes, "peak RAM bytes");
     } else {
       const cams::Plan plan(steps, units, recordUnits);
       c = cams::simulate(plan);
       p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
                (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units";
       p.ramWrites = c.statesStored + c.recordsStored;
-      p.peakRamBytes = std::min(units, plan.memoryUnits()) * stateBytes;
+      p.peakRamBytes = checkedProduct(std::min(units, plan.memoryUnits()), stateBytes, "peak RAM bytes");
     }
     p.plan += "; " + std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
               " adjoint steps recompute their stages";
@@ -635,7 +739,10 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
   // S rhs for every forward, recomputed and stage-recomputing adjoint step.
   const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
-  p.rhsEvaluations = static_cast<std::int64_t>(stages) * (steps + p.recomputedSteps + adjointRecomputations);
+  p.rhsEvaluations = checkedCount(static_cast<UnsignedInt128>(stages) *
+                                      (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
+                                       static_cast<UnsignedInt128>(adjointRecomputations)),
+                                  "rhs evaluations");
   p.scheduleCost = static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) * model.forwardStep +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
                    static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
@@ -658,9 +765,14 @@ struct PrintingVisitor {
 
 }  // namespace
 
-void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
+void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes, int stages,
                           const ScheduleCosts* costs, std::ostream& out) {
-  predictSchedule(specText, steps, stateBytes, 1, costs);  // validates spec, sizes and budgets
+  predictSchedule(specText, steps, stateBytes, stages, costs);  // validates spec, sizes and budgets
+  if (steps > TwoLevelPlan::kMaxSimulatedSteps) {
+    throw std::invalid_argument("--actions lists every action, for --steps up to " +
+                                std::to_string(TwoLevelPlan::kMaxSimulatedSteps) + " (2^24); --steps = " +
+                                std::to_string(steps));
+  }
   const std::string name = StorageSpec::parse(specText).name();
   PrintingVisitor visitor{out};
   if (name == "full" || name == "disk") {
@@ -672,15 +784,21 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   if (name == "binomial") {
     auto storage = createStorage(specText);
     const auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
-    const std::int64_t slots = std::min(binomial.checkpoints(), std::max<std::int64_t>(1, steps - 1));
+    const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
     BinomialSchedule schedule;
-    schedule.reset(steps, slots, true);
+    schedule.reset(steps + 1, slots, true);
     for (std::int64_t k = 0; k < steps; ++k) {
       out << "record " << k << '\n';
       const std::int64_t slot = k == 0 ? 0 : schedule.recordForward(k);
       if (slot >= 0) visitor.store(slot);
-      if (k == steps - 1 && steps >= 2) out << "store ram working\n";
     }
+    struct Skip {
+      void loadWorking() {}
+      void load(std::int64_t) {}
+      void store(std::int64_t) {}
+      void advance(std::int64_t, std::int64_t) {}
+    } skip;
+    schedule.restoreStep(steps, skip);  // x_N: the schedule's end position, never restored
     for (std::int64_t e = steps - 1; e >= 0; --e) {
       out << "restore " << e << '\n';
       schedule.restoreStep(e, visitor);
@@ -692,15 +810,17 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
                                 "sweep (print its counts without --actions)");
   }
   if (name == "cams") {
-    // The records of rk4 (4 state units), as `hindsight schedule` predicts with its default --stages 4.
+    // Step records of `stages` state units (the state and S - 1 stage states), as predictSchedule counts
+    // them; none for one stage.
     auto storage = createStorage(specText);
     if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
       throw std::invalid_argument("--actions prints offline plans; cams with online=1 thins its checkpoints "
                                   "during the forward sweep (print its counts without --actions)");
     }
-    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).memoryUnits(stateBytes);
+    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).usableUnits(stateBytes, false);
     std::vector<cams::Action> actions;
-    cams::simulate(cams::Plan(steps, units, 4), &actions);
+    const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+    cams::simulate(cams::Plan(steps, units, recordUnits), &actions);
     for (const cams::Action& a : actions) {
       switch (a.kind) {
         case cams::Action::Kind::StoreState: out << "store ram state " << a.from << '\n'; break;

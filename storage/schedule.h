@@ -15,7 +15,9 @@
 // slot; afterwards x_{N-1}, x_{N-2}, ..., x_0 must be produced in turn, by reading a slot and
 // advancing (each advance a recomputed step), copying states into free slots on the way. The state at
 // hand is lost after each produced state (the adjoint step consumes it); x_{N-1} too must therefore be
-// in a slot when the forward sweep ends (revolve's "working state", charged like binomial charges it).
+// in a slot when the forward sweep ends (a "working state") or be recomputed from one. With one level
+// the game's optimum is T(N + 1, S) - N recomputed steps for S slots, which `binomial` attains
+// (storage/binomial_checkpointing.h).
 //
 // The two-level plan (TwoLevelPlan) chooses, by the cost model, the cheapest of two families, both
 // executed by BinomialSchedule (storage/binomial_checkpointing.h):
@@ -47,14 +49,28 @@
 
 namespace hindsight {
 
+/// Limits of `hindsight schedule` and Python's schedule(): N fixed steps, bytes of one state (a run's
+/// TrajectoryInfo.stateSize is an int of doubles), right-hand sides per step, and each cost in seconds
+/// (so that N (uf + ub) and every count times a cost stay finite).
+constexpr std::int64_t kMaxScheduleSteps = 4'000'000'000'000'000'000;
+constexpr std::int64_t kMaxScheduleStateBytes = std::int64_t{8} * 2147483647;
+constexpr int kMaxScheduleStages = 64;
+constexpr double kMaxScheduleCost = 1e30;
+
+/// Reads an integer in [minimum, maximum] written as digits ("30000") or in exact scientific notation
+/// ("1e9", "2.5e6"; the value must be an integer), with nothing after it. Throws std::invalid_argument
+/// naming `field` and the allowed range otherwise (also for "1.5", "1e17x", "" and overflow).
+std::int64_t parseScheduleInteger(const std::string& text, const std::string& field, std::int64_t minimum,
+                                  std::int64_t maximum);
+
 /// The four costs of the model, in seconds (any common unit works for planning).
 struct ScheduleCosts {
   double forwardStep = 1.0;
   double adjointStep = 1.0;
   double diskWrite = 0.0;
   double diskRead = 0.0;
-  /// Parses "uf:ub:wd:rd" (four finite non-negative numbers, uf > 0); throws std::invalid_argument
-  /// naming `field` and the expected form.
+  /// Parses "uf:ub:wd:rd" (four numbers in [0, kMaxScheduleCost], uf > 0); throws
+  /// std::invalid_argument naming `field` and the expected form.
   static ScheduleCosts parse(const std::string& text, const std::string& field);
   std::string text() const;
 };
@@ -276,8 +292,10 @@ void TwoLevelPlan::replayLast(std::int64_t start, std::int64_t e, Visitor& visit
 SchedulePrediction predictSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
                                    int stages, const ScheduleCosts* costs);
 
-/// Writes the plan's action stream of `spec` (one action per line) for fixed steps.
-void writeScheduleActions(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
+/// Writes the plan's action stream of `spec` (one action per line) for fixed steps, N <= 2^24; cams'
+/// step records are those of an explicit Runge-Kutta method of `stages` stages, as predictSchedule
+/// counts them. Everything is validated (as predictSchedule does) before the first line is written.
+void writeScheduleActions(const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
                           const ScheduleCosts* costs, std::ostream& out);
 
 }  // namespace hindsight

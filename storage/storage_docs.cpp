@@ -66,7 +66,8 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        "steps only",
        true,
        "binomial:checkpoints=50",
-       {{"checkpoints", "number of checkpoints c in [1, 1e9] (default 1)"},
+       {{"checkpoints", "number of checkpoints C in [1, 1e9] (default 1); the strategy holds C + 1 states and "
+                        "reverses by revolve over all of them (T(N + 1, C + 1) - N recomputed steps)"},
         {"budget", kBudget},
         {"stages", "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
                    "recomputation evaluates no right-hand side (default 0)"}}},

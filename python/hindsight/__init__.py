@@ -14,6 +14,7 @@ rod of Held, Knueffer & Seifried and its topology optimization (README "Python")
 Errors: bad input raises ValueError with the CLI's message; numerical failures raise
 hindsight.NumericalError and storage failures hindsight.StorageError (both RuntimeError).
 """
+import operator
 import os as _os
 
 from . import _hindsight
@@ -189,7 +190,25 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
     forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
     peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
     actions=True the dict also holds the action stream as text. ValueError names a bad argument."""
-    return Result(_hindsight._schedule(spec, int(steps), int(state_bytes), int(stages), costs or "", bool(actions)))
+    steps = _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
+    state_bytes = _schedule_integer("state_bytes", state_bytes, 8, 8 * 2147483647)
+    stages = _schedule_integer("stages", stages, 1, 64)
+    if costs is not None and not isinstance(costs, str):
+        raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
+    if not isinstance(actions, bool):
+        raise TypeError(f"actions must be True or False, not {type(actions).__name__}")
+    return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions))
+
+
+def _schedule_integer(name, value, low, high):
+    """An integer argument of schedule(): ints and NumPy integers; bools, floats (2.9 would be read as 2)
+    and strings are a TypeError, values outside [low, high] a ValueError naming the argument."""
+    if isinstance(value, bool) or not hasattr(value, "__index__"):
+        raise TypeError(f"{name} must be an integer in [{low}, {high}], not {type(value).__name__} {value!r}")
+    value = operator.index(value)
+    if not low <= value <= high:
+        raise ValueError(f"{name} = {value} must be an integer in [{low}, {high}]")
+    return value
 
 
 def check_storage_spec(spec):

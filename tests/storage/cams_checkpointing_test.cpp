@@ -56,19 +56,16 @@ TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearch) {
   }
 }
 
-TEST(CamsPlan, WithoutRecordsItLiesBetweenRevolveWithCAndWithCPlusOneCheckpoints) {
-  // binomial:checkpoints=C holds C + 1 states (C slots and the working state x_{N-1}); its cost in steps is
-  // N + recomputed + N (every adjoint step recomputes its stages). The plan over the same C + 1 states
-  // without records may use the working state's memory as a slot too, so it is at most binomial's cost, and
-  // at least that of revolve with C + 1 slots and a free working state.
+TEST(CamsPlan, WithoutRecordsItIsBinomialOverTheSameSlots) {
+  // binomial:checkpoints=C holds C + 1 states and reverses by revolve over all of them (positions 0..N,
+  // storage/binomial_checkpointing.h), the optimum of the game of charged states; its cost in steps is
+  // N + recomputed + N (every adjoint step recomputes its stages). The plan over the same C + 1 units
+  // without records plays the same game, so the two are equal.
   for (std::int64_t c : std::initializer_list<std::int64_t>{1, 2, 3, 5, 10, 20}) {
     for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 7, 50, 200, 1000}) {
-      const auto cost = [n](std::int64_t checkpoints) {
-        return n + static_cast<std::int64_t>(revolve::simulateSchedule(n, checkpoints).recomputedSteps) + n;
-      };
-      const std::int64_t plan = cams::Plan(n, c + 1, kNoRecords).optimalStepEvaluations();
-      EXPECT_LE(plan, cost(c)) << "N = " << n << ", C = " << c;
-      EXPECT_GE(plan, cost(c + 1)) << "N = " << n << ", C = " << c;
+      const std::int64_t binomial =
+          n + static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, std::min(c + 1, n))) + n;
+      EXPECT_EQ(cams::Plan(n, c + 1, kNoRecords).optimalStepEvaluations(), binomial) << "N = " << n << ", C = " << c;
     }
   }
 }
@@ -103,8 +100,7 @@ TEST(CamsPlan, RecordsLowerTheCostBelowRevolveAtTheSameBytes) {
   // rk4: a record is 4 states. 3000 steps, the budgets of binomial:checkpoints=10 and 50.
   for (std::int64_t c : std::initializer_list<std::int64_t>{10, 50}) {
     const std::int64_t n = 3000;
-    const ScheduleCounts binomial = revolve::simulateSchedule(n, c);
-    const std::int64_t revolveCost = n + static_cast<std::int64_t>(binomial.recomputedSteps) + n;
+    const std::int64_t revolveCost = n + static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, c + 1)) + n;
     const cams::Plan plan(n, c + 1, 4);
     EXPECT_LT(plan.optimalStepEvaluations(), revolveCost) << c;
     EXPECT_EQ(cams::simulate(plan).stepEvaluations(), plan.optimalStepEvaluations());
@@ -157,7 +153,11 @@ TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinom
     const GradientResult r = computeGradient(problem, p, options, *storage);
     EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
     EXPECT_EQ(r.objective, reference.objective);
-    EXPECT_LT(r.summary.rhsEvaluations, b.summary.rhsEvaluations) << c;
+    // C = 2: three units hold no record of four, so cams plays binomial's game and ties it.
+    if (c == 2)
+      EXPECT_EQ(r.summary.rhsEvaluations, b.summary.rhsEvaluations);
+    else
+      EXPECT_LT(r.summary.rhsEvaluations, b.summary.rhsEvaluations) << c;
     EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
     const auto* cams = dynamic_cast<const CamsCheckpointing*>(storage.get());
     const cams::PlanCounts counts = cams::simulate(*cams->plan());

@@ -218,6 +218,16 @@ TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
             "multilevel:ram=65536,disk=1048576,schedule=stride");
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,schedule=revolve"), std::invalid_argument);
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:1:1"), std::invalid_argument);
+  // disk=0: refused with a pointer to the strategies for RAM alone.
+  for (const std::string zero : {"0", "0B", "0KiB", "0.0GiB"}) {
+    try {
+      createStorage("multilevel:ram=1MiB,disk=" + zero);
+      ADD_FAILURE() << "disk=" << zero << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("multilevel.disk"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("binomial"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // ---- schedule=optimal (the default) ----

@@ -9,6 +9,8 @@
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
+#include <cmath>
+#include <limits>
 #include <map>
 #include <queue>
 #include <sstream>
@@ -112,6 +114,9 @@ TEST(TwoLevelPlan, FreeDiskIsRevolveWithAllSlotsAndTheOptimumOfTheGame) {
         if (steps >= 2 && ram + disk >= 2) {
           EXPECT_LE(plan.counts().recomputedSteps,
                     static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, checkpoints)) - (steps - 1));
+          // The game's optimum with ram + disk slots (this search and the one of
+          // binomial_checkpointing_test.cpp are independent): T(N + 1, S) - N, what binomial attains.
+          EXPECT_EQ(optimum, static_cast<double>(revolve::optimalRecomputedSteps(steps, ram + disk)));
         }
       }
     }
@@ -250,8 +255,7 @@ TEST(SchedulePrediction, HandlesABillionStepsInClosedForm) {
   const ScheduleCosts costs{1e-4, 2e-4, 1e-5, 1e-5};
   const std::int64_t n = 1'000'000'000;
   const SchedulePrediction binomial = predictSchedule("binomial:checkpoints=100", n, 8000, 4, nullptr);
-  EXPECT_EQ(binomial.recomputedSteps,
-            static_cast<std::int64_t>(revolve::optimalForwardSteps(n, 100)) - (n - 1));
+  EXPECT_EQ(binomial.recomputedSteps, static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, 101)));
   EXPECT_EQ(binomial.rhsEvaluations, 4 * (2 * n + binomial.recomputedSteps));
   const SchedulePrediction multilevel = predictSchedule("multilevel:ram=64MiB,disk=1TiB", n, 8000, 4, &costs);
   EXPECT_GT(multilevel.diskWrites, 0);
@@ -361,14 +365,16 @@ TEST(SchedulePrediction, BinomialWritesInClosedFormEqualTheScheduleRun) {
   const auto check = [](std::int64_t steps, std::int64_t c) {
     const SchedulePrediction p =
         predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
-    const std::int64_t slots = std::min(c, std::max<std::int64_t>(1, steps - 1));
-    const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
-    EXPECT_EQ(p.ramWrites, counts.checkpointWrites + (steps >= 2 ? 1 : 0)) << "N " << steps << " c " << c;
+    // The strategy runs revolve with min(C + 1, N) slots over positions 0..N (x_N never restored).
+    const std::int64_t slots = std::min(c + 1, steps);
+    const ScheduleCounts counts = revolve::simulateSchedule(steps + 1, slots);
+    EXPECT_EQ(p.ramWrites, counts.checkpointWrites) << "N " << steps << " c " << c;
+    EXPECT_EQ(revolve::toString(counts.recomputedSteps), std::to_string(p.recomputedSteps)) << "N " << steps << " c " << c;
     BinomialSchedule schedule;  // the first sweep's pushes (statesStored, and stepDataStored with stages=1)
-    schedule.reset(steps, slots, true);
+    schedule.reset(steps + 1, slots, true);
     std::int64_t pushes = 0;
     for (std::int64_t n = 1; n < steps; ++n) pushes += schedule.recordForward(n) >= 0 ? 1 : 0;
-    EXPECT_EQ(p.statesStored, 1 + (steps >= 2 ? pushes + 1 : 0)) << "N " << steps << " c " << c;
+    EXPECT_EQ(p.statesStored, 1 + pushes) << "N " << steps << " c " << c;
   };
   for (std::int64_t steps = 1; steps <= 300; ++steps)
     for (std::int64_t c = 1; c <= 14; ++c) check(steps, c);
@@ -382,9 +388,9 @@ struct StageCounts {
   std::int64_t stored = 0, restored = 0;
 };
 StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
-  const std::int64_t slots = std::min(c, std::max<std::int64_t>(1, steps - 1));
+  const std::int64_t slots = std::min(c + 1, steps);
   BinomialSchedule schedule;
-  schedule.reset(steps, slots, true);
+  schedule.reset(steps + 1, slots, true);
   internal::RecomputedStages stages;
   stages.reset(1);
   StageCounts counts;
@@ -406,6 +412,7 @@ StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
       }
     }
   } visitor{stages, counts};
+  schedule.restoreStep(steps, visitor);  // x_N, the schedule's end position: no action
   for (std::int64_t e = steps - 1; e >= 0; --e) {
     stages.beginRestore(e);
     schedule.restoreStep(e, visitor);
@@ -446,8 +453,8 @@ TEST(SchedulePrediction, BinomialStagesHandleABillionSteps) {
   EXPECT_EQ(p.stepDataRestored, n - (plain.ramWrites - 1));
   EXPECT_GT(p.stepDataRestored, n / 2);
   EXPECT_EQ(p.rhsEvaluations, 4 * (2 * n + p.recomputedSteps - p.stepDataRestored));
-  // As many checkpoints as steps: no recomputation, every state but x_{N-1} a checkpoint (its restore and
-  // the working state's recompute nothing), only the last adjoint step served; counted without a walk.
+  // As many slots as steps: no recomputation, every state a checkpoint (no restore recomputes), only the
+  // last adjoint step served (by the forward sweep's record); counted without a walk.
   const SchedulePrediction all =
       predictSchedule("binomial:checkpoints=1000000000,budget=1000GiB,stages=1", n, 160, 4, nullptr);
   EXPECT_EQ(all.recomputedSteps, 0);
@@ -503,7 +510,7 @@ TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
             static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000'000, 100)));
   EXPECT_EQ(big.ramWrites, -1);
   EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
-  EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, nullptr, std::cout), std::invalid_argument);
+  EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, 4, nullptr, std::cout), std::invalid_argument);
 }
 
 TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
@@ -531,7 +538,7 @@ TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {
   const ScheduleCosts costs{1, 1, 0.5, 0.5};
   for (const std::string spec : {"full", "binomial:checkpoints=3", "multilevel:ram=64,disk=64", "disk:dir=/tmp"}) {
     std::ostringstream out;
-    writeScheduleActions(spec, 12, 16, &costs, out);
+    writeScheduleActions(spec, 12, 16, 4, &costs, out);
     const std::string text = out.str();
     std::size_t records = 0, restores = 0, advances = 0;
     std::istringstream lines(text);
@@ -552,6 +559,142 @@ TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {
     EXPECT_EQ(restores, 12u) << spec;
     EXPECT_EQ(advanced, predictSchedule(spec, 12, 16, 1, &costs).recomputedSteps) << spec;
   }
+}
+
+// --actions for cams follows the stages it is given: without records (one stage) no step record is stored,
+// with records of two units some are, as many as the prediction counts.
+TEST(SchedulePrediction, CamsActionsFollowTheStages) {
+  for (int stages : {1, 2, 4}) {
+    std::ostringstream out;
+    writeScheduleActions("cams:checkpoints=6", 60, 16, stages, nullptr, out);
+    const SchedulePrediction p = predictSchedule("cams:checkpoints=6", 60, 16, stages, nullptr);
+    std::istringstream lines(out.str());
+    std::string line;
+    std::int64_t records = 0, advanced = 0;
+    while (std::getline(lines, line)) {
+      if (line.rfind("store ram record", 0) == 0) ++records;
+      if (line.rfind("advance ", 0) == 0) {
+        std::istringstream words(line.substr(8));
+        std::int64_t from = 0, to = 0;
+        words >> from >> to;
+        advanced += to - from;
+      }
+    }
+    SCOPED_TRACE("stages " + std::to_string(stages));
+    EXPECT_EQ(records, p.stepDataStored);
+    EXPECT_GT(advanced, 0);
+    if (stages == 1) EXPECT_EQ(records, 0);
+    if (stages == 2) EXPECT_GT(records, 0);
+  }
+}
+
+TEST(ScheduleInput, IntegersAreReadCompletelyAndExactly) {
+  const std::int64_t max = kMaxScheduleSteps;
+  EXPECT_EQ(parseScheduleInteger("30000", "--steps", 1, max), 30000);
+  EXPECT_EQ(parseScheduleInteger("1e17", "--steps", 1, max), 100'000'000'000'000'000);
+  EXPECT_EQ(parseScheduleInteger("9.5e15", "--steps", 1, max), 9'500'000'000'000'000);
+  EXPECT_EQ(parseScheduleInteger("4e18", "--steps", 1, max), 4'000'000'000'000'000'000);
+  EXPECT_EQ(parseScheduleInteger("1E+9", "--steps", 1, max), 1'000'000'000);
+  EXPECT_EQ(parseScheduleInteger("2.50e1", "--steps", 1, max), 25);
+  EXPECT_EQ(parseScheduleInteger("3999999999999999999", "--steps", 1, max), 3'999'999'999'999'999'999);
+  for (const std::string bad : {"", "0", "-1", "1.5", "2.9", "1e17x", "1e", "e5", ".", "4.1e18", "4000000000000000001",
+                                "99999999999999999999999999999999999", "1e40", "1e400", "nan", "inf", "0x10", " 5",
+                                "5 ", "1e-1", "+5", "1,000"}) {
+    try {
+      parseScheduleInteger(bad, "--steps", 1, max);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("--steps"), std::string::npos) << message;
+      EXPECT_NE(message.find("[1, 4000000000000000000]"), std::string::npos) << message;
+    }
+  }
+}
+
+// Property: for extreme N, state sizes, stages and budgets every strategy either refuses with
+// std::invalid_argument or returns counts that are what they claim: non-negative (-1 only for "not
+// counted" RAM traffic), peak bytes within the bytes the spec allows, rhs evaluations S (N + R + A).
+// Never a wrapped-around count, never a division by zero.
+TEST(ScheduleInput, ExtremeArgumentsGiveSoundCountsOrAClearRefusal) {
+  const std::vector<std::int64_t> stepsList = {1, 2, 3, 1000, std::int64_t{1} << 31, 9'000'000'000'000'000,
+                                               100'000'000'000'000'000, kMaxScheduleSteps};
+  const std::vector<std::int64_t> bytesList = {8, 8000, 65536, 65544, std::int64_t{1} << 32, kMaxScheduleStateBytes};
+  const std::vector<std::string> specs = {
+      "full", "full:budget=1000000GiB", "full:stages=1,budget=9000000000000000000", "binomial:checkpoints=1",
+      "binomial:checkpoints=2", "binomial:checkpoints=1000,budget=9000000000000000000",
+      "binomial:checkpoints=50,stages=1,budget=9000000000000000000", "online:checkpoints=10",
+      "online:budget=64KiB", "cams:checkpoints=10", "disk:dir=/tmp", "disk:dir=/tmp,chunk=1073741824",
+      "disk:dir=/tmp,stages=1,budget=9000000000000000000"};
+  const std::int64_t maxCount = std::numeric_limits<std::int64_t>::max();
+  int sound = 0, refused = 0;
+  for (const std::string& spec : specs) {
+    for (std::int64_t steps : stepsList) {
+      for (std::int64_t bytes : bytesList) {
+        for (int stages : {1, 4, 64}) {
+          SCOPED_TRACE(spec + " N " + std::to_string(steps) + " bytes " + std::to_string(bytes) + " S " +
+                       std::to_string(stages));
+          SchedulePrediction p;
+          try {
+            p = predictSchedule(spec, steps, bytes, stages, nullptr);
+          } catch (const std::invalid_argument& e) {
+            EXPECT_GT(std::string(e.what()).size(), 20u);
+            ++refused;
+            continue;
+          }
+          ++sound;
+          EXPECT_EQ(p.steps, steps);
+          EXPECT_GE(p.recomputedSteps, 0);
+          EXPECT_GE(p.statesStored, 0);
+          EXPECT_GE(p.ramWrites, -1);
+          EXPECT_GE(p.ramReads, 0);
+          EXPECT_GE(p.diskWrites, 0);
+          EXPECT_GE(p.diskReads, 0);
+          EXPECT_GT(p.peakRamBytes + p.peakDiskBytes, 0);
+          EXPECT_GE(p.peakDiskBytes, 0);
+          EXPECT_LE(p.peakRamBytes, createStorage(spec)->budgetBytes());
+          const UnsignedInt128 rhs =
+              static_cast<UnsignedInt128>(stages) *
+              (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
+               static_cast<UnsignedInt128>(spec.rfind("cams", 0) == 0 ? p.adjointRecomputations
+                                                                       : steps - p.stepDataRestored));
+          EXPECT_LE(rhs, static_cast<UnsignedInt128>(maxCount));
+          EXPECT_EQ(static_cast<UnsignedInt128>(p.rhsEvaluations), rhs);
+          EXPECT_TRUE(std::isfinite(p.totalCost));
+          if (spec.rfind("binomial", 0) == 0) {
+            const std::int64_t c = dynamic_cast<BinomialCheckpointing&>(*createStorage(spec)).checkpoints();
+            EXPECT_EQ(static_cast<UnsignedInt128>(p.recomputedSteps),
+                      revolve::optimalRecomputedSteps(steps, std::min(c + 1, steps)));
+          }
+        }
+      }
+    }
+  }
+  // Both outcomes occur (the grid reaches the limits and stays inside them).
+  EXPECT_GT(sound, 100);
+  EXPECT_GT(refused, 100);
+  // Beyond the limits: refused by name.
+  const auto message = [](std::int64_t steps, std::int64_t bytes, int stages) {
+    try {
+      predictSchedule("full", steps, bytes, stages, nullptr);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message(kMaxScheduleSteps + 1, 8, 4).find("--steps"), std::string::npos);
+  EXPECT_NE(message(0, 8, 4).find("--steps"), std::string::npos);
+  EXPECT_NE(message(10, kMaxScheduleStateBytes + 8, 4).find("--state-bytes"), std::string::npos);
+  EXPECT_NE(message(10, std::int64_t{1} << 60, 4).find("--state-bytes"), std::string::npos);
+  EXPECT_NE(message(10, 12, 4).find("--state-bytes"), std::string::npos);
+  EXPECT_NE(message(10, 8, 65).find("--stages"), std::string::npos);
+  // A full store of 4 GiB states (once an int of doubles overflowing to a division by zero).
+  EXPECT_NE(message(10, std::int64_t{4} << 30, 4).find("full.budget"), std::string::npos);
+  // Costs: at most 1e30 seconds each, so N (uf + ub) stays finite; 1e308 is refused by name.
+  EXPECT_THROW(ScheduleCosts::parse("1e308:1:0:0", "--costs"), std::invalid_argument);
+  const ScheduleCosts huge = ScheduleCosts::parse("1e30:1e30:1e30:1e30", "--costs");
+  const SchedulePrediction p = predictSchedule("binomial:checkpoints=2", 1000, 8, 4, &huge);
+  EXPECT_TRUE(std::isfinite(p.totalCost));
+  EXPECT_GT(p.totalCost, 0.0);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <vector>
 
 #ifdef HINDSIGHT_CLI_PATH
 namespace hindsight {
@@ -80,6 +81,44 @@ TEST(ScheduleCommand, ActionsAndABillionSteps) {
              "--state-bytes 8000 --json");
   ASSERT_EQ(billion.exitCode, 0) << billion.output;
   EXPECT_EQ(lastJson(billion.output)["steps"].get<std::int64_t>(), 1'000'000'000);
+}
+
+// Inputs are read completely (1e17 is 10^17, not 1), counted without overflow, refused by name with exit 2.
+TEST(ScheduleCommand, ExtremeInputsAreReadExactlyOrRefusedByName) {
+  const auto big = runCli("schedule --storage binomial:checkpoints=1000 "
+                          "--steps 1e17 --state-bytes 8 --json");
+  ASSERT_EQ(big.exitCode, 0) << big.output;
+  EXPECT_EQ(lastJson(big.output)["steps"].get<std::int64_t>(), 100'000'000'000'000'000);
+  const auto exact = runCli("schedule --storage full --steps 9.5e3 --state-bytes 8 --json");
+  ASSERT_EQ(exact.exitCode, 0) << exact.output;
+  EXPECT_EQ(lastJson(exact.output)["steps"].get<std::int64_t>(), 9500);
+  struct Case {
+    std::string arguments, flag;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--storage full --steps 1e17x --state-bytes 8", "--steps"},
+           {"--storage full --steps 4.1e18 --state-bytes 8", "--steps"},
+           {"--storage full --steps 99999999999999999999 --state-bytes 8", "--steps"},
+           {"--storage full --steps 10 --state-bytes 8 --stages 2.5", "--stages"},
+           {"--storage full --steps 10 --state-bytes 8 --stages 1e3", "--stages"},
+           // once a division by zero (an int of doubles per state overflowing)
+           {"--storage full --steps 10 --state-bytes 4GiB", "full.budget"},
+           {"--storage full --steps 10 --state-bytes 1152921504606846976", "--state-bytes"},
+           {"--storage binomial:checkpoints=2 --steps 4e18 --state-bytes 8", "recomputed steps"},
+           {"--storage full --steps 10 --state-bytes 8 --costs 1e308:1:0:0", "--costs"},
+           {"--storage full --steps 100000000 --state-bytes 8 --actions", "--actions"}}) {
+    SCOPED_TRACE(c.arguments);
+    const auto run = runCli("schedule " + c.arguments);
+    EXPECT_EQ(run.exitCode, 2) << run.output;
+    EXPECT_NE(run.output.find(c.flag), std::string::npos) << run.output;
+  }
+  // --actions of cams follows --stages: records with rk4's 4 stages, none with one stage.
+  const auto rk4 = runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 4 --actions");
+  const auto euler = runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 1 --actions");
+  ASSERT_EQ(rk4.exitCode, 0) << rk4.output;
+  ASSERT_EQ(euler.exitCode, 0) << euler.output;
+  EXPECT_NE(rk4.output.find("store ram record"), std::string::npos);
+  EXPECT_EQ(euler.output.find("store ram record"), std::string::npos);
 }
 
 }  // namespace
