@@ -3,12 +3,14 @@
 `hindsight schedule` (no model run; its counts equal a real run's, tests/storage/cams_checkpointing_test.cpp).
 
 For every N and budget C (the bytes of binomial:checkpoints=C, i.e. C + 1 states):
-  binomial        revolve's optimum with C checkpoints + working state (every adjoint step recomputes its stages)
+  binomial        revolve over all C + 1 slots, T(N + 1, C + 1) - N recomputed steps: the optimum without step
+                  records (every adjoint step recomputes its stages)
   cams            the exact stage-aware optimum (only where its N x (C + 2) table fits, <= 1.25e7 entries)
   cams online=1   online placement + the optimal plan per interval (any N)
 Ratios: each count over binomial's, and cams online over the exact cams optimum where that exists.
 
 Usage: bench/cams_sweep.py BUILD_DIR [--steps 3e4,1e5,...] [--slots 10,50,...] [--json OUT] [--timeout S]
+                           [--exact-up-to N]   (exact cams only for N <= this; its plan takes minutes beyond 1e5)
 """
 import argparse
 import json
@@ -39,6 +41,7 @@ def main():
     parser.add_argument("--slots", default="10,50,100,1000")
     parser.add_argument("--json")
     parser.add_argument("--timeout", type=float, default=600.0)
+    parser.add_argument("--exact-up-to", type=float, default=float("inf"))
     args = parser.parse_args()
     hindsight = args.build + "/hindsight"
     rows = []
@@ -49,7 +52,7 @@ def main():
             binomial = schedule(hindsight, f"binomial:checkpoints={slots}", steps, args.timeout)
             online = schedule(hindsight, f"cams:checkpoints={slots},online=1", steps, args.timeout)
             exact = None
-            if (steps + 1) * (min(slots + 1, 4 * (steps + 1)) + 1) <= TABLE_CAP:
+            if steps <= args.exact_up_to and (steps + 1) * (min(slots + 1, 4 * (steps + 1)) + 1) <= TABLE_CAP:
                 exact = schedule(hindsight, f"cams:checkpoints={slots}", steps, args.timeout)
             b = binomial["rhs_evaluations"]
             row = {"steps": steps, "slots": slots, "binomial": b,
