@@ -72,11 +72,16 @@ class SliderCrankProblem final : public SecondOrderProblem {
   double rodLength() const { return length_; }
 
   std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
+  /// Keeps the symmetric part of M_ee of p for the whole solve.
+  std::unique_ptr<ProblemWorkspace> createModelWorkspaceFor(ConstVectorRef p) const override;
   void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
   void massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
                   ProblemWorkspace* ws) const override;
   void force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
              ProblemWorkspace* ws) const override;
+  /// One frame kinematics and one product of q with each invariant matrix for both.
+  void massMatrixAndForce(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, MatrixRef mass,
+                          VectorRef f, ProblemWorkspace* ws) const override;
   void residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                          MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const override;
   void addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
@@ -89,6 +94,10 @@ class SliderCrankProblem final : public SecondOrderProblem {
   void residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                         ConstVectorRef mu, VectorRef outQ, VectorRef outV,
                         ProblemWorkspace* ws) const override;
+  /// The state and parameter products with one set of product scalars.
+  void residualVjps(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                    ConstVectorRef mu, VectorRef outQ, VectorRef outV, VectorRef gradient,
+                    ProblemWorkspace* ws) const override;
   double integrand(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
                    ProblemWorkspace* ws) const override;
   void addIntegrandStateGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,
