@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/slider_crank.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <unsupported/Eigen/AutoDiff>
 
 #include <array>
@@ -48,13 +50,10 @@ struct Frame {
 template <typename T>
 void frameKinematics(const CrankMotion& crank, double length, double t, const T& c, const T& cDot,
                      Frame<T>& out) {
-  using std::asin;
-  using std::cos;
-  using std::sin;
   using std::sqrt;
   double phi, phiDot, phiDdot;
   crank.at(t, phi, phiDot, phiDdot);
-  const double r = crank.radius, s = std::sin(phi), co = std::cos(phi);
+  const double r = crank.radius, s = dmath::sin(phi), co = dmath::cos(phi);
   const T d = length + c;
   const T u = -r * s / d;
   const T w1 = 1.0 / sqrt(1.0 - u * u);  // asin'
@@ -69,13 +68,13 @@ void frameKinematics(const CrankMotion& crank, double length, double t, const T&
   const T btt = w2 * ut * ut + w1 * utt;
   const T btc = w2 * ut * uc + w1 * utc;
   const T bcc = w2 * uc * uc + w1 * ucc;
-  out.beta = asin(u);
+  out.beta = dmath::asin(u);
   out.betaDot = bt + out.g * cDot;
   out.betaC = btt + 2.0 * btc * cDot + bcc * cDot * cDot;
   // r_A'' = r phi'' (-sin, cos) - r phi'^2 (cos, sin), expressed in the body frame.
   const double ax = -r * phiDdot * s - r * phiDot * phiDot * co;
   const double ay = r * phiDdot * co - r * phiDot * phiDot * s;
-  const T cb = cos(out.beta), sb = sin(out.beta);
+  const T cb = dmath::cos(out.beta), sb = dmath::sin(out.beta);
   out.rho0 = cb * ax + sb * ay;
   out.rho1 = -sb * ax + cb * ay;
 }
@@ -163,9 +162,11 @@ void CrankMotion::at(double t, double& phi, double& phiDot, double& phiDdot) con
   if (t < rampTime) {
     const double tau = t / rampTime;
     const double twoPi = 2.0 * M_PI;
-    phiDot = omega * (tau - std::sin(twoPi * tau) / twoPi);
-    phiDdot = omega / rampTime * (1.0 - std::cos(twoPi * tau));
-    phi = omega * rampTime * (tau * tau / 2.0 + (std::cos(twoPi * tau) - 1.0) / (twoPi * twoPi));
+    double sine, cosine;
+    dmath::sincos(twoPi * tau, &sine, &cosine);
+    phiDot = omega * (tau - sine / twoPi);
+    phiDdot = omega / rampTime * (1.0 - cosine);
+    phi = omega * rampTime * (tau * tau / 2.0 + (cosine - 1.0) / (twoPi * twoPi));
   } else {
     phiDot = omega;
     phiDdot = 0.0;
