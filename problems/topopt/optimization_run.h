@@ -81,6 +81,13 @@ class OptimizationRun {
   TopologyOptimizer optimizer_;
 };
 
+/// Index in `history` of the best feasible design: the lowest optimized objective (psi1 or psi2 per
+/// optimization.objective; with scenarios the aggregate of w_s psi_s / psi_s(x0), psi_s(x0) from the
+/// first record) among the records whose volume fraction V/V0 is at most the bound
+/// optimization.volumeFraction (1e-6 relative slack: MMA's interior-point solver ends a constraint at
+/// about -1e-7 / lambda, either side of zero). -1 when no record is feasible.
+int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config& config);
+
 /// The progress line of one iteration, e.g.
 /// "iter  12  psi1 0.0812  psi2 0.0795  V/V0 0.5000  max|dx| 0.113  2.4 s". With scenarios, psi1 and
 /// psi2 are the worst scenario's, named at the end ("worst: fast").

@@ -19,6 +19,15 @@
 // x_k -> x_{k+1}. After the last update the final design x_N is evaluated once more (iteration N, no
 // update), so a run of N iterations has N + 1 records, the last one the final design.
 //
+// Stopping rule: after each update the record holds the first-order optimality residual of the MMA
+// problem at x_k (problems/topopt/mma.h, kktResidual, with the update's multipliers) and the largest
+// design change max|x_{k+1} - x_k|. When the residual is at most optimization.kktTolerance, the
+// change at most optimization.changeTolerance, x_k is feasible (kFeasibilitySlack) and its objective
+// is no higher than that of x_{k-1} (the MMA state keeps it), x_k is the final design: the update is
+// not taken, the record is marked converged, and the run ends after k + 1 records instead of
+// iterations + 1. Either tolerance 0 turns the rule off. The decision uses only what step k computes
+// and the stored state, so a resumed run stops at the same iteration.
+//
 // Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
 // x, and MMA's large early steps can reach a soft, near-mechanism design (first frequency below 1 Hz)
 // whose simulation diverges (the floating-frame equations have no geometric stiffening). When the
@@ -91,6 +100,11 @@ struct IterationRecord {
   double firstFrequencyHz = std::numeric_limits<double>::quiet_NaN();
   /// GCMMA: trial designs simulated in this iteration's update (0 for MMA and the final evaluation).
   int innerIterations = 0;
+  /// First-order optimality residual at this iteration's design with the update's multipliers
+  /// (problems/topopt/mma.h, kktResidual); NaN when no update was computed (the final evaluation).
+  double kktResidual = std::numeric_limits<double>::quiet_NaN();
+  /// The stopping rule held here: this record is the final design's, its update was not taken.
+  bool converged = false;
   /// With scenarios (problems/rod/scenarios.h): every scenario's psi1 and psi2, in scenario order;
   /// psi1 and psi2 above are then those of the worst scenario (largest w_s psi_s / psi_s(x0) of the
   /// optimized objective). Empty without scenarios.
@@ -161,6 +175,9 @@ class TopologyOptimizer final {
 
   /// Halvings toward the previous design before a failed simulation is reported.
   static constexpr int maxBacktracks = 10;
+  /// A design whose largest constraint value is at most this counts as feasible (MMA's interior-point
+  /// solver ends active constraints at about -1e-7 / lambda, either side of zero).
+  static constexpr double kFeasibilitySlack = 1e-6;
   /// An objective above this multiple of psi(x0) counts as a diverged response.
   static constexpr double maxObjectiveGrowth = 10.0;
 
@@ -190,6 +207,13 @@ class TopologyOptimizer final {
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 
+  // One MMA or GCMMA update (GCMMA when `trials` is not null) of x from the MMA state `from`: x becomes
+  // the next iterate; record gets the KKT residual at the current x and GCMMA's trial count. Returns
+  // the MMA state after the update.
+  MmaState updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
+                        const Vector& constraints, const Matrix& jacobian, const Vector& lower,
+                        const Vector& upper, const Gcmma::Evaluate* trials, Vector& x, IterationRecord& record);
+
   // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
   /// GCMMA's trial evaluations with scenarios (collective over the ranks).
   Gcmma::Evaluate scenarioTrials(const OptimizerState& next) const;
@@ -206,6 +230,7 @@ class TopologyOptimizer final {
   OptimizerState state_;
   int lastIteration_ = 0;  // the iteration of the last evaluated design (its projection)
   bool finished_ = false;
+  bool settled_ = false;  // the last updateDesign met the stopping rule
   std::optional<PistonRodEvaluation> last_;
   Vector lastDesign_;
   Times times_;
