@@ -62,7 +62,7 @@ struct OptimizationSettings {
   int pictureEvery = 0;         ///< a PNG of every k-th design; 0 = final design only
   /// MMA move limit (Svanberg's "move"), in (0, 1]; 0.5 is the docs/design.md §7 constant. Smaller
   /// values keep the inertia-loaded rod away from the soft, mechanism-like designs that large first
-  /// steps reach (see problems/topology_optimizer.h).
+  /// steps reach (see problems/topopt/topology_optimizer.h).
   double moveLimit = 0.5;
   /// mma | gcmma: plain MMA (the default) or GCMMA, whose inner iterations make every accepted design
   /// feasible and no worse than the previous one (problems/topopt/gcmma.h).
