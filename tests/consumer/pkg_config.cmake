@@ -25,12 +25,12 @@ math(EXPR end "${end} + 1")
 string(SUBSTRING "${rest}" 0 ${end} block)
 file(WRITE "${WORK_DIR}/main.cpp" "${block}")
 
-foreach(case "readme|${WORK_DIR}/main.cpp|hindsight-engine|" "own_ode|${EXAMPLE}|hindsight|--static")
+foreach(case "readme|${WORK_DIR}/main.cpp|hindsight-engine|--shared" "own_ode|${EXAMPLE}|hindsight|--static")
   string(REPLACE "|" ";" case "${case}")
   list(GET case 0 name)
   list(GET case 1 source)
   list(GET case 2 package)
-  list(GET case 3 static)
+  list(GET case 3 static)  # --shared is pkg-config's default: dependencies of static libraries left out
   execute_process(COMMAND ${PKG_CONFIG} --cflags --libs ${static} ${package} OUTPUT_VARIABLE flags
                   RESULT_VARIABLE code ERROR_VARIABLE err OUTPUT_STRIP_TRAILING_WHITESPACE)
   if(NOT code EQUAL 0)
