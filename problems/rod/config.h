@@ -63,7 +63,7 @@ struct OptimizationSettings {
   int pictureEvery = 0;         ///< a PNG of every k-th design; 0 = final design only
   /// MMA move limit (Svanberg's "move"), in (0, 1]; 0.5 is the docs/design.md §7 constant. Smaller
   /// values keep the inertia-loaded rod away from the soft, mechanism-like designs that large first
-  /// steps reach (see problems/topology_optimizer.h).
+  /// steps reach (see problems/topopt/topology_optimizer.h).
   double moveLimit = 0.5;
   /// Stopping rule: the run ends at the first design whose first-order optimality residual
   /// (problems/topopt/mma.h, kktResidual; in units of the scaled objective) is <= kktTolerance while

@@ -1,8 +1,8 @@
 // A complete, restartable topology-optimization run of the piston rod in an output directory: the
-// TopologyOptimizer loop, DIR/results.h5 after every iteration (problems/results_file.h, crash-safe),
+// TopologyOptimizer loop, DIR/results.h5 after every iteration (problems/topopt/results_file.h, crash-safe),
 // a progress line per iteration, and pictures (DIR/design_iter_K.png/.vtk every
 // optimization.pictureEvery iterations, DIR/design_final.png/.vtk at the end) and the final design's
-// geometry (DIR/design_final.svg/.dxf/.stl, the contour at density 0.5; problems/geometry_export.h).
+// geometry (DIR/design_final.svg/.dxf/.stl, the contour at density 0.5; problems/topopt/geometry_export.h).
 //
 // Every input check happens in the constructor, before any evaluation: the configuration (field named),
 // --resume together with --force, an output directory that cannot be created or written (probed by
@@ -16,7 +16,7 @@
 // holder's PID. With the lock taken, temporary files of dead processes' atomic writes there (results
 // file and pictures, NAME.tmp-PID-N) are removed.
 //
-// Resume: the results file is read with all its checks (problems/results_file.h: checksums,
+// Resume: the results file is read with all its checks (problems/topopt/results_file.h: checksums,
 // plausibility of the restored design and MMA state); a file that fails one throws StorageError
 // naming the dataset, and nothing runs. A format 1 file (no checksums) is resumed after the
 // plausibility checks with a warning in the progress output that it could not be verified.

@@ -27,7 +27,7 @@ const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
     {"mma_seconds", &IterationRecord::mmaSeconds},
     {"total_seconds", &IterationRecord::totalSeconds}};
 
-/// History columns added after format 2 appeared (issue 17): written always, read when present (a file
+/// History columns added after format 2 appeared (grayness, first frequency, inner iterations): written always, read when present (a file
 /// written before has none; the records then hold NaN / 0), checked against [lower, upper] (NaN
 /// allowed: the grayness and frequency of a record can be unknown).
 struct AddedColumn {
@@ -370,7 +370,7 @@ void checkRange(Reader& reader, const std::string& object, const Vector& v, doub
 
 constexpr double kLargest = std::numeric_limits<double>::max();
 
-// The restored state as the optimizer leaves it (docs/design.md §7, problems/mma.h).
+// The restored state as the optimizer leaves it (docs/design.md §7, problems/topopt/mma.h).
 void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttributes& root) {
   double lower = 0.0;
   try {

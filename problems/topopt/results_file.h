@@ -7,7 +7,7 @@
 //                          content_hash (the run state's hash, see Integrity)
 //   /history/<column>      1-D, K entries: iteration (int32), psi1, psi2, backtracks (int32),
 //                          volume_fraction, max_design_change (NaN for the final evaluation),
-//                          evaluation_seconds, mma_seconds, total_seconds, and (issue 17; absent in
+//                          evaluation_seconds, mma_seconds, total_seconds, and (absent in
 //                          older files, which are still read) grayness, first_frequency_hz,
 //                          inner_iterations (int32), kkt_residual (NaN where no update was computed;
 //                          a finished run whose last row has one stopped by the convergence rule)

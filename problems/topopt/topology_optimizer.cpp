@@ -15,7 +15,7 @@ std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
   const int nx = rc.elementsAlongLength;
   const int ny = rc.elementsThroughHeight;
   std::vector<int> map(static_cast<std::size_t>(rc.designCount()));
-  // Design index d = (i - 1) ny + j for element column i, row j (problems/fe_model.h).
+  // Design index d = (i - 1) ny + j for element column i, row j (problems/rod/fe_model.h).
   for (int d = 0; d < rc.designCount(); ++d) {
     const int column = d / ny + 1;
     const int row = d % ny;

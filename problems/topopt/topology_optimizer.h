@@ -3,7 +3,7 @@
 //   minimize    psi(x) / psi(x0)
 //   subject to  (V(x)/V0) / volumeFraction - 1 <= 0,   designLowerBound <= x_d <= 1,
 //
-// with MMA (problems/mma.h, the constants of Svanberg's 2007 note, which are the MmaOptions defaults),
+// with MMA (problems/topopt/mma.h, the constants of Svanberg's 2007 note, which are the MmaOptions defaults),
 // one constraint. psi is optimization.objective:
 //   psi1  the integral compliance, with its exact adjoint gradient (the paper's route);
 //   psi2  the equivalent-static-load compliance: loads from the simulation at the current design, held
@@ -12,7 +12,7 @@
 // psi2 is evaluated on both routes (one factorisation of K, cheap next to the simulation).
 //
 // With optimization.filterRadius >= 1 the model sees the filtered density xf = F x
-// (problems/density_filter.h) and the gradients are chained through F^T; 0 (the default, the paper's
+// (problems/topopt/density_filter.h) and the gradients are chained through F^T; 0 (the default, the paper's
 // choice) means no filter and reproduces the paper's checkerboards.
 //
 // Iteration k evaluates the design x_k and, while k < optimization.iterations, performs the MMA update
@@ -38,7 +38,7 @@
 // bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
 // this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
 //
-// Opt-in additions of issue 17 (defaults keep every bit of the runs above):
+// Opt-in additions: GCMMA, the frequency guard, projection (defaults keep every bit of the runs above):
 //  * optimization.method = gcmma: the update is GCMMA (problems/topopt/gcmma.h) instead of MMA; its
 //    trial designs are simulated (values only; a diverged or exploding trial counts as
 //    non-conservative), so every accepted design is feasible and its objective is no higher than the
@@ -53,7 +53,7 @@
 //    every projectionEvery iterations up to projectionBetaMax; gradients are chained through H' and F^T.
 // Every record also holds the grayness (fraction of design elements the model sees in (0.1, 0.9)) and
 // the first natural frequency.
-// Scenarios (issue #15; problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
+// Scenarios (problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
 // `scenarios` list every scenario is evaluated (over MPI ranks and threads), f_s = w_s psi_s(x) /
 // psi_s(x0), and MMA minimizes sum_s f_s (aggregate sum) or, for aggregate max, z over (x, z) subject
 // to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
@@ -182,7 +182,7 @@ class TopologyOptimizer final {
   static constexpr double maxObjectiveGrowth = 10.0;
 
   /// The element densities the model sees for design variables x (filtered when a filter is on),
-  /// over ALL elements on the picture grid (problems/pictures.h numbering e = row * nx + column,
+  /// over ALL elements on the picture grid (problems/topopt/pictures.h numbering e = row * nx + column,
   /// solid end columns = 1); length nx * ny.
   Vector densityGrid(ConstVectorRef design) const;
 

@@ -1039,7 +1039,7 @@ TEST(OptimizeCommand, AFullDiskExitsThreeAndKeepsTheLastCompleteResults) {
 #endif
 
 
-// ---- issue 17: GCMMA, frequency guard, projection, geometry export ----
+// ---- GCMMA, frequency guard, projection, geometry export ----
 
 TEST(TopologyOptimizer, GcmmaHistoryOnTheRodNeverIncreasesAndEveryAcceptedDesignIsFeasible) {
   Config config = coarseConfig("psi1", 6);
@@ -1185,7 +1185,7 @@ TEST(TopologyOptimizer, ProjectedRunDecreasesPsi1AndGetsCrisper) {
 // MMA restores it while it reduces psi1 (constraint value and derivative from eigen_constraint.h).
 // (On the divergence test's configuration the guard does not remove the step-back: the design that
 // diverges there has f1 = 8 Hz, so its divergence is not a low-frequency mechanism; on the 200 x 12
-// rod of the paper it is, see README "Optimizer robustness".)
+// rod of the paper it is, see docs/tutorials/topology_optimization.md, "Robustness options".)
 TEST(TopologyOptimizer, FrequencyGuardRestoresAViolatedFirstFrequencyBound) {
   Config config = coarseConfig("psi1", 8);
   config.optimization.minFirstFrequency = 70.0;
