@@ -2,7 +2,7 @@
 # %% [markdown]
 # # Storage strategies on the piston rod: time against memory
 #
-# One gradient dpsi1/dx of the piston rod per trajectory-storage strategy (README "Python"), with the
+# One gradient dpsi1/dx of the piston rod per trajectory-storage strategy (docs/guides/python.md), with the
 # run summary of each: forward + backward seconds, peak bytes in memory, bytes on disk, recomputed
 # steps, and how far the gradient is from the one with every state kept ("full"). Exact strategies
 # must give the same bits; interpolating or lossy ones a small, measured difference.

@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/slider_crank.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <unsupported/Eigen/AutoDiff>
 
 #include <array>
@@ -46,8 +48,7 @@ CrankState crankStateAt(const CrankMotion& crank, double t) {
   double phi;
   CrankState k;
   crank.at(t, phi, k.phiDot, k.phiDdot);
-  k.sinPhi = std::sin(phi);
-  k.cosPhi = std::cos(phi);
+  dmath::sincos(phi, &k.sinPhi, &k.cosPhi);
   return k;
 }
 
@@ -225,9 +226,11 @@ void CrankMotion::at(double t, double& phi, double& phiDot, double& phiDdot) con
   if (t < rampTime) {
     const double tau = t / rampTime;
     const double twoPi = 2.0 * M_PI;
-    phiDot = omega * (tau - std::sin(twoPi * tau) / twoPi);
-    phiDdot = omega / rampTime * (1.0 - std::cos(twoPi * tau));
-    phi = omega * rampTime * (tau * tau / 2.0 + (std::cos(twoPi * tau) - 1.0) / (twoPi * twoPi));
+    double sine, cosine;
+    dmath::sincos(twoPi * tau, &sine, &cosine);
+    phiDot = omega * (tau - sine / twoPi);
+    phiDdot = omega / rampTime * (1.0 - cosine);
+    phi = omega * rampTime * (tau * tau / 2.0 + (cosine - 1.0) / (twoPi * twoPi));
   } else {
     phiDot = omega;
     phiDdot = 0.0;
@@ -270,7 +273,7 @@ double SliderCrankProblem::frameAngle(double t, ConstVectorRef q, ConstVectorRef
   const View P(layout_, p);
   double phi, phiDot, phiDdot;
   crank_.at(t, phi, phiDot, phiDdot);
-  return std::asin(-crank_.radius * std::sin(phi) / (length_ + dot(P, q)));
+  return dmath::asin(-crank_.radius * dmath::sin(phi) / (length_ + dot(P, q)));
 }
 
 namespace {

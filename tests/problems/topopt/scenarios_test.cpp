@@ -1,4 +1,4 @@
-// Operating scenarios (issue #15): the configuration's scenarios (strict reading, errors naming the
+// Operating scenarios: the configuration's scenarios (strict reading, errors naming the
 // field), every scenario evaluated exactly as a rod of its own, sum and max aggregation (max: the
 // worst scenario changes during the run and the bound formulation follows it), threads that do not
 // change a bit, and a resumed scenario run equal to an uninterrupted one. The rank-count tests run
@@ -340,7 +340,7 @@ TEST(Scenarios, FrequencyGuardHoldsForEveryAggregate) {
 
 // GCMMA with scenarios: its trials evaluate every scenario (collectively over ranks; tests/mpi checks 1
 // against 2 ranks). Conservative steps: once the volume bound holds, the aggregate (sum of the relative
-// objectives, or their maximum) never increases, as for one scenario (README "Optimizer robustness").
+// objectives, or their maximum) never increases, as for one scenario (docs/tutorials/topology_optimization.md, "Robustness options").
 TEST(Scenarios, GcmmaNeverIncreasesTheAggregateOnceFeasible) {
   for (const std::string aggregate : {"sum", "max"}) {
     SCOPED_TRACE(aggregate);
