@@ -101,7 +101,7 @@ def summarize(h):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--build", default="build")
-    parser.add_argument("--out", default="bench/results-headline")
+    parser.add_argument("--out", default=os.path.join("bench", "results-headline"))
     parser.add_argument("--ensemble", type=int, default=0, help="extra psi1 runs from perturbed starts")
     parser.add_argument("--skip-esl", action="store_true", help="leave out the psi2 (ESL) route")
     args = parser.parse_args()
