@@ -124,7 +124,13 @@ class Trajectory final : public StepRecomputer {
   /// Creates the strategy from specText; throws std::invalid_argument for a spec that cannot run here.
   void createStorage() {
     const StorageSpec parsed = StorageSpec::parse(specText);
-    std::unique_ptr<TrajectoryStorage> created = hindsight::createStorage(specText);
+    // "%r" in the spec (dir=/scratch/run/rank%r) becomes the rank, for node-local directories. Files
+    // are per rank in any case (disk and multilevel name theirs by process id).
+    std::string local = specText;
+    for (std::size_t at = local.find("%r"); at != std::string::npos; at = local.find("%r", at)) {
+      local.replace(at, 2, std::to_string(rank_));
+    }
+    std::unique_ptr<TrajectoryStorage> created = hindsight::createStorage(local);
     if (created->needsDerivative()) {
       throw std::invalid_argument(std::string(kOption) + " " + specText +
                                   ": this strategy needs the time derivative at every step, which a "
