@@ -1,4 +1,4 @@
-// Why `cams` keeps step records rather than the stage values of the last recomputed step (issue #13).
+// Why `cams` keeps step records rather than the stage values of the last recomputed step.
 //
 // binomial/online with stages=1 keep two step records of scratch (storage/recomputed_stages.h): the stages
 // of the last step a restore recomputed serve the next adjoint step. A plan built around that trick would

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""cams vs binomial at equal bytes (issue #13): right-hand-side evaluations and planning time from
+"""cams vs binomial at equal bytes: right-hand-side evaluations and planning time from
 `hindsight schedule` (no model run; its counts equal a real run's, tests/storage/cams_checkpointing_test.cpp).
 
 For every N and budget C (the bytes of binomial:checkpoints=C, i.e. C + 1 states):

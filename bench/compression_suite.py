@@ -1,11 +1,11 @@
 #!/usr/bin/python3
-"""Compression along time (issue #14): old and new codecs side by side in one run, through the CLI.
+"""Compression along time: old and new codecs side by side in one run, through the CLI.
 
     /usr/bin/python3 bench/compression_suite.py [--build DIR] [--out FILE.md] [--only REGEX] [--dir TMPDIR]
 
 For every configuration (reduced rod 200x12 with 10, 20, 40 modes at T = 3, 10, 100 s; full-order rod
 200x12, 0.1 s with trbdf2 at h = 1e-3) it runs `hindsight evaluate --json --gradient g.h5` once per strategy:
-full (the reference), disk:codec=zstd (shuffle + zstd, the format before #14), disk (time codec),
+full (the reference), disk:codec=zstd (shuffle + zstd, the older format), disk (time codec),
 lossy:codec=zfp,tolerance=1e-10, lossy:codec=round,tolerance=1e-6 and lossy:target=1e-6, and prints
 one markdown table: compression ratio, relative 2-norm error of every gradient in g.h5 against full's
 (the largest over dpsi1_dx, dpsi2_dx), "bitwise" when every bit agrees, the strategy's

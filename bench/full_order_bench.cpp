@@ -1,4 +1,4 @@
-// Storage trade-offs on the full-order rod (docs/design.md §9, issue #7 experiment 1): the unreduced
+// Storage trade-offs on the full-order rod (docs/design.md §9): the unreduced
 // FE model of the initial design x0 = 0.5 carried by the rigid slider-crank motion, state 2n with
 // n = 2 (nx+1)(ny+1) - 3 free DOFs (22 kB per state at 100x6, 1.25 MB at 800x48), TR-BDF2 at
 // h = 1e-3 s (the CLI's `--model full` default), one gradient dpsi1,full/dx per storage strategy.
@@ -73,7 +73,7 @@ const Case& caseOf(const Mesh& mesh) {
     c.options.t0 = 0.0;
     c.options.t1 = mesh.steps * kStep;
     c.options.step = kStep;
-    c.options.newtonTolerance = 1e-10;  // as evaluateFullOrderRod(): see problems/full_order_rod.cpp
+    c.options.newtonTolerance = 1e-10;  // as evaluateFullOrderRod(): see problems/rod/full_order_rod.cpp
     it = cache.emplace(mesh.name(), std::move(c)).first;
   }
   return it->second;

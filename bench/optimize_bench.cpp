@@ -1,4 +1,4 @@
-// The 50-iteration topology optimisation of the piston rod end to end (issue #7 experiment 5): what
+// The 50-iteration topology optimisation of the piston rod end to end: what
 // `hindsight optimize --objective psi1|psi2` does on the default configuration (200x12, 10 modes,
 // rk4 h = 1e-4, T = 3 s, MMA with move limit 0.5), through OptimizationRun, so that the figure includes
 // the crash-safe results.h5 after every iteration and the final pictures.
@@ -9,7 +9,7 @@
 //
 // Counters: evaluations (iterations recorded, 51 for 50 updates), psi1_final and psi2_final (both objectives
 // of the final design, whichever was optimised), psi1_initial, volume_final (V/V0), backtracks (halvings
-// after a diverged simulation, see README), evaluation_s and mma_s (summed over the iterations). Wall time of
+// after a diverged simulation, see docs/tutorials/topology_optimization.md), evaluation_s and mma_s (summed over the iterations). Wall time of
 // one repetition = the whole run. Results go to /tmp/hindsight-optimize-bench/OBJECTIVE (overwritten).
 //
 // Run: build/bench/optimize_bench --benchmark_filter=rod_optimize/psi2

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""What a problem written in Python costs next to the same problem in C++ (README "Python").
+"""What a problem written in Python costs next to the same problem in C++ (docs/guides/python.md).
 
 Two problems of problems/classic, each once as a Python class (NumPy arrays, every derivative a Python
 call) and once in C++ (hindsight.classic_gradient), both through the same engine call: rk4, fixed step,

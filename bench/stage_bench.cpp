@@ -1,4 +1,4 @@
-// Issue #13: stage-aware storage. Prints two tables (no Google Benchmark fixtures: the quantities are
+// Stage-aware storage. Prints two tables (no Google Benchmark fixtures: the quantities are
 // ratios of one run's sweeps and plan counts):
 //  1. (forward + backward) / forward seconds, median of 5 runs, for `full` and `full:stages=1` on the
 //     pendulum (rk4, 200 000 steps) with the rhs evaluations of each run;

@@ -9,7 +9,7 @@
 #include <iostream>
 
 int main(int argc, char** argv) {
-  // MPI for the process's lifetime when started by mpirun (issue #15); nothing otherwise.
+  // MPI for the process's lifetime when started by mpirun; nothing otherwise.
   const hindsight::MpiSession mpi(argc, argv);
   CLI::App app{
       "hindsight: exact adjoint gradients of flexible multibody systems, with interchangeable "

@@ -104,6 +104,20 @@ int runOptimize(const OptimizeSettings& s) {
               << ", psi2: " << first.psi2 << " -> " << last.psi2 << ", V/V0 " << last.volumeFraction << "; "
               << summary.history.size() << " evaluations, " << std::setprecision(4) << summary.wallSeconds
               << " s in this invocation\n";
+    if (summary.finished) {
+      out << (last.converged ? "stopped by the convergence rule at iteration " + std::to_string(last.iteration)
+                             : "stopped after optimization.iterations = " +
+                                   std::to_string(config.optimization.iterations) + " updates");
+      const int best = bestFeasibleIndex(summary.history, config);
+      if (best >= 0) {
+        const IterationRecord& b = summary.history[static_cast<std::size_t>(best)];
+        out << std::setprecision(6) << "; best feasible design: iteration " << b.iteration << ", psi1 " << b.psi1
+            << ", V/V0 " << b.volumeFraction;
+      } else {
+        out << "; no design met the volume bound";
+      }
+      out << "\n";
+    }
     if (!config.scenarios.empty() || world.parallel()) {
       const TopologyOptimizer::Times& t = run.optimizer().times();
       out << std::setprecision(4) << "rank 0: " << t.localSeconds << " s evaluating its scenarios, "
@@ -126,7 +140,7 @@ void registerOptimize(CLI::App& app) {
   s->flags.add(command, "--objective", "optimization.objective",
                "psi1 (integral compliance) | psi2 (equivalent static loads)", "TEXT");
   s->flags.add(command, "--iterations", "optimization.iterations",
-               "MMA iterations in [0, 100000] (default 50)", "INT");
+               "most MMA updates, in [0, 100000] (default 150; the stopping rule optimization.kktTolerance and changeTolerance usually ends the run earlier)", "INT");
   s->flags.add(command, "--filter-radius", "optimization.filterRadius",
                "density filter radius in elements, in [0, 1000]; 0 = none (default, the paper's choice)",
                "FLOAT");

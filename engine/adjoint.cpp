@@ -166,7 +166,7 @@ struct ForwardSweep {
   std::unique_ptr<Integrator> integrator;
   Vector parameters;
   Vector z, zPrevious, zdot;
-  Vector stepData;  ///< the stage values of a step, when the storage keeps them (issue #13)
+  Vector stepData;  ///< the stage values of a step, when the storage keeps them
   std::vector<double> times;
   double objective = 0.0;
   std::unique_ptr<StepRecomputer> recomputer;

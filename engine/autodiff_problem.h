@@ -18,8 +18,10 @@
 //   };
 //   AutoDiffProblem<MyOde, 2, 3> problem("my-ode");
 //
-// T is double or an Eigen::AutoDiffScalar; write math calls unqualified after `using std::sin;` (and
-// so on) so that argument-dependent lookup finds Eigen's overloads, and initialise with T(...) rather
+// T is double or an Eigen::AutoDiffScalar; call transcendental functions as hindsight::dmath::sin(x)
+// (and so on, engine/deterministic_math.h: overloads for both, the same bits on every CPU), or write
+// them unqualified after `using std::sin;` to get Eigen's overloads (glibc's CPU-dependent variants),
+// and initialise with T(...) rather
 // than relying on conversions in branches. The time t is a plain double: the engine never needs a
 // derivative in t. The functor is stored by value and must be const-callable (a problem is immutable
 // during a solve); its data members may hold constants such as a horizon.

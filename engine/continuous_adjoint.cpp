@@ -1,4 +1,5 @@
 #include <hindsight/engine/continuous_adjoint.h>
+#include <hindsight/engine/deterministic_math.h>
 #include <hindsight/engine/grid_recomputer.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/runge_kutta.h>
@@ -289,7 +290,7 @@ double initialStep(AdjointSystem& system, double t0, double t1, ConstVectorRef y
   const double d2 = weightedRmsNorm(f2 - f1, y, y, rtol, atol) / h0;
   const double dmax = std::max(d1, d2);
   const double h1 =
-      dmax <= 1e-15 ? std::max(1e-6 * span, h0 * 1e-3) : std::pow(0.01 / dmax, 1.0 / (order + 1.0));
+      dmax <= 1e-15 ? std::max(1e-6 * span, h0 * 1e-3) : dmath::pow(0.01 / dmax, 1.0 / (order + 1.0));
   return std::min({100.0 * h0, h1, span});
 }
 

@@ -37,7 +37,7 @@ GeneralizedAlphaIntegrator::GeneralizedAlphaIntegrator(const SecondOrderProblem&
   method_ = checkedMethod(problem, p, options);
   coefficients_ = coefficients(method_, options.rhoInfinity);
   f_ = problem.coordinateCount();
-  workspace_ = problem.createModelWorkspace();
+  workspace_ = problem.createModelWorkspaceFor(p_);
   mass_.resize(f_, f_);
   ry_.resize(f_, f_);
   rv_.resize(f_, f_);
@@ -118,10 +118,10 @@ void GeneralizedAlphaIntegrator::solveStep(double t, double h, ConstVectorRef x)
     if (iteration == 0) {
       // Simplified Newton: one iteration matrix per step, at the predictor.
       factorizeIterationMatrix(tNext, yNext_, vNext_, accel_, h * h * c.beta * ratio, h * c.gamma * ratio);
+      problem_.force(tNext, yNext_, vNext_, p_, force_, workspace_.get());
     } else {
-      problem_.massMatrix(tNext, yNext_, p_, mass_, workspace_.get());
+      problem_.massMatrixAndForce(tNext, yNext_, vNext_, p_, mass_, force_, workspace_.get());
     }
-    problem_.force(tNext, yNext_, vNext_, p_, force_, workspace_.get());
     ++counters_.rhsEvaluations;
     residual_.noalias() = mass_ * accel_;
     residual_ -= force_;

@@ -129,7 +129,7 @@ class Integrator {
   /// sets lambda <- dpsi/dx_n and adds the step's contribution to gradient (size np).
   virtual void adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient) = 0;
 
-  /// Step data (issue #13): the doubles per step that let adjointStepFromData() run without evaluating
+  /// Step data: the doubles per step that let adjointStepFromData() run without evaluating
   /// the right-hand side (a Runge-Kutta method's stage values); 0 when the method offers none.
   virtual std::int64_t stepDataSize() const { return 0; }
   /// The step data of the last step() (stepDataSize() doubles), the same bits that step computed.

@@ -4,6 +4,14 @@ namespace hindsight {
 
 void Problem::addInitialStateVjp(ConstVectorRef, ConstVectorRef, VectorRef) const {}
 
+std::unique_ptr<ProblemWorkspace> Problem::createWorkspaceFor(ConstVectorRef) const { return createWorkspace(); }
+
+void Problem::rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef outState,
+                      VectorRef gradient, ProblemWorkspace* ws) const {
+  rhsStateVjp(t, z, p, w, outState, ws);
+  addRhsParameterVjp(t, z, p, w, gradient, ws);
+}
+
 void Problem::rhsJacobian(double, ConstVectorRef, ConstVectorRef, MatrixRef, ProblemWorkspace*) const {
   throw std::logic_error("Problem '" + name() +
                          "' declares a dense Jacobian but does not implement rhsJacobian()");

@@ -47,6 +47,11 @@ class Problem {
   virtual int stateSize() const = 0;
   virtual int parameterSize() const = 0;
   virtual std::unique_ptr<ProblemWorkspace> createWorkspace() const { return nullptr; }
+  /// A workspace for a solve at the fixed parameters p: the problem may keep products of p in it,
+  /// computed once instead of at every call. Every call with this workspace must pass the same p
+  /// (the integrators hold p for the whole solve); a caller that varies p uses createWorkspace().
+  /// Default: createWorkspace().
+  virtual std::unique_ptr<ProblemWorkspace> createWorkspaceFor(ConstVectorRef p) const;
 
   /// z(t0) = z0(p).
   virtual void initialState(ConstVectorRef p, VectorRef z0) const = 0;
@@ -70,6 +75,11 @@ class Problem {
   /// out += (dF/dp)^T w.
   virtual void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w,
                                   VectorRef out, ProblemWorkspace* ws) const = 0;
+  /// outState = (dF/dz)^T w and gradient += (dF/dp)^T w at one point, for an explicit adjoint stage
+  /// (called only when hasStateVjp() is true). A problem that shares work between the two products
+  /// overrides this; the default calls rhsStateVjp() and addRhsParameterVjp().
+  virtual void rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef outState,
+                       VectorRef gradient, ProblemWorkspace* ws) const;
   /// A solver for I - alpha F_z; nullptr means the engine's dense LU of rhsJacobian().
   virtual std::unique_ptr<NewtonSolver> createNewtonSolver() const { return nullptr; }
   /// True when F is affine in z (F = A(t, p) z + b(t, p)) and the Newton solve (createNewtonSolver() or

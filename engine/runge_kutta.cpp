@@ -108,7 +108,7 @@ RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRe
   tableau_ = ButcherTableau::byMethod(method_);
   n_ = problem.stateSize();
   stages_ = static_cast<int>(tableau_.b.size());
-  workspace_ = problem.createWorkspace();
+  workspace_ = problem.createWorkspaceFor(p_);
   stageSlopes_.resize(n_, stages_);
   stageStates_.resize(n_, stages_);
   stageAdjoints_.resize(n_, stages_);
@@ -308,8 +308,15 @@ void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambd
     }
     auto Zbar = stageAdjoints_.col(i);
     auto Zi = stageStates_.col(i);
-    // An implicit stage factorises I - alpha F_z below, so it needs the dense Jacobian anyway.
-    jacobianTransposeProduct(ti, Zi, base_, Zbar, alpha != 0.0 && !newtonSolver_);
+    // An explicit stage takes both products at one point with one w (shared work, rhsVjps); an
+    // implicit stage factorises I - alpha F_z below, so it needs the dense Jacobian anyway.
+    const bool sharedProducts = alpha == 0.0 && !newtonSolver_ && problem_.hasStateVjp();
+    if (sharedProducts) {
+      problem_.rhsVjps(ti, Zi, p_, base_, Zbar, gradient, workspace_.get());
+      ++counters_.jacobianEvaluations;
+    } else {
+      jacobianTransposeProduct(ti, Zi, base_, Zbar, alpha != 0.0 && !newtonSolver_);
+    }
     if (tableau_.b(i) != 0.0) {
       problem_.addIntegrandStateGradient(ti, Zi, p_, h * tableau_.b(i), Zbar, workspace_.get());
     }
@@ -328,7 +335,7 @@ void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambd
     }
     // Kbar_i = r_i + h a_ii Zbar_i.
     if (alpha != 0.0) base_ += alpha * Zbar;
-    problem_.addRhsParameterVjp(ti, Zi, p_, base_, gradient, workspace_.get());
+    if (!sharedProducts) problem_.addRhsParameterVjp(ti, Zi, p_, base_, gradient, workspace_.get());
     if (tableau_.b(i) != 0.0) {
       problem_.addIntegrandParameterGradient(ti, Zi, p_, h * tableau_.b(i), gradient, workspace_.get());
     }

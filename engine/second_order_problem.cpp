@@ -14,8 +14,10 @@ struct SecondOrderWorkspace final : ProblemWorkspace {
   Vector force, acceleration, mu;
   Matrix ry, rv;
   // The acceleration of the last (t, y, v, p): rhs, Jacobian and parameter products at one stage
-  // share it instead of refactorising M. Compared bit for bit, so results do not change.
+  // share it instead of refactorising M. Compared bit for bit, so results do not change. A workspace
+  // made for a fixed p (createWorkspaceFor) compares (t, y, v) only.
   bool cacheValid = false;
+  bool parametersFixed = false;
   double cachedTime = 0.0;
   Vector cachedState, cachedParameters;
 };
@@ -29,13 +31,13 @@ SecondOrderWorkspace& workspaceOf(ProblemWorkspace* ws) {
 void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorRef y, ConstVectorRef v,
                        ConstVectorRef p, SecondOrderWorkspace& w) {
   const Eigen::Index f = y.size();
+  assert(!w.parametersFixed || w.cachedParameters == p);
   if (w.cacheValid && t == w.cachedTime && w.cachedState.head(f) == y && w.cachedState.tail(f) == v &&
-      w.cachedParameters == p) {
+      (w.parametersFixed || w.cachedParameters == p)) {
     return;
   }
   w.cacheValid = false;
-  problem.massMatrix(t, y, p, w.mass, w.model.get());
-  problem.force(t, y, v, p, w.force, w.model.get());
+  problem.massMatrixAndForce(t, y, v, p, w.mass, w.force, w.model.get());
   w.cholesky.compute(w.mass);
   if (w.cholesky.info() != Eigen::Success) {
     throw NumericalError("mass matrix of '" + problem.name() + "' is not positive definite", t);
@@ -45,7 +47,7 @@ void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorR
   w.cachedTime = t;
   w.cachedState.head(f) = y;
   w.cachedState.tail(f) = v;
-  w.cachedParameters = p;
+  if (!w.parametersFixed) w.cachedParameters = p;
   w.cacheValid = true;
 }
 
@@ -54,10 +56,36 @@ void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorR
 void SecondOrderProblem::addInitialCoordinatesVjp(ConstVectorRef, ConstVectorRef, ConstVectorRef,
                                                   VectorRef) const {}
 
+std::unique_ptr<ProblemWorkspace> SecondOrderProblem::createModelWorkspaceFor(ConstVectorRef) const {
+  return createModelWorkspace();
+}
+
+void SecondOrderProblem::massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                            MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const {
+  massMatrix(t, y, p, mass, ws);
+  force(t, y, v, p, f, ws);
+}
+
+void SecondOrderProblem::residualVjps(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                      ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                                      VectorRef gradient, ProblemWorkspace* ws) const {
+  residualStateVjp(t, y, v, a, p, mu, outY, outV, ws);
+  addResidualParameterVjp(t, y, v, a, p, mu, gradient, ws);
+}
+
 std::unique_ptr<ProblemWorkspace> SecondOrderProblem::createWorkspace() const {
   auto ws = std::make_unique<SecondOrderWorkspace>(coordinateCount());
   ws->cachedParameters.resize(parameterSize());
   ws->model = createModelWorkspace();
+  return ws;
+}
+
+std::unique_ptr<ProblemWorkspace> SecondOrderProblem::createWorkspaceFor(ConstVectorRef p) const {
+  auto ws = std::make_unique<SecondOrderWorkspace>(coordinateCount());
+  // Kept for the debug check that every call passes this p (Problem::createWorkspaceFor).
+  ws->cachedParameters = p;
+  ws->parametersFixed = true;
+  ws->model = createModelWorkspaceFor(p);
   return ws;
 }
 
@@ -122,6 +150,18 @@ void SecondOrderProblem::rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef 
   w.cholesky.solveInPlace(w.mu);
   residualStateVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out.head(f), out.tail(f), w.model.get());
   out.tail(f) += wIn.head(f);
+}
+
+void SecondOrderProblem::rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef wIn,
+                                 VectorRef outState, VectorRef gradient, ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
+  w.mu = -wIn.tail(f);
+  w.cholesky.solveInPlace(w.mu);
+  residualVjps(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, outState.head(f), outState.tail(f), gradient,
+               w.model.get());
+  outState.tail(f) += wIn.head(f);
 }
 
 double SecondOrderProblem::integrand(double t, ConstVectorRef z, ConstVectorRef p,

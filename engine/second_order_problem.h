@@ -20,6 +20,9 @@ class SecondOrderProblem : public Problem {
   virtual int coordinateCount() const = 0;
   /// Scratch buffers of the model; created once per solve.
   virtual std::unique_ptr<ProblemWorkspace> createModelWorkspace() const { return nullptr; }
+  /// Scratch buffers for a solve at the fixed p (Problem::createWorkspaceFor): the model may keep
+  /// products of p in them. Default: createModelWorkspace().
+  virtual std::unique_ptr<ProblemWorkspace> createModelWorkspaceFor(ConstVectorRef p) const;
 
   virtual void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const = 0;
   /// gradient += (dy0/dp)^T lambdaY + (dv0/dp)^T lambdaV. Default: independent of p.
@@ -30,6 +33,10 @@ class SecondOrderProblem : public Problem {
                           ProblemWorkspace* ws) const = 0;
   virtual void force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
                      ProblemWorkspace* ws) const = 0;
+  /// mass = M(t, y, p) and f = f(t, y, v, p) at one point. A model that shares work between the two
+  /// (kinematics, products of y) overrides this; the default calls massMatrix() and force().
+  virtual void massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                  MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const;
   /// dr/dy and dr/dv of r = M(t, y, p) a - f(t, y, v, p), at the given a.
   virtual void residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
                                  ConstVectorRef p, MatrixRef ry, MatrixRef rv,
@@ -47,6 +54,12 @@ class SecondOrderProblem : public Problem {
                                 ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
                                 ProblemWorkspace* ws) const;
 
+  /// outY = (dr/dy)^T mu, outV = (dr/dv)^T mu and gradient += (dr/dp)^T mu at one point (an explicit
+  /// adjoint stage needs all three). Default: residualStateVjp() and addResidualParameterVjp().
+  virtual void residualVjps(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                            ConstVectorRef mu, VectorRef outY, VectorRef outV, VectorRef gradient,
+                            ProblemWorkspace* ws) const;
+
   /// The integrand G(t, y, v, p) and its gradients (gy, gv, gp += scale * ...): the same concept and
   /// name as Problem::integrand, stated in the coordinates; the first-order overloads below call these.
   /// A subclass that overrides these hides the first-order overloads in its own scope (C++ name
@@ -62,6 +75,7 @@ class SecondOrderProblem : public Problem {
   // ---- The first-order interface, derived from the above. ----
   int stateSize() const final { return 2 * coordinateCount(); }
   std::unique_ptr<ProblemWorkspace> createWorkspace() const final;
+  std::unique_ptr<ProblemWorkspace> createWorkspaceFor(ConstVectorRef p) const final;
   void initialState(ConstVectorRef p, VectorRef z0) const final;
   void addInitialStateVjp(ConstVectorRef p, ConstVectorRef lambda0, VectorRef gradient) const final;
   void rhs(double t, ConstVectorRef z, ConstVectorRef p, VectorRef f, ProblemWorkspace* ws) const final;
@@ -73,6 +87,9 @@ class SecondOrderProblem : public Problem {
   /// F_z^T w = (-r_y^T mu, w_y - r_v^T mu) with mu = M^{-1} w_v.
   void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                    ProblemWorkspace* ws) const final;
+  /// One factorisation of M and one mu = M^{-1} w_v for both products (residualVjps()).
+  void rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef outState,
+               VectorRef gradient, ProblemWorkspace* ws) const final;
   double integrand(double t, ConstVectorRef z, ConstVectorRef p, ProblemWorkspace* ws) const final;
   void addIntegrandStateGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
                                  ProblemWorkspace* ws) const final;

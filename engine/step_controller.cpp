@@ -1,5 +1,7 @@
 #include <hindsight/engine/step_controller.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -32,12 +34,12 @@ double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y
 
 double StepSizeController::afterAccepted(double h, double norm) const {
   // A zero error estimate (e.g. a linear solution) allows the largest growth.
-  const double factor = norm > 0.0 ? 0.9 * std::pow(norm, exponent_) : 5.0;
+  const double factor = norm > 0.0 ? 0.9 * dmath::pow(norm, exponent_) : 5.0;
   return h * std::min(5.0, std::max(0.2, factor));
 }
 
 double StepSizeController::afterRejected(double h, double norm) const {
-  return h * std::min(0.9, std::max(0.1, 0.9 * std::pow(norm, exponent_)));
+  return h * std::min(0.9, std::max(0.1, 0.9 * dmath::pow(norm, exponent_)));
 }
 
 std::string invalidToleranceEntry(const std::vector<double>& tolerances, const std::string& field) {

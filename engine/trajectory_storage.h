@@ -9,7 +9,7 @@
 // A strategy may recompute states from a checkpoint by calling recompute(n, z), which advances z
 // from grid point n to n+1 with exactly the step the forward sweep took, so the bits are the same.
 //
-// Step data (issue #13). Besides the state, a strategy may keep per step what the adjoint step needs
+// Step data. Besides the state, a strategy may keep per step what the adjoint step needs
 // (the integrator's stage values; Integrator::stepDataSize()), so that the adjoint step evaluates no
 // right-hand side. When info().stepDataSize > 0 (the engine sets it only for a strategy whose
 // keepsStepData() is true and an integrator that offers step data), the protocol has two more calls:

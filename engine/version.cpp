@@ -1,8 +1,9 @@
 #include <hindsight/engine/types.h>
+#include <hindsight/version.h>
 
 namespace hindsight {
 
-// HINDSIGHT_VERSION comes from CMakeLists.txt, the one place the version is set.
-const char* version() { return HINDSIGHT_VERSION; }
+// The version is set once, in CMakeLists.txt's project(); <hindsight/version.h> is generated from it.
+const char* version() { return HINDSIGHT_VERSION_STRING; }
 
 }  // namespace hindsight

@@ -45,7 +45,7 @@ int main() {
   // One inequality constraint f1 = k / 4 - 1 <= 0; box 0.5 <= k <= 8, 0.2 <= c <= 8.
   MmaOptions mmaOptions;
   // c ends inside the box with no constraint holding it; MMA's default smallest asymptote distance
-  // (1% of the box) would leave it cycling with an amplitude of that order (problems/mma.h).
+  // (1% of the box) would leave it cycling with an amplitude of that order (problems/topopt/mma.h).
   mmaOptions.min_asymptote_distance = 1e-6;
   Mma mma(2, 1, mmaOptions);
   const Vector xmin = Eigen::Vector2d(0.5, 0.2), xmax = Eigen::Vector2d(8.0, 8.0);

@@ -4,7 +4,7 @@
 #
 # scipy.optimize.minimize with SLSQP minimises the integral compliance psi1 of the piston rod over its
 # design variables, with the volume fraction as an inequality constraint, using hindsight's exact
-# adjoint gradient (README "Python"). hindsight's own optimizer is MMA (`hindsight optimize`); this
+# adjoint gradient (docs/guides/python.md). hindsight's own optimizer is MMA (`hindsight optimize`); this
 # shows that any optimizer can drive the model through the module.
 #
 #     PYTHONPATH=build/python python3 examples/python_scipy_optimize.py [--iterations 5] [--coarse]

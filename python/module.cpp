@@ -1,5 +1,5 @@
 // hindsight._hindsight: the C++ side of the Python module `hindsight` (python/hindsight/__init__.py
-// wraps it; README "Python"). Everything goes through the library's own code paths: configurations
+// wraps it; docs/guides/python.md). Everything goes through the library's own code paths: configurations
 // through configFromJson/applySetting/applyFlag (the CLI's validation and messages), storage specs
 // through the factory, the rod through PistonRod::evaluate as `hindsight evaluate` calls it, the
 // optimization through OptimizationRun as `hindsight optimize` runs it, results through
@@ -399,7 +399,7 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
 
 // ---- A problem written in Python ----------------------------------------------------------------
 
-/// Adapts a Python object with the methods of README "Python" to hindsight::Problem. Called with the
+/// Adapts a Python object with the methods of docs/guides/python.md to hindsight::Problem. Called with the
 /// GIL held (hindsight.gradient does not release it for a Python problem). Arrays handed to Python
 /// are copies (the engine's buffers are reused); results are checked for shape.
 class PythonProblem final : public Problem {

@@ -173,7 +173,7 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   /// Throws std::invalid_argument when checkpoints is outside [1, kMaxCheckpoints].
   /// stages: keep the stage values of the last recomputed step (and of the forward sweep's last step),
   /// two step records in all, so the adjoint step that follows a recomputation evaluates no right-hand
-  /// side (issue #13). The schedule, and so the recomputed steps, are revolve's as without it.
+  /// side. The schedule, and so the recomputed steps, are revolve's as without it.
   explicit BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
                                  bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);

@@ -1,4 +1,4 @@
-// Strategy "cams": optimal stage-aware checkpointing for a known number of steps N (issue #13).
+// Strategy "cams": optimal stage-aware checkpointing for a known number of steps N.
 //
 // Spec: cams:budget=BYTES | cams:checkpoints=C   [,online=1]   (exactly one of budget and checkpoints;
 // C in [1, 10^6]; checkpoints=C means the byte budget of binomial:checkpoints=C, i.e. C + 1 states).

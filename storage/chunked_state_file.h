@@ -10,7 +10,7 @@
 //   root attributes: format ("hindsight trajectory 1"), problem, stateSize, t0, t1,
 //             hindsightVersion, chunkStates, codec ("time" or "zstd"), and stepCount (written when
 //             the forward sweep ends). Filter 306 is not registered with the HDF Group: a file coded
-//             with it is read by hindsight (or any program that registers storage/time_codec's filter).
+//             with it is read by hindsight (or any program that registers the filter of storage/time_codec.h).
 // zstd is registered with HDF5 under its registered id 32015 (HDF Group filter registry,
 // https://github.com/HDFGroup/hdf5_plugins/blob/master/docs/RegisteredFilterPlugins.md) by our own
 // small callback over libzstd when no plugin provides it, so the file is the same one the official

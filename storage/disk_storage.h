@@ -8,7 +8,7 @@
 //   level   zstd level (default 3)
 //   codec   time (default): each chunk's states predicted along time, residuals coded losslessly
 //           (storage/time_codec.h, 2.4-3.3x on the rod); zstd: byte shuffle + zstd per chunk (the
-//           format before issue #14, 1.3-1.4x). Both restore every bit.
+//           older format, 1.3-1.4x). Both restore every bit.
 //   chunk   states per HDF5 chunk and per I/O buffer (default: about 1 MiB of states, at most 4096,
 //           at least 16 with codec=time)
 //   budget  bytes held in memory (default 64 MiB): the pool of up to three chunk buffers (one being
@@ -18,7 +18,7 @@
 //           (de)compressed are transient and not charged.
 //   keep    keep the file after the backward sweep (default false: it is removed after restore(0),
 //           or when the storage is destroyed or begins a new run)
-//   stages  1: every row holds the state and the step's stage values (issue #13), so no adjoint step
+//   stages  1: every row holds the state and the step's stage values, so no adjoint step
 //           evaluates the right-hand side; the file's rows are n + stepDataSize wide (the final row's
 //           stage part is zero). Default 0.
 // File format: see storage/chunked_state_file.h. The file holds rows 0..N (the final state too) and

@@ -299,6 +299,14 @@ void read(hid_t parent, const std::string& name, hid_t memoryType, const std::ve
         fileName(parent));
   }
   if (elementCount(dims) == 0) return;
+  // The stored element type must be of the memory type's class and size: a damaged type message
+  // (found by tests/fuzz) made HDF5's conversion copy past the buffer instead of failing.
+  const Handle fileType(H5Dget_type(dataset.get()), H5Tclose);
+  if (fileType.get() < 0 || H5Tget_class(fileType.get()) != H5Tget_class(memoryType) ||
+      H5Tget_size(fileType.get()) != H5Tget_size(memoryType)) {
+    throw Error("dataset '" + objectName(parent, name) + "' does not store elements of the expected type",
+                fileName(parent));
+  }
   checked(H5Dread(dataset.get(), memoryType, H5S_ALL, H5S_ALL, H5P_DEFAULT, out), parent,
           "cannot read dataset", name);
 }

@@ -1,5 +1,5 @@
 // The one wrapper of the HDF5 C API, shared by the trajectory file (storage/chunked_state_file.cpp),
-// the results file (problems/results_file.cpp) and the design files (problems/design_io.cpp):
+// the results file (problems/topopt/results_file.cpp) and the design files (problems/rod/design_io.cpp):
 // identifiers closed by RAII, HDF5's own error printing silenced, and every failed call turned into
 // hdf5::Error naming the object ("dataset '/history/psi1'") and HDF5's innermost reason ("Permission
 // denied"). The file's path is in Error::file(); callers wrap it into their own StorageError.

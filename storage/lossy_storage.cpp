@@ -1,5 +1,7 @@
 #include <hindsight/storage/lossy_storage.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <zfp.h>
 #include <zstd.h>
 
@@ -131,7 +133,7 @@ std::string LossyStorage::spec() const {
 int LossyStorage::keptMantissaBits(double relativeTolerance) {
   // Round to nearest with m kept bits errs by at most half a unit in the last kept place:
   // |x~ - x| <= 2^(e - m - 1) <= 2^-(m+1) |x| for |x| in [2^e, 2^(e+1)).
-  const double bits = std::ceil(-std::log2(relativeTolerance)) - 1.0;
+  const double bits = std::ceil(-dmath::log2(relativeTolerance)) - 1.0;
   return static_cast<int>(std::clamp(bits, 0.0, 52.0));
 }
 

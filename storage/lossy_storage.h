@@ -14,7 +14,7 @@
 //                0.09 on the reduced rod (200x12, T = 3 and 10 s), 4.6 on the full-order rod (100
 //                trbdf2 steps; the reason for 10 rather than 1), 0.6 on the synthetic slider-crank of
 //                tests/problems/rod, 0.22 on the pendulum and 0.006 on the reaction-diffusion problem;
-//                the tests check achieved <= T on these (README "Compression along time"). It is a
+//                the tests check achieved <= T on these (docs/theory/storage.md, "Compression along time"). It is a
 //                documented estimate, not a proof: a problem whose gradient is more sensitive to its
 //                states than these can exceed T, and components that fall by decades within a block
 //                (Robertson) lose their small values' digits.

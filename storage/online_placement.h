@@ -1,4 +1,4 @@
-// Where the online strategies keep checkpoints while the number of steps is unknown (issue #13: shared by
+// Where the online strategies keep checkpoints while the number of steps is unknown (shared by
 // `online` and `cams` with adaptive steps or online=1). The rule and its guarantee are documented in
 // storage/online_checkpointing.h: the last recorded state is the working state; when the next record
 // arrives it becomes a candidate if its position is a multiple of the spacing d; checkpoints are all

@@ -1,4 +1,4 @@
-// The stage values a recomputation leaves behind (issue #13, `stages=1` on the checkpointing
+// The stage values a recomputation leaves behind (`stages=1` on the checkpointing
 // strategies `binomial` and `online`).
 //
 // A restore of state e + 1 that recomputes ends with the step e -> e + 1, whose stage values are those

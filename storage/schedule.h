@@ -1,4 +1,4 @@
-// Schedules as data (issue #13, items 3 and 4): what a storage strategy will do for N fixed steps,
+// Schedules as data: what a storage strategy will do for N fixed steps,
 // computed without running a model, by the same plan code the strategies execute (so a prediction
 // and a run cannot disagree; tests compare them counter by counter).
 //
@@ -37,7 +37,7 @@
 //               N <= kMaxSimulatedSteps only.
 // Which one is optimal for the whole game depends on the costs; the tests compare the plan with a
 // brute-force search over all schedules of the game for small N (equal with free disk and whenever
-// the disk is not the bottleneck) -- see README "Two-level schedules".
+// the disk is not the bottleneck) -- see docs/theory/storage.md, "Two-level schedules".
 #pragma once
 
 #include <hindsight/storage/binomial_checkpointing.h>

@@ -1,5 +1,5 @@
-// Coding of blocks of consecutive states along time (issue #14): the byte coding shared by "disk" and
-// multilevel's disk level (through the HDF5 filter below, inside storage/chunked_state_file) and by
+// Coding of blocks of consecutive states along time: the byte coding shared by "disk" and
+// multilevel's disk level (through the HDF5 filter below, inside storage/chunked_state_file.h) and by
 // "lossy:target=T" (in memory). Not a strategy itself.
 //
 // A block holds `count` consecutive states of `n` doubles. Each component is taken as a series in time
@@ -15,7 +15,7 @@
 //              rounding pushed it past the bound) is kept exactly as an exception.
 // The residuals, component-major, are byte-shuffled (byte b of every residual together) and
 // compressed with zstd. Why this and not ZFP or plain shuffle + zstd: measured on the rod's
-// trajectories, see README "Compression along time".
+// trajectories, see docs/theory/storage.md, "Compression along time".
 //
 // Block layout (little-endian): magic "HTC1", mode (0 lossless, 1 bounded), order, 2 spare bytes,
 // count (int64), n (int32), exception count (int32), payload bytes (int64), FNV-1a of the payload
@@ -38,7 +38,7 @@ namespace hindsight::internal {
 class TimeCodec {
  public:
   static constexpr int kMaxOrder = 8;
-  /// Default orders, chosen by measurement on the rod (README "Compression along time").
+  /// Default orders, chosen by measurement on the rod (docs/theory/storage.md, "Compression along time").
   static constexpr int kLosslessOrder = 6;
   static constexpr int kBoundedOrder = 1;
   static constexpr std::size_t kHeaderBytes = 40;

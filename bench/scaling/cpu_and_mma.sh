@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Two load-independent measurements for the rank model (bench/RESULTS.md, issue #15):
+# Two load-independent measurements for the rank model (bench/RESULTS.md, "Scenarios, MPI, threads"):
 #  1. CPU seconds per rank (user + system, /usr/bin/time inside mpirun) of the 4-scenario
 #     optimization at 100 x 6, 3 iterations, on 1 and 2 ranks: the work of a rank, independent of
 #     how much of a core the shared machine grants it (the wall time is not).

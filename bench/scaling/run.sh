@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue #15 measurements (bench/RESULTS.md "Scenarios, MPI, threads (#15)"): strong and weak scaling
+# Scenario measurements (bench/RESULTS.md "Scenarios, MPI, threads"): strong and weak scaling
 # of scenario optimizations over ranks and threads, one gradient at 800x48 (and 1600x96 with
 # FINE=1) with 1 and 2 threads, the 50-iteration single-scenario run with 2 threads, and the robust
 # design (0.5, 1, 1.5 Omega, worst case) against the single-speed design at every speed.

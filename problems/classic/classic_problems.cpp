@@ -1,5 +1,7 @@
 #include <hindsight/problems/classic/classic_problems.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <cmath>
 
 namespace hindsight {
@@ -22,12 +24,12 @@ void Pendulum::massMatrix(double, ConstVectorRef, ConstVectorRef p, MatrixRef ma
 
 void Pendulum::force(double, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
                      ProblemWorkspace*) const {
-  f(0) = -p(0) * kGravity * p(1) * std::sin(y(0)) - p(2) * v(0);
+  f(0) = -p(0) * kGravity * p(1) * dmath::sin(y(0)) - p(2) * v(0);
 }
 
 void Pendulum::residualJacobians(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef, ConstVectorRef p,
                                  MatrixRef ry, MatrixRef rv, ProblemWorkspace*) const {
-  ry(0, 0) = p(0) * kGravity * p(1) * std::cos(y(0));
+  ry(0, 0) = p(0) * kGravity * p(1) * dmath::cos(y(0));
   rv(0, 0) = p(2);
 }
 
@@ -35,8 +37,8 @@ void Pendulum::addResidualParameterVjp(double, ConstVectorRef y, ConstVectorRef 
                                        ConstVectorRef p, ConstVectorRef mu, VectorRef out,
                                        ProblemWorkspace*) const {
   const double m = p(0), length = p(1);
-  out(0) += (length * length * a(0) + kGravity * length * std::sin(y(0))) * mu(0);
-  out(1) += (2.0 * m * length * a(0) + m * kGravity * std::sin(y(0))) * mu(0);
+  out(0) += (length * length * a(0) + kGravity * length * dmath::sin(y(0))) * mu(0);
+  out(1) += (2.0 * m * length * a(0) + m * kGravity * dmath::sin(y(0))) * mu(0);
   out(2) += v(0) * mu(0);
 }
 

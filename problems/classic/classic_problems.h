@@ -4,6 +4,7 @@
 #pragma once
 
 #include <hindsight/engine/autodiff_problem.h>
+#include <hindsight/engine/deterministic_math.h>
 #include <hindsight/engine/second_order_problem.h>
 
 #include <complex>
@@ -152,9 +153,8 @@ class Pendulum final : public SecondOrderProblem {
 struct PendulumEquations {
   template <class T>
   void rhs(double, const T* z, const T* p, T* f) const {
-    using std::sin;
     f[0] = z[1];
-    f[1] = -(p[0] * Pendulum::kGravity * p[1] * sin(z[0]) + p[2] * z[1]) / (p[0] * p[1] * p[1]);
+    f[1] = -(p[0] * Pendulum::kGravity * p[1] * dmath::sin(z[0]) + p[2] * z[1]) / (p[0] * p[1] * p[1]);
   }
   template <class T>
   T integrand(double, const T* z, const T*) const {

@@ -1,5 +1,7 @@
 #include <hindsight/problems/classic/heat_equation.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <hindsight/engine/integrator.h>
 
 #include <cmath>
@@ -94,7 +96,7 @@ Vector HeatEquation::nominalParameters() const {
   Vector p(parameterSize());
   p(0) = 1e-3;
   p(1) = 1.0;
-  for (int j = 0; j < modes_; ++j) p(2 + j) = 0.5 / std::pow(2.0, j);
+  for (int j = 0; j < modes_; ++j) p(2 + j) = 0.5 / std::ldexp(1.0, j);
   return p;
 }
 
@@ -102,7 +104,7 @@ void HeatEquation::initialState(ConstVectorRef p, VectorRef z0) const {
   for (int i = 0; i < n_; ++i) {
     const double x = (i + 1) * h_;
     double u = 0.0;
-    for (int j = 0; j < modes_; ++j) u += p(2 + j) * std::sin((j + 1) * kPi * x);
+    for (int j = 0; j < modes_; ++j) u += p(2 + j) * dmath::sin((j + 1) * kPi * x);
     z0(i) = u;
   }
 }
@@ -110,7 +112,7 @@ void HeatEquation::initialState(ConstVectorRef p, VectorRef z0) const {
 void HeatEquation::addInitialStateVjp(ConstVectorRef, ConstVectorRef lambda0, VectorRef gradient) const {
   for (int j = 0; j < modes_; ++j) {
     double sum = 0.0;
-    for (int i = 0; i < n_; ++i) sum += lambda0(i) * std::sin((j + 1) * kPi * (i + 1) * h_);
+    for (int i = 0; i < n_; ++i) sum += lambda0(i) * dmath::sin((j + 1) * kPi * (i + 1) * h_);
     gradient(2 + j) += sum;
   }
 }

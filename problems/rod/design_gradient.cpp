@@ -4,6 +4,8 @@
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/parallel.h>
 
+#include <Eigen/OrderingMethods>
+#include <Eigen/SparseCholesky>
 #include <Eigen/SparseLU>
 
 #include <algorithm>
@@ -28,11 +30,29 @@ ElementVector gather(const Vector& full, const std::array<int, 8>& dofs) {
   return local;
 }
 
+using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
+
+// The fill-reducing ordering (AMD) of the pattern of K - lambda M, the same for every mode: computed
+// once per design and shared by all Nelson systems, so each factorisation does only its numeric part
+// (and the cheap elimination tree of the permuted pattern).
+Permutation nelsonOrdering(const FeModel& model) {
+  const SparseMatrix pattern = model.stiffness() + model.mass();
+  Permutation inverse;
+  Eigen::AMDOrdering<int>()(pattern, inverse);
+  return inverse.inverse();
+}
+
 // Nelson's modified operator for one mode: K - lambda M with row and column k replaced by e_k, where
 // k = argmax |phi| (free-DOF index). Factorised once, reused for every right-hand side.
+//
+// The operator is symmetric and indefinite (lambda_i lies inside the spectrum): it is factorised as
+// L D L^T without pivoting in the shared AMD ordering, 3-5 times cheaper than a sparse LU with its own
+// column ordering. Should a pivot vanish (D with a zero or non-finite entry), the system falls back to
+// the pivoting sparse LU.
 class NelsonSystem {
  public:
-  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree) {
+  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree, const Permutation& ordering)
+      : ordering_(ordering) {
     modeFree.cwiseAbs().maxCoeff(&pivot_);
     SparseMatrix matrix = model.stiffness() - eigenvalue * model.mass();
     matrix.makeCompressed();
@@ -41,13 +61,20 @@ class NelsonSystem {
         if (it.row() == pivot_ || column == pivot_) it.valueRef() = (it.row() == column) ? 1.0 : 0.0;
       }
     }
-    solver_.analyzePattern(matrix);
-    solver_.factorize(matrix);
-    if (solver_.info() != Eigen::Success) {
+    SparseMatrix permuted;
+    permuted = matrix.selfadjointView<Eigen::Lower>().twistedBy(ordering_);
+    ldlt_.compute(permuted);
+    const bool pivotsUsable =
+        ldlt_.info() == Eigen::Success && ldlt_.vectorD().allFinite() && (ldlt_.vectorD().array() != 0.0).all();
+    if (pivotsUsable) return;
+    useLu_ = true;
+    lu_.analyzePattern(matrix);
+    lu_.factorize(matrix);
+    if (lu_.info() != Eigen::Success) {
       std::ostringstream message;
       message << "Nelson's modified matrix K - lambda M (lambda = " << eigenvalue
               << ") is singular: the eigenvalue is repeated or the mode is degenerate ("
-              << solver_.lastErrorMessage() << ")";
+              << lu_.lastErrorMessage() << ")";
       throw std::runtime_error(message.str());
     }
   }
@@ -55,13 +82,29 @@ class NelsonSystem {
   /// Solves with the right-hand side's pivot entry set to zero (so the solution's pivot entry is zero).
   Vector solve(Vector rightHandSide) const {
     rightHandSide(pivot_) = 0.0;
-    return solver_.solve(rightHandSide);
+    if (useLu_) return lu_.solve(rightHandSide);
+    const Vector permuted = ordering_ * rightHandSide;
+    return ordering_.transpose() * Vector(ldlt_.solve(permuted));
   }
 
  private:
+  const Permutation& ordering_;
   Eigen::Index pivot_ = 0;
-  Eigen::SparseLU<SparseMatrix> solver_;
+  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt_;
+  bool useLu_ = false;
+  Eigen::SparseLU<SparseMatrix> lu_;
 };
+
+}  // namespace
+
+struct NelsonFactorizations::Impl {
+  Permutation ordering;
+  std::vector<std::unique_ptr<NelsonSystem>> systems;
+  Eigen::Index rows = 0;
+  int modes = 0;
+};
+
+namespace {
 
 void checkBasis(const FeModel& model, const ModalBasis& basis) {
   if (basis.reliefModeCount != 0)
@@ -91,12 +134,41 @@ Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs,
 
 }  // namespace
 
+NelsonFactorizations::NelsonFactorizations(const FeModel& model, const ModalBasis& basis)
+    : impl_(std::make_unique<Impl>()) {
+  checkBasis(model, basis);
+  const int n = basis.eigenmodeCount;
+  impl_->ordering = nelsonOrdering(model);
+  impl_->systems.resize(static_cast<std::size_t>(n));
+  impl_->rows = model.freeDofCount();
+  impl_->modes = n;
+  // Each mode's factorisation on its own (its own slot): bitwise the same for any thread count.
+  parallelFor(n, [&](int i) {
+    impl_->systems[static_cast<std::size_t>(i)] = std::make_unique<NelsonSystem>(
+        model, basis.eigenvalues(i), Vector(basis.modesFree.col(i)), impl_->ordering);
+  });
+}
+
+NelsonFactorizations::~NelsonFactorizations() = default;
+
 DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
                                            ConstVectorRef invariantGradient,
                                            const DesignGradientOptions& options,
                                            const DesignGradientExtras& extras) {
+  checkBasis(model, basis);
+  const NelsonFactorizations factorizations(model, basis);
+  return computeDesignGradient(model, basis, invariantGradient, options, extras, factorizations);
+}
+
+DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras,
+                                           const NelsonFactorizations& factorizations) {
   const Stopwatch timer;
   checkBasis(model, basis);
+  if (factorizations.impl().rows != model.freeDofCount() || factorizations.impl().modes != basis.eigenmodeCount)
+    throw std::invalid_argument("computeDesignGradient: the Nelson factorisations belong to another model or basis");
   const int n = basis.eigenmodeCount;
   const InvariantLayout layout(n);
   if (invariantGradient.size() != layout.size) {
@@ -190,7 +262,7 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     const Vector gradientOfMode = modeGradient.col(i);
     const Vector massTimesMode = mass * modeFree;
     const double projection = gradientOfMode.dot(modeFree);
-    const NelsonSystem system(model, eigenvalue, modeFree);
+    const NelsonSystem& system = *factorizations.impl().systems[static_cast<std::size_t>(i)];
     const Vector modeFull = modes.col(i);
 
     if (options.method == EigenvectorSensitivityMethod::AdjointNelson) {
@@ -257,7 +329,8 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   const double eigenvalue = basis.eigenvalues(mode);
   const Vector modeFree = basis.modesFree.col(mode);
   const Vector massTimesMode = model.mass() * modeFree;
-  const NelsonSystem system(model, eigenvalue, modeFree);
+  const Permutation ordering = nelsonOrdering(model);
+  const NelsonSystem system(model, eigenvalue, modeFree, ordering);
   const double x = model.design()(designIndex);
   const double stiffnessSlope = model.simp().stiffnessDerivative(x);
   const double densitySlope = model.simp().densityDerivative(x);

@@ -2,9 +2,8 @@
 
 #include <hindsight/problems/rod/parallel.h>
 
-#include <Eigen/SparseCholesky>
-
 #include <algorithm>
+#include <memory>
 
 #include <cmath>
 #include <sstream>
@@ -26,7 +25,9 @@ Matrix equivalentStaticLoads(const FeModel& model, const ModalBasis& basis, Cons
   return model.stiffness() * (basis.modesFree * modalCoordinates);
 }
 
-EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime) {
+namespace {
+
+void checkEslArguments(const FeModel& model, ConstMatrixRef loads, double endTime) {
   if (loads.rows() != model.freeDofCount() || loads.cols() < 1) {
     std::ostringstream message;
     message << "evaluateEsl: loads are " << loads.rows() << " x " << loads.cols()
@@ -38,9 +39,26 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
     message << "evaluateEsl: endTime = " << endTime << " is outside the allowed range (0, inf)";
     throw std::invalid_argument(message.str());
   }
-  Eigen::SimplicialLLT<SparseMatrix> factorization(model.stiffness());
-  if (factorization.info() != Eigen::Success)
+}
+
+}  // namespace
+
+EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime) {
+  checkEslArguments(model, loads, endTime);
+  std::unique_ptr<StiffnessFactorization> factorization;
+  try {
+    factorization = std::make_unique<StiffnessFactorization>(model.stiffness());
+  } catch (const std::runtime_error&) {
     throw std::runtime_error("evaluateEsl: the constrained stiffness matrix is not positive definite");
+  }
+  return evaluateEsl(model, loads, endTime, *factorization, true);
+}
+
+EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime,
+                      const StiffnessFactorization& factorization, bool withGradient) {
+  checkEslArguments(model, loads, endTime);
+  if (factorization.size() != model.freeDofCount())
+    throw std::invalid_argument("evaluateEsl: the stiffness factorisation does not belong to this model");
   const double weight = endTime / static_cast<double>(loads.cols());
 
   EslResult result;
@@ -56,6 +74,7 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
     result.displacements.middleCols(begin, end - begin) = factorization.solve(Matrix(loads.middleCols(begin, end - begin)));
   });
   result.value = weight * loads.cwiseProduct(result.displacements).sum();
+  if (!withGradient) return result;
   const Matrix displacementsFull = model.extendColumnsToFull(result.displacements);
   result.gradient.resize(model.designCount());
   // Every design variable's entry on its own: fixed blocks in parallel.

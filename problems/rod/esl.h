@@ -33,6 +33,10 @@ struct EslResult {
 /// Throws std::invalid_argument for a wrong load size, no load column or endTime <= 0; throws
 /// std::runtime_error if K is not positive definite.
 EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime);
+/// The same with the caller's factorisation of model.stiffness(); the gradient only when `withGradient`
+/// (EslResult::gradient is then empty).
+EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime,
+                      const StiffnessFactorization& stiffnessFactorization, bool withGradient);
 
 }  // namespace rod
 }  // namespace hindsight

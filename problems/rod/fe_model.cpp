@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/fe_model.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <cassert>
 #include <cmath>
 #include <sstream>
@@ -16,18 +18,18 @@ SimpLaw::SimpLaw(const RodConfig& config)
       exponent_(config.massLawExponent),
       threshold_(config.massLawThreshold) {}
 
-double SimpLaw::stiffness(double x) const { return std::pow(x, penalty_) * youngsModulus_; }
+double SimpLaw::stiffness(double x) const { return dmath::pow(x, penalty_) * youngsModulus_; }
 
 double SimpLaw::stiffnessDerivative(double x) const {
-  return penalty_ * std::pow(x, penalty_ - 1.0) * youngsModulus_;
+  return penalty_ * dmath::pow(x, penalty_ - 1.0) * youngsModulus_;
 }
 
 double SimpLaw::density(double x) const {
-  return x < threshold_ ? factor_ * std::pow(x, exponent_) * density_ : x * density_;
+  return x < threshold_ ? factor_ * dmath::pow(x, exponent_) * density_ : x * density_;
 }
 
 double SimpLaw::densityDerivative(double x) const {
-  return x < threshold_ ? factor_ * exponent_ * std::pow(x, exponent_ - 1.0) * density_ : density_;
+  return x < threshold_ ? factor_ * exponent_ * dmath::pow(x, exponent_ - 1.0) * density_ : density_;
 }
 
 namespace {

@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/full_order_rod.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <hindsight/engine/runge_kutta.h>
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/piston_rod.h>
@@ -18,19 +20,21 @@ RigidFrameMotion rigidFrameMotion(const CrankMotion& crank, double length, doubl
   double phi = 0.0, phiDot = 0.0, phiDdot = 0.0;
   crank.at(t, phi, phiDot, phiDdot);
   const double r = crank.radius;
-  const double sinPhi = std::sin(phi), cosPhi = std::cos(phi);
+  double sinPhi, cosPhi;
+  dmath::sincos(phi, &sinPhi, &cosPhi);
   // beta = asin(s), s = -r sin(phi) / L.
   const double s = -r * sinPhi / length;
   const double sDot = -r * cosPhi * phiDot / length;
   const double sDdot = -r * (cosPhi * phiDdot - sinPhi * phiDot * phiDot) / length;
   const double c = std::sqrt(1.0 - s * s);
   RigidFrameMotion frame;
-  frame.angle = std::asin(s);
+  frame.angle = dmath::asin(s);
   frame.rate = sDot / c;
   frame.acceleration = sDdot / c + s * sDot * sDot / (c * c * c);
   const double ax = r * (-sinPhi * phiDdot - cosPhi * phiDot * phiDot);
   const double ay = r * (cosPhi * phiDdot - sinPhi * phiDot * phiDot);
-  const double cb = std::cos(frame.angle), sb = std::sin(frame.angle);
+  double cb, sb;
+  dmath::sincos(frame.angle, &sb, &cb);
   frame.pinAccelerationX = cb * ax + sb * ay;
   frame.pinAccelerationY = -sb * ax + cb * ay;
   return frame;

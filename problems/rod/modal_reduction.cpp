@@ -1,7 +1,6 @@
 #include <hindsight/problems/rod/modal_reduction.h>
 
 #include <Spectra/MatOp/SparseSymMatProd.h>
-#include <Spectra/MatOp/SymShiftInvert.h>
 #include <Spectra/SymGEigsShiftSolver.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
@@ -45,7 +44,33 @@ inline void twoSum(double a, double b, double& s, double& error) {
   error = (a - (s - bVirtual)) + (b - bVirtual);
 }
 
+// Spectra's shift-invert operator y = (K - sigma M)^-1 x at the only shift used, sigma = 0, with the
+// shared factorisation of K (the interface of Spectra::SymShiftInvert).
+class StiffnessInverse {
+ public:
+  using Scalar = double;
+  explicit StiffnessInverse(const StiffnessFactorization& k) : k_(k) {}
+  Eigen::Index rows() const { return k_.size(); }
+  Eigen::Index cols() const { return k_.size(); }
+  void set_shift(const Scalar& sigma) {
+    if (sigma != 0.0) throw std::logic_error("StiffnessInverse: only the shift 0 is factorised");
+  }
+  void perform_op(const Scalar* in, Scalar* out) const {
+    Eigen::Map<Vector>(out, k_.size()).noalias() = k_.solver().solve(Eigen::Map<const Vector>(in, k_.size()));
+  }
+
+ private:
+  const StiffnessFactorization& k_;
+};
+
 }  // namespace
+
+StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness)
+    : solver_(stiffness), size_(stiffness.rows()) {
+  // LDL^T succeeds for indefinite matrices too: positive definiteness is a positive D.
+  if (solver_.info() != Eigen::Success || !(solver_.vectorD().minCoeff() > 0.0))
+    throw std::runtime_error("the constrained stiffness matrix is not positive definite");
+}
 
 Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixRef x) {
   if (a.rows() != b.rows() || a.cols() != x.rows() || b.cols() != x.cols())
@@ -102,6 +127,12 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
 }
 
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options) {
+  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  return computeModalBasis(model, options, stiffnessFactorization);
+}
+
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,
+                             const StiffnessFactorization& factorization) {
   const int freeDofs = model.freeDofCount();
   const int n = options.modeCount;
   if (n < 1 || n + 1 >= freeDofs) {
@@ -129,11 +160,12 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   const int requested = n + 1;
   const int subspace = std::min(freeDofs, std::max(2 * requested + 1, requested + 20));
 
-  using ShiftInvert = Spectra::SymShiftInvert<double, Eigen::Sparse, Eigen::Sparse>;
+  if (factorization.size() != stiffness.rows())
+    throw std::invalid_argument("computeModalBasis: the stiffness factorisation does not belong to this model");
   using MassProduct = Spectra::SparseSymMatProd<double>;
-  ShiftInvert shiftInvert(stiffness, mass);
+  StiffnessInverse shiftInvert(factorization);
   MassProduct massProduct(mass);
-  Spectra::SymGEigsShiftSolver<ShiftInvert, MassProduct, Spectra::GEigsMode::ShiftInvert> solver(
+  Spectra::SymGEigsShiftSolver<StiffnessInverse, MassProduct, Spectra::GEigsMode::ShiftInvert> solver(
       shiftInvert, massProduct, requested, subspace, 0.0);
   solver.init();
   const Eigen::Index converged =
@@ -151,10 +183,6 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     // backward error (~eps |K|) would leave eigenvalues off by ~eps lambda_max in absolute terms, an
     // error that changes erratically with the design; one sweep of iterative refinement with a
     // compensated residual makes S accurate to working precision, and S^T K S summed over elements keeps it.
-    Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
-    if (factorization.info() != Eigen::Success)
-      throw std::runtime_error(
-          "computeModalBasis: the constrained stiffness matrix is not positive definite");
     for (int step = 0; step < options.refinementSteps; ++step) {
       const Matrix load = mass * vectors;
       Matrix subspace = factorization.solve(load);
@@ -210,15 +238,11 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   }
 
   if (options.inertiaReliefModes) {
-    Eigen::SimplicialLDLT<SparseMatrix> factorization(stiffness);
-    if (factorization.info() != Eigen::Success)
-      throw std::runtime_error(
-          "computeModalBasis: the constrained stiffness matrix is not positive definite");
     const SparseMatrix& massFull = model.massFull();
     const Vector loads[3] = {massFull * model.unitTranslationX(), massFull * model.unitTranslationY(),
                              massFull * rotateNodewise(model.referenceCoordinates())};
     for (int r = 0; r < 3; ++r) {
-      Vector mode = factorization.solve(model.restrictToFree(loads[r]));
+      Vector mode = factorization.solver().solve(model.restrictToFree(loads[r]));
       for (int pass = 0; pass < 2; ++pass) {
         for (int j = 0; j < n + r; ++j) {
           const Vector column = basis.modesFree.col(j);

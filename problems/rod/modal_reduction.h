@@ -19,6 +19,8 @@
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/rod/fe_model.h>
 
+#include <Eigen/SparseCholesky>
+
 #include <string>
 
 namespace hindsight {
@@ -83,10 +85,33 @@ Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixR
 /// 200 x 12 design), erratically as the design changes.
 Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull);
 
+/// One sparse LDL^T factorisation of the constrained stiffness K of a design (AMD ordering), shared by
+/// everything that solves with K: the eigen-solve (shift-invert at 0), the refinement, the inertia-relief
+/// modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run time by the
+/// system (Debian alternatives), which would make the bits depend on the machine.
+class StiffnessFactorization {
+ public:
+  /// Throws std::runtime_error when K is not positive definite (a zero or negative pivot).
+  explicit StiffnessFactorization(const SparseMatrix& stiffness);
+  StiffnessFactorization(const StiffnessFactorization&) = delete;
+  StiffnessFactorization& operator=(const StiffnessFactorization&) = delete;
+  const Eigen::SimplicialLDLT<SparseMatrix>& solver() const { return solver_; }
+  Eigen::Index size() const { return size_; }
+  /// K^-1 B.
+  Matrix solve(ConstMatrixRef b) const { return solver_.solve(b); }
+
+ private:
+  Eigen::SimplicialLDLT<SparseMatrix> solver_;
+  Eigen::Index size_ = 0;
+};
+
 /// Computes the modal basis of `model`.
 /// Throws std::invalid_argument for modeCount < 1 or modeCount + 1 >= freeDofCount, or a
 /// gapWarningThreshold < 1; throws std::runtime_error when Spectra does not converge (numerical outcome).
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options);
+/// The same with the factorisation of model.stiffness() supplied by the caller (who reuses it).
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,
+                             const StiffnessFactorization& stiffnessFactorization);
 
 }  // namespace rod
 }  // namespace hindsight

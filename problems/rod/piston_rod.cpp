@@ -7,11 +7,13 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>
 #include <limits>
+#include <memory>
 
 namespace hindsight {
 
@@ -45,7 +47,10 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   PistonRodEvaluation out;
   Stopwatch phase;
   const rod::FeModel model(rc, design);
-  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  // One factorisation of K for the eigen-solve, its refinement and ESL.
+  const rod::StiffnessFactorization stiffness(model.stiffness());
+  const rod::ModalBasis basis =
+      rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
   const Vector p = rod::computeInvariants(model, basis).pack();
   for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
   out.eigenvalues = basis.eigenvalues.head(basis.eigenmodeCount);
@@ -83,9 +88,18 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   phase.restart();
   if (request.psi1Gradient) {
     GradientResult result;
+    std::unique_ptr<rod::NelsonFactorizations> nelson;
     if (config_.simulation.adjoint == AdjointMethod::Discrete) {
-      auto storage = createStorage(config_.simulation.storage);
-      result = computeGradient(problem, p, options, *storage, observer);
+      // The Nelson operators depend on the model and the modes only: they are factorised on the second
+      // core while the time integration runs. Each task computes the same bits on any thread.
+      parallelFor(2, [&](int task) {
+        if (task == 0) {
+          auto storage = createStorage(config_.simulation.storage);
+          result = computeGradient(problem, p, options, *storage, observer);
+        } else {
+          nelson = std::make_unique<rod::NelsonFactorizations>(model, basis);
+        }
+      });
     } else {
       // The continuous and CVODES routes take their own steps; the ESL samples come from a
       // separate fixed-step forward run when psi2 is asked for.
@@ -106,7 +120,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     out.simulationSeconds = phase.restart();
     rod::DesignGradientOptions chain;
     chain.method = config_.simulation.eigenvectorRoute;
-    out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain).gradient;
+    if (!nelson) nelson = std::make_unique<rod::NelsonFactorizations>(model, basis);
+    out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain, {}, *nelson).gradient;
     out.chainSeconds = phase.seconds();
   } else {
     ForwardResult result = simulate(problem, p, options, observer);
@@ -119,7 +134,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   if (request.psi2) {
     phase.restart();
     const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
-    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1);
+    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1, stiffness, request.psi2Gradient);
     out.psi2 = esl.value;
     if (request.psi2Gradient) out.dpsi2 = esl.gradient;
     out.eslSeconds = phase.seconds();

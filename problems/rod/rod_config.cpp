@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/rod_config.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -43,7 +45,7 @@ void RodConfig::validate() const {
     fail("massLawThreshold", massLawThreshold, "(0, 1]");
   // The density law must be continuous at the threshold (docs/design.md §2), otherwise the objective jumps
   // there.
-  const double continuityFactor = std::pow(massLawThreshold, 1.0 - massLawExponent);
+  const double continuityFactor = dmath::pow(massLawThreshold, 1.0 - massLawExponent);
   if (std::abs(massLawFactor - continuityFactor) > 1e-9 * continuityFactor) {
     std::ostringstream range;
     range.precision(17);

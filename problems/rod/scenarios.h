@@ -1,4 +1,4 @@
-// Operating scenarios of the piston rod (issue #15): one design must serve several crank speeds,
+// Operating scenarios of the piston rod: one design must serve several crank speeds,
 // ramps, horizons and crank radii. A configuration's `scenarios` list names them; every field a
 // scenario omits takes the `rod` value, so a scenario is the rod configuration with at most four
 // mechanism fields replaced. No list means one scenario, the rod itself (and the optimizer then runs

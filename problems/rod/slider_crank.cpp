@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/slider_crank.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <unsupported/Eigen/AutoDiff>
 
 #include <array>
@@ -37,28 +39,37 @@ struct View {
   const SliderCrankLayout& layout;
 };
 
-/// The frame angle's kinematics from the closure r sin(phi) + (L + c) sin(beta) = 0, c = b q:
-/// beta = asin(u), u = -r sin(phi) / (L + c). g = dbeta/dc, betaDot = beta_t + g c',
-/// betaC = beta'' - g c'' (the part without q''), rho = R(beta)^T r_A''.
+/// The crank's state at one time: phi', phi'', sin(phi), cos(phi).
+struct CrankState {
+  double phiDot = 0.0, phiDdot = 0.0, sinPhi = 0.0, cosPhi = 0.0;
+};
+
+CrankState crankStateAt(const CrankMotion& crank, double t) {
+  double phi;
+  CrankState k;
+  crank.at(t, phi, k.phiDot, k.phiDdot);
+  dmath::sincos(phi, &k.sinPhi, &k.cosPhi);
+  return k;
+}
+
+/// The frame's kinematics from the closure r sin(phi) + (L + c) sin(beta) = 0, c = b q:
+/// sin(beta) = u = -r sin(phi) / (L + c), cos(beta) = sqrt(1 - u^2) (|beta| < pi/2 because r < L),
+/// g = dbeta/dc, betaDot = beta_t + g c', betaC = beta'' - g c'' (the part without q''),
+/// rho = R(beta)^T r_A''. beta itself is not needed: only its sine and cosine enter the residual.
 template <typename T>
 struct Frame {
-  T beta, g, betaDot, betaC, rho0, rho1;
+  T g, betaDot, betaC, rho0, rho1;
 };
 
 template <typename T>
-void frameKinematics(const CrankMotion& crank, double length, double t, const T& c, const T& cDot,
-                     Frame<T>& out) {
-  using std::asin;
-  using std::cos;
-  using std::sin;
+void frameKinematics(const CrankState& k, double r, double length, const T& c, const T& cDot, Frame<T>& out) {
   using std::sqrt;
-  double phi, phiDot, phiDdot;
-  crank.at(t, phi, phiDot, phiDdot);
-  const double r = crank.radius, s = std::sin(phi), co = std::cos(phi);
+  const double s = k.sinPhi, co = k.cosPhi, phiDot = k.phiDot, phiDdot = k.phiDdot;
   const T d = length + c;
   const T u = -r * s / d;
-  const T w1 = 1.0 / sqrt(1.0 - u * u);  // asin'
-  const T w2 = u * w1 * w1 * w1;         // asin''
+  const T cosBeta = sqrt(1.0 - u * u);
+  const T w1 = 1.0 / cosBeta;    // asin'
+  const T w2 = u * w1 * w1 * w1;  // asin''
   const T ut = -r * co * phiDot / d;
   const T uc = r * s / (d * d);
   const T utt = (r * s * phiDot * phiDot - r * co * phiDdot) / d;
@@ -69,15 +80,13 @@ void frameKinematics(const CrankMotion& crank, double length, double t, const T&
   const T btt = w2 * ut * ut + w1 * utt;
   const T btc = w2 * ut * uc + w1 * utc;
   const T bcc = w2 * uc * uc + w1 * ucc;
-  out.beta = asin(u);
   out.betaDot = bt + out.g * cDot;
   out.betaC = btt + 2.0 * btc * cDot + bcc * cDot * cDot;
   // r_A'' = r phi'' (-sin, cos) - r phi'^2 (cos, sin), expressed in the body frame.
   const double ax = -r * phiDdot * s - r * phiDot * phiDot * co;
   const double ay = r * phiDdot * co - r * phiDot * phiDot * s;
-  const T cb = cos(out.beta), sb = sin(out.beta);
-  out.rho0 = cb * ax + sb * ay;
-  out.rho1 = -sb * ax + cb * ay;
+  out.rho0 = cosBeta * ax + u * ay;
+  out.rho1 = -u * ax + cosBeta * ay;
 }
 
 /// The residual r (see the header) for scalar type T. q, qd are length n; a is the acceleration;
@@ -139,11 +148,41 @@ struct AdBuffers {
 
 struct RodWorkspace final : ProblemWorkspace {
   explicit RodWorkspace(int n)
-      : small(n), large(n), dq(n), dqd(n), dr(n), da1(n), dh(n), zero(Vector::Zero(n)) {}
+      : small(n),
+        large(n),
+        dq(n),
+        dqd(n),
+        dr(n),
+        da1(n),
+        dh(n),
+        zero(Vector::Zero(n)),
+        meeSym(n, n),
+        a1(n),
+        h(n),
+        keeQ(n),
+        ctV(n),
+        gb(n),
+        eta(n),
+        alpha(n),
+        meeQ(n),
+        ctMu(n),
+        ctA(n) {}
   AdBuffers<kSmallCapacity> small;  // Jacobians up to 12 modes; the parameter product (3 directions)
   AdBuffers<kLargeCapacity> large;  // Jacobians beyond 12 modes
   std::vector<double> dq, dqd, dr, da1, dh;
   Vector zero;
+  // The symmetric part of M_ee. A workspace made for a fixed p (createModelWorkspaceFor) computes it
+  // once per solve; otherwise every call that needs it recomputes it from its own p.
+  bool parametersFixed = false;
+  Matrix meeSym;
+  // The crank at the last two times asked for: an explicit Runge-Kutta step evaluates the rhs twice
+  // at t + h/2 and at t + h, the next step's t, and the adjoint visits the same times.
+  double crankTime[2] = {0.0, 0.0};
+  CrankState crankState[2];
+  bool crankValid[2] = {false, false};
+  int crankNext = 0;
+  // Scratch of the kernels.
+  Vector a1, h, keeQ, ctV, gb, eta, alpha, meeQ, ctMu, ctA;
 };
 
 RodWorkspace& workspaceOf(ProblemWorkspace* ws) {
@@ -157,15 +196,41 @@ double dot(const View& P, ConstVectorRef x) {
   return s;
 }
 
+void symmetricMee(const View& P, Matrix& out) {
+  for (int j = 0; j < P.n; ++j) {
+    for (int i = 0; i < P.n; ++i) out(i, j) = P.mee(i, j);
+  }
+}
+
+/// The symmetric part of M_ee for this call's p.
+const Matrix& meeOf(const View& P, RodWorkspace& w) {
+  if (!w.parametersFixed) symmetricMee(P, w.meeSym);
+  return w.meeSym;
+}
+
+const CrankState& crankOf(const CrankMotion& crank, double t, RodWorkspace& w) {
+  for (int k = 0; k < 2; ++k) {
+    if (w.crankValid[k] && w.crankTime[k] == t) return w.crankState[k];
+  }
+  const int k = w.crankNext;
+  w.crankNext = 1 - k;
+  w.crankTime[k] = t;
+  w.crankState[k] = crankStateAt(crank, t);
+  w.crankValid[k] = true;
+  return w.crankState[k];
+}
+
 }  // namespace
 
 void CrankMotion::at(double t, double& phi, double& phiDot, double& phiDdot) const {
   if (t < rampTime) {
     const double tau = t / rampTime;
     const double twoPi = 2.0 * M_PI;
-    phiDot = omega * (tau - std::sin(twoPi * tau) / twoPi);
-    phiDdot = omega / rampTime * (1.0 - std::cos(twoPi * tau));
-    phi = omega * rampTime * (tau * tau / 2.0 + (std::cos(twoPi * tau) - 1.0) / (twoPi * twoPi));
+    double sine, cosine;
+    dmath::sincos(twoPi * tau, &sine, &cosine);
+    phiDot = omega * (tau - sine / twoPi);
+    phiDdot = omega / rampTime * (1.0 - cosine);
+    phi = omega * rampTime * (tau * tau / 2.0 + (cosine - 1.0) / (twoPi * twoPi));
   } else {
     phiDot = omega;
     phiDdot = 0.0;
@@ -192,6 +257,13 @@ std::unique_ptr<ProblemWorkspace> SliderCrankProblem::createModelWorkspace() con
   return std::make_unique<RodWorkspace>(layout_.modes);
 }
 
+std::unique_ptr<ProblemWorkspace> SliderCrankProblem::createModelWorkspaceFor(ConstVectorRef p) const {
+  auto ws = std::make_unique<RodWorkspace>(layout_.modes);
+  symmetricMee(View(layout_, p), ws->meeSym);
+  ws->parametersFixed = true;
+  return ws;
+}
+
 void SliderCrankProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRef v0) const {
   y0.setZero();
   v0.setZero();
@@ -199,35 +271,94 @@ void SliderCrankProblem::initialCoordinates(ConstVectorRef, VectorRef y0, Vector
 
 double SliderCrankProblem::frameAngle(double t, ConstVectorRef q, ConstVectorRef p) const {
   const View P(layout_, p);
-  Frame<double> fr;
-  frameKinematics(crank_, length_, t, dot(P, q), 0.0, fr);
-  return fr.beta;
+  double phi, phiDot, phiDdot;
+  crank_.at(t, phi, phiDot, phiDdot);
+  return dmath::asin(-crank_.radius * dmath::sin(phi) / (length_ + dot(P, q)));
 }
 
-void SliderCrankProblem::massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
-                                    ProblemWorkspace*) const {
-  const View P(layout_, p);
-  const int n = layout_.modes;
+namespace {
+
+/// M(t, q) and f(t, q, q') = -r(t, q, q', 0) in one pass: one frame kinematics, each product of q and
+/// q' with an invariant matrix once (docs/design.md §3; the header's compact residual at a = 0):
+///   M = M_ee + beta_q^T A1 + A1^T beta_q + J_w beta_q^T beta_q,  beta_q = g b,
+///   f = -(K_ee q - 2 beta' Ct q' + A1^T beta_c + g kappa b + C1^T rho - beta'^2 h),
+///   kappa = J_w beta_c + (S s_w) . rho + 2 beta' h . q'.
+/// Either output may be absent (nullptr).
+void massAndForce(const SliderCrankLayout& layout, const CrankMotion& crank, double length, double t,
+                  ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, MatrixRef* mass, VectorRef* f,
+                  RodWorkspace& w) {
+  const View P(layout, p);
+  const int n = layout.modes;
+  const Matrix& mee = meeOf(P, w);
   Frame<double> fr;
-  frameKinematics(crank_, length_, t, dot(P, q), 0.0, fr);
-  double jw = P.j0();
+  frameKinematics(crankOf(crank, t, w), crank.radius, length, dot(P, q), f != nullptr ? dot(P, v) : 0.0, fr);
+  double jw = P.j0(), sw0 = P.mc(0), sw1 = P.mc(1);
   for (int i = 0; i < n; ++i) {
     jw += 2.0 * P.c2(i) * q(i);
-    for (int j = 0; j < n; ++j) jw += q(i) * P.mee(i, j) * q(j);
+    sw0 += P.c1(0, i) * q(i);
+    sw1 += P.c1(1, i) * q(i);
+  }
+  // Column j of the symmetric M_ee and of Ct against q: h = c2 + M_ee q, A1 = a0 + Ct^T q.
+  for (int j = 0; j < n; ++j) {
+    double mq = 0.0, a1 = P.a0(j);
+    for (int i = 0; i < n; ++i) {
+      mq += mee(i, j) * q(i);
+      a1 += P.ct(i, j) * q(i);
+    }
+    w.h(j) = P.c2(j) + mq;
+    w.a1(j) = a1;
+    jw += q(j) * mq;
   }
   const double g = fr.g;
-  // A1 = a0 + q^T Ct once; M = M_ee + A1^T beta_q + beta_q^T A1 + J_w beta_q^T beta_q, beta_q = g b.
-  std::array<double, kMaxModes> a1;
-  for (int j = 0; j < n; ++j) {
-    a1[j] = P.a0(j);
-    for (int i = 0; i < n; ++i) a1[j] += q(i) * P.ct(i, j);
-  }
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      // Same operation order as before the refactoring, so the bits are unchanged.
-      mass(i, j) = (P.mee(i, j) + jw * g * g * P.b(i) * P.b(j) + g * P.b(i) * a1[j]) + a1[i] * g * P.b(j);
+  if (mass != nullptr) {
+    MatrixRef m = *mass;
+    for (int i = 0; i < n; ++i) w.gb(i) = g * P.b(i);
+    for (int j = 0; j < n; ++j) {
+      const double jwGb = jw * w.gb(j);
+      for (int i = 0; i < n; ++i) m(i, j) = mee(i, j) + w.gb(i) * (w.a1(j) + jwGb) + w.a1(i) * w.gb(j);
     }
   }
+  if (f == nullptr) return;
+  // K_ee q and Ct q' column by column (axpy form).
+  w.keeQ.setZero();
+  w.ctV.setZero();
+  for (int j = 0; j < n; ++j) {
+    const double qj = q(j), vj = v(j);
+    const double* kee = P.p + layout.kee() + n * j;
+    const double* ct = P.p + layout.cTilde() + n * j;
+    for (int i = 0; i < n; ++i) {
+      w.keeQ(i) += kee[i] * qj;
+      w.ctV(i) += ct[i] * vj;
+    }
+  }
+  double hv = 0.0;
+  for (int j = 0; j < n; ++j) hv += w.h(j) * v(j);
+  const double bd = fr.betaDot, bc = fr.betaC;
+  const double kappa = jw * bc + (-sw1 * fr.rho0 + sw0 * fr.rho1) + 2.0 * bd * hv;
+  const double gKappa = g * kappa, bd2 = bd * bd;
+  VectorRef out = *f;
+  for (int i = 0; i < n; ++i) {
+    out(i) = -(w.keeQ(i) - 2.0 * bd * w.ctV(i) + w.a1(i) * bc + gKappa * P.b(i) + P.c1(0, i) * fr.rho0 +
+               P.c1(1, i) * fr.rho1 - bd2 * w.h(i));
+  }
+}
+
+}  // namespace
+
+void SliderCrankProblem::massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
+                                    ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  massAndForce(layout_, crank_, length_, t, q, w.zero, p, &mass, nullptr, w);
+}
+
+void SliderCrankProblem::force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+                               ProblemWorkspace* ws) const {
+  massAndForce(layout_, crank_, length_, t, q, v, p, nullptr, &f, workspaceOf(ws));
+}
+
+void SliderCrankProblem::massMatrixAndForce(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
+                                            MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const {
+  massAndForce(layout_, crank_, length_, t, q, v, p, &mass, &f, workspaceOf(ws));
 }
 
 void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
@@ -235,7 +366,7 @@ void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, 
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   Frame<double> fr;
-  frameKinematics(crank_, length_, t, dot(P, q), dot(P, v), fr);
+  frameKinematics(crankOf(crank_, t, w), crank_.radius, length_, dot(P, q), dot(P, v), fr);
   for (int i = 0; i < layout_.modes; ++i) {
     w.dq[i] = q(i);
     w.dqd[i] = v(i);
@@ -245,16 +376,10 @@ void SliderCrankProblem::residual(double t, ConstVectorRef q, ConstVectorRef v, 
   for (int i = 0; i < layout_.modes; ++i) r(i) = w.dr[i];
 }
 
-void SliderCrankProblem::force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
-                               ProblemWorkspace* ws) const {
-  residual(t, q, v, workspaceOf(ws).zero, p, f, ws);
-  f = -f;
-}
-
 namespace {
 
 template <int Capacity>
-void stateJacobians(const SliderCrankLayout& layout, const CrankMotion& crank, double length, double t,
+void stateJacobians(const SliderCrankLayout& layout, const CrankState& crank, double radius, double length,
                     ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p, MatrixRef rq,
                     MatrixRef rv, AdBuffers<Capacity>& w) {
   using ADC = ADOf<Capacity>;
@@ -270,7 +395,7 @@ void stateJacobians(const SliderCrankLayout& layout, const CrankMotion& crank, d
     cd += P.b(i) * w.qd[i];
   }
   Frame<ADC> fr;
-  frameKinematics(crank, length, t, c, cd, fr);
+  frameKinematics(crank, radius, length, c, cd, fr);
   const ADC ba(dot(P, a), DC::Zero(2 * n));
   residualCore<ADC>(P, fr, w.q.data(), w.qd.data(), a, ba, w.r.data(), w.a1.data(), w.h.data());
   for (int i = 0; i < n; ++i) {
@@ -288,10 +413,11 @@ void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVect
                                            ConstVectorRef p, MatrixRef rq, MatrixRef rv,
                                            ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
+  const CrankState& crank = crankOf(crank_, t, w);
   if (2 * layout_.modes <= kSmallCapacity) {
-    stateJacobians<kSmallCapacity>(layout_, crank_, length_, t, q, v, a, p, rq, rv, w.small);
+    stateJacobians<kSmallCapacity>(layout_, crank, crank_.radius, length_, q, v, a, p, rq, rv, w.small);
   } else {
-    stateJacobians<kLargeCapacity>(layout_, crank_, length_, t, q, v, a, p, rq, rv, w.large);
+    stateJacobians<kLargeCapacity>(layout_, crank, crank_.radius, length_, q, v, a, p, rq, rv, w.large);
   }
 }
 
@@ -306,13 +432,17 @@ struct ProductScalars {
   double alongQ, alongV, alongA;  // d(mu . r)/dc, d/dc', d/d(b a) through the channels
 };
 
-ProductScalars productScalars(const View& P, const CrankMotion& crank_, double length_, double t,
-                              ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef mu) {
+/// Forward AD in the two channels c, c' (fixed size: no heap, no unused capacity copied).
+using AD2 = Eigen::AutoDiffScalar<Eigen::Vector2d>;
+
+/// The product scalars; also leaves h = c2 + M_ee q in w.h and A1 = a0 + Ct^T q in w.a1.
+ProductScalars productScalars(const View& P, const Matrix& mee, const CrankState& crank, double radius,
+                              double length, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                              ConstVectorRef mu, RodWorkspace& w) {
   const int n = P.n;
-  using ADS = ADOf<kSmallCapacity>;
   // Frame scalars and their partials in c (direction 0) and c' (direction 1).
-  Frame<ADS> fr;
-  frameKinematics(crank_, length_, t, ADS(dot(P, q), 2, 0), ADS(dot(P, v), 2, 1), fr);
+  Frame<AD2> fr;
+  frameKinematics(crank, radius, length, AD2(dot(P, q), 2, 0), AD2(dot(P, v), 2, 1), fr);
   const double g = fr.g.value(), gC = fr.g.derivatives()(0);
   const double bd = fr.betaDot.value(), bdC = fr.betaDot.derivatives()(0), bdCd = fr.betaDot.derivatives()(1);
   const double bc = fr.betaC.value(), bcC = fr.betaC.derivatives()(0), bcCd = fr.betaC.derivatives()(1);
@@ -328,20 +458,29 @@ ProductScalars productScalars(const View& P, const CrankMotion& crank_, double l
     sw0 += P.c1(0, i) * q(i);
     sw1 += P.c1(1, i) * q(i);
   }
+  // Ct q' column by column (axpy form).
+  w.ctV.setZero();
+  for (int j = 0; j < n; ++j) {
+    const double* ct = P.p + P.layout.cTilde() + n * j;
+    for (int i = 0; i < n; ++i) w.ctV(i) += ct[i] * v(j);
+  }
   double a1a = 0.0, muA1 = 0.0, hQd = 0.0, muH = 0.0, muCtQd = 0.0, mb = 0.0, c1mu0 = 0.0, c1mu1 = 0.0;
   for (int j = 0; j < n; ++j) {
-    double a1 = P.a0(j), h = P.c2(j), ctQd = 0.0;
+    double a1 = P.a0(j), mq = 0.0;
     for (int i = 0; i < n; ++i) {
-      a1 += q(i) * P.ct(i, j);
-      h += P.mee(j, i) * q(i);
-      ctQd += P.ct(j, i) * v(i);
+      a1 += P.ct(i, j) * q(i);
+      mq += mee(i, j) * q(i);
     }
-    jw += q(j) * (h - P.c2(j));
+    const double h = P.c2(j) + mq;
+    w.h(j) = h;
+    w.meeQ(j) = mq;
+    w.a1(j) = a1;
+    jw += q(j) * mq;
     a1a += a1 * a(j);
     muA1 += mu(j) * a1;
     hQd += h * v(j);
     muH += mu(j) * h;
-    muCtQd += mu(j) * ctQd;
+    muCtQd += mu(j) * w.ctV(j);
     mb += mu(j) * P.b(j);
     c1mu0 += P.c1(0, j) * mu(j);
     c1mu1 += P.c1(1, j) * mu(j);
@@ -359,76 +498,114 @@ ProductScalars productScalars(const View& P, const CrankMotion& crank_, double l
                         jw, kappa, mb, muA1, alongQ, alongV, g * (muA1 + mb * g * jw)};
 }
 
-}  // namespace
-
-void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
-                                                 ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
-                                                 VectorRef out, ProblemWorkspace*) const {
-  const View P(layout_, p);
-  const SliderCrankLayout& L = layout_;
+/// out += (r_p)^T mu from the product scalars (h, A1 in the workspace).
+void parameterProduct(const SliderCrankLayout& L, const ProductScalars& k, ConstVectorRef q, ConstVectorRef v,
+                      ConstVectorRef a, ConstVectorRef mu, VectorRef out, RodWorkspace& w) {
   const int n = L.modes;
-  // F = mu . r depends on b nonlinearly only through the channels c = b q, c' = b q' and b a; their
-  // partials and the frame scalars come from the same helper as the state product.
-  const ProductScalars k = productScalars(P, crank_, length_, t, q, v, a, mu);
-  const double channels[3] = {k.alongQ, k.alongV, k.alongA};
   const double gKappa = k.g * k.kappa;
-
   // Terms linear in the invariants (see the header for r and kappa).
   const double g = k.g, betaDot = k.bd, betaC = k.bc, rho0 = k.r0, rho1 = k.r1;
   const double betaA = g * k.ba;
-  const double mb = k.mb;
-  const double zeta = g * mb * (betaA + betaC);                  // dF/dJ_w
-  const double sigma0 = g * mb * rho1, sigma1 = -g * mb * rho0;  // dF/ds_w
+  const double gmb = g * k.mb;
+  const double zeta = gmb * (betaA + betaC);               // dF/dJ_w
+  const double sigma0 = gmb * rho1, sigma1 = -gmb * rho0;  // dF/ds_w
   out(L.polarMoment()) += zeta;
   out(L.massMoment()) += sigma0;
   out(L.massMoment() + 1) += sigma1;
   for (int j = 0; j < n; ++j) {
-    const double eta = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);  // dF/dh_j
-    const double alpha = mu(j) * (betaA + betaC) + g * mb * a(j);                   // dF/dA1_j
-    out(L.c2() + j) += eta + 2.0 * zeta * q(j);
+    w.eta(j) = -betaDot * betaDot * mu(j) + 2.0 * gmb * betaDot * v(j);  // dF/dh_j
+    w.alpha(j) = mu(j) * (betaA + betaC) + gmb * a(j);                   // dF/dA1_j
+  }
+  double* ct = out.data() + L.cTilde();
+  double* mee = out.data() + L.mee();
+  double* kee = out.data() + L.kee();
+  for (int j = 0; j < n; ++j) {
+    const double eta = w.eta(j), alpha = w.alpha(j), qj = q(j), aj = a(j), muj = mu(j);
+    const double vj2 = -2.0 * betaDot * v(j), zq = zeta * qj;
+    out(L.c2() + j) += eta + 2.0 * zeta * qj;
     out(L.a0() + j) += alpha;
-    out(L.c1() + 2 * j) += sigma0 * q(j) + rho0 * mu(j);
-    out(L.c1() + 1 + 2 * j) += sigma1 * q(j) + rho1 * mu(j);
+    out(L.c1() + 2 * j) += sigma0 * qj + rho0 * muj;
+    out(L.c1() + 1 + 2 * j) += sigma1 * qj + rho1 * muj;
+    // M_ee enters through its symmetric part (View::mee), so its gradient is the symmetric part of
+    // mu a^T + eta q^T, plus zeta q q^T (symmetric already).
     for (int i = 0; i < n; ++i) {
-      const double etaI = -betaDot * betaDot * mu(i) + 2.0 * g * mb * betaDot * v(i);
-      out(L.cTilde() + i + n * j) += q(i) * alpha - 2.0 * betaDot * mu(i) * v(j);
-      const double etaJ = -betaDot * betaDot * mu(j) + 2.0 * g * mb * betaDot * v(j);
-      out(L.mee() + i + n * j) +=
-          0.5 * (mu(i) * a(j) + etaI * q(j) + mu(j) * a(i) + etaJ * q(i)) + zeta * q(i) * q(j);
-      out(L.kee() + i + n * j) += mu(i) * q(j);
+      ct[i + n * j] += q(i) * alpha + mu(i) * vj2;
+      mee[i + n * j] += 0.5 * (mu(i) * aj + w.eta(i) * qj + muj * a(i) + eta * q(i)) + zq * q(i);
+      kee[i + n * j] += mu(i) * qj;
     }
     // b: through the channels and the explicit g kappa b term.
-    out(L.b() + j) += channels[0] * q(j) + channels[1] * v(j) + channels[2] * a(j) + gKappa * mu(j);
+    out(L.b() + j) += k.alongQ * qj + k.alongV * v(j) + k.alongA * aj + gKappa * muj;
   }
+}
+
+/// outQ = (r_q)^T mu, outV = (r_q')^T mu from the product scalars (h, M_ee q in the workspace).
+void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, ConstVectorRef v, ConstVectorRef a,
+                  ConstVectorRef mu, VectorRef outQ, VectorRef outV, RodWorkspace& w) {
+  const int n = P.n;
+  const double g = k.g, bd = k.bd, r0 = k.r0, r1 = k.r1, s = k.s, alongQ = k.alongQ, alongV = k.alongV;
+  const double gmb = g * k.mb;
+  // Ct mu and Ct a column by column (axpy form).
+  w.ctMu.setZero();
+  w.ctA.setZero();
+  for (int j = 0; j < n; ++j) {
+    const double* ct = P.p + P.layout.cTilde() + n * j;
+    for (int i = 0; i < n; ++i) {
+      w.ctMu(i) += ct[i] * mu(j);
+      w.ctA(i) += ct[i] * a(j);
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    // Column i of K_ee, Ct (for Ct^T mu) and the symmetric M_ee.
+    const double* kee = P.p + P.layout.kee() + n * i;
+    const double* ct = P.p + P.layout.cTilde() + n * i;
+    double keeMu = 0.0, ctTMu = 0.0, meeMu = 0.0, meeQd = 0.0;
+    for (int j = 0; j < n; ++j) {
+      keeMu += kee[j] * mu(j);
+      ctTMu += ct[j] * mu(j);
+      meeMu += mee(j, i) * mu(j);
+      meeQd += mee(j, i) * v(j);
+    }
+    const double jwQ = 2.0 * P.c2(i) + 2.0 * w.meeQ(i);  // M_ee is used symmetric
+    const double xQ = P.c1(0, i) * r1 - P.c1(1, i) * r0;
+    const double kappaQ = w.ctA(i) + s * jwQ + xQ + 2.0 * bd * meeQd;
+    outQ(i) = keeMu + s * w.ctMu(i) + gmb * kappaQ - bd * bd * meeMu + P.b(i) * alongQ;
+    outV(i) = gmb * 2.0 * bd * w.h(i) - 2.0 * bd * ctTMu + P.b(i) * alongV;
+  }
+}
+
+}  // namespace
+
+void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
+                                                 ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
+                                                 VectorRef out, ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  // F = mu . r depends on b nonlinearly only through the channels c = b q, c' = b q' and b a; their
+  // partials and the frame scalars come from the same helper as the state product.
+  const ProductScalars k =
+      productScalars(P, meeOf(P, w), crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
+  parameterProduct(layout_, k, q, v, a, mu, out, w);
 }
 
 void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
                                           ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
-                                          ProblemWorkspace*) const {
+                                          ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
   const View P(layout_, p);
-  const int n = layout_.modes;
-  const ProductScalars k = productScalars(P, crank_, length_, t, q, v, a, mu);
-  const double g = k.g, bd = k.bd, r0 = k.r0, r1 = k.r1, s = k.s, alongQ = k.alongQ, alongV = k.alongV;
-  const double mb = k.mb;
-  const double gmb = g * mb;
-  for (int i = 0; i < n; ++i) {
-    double keeMu = 0.0, ctMu = 0.0, ctA = 0.0, meeMu = 0.0, meeQ = 0.0, meeQd = 0.0, ctTMu = 0.0;
-    for (int j = 0; j < n; ++j) {
-      keeMu += P.kee(j, i) * mu(j);
-      ctMu += P.ct(i, j) * mu(j);
-      ctA += P.ct(i, j) * a(j);
-      meeMu += P.mee(i, j) * mu(j);
-      meeQ += P.mee(i, j) * q(j);
-      meeQd += P.mee(i, j) * v(j);
-      ctTMu += P.ct(j, i) * mu(j);
-    }
-    const double jwQ = 2.0 * P.c2(i) + 2.0 * meeQ;  // M_ee is used symmetric
-    const double xQ = P.c1(0, i) * r1 - P.c1(1, i) * r0;
-    const double kappaQ = ctA + s * jwQ + xQ + 2.0 * bd * meeQd;
-    outQ(i) = keeMu + s * ctMu + gmb * kappaQ - bd * bd * meeMu + P.b(i) * alongQ;
-    const double hI = P.c2(i) + meeQ;
-    outV(i) = gmb * 2.0 * bd * hI - 2.0 * bd * ctTMu + P.b(i) * alongV;
-  }
+  const Matrix& mee = meeOf(P, w);
+  const ProductScalars k = productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
+  stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
+}
+
+void SliderCrankProblem::residualVjps(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                      ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
+                                      VectorRef gradient, ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  const Matrix& mee = meeOf(P, w);
+  const ProductScalars k = productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
+  stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
+  parameterProduct(layout_, k, q, v, a, mu, gradient, w);
 }
 
 double SliderCrankProblem::integrand(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,

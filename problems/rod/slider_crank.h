@@ -12,14 +12,14 @@
 // Lagrange's equations built from the nodal kinetic energy.
 //
 // The parameters p are the inertia invariants of the rod (SliderCrankLayout), so the engine's dpsi/dp
-// is what the design chain (problems/design_gradient.h) turns into dpsi/dx. The objective is
+// is what the design chain (problems/rod/design_gradient.h) turns into dpsi/dx. The objective is
 // psi1 = int q^T K_ee q dt. Initial state: at rest, undeformed.
 //
 // Derivatives: the state Jacobians r_q, r_q' by forward-mode automatic differentiation (Eigen's
 // AutoDiffScalar over a fixed-capacity derivative vector, so nothing is allocated in a step); the
 // parameter product (r_p)^T mu by hand for the terms linear in the invariants and by AD over the
 // three scalar channels (b q, b q', b a) for the nonlinear dependence on b. Every derivative is
-// tested against finite differences (tests/problems/slider_crank_test.cpp).
+// tested against finite differences (tests/problems/rod/slider_crank_test.cpp).
 #pragma once
 
 #include <hindsight/engine/second_order_problem.h>
@@ -39,7 +39,7 @@ struct CrankMotion {
 };
 
 /// Offsets of the invariants in the parameter vector p, for n modes (the same order as
-/// rod::InvariantLayout of problems/invariants.h, which packs them; a test checks they agree):
+/// rod::InvariantLayout of problems/rod/invariants.h, which packs them; a test checks they agree):
 /// m (1), m c (2), J0 (1), C1 (2 x n, column-major), C2 (n), a0 (n), Ct (n x n, column-major),
 /// M_ee (n x n), K_ee (n x n), b (n). Size 4 + 5n + 3n^2.
 struct SliderCrankLayout {
@@ -72,11 +72,16 @@ class SliderCrankProblem final : public SecondOrderProblem {
   double rodLength() const { return length_; }
 
   std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
+  /// Keeps the symmetric part of M_ee of p for the whole solve.
+  std::unique_ptr<ProblemWorkspace> createModelWorkspaceFor(ConstVectorRef p) const override;
   void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
   void massMatrix(double t, ConstVectorRef q, ConstVectorRef p, MatrixRef mass,
                   ProblemWorkspace* ws) const override;
   void force(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, VectorRef f,
              ProblemWorkspace* ws) const override;
+  /// One frame kinematics and one product of q with each invariant matrix for both.
+  void massMatrixAndForce(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, MatrixRef mass,
+                          VectorRef f, ProblemWorkspace* ws) const override;
   void residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                          MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const override;
   void addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
@@ -89,6 +94,10 @@ class SliderCrankProblem final : public SecondOrderProblem {
   void residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                         ConstVectorRef mu, VectorRef outQ, VectorRef outV,
                         ProblemWorkspace* ws) const override;
+  /// The state and parameter products with one set of product scalars.
+  void residualVjps(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                    ConstVectorRef mu, VectorRef outQ, VectorRef outV, VectorRef gradient,
+                    ProblemWorkspace* ws) const override;
   double integrand(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p,
                    ProblemWorkspace* ws) const override;
   void addIntegrandStateGradient(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, double scale,

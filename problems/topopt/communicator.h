@@ -1,4 +1,4 @@
-// The processes of one run (issue #15): MPI ranks when the program was started by an MPI launcher
+// The processes of one run: MPI ranks when the program was started by an MPI launcher
 // (mpirun / mpiexec) and hindsight was built with HINDSIGHT_MPI, otherwise one process on its own.
 // The optimizer uses only the two collective operations below; everything else (which rank owns a
 // scenario, in which order results are combined) is fixed arithmetic on rank and size, so a run's

@@ -58,7 +58,9 @@ DensityFilter::DensityFilter(int nx, int ny, double radius, const std::vector<bo
         for (int c = std::max(0, column - reach); c <= std::min(nx - 1, column + reach); ++c) {
           const int k = r * nx + c;
           if (!isDesign(k)) continue;
-          const double weight = radius - std::hypot(double(c - column), double(r - row));
+          // sqrt of an integer sum is exactly rounded on every CPU; std::hypot is a libm call.
+          const int dc = c - column, dr = r - row;
+          const double weight = radius - std::sqrt(double(dc * dc + dr * dr));
           if (weight <= 0.0) continue;
           entries.emplace_back(e, k, weight);
           total += weight;

@@ -12,7 +12,7 @@
 // A radius below 1 reaches no neighbour and the filter is the identity; the default of docs/design.md §7
 // is no filter, as in the paper.
 //
-// Element numbering (shared with problems/pictures.h): element (column, row) has index
+// Element numbering (shared with problems/topopt/pictures.h): element (column, row) has index
 // e = row * nx + column, column 0..nx-1 along the length, row 0..ny-1 upwards (row 0 at the bottom).
 //
 // References:

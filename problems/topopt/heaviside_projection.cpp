@@ -1,5 +1,7 @@
 #include <hindsight/problems/topopt/heaviside_projection.h>
 
+#include <hindsight/engine/deterministic_math.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -24,17 +26,17 @@ HeavisideProjection::HeavisideProjection(double beta, double eta, double lower)
     out << "HeavisideProjection: lower = " << lower << " must be in [0, 1)";
     throw std::invalid_argument(out.str());
   }
-  tanhBetaEta_ = std::tanh(beta * eta);
-  denominator_ = tanhBetaEta_ + std::tanh(beta * (1.0 - eta));
+  tanhBetaEta_ = dmath::tanh(beta * eta);
+  denominator_ = tanhBetaEta_ + dmath::tanh(beta * (1.0 - eta));
 }
 
 double HeavisideProjection::value(double filtered) const {
-  const double h = (tanhBetaEta_ + std::tanh(beta_ * (filtered - eta_))) / denominator_;
+  const double h = (tanhBetaEta_ + dmath::tanh(beta_ * (filtered - eta_))) / denominator_;
   return lower_ + (1.0 - lower_) * h;
 }
 
 double HeavisideProjection::derivative(double filtered) const {
-  const double t = std::tanh(beta_ * (filtered - eta_));
+  const double t = dmath::tanh(beta_ * (filtered - eta_));
   return (1.0 - lower_) * beta_ * (1.0 - t * t) / denominator_;
 }
 

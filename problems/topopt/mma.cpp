@@ -50,6 +50,33 @@ void CheckFinite(const char* name, ConstVectorRef v) {
 
 }  // namespace
 
+double kktResidual(ConstVectorRef x, ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                   ConstMatrixRef constraint_jacobian, ConstVectorRef lambda, ConstVectorRef xmin,
+                   ConstVectorRef xmax) {
+  const Eigen::Index n = x.size(), m = constraints.size();
+  CheckSize("objective_gradient", objective_gradient.size(), n);
+  CheckSize("xmin", xmin.size(), n);
+  CheckSize("xmax", xmax.size(), n);
+  CheckSize("lambda", lambda.size(), m);
+  if (constraint_jacobian.rows() != m || constraint_jacobian.cols() != n) {
+    ThrowArgument("kktResidual: constraint_jacobian is " + std::to_string(constraint_jacobian.rows()) + " x " +
+                  std::to_string(constraint_jacobian.cols()) + ", expected " + std::to_string(m) + " x " +
+                  std::to_string(n));
+  }
+  double residual = 0.0;
+  for (Eigen::Index j = 0; j < n; ++j) {
+    double g = objective_gradient(j);
+    for (Eigen::Index i = 0; i < m; ++i) g += lambda(i) * constraint_jacobian(i, j);
+    const double projected = std::min(std::max(x(j) - g, xmin(j)), xmax(j));
+    residual = std::max(residual, std::abs(x(j) - projected));
+  }
+  for (Eigen::Index i = 0; i < m; ++i) {
+    residual = std::max(residual, std::max(constraints(i), 0.0));
+    residual = std::max(residual, std::abs(lambda(i) * constraints(i)));
+  }
+  return residual;
+}
+
 bool MmaOptions::IsValid(std::string* error) const {
   // Written as !(a && b) so that NaN fails every check.
   if (!(initial_asymptote_distance > 0.0 && initial_asymptote_distance <= 1.0))
@@ -68,6 +95,12 @@ bool MmaOptions::IsValid(std::string* error) const {
     return Fail(error, RangeMessage("asymptote_margin", asymptote_margin, "in (0, 1)"));
   if (!(move_limit > 0.0 && move_limit <= 1.0))
     return Fail(error, RangeMessage("move_limit", move_limit, "in (0, 1]"));
+  if (!(move_limit_shrink > 0.0 && move_limit_shrink < 1.0))
+    return Fail(error, RangeMessage("move_limit_shrink", move_limit_shrink, "in (0, 1)"));
+  if (!(move_limit_growth >= 1.0 && std::isfinite(move_limit_growth)))
+    return Fail(error, RangeMessage("move_limit_growth", move_limit_growth, ">= 1 and finite"));
+  if (!(min_move_limit > 0.0 && min_move_limit <= move_limit))
+    return Fail(error, RangeMessage("min_move_limit", min_move_limit, "in (0, move_limit]"));
   if (!(curvature_regularization > 0.0 && std::isfinite(curvature_regularization)))
     return Fail(error, RangeMessage("curvature_regularization", curvature_regularization, "> 0 and finite"));
   if (!(z_cost > 0.0 && std::isfinite(z_cost)))
@@ -126,6 +159,8 @@ void Mma::restore(const MmaState& state) {
   state_.xold2 = state.xold2;
   state_.low = state.low;
   state_.upp = state.upp;
+  state_.moveLimit = state.moveLimit;
+  state_.objective = state.objective;
 }
 
 void Mma::checkInputs(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
@@ -169,6 +204,7 @@ void Mma::checkInputs(double objective, ConstVectorRef objective_gradient, Const
 void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
                  ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax, Vector& x) {
   checkInputs(objective, objective_gradient, constraints, constraint_jacobian, xmin, xmax, x);
+  adaptMoveLimit(objective, constraints);
   updateAsymptotes(xmin, xmax, x);
   buildApproximation(objective_gradient, constraints, constraint_jacobian, xmin, xmax, x,
                      uniformRegularization_);
@@ -181,9 +217,22 @@ void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVecto
   x = xsub_.cwiseMax(xmin).cwiseMin(xmax);
 }
 
+void Mma::adaptMoveLimit(double objective, ConstVectorRef constraints) {
+  const MmaOptions& o = options_;
+  double move = state_.moveLimit > 0.0 ? state_.moveLimit : o.move_limit;
+  const bool feasible = m_ == 0 || constraints.maxCoeff() <= 0.0;
+  if (o.adaptive_move_limit && feasible && std::isfinite(state_.objective)) {
+    move = objective > state_.objective ? std::max(move * o.move_limit_shrink, o.min_move_limit)
+                                        : std::min(move * o.move_limit_growth, o.move_limit);
+  }
+  state_.moveLimit = move;
+  state_.objective = feasible ? objective : std::numeric_limits<double>::quiet_NaN();
+}
+
 void Mma::updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
   const MmaOptions& o = options_;
   const int k = state_.iteration + 1;  // the number of this iteration, counted from 1 as in the note
+  const double move = o.adaptive_move_limit && state_.moveLimit > 0.0 ? state_.moveLimit : o.move_limit;
   Vector& low = state_.low;
   Vector& upp = state_.upp;
 
@@ -206,11 +255,9 @@ void Mma::updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vecto
       upp(j) = std::max(std::min(upp(j), x(j) + o.max_asymptote_distance * range),
                         x(j) + o.min_asymptote_distance * range);
     }
-    // Move limits of the subproblem: a margin away from the asymptotes, at most move_limit * range.
-    alpha_(j) =
-        std::max({xmin(j), low(j) + o.asymptote_margin * (x(j) - low(j)), x(j) - o.move_limit * range});
-    beta_(j) =
-        std::min({xmax(j), upp(j) - o.asymptote_margin * (upp(j) - x(j)), x(j) + o.move_limit * range});
+    // Move limits of the subproblem: a margin away from the asymptotes, at most move * range.
+    alpha_(j) = std::max({xmin(j), low(j) + o.asymptote_margin * (x(j) - low(j)), x(j) - move * range});
+    beta_(j) = std::min({xmax(j), upp(j) - o.asymptote_margin * (upp(j) - x(j)), x(j) + move * range});
   }
 }
 
@@ -255,6 +302,7 @@ void Mma::beginConservativeIteration(double objective, ConstVectorRef objective_
                                      ConstVectorRef constraints, ConstMatrixRef constraint_jacobian,
                                      ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
   checkInputs(objective, objective_gradient, constraints, constraint_jacobian, xmin, xmax, x);
+  adaptMoveLimit(objective, constraints);
   updateAsymptotes(xmin, xmax, x);
 }
 

@@ -40,6 +40,7 @@
 
 #include <Eigen/LU>
 
+#include <limits>
 #include <string>
 
 namespace hindsight {
@@ -66,6 +67,19 @@ struct MmaOptions {
   double asymptote_margin = 0.1;
   /// move: a variable moves at most move (xmax - xmin) per iteration. In (0, 1].
   double move_limit = 0.5;
+  /// Adaptive move limit (off in Svanberg's MMA): the move limit of an update is halved (times
+  /// move_limit_shrink) after an update that raised the objective between two feasible designs, and
+  /// grows (times move_limit_growth, up to move_limit) after one that lowered it. A trust-region
+  /// safeguard for objectives on which MMA's approximations overshoot: it damps the period-2 swings
+  /// between two designs that plain MMA keeps up at the move limit, so the iterates settle
+  /// (docs/guides/optimizer.md has the measurements on the piston rod).
+  bool adaptive_move_limit = false;
+  /// Factor of the move limit after an update that raised the objective. In (0, 1).
+  double move_limit_shrink = 0.5;
+  /// Factor of the move limit after an update that lowered it. >= 1.
+  double move_limit_growth = 1.2;
+  /// The adaptive move limit never falls below this, in units of (xmax - xmin). In (0, move_limit].
+  double min_move_limit = 1e-3;
   /// raa0: regularisation added to the curvature terms p, q of the approximations, divided by
   /// (xmax - xmin). > 0.
   double curvature_regularization = 1e-5;
@@ -97,6 +111,10 @@ struct MmaState {
   Vector xold2;
   Vector low;
   Vector upp;
+  /// The move limit of the last update (0 before the first; always move_limit unless
+  /// adaptive_move_limit) and the objective at xold1 when xold1 was feasible (NaN otherwise).
+  double moveLimit = 0.0;
+  double objective = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Diagnostics of the last subproblem solve and its Lagrange multipliers. At convergence of the outer
@@ -113,6 +131,19 @@ struct MmaSubproblemSummary {
   Vector y;
   double z = 0.0;
 };
+
+/// First-order optimality (KKT) residual of "minimize f0(x) s.t. f_i(x) <= 0, xmin <= x <= xmax" at x
+/// for multipliers lambda (m, >= 0; an MMA update's lastSubproblem().lambda estimates them):
+///   max( max_j |x_j - clamp(x_j - g_j, xmin_j, xmax_j)|,  max_i max(f_i, 0),  max_i |lambda_i f_i| ),
+/// with g = grad f0 + J^T lambda the gradient of the Lagrangian. The first term is the projected
+/// gradient (zero exactly when g_j >= 0 at a lower bound, <= 0 at an upper bound and 0 between), the
+/// others are feasibility and complementarity; all three vanish at a KKT point. It is the
+/// multiplier-free-in-the-bounds form of Svanberg's kktcheck (2007 note): the bound multipliers are
+/// the parts of g the projection removes. Units: those of f0 and f_i (scale them to order 1) and of
+/// x. Throws std::invalid_argument when a size does not match.
+double kktResidual(ConstVectorRef x, ConstVectorRef objective_gradient, ConstVectorRef constraints,
+                   ConstMatrixRef constraint_jacobian, ConstVectorRef lambda, ConstVectorRef xmin,
+                   ConstVectorRef xmax);
 
 /// MMA optimizer for n design variables and m inequality constraints.
 ///
@@ -180,6 +211,8 @@ class Mma final {
   void checkInputs(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
                    ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax,
                    const Vector& x) const;
+  // The adaptive move limit for an update at a design with these values (see MmaOptions).
+  void adaptMoveLimit(double objective, ConstVectorRef constraints);
   // Asymptotes and move limits of one update.
   void updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x);
   // The approximation coefficients p, q, b of one update, with curvature regularization rho_i

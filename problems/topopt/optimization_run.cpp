@@ -90,6 +90,30 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
 
 }  // namespace
 
+int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config& config) {
+  const OptimizationSettings& settings = config.optimization;
+  const bool usePsi1 = settings.objective == Objective::Psi1;
+  const std::vector<ScenarioCase> cases = scenarioCases(config);
+  const auto objective = [&](const IterationRecord& r) {
+    if (config.scenarios.empty()) return usePsi1 ? r.psi1 : r.psi2;
+    const std::vector<double>& values = usePsi1 ? r.scenarioPsi1 : r.scenarioPsi2;
+    const std::vector<double>& initial = usePsi1 ? history.front().scenarioPsi1 : history.front().scenarioPsi2;
+    double aggregate = 0.0;
+    for (std::size_t s = 0; s < cases.size() && s < values.size() && s < initial.size(); ++s) {
+      const double relative = cases[s].weight * values[s] / initial[s];
+      aggregate = settings.aggregate == Aggregate::Max ? std::max(aggregate, relative) : aggregate + relative;
+    }
+    return aggregate;
+  };
+  int best = -1;
+  for (std::size_t k = 0; k < history.size(); ++k) {
+    if (!(history[k].volumeFraction <= settings.volumeFraction * (1.0 + 1e-6))) continue;
+    if (best < 0 || objective(history[k]) < objective(history[static_cast<std::size_t>(best)]))
+      best = static_cast<int>(k);
+  }
+  return best;
+}
+
 std::string progressLine(const IterationRecord& r, const std::vector<std::string>& scenarioNames) {
   char change[32];
   if (std::isnan(r.maxDesignChange)) {
@@ -106,6 +130,12 @@ std::string progressLine(const IterationRecord& r, const std::vector<std::string
     std::snprintf(gray, sizeof gray, "  gray %.3f", r.grayness);
     text += gray;
   }
+  if (!std::isnan(r.kktResidual)) {
+    char kkt[32];
+    std::snprintf(kkt, sizeof kkt, "  kkt %.1e", r.kktResidual);
+    text += kkt;
+  }
+  if (r.converged) text += "  converged (final design)";
   if (r.innerIterations > 0) text += "  (" + std::to_string(r.innerIterations) + " GCMMA trials)";
   if (r.worstScenario >= 0 && static_cast<std::size_t>(r.worstScenario) < scenarioNames.size())
     text += "  worst: " + scenarioNames[static_cast<std::size_t>(r.worstScenario)];
@@ -224,6 +254,11 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
         }
         if (data_.finished) {
           writePictures("design_final", grid);
+          // The best feasible design, when the last one is not it (a run that ended at its
+          // iteration limit rather than by the convergence rule can end above its best).
+          const int best = bestFeasibleIndex(data_.history, config_);
+          if (best >= 0 && static_cast<std::size_t>(best) + 1 != data_.history.size())
+            writePictures("design_best", data_.densities[static_cast<std::size_t>(best)]);
           // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL).
           DensityField field;
           field.nx = config_.rod.elementsAlongLength;

@@ -1,8 +1,8 @@
 // A complete, restartable topology-optimization run of the piston rod in an output directory: the
-// TopologyOptimizer loop, DIR/results.h5 after every iteration (problems/results_file.h, crash-safe),
+// TopologyOptimizer loop, DIR/results.h5 after every iteration (problems/topopt/results_file.h, crash-safe),
 // a progress line per iteration, and pictures (DIR/design_iter_K.png/.vtk every
 // optimization.pictureEvery iterations, DIR/design_final.png/.vtk at the end) and the final design's
-// geometry (DIR/design_final.svg/.dxf/.stl, the contour at density 0.5; problems/geometry_export.h).
+// geometry (DIR/design_final.svg/.dxf/.stl, the contour at density 0.5; problems/topopt/geometry_export.h).
 //
 // Every input check happens in the constructor, before any evaluation: the configuration (field named),
 // --resume together with --force, an output directory that cannot be created or written (probed by
@@ -16,7 +16,7 @@
 // holder's PID. With the lock taken, temporary files of dead processes' atomic writes there (results
 // file and pictures, NAME.tmp-PID-N) are removed.
 //
-// Resume: the results file is read with all its checks (problems/results_file.h: checksums,
+// Resume: the results file is read with all its checks (problems/topopt/results_file.h: checksums,
 // plausibility of the restored design and MMA state); a file that fails one throws StorageError
 // naming the dataset, and nothing runs. A format 1 file (no checksums) is resumed after the
 // plausibility checks with a warning in the progress output that it could not be verified.
@@ -80,6 +80,13 @@ class OptimizationRun {
   ResultsData data_;
   TopologyOptimizer optimizer_;
 };
+
+/// Index in `history` of the best feasible design: the lowest optimized objective (psi1 or psi2 per
+/// optimization.objective; with scenarios the aggregate of w_s psi_s / psi_s(x0), psi_s(x0) from the
+/// first record) among the records whose volume fraction V/V0 is at most the bound
+/// optimization.volumeFraction (1e-6 relative slack: MMA's interior-point solver ends a constraint at
+/// about -1e-7 / lambda, either side of zero). -1 when no record is feasible.
+int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config& config);
 
 /// The progress line of one iteration, e.g.
 /// "iter  12  psi1 0.0812  psi2 0.0795  V/V0 0.5000  max|dx| 0.113  2.4 s". With scenarios, psi1 and

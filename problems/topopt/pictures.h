@@ -1,7 +1,7 @@
 // Pictures of a density field on the nx x ny grid of square elements: a PNG for reports and a VTK
 // file for ParaView.
 //
-// Element numbering is that of problems/density_filter.h: element (column, row) has index
+// Element numbering is that of problems/topopt/density_filter.h: element (column, row) has index
 // e = row * nx + column, row 0 at the bottom. Densities are the design variables, nominally in [0, 1].
 //
 // Both writers write to a temporary file beside the target and rename it onto the target only when

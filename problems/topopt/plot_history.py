@@ -8,7 +8,7 @@ Reads the results files written by `hindsight optimize` (layout in problems/topo
 and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every file psi1 is drawn over
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
 stored design of every file (density 1 black, 0 white, joint A on the left). A run with operating
-scenarios (issue #15; /scenarios in the file) draws psi1 of every scenario (thin lines, named) and
+scenarios (/scenarios in the file) draws psi1 of every scenario (thin lines, named) and
 the worst one of each iteration ringed.
 """
 import argparse

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -27,7 +28,7 @@ const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
     {"mma_seconds", &IterationRecord::mmaSeconds},
     {"total_seconds", &IterationRecord::totalSeconds}};
 
-/// History columns added after format 2 appeared (issue 17): written always, read when present (a file
+/// History columns added after format 2 appeared (grayness, first frequency, inner iterations): written always, read when present (a file
 /// written before has none; the records then hold NaN / 0), checked against [lower, upper] (NaN
 /// allowed: the grayness and frequency of a record can be unknown).
 struct AddedColumn {
@@ -38,7 +39,8 @@ struct AddedColumn {
 };
 const AddedColumn kAddedHistoryColumns[] = {
     {"grayness", &IterationRecord::grayness, 0.0, 1.0},
-    {"first_frequency_hz", &IterationRecord::firstFrequencyHz, 0.0, std::numeric_limits<double>::max()}};
+    {"first_frequency_hz", &IterationRecord::firstFrequencyHz, 0.0, std::numeric_limits<double>::max()},
+    {"kkt_residual", &IterationRecord::kktResidual, 0.0, std::numeric_limits<double>::max()}};
 
 /// The MMA state datasets in /state and the members they store.
 const std::pair<const char*, Vector MmaState::*> kMmaVectors[] = {{"mma_xold1", &MmaState::xold1},
@@ -218,6 +220,9 @@ void writeContents(hid_t file, const ResultsData& data) {
     for (const auto& [name, member] : kMmaVectors) {
       writer.doubles(group.get(), "/state", name, {n}, (data.state.mma.*member).data());
     }
+    // The end game's state: MMA's move limit and the objective at xold1 (problems/topopt/mma.h).
+    const double endGame[2] = {data.state.mma.moveLimit, data.state.mma.objective};
+    writer.doubles(group.get(), "/state", "end_game", {2}, endGame);
     hdf5::writeAttribute(group.get(), "mma_iteration", root.mmaIteration);
   }
   {
@@ -366,7 +371,7 @@ void checkRange(Reader& reader, const std::string& object, const Vector& v, doub
 
 constexpr double kLargest = std::numeric_limits<double>::max();
 
-// The restored state as the optimizer leaves it (docs/design.md §7, problems/mma.h).
+// The restored state as the optimizer leaves it (docs/design.md §7, problems/topopt/mma.h).
 void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttributes& root) {
   double lower = 0.0;
   try {
@@ -554,10 +559,14 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     data.history.resize(rows);
     reader.read(group.get(), "/history", "iteration", H5T_NATIVE_INT, {rows}, column.data());
     for (hsize_t k = 0; k < rows; ++k) data.history[k].iteration = column[k];
+    requireShape(file, group.get(), "backtracks", {rows});
     reader.read(group.get(), "/history", "backtracks", H5T_NATIVE_INT, {rows}, column.data());
     for (hsize_t k = 0; k < rows; ++k) data.history[k].backtracks = column[k];
     std::vector<double> values(rows);
     for (const auto& [name, member] : kHistoryColumns) {
+      // Every column's shape and extent before HDF5 reads it: a damaged layout of one column (found by
+      // tests/fuzz) made HDF5 copy past its buffer instead of failing.
+      requireShape(file, group.get(), name, {rows});
       reader.read(group.get(), "/history", name, H5T_NATIVE_DOUBLE, {rows}, values.data());
       for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = values[k];
     }
@@ -572,6 +581,10 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
       reader.read(group.get(), "/history", "inner_iterations", H5T_NATIVE_INT, {rows}, column.data());
       for (hsize_t k = 0; k < rows; ++k) data.history[k].innerIterations = column[k];
     }
+    // A final record with a KKT residual computed an update it did not take: the stopping rule ended
+    // the run there (the final evaluation of a run that used all its iterations has none).
+    if (data.finished && rows > 0 && !std::isnan(data.history.back().kktResidual))
+      data.history.back().converged = true;
   }
   {
     const auto nx = static_cast<hsize_t>(data.nx);
@@ -595,6 +608,15 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
       Vector& v = data.state.mma.*member;
       v.setZero(static_cast<Eigen::Index>(size));
       reader.read(group.get(), "/state", name, H5T_NATIVE_DOUBLE, {size}, v.data());
+    }
+    if (hdf5::exists(group.get(), "end_game")) {  // absent in files written before it existed
+      requireShape(file, group.get(), "end_game", {2});
+      double endGame[2];
+      reader.read(group.get(), "/state", "end_game", H5T_NATIVE_DOUBLE, {2}, endGame);
+      data.state.mma.moveLimit = endGame[0];
+      data.state.mma.objective = endGame[1];
+      if (!(endGame[0] >= 0.0 && endGame[0] <= 1.0))
+        reader.problem("/state/end_game", "move limit " + describe(endGame[0]) + " is outside [0, 1]");
     }
     data.state.mma.iteration = root.mmaIteration = hdf5::readIntAttribute(group.get(), "mma_iteration");
   }

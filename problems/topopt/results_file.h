@@ -7,14 +7,17 @@
 //                          content_hash (the run state's hash, see Integrity)
 //   /history/<column>      1-D, K entries: iteration (int32), psi1, psi2, backtracks (int32),
 //                          volume_fraction, max_design_change (NaN for the final evaluation),
-//                          evaluation_seconds, mma_seconds, total_seconds, and (issue 17; absent in
+//                          evaluation_seconds, mma_seconds, total_seconds, and (absent in
 //                          older files, which are still read) grayness, first_frequency_hz,
-//                          inner_iterations (int32)
+//                          inner_iterations (int32), kkt_residual (NaN where no update was computed;
+//                          a finished run whose last row has one stopped by the convergence rule)
 //   /designs               K x ny x nx: the element densities the model saw in each iteration over ALL
 //                          elements (solid end columns = 1); designs[k][row][column], row 0 at the
 //                          bottom of the rod, column 0 at joint A
 //   /state/design          n: the design variables of the next iteration (x_updates)
 //   /state/mma_xold1, mma_xold2, mma_low, mma_upp   n each; attribute mma_iteration: the MMA state
+//   /state/end_game        2: MMA's move limit and the objective at mma_xold1 (NaN when that design
+//                          was infeasible); absent in older files (read as 0 and NaN)
 //   /final/modes           modeCount x dofCount, row k = mode k on all DOFs (fe_model.h DOF order), and
 //   /final/frequencies_hz  modeCount; both of the final design, empty (0 rows) until finished = 1
 //   /scenarios/psi1, psi2  K x S: every scenario's psi per iteration (only in runs with scenarios,

@@ -1,5 +1,5 @@
 // The scenarios of one optimization (problems/rod/scenarios.h) evaluated across the processes and
-// threads of a run (issue #15).
+// threads of a run.
 //
 // Distribution: scenario s belongs to rank s mod N (static, known to every rank; rank 0 always has
 // scenario 0). Each rank evaluates its own scenarios -- in parallel threads when it has several

@@ -3,7 +3,7 @@
 //   minimize    psi(x) / psi(x0)
 //   subject to  (V(x)/V0) / volumeFraction - 1 <= 0,   designLowerBound <= x_d <= 1,
 //
-// with MMA (problems/mma.h, the constants of Svanberg's 2007 note, which are the MmaOptions defaults),
+// with MMA (problems/topopt/mma.h, the constants of Svanberg's 2007 note, which are the MmaOptions defaults),
 // one constraint. psi is optimization.objective:
 //   psi1  the integral compliance, with its exact adjoint gradient (the paper's route);
 //   psi2  the equivalent-static-load compliance: loads from the simulation at the current design, held
@@ -12,12 +12,21 @@
 // psi2 is evaluated on both routes (one factorisation of K, cheap next to the simulation).
 //
 // With optimization.filterRadius >= 1 the model sees the filtered density xf = F x
-// (problems/density_filter.h) and the gradients are chained through F^T; 0 (the default, the paper's
+// (problems/topopt/density_filter.h) and the gradients are chained through F^T; 0 (the default, the paper's
 // choice) means no filter and reproduces the paper's checkerboards.
 //
 // Iteration k evaluates the design x_k and, while k < optimization.iterations, performs the MMA update
 // x_k -> x_{k+1}. After the last update the final design x_N is evaluated once more (iteration N, no
 // update), so a run of N iterations has N + 1 records, the last one the final design.
+//
+// Stopping rule: after each update the record holds the first-order optimality residual of the MMA
+// problem at x_k (problems/topopt/mma.h, kktResidual, with the update's multipliers) and the largest
+// design change max|x_{k+1} - x_k|. When the residual is at most optimization.kktTolerance, the
+// change at most optimization.changeTolerance, x_k is feasible (kFeasibilitySlack) and its objective
+// is no higher than that of x_{k-1} (the MMA state keeps it), x_k is the final design: the update is
+// not taken, the record is marked converged, and the run ends after k + 1 records instead of
+// iterations + 1. Either tolerance 0 turns the rule off. The decision uses only what step k computes
+// and the stored state, so a resumed run stops at the same iteration.
 //
 // Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
 // x, and MMA's large early steps can reach a soft, near-mechanism design (first frequency below 1 Hz)
@@ -29,7 +38,7 @@
 // bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
 // this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
 //
-// Opt-in additions of issue 17 (defaults keep every bit of the runs above):
+// Opt-in additions: GCMMA, the frequency guard, projection (defaults keep every bit of the runs above):
 //  * optimization.method = gcmma: the update is GCMMA (problems/topopt/gcmma.h) instead of MMA; its
 //    trial designs are simulated (values only; a diverged or exploding trial counts as
 //    non-conservative), so every accepted design is feasible and its objective is no higher than the
@@ -44,7 +53,7 @@
 //    every projectionEvery iterations up to projectionBetaMax; gradients are chained through H' and F^T.
 // Every record also holds the grayness (fraction of design elements the model sees in (0.1, 0.9)) and
 // the first natural frequency.
-// Scenarios (issue #15; problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
+// Scenarios (problems/rod/scenarios.h, problems/topopt/scenario_objective.h): with a
 // `scenarios` list every scenario is evaluated (over MPI ranks and threads), f_s = w_s psi_s(x) /
 // psi_s(x0), and MMA minimizes sum_s f_s (aggregate sum) or, for aggregate max, z over (x, z) subject
 // to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
@@ -91,6 +100,11 @@ struct IterationRecord {
   double firstFrequencyHz = std::numeric_limits<double>::quiet_NaN();
   /// GCMMA: trial designs simulated in this iteration's update (0 for MMA and the final evaluation).
   int innerIterations = 0;
+  /// First-order optimality residual at this iteration's design with the update's multipliers
+  /// (problems/topopt/mma.h, kktResidual); NaN when no update was computed (the final evaluation).
+  double kktResidual = std::numeric_limits<double>::quiet_NaN();
+  /// The stopping rule held here: this record is the final design's, its update was not taken.
+  bool converged = false;
   /// With scenarios (problems/rod/scenarios.h): every scenario's psi1 and psi2, in scenario order;
   /// psi1 and psi2 above are then those of the worst scenario (largest w_s psi_s / psi_s(x0) of the
   /// optimized objective). Empty without scenarios.
@@ -161,11 +175,14 @@ class TopologyOptimizer final {
 
   /// Halvings toward the previous design before a failed simulation is reported.
   static constexpr int maxBacktracks = 10;
+  /// A design whose largest constraint value is at most this counts as feasible (MMA's interior-point
+  /// solver ends active constraints at about -1e-7 / lambda, either side of zero).
+  static constexpr double kFeasibilitySlack = 1e-6;
   /// An objective above this multiple of psi(x0) counts as a diverged response.
   static constexpr double maxObjectiveGrowth = 10.0;
 
   /// The element densities the model sees for design variables x (filtered when a filter is on),
-  /// over ALL elements on the picture grid (problems/pictures.h numbering e = row * nx + column,
+  /// over ALL elements on the picture grid (problems/topopt/pictures.h numbering e = row * nx + column,
   /// solid end columns = 1); length nx * ny.
   Vector densityGrid(ConstVectorRef design) const;
 
@@ -190,6 +207,13 @@ class TopologyOptimizer final {
   // Picture-grid index of every design variable.
   std::vector<int> designToGrid_;
 
+  // One MMA or GCMMA update (GCMMA when `trials` is not null) of x from the MMA state `from`: x becomes
+  // the next iterate; record gets the KKT residual at the current x and GCMMA's trial count. Returns
+  // the MMA state after the update.
+  MmaState updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
+                        const Vector& constraints, const Matrix& jacobian, const Vector& lower,
+                        const Vector& upper, const Gcmma::Evaluate* trials, Vector& x, IterationRecord& record);
+
   // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
   /// GCMMA's trial evaluations with scenarios (collective over the ranks).
   Gcmma::Evaluate scenarioTrials(const OptimizerState& next) const;
@@ -206,6 +230,7 @@ class TopologyOptimizer final {
   OptimizerState state_;
   int lastIteration_ = 0;  // the iteration of the last evaluated design (its projection)
   bool finished_ = false;
+  bool settled_ = false;  // the last updateDesign met the stopping rule
   std::optional<PistonRodEvaluation> last_;
   Vector lastDesign_;
   Times times_;

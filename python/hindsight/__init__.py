@@ -1,5 +1,5 @@
 """hindsight from Python: exact adjoint gradients with interchangeable trajectory storage, the piston
-rod of Held, Knueffer & Seifried and its topology optimization (README "Python").
+rod of Held, Knueffer & Seifried and its topology optimization (docs/guides/python.md).
 
     import hindsight
     rod = hindsight.PistonRod(rod={"modeCount": 8})          # config dict and/or overrides
@@ -107,13 +107,36 @@ class PistonRod:
         return f"PistonRod(ny={ny}, nx={nx}, design_count={self.design_count})"
 
 
+# The C++ behind optimize() and schedule() words its errors for the command line (its flags); Python
+# callers get the same message with their own keywords instead.
+_CLI_WORDS = [("use --resume to continue it or --force to overwrite it",
+               "pass resume=True to continue it or force=True to overwrite it"),
+              ("--resume and --force exclude each other", "resume=True and force=True exclude each other"),
+              ("--resume:", "resume=True:"), ("--resume", "resume=True"), ("--force", "force=True"),
+              ("--out", "out"), ("--state-bytes", "state_bytes"), ("--steps", "steps"), ("--stages", "stages"),
+              ("--costs", "costs"), ("--storage", "spec")]
+
+
+def _in_python_words(error):
+    """The same exception type with the CLI's flags in the message replaced by Python's keywords."""
+    message = str(error)
+    for cli, python in _CLI_WORDS:
+        message = message.replace(cli, python)
+    if message == str(error):
+        return error
+    return type(error)(message)
+
+
 def optimize(config=None, out="results", resume=False, force=False, callback=None, verbose=False, **overrides):
     """Runs the topology optimization of `hindsight optimize` into directory `out` (results.h5 after every
     iteration, pictures, resumable). callback(record) is called after each iteration once it is on
     disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
     returning False stops the run (its results stay valid and resumable). verbose=True prints the
     progress lines. Returns read_results(out) plus results_path and stopped_by_callback."""
-    run = _hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides)
+    try:
+        run = _hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides)
+    except ValueError as error:
+        raise _in_python_words(error) from None
     result = read_results(run["results_path"])
     result["stopped_by_callback"] = run["stopped_by_callback"]
     return result
@@ -160,7 +183,7 @@ def gradient(problem, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="f
     optional: initial_state_vjp(p, lam) -> (dz0/dp)^T lam, terminal(z, p) -> phi with
     terminal_gradient(z, p) -> (dphi/dz, dphi/dp), name.
     Returns Result(psi, gradient, times, summary). Runs the C++ engine (any integrator, storage spec or
-    adjoint route) calling back into Python, so it is slower than a C++ problem (README "Python")."""
+    adjoint route) calling back into Python, so it is slower than a C++ problem (docs/guides/python.md)."""
     import numpy as np
     p = np.ascontiguousarray(p, dtype=np.float64)
     return Result(_hindsight._gradient(problem, p, integrator, float(step), float(t0), float(t1), storage,
@@ -170,7 +193,7 @@ def gradient(problem, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="f
 def classic_gradient(name, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="full", adjoint="discrete",
                      adaptive=False, rtol=1e-6, atol=1e-9):
     """gradient() for a C++ problem of problems/classic: "oscillator" (p = k, c, y0), "decay" (p = k, a) or
-    "pendulum" (p = m, L, c, th0). The reference for a problem written in Python (README "Python" measures
+    "pendulum" (p = m, L, c, th0). The reference for a problem written in Python (docs/guides/python.md measures
     the overhead with it); the GIL is released."""
     import numpy as np
     p = np.ascontiguousarray(p, dtype=np.float64)
@@ -197,7 +220,10 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
         raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
     if not isinstance(actions, bool):
         raise TypeError(f"actions must be True or False, not {type(actions).__name__}")
-    return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions))
+    try:
+        return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions))
+    except ValueError as error:
+        raise _in_python_words(error) from None
 
 
 def _schedule_integer(name, value, low, high):

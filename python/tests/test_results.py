@@ -42,9 +42,12 @@ def test_callback_can_stop_and_the_run_resumes(tmp_path):
     whole = hindsight.optimize(CONFIG, out=tmp_path / "whole")
     for column in EXACT_COLUMNS:
         assert resumed.history[column].tobytes() == whole.history[column].tobytes(), column
-    # Without resume or force an existing run is refused (the CLI's message).
-    with pytest.raises(ValueError, match="--force"):
+    # Without resume or force an existing run is refused, in Python's words (not the CLI's flags).
+    with pytest.raises(ValueError, match="pass resume=True to continue it or force=True to overwrite it") as error:
         hindsight.optimize(CONFIG, out=out)
+    assert "--" not in str(error.value)
+    with pytest.raises(ValueError, match="resume=True and force=True exclude each other"):
+        hindsight.optimize(CONFIG, out=out, resume=True, force=True)
 
 
 def test_callback_exception_propagates_and_leaves_a_valid_file(tmp_path):

@@ -1,5 +1,5 @@
 """The rod through the module equals `hindsight evaluate` bit for bit (psi1 and dpsi1/dx), at x0 and at
-a random design; per-call storage/adjoint choices go through the same checks."""
+a random design; per-call storage and adjoint choices go through the same checks."""
 import json
 import subprocess
 

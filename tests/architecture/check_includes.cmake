@@ -4,7 +4,7 @@
 file(GLOB_RECURSE files "${SOURCE_DIR}/${FOLDER}/*.h" "${SOURCE_DIR}/${FOLDER}/*.cpp")
 set(violations "")
 foreach(file IN LISTS files)
-  file(STRINGS "${file}" lines REGEX "^#include [<\"](hindsight/)?(engine|storage|cvodes|problems|cli)/")
+  file(STRINGS "${file}" lines REGEX "^#include [<\"](hindsight/)?(engine|storage|cvodes|problems|cli|petsc)/")
   foreach(line IN LISTS lines)
     string(REGEX REPLACE "^#include [<\"](hindsight/)?([a-z]+(/[a-z]+)?)/.*" "\\2" target "${line}")
     set(ok FALSE)

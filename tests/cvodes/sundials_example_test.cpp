@@ -1,4 +1,4 @@
-// SUNDIALS' own adjoint example cvsRoberts_ASAi_dns (examples/cvodes/serial in the SUNDIALS
+// SUNDIALS' own adjoint example cvsRoberts_ASAi_dns (among the serial CVODES examples of the SUNDIALS
 // distribution; Debian: /usr/share/doc/libsundials-dev/examples/cvodes/serial/) reproduced with its
 // settings: per-component absolute tolerances of the state, separate tolerances for the forward
 // quadrature, the backward adjoint and the backward quadrature. The example prints, in its .out

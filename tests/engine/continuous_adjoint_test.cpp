@@ -407,7 +407,7 @@ TEST(ContinuousMatrixFree, VectorJacobianProductsGiveTheDenseGradient) {
   // The implicit backward method and CVODES' dense direct solver need the Jacobian: refused.
   options.continuous.method = "trbdf2";
   EXPECT_THROW(computeGradientByMethod(MatrixFreeOscillator(), p, options), std::invalid_argument);
-  // CVODES runs it matrix-free (issue 13): Adams by fixed-point iteration, BDF by Newton-GMRES, the
+  // CVODES runs it matrix-free: Adams by fixed-point iteration, BDF by Newton-GMRES, the
   // backward rhs by the VJP; the same gradient as with the dense Jacobian, within the tolerance.
   options.adjoint = AdjointMethod::Cvodes;
   for (CvodesMethod method : {CvodesMethod::Adams, CvodesMethod::Bdf}) {

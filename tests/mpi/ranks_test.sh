@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest label mpi (issue #15): the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
+# ctest label mpi: the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
 # writes bitwise-equal histories and designs; a run whose rank is killed resumes (with 2 ranks) to
 # the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named; the
 # frequency guard and GCMMA give the same bits on 1 and 2 ranks.

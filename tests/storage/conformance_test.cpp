@@ -126,7 +126,7 @@ class Conformance : public ::testing::TestWithParam<std::string> {
     const std::string name = StorageSpec::parse(GetParam()).name();
     if (storage->keepsStepData() && (name == "full" || name == "disk") && isRungeKutta(parseIntegratorMethod(options.method))) {
       // Every step's stage values are kept: no adjoint step evaluates the right-hand side, so the run
-      // evaluates it exactly as often as the forward sweep alone (issue #13).
+      // evaluates it exactly as often as the forward sweep alone.
       EXPECT_EQ(counters.stepDataRestored, result.summary.steps);
       EXPECT_EQ(counters.stepDataStored, result.summary.steps);
       EXPECT_EQ(result.summary.rhsEvaluations, simulate(problem, p, options).summary.rhsEvaluations);
@@ -136,7 +136,7 @@ class Conformance : public ::testing::TestWithParam<std::string> {
     if (storage->keepsStepData() && (name == "binomial" || name == "online") && isRungeKutta(parseIntegratorMethod(options.method)) &&
         result.summary.steps > 2) {
       // Every restore that recomputes leaves the stages of the step before it, so the next adjoint
-      // step finds them (issue #13); restores that load a checkpoint placed exactly there leave none.
+      // step finds them; restores that load a checkpoint placed exactly there leave none.
       EXPECT_GT(counters.stepDataRestored, 0);
       // The same revolve schedule as without stages, and fewer right-hand sides.
       std::string plainSpec = GetParam();

@@ -127,7 +127,7 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
   ScratchDirectory dir;
   DiskStorage::Options o = diskOptions(dir.path(), 16);
   o.keepFile = true;
-  o.timeCodec = false;  // codec=zstd: the format before issue #14 (the time codec's file: below)
+  o.timeCodec = false;  // codec=zstd: the older format (the time codec's file: below)
   DiskStorage storage(o);
   std::vector<double> observed;
   const GradientResult result = computeGradient(

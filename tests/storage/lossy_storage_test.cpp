@@ -174,7 +174,7 @@ TEST(LossyStorage, MantissaRoundingIsToNearestTiesToEvenWithinItsBound) {
 
 // lossy:target=T on the pendulum (rk4, 2000 steps): the achieved gradient error stays below T, the
 // reported estimate is at most T and at least the error made, and the ratio grows with T.
-// Measured: see tests/problems/classic/lossy_target_test.cpp and README "Compression along time".
+// Measured: see tests/problems/classic/lossy_target_test.cpp and docs/theory/storage.md, "Compression along time".
 TEST(LossyTarget, AchievedGradientErrorStaysBelowTheTargetOnThePendulum) {
   Pendulum problem;
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());

@@ -27,6 +27,7 @@ inline const std::vector<std::string>& resultsDatasets() {
                                                  "history/total_seconds",
                                                  "history/grayness",
                                                  "history/first_frequency_hz",
+                                                 "history/kkt_residual",
                                                  "history/inner_iterations",
                                                  "designs",
                                                  "state/design",
@@ -34,6 +35,7 @@ inline const std::vector<std::string>& resultsDatasets() {
                                                  "state/mma_xold2",
                                                  "state/mma_low",
                                                  "state/mma_upp",
+                                                 "state/end_game",
                                                  "final/modes",
                                                  "final/frequencies_hz"};
   return paths;

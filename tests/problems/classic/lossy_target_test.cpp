@@ -3,7 +3,7 @@
 // tests/storage/lossy_storage_test.cpp, the rod in tests/problems/rod/lossy_target_test.cpp. Not
 // covered: trajectories whose components fall by decades within a block (Robertson): the bound is
 // relative to the component's largest magnitude in the block, so small late values lose all their
-// digits (README "Compression along time"). The achieved relative gradient error stays
+// digits (docs/theory/storage.md, "Compression along time"). The achieved relative gradient error stays
 // below T (LossyStorage::kGradientSensitivity = 1 is the documented factor between the relative state
 // error made and the gradient error estimated) and the summary's estimate is at least the error made.
 #include <hindsight/engine/adjoint.h>

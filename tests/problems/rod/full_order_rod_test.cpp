@@ -438,8 +438,8 @@ TEST(FullOrderRodConfig, ModelAndCouplingFieldsAreCheckedStrictly) {
   EXPECT_THROW(applySetting(config, "simulation.fullOrderCoupling=1"), std::invalid_argument);
 }
 
-// psi1,full against the reduced psi1 (PistonRod: 10 modes, frame from the closure with b q, RK4 at
-// 1e-4) at x0 on the full 3 s horizon. Measured: relative difference -1.7e-4 on 40 x 4 and -1.6e-4 on
+// psi1,full against the reduced psi1 (PistonRod: 10 modes, frame from the closure with b q, the default
+// integration, within 1e-4 of RK4 at 1e-4) at x0 on the full 3 s horizon. Measured: relative difference -1.7e-4 on 40 x 4 and -1.6e-4 on
 // 200 x 12 (trbdf2, h = 1e-3; halving h changes psi1,full by 4e-6 relative). The response is
 // quasi-static in the first bending mode, which both models carry exactly; the rest is the reduced
 // model's modal truncation (static contribution of the dropped modes) and its frame feedback through

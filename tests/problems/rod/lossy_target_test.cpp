@@ -1,7 +1,7 @@
 // Compression along time on the slider-crank (synthetic flexible body, 6 modes, rk4, 4000 steps):
 // disk's time codec restores every bit (gradient bitwise equal to full storage's) and lossy:target=T
 // keeps the achieved relative gradient error below T with an estimate between the two. The real
-// rod's figures (T = 3, 10, 100 s) are in README "Compression along time" and bench/RESULTS.md.
+// rod's figures (T = 3, 10, 100 s) are in docs/theory/storage.md, "Compression along time" and bench/RESULTS.md.
 #include <hindsight/problems/rod/slider_crank.h>
 
 #include <hindsight/engine/adjoint.h>

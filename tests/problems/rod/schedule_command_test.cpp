@@ -29,7 +29,9 @@ TEST(ScheduleCommand, PredictsTheCountersOfARealRodRun) {
     SCOPED_TRACE(storage);
     const std::string gradient = dir + "/g.h5";
     std::filesystem::remove(gradient);
-    const auto run = runCli("evaluate " + kCoarse + "--storage " + storage + " --gradient " + gradient + " --json");
+    // RK4 (4 stages, the --stages below): the schedule tool counts explicit stage evaluations.
+    const auto run = runCli("evaluate " + kCoarse + "--set simulation.integrator=rk4 --set simulation.step=1e-4 --storage " +
+                            storage + " --gradient " + gradient + " --json");
     ASSERT_EQ(run.exitCode, 0) << run.output;
     const nlohmann::json summary = lastJson(run.output)["summary"];
     const std::int64_t steps = summary["steps"].get<std::int64_t>();

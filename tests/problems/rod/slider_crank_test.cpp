@@ -5,6 +5,8 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
+#include <hindsight/engine/integrator.h>
+#include "support/allocation_counting.h"
 #include "support/synthetic_rod.h"
 
 #include <gtest/gtest.h>
@@ -90,6 +92,81 @@ TEST(SliderCrank, MassMatrixIsTheAccelerationPartOfTheResidual) {
   EXPECT_LT((mass * f.a - (r1 - r0)).norm(), 1e-12 * (r1 - r0).norm());
   EXPECT_LT((mass - mass.transpose()).norm(), 1e-14 * mass.norm());
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Matrix>(mass).eigenvalues().minCoeff(), 0.0);
+}
+
+TEST(SliderCrank, MassMatrixAndForceInOnePassEqualTheResidual) {
+  // The one-pass kernel (M and f with one frame kinematics) against the separately written residual:
+  // f = -r(a = 0) and M a = r(a) - r(0); with a workspace made for p (M_ee's symmetric part kept for the
+  // solve) the bits are those of a plain workspace.
+  Fixture f(5);
+  const auto fixed = f.problem.createModelWorkspaceFor(f.p);
+  for (double t : {0.0, 0.9, 2.0, 2.7}) {
+    Matrix mass(5, 5), massFixed(5, 5), massAlone(5, 5);
+    Vector force(5), forceFixed(5), forceAlone(5);
+    f.problem.massMatrixAndForce(t, f.q, f.qd, f.p, mass, force, f.workspace.get());
+    f.problem.massMatrixAndForce(t, f.q, f.qd, f.p, massFixed, forceFixed, fixed.get());
+    f.problem.massMatrix(t, f.q, f.p, massAlone, f.workspace.get());
+    f.problem.force(t, f.q, f.qd, f.p, forceAlone, f.workspace.get());
+    const Vector r0 = f.residual(t, f.q, f.qd, Vector::Zero(5), f.p);
+    const Vector r1 = f.residual(t, f.q, f.qd, f.a, f.p);
+    EXPECT_LT((force + r0).norm(), 1e-13 * r0.norm()) << "t = " << t;
+    EXPECT_LT((mass * f.a - (r1 - r0)).norm(), 1e-12 * (r1 - r0).norm()) << "t = " << t;
+    EXPECT_EQ(mass, massFixed);
+    EXPECT_EQ(force, forceFixed);
+    EXPECT_EQ(mass, massAlone);
+    EXPECT_EQ(force, forceAlone);
+  }
+}
+
+TEST(SliderCrank, CombinedProductsEqualTheSeparateOnes) {
+  // residualVjps (one set of product scalars for the adjoint stage) has the bits of the two separate
+  // products, with a plain workspace and with one made for p.
+  Fixture f(6);
+  const auto fixed = f.problem.createModelWorkspaceFor(f.p);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Vector mu = Vector::NullaryExpr(6, [&] { return u(rng); });
+  for (double t : {0.3, 1.9, 2.4}) {
+    Vector outQ(6), outV(6), gradient = Vector::Constant(f.p.size(), 0.25);
+    f.problem.residualStateVjp(t, f.q, f.qd, f.a, f.p, mu, outQ, outV, f.workspace.get());
+    f.problem.addResidualParameterVjp(t, f.q, f.qd, f.a, f.p, mu, gradient, f.workspace.get());
+    for (ProblemWorkspace* ws : {f.workspace.get(), fixed.get()}) {
+      Vector q2(6), v2(6), gradient2 = Vector::Constant(f.p.size(), 0.25);
+      f.problem.residualVjps(t, f.q, f.qd, f.a, f.p, mu, q2, v2, gradient2, ws);
+      EXPECT_EQ(q2, outQ) << "t = " << t;
+      EXPECT_EQ(v2, outV) << "t = " << t;
+      EXPECT_EQ(gradient2, gradient) << "t = " << t;
+    }
+  }
+}
+
+TEST(SliderCrank, StepsAndAdjointStepsAllocateNothing) {
+  // The kernels' scratch (the symmetric M_ee, the crank's last two times, the AD buffers) lives in the
+  // workspace made once per solve.
+  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
+  Fixture f(8);
+  for (const char* method : {"rk4", "generalized-alpha"}) {
+    IntegratorOptions options;
+    options.method = method;
+    const std::unique_ptr<Integrator> integrator = createIntegrator(f.problem, f.p, options);
+    const int m = integrator->stateSize();
+    Vector z(m), zStart(m), lambda = Vector::Ones(m), gradient = Vector::Zero(f.p.size());
+    integrator->initialState(0.0, z);
+    zStart = z;
+    long forward = 0, adjoint = 0;
+    {
+      testing::AllocationCounter counter;
+      for (int i = 0; i < 10; ++i) integrator->step(0.3 + 1e-3 * i, 1e-3, z, nullptr);
+      forward = counter.count();
+    }
+    {
+      testing::AllocationCounter counter;
+      for (int i = 0; i < 10; ++i) integrator->adjointStep(0.3 + 1e-3 * i, 1e-3, zStart, lambda, gradient);
+      adjoint = counter.count();
+    }
+    EXPECT_EQ(forward, 0) << method;
+    EXPECT_EQ(adjoint, 0) << method;
+  }
 }
 
 TEST(SliderCrank, StateJacobiansMatchFiniteDifferences) {

@@ -1,4 +1,4 @@
-// Issue #13 item 5: the stage-aware strategies (full:stages=1, disk:stages=1, cams) on the reduced rod,
+// The stage-aware strategies (full:stages=1, disk:stages=1, cams) on the reduced rod,
 // the full-order rod and Robertson (adaptive): psi and dpsi/dp bitwise equal to `full`, every restore and
 // every restored step record hash-verified, the byte budget never exceeded, and the adjoint steps served
 // from stored stage values evaluating no right-hand side.

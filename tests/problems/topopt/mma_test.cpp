@@ -14,6 +14,7 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 namespace {
@@ -170,6 +171,116 @@ TEST(Mma, SeparableQuadraticReachesClosedFormKktPoint) {
 }
 
 // The size the optimizer is meant for: 10^5 variables, one constraint.
+// kktResidual is zero exactly at a KKT point and measures each violated condition elsewhere: the
+// separable quadratic's closed-form point with its multiplier, then a moved design, a wrong
+// multiplier, a violated constraint and the bound cases, each with the value the formula gives.
+TEST(Mma, KktResidualVanishesAtTheKktPointAndMeasuresEachViolation) {
+  const int n = 4;
+  const Vector w = (Vector(n) << 1.0, 2.0, 3.0, 4.0).finished();
+  const Vector t = (Vector(n) << 0.7, 0.6, 0.8, 0.5).finished();
+  const Vector g = (Vector(n) << 1.0, 0.5, 2.0, 1.5).finished();
+  const double volume = 0.9 * g.dot(t);
+  const double lambda = (g.dot(t) - volume) / g.cwiseAbs2().cwiseQuotient(w).sum();
+  const Vector x = t - lambda * g.cwiseQuotient(w);
+  const Vector xmin = Vector::Zero(n), xmax = Vector::Ones(n);
+  const auto residual = [&](const Vector& at, double multiplier) {
+    const Vector gradient = w.cwiseProduct(at - t);
+    const Vector constraint = Vector::Constant(1, g.dot(at) - volume);
+    const Matrix jacobian = g.transpose();
+    return kktResidual(at, gradient, constraint, jacobian, Vector::Constant(1, multiplier), xmin, xmax);
+  };
+  EXPECT_LT(residual(x, lambda), 1e-15);
+  // Stationarity: moving x_2 by d leaves w_2 d in its Lagrangian gradient (and g_2 d in the
+  // constraint, times lambda in the complementarity term, which is smaller here).
+  Vector moved = x;
+  moved(2) -= 1e-3;
+  EXPECT_NEAR(residual(moved, lambda), w(2) * 1e-3, 1e-14);
+  // A wrong multiplier leaves (lambda' - lambda) g_j in the gradient, largest for j = 2.
+  EXPECT_NEAR(residual(x, 2.0 * lambda), lambda * g(2), 1e-14);
+  // Infeasible by 0.01 in every variable: the constraint's value 0.01 sum g (0.05) exceeds the
+  // gradient's 0.01 w_j and the complementarity lambda 0.05.
+  ASSERT_LT(0.01 * w.maxCoeff(), 0.01 * g.sum());
+  EXPECT_NEAR(residual(x + Vector::Constant(n, 0.01), lambda), 0.01 * g.sum(), 1e-14);
+  // At a lower bound a positive gradient is stationary, a negative one is not (the projection
+  // clips the step at the bound, so the residual is the distance to it, at most the gradient).
+  const Vector at = (Vector(1) << 0.0).finished();
+  const Matrix none(0, 1);
+  EXPECT_EQ(kktResidual(at, Vector::Constant(1, 0.3), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+            0.0);
+  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -0.3), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+            0.3);
+  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -3.0), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+            1.0);
+  EXPECT_THROW(kktResidual(x, Vector::Zero(n - 1), Vector::Zero(1), g.transpose(), Vector::Zero(1), xmin, xmax),
+               std::invalid_argument);
+}
+
+// MMA's iterates drive the residual to zero on Svanberg's two-sphere problem: large at the start,
+// below the barrier tolerance's reach at the end.
+TEST(Mma, KktResidualOfMmaIteratesFallsToZeroOnTwoSpheres) {
+  const Problem p = TwoSpheres();
+  Mma mma(p.n, p.m);
+  Vector x = p.x0, df0(p.n), f(p.m);
+  Matrix df(p.m, p.n);
+  double f0 = 0.0;
+  std::vector<double> residuals;
+  for (int k = 0; k < 60; ++k) {
+    p.evaluate(x, &f0, &df0, &f, &df);
+    const Vector current = x;
+    mma.update(f0, df0, f, df, p.xmin, p.xmax, x);
+    residuals.push_back(kktResidual(current, df0, f, df, mma.lastSubproblem().lambda, p.xmin, p.xmax));
+  }
+  EXPECT_GT(residuals.front(), 0.1);
+  EXPECT_LT(residuals.back(), 1e-6);
+}
+
+// The adaptive move limit: halved after an update that found the objective raised between two
+// feasible designs, grown 1.2x after one that found it lowered (capped at move_limit), untouched and
+// the objective forgotten at an infeasible design; every step stays within the limit in force.
+TEST(Mma, AdaptiveMoveLimitShrinksAfterARiseAndGrowsAfterADecrease) {
+  MmaOptions options;
+  options.adaptive_move_limit = true;
+  options.move_limit = 0.4;
+  Mma mma(2, 1, options);
+  const Vector xmin = Vector::Zero(2), xmax = Vector::Ones(2);
+  // A linear objective pulling both variables up; the constraint's value is given per call.
+  const Vector gradient = (Vector(2) << -1.0, -0.5).finished();
+  const Matrix jacobian = (Matrix(1, 2) << 0.1, 0.1).finished();
+  Vector x = Vector::Constant(2, 0.05);
+  const auto step = [&](double objective, double constraint) {
+    const Vector before = x;
+    mma.update(objective, gradient, Vector::Constant(1, constraint), jacobian, xmin, xmax, x);
+    EXPECT_LE((x - before).cwiseAbs().maxCoeff(), mma.state().moveLimit * (1.0 + 1e-12));
+    return mma.state().moveLimit;
+  };
+  EXPECT_DOUBLE_EQ(step(1.0, -0.5), 0.4);  // first update: the configured limit
+  EXPECT_EQ(mma.state().objective, 1.0);
+  EXPECT_DOUBLE_EQ(step(2.0, -0.5), 0.2);  // raised: halved
+  EXPECT_DOUBLE_EQ(step(1.5, -0.5), 0.24);  // lowered: 1.2x
+  EXPECT_DOUBLE_EQ(step(1.7, 0.3), 0.24);   // infeasible: unchanged, objective forgotten
+  EXPECT_TRUE(std::isnan(mma.state().objective));
+  EXPECT_DOUBLE_EQ(step(9.0, -0.5), 0.24);  // no feasible predecessor to compare with
+  EXPECT_DOUBLE_EQ(step(1.0, -0.5), 0.288);
+  EXPECT_DOUBLE_EQ(step(0.5, -0.5), 0.3456);
+  EXPECT_DOUBLE_EQ(step(0.4, -0.5), 0.4);  // capped at move_limit
+  for (int k = 0; k < 20; ++k) step(10.0 + k, -0.5);  // rising forever: down to the floor
+  EXPECT_DOUBLE_EQ(mma.state().moveLimit, options.min_move_limit);
+
+  // The limit and the objective carry over through state()/restore(), so a resumed run continues alike.
+  Mma other(2, 1, options);
+  other.restore(mma.state());
+  EXPECT_EQ(other.state().moveLimit, mma.state().moveLimit);
+  EXPECT_EQ(other.state().objective, mma.state().objective);
+
+  // Without the option the limit never moves.
+  Mma plain(2, 1);
+  Vector y = Vector::Constant(2, 0.05);
+  for (double objective : {1.0, 2.0, 3.0}) {
+    plain.update(objective, gradient, Vector::Constant(1, -0.5), jacobian, xmin, xmax, y);
+    EXPECT_EQ(plain.state().moveLimit, MmaOptions().move_limit);
+  }
+}
+
 TEST(Mma, LargeSeparableQuadraticReachesClosedFormKktPoint) { ExpectClosedFormKktPoint(100000, 1e-7); }
 
 // No constraints (m = 0): minimize sum_j (x_j - t_j)^2 over the box [0, 1]^n; the minimizer is t
@@ -322,6 +433,15 @@ TEST(Mma, BadArgumentsThrowNamingTheArgument) {
   options = MmaOptions();
   options.asymptote_contraction = std::nan("");
   ExpectInvalidArgumentNaming([&] { Mma(3, 1, options); }, "asymptote_contraction");
+  options = MmaOptions();
+  options.move_limit_shrink = 1.0;
+  ExpectInvalidArgumentNaming([&] { Mma(3, 1, options); }, "move_limit_shrink");
+  options = MmaOptions();
+  options.move_limit_growth = 0.9;
+  ExpectInvalidArgumentNaming([&] { Mma(3, 1, options); }, "move_limit_growth");
+  options = MmaOptions();
+  options.min_move_limit = 0.6;  // above move_limit 0.5
+  ExpectInvalidArgumentNaming([&] { Mma(3, 1, options); }, "min_move_limit");
 
   Mma mma(3, 1);
   Vector x = Vector::Constant(3, 0.5), df0 = Vector::Ones(3), f = Vector::Zero(1), xmin = Vector::Zero(3),

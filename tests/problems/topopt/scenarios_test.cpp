@@ -1,4 +1,4 @@
-// Operating scenarios (issue #15): the configuration's scenarios (strict reading, errors naming the
+// Operating scenarios: the configuration's scenarios (strict reading, errors naming the
 // field), every scenario evaluated exactly as a rod of its own, sum and max aggregation (max: the
 // worst scenario changes during the run and the bound formulation follows it), threads that do not
 // change a bit, and a resumed scenario run equal to an uninterrupted one. The rank-count tests run
@@ -274,8 +274,8 @@ TEST(Scenarios, EquivalentStaticLoadsInParallelGiveTheSerialBits) {
   EXPECT_TRUE(sameBits(results[0].value, results[1].value));
   EXPECT_TRUE(sameBits(results[0].gradient, results[1].gradient));
   // Every column is the solve of that load case alone (the block split cannot change a bit).
-  const Eigen::SimplicialLLT<rod::SparseMatrix> alone(model.stiffness());
-  const Vector column = alone.solve(Vector(loads.col(20)));
+  const rod::StiffnessFactorization alone(model.stiffness());  // the factorisation ESL solves with
+  const Vector column = alone.solve(loads.col(20));
   EXPECT_TRUE(sameBits(column, Vector(results[1].displacements.col(20))));
 }
 
@@ -340,7 +340,7 @@ TEST(Scenarios, FrequencyGuardHoldsForEveryAggregate) {
 
 // GCMMA with scenarios: its trials evaluate every scenario (collectively over ranks; tests/mpi checks 1
 // against 2 ranks). Conservative steps: once the volume bound holds, the aggregate (sum of the relative
-// objectives, or their maximum) never increases, as for one scenario (README "Optimizer robustness").
+// objectives, or their maximum) never increases, as for one scenario (docs/tutorials/topology_optimization.md, "Robustness options").
 TEST(Scenarios, GcmmaNeverIncreasesTheAggregateOnceFeasible) {
   for (const std::string aggregate : {"sum", "max"}) {
     SCOPED_TRACE(aggregate);

@@ -1,0 +1,160 @@
+// Where the CPU of one evaluation goes, and what the backward sweep costs against the forward one.
+// Prints markdown tables (no Google Benchmark fixtures: the quantities are phase CPU times of one
+// evaluation and ratios of one run's sweeps). Times are process CPU seconds (CLOCK_PROCESS_CPUTIME_ID,
+// every thread), so they mean something on a shared machine where wall time does not.
+//  1. phases of one gradient dpsi1/dx (the piston rod's default configuration) per mesh:
+//     K factorisation + eigen-solve + invariants ("model"), the discrete adjoint ("simulation":
+//     forward + backward sweep), the chain dpsi/dp -> dpsi/dx with the Nelson systems ("chain") and
+//     psi2 without its gradient ("esl"), the sum, and the forward sweep alone for scale.
+//  2. (forward + backward) / forward CPU per integrator on the 200 x 12 rod (invariants of x0), median
+//     of 3, with full:stages=1 for rk4 (the backward sweep then recomputes no stage).
+// Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1]
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/rod/design_gradient.h>
+#include <hindsight/problems/rod/esl.h>
+#include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/invariants.h>
+#include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/rod/slider_crank.h>
+#include <hindsight/storage/storage_factory.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <string>
+#include <vector>
+
+using namespace hindsight;
+
+namespace {
+
+double cpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+rod::SliderCrankProblem problemOf(const rod::RodConfig& rc, int columns) {
+  rod::CrankMotion crank;
+  crank.radius = rc.crankRadius;
+  crank.omega = rc.crankSpeed;
+  crank.rampTime = rc.rampTime;
+  return rod::SliderCrankProblem(columns, rc.length, crank);
+}
+
+void phaseTable(int largest) {
+  const int meshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
+  std::printf("| mesh | designs | model | simulation (fwd+bwd) | forward alone | chain | esl | sum | integrator |\n"
+              "|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  for (int m = 0; m <= largest && m < 5; ++m) {
+    Config config;
+    config.rod.elementsAlongLength = meshes[m][0];
+    config.rod.elementsThroughHeight = meshes[m][1];
+    const PistonRod piston(config);
+    const rod::RodConfig& rc = config.rod;
+    const Vector x = piston.initialDesign();
+    const IntegratorOptions options = piston.integratorOptions();
+
+    double start = cpuSeconds();
+    const rod::FeModel model(rc, x);
+    const rod::StiffnessFactorization stiffness(model.stiffness());
+    const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
+    const Vector p = rod::computeInvariants(model, basis).pack();
+    const double modelCpu = cpuSeconds() - start;
+
+    const rod::SliderCrankProblem problem = problemOf(rc, basis.columnCount());
+    const int n = basis.columnCount();
+    Matrix sampled = Matrix::Zero(n, rc.eslSamples);
+    const std::int64_t stride = static_cast<std::int64_t>(std::llround(options.t1 / options.step)) / rc.eslSamples;
+    const StateObserver observer = [&](std::int64_t step, double, ConstVectorRef z) {
+      if (step > 0 && step % stride == 0 && step / stride <= rc.eslSamples) sampled.col(step / stride - 1) = z.head(n);
+    };
+    start = cpuSeconds();
+    const ForwardResult forward = simulate(problem, p, options, observer);
+    const double forwardCpu = cpuSeconds() - start;
+    start = cpuSeconds();
+    auto storage = createStorage(config.simulation.storage);
+    const GradientResult gradient = computeGradient(problem, p, options, *storage, observer);
+    const double simulationCpu = cpuSeconds() - start;
+    start = cpuSeconds();
+    rod::DesignGradientOptions chain;
+    chain.method = config.simulation.eigenvectorRoute;
+    const Vector dpsi = rod::computeDesignGradient(model, basis, gradient.gradient, chain).gradient;
+    const double chainCpu = cpuSeconds() - start;
+    start = cpuSeconds();
+    const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
+    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1, stiffness, false);
+    const double eslCpu = cpuSeconds() - start;
+    if (!(forward.objective == gradient.objective) || !dpsi.allFinite() || !(esl.value > 0.0)) {
+      std::fprintf(stderr, "inconsistent evaluation at mesh %d\n", m);
+      std::exit(1);
+    }
+    std::printf("| %dx%d | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %s h = %g |\n", meshes[m][0],
+                meshes[m][1], model.designCount(), modelCpu, simulationCpu, forwardCpu, chainCpu, eslCpu,
+                modelCpu + simulationCpu + chainCpu + eslCpu, options.method.c_str(), options.step);
+    std::fflush(stdout);
+  }
+}
+
+void integratorTable() {
+  Config config;
+  const PistonRod piston(config);
+  const rod::RodConfig& rc = config.rod;
+  const rod::FeModel model(rc, piston.initialDesign());
+  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  const Vector p = rod::computeInvariants(model, basis).pack();
+  const rod::SliderCrankProblem problem = problemOf(rc, basis.columnCount());
+  struct Case {
+    const char* method;
+    double step;
+    const char* storage;
+  };
+  const Case cases[] = {{"rk4", 1e-4, "full"},
+                        {"rk4", 1e-4, "full:stages=1"},
+                        {"generalized-alpha", 5e-4, "full"},
+                        {"generalized-alpha", 1e-3, "full"},
+                        {"generalized-alpha", 2e-3, "full"}};
+  std::printf("\n| integrator | h | storage | forward CPU s | forward + backward CPU s | (fwd+bwd)/fwd | psi1 |\n"
+              "|---|---:|---|---:|---:|---:|---:|\n");
+  for (const Case& c : cases) {
+    IntegratorOptions options;
+    options.method = c.method;
+    options.t1 = rc.endTime;
+    options.step = c.step;
+    options.rhoInfinity = config.simulation.rhoInfinity;
+    std::vector<double> forward, total, ratio;
+    double psi1 = 0.0;
+    for (int run = 0; run < 3; ++run) {
+      double start = cpuSeconds();
+      simulate(problem, p, options);
+      const double f = cpuSeconds() - start;
+      const auto storage = createStorage(c.storage);
+      start = cpuSeconds();
+      psi1 = computeGradient(problem, p, options, *storage).objective;
+      const double g = cpuSeconds() - start;
+      forward.push_back(f);
+      total.push_back(g);
+      ratio.push_back(g / f);
+    }
+    std::printf("| %s | %g | %s | %.4f | %.4f | %.2f | %.10g |\n", c.method, c.step, c.storage, median(forward),
+                median(total), median(ratio), psi1);
+    std::fflush(stdout);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int largest = argc > 1 ? std::atoi(argv[1]) : 3;
+  const bool integratorsOnly = argc > 2 && std::atoi(argv[2]) == 1;
+  if (!integratorsOnly) phaseTable(largest);
+  integratorTable();
+  return 0;
+}
