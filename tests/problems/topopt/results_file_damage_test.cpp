@@ -2,6 +2,7 @@
 // with StorageError before allocating what the attributes claim (2^31 - 1 iterations would be 8 GiB
 // of history; nx = ny = 2^31 - 1 overflowed the size of the designs buffer).
 #include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -61,6 +62,66 @@ TEST(ResultsFileDamage, ClaimedSizesAreCheckedBeforeAllocating) {
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0)
         << claim.attribute;
   }
+}
+
+// The configuration fingerprint the MPI ranks agreed on: stored, read back, and recomputed from the
+// stored configuration by verify; a file whose configuration is not the agreed one (all its hashes
+// consistent, as a run of ranks with different configurations would have written it) is refused.
+TEST(ResultsFileFingerprint, StoredAndRecomputedFromTheConfiguration) {
+  Config config;
+  config.optimization.iterations = 7;
+  ResultsData data = small();
+  data.configurationJson = toJson(config).dump();
+  data.configurationFingerprint = configurationFingerprint(config);
+  data.ranks = 2;
+  ASSERT_EQ(data.configurationFingerprint.rfind("fnv1a64:", 0), 0u);
+  ASSERT_EQ(data.configurationFingerprint.size(), 8u + 16u);
+  EXPECT_EQ(configurationFingerprint(data.configurationJson), data.configurationFingerprint);
+  const std::string path = ::testing::TempDir() + "/hindsight_fingerprint.h5";
+  writeResultsFile(path, data);
+  const ResultsVerification sound = verifyResultsFile(path);
+  EXPECT_EQ(sound.firstProblem(), nullptr);
+  EXPECT_EQ(sound.configurationFingerprint, data.configurationFingerprint);
+  EXPECT_EQ(sound.ranks, 2);
+  EXPECT_EQ(readResultsFile(path).configurationFingerprint, data.configurationFingerprint);
+
+  Config other = config;
+  other.optimization.iterations = 8;
+  ResultsData mixed = data;
+  mixed.configurationFingerprint = configurationFingerprint(other);
+  writeResultsFile(path, mixed);
+  const ResultsVerification refused = verifyResultsFile(path);
+  ASSERT_NE(refused.firstProblem(), nullptr);
+  EXPECT_EQ(refused.firstProblem()->object, "/");
+  EXPECT_NE(refused.firstProblem()->problem.find("configuration_fingerprint"), std::string::npos);
+  EXPECT_THROW(readResultsFile(path), StorageError);
+
+  // Files written before the fingerprint (none stored) are read as before.
+  ResultsData old = data;
+  old.configurationFingerprint.clear();
+  old.ranks = 0;
+  writeResultsFile(path, old);
+  EXPECT_EQ(verifyResultsFile(path).firstProblem(), nullptr);
+  EXPECT_TRUE(verifyResultsFile(path).configurationFingerprint.empty());
+  std::remove(path.c_str());
+}
+
+TEST(ResultsFileFingerprint, DifferingFieldsNameEachFieldIncludingOneSidedOnes) {
+  Config a;
+  Config b = a;
+  EXPECT_TRUE(differingFields(toJson(a), toJson(b)).empty());
+  EXPECT_EQ(configurationFingerprint(a), configurationFingerprint(b));
+  b.optimization.iterations = a.optimization.iterations + 1;
+  b.rod.endTime = a.rod.endTime * 2;
+  EXPECT_EQ(differingFields(toJson(a), toJson(b)),
+            (std::vector<std::string>{"optimization.iterations", "rod.endTime"}));
+  EXPECT_NE(configurationFingerprint(a), configurationFingerprint(b));
+  nlohmann::json withScenarios = toJson(a);
+  withScenarios["scenarios"] = nlohmann::json::array({{{"name", "x"}}});
+  nlohmann::json without = toJson(a);
+  without.erase("scenarios");
+  EXPECT_EQ(differingFields(withScenarios, without), std::vector<std::string>{"scenarios"});
+  EXPECT_EQ(differingFields(without, withScenarios), std::vector<std::string>{"scenarios"});
 }
 
 }  // namespace
