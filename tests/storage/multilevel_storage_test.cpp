@@ -374,11 +374,13 @@ TEST(MultilevelPlan, CorruptedSlotIsAStorageErrorNamingTheFileAndTheSlot) {
         for (std::int64_t slot = 0; slot < size / record; ++slot) flipByte(path, slot * record + 5);
       }
     };
-    MultilevelStorage storage(options);
-    const std::string message = storageErrorOf(storage);
-    EXPECT_NE(message.find("is corrupted"), std::string::npos) << message;
-    if (offset >= 0) EXPECT_NE(message.find("slot 1 "), std::string::npos) << message;
-    EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos) << message;
+    {
+      MultilevelStorage storage(options);
+      const std::string message = storageErrorOf(storage);
+      EXPECT_NE(message.find("is corrupted"), std::string::npos) << message;
+      if (offset >= 0) EXPECT_NE(message.find("slot 1 "), std::string::npos) << message;
+      EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos) << message;
+    }
     EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is removed with the storage
   }
   // Unchanged slots read back as written: the checksums cost no bit.
