@@ -37,7 +37,7 @@ TEST(CliInput, ParseErrorsExitWithCodeTwo) {
       {"evaluate --bogus", "--bogus"},
       {"evaluate --threads 0", "--threads = 0 is outside the allowed range [1, inf)"},
       {"optimize --threads 0 --out " + ::testing::TempDir() + "/hindsight_cli_never", "--threads = 0"},
-      {"nonsense-command", "nonsense-command"},
+      {"nonsense-command", "A subcommand is required"},
   };
   for (const auto& c : cases) {
     const CliResult result = runCli(c.arguments);

@@ -1,6 +1,7 @@
 // readResultsFile on files whose attributes claim sizes the datasets do not have: it must refuse them
 // with StorageError before allocating what the attributes claim (2^31 - 1 iterations would be 8 GiB
 // of history; nx = ny = 2^31 - 1 overflowed the size of the designs buffer).
+#include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/run_fingerprint.h>
 
@@ -9,6 +10,7 @@
 
 #include <chrono>
 #include <climits>
+#include <ostream>
 
 namespace hindsight {
 namespace {
@@ -68,23 +70,37 @@ TEST(ResultsFileDamage, ClaimedSizesAreCheckedBeforeAllocating) {
 // stored configuration by verify; a file whose configuration is not the agreed one (all its hashes
 // consistent, as a run of ranks with different configurations would have written it) is refused.
 TEST(ResultsFileFingerprint, StoredAndRecomputedFromTheConfiguration) {
+  // A real run's file (a tiny rod, one iteration: milliseconds).
   Config config;
-  config.optimization.iterations = 7;
-  ResultsData data = small();
-  data.configurationJson = toJson(config).dump();
-  data.configurationFingerprint = configurationFingerprint(config);
-  data.ranks = 2;
-  ASSERT_EQ(data.configurationFingerprint.rfind("fnv1a64:", 0), 0u);
-  ASSERT_EQ(data.configurationFingerprint.size(), 8u + 16u);
-  EXPECT_EQ(configurationFingerprint(data.configurationJson), data.configurationFingerprint);
-  const std::string path = ::testing::TempDir() + "/hindsight_fingerprint.h5";
-  writeResultsFile(path, data);
+  config.rod.elementsAlongLength = 8;
+  config.rod.elementsThroughHeight = 2;
+  config.rod.modeCount = 2;
+  config.rod.endTime = 0.02;
+  config.rod.rampTime = 0.01;
+  config.rod.eslSamples = 4;
+  config.simulation.step = 1e-3;
+  config.optimization.iterations = 1;
+  OptimizationRunOptions options;
+  options.outputDirectory = ::testing::TempDir() + "/hindsight_fingerprint_run";
+  options.force = true;
+  {
+    OptimizationRun run(config, options);
+    std::ostream quiet(nullptr);
+    run.run(quiet);
+  }
+  const std::string path = options.outputDirectory + "/results.h5";
+  const std::string fingerprint = configurationFingerprint(config);
+  ASSERT_EQ(fingerprint.rfind("fnv1a64:", 0), 0u);
+  ASSERT_EQ(fingerprint.size(), 8u + 16u);
   const ResultsVerification sound = verifyResultsFile(path);
   EXPECT_EQ(sound.firstProblem(), nullptr);
-  EXPECT_EQ(sound.configurationFingerprint, data.configurationFingerprint);
-  EXPECT_EQ(sound.ranks, 2);
-  EXPECT_EQ(readResultsFile(path).configurationFingerprint, data.configurationFingerprint);
+  EXPECT_EQ(sound.configurationFingerprint, fingerprint);
+  EXPECT_EQ(sound.ranks, 1);
+  const ResultsData data = readResultsFile(path);
+  EXPECT_EQ(data.configurationFingerprint, fingerprint);
+  EXPECT_EQ(configurationFingerprint(data.configurationJson), fingerprint);
 
+  // A file whose configuration is not the one the fingerprint names, every hash consistent.
   Config other = config;
   other.optimization.iterations = 8;
   ResultsData mixed = data;
@@ -103,7 +119,6 @@ TEST(ResultsFileFingerprint, StoredAndRecomputedFromTheConfiguration) {
   writeResultsFile(path, old);
   EXPECT_EQ(verifyResultsFile(path).firstProblem(), nullptr);
   EXPECT_TRUE(verifyResultsFile(path).configurationFingerprint.empty());
-  std::remove(path.c_str());
 }
 
 TEST(ResultsFileFingerprint, DifferingFieldsNameEachFieldIncludingOneSidedOnes) {
