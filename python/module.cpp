@@ -152,9 +152,11 @@ nlohmann::json toCppJson(const py::handle& value, const std::string& where = "co
   if (PyComplex_Check(object) || typeName.rfind("complex", 0) == 0) {
     throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + " must be a real number, not complex");
   }
-  if (PyIndex_Check(object)) {  // int, NumPy integers
-    const py::object integer = py::reinterpret_steal<py::object>(PyNumber_Index(object));
-    if (!integer) throw py::error_already_set();
+  // int and NumPy integers; an ndarray has __index__ too but refuses it unless it holds one integer.
+  const py::object integer =
+      PyIndex_Check(object) ? py::reinterpret_steal<py::object>(PyNumber_Index(object)) : py::object();
+  if (!integer && PyErr_Occurred()) PyErr_Clear();
+  if (integer) {
     const long long small = PyLong_AsLongLong(integer.ptr());
     if (!(small == -1 && PyErr_Occurred())) return small;
     PyErr_Clear();

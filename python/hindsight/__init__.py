@@ -112,7 +112,8 @@ def optimize(config=None, out="results", resume=False, force=False, callback=Non
     disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
     returning a false value other than None (False, 0) stops the run (its results stay valid and
     resumable); returning None continues. resume=True on a directory without results.h5 raises
-    ValueError (a mistyped `out` must not start a fresh run). verbose=True prints the progress lines. Returns read_results(out) plus results_path and stopped_by_callback."""
+    ValueError (a mistyped `out` must not start a fresh run). verbose=True prints the progress lines.
+    Returns read_results(out) plus results_path and stopped_by_callback."""
     run = _hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides)
     result = read_results(run["results_path"])
     result["stopped_by_callback"] = run["stopped_by_callback"]

@@ -141,8 +141,8 @@ def test_designs_of_complex_or_string_arrays_are_refused():
 
 
 def test_a_callback_returning_a_false_value_stops_the_run(tmp_path):
-    for answer in (0, False, np.False_):
-        out = tmp_path / f"stop_{answer!r}"
+    for index, answer in enumerate((0, False, np.False_)):
+        out = tmp_path / f"stop_{index}"
         result = hindsight.optimize(TINY, out=out, callback=lambda record: answer, optimization={"iterations": 3})
         assert result["stopped_by_callback"], answer
         assert len(result["history"]["iteration"]) == 1, answer
