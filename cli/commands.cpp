@@ -31,7 +31,7 @@ void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string&
 
 void ConfigFlags::apply(Config& config) const {
   for (const Entry& entry : entries_) {
-    if (entry.option->count() > 0) applyFlag(config, entry.flag, entry.key, entry.text);
+    if (entry.option->count() > 0) applyFlag(config, entry.flag, entry.key, entry.text, /*validate=*/false);
   }
 }
 

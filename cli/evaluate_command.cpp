@@ -28,7 +28,9 @@ struct EvaluateSettings {
   bool force = false;
   bool json = false;
   bool printConfig = false;
-  int threads = 0;  // 0: the cores available
+  bool rodOnly = false;  // evaluate the rod section of a configuration with scenarios
+  int threads = 0;  // 0: not given, the cores available
+  CLI::Option* threadsOption = nullptr;
 };
 
 // The full-order model of docs/design.md §9: psi1,full, the volume fraction and the run summary (no psi2, no
@@ -97,11 +99,12 @@ void checkGradientFile(const EvaluateSettings& s) {
 }
 
 int runEvaluate(const EvaluateSettings& s) {
-  if (s.threads < 0)
+  if (s.threadsOption->count() > 0 && s.threads < 1)
     throw std::invalid_argument("--threads = " + std::to_string(s.threads) + " is outside the allowed range [1, inf)");
   const ThreadLimit threads(s.threads > 0 ? s.threads : availableThreads());
   Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
-  for (const auto& assignment : s.assignments) applySetting(config, assignment);
+  // Every --set and flag first, then the checks across fields once (their order does not matter).
+  for (const auto& assignment : s.assignments) applySetting(config, assignment, /*validate=*/false);
   s.flags.apply(config);
   // `--model full` alone: the full-order defaults (TR-BDF2, h = 1e-3 s; the model is far too stiff for
   // the reduced model's RK4 at 1e-4), unless the integrator or the step were chosen explicitly.
@@ -117,9 +120,17 @@ int runEvaluate(const EvaluateSettings& s) {
       config.simulation.step = rod::kFullOrderDefaultStep;
     }
   }
+  config.validate();
   if (s.printConfig) {
     std::cout << toJson(config).dump(2) << '\n';
     return 0;
+  }
+  if (!config.scenarios.empty() && !s.rodOnly) {
+    // evaluate runs one rod; silently evaluating the rod section would answer another question.
+    throw std::invalid_argument("config field 'scenarios' has " + std::to_string(config.scenarios.size()) +
+                                " scenarios, which evaluate does not run (it evaluates one rod): add --rod-only "
+                                "to evaluate the configuration's rod section, with --set rod.crankSpeed=... "
+                                "for one scenario's speed");
   }
   checkGradientFile(s);
   const PistonRod rod(config);
@@ -201,9 +212,11 @@ void registerEvaluate(CLI::App& app) {
                "--integrator or --set simulation.integrator/step it also selects trbdf2 with h = 1e-3 s)",
                "TEXT");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
-  cmd->add_option("--threads", s->threads,
+  s->threadsOption = cmd->add_option("--threads", s->threads,
                   "threads, >= 1 (default: the cores available); results are bitwise the same for every count");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
+  cmd->add_flag("--rod-only", s->rodOnly,
+                "with a configuration that lists scenarios: evaluate its rod section (refused otherwise)");
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});
 }
 

@@ -20,7 +20,8 @@ namespace {
 struct ExportSettings {
   std::string directory;
   double iso = 0.5;
-  int iteration = -1;
+  int iteration = -1;  // -1: not given, the last
+  CLI::Option* iterationOption = nullptr;
   std::string stem;
   bool force = false;
 };
@@ -35,8 +36,9 @@ int runExport(const ExportSettings& s) {
   const ResultsData data = readResultsFile(path);  // StorageError (exit 3) when corrupted
   const int rows = static_cast<int>(data.densities.size());
   if (rows == 0) throw std::invalid_argument("export: " + path + " holds no iteration yet");
-  const int k = s.iteration < 0 ? rows - 1 : s.iteration;
-  if (k >= rows) {
+  const bool given = s.iterationOption->count() > 0;
+  const int k = given ? s.iteration : rows - 1;
+  if (k < 0 || k >= rows) {  // a negative K given is an error, not "the last"
     throw std::invalid_argument("--iteration " + std::to_string(s.iteration) + " must be in [0, " +
                                 std::to_string(rows - 1) + "] (the iterations stored in " + path + ")");
   }
@@ -73,7 +75,7 @@ void registerExport(CLI::App& app) {
       "export", "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL)");
   command->add_option("directory", s->directory, "result directory (of hindsight optimize --out)")->required();
   command->add_option("--iso", s->iso, "density of the contour, in (0, 1)")->capture_default_str();
-  command->add_option("--iteration", s->iteration, "iteration K of the history (default: the last)");
+  s->iterationOption = command->add_option("--iteration", s->iteration, "iteration K of the history (default: the last)");
   command->add_option("--out", s->stem, "output stem (default DIR/design_final or DIR/design_iter_K)");
   command->add_flag("--force", s->force, "overwrite existing files");
   commands().push_back({command, [s] { return guarded([&] { return runExport(*s); }); }});

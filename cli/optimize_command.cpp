@@ -4,6 +4,7 @@
 #include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/topopt/communicator.h>
 #include <hindsight/problems/topopt/optimization_run.h>
+#include <hindsight/problems/topopt/run_fingerprint.h>
 #include "commands.h"
 
 #include <nlohmann/json.hpp>
@@ -24,7 +25,8 @@ struct OptimizeSettings {
   std::string outputDirectory = "results";
   bool resume = false;
   bool force = false;
-  int threads = 0;  // 0: the cores available
+  int threads = 0;  // 0: not given, the cores available
+  CLI::Option* threadsOption = nullptr;
 };
 
 Config buildConfig(const OptimizeSettings& s) {
@@ -41,7 +43,8 @@ Config buildConfig(const OptimizeSettings& s) {
     // Resuming without --config continues the stored configuration.
     config = configFromJson(nlohmann::json::parse(readResultsConfiguration(stored)));
   }
-  for (const std::string& assignment : s.settings) applySetting(config, assignment);
+  // Every --set and flag first, then the checks across fields once (their order does not matter).
+  for (const std::string& assignment : s.settings) applySetting(config, assignment, /*validate=*/false);
   s.flags.apply(config);
   config.validate();
   if (config.simulation.adaptive) {
@@ -60,10 +63,28 @@ int runOptimize(const OptimizeSettings& s) {
   // Under mpirun every rank runs this; the checks below fail on every rank alike, and a check that
   // only rank 0 makes (the output directory) is agreed on before any collective work.
   const Communicator& world = Communicator::world();
-  if (s.threads < 0)
-    throw std::invalid_argument("--threads = " + std::to_string(s.threads) + " is outside the allowed range [1, inf)");
+  Config config;
+  {
+    // Each rank reads its own command line: its failure is agreed on (no rank left waiting), then
+    // every rank checks that all ranks run the same configuration (problems/topopt/run_fingerprint.h).
+    std::exception_ptr error;
+    try {
+      if (s.threadsOption->count() > 0 && s.threads < 1) {
+        throw std::invalid_argument("--threads = " + std::to_string(s.threads) +
+                                    " is outside the allowed range [1, inf)");
+      }
+      config = buildConfig(s);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    world.agree(error);
+    agreeOnConfiguration(world, config,
+                         {{"out", std::filesystem::absolute(s.outputDirectory).lexically_normal().string()},
+                          {"resume", s.resume},
+                          {"force", s.force},
+                          {"version", version()}});
+  }
   const ThreadLimit threads(s.threads > 0 ? s.threads : availableThreads());
-  const Config config = buildConfig(s);
   OptimizationRunOptions options;
   options.outputDirectory = s.outputDirectory;
   options.resume = s.resume;
@@ -150,7 +171,7 @@ void registerOptimize(CLI::App& app) {
                "a design picture every K iterations, K in [0, 100000]; 0 = final only", "INT");
   command->add_option("--out", s->outputDirectory, "output directory")->capture_default_str();
   command->add_flag("--resume", s->resume, "continue DIR/results.h5");
-  command->add_option("--threads", s->threads,
+  s->threadsOption = command->add_option("--threads", s->threads,
                       "threads per process, >= 1 (default: the cores available); results are bitwise the same "
                       "for every count");
   command->add_flag("--force", s->force, "overwrite DIR/results.h5");

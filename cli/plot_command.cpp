@@ -3,6 +3,10 @@
 // problems/topopt/plot_history.py with python3 + matplotlib + h5py. The script's path is compiled in
 // (HINDSIGHT_PLOT_SCRIPT); the interpreter is $HINDSIGHT_PYTHON, else /usr/bin/python3 (where the
 // Debian packages python3-matplotlib and python3-h5py install), else python3 on the PATH.
+// Before plotting, every results file is read with every check of a resume (a corrupted file exits 3
+// naming it; a plot of it would show numbers verify rejects); FILE must end in .png and is not
+// overwritten without --force (a careless --out DIR/design_final.png would replace a run's picture).
+#include <hindsight/problems/topopt/results_file.h>
 #include "commands.h"
 
 #include <spawn.h>
@@ -23,6 +27,7 @@ namespace {
 struct PlotSettings {
   std::vector<std::string> directories;
   std::string output = "history.png";
+  bool force = false;
 };
 
 int runPlot(const PlotSettings& s) {
@@ -34,6 +39,16 @@ int runPlot(const PlotSettings& s) {
     if (!fs::exists(fs::path(directory) / "results.h5")) {
       throw std::invalid_argument("plot: '" + directory + "/results.h5' does not exist");
     }
+  }
+  const fs::path output(s.output);
+  if (output.extension() != ".png") {
+    throw std::invalid_argument("plot: --out '" + s.output + "' must name a .png file");
+  }
+  if (fs::exists(output) && !s.force) {
+    throw std::invalid_argument("plot: --out '" + s.output + "' exists; use --force to overwrite it");
+  }
+  for (const std::string& directory : s.directories) {
+    readResultsFile((fs::path(directory) / "results.h5").string());  // StorageError (exit 3) naming the file
   }
   const std::string script = HINDSIGHT_PLOT_SCRIPT;
   if (!fs::exists(script)) throw std::invalid_argument("plot: the script " + script + " is missing");
@@ -75,7 +90,8 @@ void registerPlot(CLI::App& app) {
   command->add_option("directories", s->directories, "result directories (DIR [DIR2])")
       ->required()
       ->expected(1, 2);
-  command->add_option("--out", s->output, "PNG file")->capture_default_str();
+  command->add_option("--out", s->output, "PNG file (.png; not overwritten without --force)")->capture_default_str();
+  command->add_flag("--force", s->force, "overwrite the --out file");
   commands().push_back({command, [s] { return guarded([&] { return runPlot(*s); }); }});
 }
 

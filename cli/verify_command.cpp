@@ -1,6 +1,6 @@
 // `hindsight verify DIR`: checks DIR/results.h5 as a resume would (problems/topopt/results_file.h:
-// Fletcher32 and content hash of every dataset, the run state's hash, plausibility of the restored
-// design and MMA state) and prints every object checked. Exit 0 when the file is sound, 3 when it is
+// Fletcher32 and content hash of every dataset, the run state's hash, the configuration fingerprint
+// the MPI ranks agreed on, plausibility of the restored design and MMA state) and prints every object checked. Exit 0 when the file is sound, 3 when it is
 // corrupted (the object named), 2 for bad input (no such directory, no results.h5 in it). It only
 // reads, so it may run beside an optimize run writing the same directory: the atomic write means it
 // sees the last complete file.
@@ -25,6 +25,10 @@ int runVerify(const std::string& directory) {
   const ResultsVerification result = verifyResultsFile(path);  // StorageError (exit 3) when unreadable
   std::cout << path << ": format " << result.formatVersion << ", " << result.completedIterations
             << " completed iterations" << (result.finished ? ", finished" : "") << '\n';
+  if (!result.configurationFingerprint.empty()) {
+    std::cout << "  configuration fingerprint " << result.configurationFingerprint << ", agreed by "
+              << result.ranks << " rank(s)\n";
+  }
   for (const ResultsCheck& check : result.checks) {
     std::cout << "  " << std::left << std::setw(30) << (check.object == "/" ? "/ (attributes)" : check.object)
               << (!check.problem.empty() ? "CORRUPTED: " + check.problem

@@ -262,12 +262,16 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
   const std::vector<double>& times = sweep.times;
   for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
     pollInterrupt();
-    storage.restore(step, z);
-    if (sweep.stepData.size() > 0 && storage.restoreStepData(step, sweep.stepData)) {
-      sweep.integrator->adjointStepFromData(times[step], times[step + 1] - times[step], z, sweep.stepData, lambda,
-                                            gradient);
-    } else {
-      sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+    try {
+      storage.restore(step, z);
+      if (sweep.stepData.size() > 0 && storage.restoreStepData(step, sweep.stepData)) {
+        sweep.integrator->adjointStepFromData(times[step], times[step + 1] - times[step], z, sweep.stepData,
+                                              lambda, gradient);
+      } else {
+        sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+      }
+    } catch (const NumericalError& e) {
+      throwBackwardSweepFailure(e, storage, "discrete adjoint, step " + std::to_string(step));
     }
   }
   // z holds z_0 again: the last restore was step 0.

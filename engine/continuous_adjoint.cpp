@@ -587,10 +587,14 @@ GradientResult computeGradientContinuous(const Problem& problem, ConstVectorRef 
   }
   AdjointSystem system(problem, p, workspace.get(), *states);
   const BackwardTolerances tolerances(options, n, np);
-  const BackwardStatistics backward =
-      backwardMethod == BackwardMethod::TrBdf2
-          ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options, tolerances)
-          : integrateBackward(system, *states, forward.t0, forward.t1, y, options, tolerances);
+  BackwardStatistics backward;
+  try {
+    backward = backwardMethod == BackwardMethod::TrBdf2
+                   ? integrateBackwardImplicit(system, forward.t0, forward.t1, y, n, options, tolerances)
+                   : integrateBackward(system, *states, forward.t0, forward.t1, y, options, tolerances);
+  } catch (const NumericalError& e) {
+    throwBackwardSweepFailure(e, storage, "continuous adjoint");
+  }
   gradient += y.tail(np);
   problem.addInitialStateVjp(p, y.head(n), gradient);
   result.summary.backwardSeconds = backwardTimer.seconds();

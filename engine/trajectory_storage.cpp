@@ -196,4 +196,17 @@ std::string formatBytes(std::int64_t bytes) {
   return out.str();
 }
 
+void throwBackwardSweepFailure(const NumericalError& failure, const TrajectoryStorage& storage,
+                               const std::string& sweep) {
+  std::string what = failure.what();
+  const std::size_t suffix = what.rfind(" (at t = ");
+  if (suffix != std::string::npos) what.erase(suffix);  // NumericalError appends the time again
+  std::string message = "backward sweep (" + sweep + ") with storage '" + storage.spec() + "' failed: " + what;
+  if (!storage.isExact()) {
+    message += "; the storage is approximate (the states it restores are not the recorded ones), which a stiff "
+               "problem's backward sweep may not tolerate: try a tighter setting or an exact storage";
+  }
+  throw NumericalError(message, failure.time());
+}
+
 }  // namespace hindsight

@@ -194,4 +194,11 @@ std::int64_t parseBytes(const std::string& text, const std::string& field);
 /// "32.0 MiB" style rendering for messages and summaries.
 std::string formatBytes(std::int64_t bytes);
 
+/// Throws a NumericalError at the same time as `failure` that names the backward sweep (`sweep`, e.g.
+/// "discrete adjoint"), the storage's spec and, for an approximate storage, that the states it
+/// restored are not the recorded ones: a Newton failure on a stiff problem in the backward sweep
+/// then points at the storage setting rather than at the model.
+[[noreturn]] void throwBackwardSweepFailure(const NumericalError& failure, const TrajectoryStorage& storage,
+                                            const std::string& sweep);
+
 }  // namespace hindsight

@@ -37,6 +37,7 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
+#include <filesystem>
 #include <thread>
 
 namespace py = pybind11;
@@ -58,13 +59,28 @@ std::int64_t nowNanoseconds() {
 /// The engine's interrupt poll while the GIL is released: at most every 50 ms, on the main thread only
 /// (Python runs signal handlers there), take the GIL and let Python run its handlers; a pending
 /// exception (KeyboardInterrupt) is thrown as error_already_set, which unwinds the computation.
+/// Once the main thread has seen a KeyboardInterrupt, the polls of the other threads (the worker
+/// threads of scenarios evaluated in parallel) throw this, translated to KeyboardInterrupt, so that
+/// no thread keeps simulating after Ctrl-C.
+struct InterruptedOnTheMainThread final : std::exception {
+  const char* what() const noexcept override { return "interrupted (KeyboardInterrupt on the main thread)"; }
+};
+std::atomic<bool> interrupted{false};
+
 void pollPythonSignals() {
+  const bool onMainThread = std::this_thread::get_id() == mainThread;
+  if (!onMainThread) {
+    if (interrupted.load(std::memory_order_relaxed)) throw InterruptedOnTheMainThread();
+    return;
+  }
   const std::int64_t now = nowNanoseconds();
   if (now < nextPollNanoseconds.load(std::memory_order_relaxed)) return;
-  if (std::this_thread::get_id() != mainThread) return;
   nextPollNanoseconds.store(now + 50'000'000, std::memory_order_relaxed);
   py::gil_scoped_acquire gil;
-  if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+  if (PyErr_CheckSignals() != 0) {
+    interrupted.store(true, std::memory_order_relaxed);
+    throw py::error_already_set();
+  }
 }
 
 /// Installs the poll while at least one computation runs: Python threads may run several at once (the
@@ -75,6 +91,7 @@ class PollInstallation {
     const std::lock_guard<std::mutex> lock(mutex());
     if (count()++ == 0) {
       nextPollNanoseconds = 0;
+      interrupted = false;
       setInterruptPoll(&pollPythonSignals);
     }
   }
@@ -105,9 +122,67 @@ class Simulating {
 
 // ---- Conversions -------------------------------------------------------------------------------
 
-nlohmann::json toCppJson(const py::handle& value) {
-  const py::object dumps = py::module_::import("json").attr("dumps");
-  return nlohmann::json::parse(dumps(value).cast<std::string>());
+/// A configuration value from Python, converted directly (not through json.dumps, which turned a NaN
+/// into a JSON parse error and refused NumPy scalars): None, bool, str, int and float including NumPy's
+/// scalars (a NaN or infinity reaches the field's own check, which names the field and its range),
+/// lists and tuples, dicts with string keys. A complex number, bytes or any other object is refused
+/// naming `where` and the type (a complex crank speed must not lose its imaginary part silently).
+nlohmann::json toCppJson(const py::handle& value, const std::string& where = "config") {
+  PyObject* object = value.ptr();
+  if (value.is_none()) return nullptr;
+  const std::string typeName = py::str(py::type::of(value).attr("__name__"));
+  if (PyBool_Check(object) || typeName == "bool_") return value.cast<bool>();
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  if (py::isinstance<py::dict>(value)) {
+    nlohmann::json out = nlohmann::json::object();
+    for (const auto& [key, item] : value.cast<py::dict>()) {
+      if (!py::isinstance<py::str>(key))
+        throw std::invalid_argument(where + ": key " + std::string(py::repr(key)) + " must be a string");
+      const std::string name = key.cast<std::string>();
+      out[name] = toCppJson(item, where + "." + name);
+    }
+    return out;
+  }
+  if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+    nlohmann::json out = nlohmann::json::array();
+    std::size_t index = 0;
+    for (const py::handle item : value) out.push_back(toCppJson(item, where + "[" + std::to_string(index++) + "]"));
+    return out;
+  }
+  if (PyComplex_Check(object) || typeName.rfind("complex", 0) == 0) {
+    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + " must be a real number, not complex");
+  }
+  // int and NumPy integers; an ndarray has __index__ too but refuses it unless it holds one integer.
+  const py::object integer =
+      PyIndex_Check(object) ? py::reinterpret_steal<py::object>(PyNumber_Index(object)) : py::object();
+  if (!integer && PyErr_Occurred()) PyErr_Clear();
+  if (integer) {
+    const long long small = PyLong_AsLongLong(integer.ptr());
+    if (!(small == -1 && PyErr_Occurred())) return small;
+    PyErr_Clear();
+    const unsigned long long large = PyLong_AsUnsignedLongLong(integer.ptr());
+    if (!(large == static_cast<unsigned long long>(-1) && PyErr_Occurred())) return large;
+    PyErr_Clear();
+    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + " is outside the 64-bit integer range");
+  }
+  if (PyFloat_Check(object) || typeName.rfind("float", 0) == 0) return value.cast<double>();  // NumPy floats
+  throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + ": a " + typeName +
+                              " is not a configuration value (None, bool, number, str, list or dict)");
+}
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+/// `x` as an array of doubles, refusing what a silent cast would get wrong: complex values (the
+/// imaginary part dropped), strings ("0.5" parsed as a number), objects and booleans.
+DoubleArray realArray(const py::handle& x, const std::string& name) {
+  const py::array array = py::array::ensure(x);
+  if (!array) throw std::invalid_argument(name + " must be an array of real numbers");
+  const char kind = array.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw std::invalid_argument(name + " must hold real numbers (a float or int array), not dtype " +
+                                std::string(py::str(array.dtype())));
+  }
+  return DoubleArray::ensure(array);
 }
 
 py::object toPython(const nlohmann::json& value) {
@@ -150,7 +225,7 @@ Config makeConfig(const py::object& config, const py::dict& overrides) {
     nlohmann::json& section = json[key.substr(0, dot)];
     if (section.is_null()) section = nlohmann::json::object();
     if (!section.is_object()) throw std::invalid_argument("config section '" + key.substr(0, dot) + "' must be a dict");
-    section[key.substr(dot + 1)] = toCppJson(value);
+    section[key.substr(dot + 1)] = toCppJson(value, key);
   };
   for (const auto& [keyObject, value] : overrides) {
     const std::string key = py::str(keyObject);
@@ -176,7 +251,8 @@ class PyPistonRod {
   const Config& config() const { return rod_.config(); }
   py::object configDict() const { return toPython(toJson(config())); }
 
-  Vector design(const py::array_t<double, py::array::c_style | py::array::forcecast>& x) const {
+  Vector design(const py::handle& input) const {
+    const DoubleArray x = realArray(input, "design x");
     const rod::RodConfig& c = config().rod;
     if (x.ndim() == 2 && x.shape(0) == c.elementsThroughHeight && x.shape(1) == c.elementsAlongLength) {
       return gridToDesign(c, x.data(), "design x");
@@ -188,8 +264,7 @@ class PyPistonRod {
 
   py::array_t<double> x0() const { return gridArray(config().rod, rod_.initialDesign(), 1.0); }
 
-  py::dict evaluate(const py::array_t<double, py::array::c_style | py::array::forcecast>& x, bool gradient,
-                    const py::object& storage, const py::object& adjoint, const py::object& integrator,
+  py::dict evaluate(const py::object& x, bool gradient, const py::object& storage, const py::object& adjoint, const py::object& integrator,
                     bool psi2Wanted) const {
     // The per-call choices go through the CLI's flag path (same validation, messages naming the key).
     Config config = rod_.config();
@@ -359,11 +434,18 @@ py::dict readResults(const std::string& path) {
   return out;
 }
 
-/// Stops an optimization from its callback (the callback returned False); not an error.
+/// Stops an optimization from its callback (the callback returned a false value other than None); not
+/// an error.
 struct StopRequested {};
 
 py::dict optimize(const Config& config, const std::string& out, bool resume, bool force,
                   const py::object& callback, bool verbose) {
+  const std::string stored = (std::filesystem::path(out) / "results.h5").string();
+  if (resume && !force && !std::filesystem::exists(stored)) {
+    // As the CLI (exit 2): a mistyped directory must not start a fresh run of the configured length.
+    throw std::invalid_argument("resume: there is no " + stored +
+                                " to continue (check out=, or start a new run without resume=True)");
+  }
   OptimizationRunOptions options;
   options.outputDirectory = out;
   options.resume = resume;
@@ -372,7 +454,12 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
     options.afterCommit = [&callback](const IterationRecord& record) {
       py::gil_scoped_acquire gil;
       const py::object answer = callback(recordDict(record));
-      if (py::isinstance<py::bool_>(answer) && !answer.cast<bool>()) throw StopRequested{};
+      // Any false value but None stops (False, 0, np.False_); None -- no return statement -- continues.
+      if (!answer.is_none()) {
+        const int truth = PyObject_IsTrue(answer.ptr());
+        if (truth < 0) throw py::error_already_set();
+        if (truth == 0) throw StopRequested{};
+      }
     };
   }
   OptimizationRun run(config, options);  // every input check, before any evaluation
@@ -646,6 +733,14 @@ PYBIND11_MODULE(_hindsight, m) {
   py::register_exception<StorageError>(m, "StorageError", PyExc_RuntimeError).attr("__doc__") =
       "A trajectory-storage or results-file failure (unwritable, full, corrupted, over budget).";
 
+  py::register_exception_translator([](std::exception_ptr error) {
+    try {
+      if (error) std::rethrow_exception(error);
+    } catch (const InterruptedOnTheMainThread&) {
+      PyErr_SetNone(PyExc_KeyboardInterrupt);
+    }
+  });
+
   m.attr("__version__") = version();
 
   py::class_<PyPistonRod>(m, "PistonRod")
@@ -659,8 +754,7 @@ PYBIND11_MODULE(_hindsight, m) {
       .def_property_readonly("shape", [](const PyPistonRod& r) {
         return py::make_tuple(r.config().rod.elementsThroughHeight, r.config().rod.elementsAlongLength);
       })
-      .def("design_variables", [](const PyPistonRod& r, const py::array_t<double, py::array::c_style |
-                                                                          py::array::forcecast>& x) {
+      .def("design_variables", [](const PyPistonRod& r, const py::object& x) {
         return vectorArray(r.design(x));
       })
       .def("design_grid", [](const PyPistonRod& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& v,

@@ -1,5 +1,6 @@
 #include <hindsight/storage/cams_checkpointing.h>
 
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/stopwatch.h>
 
 #include <algorithm>
@@ -197,6 +198,9 @@ void Plan::build(bool exhaustiveSearch) {
       return d == kUpgradeAnchor ? std::int64_t{0} : std::abs(static_cast<std::int64_t>(d));
     };
     for (std::int64_t l = 2; l <= N; ++l) {
+      // Planning a long trajectory takes seconds to minutes: an interrupt (engine/interrupt.h; Ctrl-C
+      // in Python) must not wait for it. One atomic load when nothing is installed.
+      if ((l & 255) == 0) pollInterrupt();
       l0 = l - 1;
       for (int sweep = 0; sweep <= 1; ++sweep) {
         // sweep = 0: replay interval (advancing to a checkpoint costs its steps); 1: the forward sweep runs
@@ -603,6 +607,14 @@ void CamsCheckpointing::doBegin() {
     return;
   }
   const std::int64_t capped = std::min(units_, (steps + 1) * recordUnits_);
+  if (capped > budgetBytes() / stateBytes()) {
+    // Refused before planning (which may take minutes), as binomial refuses its checkpoints beyond the
+    // budget; holdBytes below would only say so after the plan.
+    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints_) + " holds " +
+                                std::to_string(capped) + " states of " + formatBytes(stateBytes()) + " = " +
+                                formatBytes(capped * stateBytes()) + ", beyond the budget of " +
+                                formatBytes(budgetBytes()) + "; lower cams.checkpoints or give cams:budget=BYTES");
+  }
   if ((steps + 1) > cams::Plan::kMaxTableEntries / (capped + 1)) {
     throw std::invalid_argument("cams: the optimal plan for " + std::to_string(steps) + " steps and " +
                                 std::to_string(capped) + " state units needs more than " +

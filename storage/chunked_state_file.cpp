@@ -1,4 +1,5 @@
 #include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/scratch_files.h>
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/storage/hdf5.h>
@@ -60,13 +61,6 @@ size_t zstdFilter(unsigned flags, size_t cdCount, const unsigned cdValues[], siz
 
 const H5Z_class2_t kZstdClass = {H5Z_CLASS_T_VERS,   kZstdFilterId, 1,       1,
                                  "zstd (hindsight)", nullptr,       nullptr, &zstdFilter};
-
-std::string uniqueFileName(const std::string& prefix) {
-  static std::atomic<std::uint64_t> counter{0};
-  const auto now = std::chrono::steady_clock::now().time_since_epoch().count();
-  return prefix + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter.fetch_add(1)) + "-" +
-         std::to_string(static_cast<unsigned long long>(now) % 1000000007ULL) + ".h5";
-}
 
 }  // namespace
 
@@ -394,7 +388,10 @@ ChunkedStateFile::ChunkedStateFile(const StateFileOptions& options, const Trajec
                            (ec ? ": " + ec.message() : std::string(": not a directory")),
                        options.directory);
   }
-  s.path = (std::filesystem::path(options.directory) / uniqueFileName(options.filePrefix)).string();
+  removeStaleScratchFiles(options.directory);
+  s.path = (std::filesystem::path(options.directory) /
+            scratchFileName(options.filePrefix, ".h5", options.keepFile))
+               .string();
   s.buffers.resize(static_cast<std::size_t>(options.bufferCount));
   s.tasks.resize(2 * s.buffers.size() + 4);
   for (auto& buffer : s.buffers) {

@@ -229,10 +229,24 @@ void LossyStorage::compressBlock() {
     worstRelativeError_ = std::max(worstRelativeError_, worst);
     mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;
   } else if (options_.codec == Codec::kZfp) {
+    // ZFP's absolute bound T against each component's largest magnitude in the block: the relative
+    // state error the estimate is made of (infinite for a component that is zero over a block: the
+    // bound cannot say that such a component is reproduced exactly, so neither does the estimate).
+    for (std::int64_t j = 0; j < n; ++j) {
+      double largest = 0.0;
+      for (std::int64_t i = 0; i < count; ++i) largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
+      const double relative = largest > 0.0 && std::isfinite(largest) ? options_.tolerance / largest
+                                                                       : std::numeric_limits<double>::infinity();
+      worstRelativeError_ = std::max(worstRelativeError_, relative);
+    }
+    mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;
     ZfpRun run(work_.data(), values, options_.tolerance, scratch_.data(), scratch_.size());
     size = zfp_compress(run.stream, run.field);
     if (size == 0) throw StorageError("lossy storage: ZFP compression failed");
   } else {
+    // Every value within T of itself, relatively: so is every component against its largest magnitude.
+    worstRelativeError_ = std::max(worstRelativeError_, options_.tolerance);
+    mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;
     roundMantissas(work_.data(), values, keptMantissaBits(options_.tolerance));
     // Byte shuffle into raw_ (consumed above): byte b of every value together.
     auto* shuffled = reinterpret_cast<unsigned char*>(raw_.data());

@@ -22,10 +22,13 @@
 //                restored value is within tolerance x max|component| over its block of the recorded
 //                one, tolerance in (0, 0.5].
 //   codec=zfp    ZFP fixed-accuracy mode on 1-D arrays of doubles; every restored value is within
-//                the ABSOLUTE tolerance T of the recorded one (Lindstrom 2014).
+//                the ABSOLUTE tolerance T of the recorded one (Lindstrom 2014). gradient_error_estimate =
+//                kGradientSensitivity x the largest T / max|component| over the blocks (infinite when a
+//                component is zero over a block).
 //   codec=round  mantissa rounding to the fewest bits m with 2^-(m+1) <= T (round to nearest, ties to
 //                even), then byte shuffle and zstd; every restored value x~ has |x~ - x| <= T |x|, a
-//                RELATIVE bound, T in (0, 0.5] (Kloewer, Razinger, Dominguez, Duben & Palmer 2021).
+//                RELATIVE bound, T in (0, 0.5] (Kloewer, Razinger, Dominguez, Duben & Palmer 2021);
+//                gradient_error_estimate = kGradientSensitivity x T.
 //   budget       bytes held in memory (default 4 GiB): the compressed blocks plus three work buffers
 //                of one block each (raw states, transposed/shuffled states, compressor output).
 //   block        states compressed together (default: about 256 KiB of states, at most 4096; at

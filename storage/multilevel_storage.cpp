@@ -1,6 +1,9 @@
 #include <hindsight/storage/multilevel_storage.h>
 
 #include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/scratch_files.h>
+
+#include <hindsight/engine/hash.h>
 
 #include <hindsight/engine/stopwatch.h>
 
@@ -223,6 +226,7 @@ void MultilevelStorage::finishStride() {
     c.uncompressedBytes = diskRows_ * stateBytes();
     c.compressedBytes = file_->storedStateBytes();
     c.ioSeconds = file_->ioSeconds();
+    if (options_.afterForwardSweep) options_.afterForwardSweep(filePath_);
     file_->startReading(diskRows_ - 1);
   }
 }
@@ -285,22 +289,31 @@ void MultilevelStorage::restoreStride(std::int64_t step, VectorRef z) {
 // with pwrite/pread. Written by hand because the plan rewrites slots after reading others, which the
 // append-then-read chunked HDF5 file (storage/chunked_state_file.h) does not allow; the file lives for
 // one run and is removed at its end unless keep=true.
+//
+// Slot format: the state's raw doubles, then two native-endian 64-bit words (the file is read only by the process that wrote it): the slot's index and the
+// FNV-1a hash (engine/hash.h) of the index and the state's bytes. Every read checks both, so a flipped
+// byte, a slot written at another offset or a file truncated or overwritten by something else is a
+// StorageError naming the file and the slot, never a restored state (the chunked file's Fletcher32
+// does the same for schedule=stride). The 16 bytes per slot are not charged to disk=, which counts
+// the states (as the stride's rows are counted uncompressed).
 struct MultilevelStorage::SlotFile {
+  static constexpr std::int64_t kTrailerBytes = 16;
   std::string path;
   int fd = -1;
-  std::int64_t slotBytes = 0;
+  std::int64_t stateBytes = 0;
+  std::int64_t recordBytes = 0;  // stateBytes + kTrailerBytes
   std::int64_t writes = 0;
   std::int64_t failAfter = -1;
   bool keep = false;
+  std::vector<char> record;  // one slot, allocated once: reads and writes allocate nothing
 
   SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter)
-      : slotBytes(bytes), failAfter(failWritesAfter), keep(keepFile) {
-    static std::atomic<std::int64_t> counter{0};
+      : stateBytes(bytes), recordBytes(bytes + kTrailerBytes), failAfter(failWritesAfter), keep(keepFile),
+        record(static_cast<std::size_t>(bytes + kTrailerBytes)) {
     std::error_code ec;
     std::filesystem::create_directories(directory, ec);
-    path = (std::filesystem::path(directory) / ("hindsight-multilevel-" + std::to_string(::getpid()) + "-" +
-                                                std::to_string(counter++) + ".slots"))
-               .string();
+    internal::removeStaleScratchFiles(directory);
+    path = (std::filesystem::path(directory) / internal::scratchFileName("hindsight-multilevel", ".slots", keepFile)).string();
     fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0) throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)), path);
   }
@@ -311,16 +324,25 @@ struct MultilevelStorage::SlotFile {
   SlotFile(const SlotFile&) = delete;
   SlotFile& operator=(const SlotFile&) = delete;
 
+  static std::uint64_t checksum(std::uint64_t slot, const char* state, std::int64_t bytes) {
+    return fnv1a(state, static_cast<std::size_t>(bytes), fnv1a(&slot, sizeof slot));
+  }
+
   void write(std::int64_t slot, const double* z) {
     if (failAfter >= 0 && writes >= failAfter) {
       throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " + std::strerror(ENOSPC),
                          path);
     }
     ++writes;
-    const char* data = reinterpret_cast<const char*>(z);
+    const std::uint64_t trailer[2] = {static_cast<std::uint64_t>(slot),
+                                      checksum(static_cast<std::uint64_t>(slot), reinterpret_cast<const char*>(z),
+                                               stateBytes)};
+    std::memcpy(record.data(), z, static_cast<std::size_t>(stateBytes));
+    std::memcpy(record.data() + stateBytes, trailer, sizeof trailer);
     std::int64_t done = 0;
-    while (done < slotBytes) {
-      const ssize_t n = ::pwrite(fd, data + done, static_cast<std::size_t>(slotBytes - done), slot * slotBytes + done);
+    while (done < recordBytes) {
+      const ssize_t n = ::pwrite(fd, record.data() + done, static_cast<std::size_t>(recordBytes - done),
+                                 slot * recordBytes + done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " +
@@ -331,10 +353,10 @@ struct MultilevelStorage::SlotFile {
     }
   }
   void read(std::int64_t slot, double* z) {
-    char* data = reinterpret_cast<char*>(z);
     std::int64_t done = 0;
-    while (done < slotBytes) {
-      const ssize_t n = ::pread(fd, data + done, static_cast<std::size_t>(slotBytes - done), slot * slotBytes + done);
+    while (done < recordBytes) {
+      const ssize_t n = ::pread(fd, record.data() + done, static_cast<std::size_t>(recordBytes - done),
+                                slot * recordBytes + done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         throw StorageError("multilevel: reading slot " + std::to_string(slot) + " failed: " +
@@ -343,6 +365,16 @@ struct MultilevelStorage::SlotFile {
       }
       done += n;
     }
+    std::uint64_t trailer[2];
+    std::memcpy(trailer, record.data() + stateBytes, sizeof trailer);
+    if (trailer[0] != static_cast<std::uint64_t>(slot) ||
+        trailer[1] != checksum(static_cast<std::uint64_t>(slot), record.data(), stateBytes)) {
+      throw StorageError("multilevel: slot " + std::to_string(slot) +
+                             " of the disk level is corrupted (its checksum does not match the state read back); "
+                             "the file was changed while the run used it",
+                         path);
+    }
+    std::memcpy(z, record.data(), static_cast<std::size_t>(stateBytes));
   }
   std::int64_t size() const {
     std::error_code ec;
@@ -515,6 +547,7 @@ void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
   c.bytesOnDisk = slotFile_ ? slotFile_->size() : 0;
   c.ioSeconds = slotIoSeconds_;
   statesInRam_ = 0;
+  if (slotFile_ && options_.afterForwardSweep) options_.afterForwardSweep(slotFile_->path);
 }
 
 void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {

@@ -39,6 +39,10 @@
 // In the spirit of Stumm & Walther 2009, "MultiStage approaches for optimal offline checkpointing"
 // (SIAM J. Sci. Comput. 31(3)).
 //
+// Integrity: the slots of schedule=optimal carry their index and an FNV-1a checksum, the stride's file
+// Fletcher32 per chunk; a state that does not read back as written is a StorageError naming the file
+// (and the slot), never a restored state. Scratch files of killed runs are removed as
+// storage/scratch_files.h says.
 // Faults as for "disk" (StorageError naming the file); thread-safety: one object, one thread, one
 // background I/O thread per run while the disk level of schedule=stride is used.
 #pragma once
@@ -47,6 +51,7 @@
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_spec.h>
 
+#include <functional>
 #include <optional>
 
 #include <memory>
@@ -69,6 +74,9 @@ class MultilevelStorage final : public TrajectoryStorage {
     bool keepFile = false;
     /// Test hook passed to the disk level (see DiskStorage::Options).
     std::int64_t failWriteAfterChunks = -1;
+    /// Test hook: called with the disk level's file after the forward sweep (schedule=stride: the
+    /// complete, closed file before it is reopened; optimal: the slot file), e.g. to corrupt it.
+    std::function<void(const std::string& path)> afterForwardSweep;
     /// The uniform stride instead of the cost-optimal plan (spec schedule=stride).
     bool stride = false;
     /// The cost model; measured at the start of each run when empty.

@@ -23,7 +23,11 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
        "error shrinks like (M h)^4",
        false,
        "hermite:every=4",
-       {{"every", "keep every M-th grid point, M in [1, 1e9] (default 10)"}, {"budget", kBudget}}},
+       {{"every", "keep every M-th grid point, M in [1, 1e9] (default 10)"},
+        {"budget", kBudget},
+        {"tolerance", "the largest relative interpolation error accepted, measured mid-interval in the forward "
+                      "sweep (the run is refused beyond it; gradient_error_estimate = 10 x that error), in "
+                      "[1e-14, 1] (default 0.01)"}}},
       {"disk",
        "every step's state in an HDF5 file (chunked; lossless prediction along time, or shuffle + zstd), written "
        "and read by a background thread",

@@ -279,10 +279,11 @@ std::pair<std::string, std::string> splitKey(const std::string& key) {
 
 /// The one path of --set and of every config-backed flag: `text` read as --set reads it into the field
 /// `key` ("section.field"), errors naming `label` (the field or the flag), then the whole check.
-void applyText(Config& config, const std::string& key, const std::string& label, const std::string& text) {
+void applyText(Config& config, const std::string& key, const std::string& label, const std::string& text,
+               bool validate = true) {
   const auto [section, name] = splitKey(key);
   findField(section, name).read(config, parseValueText(text), {label, text, text});
-  config.validate();
+  if (validate) config.validate();
 }
 
 }  // namespace
@@ -386,18 +387,19 @@ Config readConfigFile(const std::string& path) {
   return configFromJson(parsed);
 }
 
-void applySetting(Config& config, const std::string& assignment) {
+void applySetting(Config& config, const std::string& assignment, bool validate) {
   const auto eq = assignment.find('=');
   const auto dot = assignment.find('.');
   if (eq == std::string::npos || dot == std::string::npos || dot > eq) {
     throw std::invalid_argument("--set '" + assignment + "' must have the form section.field=value");
   }
   const std::string key = assignment.substr(0, eq);
-  applyText(config, key, "config field '" + key + "'", assignment.substr(eq + 1));
+  applyText(config, key, "config field '" + key + "'", assignment.substr(eq + 1), validate);
 }
 
-void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text) {
-  applyText(config, key, flag, text);
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text,
+               bool validate) {
+  applyText(config, key, flag, text, validate);
 }
 
 nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateBytes) {

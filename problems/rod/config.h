@@ -124,11 +124,16 @@ nlohmann::json scheduleToJson(const SchedulePrediction& prediction, std::int64_t
 Config configFromJson(const nlohmann::json& json);
 /// Reads a JSON file; throws std::invalid_argument naming the file when it cannot be read or parsed.
 Config readConfigFile(const std::string& path);
-/// Applies "section.field=value" (value in JSON syntax; bare words are taken as strings).
-void applySetting(Config& config, const std::string& assignment);
+/// Applies "section.field=value" (value in JSON syntax; bare words are taken as strings). The field's
+/// own type and range are always checked; validate = false skips the checks across fields
+/// (Config::validate), for applying several assignments whose combination only holds once all are
+/// applied (rod.rampTime=5 with rod.endTime=6, in either order): call config.validate() after the last.
+void applySetting(Config& config, const std::string& assignment, bool validate = true);
 /// Applies a command-line flag that stands for one configuration field (`--move-limit 0.1` is
 /// optimization.moveLimit): the text is read as --set reads a value and checked by the same code, so
 /// a flag accepts exactly what its field accepts; messages name the flag and the allowed range.
-void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text);
+/// validate as for applySetting.
+void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text,
+               bool validate = true);
 
 }  // namespace hindsight

@@ -12,6 +12,8 @@
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <limits>
 #include <memory>
 
@@ -47,10 +49,22 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   PistonRodEvaluation out;
   Stopwatch phase;
   const rod::FeModel model(rc, design);
-  // One factorisation of K for the eigen-solve, its refinement and ESL.
-  const rod::StiffnessFactorization stiffness(model.stiffness());
-  const rod::ModalBasis basis =
-      rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
+  // A design the eigensolver cannot handle (a near-mechanism: the stiffness is singular or not positive
+  // definite, or the eigenpairs do not converge) is a numerical outcome of that design, like a diverged
+  // simulation: as NumericalError the optimizer's divergence guard and GCMMA's trials step back from it
+  // instead of ending the run. One factorisation of K serves the eigen-solve, its refinement and ESL.
+  std::unique_ptr<rod::StiffnessFactorization> stiffnessPointer;
+  const rod::ModalBasis basis = [&] {
+    try {
+      stiffnessPointer = std::make_unique<rod::StiffnessFactorization>(model.stiffness());
+      return rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), *stiffnessPointer);
+    } catch (const NumericalError&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      throw NumericalError(std::string("the modal reduction of this design failed: ") + e.what(), 0.0);
+    }
+  }();
+  const rod::StiffnessFactorization& stiffness = *stiffnessPointer;
   const Vector p = rod::computeInvariants(model, basis).pack();
   for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
   out.eigenvalues = basis.eigenvalues.head(basis.eigenmodeCount);

@@ -76,8 +76,16 @@ Decomposition decompose(const DensityField& f, double iso) {
       const double t = std::clamp((iso - va) / (vb - va), kEdgeMargin, 1.0 - kEdgeMargin);
       const Eigen::Vector2d a = position(i, j);
       const Eigen::Vector2d b = alongX ? position(i + 1, j) : position(i, j + 1);
+      Eigen::Vector2d point = a + t * (b - a);
+      if (iso < 0.5) {
+        // Between a boundary element (density <= 1) and the void ring, a crossing at iso < 0.5 lies up to
+        // half an element outside the rod; the rod ends at its edge, so the outline does too. (For
+        // iso >= 0.5 every crossing is inside by construction, and left untouched.)
+        point.x() = std::clamp(point.x(), 0.0, f.nx * f.cellWidthMm);
+        point.y() = std::clamp(point.y(), 0.0, f.ny * f.cellHeightMm);
+      }
       id = static_cast<int>(out.points.size());
-      out.points.push_back(a + t * (b - a));
+      out.points.push_back(point);
     }
     return id;
   };

@@ -1,4 +1,5 @@
 #include <hindsight/problems/topopt/optimization_run.h>
+#include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/topopt/geometry_export.h>
@@ -7,6 +8,8 @@
 #include <hindsight/storage/atomic_file.h>
 
 #include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -62,26 +65,17 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
   }
   const nlohmann::json wanted = comparable(toJson(requested));
   if (stored == wanted) return;
+  // Every differing field, including one present on one side only (a scenarios list added or removed).
   std::string differences;
-  for (const auto& [section, fields] : wanted.items()) {
-    if (!fields.is_object()) {  // scenarios: compared as a whole
-      if (!stored.contains(section) || stored[section] != fields)
-        differences += (differences.empty() ? "" : ", ") + section + " (requested " + fields.dump() + ", stored " +
-                       (stored.contains(section) ? stored[section].dump() : std::string("absent")) + ")";
-      continue;
-    }
-    for (const auto& [field, value] : fields.items()) {
-      const auto storedSection = stored.find(section);
-      if (storedSection == stored.end() || !storedSection->contains(field) ||
-          (*storedSection)[field] != value) {
-        differences +=
-            (differences.empty() ? "" : ", ") + section + "." + field + " (requested " + value.dump() +
-            ", stored " +
-            (storedSection != stored.end() && storedSection->contains(field) ? (*storedSection)[field].dump()
-                                                                             : std::string("absent")) +
-            ")";
-      }
-    }
+  for (const std::string& field : differingFields(wanted, stored)) {
+    std::string pointerText = "/" + field;
+    std::replace(pointerText.begin(), pointerText.end(), '.', '/');
+    const nlohmann::json::json_pointer pointer(pointerText);
+    const auto valueIn = [&](const nlohmann::json& j) {
+      return j.contains(pointer) ? j.at(pointer).dump() : std::string("absent");
+    };
+    differences += (differences.empty() ? "" : ", ") + field + " (requested " + valueIn(wanted) + ", stored " +
+                   valueIn(stored) + ")";
   }
   throw std::invalid_argument("--resume: the configuration differs from the one stored in " + path + ": " +
                               differences +
@@ -201,6 +195,8 @@ OptimizationRun::OptimizationRun(const Config& config, const OptimizationRunOpti
     data_.state = optimizer_.state();
   }
   data_.configurationJson = toJson(config_).dump();
+  data_.configurationFingerprint = configurationFingerprint(config_);
+  data_.ranks = Communicator::world().size();
   if (!config_.scenarios.empty()) {
     for (const Scenario& s : config_.scenarios) scenarioNames_.push_back(s.name);
   }

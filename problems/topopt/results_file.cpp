@@ -1,4 +1,5 @@
 #include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <hindsight/engine/hash.h>
 #include <hindsight/storage/atomic_file.h>
@@ -110,6 +111,8 @@ struct RootAttributes {
   int updates = 0;
   double objectiveScale = 0.0;
   int mmaIteration = 0;
+  std::string fingerprint;  // empty: not stored (older files), then not hashed either
+  int ranks = 0;
 };
 
 std::string rootHash(const RootAttributes& a,
@@ -120,6 +123,10 @@ std::string rootHash(const RootAttributes& a,
   for (int value : {a.completedIterations, a.finished, a.nx, a.ny, a.updates, a.mmaIteration})
     hash.add(value);
   hash.add(a.objectiveScale);
+  if (!a.fingerprint.empty()) {
+    hash.add(a.fingerprint);
+    hash.add(a.ranks);
+  }
   for (const auto& [path, datasetHashText] : datasets) {
     hash.add(path);
     hash.add(datasetHashText);
@@ -174,6 +181,8 @@ void writeContents(hid_t file, const ResultsData& data) {
   root.updates = data.state.iteration;
   root.objectiveScale = data.state.objectiveScale;
   root.mmaIteration = data.state.mma.iteration;
+  root.fingerprint = data.configurationFingerprint;
+  root.ranks = data.ranks;
   hdf5::writeStringAttribute(file, "format", kFormat);
   hdf5::writeAttribute(file, "format_version", kFormatVersion);
   hdf5::writeStringAttribute(file, "configuration", root.configuration);
@@ -183,6 +192,10 @@ void writeContents(hid_t file, const ResultsData& data) {
   hdf5::writeAttribute(file, "ny", root.ny);
   hdf5::writeAttribute(file, "updates", root.updates);
   hdf5::writeAttribute(file, "objective_scale", root.objectiveScale);
+  if (!root.fingerprint.empty()) {
+    hdf5::writeStringAttribute(file, "configuration_fingerprint", root.fingerprint);
+    hdf5::writeAttribute(file, "ranks", root.ranks);
+  }
 
   Writer writer;
   {
@@ -545,6 +558,23 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
   data.ny = root.ny = hdf5::readIntAttribute(file, "ny");
   data.state.iteration = root.updates = hdf5::readIntAttribute(file, "updates");
   data.state.objectiveScale = root.objectiveScale = hdf5::readDoubleAttribute(file, "objective_scale");
+  if (hdf5::hasAttribute(file, "configuration_fingerprint")) {
+    data.configurationFingerprint = root.fingerprint = hdf5::readStringAttribute(file, "configuration_fingerprint");
+    data.ranks = root.ranks = hdf5::hasAttribute(file, "ranks") ? hdf5::readIntAttribute(file, "ranks") : 0;
+    verification.configurationFingerprint = root.fingerprint;
+    verification.ranks = root.ranks;
+    std::string recomputed;
+    try {
+      recomputed = configurationFingerprint(data.configurationJson);
+    } catch (const std::exception& e) {
+      recomputed = std::string("none (") + e.what() + ")";
+    }
+    if (recomputed != root.fingerprint || root.ranks < 1) {
+      reader.problem(kRoot, "configuration_fingerprint " + root.fingerprint + " (ranks " + std::to_string(root.ranks) +
+                                ") does not match the stored configuration (" + recomputed +
+                                "): the configuration is not the one the ranks agreed on");
+    }
+  }
   if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0 ||
       (root.finished != 0 && root.finished != 1))
     fail("inconsistent attributes");

@@ -4,7 +4,10 @@
 //   /                      attributes: format = "hindsight-topology-results", format_version = 2,
 //                          configuration (JSON string, the complete Config), completed_iterations = K,
 //                          finished (0/1), nx, ny, updates (MMA updates made), objective_scale (psi(x0)),
-//                          content_hash (the run state's hash, see Integrity)
+//                          content_hash (the run state's hash, see Integrity), and in files written
+//                          since the MPI configuration check: configuration_fingerprint (see
+//                          problems/topopt/run_fingerprint.h; verify recomputes it from configuration)
+//                          and ranks (the number of MPI ranks that agreed on it, 1 without MPI)
 //   /history/<column>      1-D, K entries: iteration (int32), psi1, psi2, backtracks (int32),
 //                          volume_fraction, max_design_change (NaN for the final evaluation),
 //                          evaluation_seconds, mma_seconds, total_seconds, and (absent in
@@ -66,6 +69,10 @@ namespace hindsight {
 
 struct ResultsData {
   std::string configurationJson;
+  /// configurationFingerprint(configurationJson) as the ranks agreed on it, and their number; empty
+  /// and 0 in files written before they were stored (not written then, not checked when read).
+  std::string configurationFingerprint;
+  int ranks = 0;
   int nx = 0;
   int ny = 0;
   std::vector<IterationRecord> history;  ///< completed iterations, in order
@@ -91,6 +98,8 @@ struct ResultsVerification {
   bool checksummed = false;  ///< format 2: hashes and Fletcher32 were checked, not only plausibility
   int completedIterations = 0;
   bool finished = false;
+  std::string configurationFingerprint;  ///< empty in older files
+  int ranks = 0;
   std::vector<ResultsCheck> checks;
   /// The first failed check, or nullptr when the file is sound.
   const ResultsCheck* firstProblem() const;

@@ -5,11 +5,15 @@
 
 #include <exception>
 #include <stdexcept>
+#include <typeinfo>
 
 namespace hindsight {
 namespace {
 
-enum Status { kOk = 0, kNumerical = 1, kFailed = 2 };
+// A scenario's outcome, exchanged between ranks so that every rank throws the same kind of failure:
+// a numerical one (the optimizer's divergence guard and GCMMA step back from it), a storage failure
+// and bad input (exit codes 3 and 2), or anything else.
+enum Status { kOk = 0, kNumerical = 1, kFailed = 2, kStorage = 3, kInput = 4 };
 
 std::vector<PistonRod> makeRods(const Config& config) {
   std::vector<PistonRod> rods;
@@ -47,6 +51,12 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
       errors[slot] = std::current_exception();
       status[slot] = kNumerical;
       times[slot] = e.time();
+    } catch (const StorageError&) {
+      errors[slot] = std::current_exception();
+      status[slot] = kStorage;
+    } catch (const std::invalid_argument&) {
+      errors[slot] = std::current_exception();
+      status[slot] = kInput;
     } catch (...) {
       errors[slot] = std::current_exception();
       status[slot] = kFailed;
@@ -93,6 +103,7 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
     if (code == kOk) continue;
     const std::string who = "scenario '" + name(s) + "'";
     std::string text = "failed on rank " + std::to_string(s % ranks) + " (that rank reports the error)";
+    std::string path;
     for (std::size_t k = 0; k < mine.size(); ++k) {
       if (mine[k] != s) continue;
       try {
@@ -100,13 +111,25 @@ ScenarioResults ScenarioObjective::evaluate(ConstVectorRef design, const PistonR
       } catch (const NumericalError& e) {
         text = e.what();
         text = text.substr(0, text.rfind(" (at t = "));  // NumericalError adds it again below
+      } catch (const StorageError& e) {
+        text = e.what();
+        if (!e.path().empty()) text = text.substr(0, text.rfind(" [file: "));  // StorageError adds it again
+        path = e.path();
+      } catch (const std::invalid_argument& e) {
+        text = e.what();
       } catch (const std::exception& e) {
+        // A plain library failure gets the scenario's name; an exception of any other type -- an
+        // interrupt (Python's KeyboardInterrupt travels as pybind11's error_already_set) -- keeps its
+        // type: rewrapping it would turn Ctrl-C into a "failure".
+        if (typeid(e) != typeid(std::runtime_error) && typeid(e) != typeid(std::logic_error)) throw;
         text = e.what();
       } catch (...) {
-        text = "an unknown exception";
+        throw;
       }
     }
     if (code == kNumerical) throw NumericalError(who + ": " + text, packets[static_cast<std::size_t>(s)][1]);
+    if (code == kStorage) throw StorageError(who + ": " + text, path);
+    if (code == kInput) throw std::invalid_argument(who + ": " + text);
     throw std::runtime_error(who + ": " + text);
   }
 

@@ -131,8 +131,10 @@ def optimize(config=None, out="results", resume=False, force=False, callback=Non
     """Runs the topology optimization of `hindsight optimize` into directory `out` (results.h5 after every
     iteration, pictures, resumable). callback(record) is called after each iteration once it is on
     disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
-    returning False stops the run (its results stay valid and resumable). verbose=True prints the
-    progress lines. Returns read_results(out) plus results_path and stopped_by_callback."""
+    returning a false value other than None (False, 0) stops the run (its results stay valid and
+    resumable); returning None continues. resume=True on a directory without results.h5 raises
+    ValueError (a mistyped `out` must not start a fresh run). verbose=True prints the progress lines.
+    Returns read_results(out) plus results_path and stopped_by_callback."""
     try:
         run = _hindsight._optimize(config, _os.fspath(out), resume, force, callback, verbose, **overrides)
     except ValueError as error:

@@ -115,3 +115,37 @@ def test_unreadable_results_are_storage_errors(tmp_path):
     bad.write_bytes(b"not hdf5")
     with pytest.raises(hindsight.StorageError, match="results.h5"):
         hindsight.read_results(tmp_path)
+
+
+def test_python_values_are_converted_or_refused_naming_the_field():
+    # NaN reaches the field's own check (it was a JSON parse error), NumPy scalars are numbers.
+    with pytest.raises(ValueError, match="crankSpeed"):
+        hindsight.PistonRod(TINY, rod={"crankSpeed": float("nan")})
+    rod = hindsight.PistonRod(TINY, rod={"modeCount": np.int64(2), "crankSpeed": np.float64(20.0)})
+    assert rod.config["rod"]["modeCount"] == 2 and rod.config["rod"]["crankSpeed"] == 20.0
+    with pytest.raises(ValueError, match=r"rod.crankSpeed = \(20\+1j\) must be a real number, not complex"):
+        hindsight.PistonRod(TINY, rod={"crankSpeed": 20 + 1j})
+    with pytest.raises(ValueError, match="not a configuration value"):
+        hindsight.PistonRod(TINY, rod={"crankSpeed": object()})
+
+
+def test_designs_of_complex_or_string_arrays_are_refused():
+    rod = hindsight.PistonRod(TINY)
+    x = rod.x0
+    with pytest.raises(ValueError, match="design x must hold real numbers .* not dtype complex128"):
+        rod.evaluate(x.astype(complex) + 0.1j, gradient=False)
+    with pytest.raises(ValueError, match="design x must hold real numbers .* not dtype <U"):
+        rod.evaluate(x.astype(str), gradient=False)
+    # Integer arrays are real numbers.
+    assert rod.evaluate(np.ones(x.shape, dtype=np.int64), gradient=False).psi1 > 0
+
+
+def test_a_callback_returning_a_false_value_stops_the_run(tmp_path):
+    for index, answer in enumerate((0, False, np.False_)):
+        out = tmp_path / f"stop_{index}"
+        result = hindsight.optimize(TINY, out=out, callback=lambda record: answer, optimization={"iterations": 3})
+        assert result["stopped_by_callback"], answer
+        assert len(result["history"]["iteration"]) == 1, answer
+    result = hindsight.optimize(TINY, out=tmp_path / "none", callback=lambda record: None,
+                                optimization={"iterations": 1})
+    assert not result["stopped_by_callback"]

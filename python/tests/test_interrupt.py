@@ -44,3 +44,42 @@ def test_ctrl_c_interrupts_an_evaluation():
     # The ticker thread ran while C++ simulated: the GIL was released.
     assert int(lines[0].split()[-1]) >= 20, out
     assert lines[1] == "after True", out
+
+
+SCENARIO_CHILD = textwrap.dedent("""
+    import sys, tempfile
+    import hindsight
+    from conftest import COARSE
+    # Two scenarios over 1000 s of simulated time each, evaluated in parallel threads (the main thread
+    # takes one): minutes of work if nothing interrupts them.
+    config = {"rod": dict(COARSE["rod"]),
+              "scenarios": [{"name": "slow", "endTime": 1000.0}, {"name": "slower", "endTime": 1000.0}]}
+    print("start", flush=True)
+    try:
+        hindsight.optimize(config, out=tempfile.mkdtemp(), optimization={"iterations": 2})
+        print("finished without interruption", flush=True)
+    except KeyboardInterrupt:
+        print("KeyboardInterrupt", flush=True)
+    except BaseException as e:
+        print("other", type(e).__name__, e, flush=True)
+""")
+
+
+def test_ctrl_c_during_an_optimization_with_scenarios_stays_a_keyboard_interrupt():
+    child = subprocess.Popen([sys.executable, "-c", SCENARIO_CHILD], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, cwd=os.path.dirname(__file__))
+    assert child.stdout.readline().strip() == "start"
+    time.sleep(2.0)
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=300)
+    assert out.splitlines()[0] == "KeyboardInterrupt", (out, err)
+
+
+def test_resume_of_a_missing_run_is_refused(tmp_path):
+    import hindsight
+    import pytest
+    from conftest import TINY
+    missing = tmp_path / "no-such-run"
+    with pytest.raises(ValueError, match="resume: there is no .*results.h5 to continue"):
+        hindsight.optimize(TINY, out=missing, resume=True, optimization={"iterations": 1})
+    assert not missing.exists()

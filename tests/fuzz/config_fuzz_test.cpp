@@ -230,5 +230,88 @@ TEST(ConfigFuzz, MutatedSettings) {
   }
 }
 
+// Scenario lists (problems/rod/scenarios.h) of any length, with every field set to values of every
+// type and edge, duplicate and empty names, unknown fields, and lists that are not lists.
+TEST(ConfigFuzz, RandomScenarios) {
+  const auto values = interestingValues();
+  const std::vector<std::string> fields = {"name", "crankSpeed", "rampTime", "endTime", "crankRadius", "weight", "x"};
+  const std::vector<json> names = {json("a"), json("b"), json(""), json("a"), json(" "), json(1), json(nullptr)};
+  const std::string seed = fuzz::seedFiles("config_06").at(0);
+  fuzz::Mutator mutator(fuzz::seed(4));
+  for (int k = 0; k < fuzz::cases(2000); ++k) {
+    json input = json::parse(seed);
+    if (mutator.chance(0.1)) {
+      input["scenarios"] = mutator.pick(values);  // not a list
+    } else {
+      json list = json::array();
+      const std::size_t count = mutator.below(5);
+      for (std::size_t i = 0; i < count; ++i) {
+        json scenario = json::object();
+        if (mutator.chance(0.9)) scenario["name"] = mutator.pick(names);
+        const std::size_t set = mutator.below(4);
+        for (std::size_t f = 0; f < set; ++f) scenario[mutator.pick(fields)] = mutator.pick(values);
+        list.push_back(mutator.chance(0.05) ? mutator.pick(values) : scenario);
+      }
+      input["scenarios"] = list;
+    }
+    if (mutator.chance(0.3)) input["optimization"]["aggregate"] = mutator.chance(0.5) ? json("sum") : mutator.pick(values);
+    const std::string text = input.dump();
+    expectConfigOrInvalidArgument([&] { return configFromJson(input); }, text);
+    if (HasFailure()) return;
+  }
+}
+
+// Several --set assignments applied together and checked once (the CLI's order-independent path):
+// a sound configuration or std::invalid_argument, and the same outcome for the assignments reversed.
+TEST(ConfigFuzz, SettingsAppliedTogetherDoNotDependOnTheirOrder) {
+  const auto lines = fuzz::seedLines("settings.txt");
+  const auto values = interestingValues();
+  fuzz::Mutator mutator(fuzz::seed(5));
+  for (int k = 0; k < fuzz::cases(1500); ++k) {
+    std::vector<std::string> assignments;
+    const std::size_t count = 1 + mutator.below(4);
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::string& line = mutator.pick(lines);
+      assignments.push_back(mutator.chance(0.5) ? line
+                                                : line.substr(0, line.find('=') + 1) + tokenString(mutator.pick(values)));
+    }
+    const auto apply = [](std::vector<std::string> list) {
+      Config config;
+      for (const std::string& assignment : list) applySetting(config, assignment, /*validate=*/false);
+      config.validate();
+      return config;
+    };
+    std::string input;
+    for (const std::string& assignment : assignments) input += assignment + "\n";
+    expectConfigOrInvalidArgument([&] { return apply(assignments); }, input);
+    // With every field set once the order cannot matter (a field set twice keeps its last value).
+    bool distinct = true;
+    for (std::size_t i = 0; i < assignments.size(); ++i) {
+      for (std::size_t j = i + 1; j < assignments.size(); ++j) {
+        distinct = distinct && assignments[i].substr(0, assignments[i].find('=')) !=
+                                   assignments[j].substr(0, assignments[j].find('='));
+      }
+    }
+    if (distinct) {
+      std::vector<std::string> reversed(assignments.rbegin(), assignments.rend());
+      bool forwardOk = true, reverseOk = true;
+      json forward, backward;
+      try {
+        forward = toJson(apply(assignments));
+      } catch (const std::invalid_argument&) {
+        forwardOk = false;
+      }
+      try {
+        backward = toJson(apply(reversed));
+      } catch (const std::invalid_argument&) {
+        reverseOk = false;
+      }
+      EXPECT_EQ(forwardOk, reverseOk) << input;
+      if (forwardOk && reverseOk) EXPECT_EQ(forward, backward) << input;
+    }
+    if (HasFailure()) return;
+  }
+}
+
 }  // namespace
 }  // namespace hindsight

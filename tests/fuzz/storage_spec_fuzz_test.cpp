@@ -2,11 +2,19 @@
 // from the command line or a configuration file, so createStorage must either build a strategy or
 // throw std::invalid_argument, whatever the text. A strategy it builds describes itself with spec(),
 // and that description must build the same strategy again (the CLI prints it and results files store
-// it, so a spec that does not read back would make a run unrepeatable).
+// it, so a spec that does not read back would make a run unrepeatable). And a strategy it builds must
+// either compute a gradient -- bitwise the full storage's for an exact strategy, with an error
+// estimate for an approximate one -- or fail with std::invalid_argument or StorageError: never a
+// silent wrong gradient (RunsGiveTheFullGradientOrAnError).
 #include "fuzz/fuzz_support.h"
 
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
 #include <hindsight/storage/storage_spec.h>
+
+#include <filesystem>
 
 namespace hindsight {
 namespace {
@@ -29,6 +37,13 @@ std::vector<std::string> dictionary() {
                                     "block=",
                                     "ram=",
                                     "disk=",
+                                    "costs=",
+                                    "schedule=",
+                                    "online=",
+                                    "stages=",
+                                    "1:1:0:0",
+                                    "optimal",
+                                    "stride",
                                     "0",
                                     "-1",
                                     "1e400",
@@ -152,6 +167,68 @@ TEST(StorageSpecFuzz, TypedGettersOnMutatedValues) {
     }
     if (HasFailure()) return;
   }
+}
+
+// Every spec that builds, run: the pendulum over 200 rk4 steps (fixed grid, N known) in a scratch
+// directory. An exact strategy must give the full storage's bits, an approximate one a finite gradient
+// with its error estimate no smaller than its actual error; a failure must be std::invalid_argument
+// (a setting outside its validity) or StorageError (a budget or a file).
+TEST(StorageSpecFuzz, RunsGiveTheFullGradientOrAnError) {
+  const std::string directory =
+      (std::filesystem::temp_directory_path() / ("hindsight-fuzz-runs-" + std::to_string(::getpid()))).string();
+  std::filesystem::create_directories(directory);
+  Pendulum problem;
+  const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 2.0;
+  options.step = 1e-2;
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  const auto seeds = fuzz::seedLines("storage_specs.txt");
+  const auto words = dictionary();
+  fuzz::Mutator mutator(fuzz::seed(14));
+  int ran = 0;
+  for (int k = 0; k < fuzz::cases(400); ++k) {
+    std::string spec = k < static_cast<int>(seeds.size()) ? seeds[static_cast<std::size_t>(k)]
+                                                         : mutator.mutate(mutator.pick(seeds), words, 3);
+    // Files only in the scratch directory.
+    for (const char* dirKey : {"dir=/tmp/run", "dir=/tmp"}) {
+      const std::size_t at = spec.find(dirKey);
+      if (at != std::string::npos) spec.replace(at, std::string(dirKey).size(), "dir=" + directory);
+    }
+    std::unique_ptr<TrajectoryStorage> storage;
+    try {
+      storage = createStorage(spec);
+    } catch (const std::invalid_argument&) {
+      continue;
+    }
+    if ((spec.rfind("disk", 0) == 0 || spec.rfind("multilevel", 0) == 0) && spec.find("dir=") == std::string::npos) {
+      continue;  // would write into the system temp directory
+    }
+    try {
+      const GradientResult result = computeGradient(problem, p, options, *storage);
+      ++ran;
+      if (storage->isExact()) {
+        EXPECT_EQ(result.objective, reference.objective) << spec;
+        EXPECT_TRUE(result.gradient == reference.gradient) << "exact strategy '" << fuzz::printable(spec)
+                                                           << "' gave another gradient";
+      } else {
+        ASSERT_TRUE(result.gradient.allFinite()) << spec;
+        const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
+        EXPECT_GE(result.summary.gradientErrorEstimate, error)
+            << "approximate strategy '" << fuzz::printable(spec) << "' without an estimate of its error " << error;
+      }
+    } catch (const std::invalid_argument&) {
+    } catch (const StorageError&) {
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "'" << fuzz::printable(spec) << "' failed with " << typeid(e).name() << ": " << e.what();
+    }
+    if (HasFailure()) break;
+  }
+  std::filesystem::remove_all(directory);
+  EXPECT_GT(ran, 20);
+  ::testing::Test::RecordProperty("runs", ran);
 }
 
 }  // namespace

@@ -2,7 +2,9 @@
 # ctest label mpi: the same scenario optimization with 1 rank, 2 MPI ranks and 2 threads
 # writes bitwise-equal histories and designs; a run whose rank is killed resumes (with 2 ranks) to
 # the same bits; a failing scenario stops every rank with a non-zero exit, the scenario named; the
-# frequency guard and GCMMA give the same bits on 1 and 2 ranks.
+# frequency guard and GCMMA give the same bits on 1 and 2 ranks; ranks started with different
+# configurations (a scenario weight, --iterations) stop with exit 2 naming the field and the ranks
+# before anything is written, and results.h5 carries the fingerprint they agreed on.
 # Usage: ranks_test.sh HINDSIGHT MPIEXEC PYTHON WORKDIR. Runs as root too (CI): OpenMPI's
 # allow-run-as-root variables are set here; --oversubscribe because the machine may have 2 cores.
 set -euo pipefail
@@ -66,4 +68,24 @@ gcmma=(--set optimization.method=gcmma)
 "$mpiexec" -np 2 --oversubscribe "$hindsight" optimize --config "$config" --iterations 3 --out C2 --threads 1 \
   "${gcmma[@]}" > C2.log
 same C1 C2
+# Ranks with different configurations: refused by every rank (exit 2) naming the field and the ranks,
+# nothing written; different --iterations must not hang (timeout), the same refusal.
+sed 's/"weight": 1.04/"weight": 1.05/' "$config" > other.json
+status=0
+timeout 300 "$mpiexec" --oversubscribe -np 1 "$hindsight" optimize --config "$config" --iterations 2 --out M --threads 1 \
+  : -np 1 "$hindsight" optimize --config other.json --iterations 2 --out M --threads 1 > M.log 2>&1 || status=$?
+cat M.log
+[ "$status" = 2 ] || { echo "ranks with different scenario weights: exit $status, expected 2"; exit 1; }
+grep -q "rank 1 differs from rank 0 in scenarios" M.log
+[ ! -e M/results.h5 ] || { echo "ranks with different configurations wrote M/results.h5"; exit 1; }
+status=0
+timeout 300 "$mpiexec" --oversubscribe -np 1 "$hindsight" optimize --config "$config" --iterations 2 --out I --threads 1 \
+  : -np 1 "$hindsight" optimize --config "$config" --iterations 3 --out I --threads 1 > I.log 2>&1 || status=$?
+cat I.log
+[ "$status" = 2 ] || { echo "ranks with different --iterations: exit $status, expected 2 (124: hung)"; exit 1; }
+grep -q "optimization.iterations (rank 0: 2, rank 1: 3)" I.log
+# The agreed fingerprint is in the results file; verify recomputes it from the stored configuration.
+"$hindsight" verify D2 > V.log
+grep -q "configuration fingerprint fnv1a64:[0-9a-f]*, agreed by 2 rank(s)" V.log
+"$hindsight" verify D1 | grep -q "agreed by 1 rank(s)"
 echo "mpi ranks test: passed"

@@ -4,6 +4,7 @@
 // the strategy's counters in a real run against the plan.
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/cams_checkpointing.h>
@@ -28,6 +29,50 @@ IntegratorOptions thousandRk4Steps() {
   options.t1 = 4.0;
   options.step = 4e-3;
   return options;
+}
+
+// Planning a long trajectory takes seconds to minutes: it polls the interrupt (engine/interrupt.h) so
+// that Ctrl-C in Python does not wait for it; a plan built after the interrupt is complete.
+struct PlanningInterrupted {};
+int planningPolls = 0;
+void throwOnThirdPoll() {
+  if (++planningPolls >= 3) throw PlanningInterrupted{};
+}
+
+TEST(CamsPlan, PlanningPollsTheInterrupt) {
+  planningPolls = 0;
+  setInterruptPoll(&throwOnThirdPoll);
+  EXPECT_THROW(cams::Plan(20000, 20, 2), PlanningInterrupted);
+  setInterruptPoll(nullptr);
+  EXPECT_EQ(planningPolls, 3);
+  const cams::Plan plan(20000, 20, 2);
+  EXPECT_EQ(plan.steps(), 20000);
+  EXPECT_EQ(planningPolls, 3);  // nothing installed: nothing called
+}
+
+// cams:checkpoints=C holds C + 1 states; beyond the default budget (4 GiB) the run is refused at
+// begin(), before the plan (minutes for long runs) and before any allocation -- as binomial is.
+class NoRecomputer final : public StepRecomputer {
+ public:
+  void advance(std::int64_t, VectorRef) override { ADD_FAILURE() << "no recomputation expected"; }
+};
+
+TEST(CamsCheckpointing, CheckpointsBeyondTheBudgetAreRefusedBeforePlanning) {
+  TrajectoryInfo info;
+  info.problemName = "large";
+  info.stateSize = 1 << 28;  // 2 GiB states: 3 of them are 6 GiB
+  info.t1 = 1.0;
+  info.stepCount = 100000;
+  NoRecomputer recomputer;
+  CamsCheckpointing cams(2, CamsCheckpointing::kDefaultBudget, false);
+  try {
+    cams.begin(info, recomputer);
+    ADD_FAILURE() << "cams:checkpoints=2 with 2 GiB states was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("cams.checkpoints = 2 holds 3 states of 2.0 GiB"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(cams.counters().peakBytesInMemory, 0);
 }
 
 TEST(CamsPlan, OptimumEqualsBruteForceEnumerationOfAllSchedules) {

@@ -5,6 +5,7 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/hermite_storage.h>
+#include <hindsight/storage/lossy_storage.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
@@ -140,8 +141,9 @@ TEST(HermiteStorage, GradientErrorAgainstFullStorageShrinksWithM) {
     // N = 2000 known in advance: one exact allocation of N + 1 times and K = ceil(N/M) + 1 kept
     // points of (2n + 1) doubles, n = 2. (With n = 2 the grid times dominate; for the large states
     // hermite is meant for, the kept points do.)
+    // Plus one state (n = 2 doubles): the mid-interval sample of the error estimate.
     const std::int64_t kept = (2000 + every - 1) / every + 1;
-    EXPECT_EQ(storage.counters().peakBytesInMemory, (2001 + kept * 5) * 8);
+    EXPECT_EQ(storage.counters().peakBytesInMemory, (2001 + kept * 5 + 2) * 8);
     EXPECT_EQ(storage.counters().statesStored, kept);
     // O(H^4) in the restored states: at least 8x per halving of M (16x asymptotically).
     if (previous > 0.0) EXPECT_GT(previous / error, 8.0) << "M = " << every;
@@ -150,11 +152,59 @@ TEST(HermiteStorage, GradientErrorAgainstFullStorageShrinksWithM) {
   EXPECT_LT(previous, 1e-6);
 }
 
+// The error estimate: measured mid-interval in the forward sweep, reported as a gradient error
+// estimate that is at least the gradient's actual error; an interval too long for a cubic (every = N:
+// one cubic over the whole run) is refused instead of giving a gradient off by orders of magnitude.
+TEST(HermiteStorage, ErrorEstimateCoversTheGradientErrorAndTooLongIntervalsAreRefused) {
+  Pendulum problem;
+  const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = 4.0;
+  options.step = 2e-3;  // N = 2000
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  for (std::int64_t every : {100, 64, 32, 16, 4, 1}) {
+    HermiteStorage storage(every, HermiteStorage::kDefaultBudget, 1.0);
+    const GradientResult result = computeGradient(problem, p, options, storage);
+    const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
+    std::cout << "[ hermite ] M = " << every << ": gradient error " << error << ", estimate "
+              << result.summary.gradientErrorEstimate << " (state error " << storage.stateErrorEstimate() << ")\n";
+    EXPECT_GE(result.summary.gradientErrorEstimate, error) << "M = " << every;
+    EXPECT_EQ(result.summary.gradientErrorEstimate,
+              LossyStorage::kGradientSensitivity * storage.stateErrorEstimate());
+    if (every == 1) EXPECT_EQ(result.summary.gradientErrorEstimate, 0.0);
+    if (every == 4) EXPECT_LT(result.summary.gradientErrorEstimate, 1e-5);
+  }
+  for (const std::string spec : {"hermite:every=2000", "hermite:every=1000", "hermite:every=1999"}) {
+    auto storage = createStorage(spec);
+    try {
+      computeGradient(problem, p, options, *storage);
+      ADD_FAILURE() << spec << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find("hermite.every = " + spec.substr(14) + " is too long"), std::string::npos) << message;
+      EXPECT_NE(message.find("hermite.tolerance = 0.01"), std::string::npos) << message;
+    }
+  }
+  // Unknown N (adaptive steps): the same check.
+  IntegratorOptions adaptive = options;
+  adaptive.adaptive = true;
+  adaptive.method = "dopri5";
+  adaptive.relativeTolerance = 1e-8;
+  adaptive.absoluteTolerance = 1e-10;
+  HermiteStorage tooLong(1'000'000);
+  EXPECT_THROW(computeGradient(problem, p, adaptive, tooLong), std::invalid_argument);
+  EXPECT_EQ(createStorage("hermite:every=4,tolerance=0.5")->spec(), "hermite:every=4,tolerance=0.5");
+  EXPECT_THROW(createStorage("hermite:tolerance=0"), std::invalid_argument);
+  EXPECT_THROW(createStorage("hermite:tolerance=2"), std::invalid_argument);
+}
+
 TEST(HermiteStorage, BudgetIsNeverExceeded) {
   // 480 steps, M = 4: 121 kept points of (2 + 2) doubles + 1 time, and 481 grid times. With N
   // announced that is allocated once; with N unknown the buffers grow geometrically, and the
-  // capacity (up to twice the content) is what is charged.
-  const std::int64_t needed = (121 * 5 + 481) * 8;
+  // capacity (up to twice the content) is what is charged; plus the mid-interval sample (2 doubles).
+  const std::int64_t needed = (121 * 5 + 481 + 2) * 8;
   for (bool announceSteps : {true, false}) {
     NoRecomputation recomputer;
     HermiteStorage enough(4, announceSteps ? needed : 2 * needed);

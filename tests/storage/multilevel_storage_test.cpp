@@ -4,9 +4,15 @@
 // the default schedule=optimal (the two-level plan of storage/schedule.h; tests at the end; its
 // counters against the plan's prediction are in schedule_test.cpp).
 #include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/scratch_files.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
+#include <hdf5.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fstream>
 #include <optional>
 
 namespace hindsight {
@@ -332,6 +338,136 @@ TEST(MultilevelPlan, KeptSlotFileAndFaultsAreStorageErrors) {
     const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), tiny);
     EXPECT_FALSE(tiny.usesPlan());
     EXPECT_TRUE(bitwiseEqual(result, fullReference(problem, pendulumParameters(), fixedStepRk4())));
+  }
+}
+
+// ---- integrity of the disk level and scratch files of killed runs ----
+
+void flipByte(const std::string& path, std::int64_t offset) {
+  std::fstream stream(path, std::ios::in | std::ios::out | std::ios::binary);
+  ASSERT_TRUE(stream.good()) << path;
+  stream.seekg(offset);
+  char byte = 0;
+  stream.read(&byte, 1);
+  byte = static_cast<char>(byte ^ 0x5a);
+  stream.seekp(offset);
+  stream.write(&byte, 1);
+}
+
+std::string storageErrorOf(MultilevelStorage& storage) {
+  Pendulum problem;
+  storage.setVerifyRestores(false);  // the storage itself must notice
+  try {
+    computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+  } catch (const StorageError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no StorageError: the corrupted disk level gave a gradient";
+  return {};
+}
+
+TEST(MultilevelPlan, CorruptedSlotIsAStorageErrorNamingTheFileAndTheSlot) {
+  const ScheduleCosts cheap{1, 1, 0.01, 0.01};  // a plan with disk slots
+  const std::int64_t record = 16 + 16;           // pendulum state + index + checksum
+  // One byte of the state, of the index and of the checksum of slot 1; one byte in every slot.
+  for (std::int64_t offset : {record + 3, record + 16, record + 31, std::int64_t{-1}}) {
+    SCOPED_TRACE(offset);
+    ScratchDirectory dir;
+    MultilevelStorage::Options options = planned(800, 1 << 20, dir.path(), cheap);
+    options.afterForwardSweep = [offset, record](const std::string& path) {
+      const std::int64_t size = static_cast<std::int64_t>(std::filesystem::file_size(path));
+      ASSERT_GE(size, 2 * record);
+      ASSERT_EQ(size % record, 0);
+      if (offset >= 0) {
+        flipByte(path, offset);
+      } else {
+        for (std::int64_t slot = 0; slot < size / record; ++slot) flipByte(path, slot * record + 5);
+      }
+    };
+    {
+      MultilevelStorage storage(options);
+      const std::string message = storageErrorOf(storage);
+      EXPECT_NE(message.find("is corrupted"), std::string::npos) << message;
+      if (offset >= 0) EXPECT_NE(message.find("slot 1 "), std::string::npos) << message;
+      EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos) << message;
+    }
+    EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is removed with the storage
+  }
+  // Unchanged slots read back as written: the checksums cost no bit.
+  ScratchDirectory dir;
+  MultilevelStorage storage(planned(800, 1 << 20, dir.path(), cheap));
+  Pendulum problem;
+  EXPECT_TRUE(bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage),
+                           fullReference(problem, pendulumParameters(), fixedStepRk4())));
+  EXPECT_GT(storage.diskReads(), 0);
+}
+
+TEST(MultilevelStorage, CorruptedStrideFileIsAStorageErrorNamingTheFile) {
+  ScratchDirectory dir;
+  MultilevelStorage::Options options = levels(8000, 1 << 20, dir.path());
+  options.afterForwardSweep = [](const std::string& path) {
+    haddr_t address = 0;
+    hsize_t size = 0;
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const hid_t states = H5Dopen2(file, "states", H5P_DEFAULT);
+    const hid_t space = H5Dget_space(states);
+    hsize_t offset[2];
+    unsigned mask = 0;
+    ASSERT_GE(H5Dget_chunk_info(states, space, 0, offset, &mask, &address, &size), 0);
+    H5Sclose(space);
+    H5Dclose(states);
+    H5Fclose(file);
+    flipByte(path, static_cast<std::int64_t>(address + size / 2));
+  };
+  MultilevelStorage storage(options);
+  const std::string message = storageErrorOf(storage);
+  EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos) << message;
+}
+
+// The PID of a process that has ended (and been reaped).
+pid_t deadPid() {
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  return child;
+}
+
+TEST(ScratchFiles, FilesOfDeadProcessesOfThisHostAreRemovedAtTheNextStart) {
+  using internal::isStaleScratchFile;
+  using internal::scratchHostTag;
+  const std::string dead = std::to_string(deadPid());
+  const std::string live = std::to_string(::getpid());
+  const std::string host = scratchHostTag();
+  ASSERT_EQ(host.size(), 8u);
+  const std::string stale[] = {"hindsight-" + dead + "-" + host + "-0-123.h5",
+                               "hindsight-multilevel-" + dead + "-" + host + "-7-99.h5",
+                               "hindsight-multilevel-" + dead + "-" + host + "-3-42.slots"};
+  const std::string kept[] = {
+      "hindsight-" + live + "-" + host + "-0-123.h5",              // a running process's
+      "hindsight-multilevel-" + dead + "-kept-1-5.slots",          // kept on purpose (keep=true)
+      "hindsight-multilevel-" + dead + "-0badc0de-1-5.slots",      // another host's
+      "hindsight-multilevel-" + dead + "-3.slots",                 // the older naming
+      "hindsight-" + dead + "-" + host + "-0-123.h5.txt",          // not a scratch file
+      "results.h5",
+  };
+  for (const std::string& name : stale) EXPECT_TRUE(isStaleScratchFile(name)) << name;
+  for (const std::string& name : kept) EXPECT_FALSE(isStaleScratchFile(name)) << name;
+  if (host == "0badc0de") GTEST_SKIP() << "this host's tag is the test's other host";
+
+  for (const bool slots : {true, false}) {  // the slot file and the chunked file clean up alike
+    ScratchDirectory dir;
+    for (const std::string& name : stale) std::ofstream(dir.path() + "/" + name) << "x";
+    for (const std::string& name : kept) std::ofstream(dir.path() + "/" + name) << "x";
+    MultilevelStorage::Options options =
+        slots ? planned(800, 1 << 20, dir.path(), ScheduleCosts{1, 1, 0.01, 0.01}) : levels(8000, 1 << 20, dir.path());
+    MultilevelStorage storage(options);
+    Pendulum problem;
+    computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+    EXPECT_FALSE(storage.filePath().empty());
+    for (const std::string& name : stale) EXPECT_FALSE(std::filesystem::exists(dir.path() + "/" + name)) << name;
+    for (const std::string& name : kept) EXPECT_TRUE(std::filesystem::exists(dir.path() + "/" + name)) << name;
   }
 }
 

@@ -92,6 +92,34 @@ TEST(GeometryExport, GrayFieldAreaFollowsTheIsoValue) {
   EXPECT_THROW(contourOutline(f, 0.0), std::invalid_argument);
 }
 
+// A low iso value must not draw the outline outside the rod: the crossings between a boundary element
+// and the void around the rod (up to half an element beyond the edge at iso 0.1) end at the rod's edge.
+// The solid and its volume stay consistent.
+TEST(GeometryExport, LowIsoOutlineStaysWithinTheRod) {
+  const DensityField f = TrussDesign();
+  const double width = f.nx * f.cellWidthMm, height = f.ny * f.cellHeightMm;
+  for (double iso : {0.05, 0.1, 0.3, 0.5}) {
+    const Outline outline = contourOutline(f, iso);
+    double lowX = 1e300, highX = -1e300, lowY = 1e300, highY = -1e300;
+    for (const auto& loop : outline.loops) {
+      for (const Eigen::Vector2d& point : loop) {
+        lowX = std::min(lowX, point.x());
+        highX = std::max(highX, point.x());
+        lowY = std::min(lowY, point.y());
+        highY = std::max(highY, point.y());
+      }
+    }
+    EXPECT_GE(lowX, 0.0) << iso;
+    EXPECT_LE(highX, width * (1 + 1e-15)) << iso;
+    EXPECT_GE(lowY, 0.0) << iso;
+    EXPECT_LE(highY, height * (1 + 1e-15)) << iso;
+    // The solid frame reaches the edges: the outline spans the rod.
+    EXPECT_NEAR(lowX, 0.0, 1e-9) << iso;
+    EXPECT_NEAR(highX, width, 1e-9) << iso;
+    EXPECT_LE(outline.area(), width * height * (1 + 1e-12)) << iso;
+  }
+}
+
 // Every directed edge once, its reverse once: closed (each edge in two triangles) and consistently
 // oriented.
 void ExpectClosedAndOriented(const std::vector<std::array<int, 3>>& triangles) {

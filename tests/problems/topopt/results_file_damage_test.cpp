@@ -1,13 +1,16 @@
 // readResultsFile on files whose attributes claim sizes the datasets do not have: it must refuse them
 // with StorageError before allocating what the attributes claim (2^31 - 1 iterations would be 8 GiB
 // of history; nx = ny = 2^31 - 1 overflowed the size of the designs buffer).
+#include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
 #include <chrono>
 #include <climits>
+#include <ostream>
 
 namespace hindsight {
 namespace {
@@ -61,6 +64,79 @@ TEST(ResultsFileDamage, ClaimedSizesAreCheckedBeforeAllocating) {
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0)
         << claim.attribute;
   }
+}
+
+// The configuration fingerprint the MPI ranks agreed on: stored, read back, and recomputed from the
+// stored configuration by verify; a file whose configuration is not the agreed one (all its hashes
+// consistent, as a run of ranks with different configurations would have written it) is refused.
+TEST(ResultsFileFingerprint, StoredAndRecomputedFromTheConfiguration) {
+  // A real run's file (a tiny rod, one iteration: milliseconds).
+  Config config;
+  config.rod.elementsAlongLength = 8;
+  config.rod.elementsThroughHeight = 2;
+  config.rod.modeCount = 2;
+  config.rod.endTime = 0.02;
+  config.rod.rampTime = 0.01;
+  config.rod.eslSamples = 4;
+  config.simulation.step = 1e-3;
+  config.optimization.iterations = 1;
+  OptimizationRunOptions options;
+  options.outputDirectory = ::testing::TempDir() + "/hindsight_fingerprint_run";
+  options.force = true;
+  {
+    OptimizationRun run(config, options);
+    std::ostream quiet(nullptr);
+    run.run(quiet);
+  }
+  const std::string path = options.outputDirectory + "/results.h5";
+  const std::string fingerprint = configurationFingerprint(config);
+  ASSERT_EQ(fingerprint.rfind("fnv1a64:", 0), 0u);
+  ASSERT_EQ(fingerprint.size(), 8u + 16u);
+  const ResultsVerification sound = verifyResultsFile(path);
+  EXPECT_EQ(sound.firstProblem(), nullptr);
+  EXPECT_EQ(sound.configurationFingerprint, fingerprint);
+  EXPECT_EQ(sound.ranks, 1);
+  const ResultsData data = readResultsFile(path);
+  EXPECT_EQ(data.configurationFingerprint, fingerprint);
+  EXPECT_EQ(configurationFingerprint(data.configurationJson), fingerprint);
+
+  // A file whose configuration is not the one the fingerprint names, every hash consistent.
+  Config other = config;
+  other.optimization.iterations = 8;
+  ResultsData mixed = data;
+  mixed.configurationFingerprint = configurationFingerprint(other);
+  writeResultsFile(path, mixed);
+  const ResultsVerification refused = verifyResultsFile(path);
+  ASSERT_NE(refused.firstProblem(), nullptr);
+  EXPECT_EQ(refused.firstProblem()->object, "/");
+  EXPECT_NE(refused.firstProblem()->problem.find("configuration_fingerprint"), std::string::npos);
+  EXPECT_THROW(readResultsFile(path), StorageError);
+
+  // Files written before the fingerprint (none stored) are read as before.
+  ResultsData old = data;
+  old.configurationFingerprint.clear();
+  old.ranks = 0;
+  writeResultsFile(path, old);
+  EXPECT_EQ(verifyResultsFile(path).firstProblem(), nullptr);
+  EXPECT_TRUE(verifyResultsFile(path).configurationFingerprint.empty());
+}
+
+TEST(ResultsFileFingerprint, DifferingFieldsNameEachFieldIncludingOneSidedOnes) {
+  Config a;
+  Config b = a;
+  EXPECT_TRUE(differingFields(toJson(a), toJson(b)).empty());
+  EXPECT_EQ(configurationFingerprint(a), configurationFingerprint(b));
+  b.optimization.iterations = a.optimization.iterations + 1;
+  b.rod.endTime = a.rod.endTime * 2;
+  EXPECT_EQ(differingFields(toJson(a), toJson(b)),
+            (std::vector<std::string>{"optimization.iterations", "rod.endTime"}));
+  EXPECT_NE(configurationFingerprint(a), configurationFingerprint(b));
+  nlohmann::json withScenarios = toJson(a);
+  withScenarios["scenarios"] = nlohmann::json::array({{{"name", "x"}}});
+  nlohmann::json without = toJson(a);
+  without.erase("scenarios");
+  EXPECT_EQ(differingFields(withScenarios, without), std::vector<std::string>{"scenarios"});
+  EXPECT_EQ(differingFields(without, withScenarios), std::vector<std::string>{"scenarios"});
 }
 
 }  // namespace
