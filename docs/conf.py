@@ -19,21 +19,3 @@ html_static_path = []
 html_extra_path = []
 
 
-# Four guides are written beside this manual's other pages and may be absent from a checkout that
-# predates them (storage strategies, crashes and resume, PETSc, performance): the index lists them, and
-# an absent one is dropped from its toctree here rather than left as a dangling entry. Any other missing
-# page is still an error.
-_optional_guides = ["guides/storage_strategies", "guides/crashes_and_resume", "guides/petsc", "guides/performance"]
-
-
-def _drop_absent_optional_guides(app, docname, source):
-    if docname != "index":
-        return
-    here = os.path.dirname(os.path.abspath(__file__))
-    for guide in _optional_guides:
-        if not os.path.exists(os.path.join(here, guide + ".md")):
-            source[0] = source[0].replace(guide + "\n", "")
-
-
-def setup(app):
-    app.connect("source-read", _drop_absent_optional_guides)

@@ -38,7 +38,7 @@ scratch = tempfile.mkdtemp(prefix="hindsight-sweep-")
 for spec in hindsight.storage_specs():
     print(f"{spec.name:11s} {spec.summary}")
 strategies = ["full", "binomial:checkpoints=10", "binomial:checkpoints=50", "binomial:checkpoints=200",
-              "online:checkpoints=50", "hermite:every=4", "hermite:every=16", "lossy:codec=zfp,tolerance=1e-12",
+              "online:checkpoints=50", "hermite:every=4", "hermite:every=8", "lossy:codec=zfp,tolerance=1e-12",
               "lossy:codec=round,tolerance=1e-6", f"disk:dir={scratch}", f"multilevel:ram=256KiB,disk=1GiB,dir={scratch}"]
 
 # %% One gradient per strategy.
