@@ -361,6 +361,11 @@ py::dict recordDict(const IterationRecord& r) {
   d["evaluation_seconds"] = r.evaluationSeconds;
   d["mma_seconds"] = r.mmaSeconds;
   d["total_seconds"] = r.totalSeconds;
+  d["grayness"] = r.grayness;
+  d["first_frequency_hz"] = r.firstFrequencyHz;
+  d["kkt_residual"] = r.kktResidual;
+  d["inner_iterations"] = r.innerIterations;
+  d["converged"] = r.converged;
   return d;
 }
 
@@ -388,6 +393,10 @@ py::dict historyColumns(const std::vector<IterationRecord>& history) {
   d["evaluation_seconds"] = column(&IterationRecord::evaluationSeconds);
   d["mma_seconds"] = column(&IterationRecord::mmaSeconds);
   d["total_seconds"] = column(&IterationRecord::totalSeconds);
+  d["grayness"] = column(&IterationRecord::grayness);
+  d["first_frequency_hz"] = column(&IterationRecord::firstFrequencyHz);
+  d["kkt_residual"] = column(&IterationRecord::kktResidual);
+  d["inner_iterations"] = integerColumn(&IterationRecord::innerIterations);
   return d;
 }
 

@@ -130,7 +130,8 @@ def _in_python_words(error):
 def optimize(config=None, out="results", resume=False, force=False, callback=None, verbose=False, **overrides):
     """Runs the topology optimization of `hindsight optimize` into directory `out` (results.h5 after every
     iteration, pictures, resumable). callback(record) is called after each iteration once it is on
-    disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds);
+    disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds,
+    grayness, first_frequency_hz, kkt_residual, inner_iterations, converged);
     returning a false value other than None (False, 0) stops the run (its results stay valid and
     resumable); returning None continues. resume=True on a directory without results.h5 raises
     ValueError (a mistyped `out` must not start a fresh run). verbose=True prints the progress lines.
@@ -147,7 +148,8 @@ def optimize(config=None, out="results", resume=False, force=False, callback=Non
 def read_results(path):
     """A results directory (or its results.h5) read with every check of the C++ reader (StorageError
     naming the dataset when one fails): history (dict of NumPy columns: iteration, psi1, psi2,
-    volume_fraction, max_design_change, backtracks, evaluation_seconds, mma_seconds, total_seconds),
+    volume_fraction, max_design_change, backtracks, evaluation_seconds, mma_seconds, total_seconds,
+    grayness, first_frequency_hz, kkt_residual, inner_iterations),
     designs (K, ny, nx), configuration (dict), finished, next_design, final_frequencies_hz, final_modes;
     for runs with scenarios also scenarios (K, S: every scenario's psi1 per iteration, in the order of
     configuration["scenarios"]), scenario_psi2 (K, S) and scenario_objective_scale (S: psi_s(x0)); the

@@ -10,7 +10,8 @@ import hindsight
 from conftest import TINY
 
 CONFIG = {**TINY, "optimization": {"iterations": 3}}
-EXACT_COLUMNS = ["iteration", "psi1", "psi2", "backtracks", "volume_fraction", "max_design_change"]
+EXACT_COLUMNS = ["iteration", "psi1", "psi2", "backtracks", "volume_fraction", "max_design_change", "grayness",
+                 "first_frequency_hz", "kkt_residual", "inner_iterations"]
 
 
 def test_optimize_with_callback_equals_the_cli(cli, tmp_path):
@@ -19,6 +20,11 @@ def test_optimize_with_callback_equals_the_cli(cli, tmp_path):
     assert history.finished and history.checksummed
     assert [r["iteration"] for r in seen] == list(history.history["iteration"]) == [0, 1, 2, 3]
     assert seen[-1]["psi1"] == history.history["psi1"][-1]
+    # Every update's first-order residual is recorded; the final evaluation (no update) has none, and
+    # a run that used all its iterations did not stop by the convergence rule.
+    assert all(k >= 0 for k in history.history["kkt_residual"][:-1])
+    assert seen[0]["kkt_residual"] == history.history["kkt_residual"][0]
+    assert not any(r["converged"] for r in seen)
     assert history.designs.shape == (4, 2, 8)
     assert history.configuration["optimization"]["iterations"] == 3
 
