@@ -607,14 +607,6 @@ void CamsCheckpointing::doBegin() {
     return;
   }
   const std::int64_t capped = std::min(units_, (steps + 1) * recordUnits_);
-  if (capped > budgetBytes() / stateBytes()) {
-    // Refused before planning (which may take minutes), as binomial refuses its checkpoints beyond the
-    // budget; holdBytes below would only say so after the plan.
-    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints_) + " holds " +
-                                std::to_string(capped) + " states of " + formatBytes(stateBytes()) + " = " +
-                                formatBytes(capped * stateBytes()) + ", beyond the budget of " +
-                                formatBytes(budgetBytes()) + "; lower cams.checkpoints or give cams:budget=BYTES");
-  }
   if ((steps + 1) > cams::Plan::kMaxTableEntries / (capped + 1)) {
     throw std::invalid_argument("cams: the optimal plan for " + std::to_string(steps) + " steps and " +
                                 std::to_string(capped) + " state units needs more than " +
