@@ -14,13 +14,9 @@ void sincos(double x, double* sine, double* cosine) {
   *cosine = sc.y;
 }
 double asin(double x) { return Sleef_cinz_asind1_u10purec(x); }
-double acos(double x) { return Sleef_cinz_acosd1_u10purec(x); }
-double atan2(double y, double x) { return Sleef_cinz_atan2d1_u10purec(y, x); }
 double exp(double x) { return Sleef_cinz_expd1_u10purec(x); }
-double log(double x) { return Sleef_cinz_logd1_u10purec(x); }
 double log2(double x) { return Sleef_cinz_log2d1_u10purec(x); }
 double pow(double x, double y) { return Sleef_cinz_powd1_u10purec(x, y); }
 double tanh(double x) { return Sleef_cinz_tanhd1_u10purec(x); }
-double cbrt(double x) { return Sleef_cinz_cbrtd1_u10purec(x); }
 
 }  // namespace hindsight::dmath

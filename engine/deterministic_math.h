@@ -31,14 +31,10 @@ double cos(double x);
 /// sin and cos of the same argument in one call (each bit-identical to sin(x) and cos(x)).
 void sincos(double x, double* sine, double* cosine);
 double asin(double x);
-double acos(double x);
-double atan2(double y, double x);
 double exp(double x);
-double log(double x);
 double log2(double x);
 double pow(double x, double y);
 double tanh(double x);
-double cbrt(double x);
 
 // Chain rule for forward-mode automatic differentiation. Only the value functions differ from
 // Eigen's overloads; the derivative expressions use exact arithmetic and sqrt.
