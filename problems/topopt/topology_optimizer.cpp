@@ -251,8 +251,7 @@ IterationRecord TopologyOptimizer::step() {
       evaluated = scenarios_.evaluate(modelDesign(design, state_.iteration), request, usePsi1);
       for (int s = 0; s < scenarioCount; ++s) {
         const double value = usePsi1 ? evaluated->psi1[s] : evaluated->psi2[s];
-        const double scale = multiple_ ? (state_.iteration > 0 ? state_.scenarioScales(s) : 0.0)
-                                       : state_.objectiveScale;
+        const double scale = state_.iteration > 0 ? scenarioScale(state_, s) : 0.0;
         if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * scale)) {
           throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) +
                                    "objective " + toString(settings.objective) + " = " + std::to_string(value) +
@@ -293,66 +292,8 @@ IterationRecord TopologyOptimizer::step() {
   }
   OptimizerState next = state_;
   settled_ = false;
-  if (multiple_) {
-    updateScenarios(evaluation, next, design, record);
-  } else {
-    const double objective = usePsi1 ? evaluation.psi1[0] : evaluation.psi2[0];
-    if (next.iteration == 0 && next.objectiveScale == 0.0) next.objectiveScale = objective;
-
-    if (update) {
-      const Stopwatch mmaTimer;
-      const int n = designCount();
-      const Vector gradient = chainToDesign(evaluation.gradient[0], design, state_.iteration) / next.objectiveScale;
-      if (!gradient.allFinite()) {
-        throw NumericalError("the gradient of " + toString(settings.objective) + " at iteration " +
-                                 std::to_string(state_.iteration) + " is not finite",
-                             config().rod.endTime);
-      }
-      Matrix jacobian;
-      const Vector constraint = constraintsOf(evaluation.volumeFraction, evaluation.dvolume,
-                                              evaluation.local ? &*evaluation.local : nullptr, design,
-                                              state_.iteration, &jacobian);
-      const Vector lower = Vector::Constant(n, config().rod.designLowerBound);
-      const Vector upper = Vector::Ones(n);
-      Vector x = design;
-      if (gcmma_) {
-        // Trials: values only, with the projection of this iteration (the approximations are of this
-        // iteration's functions).
-        PistonRod::Request trialRequest;
-        trialRequest.psi1Gradient = false;
-        trialRequest.psi2 = !usePsi1;
-        trialRequest.psi2Gradient = false;
-        const int iteration = state_.iteration;
-        const double scale = next.objectiveScale;
-        const Gcmma::Evaluate evaluate = [&](const Vector& trial, double& value, Vector& constraints) {
-          try {
-            const PistonRodEvaluation e = scenarios_.rod(0).evaluate(modelDesign(trial, iteration), trialRequest);
-            const double psi = usePsi1 ? e.psi1 : e.psi2;
-            if (!(psi <= maxObjectiveGrowth * scale)) return false;  // a diverging response
-            value = psi / scale;
-            constraints = constraintsOf(e.volumeFraction, e.dvolume, &e, trial, iteration, nullptr);
-            return true;
-          } catch (const NumericalError&) {
-            return false;  // a diverged simulation: not conservative
-          }
-        };
-        next.mma = updateDesign(state_.mma, objective / next.objectiveScale, gradient, constraint, jacobian, lower,
-                                upper, &evaluate, x, record);
-      } else {
-        next.mma = updateDesign(state_.mma, objective / next.objectiveScale, gradient, constraint, jacobian, lower,
-                                upper, nullptr, x, record);
-      }
-      if (!x.allFinite()) {
-        throw NumericalError(
-            "the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
-            config().rod.endTime);
-      }
-      record.maxDesignChange = (x - design).cwiseAbs().maxCoeff();
-      next.design = x;
-      next.iteration += 1;
-      record.mmaSeconds = mmaTimer.seconds();
-    }
-  }
+  // One path: a run without a scenarios list is the list of its one configuration, weight 1.
+  updateFromScenarios(evaluation, next, design, record);
   if (update && settled_) {
     // The stopping rule holds at x_k: x_k is the final design (this record its final evaluation), the
     // update to x_{k+1} is discarded, and the state stays that of x_k (the scales found at x0 kept).
@@ -374,14 +315,18 @@ IterationRecord TopologyOptimizer::step() {
   return record;
 }
 
-void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, OptimizerState& next,
-                                        const Vector& design, IterationRecord& record) {
+double TopologyOptimizer::scenarioScale(const OptimizerState& state, int s) const {
+  return multiple_ ? state.scenarioScales(s) : state.objectiveScale;
+}
+
+void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, OptimizerState& next,
+                                            const Vector& design, IterationRecord& record) {
   const OptimizationSettings& settings = config().optimization;
   const bool usePsi1 = settings.objective == Objective::Psi1;
   const bool update = state_.iteration < settings.iterations;
   const int count = scenarios_.count();
   const std::vector<double>& values = usePsi1 ? evaluation.psi1 : evaluation.psi2;
-  if (next.iteration == 0 && next.scenarioScales.size() == 0) {
+  if (next.iteration == 0 && multiple_ && next.scenarioScales.size() == 0) {
     next.scenarioScales = Eigen::Map<const Vector>(values.data(), count);
     double aggregate = 0.0;
     for (int s = 0; s < count; ++s) {
@@ -390,16 +335,21 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
     }
     next.objectiveScale = aggregate;
   }
+  // Without a scenarios list the state keeps psi(x0) itself as the scale (the results file's
+  // objective_scale, and no /scenarios group).
+  if (next.iteration == 0 && !multiple_ && next.objectiveScale == 0.0) next.objectiveScale = values[0];
   // f_s = w_s psi_s / psi_s(x0), every sum in scenario order (the same bits for any rank count).
   Vector relative(count);
-  for (int s = 0; s < count; ++s) relative(s) = scenarios_.weight(s) * values[s] / next.scenarioScales(s);
+  for (int s = 0; s < count; ++s) relative(s) = scenarios_.weight(s) * values[s] / scenarioScale(next, s);
   int worst = 0;
   for (int s = 1; s < count; ++s) {
     if (relative(s) > relative(worst)) worst = s;
   }
-  record.scenarioPsi1 = evaluation.psi1;
-  record.scenarioPsi2 = evaluation.psi2;
-  record.worstScenario = worst;
+  if (multiple_) {
+    record.scenarioPsi1 = evaluation.psi1;
+    record.scenarioPsi2 = evaluation.psi2;
+    record.worstScenario = worst;
+  }
   record.psi1 = evaluation.psi1[worst];
   record.psi2 = evaluation.psi2[worst];
   if (!update) return;
@@ -408,11 +358,14 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
   const int n = designCount();
   std::vector<Vector> gradients(static_cast<std::size_t>(count));
   for (int s = 0; s < count; ++s) {
-    gradients[s] = chainToDesign((scenarios_.weight(s) / next.scenarioScales(s)) * evaluation.gradient[s], design,
-                                 state_.iteration);
+    // d f_s / dx = chain(d psi_s / dp) / (psi_s(x0) / w_s): with one scenario (w = 1) the division by
+    // psi(x0) of the paper's normalisation, bit for bit.
+    gradients[s] = chainToDesign(evaluation.gradient[s], design, state_.iteration) /
+                   (scenarioScale(next, s) / scenarios_.weight(s));
     if (!gradients[s].allFinite()) {
-      throw NumericalError("scenario '" + scenarios_.name(s) + "': the gradient of " + toString(settings.objective) +
-                               " at iteration " + std::to_string(state_.iteration) + " is not finite",
+      throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) +
+                               "the gradient of " + toString(settings.objective) + " at iteration " +
+                               std::to_string(state_.iteration) + " is not finite",
                            scenarios_.rod(s).config().rod.endTime);
     }
   }
@@ -425,9 +378,10 @@ void TopologyOptimizer::updateScenarios(const ScenarioResults& evaluation, Optim
   const Eigen::Index owned = own.size();
   Vector x;
   if (!bound_) {
-    double objective = 0.0;
-    Vector gradient = Vector::Zero(n);
-    for (int s = 0; s < count; ++s) {
+    // Summed in scenario order from the first term (not from zero, which could flip the sign of a zero).
+    double objective = relative(0);
+    Vector gradient = gradients[0];
+    for (int s = 1; s < count; ++s) {
       objective += relative(s);
       gradient += gradients[s];
     }
@@ -545,8 +499,8 @@ Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) co
       Vector relative(count);
       for (int s = 0; s < count; ++s) {
         const double psi = usePsi1 ? r.psi1[s] : r.psi2[s];
-        if (!(psi <= maxObjectiveGrowth * next.scenarioScales(s))) return false;  // a diverging response
-        relative(s) = scenarios_.weight(s) * psi / next.scenarioScales(s);
+        if (!(psi <= maxObjectiveGrowth * scenarioScale(next, s))) return false;  // a diverging response
+        relative(s) = scenarios_.weight(s) * psi / scenarioScale(next, s);
       }
       const Vector own = constraintsOf(r.volumeFraction, r.dvolume, r.local ? &*r.local : nullptr, design,
                                        state_.iteration, nullptr);
@@ -558,7 +512,8 @@ Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) co
         for (int s = 0; s < count; ++s) constraints(owned + s) = relative(s) - trial(n);
       } else {
         value = 0.0;
-        for (int s = 0; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
+        value = relative(0);
+      for (int s = 1; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
       }
       return true;
     } catch (const NumericalError&) {

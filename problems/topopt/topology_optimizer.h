@@ -59,8 +59,9 @@
 // to f_s(x) - z <= 0 and the volume bound (the bound formulation; z in [0, maxObjectiveGrowth max_s
 // w_s], restarted at max_s f_s each iteration; its MMA state is OptimizerState::bound). The divergence
 // guard applies per scenario; the frequency guard is one constraint of the design (every rank evaluates it
-// from a scenario it owns, so at most as many ranks as scenarios). Without scenarios the code path and
-// the bits are those of before.
+// from a scenario it owns, so at most as many ranks as scenarios). A run without a scenarios list takes the
+// same path as the list of its one configuration (weight 1; the scale psi(x0) is then kept as
+// OptimizerState::objectiveScale).
 //
 // Restart: everything that carries over between iterations is the OptimizerState (plain data). An
 // optimizer restored from a stored state continues bit for bit as the uninterrupted one (evaluations
@@ -214,11 +215,14 @@ class TopologyOptimizer final {
                         const Vector& constraints, const Matrix& jacobian, const Vector& lower,
                         const Vector& upper, const Gcmma::Evaluate* trials, Vector& x, IterationRecord& record);
 
-  // The multi-scenario update: sum or max of the scenarios' relative objectives (scenarios.h).
-  /// GCMMA's trial evaluations with scenarios (collective over the ranks).
+  // The update of every run: sum or max of the scenarios' relative objectives (scenarios.h); a run
+  // without a scenarios list is one scenario of weight 1.
+  /// GCMMA's trial evaluations (collective over the ranks).
   Gcmma::Evaluate scenarioTrials(const OptimizerState& next) const;
-  void updateScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
-                       IterationRecord& record);
+  void updateFromScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
+                           IterationRecord& record);
+  // psi_s(x0), the scale of scenario s: the state's objectiveScale without a scenarios list.
+  double scenarioScale(const OptimizerState& state, int s) const;
 
   Config config_;
   ScenarioObjective scenarios_;
