@@ -101,7 +101,7 @@ int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config&
   };
   int best = -1;
   for (std::size_t k = 0; k < history.size(); ++k) {
-    if (!(history[k].volumeFraction <= settings.volumeFraction * (1.0 + 1e-6))) continue;
+    if (!TopologyOptimizer::feasible(TopologyOptimizer::recordConstraints(history[k], settings))) continue;
     if (best < 0 || objective(history[k]) < objective(history[static_cast<std::size_t>(best)]))
       best = static_cast<int>(k);
   }

@@ -83,9 +83,9 @@ class OptimizationRun {
 
 /// Index in `history` of the best feasible design: the lowest optimized objective (psi1 or psi2 per
 /// optimization.objective; with scenarios the aggregate of w_s psi_s / psi_s(x0), psi_s(x0) from the
-/// first record) among the records whose volume fraction V/V0 is at most the bound
-/// optimization.volumeFraction (1e-6 relative slack: MMA's interior-point solver ends a constraint at
-/// about -1e-7 / lambda, either side of zero). -1 when no record is feasible.
+/// first record) among the feasible records (TopologyOptimizer::feasible of the record's constraints:
+/// the volume bound and, when on, the frequency guard, within TopologyOptimizer::kFeasibilitySlack, the
+/// stopping rule's test). -1 when no record is feasible.
 int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config& config);
 
 /// The progress line of one iteration, e.g.

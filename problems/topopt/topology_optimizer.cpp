@@ -221,6 +221,16 @@ Vector TopologyOptimizer::constraintsOf(double volumeFraction, ConstVectorRef dv
   return constraint;
 }
 
+Vector TopologyOptimizer::recordConstraints(const IterationRecord& record, const OptimizationSettings& settings) {
+  Vector constraint(settings.minFirstFrequency > 0.0 ? 2 : 1);
+  constraint(0) = record.volumeFraction / settings.volumeFraction - 1.0;
+  if (settings.minFirstFrequency > 0.0) {
+    const double ratio = record.firstFrequencyHz / settings.minFirstFrequency;
+    constraint(1) = std::isnan(ratio) ? std::numeric_limits<double>::infinity() : 1.0 - ratio * ratio;
+  }
+  return constraint;
+}
+
 Vector TopologyOptimizer::densityGrid(ConstVectorRef design) const {
   const rod::RodConfig& rc = config().rod;
   const Vector physical = modelDesign(design, lastIteration_);
@@ -467,7 +477,7 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   // raise the objective (the rule must not end the run on a resonance spike that the step leaves).
   const OptimizationSettings& settings = config().optimization;
   const Eigen::Index n = designCount();
-  const bool feasible = constraints.size() == 0 || constraints.maxCoeff() <= kFeasibilitySlack;
+  const bool feasible = TopologyOptimizer::feasible(constraints);
   const bool descent = !std::isfinite(from.objective) || objective <= from.objective;
   const bool stationary = record.kktResidual <= settings.kktTolerance &&
                           (x.head(n) - current.head(n)).cwiseAbs().maxCoeff() <= settings.changeTolerance;

@@ -179,6 +179,15 @@ class TopologyOptimizer final {
   /// A design whose largest constraint value is at most this counts as feasible (MMA's interior-point
   /// solver ends active constraints at about -1e-7 / lambda, either side of zero).
   static constexpr double kFeasibilitySlack = 1e-6;
+  /// The one test of feasibility, for the stopping rule and for the best design of a history: every
+  /// constraint value at most kFeasibilitySlack.
+  static bool feasible(ConstVectorRef constraints) {
+    return constraints.size() == 0 || constraints.maxCoeff() <= kFeasibilitySlack;
+  }
+  /// The constraint values of a history record, as constraintsOf() forms them: the volume bound, and
+  /// the frequency guard from the record's first natural frequency when optimization.minFirstFrequency
+  /// > 0 (a NaN frequency, a record without eigenpairs, counts as violating it).
+  static Vector recordConstraints(const IterationRecord& record, const OptimizationSettings& settings);
   /// An objective above this multiple of psi(x0) counts as a diverged response.
   static constexpr double maxObjectiveGrowth = 10.0;
 

@@ -522,6 +522,14 @@ TEST(OptimizationRun, BestFeasibleIndexPicksTheLowestObjectiveWithinTheVolumeBou
   EXPECT_EQ(bestFeasibleIndex(history, config), 2);  // within the slack
   for (IterationRecord& r : history) r.volumeFraction = 0.9;
   EXPECT_EQ(bestFeasibleIndex(history, config), -1);
+  // The frequency guard counts as the stopping rule counts it: a record below the bound (or without a
+  // frequency) is not feasible.
+  for (IterationRecord& r : history) r.volumeFraction = 0.4;
+  config.optimization.minFirstFrequency = 50.0;
+  const double frequency[] = {60.0, 49.0, 50.0, std::numeric_limits<double>::quiet_NaN()};
+  for (int k = 0; k < 4; ++k) history[k].firstFrequencyHz = frequency[k];
+  EXPECT_EQ(bestFeasibleIndex(history, config), 2);  // 0.2 is below 50 Hz, 0.25 has no frequency
+  config.optimization.minFirstFrequency = 0.0;
   // Two scenarios, aggregate max of w_s psi_s / psi_s(x0).
   config.scenarios = {Scenario{"a", {}, {}, {}, {}, 1.0}, Scenario{"b", {}, {}, {}, {}, 2.0}};
   config.optimization.aggregate = Aggregate::Max;
