@@ -219,7 +219,8 @@ void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVecto
 
 void Mma::adaptMoveLimit(double objective, ConstVectorRef constraints) {
   const MmaOptions& o = options_;
-  double move = state_.moveLimit > 0.0 ? state_.moveLimit : o.move_limit;
+  // The one place the move limit of an update is decided; updateAsymptotes() reads it from the state.
+  double move = o.adaptive_move_limit && state_.moveLimit > 0.0 ? state_.moveLimit : o.move_limit;
   const bool feasible = m_ == 0 || constraints.maxCoeff() <= 0.0;
   if (o.adaptive_move_limit && feasible && std::isfinite(state_.objective)) {
     move = objective > state_.objective ? std::max(move * o.move_limit_shrink, o.min_move_limit)
@@ -232,7 +233,7 @@ void Mma::adaptMoveLimit(double objective, ConstVectorRef constraints) {
 void Mma::updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
   const MmaOptions& o = options_;
   const int k = state_.iteration + 1;  // the number of this iteration, counted from 1 as in the note
-  const double move = o.adaptive_move_limit && state_.moveLimit > 0.0 ? state_.moveLimit : o.move_limit;
+  const double move = state_.moveLimit;  // set by adaptMoveLimit() just before
   Vector& low = state_.low;
   Vector& upp = state_.upp;
 
