@@ -224,6 +224,8 @@ const std::vector<std::pair<std::string, std::vector<Field>>>& schema() {
         realField("moveLimit", MEMBER(optimization.moveLimit), 0.0, 1.0, true),
         realField("kktTolerance", MEMBER(optimization.kktTolerance), 0.0, 1.0),
         realField("changeTolerance", MEMBER(optimization.changeTolerance), 0.0, 1.0),
+        realField("objectiveTolerance", MEMBER(optimization.objectiveTolerance), 0.0, 1.0),
+        realField("minAsymptoteDistance", MEMBER(optimization.minAsymptoteDistance), 0.0, 0.5, true),
         stringField("method", MEMBER(optimization.method), {"mma-adaptive", "mma", "gcmma"}),
         realField("minFirstFrequency", MEMBER(optimization.minFirstFrequency), 0.0, 1e6),
         realField("projectionBeta", MEMBER(optimization.projectionBeta), 0.0, 1000.0),

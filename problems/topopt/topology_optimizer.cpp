@@ -35,11 +35,12 @@ Config validated(const Config& config) {
   return config;
 }
 
-// docs/design.md §7: Svanberg's 2007 constants (the MmaOptions defaults); only the move limit is
-// configurable.
+// docs/design.md §7: Svanberg's 2007 constants (the MmaOptions defaults); the move limit and the
+// asymptotes' smallest distance are configurable.
 MmaOptions mmaOptions(const OptimizationSettings& settings) {
   MmaOptions options;
   options.move_limit = settings.moveLimit;
+  options.min_asymptote_distance = settings.minAsymptoteDistance;
   options.adaptive_move_limit = settings.method == "mma-adaptive";
   options.min_move_limit = std::min(options.min_move_limit, settings.moveLimit);
   return options;
@@ -364,6 +365,14 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   record.psi2 = evaluation.psi2[worst];
   if (!update) return;
 
+  // The stagnation window: the aggregate the update minimizes (sum, or max, of the relative objectives).
+  double aggregate = relative(0);
+  for (int s = 1; s < count; ++s)
+    aggregate = bound_ ? std::max(aggregate, relative(s)) : aggregate + relative(s);
+  next.recentObjectives.push_back(aggregate);
+  if (next.recentObjectives.size() > OptimizerState::kObjectiveWindow)
+    next.recentObjectives.erase(next.recentObjectives.begin());
+
   const Stopwatch mmaTimer;
   const int n = designCount();
   std::vector<Vector> gradients(static_cast<std::size_t>(count));
@@ -400,8 +409,8 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     x = design;
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
-    updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper, gcmma_ ? &trials : nullptr, x,
-                 record);
+    updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper, gcmma_ ? &trials : nullptr,
+                 next.recentObjectives, x, record);
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
     // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
@@ -427,7 +436,7 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     }
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
     updateDesign(fullMmaState(state_), x(n), objectiveGradient, constraints, jacobian, lower, upper,
-                 gcmma_ ? &trials : nullptr, x, record);
+                 gcmma_ ? &trials : nullptr, next.recentObjectives, x, record);
   }
   if (!x.allFinite()) {
     throw NumericalError("the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
@@ -452,8 +461,8 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
 
 MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
                                          const Vector& constraints, const Matrix& jacobian, const Vector& lower,
-                                         const Vector& upper, const Gcmma::Evaluate* trials, Vector& x,
-                                         IterationRecord& record) {
+                                         const Vector& upper, const Gcmma::Evaluate* trials,
+                                         const std::vector<double>& recent, Vector& x, IterationRecord& record) {
   const Vector current = x;
   const MmaSubproblemSummary* subproblem;
   MmaState to;
@@ -479,8 +488,14 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   const Eigen::Index n = designCount();
   const bool feasible = TopologyOptimizer::feasible(constraints);
   const bool descent = !std::isfinite(from.objective) || objective <= from.objective;
-  const bool stationary = record.kktResidual <= settings.kktTolerance &&
-                          (x.head(n) - current.head(n)).cwiseAbs().maxCoeff() <= settings.changeTolerance;
+  bool stagnated = false;
+  if (settings.objectiveTolerance > 0.0 && recent.size() == OptimizerState::kObjectiveWindow) {
+    const auto [smallest, largest] = std::minmax_element(recent.begin(), recent.end());
+    stagnated = *largest - *smallest <= settings.objectiveTolerance * *smallest;
+  }
+  const bool stationary =
+      record.kktResidual <= settings.kktTolerance &&
+      ((x.head(n) - current.head(n)).cwiseAbs().maxCoeff() <= settings.changeTolerance || stagnated);
   // With the adaptive move limit (a trust region, problems/topopt/mma.h), a limit that had to shrink
   // below changeTolerance says that no step of that size lowers the objective any more: the trust-region
   // methods' stopping test. On an objective with narrow resonance peaks this is the test that ends the

@@ -25,7 +25,9 @@
 // change at most optimization.changeTolerance, x_k is feasible (kFeasibilitySlack) and its objective
 // is no higher than that of x_{k-1} (the MMA state keeps it), x_k is the final design: the update is
 // not taken, the record is marked converged, and the run ends after k + 1 records instead of
-// iterations + 1. Either tolerance 0 turns the rule off. The decision uses only what step k computes
+// iterations + 1. The change test may be replaced by stagnation: the optimized objective of the last
+// five designs varying by at most optimization.objectiveTolerance (relative). Either of kktTolerance and
+// changeTolerance 0 turns the rule off. The decision uses only what step k computes
 // and the stored state, so a resumed run stops at the same iteration.
 //
 // Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
@@ -125,6 +127,10 @@ struct OptimizerState {
   Vector scenarioScales;
   /// With aggregate max: MMA's state of the bound variable z (xold1, xold2, low, upp); else empty.
   Vector bound;
+  /// The optimized (scaled) objective of the last designs, oldest first, at most kObjectiveWindow: the
+  /// stopping rule's stagnation test (optimization.objectiveTolerance).
+  std::vector<double> recentObjectives;
+  static constexpr std::size_t kObjectiveWindow = 5;
 };
 
 class TopologyOptimizer final {
@@ -220,9 +226,11 @@ class TopologyOptimizer final {
   // One MMA or GCMMA update (GCMMA when `trials` is not null) of x from the MMA state `from`: x becomes
   // the next iterate; record gets the KKT residual at the current x and GCMMA's trial count. Returns
   // the MMA state after the update.
+  // `recent` holds the objectives of the last designs, this one's last (the stagnation test).
   MmaState updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
                         const Vector& constraints, const Matrix& jacobian, const Vector& lower,
-                        const Vector& upper, const Gcmma::Evaluate* trials, Vector& x, IterationRecord& record);
+                        const Vector& upper, const Gcmma::Evaluate* trials, const std::vector<double>& recent,
+                        Vector& x, IterationRecord& record);
 
   // The update of every run: sum or max of the scenarios' relative objectives (scenarios.h); a run
   // without a scenarios list is one scenario of weight 1.

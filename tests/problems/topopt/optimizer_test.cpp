@@ -504,6 +504,46 @@ TEST(OptimizationRun, StoppingRuleEndsTheRunAtAKktPointAndAResumeStopsThere) {
   EXPECT_FALSE(full.history.back().converged);
 }
 
+// Stagnation replaces the change test: with a change tolerance no update meets, the run still ends once
+// the residual test holds and the objective of the last five designs varies by at most
+// objectiveTolerance; the window is part of the stored state, so a run interrupted inside the window
+// and resumed stops at the same record with the same bits. Without stagnation the same run goes on.
+TEST(OptimizationRun, StagnationEndsTheRunAndAResumeStopsThere) {
+  Config config = coarseConfig("psi1", 200);
+  config.optimization.changeTolerance = 1e-12;
+  config.optimization.objectiveTolerance = 1e-3;
+  const ResultsData& reference = referenceResults(config, "psi1_stagnating");
+  ASSERT_TRUE(reference.finished);
+  const std::vector<IterationRecord>& h = reference.history;
+  ASSERT_GE(h.size(), 6u);
+  ASSERT_LT(h.size(), 201u);
+  EXPECT_TRUE(h.back().converged);
+  EXPECT_LE(h.back().kktResidual, config.optimization.kktTolerance);
+  EXPECT_GT(h.back().maxDesignChange, config.optimization.changeTolerance);  // not the change test
+  // The window: the relative objectives psi / psi(x0) of the last five designs, this one's last.
+  double smallest = h.back().psi1, largest = h.back().psi1;
+  for (std::size_t k = h.size() - 5; k < h.size(); ++k) {
+    smallest = std::min(smallest, h[k].psi1);
+    largest = std::max(largest, h[k].psi1);
+  }
+  EXPECT_LE(largest - smallest, 1e-3 * smallest * (1.0 + 1e-12));
+  for (std::size_t k = 0; k + 1 < h.size(); ++k) EXPECT_FALSE(h[k].converged) << k;
+
+  const std::string dir = freshDirectory("stagnating_exit");
+  EXPECT_FALSE(runInChild(config, dir, static_cast<int>(h.size()) - 3));  // inside the final window
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  options.resume = true;
+  runQuietly(config, options);
+  expectSameResults(readResultsFile(dir + "/results.h5"), reference);
+
+  Config off = config;
+  off.optimization.objectiveTolerance = 0.0;
+  off.optimization.iterations = static_cast<int>(h.size()) + 2;
+  const ResultsData& longer = referenceResults(off, "psi1_stagnation_off");
+  EXPECT_FALSE(longer.history[h.size() - 1].converged);
+}
+
 // The best feasible design: the lowest objective among records within the volume bound (1e-6 relative
 // slack), with scenarios the aggregate of the relative objectives; -1 when none is feasible.
 TEST(OptimizationRun, BestFeasibleIndexPicksTheLowestObjectiveWithinTheVolumeBound) {
