@@ -233,9 +233,10 @@ void writeContents(hid_t file, const ResultsData& data) {
     for (const auto& [name, member] : kMmaVectors) {
       writer.doubles(group.get(), "/state", name, {n}, (data.state.mma.*member).data());
     }
-    // The end game's state: MMA's move limit, the objective at xold1 (problems/topopt/mma.h), then the
-    // stopping rule's window of recent objectives, oldest first (OptimizerState::recentObjectives).
-    std::vector<double> endGame = {data.state.mma.moveLimit, data.state.mma.objective};
+    // The end game's state: MMA's move limit, the objective at xold1 (problems/topopt/mma.h), the best
+    // feasible objective so far, then the stopping rule's window of recent objectives, oldest first
+    // (OptimizerState::bestObjective, recentObjectives).
+    std::vector<double> endGame = {data.state.mma.moveLimit, data.state.mma.objective, data.state.bestObjective};
     endGame.insert(endGame.end(), data.state.recentObjectives.begin(), data.state.recentObjectives.end());
     writer.doubles(group.get(), "/state", "end_game", {static_cast<hsize_t>(endGame.size())}, endGame.data());
     hdf5::writeAttribute(group.get(), "mma_iteration", root.mmaIteration);
@@ -643,15 +644,19 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     }
     if (hdf5::exists(group.get(), "end_game")) {  // absent in files written before it existed
       const std::vector<hsize_t> dims = reader.shapeOf(group.get(), "end_game", 1);
-      if (dims[0] < 2 || dims[0] > 2 + OptimizerState::kObjectiveWindow) {
-        reader.problem("/state/end_game", "has " + std::to_string(dims[0]) + " entries, expected 2 to " +
-                                              std::to_string(2 + OptimizerState::kObjectiveWindow));
+      // Two entries in files written before the stopping rule kept its window.
+      if (dims[0] != 2 && (dims[0] < 3 || dims[0] > 3 + OptimizerState::kObjectiveWindow)) {
+        reader.problem("/state/end_game", "has " + std::to_string(dims[0]) + " entries, expected 2 or 3 to " +
+                                              std::to_string(3 + OptimizerState::kObjectiveWindow));
       } else {
         std::vector<double> endGame(dims[0]);
         reader.read(group.get(), "/state", "end_game", H5T_NATIVE_DOUBLE, dims, endGame.data());
         data.state.mma.moveLimit = endGame[0];
         data.state.mma.objective = endGame[1];
-        data.state.recentObjectives.assign(endGame.begin() + 2, endGame.end());
+        if (endGame.size() >= 3) {
+          data.state.bestObjective = endGame[2];
+          data.state.recentObjectives.assign(endGame.begin() + 3, endGame.end());
+        }
         if (!(endGame[0] >= 0.0 && endGame[0] <= 1.0))
           reader.problem("/state/end_game", "move limit " + describe(endGame[0]) + " is outside [0, 1]");
       }

@@ -395,6 +395,9 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
                                    evaluation.local ? &*evaluation.local : nullptr, design, state_.iteration,
                                    &ownJacobian);
   const Eigen::Index owned = own.size();
+  // NaN (no feasible design yet) is no better than this one.
+  const bool bestSoFar = !(next.bestObjective < aggregate);
+  if (feasible(own) && bestSoFar) next.bestObjective = aggregate;
   Vector x;
   if (!bound_) {
     // Summed in scenario order from the first term (not from zero, which could flip the sign of a zero).
@@ -410,7 +413,7 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
     updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper, gcmma_ ? &trials : nullptr,
-                 next.recentObjectives, x, record);
+                 next.recentObjectives, bestSoFar, x, record);
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
     // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
@@ -436,7 +439,7 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     }
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
     updateDesign(fullMmaState(state_), x(n), objectiveGradient, constraints, jacobian, lower, upper,
-                 gcmma_ ? &trials : nullptr, next.recentObjectives, x, record);
+                 gcmma_ ? &trials : nullptr, next.recentObjectives, bestSoFar, x, record);
   }
   if (!x.allFinite()) {
     throw NumericalError("the MMA update of iteration " + std::to_string(state_.iteration) + " is not finite",
@@ -462,7 +465,8 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
 MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
                                          const Vector& constraints, const Matrix& jacobian, const Vector& lower,
                                          const Vector& upper, const Gcmma::Evaluate* trials,
-                                         const std::vector<double>& recent, Vector& x, IterationRecord& record) {
+                                         const std::vector<double>& recent, bool bestSoFar, Vector& x,
+                                         IterationRecord& record) {
   const Vector current = x;
   const MmaSubproblemSummary* subproblem;
   MmaState to;
@@ -487,7 +491,6 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   const OptimizationSettings& settings = config().optimization;
   const Eigen::Index n = designCount();
   const bool feasible = TopologyOptimizer::feasible(constraints);
-  const bool descent = !std::isfinite(from.objective) || objective <= from.objective;
   bool stagnated = false;
   if (settings.objectiveTolerance > 0.0 && recent.size() == OptimizerState::kObjectiveWindow) {
     const auto [smallest, largest] = std::minmax_element(recent.begin(), recent.end());
@@ -501,7 +504,7 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   // methods' stopping test. On an objective with narrow resonance peaks this is the test that ends the
   // run; the residual stalls above any useful tolerance there (docs/guides/optimizer.md).
   const bool collapsed = trials == nullptr && mma_.options().adaptive_move_limit && to.moveLimit <= settings.changeTolerance;
-  settled_ = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0 && feasible && descent &&
+  settled_ = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0 && feasible && bestSoFar &&
              (stationary || collapsed);
   return to;
 }

@@ -25,7 +25,8 @@
 // change at most optimization.changeTolerance, x_k is feasible (kFeasibilitySlack) and its objective
 // is no higher than that of x_{k-1} (the MMA state keeps it), x_k is the final design: the update is
 // not taken, the record is marked converged, and the run ends after k + 1 records instead of
-// iterations + 1. The change test may be replaced by stagnation: the optimized objective of the last
+// iterations + 1. "No higher" is against every feasible design before x_k, not only x_{k-1}: a run the
+// rule ends ends at its best feasible design. The change test may be replaced by stagnation: the optimized objective of the last
 // five designs varying by at most optimization.objectiveTolerance (relative). Either of kktTolerance and
 // changeTolerance 0 turns the rule off. The decision uses only what step k computes
 // and the stored state, so a resumed run stops at the same iteration.
@@ -131,6 +132,9 @@ struct OptimizerState {
   /// stopping rule's stagnation test (optimization.objectiveTolerance).
   std::vector<double> recentObjectives;
   static constexpr std::size_t kObjectiveWindow = 5;
+  /// The lowest optimized (scaled) objective of a feasible design so far; NaN before the first. The
+  /// stopping rule ends a run only on a design that is no worse, so a run it ends ends at its best.
+  double bestObjective = std::numeric_limits<double>::quiet_NaN();
 };
 
 class TopologyOptimizer final {
@@ -226,11 +230,12 @@ class TopologyOptimizer final {
   // One MMA or GCMMA update (GCMMA when `trials` is not null) of x from the MMA state `from`: x becomes
   // the next iterate; record gets the KKT residual at the current x and GCMMA's trial count. Returns
   // the MMA state after the update.
-  // `recent` holds the objectives of the last designs, this one's last (the stagnation test).
+  // `recent` holds the objectives of the last designs, this one's last (the stagnation test);
+  // `bestSoFar`: no feasible design before this one had a lower objective.
   MmaState updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
                         const Vector& constraints, const Matrix& jacobian, const Vector& lower,
                         const Vector& upper, const Gcmma::Evaluate* trials, const std::vector<double>& recent,
-                        Vector& x, IterationRecord& record);
+                        bool bestSoFar, Vector& x, IterationRecord& record);
 
   // The update of every run: sum or max of the scenarios' relative objectives (scenarios.h); a run
   // without a scenarios list is one scenario of weight 1.

@@ -95,6 +95,10 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
   EXPECT_TRUE(sameBits(a.state.mma.low, b.state.mma.low));
   EXPECT_TRUE(sameBits(a.state.mma.upp, b.state.mma.upp));
   EXPECT_TRUE(sameBits(a.state.objectiveScale, b.state.objectiveScale));
+  EXPECT_TRUE(sameBits(a.state.mma.moveLimit, b.state.mma.moveLimit));
+  EXPECT_TRUE(sameBits(a.state.mma.objective, b.state.mma.objective));
+  EXPECT_TRUE(sameBits(a.state.bestObjective, b.state.bestObjective));
+  EXPECT_EQ(a.state.recentObjectives, b.state.recentObjectives);
   EXPECT_EQ(a.finalModes.rows(), b.finalModes.rows());
   EXPECT_EQ(a.finalModes.cols(), b.finalModes.cols());
   EXPECT_TRUE(a.finalModes.size() == b.finalModes.size() &&
