@@ -239,6 +239,10 @@ void writeContents(hid_t file, const ResultsData& data) {
     std::vector<double> endGame = {data.state.mma.moveLimit, data.state.mma.objective, data.state.bestObjective};
     endGame.insert(endGame.end(), data.state.recentObjectives.begin(), data.state.recentObjectives.end());
     writer.doubles(group.get(), "/state", "end_game", {static_cast<hsize_t>(endGame.size())}, endGame.data());
+    if (data.state.bestDesign.size() > 0) {  // the best feasible design so far, once there is one
+      writer.doubles(group.get(), "/state", "best_design", {static_cast<hsize_t>(data.state.bestDesign.size())},
+                     data.state.bestDesign.data());
+    }
     hdf5::writeAttribute(group.get(), "mma_iteration", root.mmaIteration);
   }
   {
@@ -479,6 +483,7 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
 
   const MmaState& mma = data.state.mma;
   checkRange(reader, "/state/design", data.state.design, lower, 1.0);
+  if (data.state.bestDesign.size() > 0) checkRange(reader, "/state/best_design", data.state.bestDesign, lower, 1.0);
   // Before the first (second) update MMA's xold1 (xold2) are zeros, not designs.
   checkRange(reader, "/state/mma_xold1", mma.xold1, mma.iteration >= 1 ? lower : -kLargest,
              mma.iteration >= 1 ? 1.0 : kLargest);
@@ -659,6 +664,16 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
         }
         if (!(endGame[0] >= 0.0 && endGame[0] <= 1.0))
           reader.problem("/state/end_game", "move limit " + describe(endGame[0]) + " is outside [0, 1]");
+      }
+    }
+    if (hdf5::exists(group.get(), "best_design")) {  // absent before the first feasible design
+      const hsize_t best = reader.shapeOf(group.get(), "best_design", 1)[0];
+      if (best != size) {
+        reader.problem("/state/best_design",
+                       "has " + std::to_string(best) + " entries, /state/design " + std::to_string(size));
+      } else {
+        data.state.bestDesign.setZero(static_cast<Eigen::Index>(size));
+        reader.read(group.get(), "/state", "best_design", H5T_NATIVE_DOUBLE, {size}, data.state.bestDesign.data());
       }
     }
     data.state.mma.iteration = root.mmaIteration = hdf5::readIntAttribute(group.get(), "mma_iteration");

@@ -254,7 +254,11 @@ IterationRecord TopologyOptimizer::step() {
   request.psi2Gradient = update && !usePsi1;
   IterationRecord record;
   record.iteration = state_.iteration;
-  Vector design = state_.design;
+  // The final evaluation of a run that reached the iteration cap is that of its best feasible design
+  // (the class comment); without projection the model of x_k* is the one it was evaluated with.
+  const bool ruleOn = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0;
+  const bool toBest = ruleOn && !update && state_.bestDesign.size() > 0 && settings.projectionBeta == 0.0;
+  Vector design = toBest ? state_.bestDesign : state_.design;
   std::optional<ScenarioResults> evaluated;
   while (!evaluated) {
     try {
@@ -397,7 +401,10 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   const Eigen::Index owned = own.size();
   // NaN (no feasible design yet) is no better than this one.
   const bool bestSoFar = !(next.bestObjective < aggregate);
-  if (feasible(own) && bestSoFar) next.bestObjective = aggregate;
+  if (feasible(own) && bestSoFar) {
+    next.bestObjective = aggregate;
+    next.bestDesign = design;
+  }
   Vector x;
   if (!bound_) {
     // Summed in scenario order from the first term (not from zero, which could flip the sign of a zero).

@@ -16,8 +16,11 @@
 // choice) means no filter and reproduces the paper's checkerboards.
 //
 // Iteration k evaluates the design x_k and, while k < optimization.iterations, performs the MMA update
-// x_k -> x_{k+1}. After the last update the final design x_N is evaluated once more (iteration N, no
-// update), so a run of N iterations has N + 1 records, the last one the final design.
+// x_k -> x_{k+1}. After the last update the final record (iteration N, no update) evaluates the run's
+// best feasible design x_k* (OptimizerState::bestDesign; x_N itself when no design was feasible, with
+// the stopping rule off, the paper's setting, and always with projection, whose model changes with the
+// iteration), so a run of N iterations has N + 1
+// records, the last one the final design, and a run that never settles still ends at its best.
 //
 // Stopping rule: after each update the record holds the first-order optimality residual of the MMA
 // problem at x_k (problems/topopt/mma.h, kktResidual, with the update's multipliers) and the largest
@@ -135,6 +138,9 @@ struct OptimizerState {
   /// The lowest optimized (scaled) objective of a feasible design so far; NaN before the first. The
   /// stopping rule ends a run only on a design that is no worse, so a run it ends ends at its best.
   double bestObjective = std::numeric_limits<double>::quiet_NaN();
+  /// The design variables of that design (empty before the first): what the final evaluation of a run
+  /// that reaches optimization.iterations evaluates (see the class comment).
+  Vector bestDesign;
 };
 
 class TopologyOptimizer final {

@@ -99,6 +99,7 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
   EXPECT_TRUE(sameBits(a.state.mma.objective, b.state.mma.objective));
   EXPECT_TRUE(sameBits(a.state.bestObjective, b.state.bestObjective));
   EXPECT_EQ(a.state.recentObjectives, b.state.recentObjectives);
+  EXPECT_TRUE(sameBits(a.state.bestDesign, b.state.bestDesign));
   EXPECT_EQ(a.finalModes.rows(), b.finalModes.rows());
   EXPECT_EQ(a.finalModes.cols(), b.finalModes.cols());
   EXPECT_TRUE(a.finalModes.size() == b.finalModes.size() &&
@@ -506,6 +507,21 @@ TEST(OptimizationRun, StoppingRuleEndsTheRunAtAKktPointAndAResumeStopsThere) {
   const ResultsData& full = referenceResults(off, "psi1_rule_off");
   EXPECT_EQ(full.history.size(), 21u);
   EXPECT_FALSE(full.history.back().converged);
+  // With the rule on, a run that reaches the cap ends with an evaluation of its best feasible design:
+  // the same bits as that design's own record (x_N itself is not evaluated). With the rule off (the
+  // paper's setting, above) the final record is x_N's, unlike every earlier one.
+  const Config capped = coarseConfig("psi1", 6);
+  const ResultsData& short_ = referenceResults(capped, "psi1_capped");
+  ASSERT_EQ(short_.history.size(), 7u);
+  ASSERT_FALSE(short_.history.back().converged);
+  const std::vector<IterationRecord> updates(short_.history.begin(), short_.history.end() - 1);
+  const int best = bestFeasibleIndex(updates, capped);
+  ASSERT_GE(best, 0);
+  EXPECT_TRUE(sameBits(short_.history.back().psi1, short_.history[best].psi1));
+  EXPECT_TRUE(sameBits(short_.history.back().volumeFraction, short_.history[best].volumeFraction));
+  EXPECT_TRUE(sameBits(short_.densities.back(), short_.densities[best]));
+  for (std::size_t k = 0; k + 1 < full.history.size(); ++k)
+    EXPECT_FALSE(sameBits(full.history.back().psi1, full.history[k].psi1)) << k;
 }
 
 // Stagnation replaces the change test: with a change tolerance no update meets, the run still ends once
