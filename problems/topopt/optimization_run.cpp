@@ -102,7 +102,9 @@ int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config&
   int best = -1;
   for (std::size_t k = 0; k < history.size(); ++k) {
     if (!TopologyOptimizer::feasible(TopologyOptimizer::recordConstraints(history[k], settings))) continue;
-    if (best < 0 || objective(history[k]) < objective(history[static_cast<std::size_t>(best)]))
+    // Ties go to the later record: a run that reached the cap ends with a second evaluation of its best
+    // design, which is then the final and the best one.
+    if (best < 0 || objective(history[k]) <= objective(history[static_cast<std::size_t>(best)]))
       best = static_cast<int>(k);
   }
   return best;

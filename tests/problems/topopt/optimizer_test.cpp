@@ -520,6 +520,7 @@ TEST(OptimizationRun, StoppingRuleEndsTheRunAtAKktPointAndAResumeStopsThere) {
   EXPECT_TRUE(sameBits(short_.history.back().psi1, short_.history[best].psi1));
   EXPECT_TRUE(sameBits(short_.history.back().volumeFraction, short_.history[best].volumeFraction));
   EXPECT_TRUE(sameBits(short_.densities.back(), short_.densities[best]));
+  EXPECT_EQ(bestFeasibleIndex(short_.history, capped), 6);  // the tie goes to the final record
   for (std::size_t k = 0; k + 1 < full.history.size(); ++k)
     EXPECT_FALSE(sameBits(full.history.back().psi1, full.history[k].psi1)) << k;
 }
