@@ -38,7 +38,7 @@ enum class HistoryRule {
 };
 
 struct HistoryColumn {
-  const char* name;         ///< /history/<name>, the Python key
+  const char* name;         ///< the dataset /history/NAME and the Python key
   HistoryColumnType type;
   const char* unit;         ///< SI unit, "1" for a ratio or a count
   const char* description;  ///< one sentence, as the documentation's table shows it
