@@ -58,7 +58,7 @@ class BuildWithCMake(build_py):
             raise RuntimeError(f"expected one extension _hindsight*.so in {built}, found {extensions}")
         target = os.path.join(self.build_lib, "hindsight")
         os.makedirs(target, exist_ok=True)
-        for path in extensions + [os.path.join(built, "_plot_history.py")]:
+        for path in extensions + [os.path.join(built, name) for name in ("_plot_history.py", "history_columns.json")]:
             shutil.copy2(path, target)
 
 

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <ostream>
+#include <sstream>
 
 namespace hindsight {
 namespace {
@@ -14,6 +15,14 @@ namespace {
 std::vector<double> fixedGrid(const IntegratorOptions& options) {
   const double span = options.t1 - options.t0;
   const double ratio = span / options.step;
+  // A tiny step over a long interval gives a ratio beyond int64 (or infinite), whose conversion below
+  // would be undefined; it needs more steps than any maxSteps (at most int64) allows.
+  if (!(ratio < 9.0e18)) {
+    std::ostringstream text;
+    text << "IntegratorOptions: step = " << options.step << " over [" << options.t0 << ", " << options.t1
+         << "] needs more steps than maxSteps = " << options.maxSteps;
+    throw std::invalid_argument(text.str());
+  }
   // A step that divides the interval up to round-off must not produce an extra tiny step.
   auto count = static_cast<std::int64_t>(std::ceil(ratio - 1e-9 * ratio));
   if (count < 1) count = 1;

@@ -14,6 +14,7 @@
 // PyErr_CheckSignals, so Ctrl-C raises KeyboardInterrupt out of a long evaluation. A problem written
 // in Python keeps the GIL (its callbacks are Python code, which sees Ctrl-C itself).
 #include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/problem.h>
 #include <hindsight/problems/classic/classic_problems.h>
@@ -21,6 +22,7 @@
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/topopt/history_schema.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/storage_docs.h>
@@ -33,6 +35,8 @@
 #include <pybind11/stl.h>
 
 #include <atomic>
+#include <csignal>
+#include <signal.h>  // sigaction (POSIX)
 #include <chrono>
 #include <mutex>
 #include <optional>
@@ -59,18 +63,39 @@ std::int64_t nowNanoseconds() {
 /// The engine's interrupt poll while the GIL is released: at most every 50 ms, on the main thread only
 /// (Python runs signal handlers there), take the GIL and let Python run its handlers; a pending
 /// exception (KeyboardInterrupt) is thrown as error_already_set, which unwinds the computation.
-/// Once the main thread has seen a KeyboardInterrupt, the polls of the other threads (the worker
-/// threads of scenarios evaluated in parallel) throw this, translated to KeyboardInterrupt, so that
-/// no thread keeps simulating after Ctrl-C.
+/// Once the main thread has seen a KeyboardInterrupt, or SIGINT arrived while the main thread was not
+/// polling (it waits for the worker threads of scenarios evaluated in parallel, inside TBB, while only
+/// a worker still simulates), the polls of the other threads throw this, translated to
+/// KeyboardInterrupt, so that no thread keeps simulating after Ctrl-C.
 struct InterruptedOnTheMainThread final : std::exception {
-  const char* what() const noexcept override { return "interrupted (KeyboardInterrupt on the main thread)"; }
+  const char* what() const noexcept override { return "interrupted (KeyboardInterrupt)"; }
 };
 std::atomic<bool> interrupted{false};
+/// Set by the SIGINT handler below (async-signal-safe: a lock-free atomic store).
+std::atomic<bool> sigintReceived{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "the SIGINT handler stores to this atomic");
+struct sigaction pythonSigint {};
+bool sigintWrapped = false;
+
+/// Chained in front of Python's own SIGINT handler while a computation runs: records the signal for
+/// the worker threads' polls, then lets Python's handler trip its flag as usual, so that the main
+/// thread's next PyErr_CheckSignals raises KeyboardInterrupt exactly once.
+void onSigint(int signal, siginfo_t* info, void* context) {
+  sigintReceived.store(true, std::memory_order_relaxed);
+  if ((pythonSigint.sa_flags & SA_SIGINFO) != 0) {
+    pythonSigint.sa_sigaction(signal, info, context);
+  } else if (pythonSigint.sa_handler != SIG_DFL && pythonSigint.sa_handler != SIG_IGN) {
+    pythonSigint.sa_handler(signal);
+  }
+}
 
 void pollPythonSignals() {
   const bool onMainThread = std::this_thread::get_id() == mainThread;
   if (!onMainThread) {
-    if (interrupted.load(std::memory_order_relaxed)) throw InterruptedOnTheMainThread();
+    if (interrupted.load(std::memory_order_relaxed) || sigintReceived.load(std::memory_order_relaxed)) {
+      interrupted.store(true, std::memory_order_relaxed);
+      throw InterruptedOnTheMainThread();
+    }
     return;
   }
   const std::int64_t now = nowNanoseconds();
@@ -84,7 +109,8 @@ void pollPythonSignals() {
 }
 
 /// Installs the poll while at least one computation runs: Python threads may run several at once (the
-/// GIL is released), and the last one to finish removes it.
+/// GIL is released), and the last one to finish removes it. The SIGINT wrapper is installed only
+/// in front of a handler Python installed (a process that ignores SIGINT keeps ignoring it).
 class PollInstallation {
  public:
   PollInstallation() {
@@ -92,12 +118,28 @@ class PollInstallation {
     if (count()++ == 0) {
       nextPollNanoseconds = 0;
       interrupted = false;
+      sigintReceived = false;
       setInterruptPoll(&pollPythonSignals);
+      struct sigaction current {};
+      if (sigaction(SIGINT, nullptr, &current) == 0 &&
+          ((current.sa_flags & SA_SIGINFO) != 0 ||
+           (current.sa_handler != SIG_DFL && current.sa_handler != SIG_IGN))) {
+        struct sigaction wrapper {};
+        wrapper.sa_sigaction = &onSigint;
+        wrapper.sa_flags = SA_SIGINFO | (current.sa_flags & SA_RESTART);
+        sigemptyset(&wrapper.sa_mask);
+        pythonSigint = current;
+        sigintWrapped = sigaction(SIGINT, &wrapper, nullptr) == 0;
+      }
     }
   }
   ~PollInstallation() {
     const std::lock_guard<std::mutex> lock(mutex());
-    if (--count() == 0) setInterruptPoll(nullptr);
+    if (--count() == 0) {
+      setInterruptPoll(nullptr);
+      if (sigintWrapped) sigaction(SIGINT, &pythonSigint, nullptr);
+      sigintWrapped = false;
+    }
   }
   PollInstallation(const PollInstallation&) = delete;
   PollInstallation& operator=(const PollInstallation&) = delete;
@@ -350,54 +392,56 @@ class PyPistonRod {
 
 // ---- Results and optimization ------------------------------------------------------------------
 
+/// One record as the callback of optimize() sees it: every column of the history's schema
+/// (problems/topopt/history_schema.h) by its name, and whether the stopping rule held there.
 py::dict recordDict(const IterationRecord& r) {
   py::dict d;
-  d["iteration"] = r.iteration;
-  d["psi1"] = r.psi1;
-  d["psi2"] = r.psi2;
-  d["volume_fraction"] = r.volumeFraction;
-  d["max_design_change"] = r.maxDesignChange;
-  d["backtracks"] = r.backtracks;
-  d["evaluation_seconds"] = r.evaluationSeconds;
-  d["mma_seconds"] = r.mmaSeconds;
-  d["total_seconds"] = r.totalSeconds;
-  d["grayness"] = r.grayness;
-  d["first_frequency_hz"] = r.firstFrequencyHz;
-  d["kkt_residual"] = r.kktResidual;
-  d["inner_iterations"] = r.innerIterations;
+  for (const HistoryColumn& c : historyColumns()) {
+    if (c.type == HistoryColumnType::int32) {
+      d[c.name] = r.*(c.integer);
+    } else {
+      d[c.name] = r.*(c.real);
+    }
+  }
   d["converged"] = r.converged;
   return d;
 }
 
-/// The history as columns (the names of /history/<column> in results.h5).
-py::dict historyColumns(const std::vector<IterationRecord>& history) {
-  const auto column = [&](auto member) {
-    std::vector<double> values;
-    values.reserve(history.size());
-    for (const IterationRecord& r : history) values.push_back(static_cast<double>(r.*member));
-    return ownedArray(std::move(values), {static_cast<py::ssize_t>(history.size())});
-  };
-  const auto integerColumn = [&](int IterationRecord::*member) {
-    py::array_t<std::int32_t> values(static_cast<py::ssize_t>(history.size()));
-    auto view = values.mutable_unchecked<1>();
-    for (std::size_t k = 0; k < history.size(); ++k) view(static_cast<py::ssize_t>(k)) = history[k].*member;
-    return values;
-  };
+/// The history as columns: every column of the schema, named as /history/<column> in results.h5, as
+/// int32 or float64 arrays as the file stores them.
+py::dict historyColumnArrays(const std::vector<IterationRecord>& history) {
+  const auto rows = static_cast<py::ssize_t>(history.size());
   py::dict d;
-  d["iteration"] = integerColumn(&IterationRecord::iteration);
-  d["psi1"] = column(&IterationRecord::psi1);
-  d["psi2"] = column(&IterationRecord::psi2);
-  d["backtracks"] = integerColumn(&IterationRecord::backtracks);
-  d["volume_fraction"] = column(&IterationRecord::volumeFraction);
-  d["max_design_change"] = column(&IterationRecord::maxDesignChange);
-  d["evaluation_seconds"] = column(&IterationRecord::evaluationSeconds);
-  d["mma_seconds"] = column(&IterationRecord::mmaSeconds);
-  d["total_seconds"] = column(&IterationRecord::totalSeconds);
-  d["grayness"] = column(&IterationRecord::grayness);
-  d["first_frequency_hz"] = column(&IterationRecord::firstFrequencyHz);
-  d["kkt_residual"] = column(&IterationRecord::kktResidual);
-  d["inner_iterations"] = integerColumn(&IterationRecord::innerIterations);
+  for (const HistoryColumn& c : historyColumns()) {
+    if (c.type == HistoryColumnType::int32) {
+      py::array_t<std::int32_t> values(rows);
+      auto view = values.mutable_unchecked<1>();
+      for (py::ssize_t k = 0; k < rows; ++k) view(k) = history[static_cast<std::size_t>(k)].*(c.integer);
+      d[c.name] = values;
+    } else {
+      std::vector<double> values;
+      values.reserve(history.size());
+      for (const IterationRecord& r : history) values.push_back(r.*(c.real));
+      d[c.name] = ownedArray(std::move(values), {rows});
+    }
+  }
   return d;
+}
+
+/// The schema itself, for Python (hindsight.history_columns()).
+py::list historySchema() {
+  py::list out;
+  for (const HistoryColumn& c : historyColumns()) {
+    py::dict entry;
+    entry["name"] = c.name;
+    entry["type"] = c.type == HistoryColumnType::int32 ? "int32" : "float64";
+    entry["unit"] = c.unit;
+    entry["description"] = c.description;
+    entry["reproducible"] = c.reproducible;
+    entry["optional"] = c.optional;
+    out.append(entry);
+  }
+  return out;
 }
 
 py::dict readResults(const std::string& path) {
@@ -407,7 +451,7 @@ py::dict readResults(const std::string& path) {
     data = readResultsFile(path);
   }
   py::dict out;
-  out["history"] = historyColumns(data.history);
+  out["history"] = historyColumnArrays(data.history);
   std::vector<double> designs;
   designs.reserve(data.densities.size() * static_cast<std::size_t>(data.nx) * data.ny);
   for (const Vector& grid : data.densities) designs.insert(designs.end(), grid.data(), grid.data() + grid.size());
@@ -636,9 +680,39 @@ class PythonProblem final : public Problem {
   bool hasJacobian_ = false, hasStateVjp_ = false, hasTerminal_ = false, hasInitialVjp_ = false;
 };
 
+/// The solver options of IntegratorOptions (engine/integrator.h) that Python passes by keyword, with
+/// Python's names; max_steps also bounds CVODES (CvodesOptions::maxSteps). Values are checked by
+/// IntegratorOptions::validate (its messages are put in Python's words by hindsight/__init__.py).
+void applySolverOptions(const py::dict& solver, GradientOptions& options) {
+  for (const auto& item : solver) {
+    const std::string key = py::str(item.first).cast<std::string>();
+    const py::handle value = item.second;
+    if (key == "min_step") {
+      options.integrator.minStep = value.cast<double>();
+    } else if (key == "max_step") {
+      options.integrator.maxStep = value.cast<double>();
+    } else if (key == "max_steps") {
+      options.integrator.maxSteps = value.cast<std::int64_t>();
+      options.cvodes.maxSteps = options.integrator.maxSteps;
+    } else if (key == "newton_tolerance") {
+      options.integrator.newtonTolerance = value.cast<double>();
+    } else if (key == "newton_max_iterations") {
+      options.integrator.newtonMaxIterations = value.cast<int>();
+    } else if (key == "rho_infinity") {
+      options.integrator.rhoInfinity = value.cast<double>();
+    } else {
+      throw std::invalid_argument("unknown solver option '" + key +
+                                  "'; known: min_step, max_step, max_steps, newton_tolerance, "
+                                  "newton_max_iterations, rho_infinity");
+    }
+  }
+}
+
+/// atol: a float (the scalar tolerance) or a 1-D float64 array of one tolerance per state (the
+/// integrator's and CVODES' per-component tolerances; their sizes are checked against the problem).
 GradientOptions gradientOptions(const std::string& integrator, double step, double t0, double t1,
                                 const std::string& storage, const std::string& adjoint, bool adaptive, double rtol,
-                                double atol) {
+                                const py::object& atol, const py::dict& solver) {
   GradientOptions options;
   options.adjoint = parseAdjointMethod(adjoint);
   options.integrator.method = integrator;
@@ -647,10 +721,17 @@ GradientOptions gradientOptions(const std::string& integrator, double step, doub
   options.integrator.t1 = t1;
   options.integrator.adaptive = adaptive;
   options.integrator.relativeTolerance = rtol;
-  options.integrator.absoluteTolerance = atol;
   options.storage = storage;
   options.cvodes.relativeTolerance = rtol;
-  options.cvodes.absoluteTolerance = atol;
+  if (py::isinstance<py::float_>(atol)) {
+    options.integrator.absoluteTolerance = options.cvodes.absoluteTolerance = atol.cast<double>();
+  } else {
+    const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(atol);
+    if (!values || values.ndim() != 1) throw std::invalid_argument("atol must be a float or a 1-D array");
+    options.integrator.absoluteTolerances.assign(values.data(), values.data() + values.shape(0));
+    options.cvodes.absoluteTolerances = options.integrator.absoluteTolerances;
+  }
+  applySolverOptions(solver, options);
   return options;
 }
 
@@ -671,19 +752,18 @@ Vector parameterVector(const py::array_t<double, py::array::c_style | py::array:
   return Eigen::Map<const Vector>(p.data(), p.shape(0));
 }
 
+/// The C++ problems of problems/classic by name.
+std::unique_ptr<Problem> classicProblem(const std::string& name) {
+  if (name == "oscillator") return std::make_unique<Oscillator>();
+  if (name == "decay") return std::make_unique<ExponentialDecay>();
+  if (name == "pendulum") return std::make_unique<Pendulum>();
+  throw std::invalid_argument("classic problem '" + name + "' is not offered; known: oscillator, decay, pendulum");
+}
+
 /// The C++ problems of problems/classic by name, for comparisons with a problem written in Python.
 py::dict classicGradient(const std::string& name, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
                          const GradientOptions& options) {
-  std::unique_ptr<Problem> problem;
-  if (name == "oscillator") {
-    problem = std::make_unique<Oscillator>();
-  } else if (name == "decay") {
-    problem = std::make_unique<ExponentialDecay>();
-  } else if (name == "pendulum") {
-    problem = std::make_unique<Pendulum>();
-  } else {
-    throw std::invalid_argument("classic problem '" + name + "' is not offered; known: oscillator, decay, pendulum");
-  }
+  const std::unique_ptr<Problem> problem = classicProblem(name);
   const Vector parameters = parameterVector(p, problem->parameterSize(), "the problem's parameter count");
   GradientResult result;
   {
@@ -694,12 +774,81 @@ py::dict classicGradient(const std::string& name, const py::array_t<double, py::
 }
 
 py::dict gradient(const py::object& problem, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
-                  const std::string& integrator, double step, double t0, double t1, const std::string& storage,
-                  const std::string& adjoint, bool adaptive, double rtol, double atol) {
+                  const GradientOptions& options) {
   const PythonProblem adapter(problem);
   const Vector parameters = parameterVector(p, adapter.parameterSize(), "problem.parameter_size");
-  const GradientOptions options = gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol);
   return gradientDict(computeGradientByMethod(adapter, parameters, options));
+}
+
+struct StopSimulation {};
+
+/// The forward sweep only (engine/adjoint.h, simulate): psi, and the grid with the state at every grid
+/// point (collect), the right-hand side there too (derivatives, for hindsight.simulate's Hermite
+/// interpolation at output times), and observer(t, z) called at every grid point; an observer
+/// returning a false value other than None stops the simulation there (psi is then None). With
+/// `release`, the GIL is released meanwhile (a C++ problem) and taken for the observer.
+py::dict simulateProblem(const Problem& problem, const Vector& p, const IntegratorOptions& options,
+                         const py::object& observer, bool collect, bool derivatives, bool release) {
+  const int n = problem.stateSize();
+  std::vector<double> times, states, rates;
+  Vector f(n);
+  const std::unique_ptr<ProblemWorkspace> workspace = derivatives ? problem.createWorkspaceFor(p) : nullptr;
+  const bool observed = !observer.is_none();
+  const StateObserver record = [&](std::int64_t, double t, ConstVectorRef z) {
+    if (collect) {
+      times.push_back(t);
+      states.insert(states.end(), z.data(), z.data() + n);
+    }
+    if (derivatives) {
+      problem.rhs(t, z, p, f, workspace.get());
+      rates.insert(rates.end(), f.data(), f.data() + n);
+    }
+    if (observed) {
+      std::optional<py::gil_scoped_acquire> gil;
+      if (release) gil.emplace();
+      const py::object answer = observer(t, py::array_t<double>(n, z.data()));
+      if (!answer.is_none()) {
+        const int truth = PyObject_IsTrue(answer.ptr());
+        if (truth < 0) throw py::error_already_set();
+        if (truth == 0) throw StopSimulation{};
+      }
+    }
+  };
+  std::optional<ForwardResult> result;
+  bool stopped = false;
+  try {
+    if (release) {
+      Simulating simulating;
+      result = simulate(problem, p, options, record);
+    } else {
+      result = simulate(problem, p, options, record);
+    }
+  } catch (const StopSimulation&) {
+    stopped = true;
+  }
+  const auto rows = static_cast<py::ssize_t>(times.size());
+  py::dict out;
+  out["psi"] = result ? py::object(py::float_(result->objective)) : py::object(py::none());
+  out["stopped_by_observer"] = stopped;
+  if (collect) {
+    out["times"] = ownedArray(std::move(times), {rows});
+    out["states"] = ownedArray(std::move(states), {rows, n});
+  }
+  if (derivatives) out["rates"] = ownedArray(std::move(rates), {rows, n});
+  out["summary"] = result ? toPython(summaryToJson(result->summary)) : py::object(py::none());
+  return out;
+}
+
+py::dict simulateAny(const py::object& problem, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                     const GradientOptions& options, const py::object& observer, bool collect, bool derivatives) {
+  if (py::isinstance<py::str>(problem)) {
+    const std::unique_ptr<Problem> classic = classicProblem(problem.cast<std::string>());
+    const Vector parameters = parameterVector(p, classic->parameterSize(), "the problem's parameter count");
+    return simulateProblem(*classic, parameters, options.integrator, observer, collect, derivatives, true);
+  }
+  const PythonProblem adapter(problem);
+  const Vector parameters = parameterVector(p, adapter.parameterSize(), "problem.parameter_size");
+  return simulateProblem(adapter, parameters, options.integrator, observer, collect, derivatives, false);
 }
 
 py::list storageSpecs() {
@@ -746,7 +895,9 @@ PYBIND11_MODULE(_hindsight, m) {
     try {
       if (error) std::rethrow_exception(error);
     } catch (const InterruptedOnTheMainThread&) {
-      PyErr_SetNone(PyExc_KeyboardInterrupt);
+      // Python's handler tripped its flag when SIGINT came while only a worker polled: running the
+      // handlers now raises that KeyboardInterrupt here, once, instead of a second time later.
+      if (PyErr_CheckSignals() == 0 && PyErr_Occurred() == nullptr) PyErr_SetNone(PyExc_KeyboardInterrupt);
     }
   });
 
@@ -782,11 +933,23 @@ PYBIND11_MODULE(_hindsight, m) {
     return optimize(makeConfig(config, overrides), out, resume, force, callback, verbose);
   });
   m.def("_read_results", &readResults);
-  m.def("_gradient", &gradient);
-  m.def("_classic_gradient", [](const std::string& name, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
-                                const std::string& integrator, double step, double t0, double t1, const std::string& storage,
-                                const std::string& adjoint, bool adaptive, double rtol, double atol) {
-    return classicGradient(name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol));
+  m.def("_history_columns", &historySchema);
+  using PArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+  m.def("_gradient", [](const py::object& problem, const PArray& p, const std::string& integrator, double step,
+                        double t0, double t1, const std::string& storage, const std::string& adjoint, bool adaptive,
+                        double rtol, const py::object& atol, const py::dict& solver) {
+    return gradient(problem, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
+  });
+  m.def("_classic_gradient", [](const std::string& name, const PArray& p, const std::string& integrator, double step,
+                                double t0, double t1, const std::string& storage, const std::string& adjoint,
+                                bool adaptive, double rtol, const py::object& atol, const py::dict& solver) {
+    return classicGradient(name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
+  });
+  m.def("_simulate", [](const py::object& problem, const PArray& p, const std::string& integrator, double step,
+                        double t0, double t1, bool adaptive, double rtol, const py::object& atol,
+                        const py::dict& solver, const py::object& observer, bool collect, bool derivatives) {
+    return simulateAny(problem, p, gradientOptions(integrator, step, t0, t1, "full", "discrete", adaptive, rtol, atol, solver),
+                       observer, collect, derivatives);
   });
   m.def("_storage_specs", &storageSpecs);
   m.def("_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,

@@ -9,11 +9,28 @@ and draws with matplotlib (Debian: python3-h5py, python3-matplotlib). For every 
 the iterations (solid); for an ESL run also the psi2 it minimised (dashed). Below the history, the last
 stored design of every file (density 1 black, 0 white, joint A on the left). A run with operating
 scenarios (/scenarios in the file) draws psi1 of every scenario (thin lines, named) and
-the worst one of each iteration ringed.
+the worst one of each iteration ringed. Axis labels take the unit and description of each column from
+history_columns.json beside this script (generated from problems/topopt/history_schema.h, the one table
+of the history's columns); a results file missing one of its columns is refused.
 """
 import argparse
 import json
+import os
 import sys
+
+
+def history_columns():
+    """The history's columns (name, type, unit, description, reproducible, optional) as
+    problems/topopt/history_schema.h defines them, read from history_columns.json next to this file."""
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "history_columns.json")) as f:
+        return {column["name"]: column for column in json.load(f)["columns"]}
+
+
+def axis_label(column):
+    """'description [unit]' of a history column, the description cut at its first parenthesis or period."""
+    entry = history_columns()[column]
+    words = entry["description"].split(" (")[0].rstrip(".")
+    return f"{words} [{entry['unit']}]"
 
 
 def text(value):
@@ -28,6 +45,10 @@ def load(path):
             raise SystemExit(f"{path}: not a hindsight topology results file")
         config = json.loads(text(f.attrs["configuration"]))
         history = {name: f["history"][name][()] for name in f["history"]}
+        missing = [name for name, column in history_columns().items()
+                   if not column["optional"] and name not in history]
+        if missing:
+            raise SystemExit(f"{path}: /history lacks the column(s) {', '.join(missing)}")
         designs = f["designs"][()]
         scenarios = f["scenarios"]["psi1"][()] if "scenarios" in f else None
         finished = int(f.attrs["finished"]) == 1
@@ -77,7 +98,7 @@ def draw(runs, out=None):
         design_axis.set_xticks([])
         design_axis.set_yticks([])
     axis.set_xlabel("iteration")
-    axis.set_ylabel("compliance [J s]")
+    axis.set_ylabel(axis_label("psi1"))
     axis.set_title("Piston rod: integral compliance over the MMA iterations")
     axis.grid(True, alpha=0.3)
     # Logarithmic: the early transients of a run and the final factor between the routes both show.

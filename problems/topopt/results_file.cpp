@@ -1,4 +1,5 @@
 #include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/problems/topopt/history_schema.h>
 #include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <hindsight/engine/hash.h>
@@ -17,31 +18,6 @@
 
 namespace hindsight {
 namespace {
-
-/// The real-valued history columns: dataset name in /history and the record member it stores. One
-/// table for writing and reading, so the two cannot drift apart.
-const std::pair<const char*, double IterationRecord::*> kHistoryColumns[] = {
-    {"psi1", &IterationRecord::psi1},
-    {"psi2", &IterationRecord::psi2},
-    {"volume_fraction", &IterationRecord::volumeFraction},
-    {"max_design_change", &IterationRecord::maxDesignChange},
-    {"evaluation_seconds", &IterationRecord::evaluationSeconds},
-    {"mma_seconds", &IterationRecord::mmaSeconds},
-    {"total_seconds", &IterationRecord::totalSeconds}};
-
-/// History columns added after format 2 appeared (grayness, first frequency, inner iterations): written always, read when present (a file
-/// written before has none; the records then hold NaN / 0), checked against [lower, upper] (NaN
-/// allowed: the grayness and frequency of a record can be unknown).
-struct AddedColumn {
-  const char* name;
-  double IterationRecord::*member;
-  double lower;
-  double upper;
-};
-const AddedColumn kAddedHistoryColumns[] = {
-    {"grayness", &IterationRecord::grayness, 0.0, 1.0},
-    {"first_frequency_hz", &IterationRecord::firstFrequencyHz, 0.0, std::numeric_limits<double>::max()},
-    {"kkt_residual", &IterationRecord::kktResidual, 0.0, std::numeric_limits<double>::max()}};
 
 /// The MMA state datasets in /state and the members they store.
 const std::pair<const char*, Vector MmaState::*> kMmaVectors[] = {{"mma_xold1", &MmaState::xold1},
@@ -200,22 +176,18 @@ void writeContents(hid_t file, const ResultsData& data) {
   Writer writer;
   {
     const hdf5::Handle group = hdf5::createGroup(file, "history");
-    std::vector<int> column(rows);
-    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].iteration;
-    writer.ints(group.get(), "/history", "iteration", column);
-    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].backtracks;
-    writer.ints(group.get(), "/history", "backtracks", column);
+    // Every column of the schema (problems/topopt/history_schema.h), in its order.
+    std::vector<int> integers(rows);
     std::vector<double> values(rows);
-    for (const auto& [name, member] : kHistoryColumns) {
-      for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*member;
-      writer.doubles(group.get(), "/history", name, {rows}, values.data());
+    for (const HistoryColumn& c : historyColumns()) {
+      if (c.type == HistoryColumnType::int32) {
+        for (std::size_t k = 0; k < rows; ++k) integers[k] = data.history[k].*(c.integer);
+        writer.ints(group.get(), "/history", c.name, integers);
+      } else {
+        for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*(c.real);
+        writer.doubles(group.get(), "/history", c.name, {rows}, values.data());
+      }
     }
-    for (const AddedColumn& c : kAddedHistoryColumns) {
-      for (std::size_t k = 0; k < rows; ++k) values[k] = data.history[k].*(c.member);
-      writer.doubles(group.get(), "/history", c.name, {rows}, values.data());
-    }
-    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].innerIterations;
-    writer.ints(group.get(), "/history", "inner_iterations", column);
   }
   {
     const std::size_t cells = static_cast<std::size_t>(data.nx) * static_cast<std::size_t>(data.ny);
@@ -287,6 +259,12 @@ std::string describe(double value) {
   out.precision(17);
   out << value;
   return out.str();
+}
+
+// An entry of a column as its type prints it: int32 columns as integers.
+std::string describeEntry(const HistoryColumn& column, double value) {
+  if (column.type == HistoryColumnType::int32) return std::to_string(static_cast<long long>(value));
+  return describe(value);
 }
 
 // Reads the datasets and records one check per object: Fletcher32 (HDF5 refuses the read), the
@@ -413,60 +391,44 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
         kRoot, "objective_scale = " + describe(data.state.objectiveScale) + " is not positive and finite");
   }
 
-  if (reader.sound("/history/iteration")) {
-    for (std::size_t k = 0; k < rows; ++k) {
-      if (data.history[k].iteration != static_cast<int>(k)) {
-        reader.problem("/history/iteration", "entry " + std::to_string(k) + " = " +
-                                                 std::to_string(data.history[k].iteration) + ", expected " +
-                                                 std::to_string(k));
-        break;
-      }
-    }
-  }
-  if (reader.sound("/history/backtracks")) {
-    for (std::size_t k = 0; k < rows; ++k) {
-      const int b = data.history[k].backtracks;
-      if (b < 0 || b > TopologyOptimizer::maxBacktracks) {
-        reader.problem("/history/backtracks", "entry " + std::to_string(k) + " = " + std::to_string(b) +
-                                                  " is outside [0, " +
-                                                  std::to_string(TopologyOptimizer::maxBacktracks) + "]");
-        break;
-      }
-    }
-  }
+  // The history, column by column as its schema says (problems/topopt/history_schema.h).
   std::vector<double> column(rows);
-  for (const auto& [name, member] : kHistoryColumns) {
-    for (std::size_t k = 0; k < rows; ++k) column[k] = data.history[k].*member;
-    const std::string object = std::string("/history/") + name;
-    const bool positive = member == &IterationRecord::psi1 || member == &IterationRecord::psi2 ||
-                          member == &IterationRecord::volumeFraction;
-    // The final evaluation made no update: its max_design_change is NaN.
-    const std::size_t skipFrom = member == &IterationRecord::maxDesignChange && data.finished
-                                     ? rows - 1
-                                     : static_cast<std::size_t>(-1);
-    checkRange(reader, object, column.data(), rows, positive ? std::numeric_limits<double>::min() : 0.0,
-               member == &IterationRecord::volumeFraction ? 1.0 : kLargest, skipFrom);
-  }
-  for (const AddedColumn& c : kAddedHistoryColumns) {
+  for (const HistoryColumn& c : historyColumns()) {
     const std::string object = std::string("/history/") + c.name;
-    if (!reader.has(object) || !reader.sound(object)) continue;
-    for (std::size_t k = 0; k < rows; ++k) {
-      const double v = data.history[k].*(c.member);
-      if (!std::isnan(v) && !(v >= c.lower && v <= c.upper)) {
-        reader.problem(object, "entry " + std::to_string(k) + " = " + describe(v) + " is outside [" +
-                                   describe(c.lower) + ", " + describe(c.upper) + "]");
-        break;
+    if (!reader.has(object) || !reader.sound(object)) continue;  // absent (older file) or already failed
+    for (std::size_t k = 0; k < rows; ++k) column[k] = historyValue(c, data.history[k]);
+    if (c.rule == HistoryRule::rowIndex) {
+      for (std::size_t k = 0; k < rows; ++k) {
+        if (column[k] != static_cast<double>(k)) {
+          reader.problem(object, "entry " + std::to_string(k) + " = " + describeEntry(c, column[k]) +
+                                     ", expected " + std::to_string(k));
+          break;
+        }
       }
-    }
-  }
-  if (reader.has("/history/inner_iterations") && reader.sound("/history/inner_iterations")) {
-    for (std::size_t k = 0; k < rows; ++k) {
-      if (data.history[k].innerIterations < 0) {
-        reader.problem("/history/inner_iterations",
-                       "entry " + std::to_string(k) + " = " + std::to_string(data.history[k].innerIterations) +
-                           " is negative");
-        break;
+    } else if (c.type == HistoryColumnType::int32) {
+      for (std::size_t k = 0; k < rows; ++k) {
+        if (!(column[k] >= c.lower && column[k] <= c.upper)) {
+          reader.problem(object, "entry " + std::to_string(k) + " = " + describeEntry(c, column[k]) +
+                                     " is outside [" + describeEntry(c, c.lower) + ", " +
+                                     describeEntry(c, c.upper) + "]");
+          break;
+        }
       }
+    } else if (c.nan == HistoryNaN::allowed) {
+      for (std::size_t k = 0; k < rows; ++k) {
+        const double v = column[k];
+        if (!std::isnan(v) && !(v >= c.lower && v <= c.upper)) {
+          reader.problem(object, "entry " + std::to_string(k) + " = " + describe(v) + " is outside [" +
+                                     describe(c.lower) + ", " + describe(c.upper) + "]");
+          break;
+        }
+      }
+    } else {
+      // The final evaluation of a finished run made no update: its entry is not checked.
+      const std::size_t skipFrom = c.nan == HistoryNaN::finalEvaluation && data.finished
+                                       ? rows - 1
+                                       : static_cast<std::size_t>(-1);
+      checkRange(reader, object, column.data(), rows, c.lower, c.upper, skipFrom);
     }
   }
   for (std::size_t k = 0; k < data.densities.size(); ++k) {
@@ -592,32 +554,25 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
 
   {
     const hdf5::Handle group = hdf5::openGroup(file, "history");
-    requireShape(file, group.get(), "iteration", {rows});
-    std::vector<int> column(rows);
-    data.history.resize(rows);
-    reader.read(group.get(), "/history", "iteration", H5T_NATIVE_INT, {rows}, column.data());
-    for (hsize_t k = 0; k < rows; ++k) data.history[k].iteration = column[k];
-    requireShape(file, group.get(), "backtracks", {rows});
-    reader.read(group.get(), "/history", "backtracks", H5T_NATIVE_INT, {rows}, column.data());
-    for (hsize_t k = 0; k < rows; ++k) data.history[k].backtracks = column[k];
-    std::vector<double> values(rows);
-    for (const auto& [name, member] : kHistoryColumns) {
-      // Every column's shape and extent before HDF5 reads it: a damaged layout of one column (found by
-      // tests/fuzz) made HDF5 copy past its buffer instead of failing.
-      requireShape(file, group.get(), name, {rows});
-      reader.read(group.get(), "/history", name, H5T_NATIVE_DOUBLE, {rows}, values.data());
-      for (hsize_t k = 0; k < rows; ++k) data.history[k].*member = values[k];
-    }
-    for (const AddedColumn& c : kAddedHistoryColumns) {
-      if (!hdf5::exists(group.get(), c.name)) continue;  // written before the column existed
+    // Every column's shape and extent before anything is allocated for K rows (K comes from an
+    // attribute, which may claim 2^31 - 1) and before HDF5 reads it: a damaged layout of one column
+    // (found by tests/fuzz) made HDF5 copy past its buffer instead of failing.
+    for (const HistoryColumn& c : historyColumns()) {
+      if (c.optional && !hdf5::exists(group.get(), c.name)) continue;  // written before the column existed
       requireShape(file, group.get(), c.name, {rows});
-      reader.read(group.get(), "/history", c.name, H5T_NATIVE_DOUBLE, {rows}, values.data());
-      for (hsize_t k = 0; k < rows; ++k) data.history[k].*(c.member) = values[k];
     }
-    if (hdf5::exists(group.get(), "inner_iterations")) {
-      requireShape(file, group.get(), "inner_iterations", {rows});
-      reader.read(group.get(), "/history", "inner_iterations", H5T_NATIVE_INT, {rows}, column.data());
-      for (hsize_t k = 0; k < rows; ++k) data.history[k].innerIterations = column[k];
+    data.history.resize(rows);
+    std::vector<int> integers(rows);
+    std::vector<double> values(rows);
+    for (const HistoryColumn& c : historyColumns()) {
+      if (c.optional && !hdf5::exists(group.get(), c.name)) continue;
+      if (c.type == HistoryColumnType::int32) {
+        reader.read(group.get(), "/history", c.name, H5T_NATIVE_INT, {rows}, integers.data());
+        for (hsize_t k = 0; k < rows; ++k) data.history[k].*(c.integer) = integers[k];
+      } else {
+        reader.read(group.get(), "/history", c.name, H5T_NATIVE_DOUBLE, {rows}, values.data());
+        for (hsize_t k = 0; k < rows; ++k) data.history[k].*(c.real) = values[k];
+      }
     }
     // A final record with a KKT residual computed an update it did not take: the stopping rule ended
     // the run there (the final evaluation of a run that used all its iterations has none).

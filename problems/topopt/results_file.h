@@ -8,12 +8,9 @@
 //                          since the MPI configuration check: configuration_fingerprint (see
 //                          problems/topopt/run_fingerprint.h; verify recomputes it from configuration)
 //                          and ranks (the number of MPI ranks that agreed on it, 1 without MPI)
-//   /history/<column>      1-D, K entries: iteration (int32), psi1, psi2, backtracks (int32),
-//                          volume_fraction, max_design_change (NaN for the final evaluation),
-//                          evaluation_seconds, mma_seconds, total_seconds, and (absent in
-//                          older files, which are still read) grayness, first_frequency_hz,
-//                          inner_iterations (int32), kkt_residual (NaN where no update was computed;
-//                          a finished run whose last row has one stopped by the convergence rule)
+//   /history/<column>      1-D, K entries, one dataset per column of problems/topopt/history_schema.h
+//                          (name, int32 or float64, unit, the checks below), written in its order;
+//                          columns marked optional there are absent in older files, which are still read
 //   /designs               K x ny x nx: the element densities the model saw in each iteration over ALL
 //                          elements (solid end columns = 1); designs[k][row][column], row 0 at the
 //                          bottom of the rod, column 0 at joint A
@@ -39,8 +36,8 @@
 //     and every dataset's hash. It catches what Fletcher32 cannot: values rewritten through HDF5
 //     (h5py, the C API), which recomputes Fletcher32, and changed attributes, which have no filter.
 //   It detects corruption, not tampering: anyone can recompute both. Reading recomputes every hash;
-//   then the restored state is checked for plausibility: every value finite (max_design_change of
-//   the final evaluation excepted), designs and design variables in [rod.designLowerBound, 1], the
+//   then the restored state is checked for plausibility: every history column as its schema says
+//   (range, NaN allowed or not, iteration = row index), every other value finite, designs and design variables in [rod.designLowerBound, 1], the
 //   MMA state as MMA leaves it (after an update mma_low < mma_xold1 < mma_upp and
 //   mma_low < design < mma_upp), the counters consistent. Any failure names the dataset.
 // Format 1 files (before checksums) are still read: plausibility is checked, the hashes cannot be;

@@ -8,6 +8,7 @@ rod of Held, Knueffer & Seifried and its topology optimization (docs/guides/pyth
 
     history = hindsight.optimize({"optimization": {"iterations": 10}}, out="run", callback=print)
     hindsight.gradient(my_problem, p, integrator="rk4", step=1e-3)   # a problem written in Python
+    hindsight.simulate(my_problem, p, times=[0.5, 1.0])        # forward only: the trajectory
     hindsight.storage_specs()                                   # strategies, keys, documentation
     hindsight.read_results("run")                              # history, designs, configuration
 
@@ -21,8 +22,8 @@ from . import _hindsight
 from ._hindsight import NumericalError, StorageError, storage_strategy_names
 
 __version__ = _hindsight.__version__
-__all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient",
-           "optimize", "read_results", "plot_comparison", "storage_specs", "storage_strategy_names", "schedule",
+__all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient", "simulate",
+           "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs", "storage_strategy_names", "schedule",
            "check_storage_spec", "config"]
 
 
@@ -130,8 +131,8 @@ def _in_python_words(error):
 def optimize(config=None, out="results", resume=False, force=False, callback=None, verbose=False, **overrides):
     """Runs the topology optimization of `hindsight optimize` into directory `out` (results.h5 after every
     iteration, pictures, resumable). callback(record) is called after each iteration once it is on
-    disk, with a dict (iteration, psi1, psi2, volume_fraction, max_design_change, backtracks, seconds,
-    grayness, first_frequency_hz, kkt_residual, inner_iterations, converged);
+    disk, with a dict: every column of history_columns() by name, and converged (the stopping rule held
+    there);
     returning a false value other than None (False, 0) stops the run (its results stay valid and
     resumable); returning None continues. resume=True on a directory without results.h5 raises
     ValueError (a mistyped `out` must not start a fresh run). verbose=True prints the progress lines.
@@ -147,9 +148,8 @@ def optimize(config=None, out="results", resume=False, force=False, callback=Non
 
 def read_results(path):
     """A results directory (or its results.h5) read with every check of the C++ reader (StorageError
-    naming the dataset when one fails): history (dict of NumPy columns: iteration, psi1, psi2,
-    volume_fraction, max_design_change, backtracks, evaluation_seconds, mma_seconds, total_seconds,
-    grayness, first_frequency_hz, kkt_residual, inner_iterations),
+    naming the dataset when one fails): history (dict of NumPy columns, one per entry of
+    history_columns(), int32 or float64 as the file stores them),
     designs (K, ny, nx), configuration (dict), finished, next_design, final_frequencies_hz, final_modes;
     for runs with scenarios also scenarios (K, S: every scenario's psi1 per iteration, in the order of
     configuration["scenarios"]), scenario_psi2 (K, S) and scenario_objective_scale (S: psi_s(x0)); the
@@ -163,6 +163,15 @@ def read_results(path):
     return result
 
 
+def history_columns():
+    """The columns of an optimization's history, in file order: a list of dicts (name, type "int32" or
+    "float64", unit, description, reproducible: the same bits on every run of a configuration, optional:
+    absent from files written before the column existed). The one table of the C++ library
+    (problems/topopt/history_schema.h) that also drives the results file, `hindsight verify` and
+    `hindsight plot`."""
+    return [Result(column) for column in _hindsight._history_columns()]
+
+
 def plot_comparison(*runs, out=None):
     """The Fig.-4 comparison of `hindsight plot`: psi1 over the iterations of one or two runs (e.g. the
     psi1 and the psi2 route) and their latest designs. Each run is a results directory or a
@@ -174,35 +183,178 @@ def plot_comparison(*runs, out=None):
     return _plot_history.draw(loaded, out)
 
 
+# Solver options of the C++ IntegratorOptions (engine/integrator.h) by their Python names, and the words
+# of its messages put into them.
+_SOLVER_OPTIONS = ("min_step", "max_step", "max_steps", "newton_tolerance", "newton_max_iterations", "rho_infinity")
+_SOLVER_WORDS = [("IntegratorOptions.absoluteTolerances", "atol"), ("absoluteTolerances", "atol"),
+                 ("relativeTolerance", "rtol"), ("absoluteTolerance", "atol"), ("minStep", "min_step"),
+                 ("maxSteps", "max_steps"), ("maxStep", "max_step"), ("newtonTolerance", "newton_tolerance"),
+                 ("newtonMaxIterations", "newton_max_iterations"), ("rhoInfinity", "rho_infinity"),
+                 ("IntegratorOptions.", ""), ("IntegratorOptions: ", "")]
+
+
+def _solver_arguments(step, t0, t1, rtol, atol, solver):
+    """Checked floats/ints for the C++ side: bools, strings and complex numbers are a TypeError naming
+    the argument; atol is a float or a 1-D float64 array (one tolerance per state)."""
+    import numpy as np
+
+    def real(name, value):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise TypeError(f"{name} must be a real number, not {type(value).__name__} {value!r}")
+        return float(value)
+
+    if np.ndim(atol) == 0:
+        atol = real("atol", atol)
+    else:
+        values = np.asarray(atol)
+        if values.ndim != 1 or not (np.issubdtype(values.dtype, np.floating) or np.issubdtype(values.dtype, np.integer)):
+            raise TypeError(f"atol must be a real number or a 1-D array of real numbers (one per state), "
+                            f"not {values.dtype} of shape {values.shape}")
+        atol = np.ascontiguousarray(values, dtype=np.float64)
+    options = {}
+    for name, value in solver.items():
+        if name not in _SOLVER_OPTIONS:
+            raise TypeError(f"unknown solver option {name!r}; known: {', '.join(_SOLVER_OPTIONS)}")
+        if value is None:
+            continue
+        if name in ("max_steps", "newton_max_iterations"):
+            options[name] = _schedule_integer(name, value, 1, 2**62 if name == "max_steps" else 2**31 - 1)
+        else:
+            options[name] = real(name, value)
+    return real("step", step), real("t0", t0), real("t1", t1), real("rtol", rtol), atol, options
+
+
+def _in_solver_words(error):
+    message = str(error)
+    for cpp, python in _SOLVER_WORDS:
+        message = message.replace(cpp, python)
+    return error if message == str(error) else type(error)(message)
+
+
+def _with_derivatives(problem, derivatives):
+    """The problem as the engine gets it: derivatives="auto" generates the missing derivative methods
+    (hindsight._derivatives: complex step, checked against finite differences), "given" uses only the
+    problem's own (a missing one is a ValueError), "generated" generates every one."""
+    from . import _derivatives
+    if derivatives == "given":
+        return problem
+    if derivatives == "generated":
+        return _derivatives.GeneratedDerivatives(problem, force=True)
+    if derivatives != "auto":
+        raise ValueError(f"derivatives = {derivatives!r} must be 'auto', 'given' or 'generated'")
+    missing = _derivatives.missing_derivatives(problem)
+    needs_integrand = getattr(problem, "integrand", None) is None
+    return _derivatives.GeneratedDerivatives(problem) if missing or needs_integrand else problem
+
+
 def gradient(problem, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="full", adjoint="discrete",
-             adaptive=False, rtol=1e-6, atol=1e-9):
+             adaptive=False, rtol=1e-6, atol=1e-9, derivatives="auto", **solver):
     """psi = int_t0^t1 G(t, z, p) dt + phi(z(t1), p) and dpsi/dp for z' = F(t, z, p), z(t0) = z0(p), a
     problem written in Python. `problem` has attributes state_size and parameter_size and methods
     (arrays are 1-D NumPy float64 copies):
         initial_state(p) -> z0                 rhs(t, z, p) -> F
+        integrand(t, z, p) -> G
+    and, optionally, its derivatives (any that are missing are generated, derivatives="auto"):
         rhs_jacobian(t, z, p) -> dF/dz (n, n)  and/or  rhs_state_vjp(t, z, p, w) -> (dF/dz)^T w
         rhs_parameter_vjp(t, z, p, w) -> (dF/dp)^T w
-        integrand(t, z, p) -> G                integrand_state_gradient(t, z, p) -> dG/dz
+        integrand_state_gradient(t, z, p) -> dG/dz
         integrand_parameter_gradient(t, z, p) -> dG/dp
-    optional: initial_state_vjp(p, lam) -> (dz0/dp)^T lam, terminal(z, p) -> phi with
-    terminal_gradient(z, p) -> (dphi/dz, dphi/dp), name.
+        initial_state_vjp(p, lam) -> (dz0/dp)^T lam
+    optional: terminal(z, p) -> phi (with terminal_gradient(z, p) -> (dphi/dz, dphi/dp)), name.
+    derivatives: "auto" (generate the missing ones by the complex step, exact to round-off for functions
+    written with complex-safe NumPy operations; docs/guides/python.md), "given" (only the problem's own:
+    a missing one is a ValueError) or "generated" (every one generated, ignoring the problem's).
+    atol is a float or one tolerance per state (adaptive steps and CVODES); solver options of the C++
+    integrator by keyword: min_step, max_step, max_steps, newton_tolerance, newton_max_iterations,
+    rho_infinity.
     Returns Result(psi, gradient, times, summary). Runs the C++ engine (any integrator, storage spec or
     adjoint route) calling back into Python, so it is slower than a C++ problem (docs/guides/python.md)."""
     import numpy as np
     p = np.ascontiguousarray(p, dtype=np.float64)
-    return Result(_hindsight._gradient(problem, p, integrator, float(step), float(t0), float(t1), storage,
-                                       adjoint, bool(adaptive), float(rtol), float(atol)))
+    step, t0, t1, rtol, atol, options = _solver_arguments(step, t0, t1, rtol, atol, solver)
+    engine_problem = _with_derivatives(problem, derivatives)
+    try:
+        return Result(_hindsight._gradient(engine_problem, p, integrator, step, t0, t1, storage, adjoint,
+                                           bool(adaptive), rtol, atol, options))
+    except (ValueError, NumericalError) as error:
+        raise _in_solver_words(error) from None
 
 
 def classic_gradient(name, p, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, storage="full", adjoint="discrete",
-                     adaptive=False, rtol=1e-6, atol=1e-9):
+                     adaptive=False, rtol=1e-6, atol=1e-9, **solver):
     """gradient() for a C++ problem of problems/classic: "oscillator" (p = k, c, y0), "decay" (p = k, a) or
     "pendulum" (p = m, L, c, th0). The reference for a problem written in Python (docs/guides/python.md measures
     the overhead with it); the GIL is released."""
     import numpy as np
     p = np.ascontiguousarray(p, dtype=np.float64)
-    return Result(_hindsight._classic_gradient(name, p, integrator, float(step), float(t0), float(t1), storage,
-                                               adjoint, bool(adaptive), float(rtol), float(atol)))
+    step, t0, t1, rtol, atol, options = _solver_arguments(step, t0, t1, rtol, atol, solver)
+    try:
+        return Result(_hindsight._classic_gradient(name, p, integrator, step, t0, t1, storage, adjoint,
+                                                   bool(adaptive), rtol, atol, options))
+    except (ValueError, NumericalError) as error:
+        raise _in_solver_words(error) from None
+
+
+def simulate(problem, p, times=None, observer=None, integrator="rk4", step=1e-3, t0=0.0, t1=1.0, adaptive=False,
+             rtol=1e-6, atol=1e-9, **solver):
+    """The forward simulation alone (no gradient) of a problem written in Python (as for gradient(); only
+    state_size, parameter_size, initial_state and rhs are required, integrand is optional) or of a
+    C++ problem of problems/classic by name ("oscillator", "decay", "pendulum"; the GIL is released).
+    Returns Result(times, states, psi, stopped_by_observer, summary):
+      - times=None: the integrator's own grid t_0..t_N and the state there, states (N+1, n), bit for bit
+        what the gradient's forward sweep computes;
+      - times=array: the states at those times (in [t0, t1], any order), by cubic Hermite interpolation
+        between the grid points around each (from the states and F there; exact at grid points, error
+        O(h^4) in between, below rk4's own O(h^4) and above dopri5's O(h^5): ask for the grid
+        (times=None) or a smaller step when that matters).
+    observer(t, z), when given, is called at every grid point as the sweep reaches it; returning a false
+    value other than None stops the simulation there (psi is then None, the trajectory ends there).
+    psi is the objective int G dt + phi (0 without integrand). Options as for gradient(); implicit
+    integrators use problem.rhs_jacobian, generated when missing (docs/guides/python.md)."""
+    import numpy as np
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    step, t0, t1, rtol, atol, options = _solver_arguments(step, t0, t1, rtol, atol, solver)
+    if observer is not None and not callable(observer):
+        raise TypeError(f"observer must be callable or None, not {type(observer).__name__}")
+    wanted = None
+    if times is not None:
+        wanted = np.asarray(times)
+        if wanted.ndim != 1 or not (np.issubdtype(wanted.dtype, np.floating) or np.issubdtype(wanted.dtype, np.integer)):
+            raise TypeError(f"times must be None or a 1-D array of real numbers, not {wanted.dtype} of shape {wanted.shape}")
+        wanted = wanted.astype(np.float64)
+        if not np.all(np.isfinite(wanted)) or np.any(wanted < t0) or np.any(wanted > t1):
+            raise ValueError(f"times must be finite and within [t0, t1] = [{t0!r}, {t1!r}]")
+    engine_problem = problem if isinstance(problem, str) else _with_derivatives(problem, "auto")
+    try:
+        run = _hindsight._simulate(engine_problem, p, integrator, step, t0, t1, bool(adaptive), rtol, atol, options,
+                                   observer, True, wanted is not None)
+    except (ValueError, NumericalError) as error:
+        raise _in_solver_words(error) from None
+    result = Result(psi=run["psi"], stopped_by_observer=run["stopped_by_observer"], summary=run["summary"])
+    if wanted is None:
+        result["times"], result["states"] = run["times"], run["states"]
+    else:
+        if run["stopped_by_observer"] and run["times"].size and np.any(wanted > run["times"][-1]):
+            raise ValueError("the observer stopped the simulation before the last of `times`")
+        result["times"] = wanted
+        result["states"] = _hermite(run["times"], run["states"], run["rates"], wanted)
+    return result
+
+
+def _hermite(grid, states, rates, wanted):
+    """The cubic Hermite interpolant of (grid, states, rates = F) at `wanted`; at a grid point, the state."""
+    import numpy as np
+    if len(grid) == 1:  # an observer stopped the simulation at t0
+        return np.repeat(states[:1], len(wanted), axis=0)
+    k = np.clip(np.searchsorted(grid, wanted, side="right") - 1, 0, len(grid) - 2)
+    h = grid[k + 1] - grid[k]
+    s = ((wanted - grid[k]) / h)[:, None]
+    h = h[:, None]
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s ** 2 * (3 - 2 * s)
+    h11 = s ** 2 * (s - 1)
+    return h00 * states[k] + h10 * h * rates[k] + h01 * states[k + 1] + h11 * h * rates[k + 1]
 
 
 def storage_specs():

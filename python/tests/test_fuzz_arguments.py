@@ -99,3 +99,67 @@ def test_design_arrays_of_every_dtype_and_shape():
         array = np.asarray(x)
         assert array.dtype.kind in "fiu" and array.shape == x0.shape, (array.dtype, array.shape)
         assert np.all(np.isfinite(variables))
+
+
+class _Decay:
+    """z' = -p0 z, z(0) = 1, psi = int z dt, with no derivatives (they are generated)."""
+    state_size, parameter_size = 1, 1
+
+    def initial_state(self, p):
+        return np.ones(1) + 0.0 * p[0]
+
+    def rhs(self, t, z, p):
+        return -p[0] * z
+
+    def integrand(self, t, z, p):
+        return z[0]
+
+
+SOLVER_VALUES = [None, True, 0, 1, -1, 3, 10**6, 2**63, 0.5, 1e-3, -0.0, 1e-300, 1e300, float("nan"),
+                 float("inf"), 1j, "1e-3", np.float32(1e-3), np.int64(5), np.bool_(False), [1e-3], object()]
+TOLERANCES = [1e-9, 0.0, -1.0, float("nan"), [1e-9], np.array([1e-9]), np.array([1e-9, 1e-9]), np.array([[1e-9]]),
+              np.array([np.inf]), np.array(["a"]), np.array([1e-9], dtype=np.float32), np.array([1], dtype=np.int64),
+              np.array([1e-9 + 0j]), [], True, "1e-9", None]
+TIMES = [None, [], [0.0], [0.01], [0.005, 0.0], np.linspace(0, 0.01, 4), [0.02], [-1.0], [float("nan")],
+         [[0.0]], ["a"], np.array([0.005], dtype=np.float32), 0.005, np.array([1 + 1j])]
+NAMES = ["step", "t0", "t1", "rtol", "min_step", "max_step", "max_steps", "newton_tolerance", "newton_max_iterations",
+         "rho_infinity", "bogus"]
+
+
+def test_solver_arguments_of_every_type():
+    """simulate/gradient/classic_gradient with hostile numbers, tolerances, output times and options:
+    a result honouring them, or ValueError/TypeError/NumericalError naming the argument; never a grid
+    longer than max_steps or a step longer than asked for."""
+    rng = random.Random(SEED + 3)
+    for _ in range(150 * SCALE):
+        kwargs = {"t1": 0.01, "step": 1e-3}
+        for _ in range(rng.randrange(3)):
+            kwargs[rng.choice(NAMES)] = rng.choice(SOLVER_VALUES)
+        if rng.random() < 0.4:
+            kwargs["atol"] = rng.choice(TOLERANCES)
+        if rng.random() < 0.3:
+            kwargs.update(integrator=rng.choice(["dopri5", "trbdf2", "generalized-alpha", "nope"]),
+                          adaptive=rng.random() < 0.5)
+        call = rng.randrange(3)
+        times = rng.choice(TIMES)
+        try:
+            if call == 0:
+                r = hindsight.simulate(_Decay(), np.array([2.0]), times=times, **kwargs)
+            elif call == 1:
+                r = hindsight.gradient(_Decay(), np.array([2.0]), **kwargs)
+            else:
+                r = hindsight.classic_gradient("decay", np.array([2.0, 1.0]), **kwargs)
+        except (ValueError, TypeError, hindsight.NumericalError) as error:
+            assert str(error), kwargs
+            assert not isinstance(error, RuntimeError) or isinstance(error, hindsight.NumericalError), error
+            continue
+        assert np.all(np.isfinite(r.times)), kwargs
+        on_grid = call != 0 or times is None
+        if on_grid and not kwargs.get("adaptive"):
+            # A fixed-step grid: no step longer than asked for, no more steps than max_steps.
+            step = float(kwargs["step"])
+            span = float(kwargs.get("t1", 0.01)) - float(kwargs.get("t0", 0.0))
+            assert np.max(np.diff(r.times)) <= min(step, span) * (1 + 1e-9), kwargs
+        max_steps = kwargs.get("max_steps")
+        if on_grid and isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, (bool, np.bool_)):
+            assert len(r.times) - 1 <= max_steps, kwargs

@@ -135,8 +135,10 @@ def test_terminal_term():
 def test_bad_problems_are_value_errors():
     class NoRhs:
         state_size, parameter_size = 2, 3
-    with pytest.raises(ValueError, match="rhs_jacobian"):
+    with pytest.raises(ValueError, match="problem needs a method initial_state"):
         hindsight.gradient(NoRhs(), P)
+    with pytest.raises(ValueError, match="rhs_jacobian"):  # only the problem's own derivatives
+        hindsight.gradient(NoRhs(), P, derivatives="given")
 
     class WrongShape(Oscillator):
         def rhs(self, t, z, p):
