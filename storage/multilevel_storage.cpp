@@ -567,6 +567,7 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
         self.slotFile_->write(slot, z.data());
         self.slotIoSeconds_ += watch.seconds();
         ++self.diskWrites_;
+        self.diskRows_ = std::max(self.diskRows_, slot + 1);  // the optimal plan also writes while reversing
       }
     }
     void load(StorageLevel level, std::int64_t slot) {

@@ -11,8 +11,10 @@
 //             and read of one state at begin(), and the forward step as the median time between the
 //             first (up to) 16 records, whose states wait in RAM until the plan is chosen.
 //   schedule  optimal (default): for fixed steps, the two-level plan of storage/schedule.h that is
-//             cheapest under the cost model (Disk-Revolve's leaves, or revolve over all slots with the
-//             long-lived checkpoints on disk); adaptive steps (N unknown) fall back to the stride, and
+//             cheapest under the cost model (the two-level optimum over stack schedules by dynamic
+//             programming, which reuses disk slots, where its work limit allows; else Disk-Revolve's
+//             leaves, or revolve over all slots with the long-lived checkpoints on disk); adaptive
+//             steps (N unknown) fall back to the stride, and
 //             so does a RAM of fewer than 3 states without costs= (no room to time forward steps).
 //             stride: the uniform stride of hindsight <= 0.13 (below), kept for comparison.
 //   dir       directory of the file (default: the system temp directory); level, keep as for "disk"

@@ -33,29 +33,21 @@ std::string OnlineCheckpointing::spec() const {
   return text;
 }
 
-std::int64_t OnlineCheckpointing::finalSpacing(std::int64_t steps, std::int64_t c) {
-  // Positions 0..N-2 become checkpoint candidates (N - 1 stays the working state). No thinning while at
-  // most c of them arrive; the first one (at position c) doubles d, and so does every later one at F d.
-  return internal::OnlinePlacement::finalSpacing(steps, c);
-}
-
 UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c) {
   if (steps <= 1) return 0;
-  const std::int64_t d = finalSpacing(steps, c);
-  const std::int64_t held = (steps - 2) / d + 1;  // the multiples of d in [0, N - 2]
-  UnsignedInt128 total = static_cast<UnsignedInt128>(steps - 1);
-  for (std::int64_t j = 0; j < held; ++j) {
-    const std::int64_t length = (j + 1 < held ? (j + 1) * d : steps - 1) - j * d;
-    total += revolve::optimalForwardSteps(length, c - j);
-  }
-  return total;
+  const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, nullptr);
+  return forwardStepsOf(positions, steps, c);
 }
 
-UnsignedInt128 OnlineCheckpointing::forwardStepBound(std::int64_t steps, std::int64_t c) {
-  const std::int64_t d = finalSpacing(steps, c);
-  const std::int64_t r = d >= 2 ? revolve::repetitionNumber(d, c / 2 + 1) : 0;
-  return static_cast<UnsignedInt128>(steps - 1) +
-         static_cast<UnsignedInt128>(steps) * static_cast<UnsignedInt128>(r);
+UnsignedInt128 OnlineCheckpointing::forwardStepsOf(const std::vector<std::int64_t>& positions, std::int64_t steps,
+                                                   std::int64_t c) {
+  UnsignedInt128 total = static_cast<UnsignedInt128>(steps - 1);
+  const auto held = static_cast<std::int64_t>(positions.size());
+  for (std::int64_t j = 0; j < held; ++j) {
+    const std::int64_t end = j + 1 < held ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
+    total += revolve::optimalForwardSteps(end - positions[static_cast<std::size_t>(j)], c - j);
+  }
+  return total;
 }
 
 void OnlineCheckpointing::releaseAll() {
@@ -112,26 +104,34 @@ void OnlineCheckpointing::doBegin() {
 void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
   // The working state holds the last recorded state; it becomes a checkpoint candidate only when the
   // next record shows that it was not the last one (so N <= c + 1 states fit without thinning).
-  if (workingValid_ && placement_.isCandidate(step - 1)) commitWorkingState(step - 1);
+  if (workingValid_) commitWorkingState(step);
   std::memcpy(working_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   workingValid_ = true;
 }
 
-void OnlineCheckpointing::commitWorkingState(std::int64_t position) {
-  // Thinning keeps the multiples of 2d, which sit in the even slots (internal::OnlinePlacement).
-  const std::int64_t index =
-      placement_.commit(position, [this](std::int64_t from, std::int64_t to) {
-        std::swap(slots_[static_cast<std::size_t>(to)], slots_[static_cast<std::size_t>(from)]);
-      });
-  if (index < 0) return;
-  std::memcpy(slot(index), working_.get(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
+void OnlineCheckpointing::commitWorkingState(std::int64_t step) {
+  const std::int64_t dropped = placement_.offer(step);
+  if (dropped == internal::CostPlacement::kSkipped) return;
+  const auto held = static_cast<std::int64_t>(placement_.positions().size());
+  if (dropped >= 0) {
+    // Slot i holds positions()[i]: the dropped checkpoint's memory moves to the end (pointers only).
+    std::rotate(slots_.begin() + dropped, slots_.begin() + dropped + 1, slots_.begin() + held);
+  }
+  std::memcpy(slot(held - 1), working_.get(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   ++mutableCounters().statesStored;
 }
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
-  // Every interval has at most d steps: the schedules of the backward sweep fit this capacity.
-  schedule_.reserve(std::min(activeCheckpoints_, placement_.spacing() + 1));
+  // Interval j is reversed with min(c - j, its length) slots at the most: reserved now, so that the
+  // backward sweep allocates nothing.
+  const std::vector<std::int64_t>& positions = placement_.positions();
+  std::int64_t deepest = 1;
+  for (std::size_t j = 0; j < positions.size(); ++j) {
+    const std::int64_t end = j + 1 < positions.size() ? positions[j + 1] : stepCount() - 1;
+    deepest = std::max(deepest, std::min(activeCheckpoints_ - static_cast<std::int64_t>(j), end - positions[j]));
+  }
+  schedule_.reserve(deepest);
   interval_ = static_cast<std::int64_t>(placement_.positions().size());  // restore(N - 1) comes from the working state
 }
 

@@ -4,28 +4,29 @@
 // Spec: online:budget=BYTES | online:checkpoints=C[,budget=BYTES]   (default budget 4 GiB).
 // With only a budget, c = floor(budget / stateBytes) - 1 checkpoints (one state is the working state).
 //
-// Algorithm (a simple member of the family of Stumm & Walther 2010, "New algorithms for optimal online
-// checkpointing", SIAM J. Sci. Comput. 32(2); and Wang, Moin & Iaccarino 2009, "Minimal repetition
-// dynamic checkpointing algorithm for unsteady adjoint calculation", SIAM J. Sci. Comput. 31(4); it is
-// neither paper's placement rule, see the bound below for what it guarantees):
+// Algorithm (the aim of Stumm & Walther 2010, "New algorithms for optimal online checkpointing", SIAM
+// J. Sci. Comput. 32(2): revolve's optimum T(N, c) for every N while N is unknown; the rule is a
+// replacement by least predicted cost, as in A-revolve (Hinze & Sternberg 2005) and the last stage of
+// Stumm & Walther's code, here with revolve's exact counts; internal::CostPlacement in
+// storage/online_placement.h):
 //  * Forward sweep: the last recorded state is the working state (like revolve's current state); when
-//    the next record arrives it becomes a checkpoint candidate. Checkpoints are equidistant with
-//    spacing d, always all multiples of d among the candidates. While d = 1 every candidate is kept, up to
-//    c of them (so N <= c + 1 costs no recomputation at all); from then on at most F = ceil(c / 2). When
-//    a candidate at a multiple of d arrives and the limit is reached, every other checkpoint is dropped
-//    and d doubles ("thinning", repeated if needed).
-//  * Backward sweep, N known: x_{N-1} is the working state. The intervals between held checkpoints
-//    s_0 = 0 < s_1 < ... < s_{k-1} are reversed last to first, interval j with the offline binomial
-//    schedule (BinomialSchedule) and the c - j slots not held by s_0..s_{j-1}; the last interval ends
-//    at N - 1.
-// Guarantee (what the test asserts). Candidates are the positions 0..N-2. Thinning from d >= 2 happens
-// only at a candidate F d <= N - 2 and from d = 1 at candidate c >= F, so d <= max(1, 2(N-2)/F). If d = 1
-// every interval has one step and nothing is recomputed; otherwise at most F checkpoints are held, every
-// interval has at most d steps and at least c - F + 1 = floor(c/2) + 1 slots. Since
-// T(l, s) <= rep(l, s) l (the line r l - beta(s+1, r-1) with beta >= 0) and rep grows with l and falls
-// with s, the total number of forward steps, counted like revolve's T(N, c) (see binomial_checkpointing.h),
-//     (N - 1) + recomputedSteps <= (N - 1) + N rep(d, floor(c/2) + 1),
-// and it equals predictedForwardSteps(N, c) exactly. For c = 1 it is optimal, T(N, 1).
+//    the next record arrives it is a checkpoint candidate. The first c candidates are kept. From then on
+//    the c checkpoints s_0 = 0 < s_1 < ... < s_{c-1} cut the trajectory into intervals L_i (the last
+//    one up to the working state), interval i to be reversed with the c - i slots not held by earlier
+//    checkpoints, T(L_i, c - i) forward steps. The candidate replaces the checkpoint j >= 1 that gives
+//    the least sum_i T(L_i, c - i) were the run to end at the next record, unless keeping the placement
+//    is cheaper.
+//  * Backward sweep, N known: x_{N-1} is the working state; interval j (last to first) is reversed by
+//    the offline binomial schedule (BinomialSchedule) with the c - j slots not held by s_0..s_{j-1}.
+// The forward steps, counted like revolve's T(N, c) (see binomial_checkpointing.h), are
+//     (N - 1) + sum_i T(L_i, c - i)  >=  T(N, c),
+// equal to predictedForwardSteps(N, c) exactly. What is known of them (tests/storage/
+// online_checkpointing_test.cpp; measured, not proven): equal to the offline optimum T(N, c) for every
+// N <= beta(c, 2) (c <= 60 checked), where Stumm & Walther prove their online algorithm optimal; at most
+// 1.08 T(N, c) for N <= beta(c, 3) and c = 2..50 (1.071 at c = 2, <= 1.05 for c >= 3), and beyond, up
+// to N = 10^5, at most 1.14 T(N, c) for c = 2 and 1.07 T(N, c) for c = 3..50 (the ratios per c in
+// docs/guides/storage_strategies.md). c = 1: T(N, 1) exactly.
+// Cost of the rule: O(1) evaluations of T per record and O(c) per replacement.
 // Memory: at most c checkpoints plus one working state, allocated on first use and charged with
 // holdBytes(); it never exceeds the budget. counters().statesStored counts the checkpoint writes of
 // the forward sweep plus the final working state x_{N-1} (the copy made at every step is not counted).
@@ -66,14 +67,12 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   bool keepsStages() const { return stages_; }
   /// The checkpoint count c of the current run (known after begin()).
   std::int64_t checkpoints() const { return activeCheckpoints_; }
-  /// Forward-sweep checkpoint limit F = ceil(c / 2).
-  static std::int64_t forwardCheckpoints(std::int64_t c) { return internal::OnlinePlacement::forwardCheckpoints(c); }
-  /// The final spacing d of the forward sweep for N steps.
-  static std::int64_t finalSpacing(std::int64_t steps, std::int64_t c);
-  /// (N - 1) + recomputed steps of this algorithm for N steps and c checkpoints, without states.
+  /// (N - 1) + recomputed steps of this algorithm for N steps and c checkpoints, without states
+  /// (the placement simulated step by step).
   static UnsignedInt128 predictedForwardSteps(std::int64_t steps, std::int64_t c);
-  /// The guaranteed upper bound (N - 1) + N rep(d, floor(c/2) + 1) of the header comment.
-  static UnsignedInt128 forwardStepBound(std::int64_t steps, std::int64_t c);
+  /// (N - 1) + sum_j T(L_j, c - j) for held positions (increasing, starting at 0) of N steps.
+  static UnsignedInt128 forwardStepsOf(const std::vector<std::int64_t>& positions, std::int64_t steps,
+                                       std::int64_t c);
 
  private:
   void doBegin() override;
@@ -83,14 +82,14 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   void doRecordStepData(std::int64_t step, ConstVectorRef data) override;
   bool doRestoreStepData(std::int64_t step, VectorRef data) override;
   double* slot(std::int64_t index);
-  void commitWorkingState(std::int64_t position);
+  void commitWorkingState(std::int64_t step);
   void releaseAll();
 
   std::int64_t requestedCheckpoints_;
   bool stages_;
   internal::RecomputedStages recomputedStages_;  // stages=1
   std::int64_t activeCheckpoints_ = 0;
-  internal::OnlinePlacement placement_;           // forward checkpoints, slot i holds positions()[i]
+  internal::CostPlacement placement_;             // forward checkpoints, slot i holds positions()[i]
   std::vector<std::unique_ptr<double[]>> slots_;  // allocated on first use
   std::unique_ptr<double[]> working_;
   std::int64_t heldBytes_ = 0;

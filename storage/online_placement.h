@@ -1,16 +1,138 @@
-// Where the online strategies keep checkpoints while the number of steps is unknown (shared by
-// `online` and `cams` with adaptive steps or online=1). The rule and its guarantee are documented in
-// storage/online_checkpointing.h: the last recorded state is the working state; when the next record
-// arrives it becomes a candidate if its position is a multiple of the spacing d; checkpoints are all
-// multiples of d among the candidates, at most c while d = 1 and at most F = ceil(c / 2) afterwards;
-// reaching the limit drops every other checkpoint and doubles d (repeated if needed).
+// Where the online strategies keep checkpoints while the number of steps is unknown.
+//
+// CostPlacement (`online`): documented with its guarantee in storage/online_checkpointing.h.
+// OnlinePlacement (`cams` with adaptive steps or online=1): the last recorded state is the working
+// state; when the next record arrives it becomes a candidate if its position is a multiple of the
+// spacing d; checkpoints are all multiples of d among the candidates, at most c while d = 1 and at most
+// F = ceil(c / 2) afterwards; reaching the limit drops every other checkpoint and doubles d (repeated
+// if needed). Intervals of at most d steps are what cams' record planning relies on.
 #pragma once
+
+#include <hindsight/storage/binomial_checkpointing.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <vector>
 
 namespace hindsight::internal {
+
+/// `online`'s placement (the rule and what is known of it: storage/online_checkpointing.h). Once c
+/// checkpoints are held, each record offers the previous working state q; with the intervals L_i between
+/// the held positions (interval i reversed later by revolve with c - i slots, T(L_i, c - i) forward
+/// steps), q replaces the checkpoint j >= 1 whose removal (its two intervals merge, the later ones gain a
+/// slot each, q starts a new last interval) gives the least total sum_i T(L_i, c - i) were the run to end
+/// at the next record, provided that total is not above keeping the placement (ties: the earlier j, and
+/// replacing). Only the last interval changes between replacements, so a record costs O(1) evaluations
+/// of T and a replacement O(c).
+class CostPlacement {
+ public:
+  static constexpr std::int64_t kSkipped = -2;   ///< offer(): the candidate is not kept
+  static constexpr std::int64_t kAppended = -1;  ///< offer(): kept without dropping a checkpoint
+
+  void reset(std::int64_t checkpoints) {
+    checkpoints_ = checkpoints;
+    positions_.clear();
+    // No allocation while recording, up to 2^16 checkpoints (a budget-derived c can be far larger than N).
+    const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints, 1 << 16));
+    positions_.reserve(reserve);
+    own_.reserve(reserve);
+    grow_.reserve(reserve);
+    suffix_.reserve(reserve + 1);
+    innerBest_ = 0;
+    innerIndex_ = -1;
+  }
+  /// The held positions, increasing; position i is in slot i.
+  const std::vector<std::int64_t>& positions() const { return positions_; }
+
+  /// The record of `step` >= 1 arrived: decides about the candidate q = step - 1 (the working state
+  /// until now). Returns kSkipped, kAppended (q is now the last position) or the index j of the dropped
+  /// checkpoint (positions j + 1.. moved down by one, q appended).
+  std::int64_t offer(std::int64_t step) {
+    const std::int64_t q = step - 1;
+    const auto held = static_cast<std::int64_t>(positions_.size());
+    const std::int64_t c = checkpoints_;
+    if (held < c) {
+      positions_.push_back(q);
+      if (held + 1 == c) rebuild();
+      return kAppended;
+    }
+    if (c == 1) return kSkipped;  // one interval: nothing to merge
+    const std::int64_t last = q - positions_.back();  // the last interval if q is kept (>= 1)
+    // Keeping the placement: the last interval (1 slot) grows by one, T(l + 1, 1) - T(l, 1) = l. Taking
+    // q: the old last interval ends at q, the new one (one step) costs nothing.
+    const Cost skip = last;
+    const Cost lastOwn = revolveSteps(last, 1);
+    Cost best = 0;
+    std::int64_t index = -1;
+    if (innerIndex_ >= 1) {
+      best = innerBest_ + (revolveSteps(last, 2) - lastOwn);  // the last interval moves up, to 2 slots
+      index = innerIndex_;
+    }
+    const std::size_t before = static_cast<std::size_t>(c - 2);
+    const Cost lastPair = revolveSteps(positions_[before + 1] - positions_[before] + last, 2) - own_[before] - lastOwn;
+    if (index < 0 || lastPair < best) {
+      best = lastPair;
+      index = c - 1;
+    }
+    if (best > skip) return kSkipped;
+    positions_.erase(positions_.begin() + index);
+    positions_.push_back(q);
+    rebuild();
+    return index;
+  }
+
+  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
+  /// positions at its end; *stores (optional) counts the checkpoint writes.
+  static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores) {
+    CostPlacement placement;
+    placement.reset(c);
+    std::int64_t written = 0;
+    for (std::int64_t step = 1; step < steps; ++step)
+      if (placement.offer(step) != kSkipped) ++written;
+    if (stores != nullptr) *stores = written;
+    return placement.positions_;
+  }
+
+ private:
+  __extension__ typedef __int128 Cost;
+  static Cost revolveSteps(std::int64_t length, std::int64_t slots) {
+    if (length <= 1) return 0;
+    if (slots == 1) return static_cast<Cost>(length) * static_cast<Cost>(length - 1) / 2;
+    return static_cast<Cost>(revolve::optimalForwardSteps(length, slots));
+  }
+  // With c checkpoints held: the intervals 0..c-2 (the last one changes every record), their costs
+  // own_[i] = T(L_i, c - i) and grow_[i] = T(L_i, c - i + 1) - own_[i] (one slot more, as when an
+  // earlier checkpoint is dropped), and the best drop among j = 1..c-2 without the last interval's part.
+  void rebuild() {
+    const std::int64_t c = checkpoints_;
+    own_.clear();
+    grow_.clear();
+    for (std::int64_t i = 0; i + 1 < c; ++i) {
+      const std::int64_t length = positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
+      own_.push_back(revolveSteps(length, c - i));
+      grow_.push_back(revolveSteps(length, c - i + 1) - own_.back());
+    }
+    suffix_.assign(static_cast<std::size_t>(c), 0);  // suffix_[k] = sum of grow_[k..c-2]
+    for (std::int64_t k = c - 2; k >= 0; --k)
+      suffix_[static_cast<std::size_t>(k)] = suffix_[static_cast<std::size_t>(k + 1)] + grow_[static_cast<std::size_t>(k)];
+    innerIndex_ = -1;
+    for (std::int64_t j = 1; j + 1 < c; ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      const std::int64_t merged = positions_[u + 1] - positions_[u - 1];
+      const Cost cost = revolveSteps(merged, c - j + 1) - own_[u - 1] - own_[u] + suffix_[u + 1];
+      if (innerIndex_ < 0 || cost < innerBest_) {
+        innerBest_ = cost;
+        innerIndex_ = j;
+      }
+    }
+  }
+
+  std::int64_t checkpoints_ = 1;
+  std::vector<std::int64_t> positions_;
+  std::vector<Cost> own_, grow_, suffix_;
+  Cost innerBest_ = 0;
+  std::int64_t innerIndex_ = -1;
+};
 
 class OnlinePlacement {
  public:

@@ -1,6 +1,7 @@
 #include <hindsight/storage/schedule.h>
 
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/storage/cams_checkpointing.h>
 #include <hindsight/storage/chunked_state_file.h>
 #include <hindsight/storage/disk_storage.h>
@@ -15,6 +16,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -277,6 +279,168 @@ TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, s
   return plan;
 }
 
+// ---- the dynamic programme (kDynamic) ----
+//
+// For a segment of l states x_p..x_e (l = e - p + 1) whose first state is a checkpoint at level L, with
+// m RAM and d disk slots free besides it:
+//   F_L(l, m, d)  = r_L + G_L(l, m, d)        (load x_p: r_RAM = 0, r_disk = rd),
+//   G_L(1, m, d)  = 0                          (x_e = x_p is at hand; its slot is freed),
+//   G_L(l, m, d)  = min of                     (x_p at hand, l >= 2)
+//     (l - 1) uf + F_L(l - 1, m, d)                                   advance to x_e, consume it;
+//     j uf + G_RAM(l - j, m - 1, d) + F_L(j, m, d),     1 <= j <= l-2   store x_{p+j} in RAM;
+//     j uf + wd + G_disk(l - j, m, d - 1) + F_L(j, m, d), 1 <= j <= l-2 store it on disk;
+//     G_RAM(l, m - 1, d + 1)            (L = disk: keep x_p in RAM instead, its disk slot freed)
+//     wd + G_disk(l, m + 1, d - 1)      (L = RAM: move x_p to disk, its RAM slot freed).
+// The forward sweep at x_p (nothing stored from p on, advancing free), m and d slots free:
+//   H(l, m, d) = min over L of w_L + min( F_L(l, m', d'),  min_{1<=j<=l-1} H(l - j, m', d') + F_L(j, m', d') )
+// with w_RAM = 0, w_disk = wd and (m', d') the slots left after storing x_p at L; F_L(l, ...) there
+// stores nothing more in the forward sweep (the later states are replayed from x_p). The game's cost
+// is H(N, R, D). Moving a checkpoint there and back is never cheaper, so applying the two moves to the
+// values without moves is exact. O(N^2 R D) time, O(N R D) memory.
+struct TwoLevelPlan::DynamicTables {
+  std::int64_t steps = 0, ram = 0, disk = 0;
+  struct Entry {
+    double cost;
+    std::int32_t distance;
+    std::int8_t action;
+  };
+  std::vector<Entry> backward[2];  // G_L, L = 0 RAM, 1 disk
+  std::vector<Entry> forward;      // H; action = level index
+  std::size_t index(std::int64_t l, std::int64_t m, std::int64_t d) const {
+    return static_cast<std::size_t>((l * (ram + 1) + m) * (disk + 1) + d);
+  }
+};
+
+bool TwoLevelPlan::dynamicAffordable(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots) {
+  if (steps < 1 || ramSlots < 0 || diskSlots < 0) return false;
+  const auto n = static_cast<UnsignedInt128>(steps);
+  const auto r = static_cast<UnsignedInt128>(std::min(ramSlots, steps) + 1);
+  const auto d = static_cast<UnsignedInt128>(std::min(diskSlots, steps) + 1);
+  return n * n * r * d <= static_cast<UnsignedInt128>(kMaxDynamicWork);
+}
+
+TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                   const ScheduleCosts& costs) {
+  if (!dynamicAffordable(steps, ramSlots, diskSlots)) {
+    throw std::invalid_argument("two-level plan 'dynamic': N = " + std::to_string(steps) + " with " +
+                                std::to_string(ramSlots) + " RAM and " + std::to_string(diskSlots) +
+                                " disk slots exceeds its work limit N^2 (R + 1)(D + 1) <= 2^28");
+  }
+  if (steps >= 2 && (ramSlots < 1 || ramSlots + diskSlots < 2)) {
+    throw std::invalid_argument("two-level plan 'dynamic': " + std::to_string(ramSlots) + " RAM and " +
+                                std::to_string(diskSlots) + " disk slots cannot reverse N >= 2 steps");
+  }
+  auto tables = std::make_shared<DynamicTables>();
+  DynamicTables& t = *tables;
+  t.steps = steps;
+  t.ram = std::min(ramSlots, steps);  // more slots than states are never used
+  t.disk = std::min(diskSlots, steps);
+  const std::size_t size = t.index(steps + 1, 0, 0);
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  for (auto& table : t.backward) table.assign(size, DynamicTables::Entry{kInfinity, 0, kDone});
+  t.forward.assign(size, DynamicTables::Entry{kInfinity, 0, 0});
+  const double uf = costs.forwardStep, wd = costs.diskWrite, rd = costs.diskRead;
+  const double read[2] = {0.0, rd}, write[2] = {0.0, wd};
+  const auto loaded = [&](int level, std::int64_t l, std::int64_t m, std::int64_t d) {  // F_L
+    return read[level] + t.backward[level][t.index(l, m, d)].cost;
+  };
+  std::vector<DynamicTables::Entry> plain[2];  // G_L at one l before the moves
+  for (auto& row : plain) row.resize(static_cast<std::size_t>((t.ram + 1) * (t.disk + 1)));
+  const auto cell = [&](std::int64_t m, std::int64_t d) { return static_cast<std::size_t>(m * (t.disk + 1) + d); };
+  for (std::int64_t l = 1; l <= steps; ++l) {
+    pollInterrupt();
+    for (std::int64_t m = 0; m <= t.ram; ++m) {
+      for (std::int64_t d = 0; d <= t.disk; ++d) {
+        for (int level = 0; level < 2; ++level) {
+          DynamicTables::Entry best{l == 1 ? 0.0 : kInfinity, 0, l == 1 ? kDone : kNone};
+          if (l >= 2) {
+            best.cost = static_cast<double>(l - 1) * uf + loaded(level, l - 1, m, d);
+            for (std::int64_t j = 1; j <= l - 2; ++j) {
+              const double lower = static_cast<double>(j) * uf + loaded(level, j, m, d);
+              if (m >= 1) {
+                const double cost = lower + t.backward[0][t.index(l - j, m - 1, d)].cost;
+                if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), kStoreRam};
+              }
+              if (d >= 1) {
+                const double cost = lower + wd + t.backward[1][t.index(l - j, m, d - 1)].cost;
+                if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), kStoreDisk};
+              }
+            }
+          }
+          plain[level][cell(m, d)] = best;
+        }
+      }
+    }
+    for (std::int64_t m = 0; m <= t.ram; ++m) {
+      for (std::int64_t d = 0; d <= t.disk; ++d) {
+        DynamicTables::Entry ram = plain[0][cell(m, d)], disk = plain[1][cell(m, d)];
+        if (l >= 2 && d >= 1 && m + 1 <= t.ram && wd + plain[1][cell(m + 1, d - 1)].cost < ram.cost)
+          ram = {wd + plain[1][cell(m + 1, d - 1)].cost, 0, kMove};
+        if (l >= 2 && m >= 1 && d + 1 <= t.disk && plain[0][cell(m - 1, d + 1)].cost < disk.cost)
+          disk = {plain[0][cell(m - 1, d + 1)].cost, 0, kMove};
+        t.backward[0][t.index(l, m, d)] = ram;
+        t.backward[1][t.index(l, m, d)] = disk;
+      }
+    }
+    for (std::int64_t m = 0; m <= t.ram; ++m) {
+      for (std::int64_t d = 0; d <= t.disk; ++d) {
+        DynamicTables::Entry best{kInfinity, 0, 0};
+        for (int level = 0; level < 2; ++level) {
+          const std::int64_t m2 = level == 0 ? m - 1 : m, d2 = level == 1 ? d - 1 : d;
+          if (m2 < 0 || d2 < 0) continue;
+          double cost = write[level] + loaded(level, l, m2, d2);
+          if (cost < best.cost) best = {cost, 0, static_cast<std::int8_t>(level)};
+          for (std::int64_t j = 1; j <= l - 1; ++j) {
+            cost = write[level] + t.forward[t.index(l - j, m2, d2)].cost + loaded(level, j, m2, d2);
+            if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), static_cast<std::int8_t>(level)};
+          }
+        }
+        t.forward[t.index(l, m, d)] = best;
+      }
+    }
+  }
+  if (!(t.forward[t.index(steps, t.ram, t.disk)].cost < kInfinity)) {
+    throw std::invalid_argument("two-level plan 'dynamic': no schedule for N = " + std::to_string(steps));
+  }
+  TwoLevelPlan plan;
+  plan.kind_ = Kind::kDynamic;
+  plan.steps_ = steps;
+  plan.ramSlots_ = t.ram;
+  plan.dynamic_ = std::move(tables);
+  plan.counts_ = plan.countBySimulation();  // also the slots in use at the most (takeSlot)
+  plan.ramSlotsUsed_ = plan.peakRam_;
+  plan.diskSlotsUsed_ = plan.peakDisk_;
+  return plan;
+}
+
+TwoLevelPlan::Decision TwoLevelPlan::forwardDecision(std::int64_t length) const {
+  const DynamicTables::Entry& e = dynamic_->forward[dynamic_->index(length, freeRam_, freeDisk_)];
+  return Decision{e.action, e.distance};
+}
+
+TwoLevelPlan::Decision TwoLevelPlan::backwardDecision(StorageLevel level, std::int64_t length) const {
+  const DynamicTables::Entry& e =
+      dynamic_->backward[level == StorageLevel::kRam ? 0 : 1][dynamic_->index(length, freeRam_, freeDisk_)];
+  return Decision{e.action, e.distance};
+}
+
+std::int64_t TwoLevelPlan::takeSlot(StorageLevel level) {
+  // The lowest free slot, so that the slots in use at the most are 0..peak-1.
+  std::vector<char>& busy = level == StorageLevel::kRam ? ramBusy_ : diskBusy_;
+  std::size_t slot = 0;
+  while (busy[slot]) ++slot;
+  busy[slot] = 1;
+  --(level == StorageLevel::kRam ? freeRam_ : freeDisk_);
+  std::int64_t& peak = level == StorageLevel::kRam ? peakRam_ : peakDisk_;
+  peak = std::max(peak, static_cast<std::int64_t>(slot) + 1);
+  return static_cast<std::int64_t>(slot);
+}
+
+void TwoLevelPlan::releaseSlot(const Held& held) {
+  (held.level == StorageLevel::kRam ? ramBusy_ : diskBusy_)[static_cast<std::size_t>(held.slot)] = 0;
+  ++(held.level == StorageLevel::kRam ? freeRam_ : freeDisk_);
+}
+
 TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
                                   const ScheduleCosts& costs) {
   if (steps < 1) throw std::invalid_argument("two-level plan: N = " + std::to_string(steps) + " must be >= 1");
@@ -332,6 +496,7 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
     } else {
       // The balanced plans: K leaves of floor(N / K) or one more step, the last one the shortest.
       for (std::int64_t k = 1; k <= maxLeaves;) {
+        pollInterrupt();
         const std::int64_t end = std::min(maxLeaves, steps / (steps / k));
         for (std::int64_t kk : {k, end}) {
           bool replay = false;
@@ -351,6 +516,7 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
       lasts.erase(std::unique(lasts.begin(), lasts.end()), lasts.end());
     }
     for (std::int64_t last : lasts) {
+      pollInterrupt();  // O(sqrt N) evaluations each, up to 2048 lengths
       if (last < 1 || last > steps) continue;
       bool replay = false;
       const double lastRecomputed = static_cast<double>(lastCost(last, &replay));
@@ -368,22 +534,35 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
       }
     }
   }
+  // The dynamic programme is the optimum over stack schedules, which include both families; it is
+  // compared with them anyway (ties keep the family, whose counts are also in closed form).
+  std::optional<TwoLevelPlan> optimal;
+  if (dynamicAffordable(steps, ramSlots, diskSlots)) optimal = dynamic(steps, ramSlots, diskSlots, costs);
+  const auto better = [&](TwoLevelPlan plan) {
+    if (optimal && optimal->counts().cost(costs) < plan.counts().cost(costs)) return std::move(*optimal);
+    return plan;
+  };
   if (steps <= kMaxSimulatedSteps && (diskSlots > 0 || ramSlots < 2)) {
     TwoLevelPlan all = allSlots(steps, ramSlots, diskSlots, false);
     if (steps >= 2 && replayAffordable(steps, ramSlots + diskSlots)) {
       TwoLevelPlan replayed = allSlots(steps, ramSlots, diskSlots, true);
       if (replayed.counts().cost(costs) < all.counts().cost(costs)) all = std::move(replayed);
     }
-    if (all.counts().cost(costs) < bestCost) return all;
+    if (all.counts().cost(costs) < bestCost) return better(std::move(all));
   }
+  if (bestLeaves == 0 && optimal) return std::move(*optimal);
   if (bestLeaves == 0) {
     throw std::invalid_argument("two-level plan: with one RAM slot and N = " + std::to_string(steps) +
                                 " > 2^24 steps no plan is counted; give RAM at least two states");
   }
-  return leaves(steps, ramSlots, bestLeaves, bestLast, bestReplay);
+  return better(leaves(steps, ramSlots, bestLeaves, bestLast, bestReplay));
 }
 
 std::string TwoLevelPlan::describe() const {
+  if (kind_ == Kind::kDynamic) {
+    return "optimal two-level stack schedule (dynamic programme): up to " + std::to_string(ramSlotsUsed_) +
+           " RAM and " + std::to_string(diskSlotsUsed_) + " disk states, slots reused";
+  }
   const std::string last = replayLast_ ? ", last state replayed" : ", working state";
   if (kind_ == Kind::kAllSlots) {
     return "revolve over all slots: " + std::to_string(revolveSlots_) + " checkpoints (the bottom " +
@@ -451,14 +630,32 @@ TwoLevelPlan::Counts TwoLevelPlan::countBySimulation() {
   Counts c;
   CountingVisitor visitor{c};
   rewind();
-  for (std::int64_t n = 0; n < steps_; ++n) recordForward(n, visitor);
+  // Up to 2^24 steps: the interrupt is polled every 2^16 of them (engine/interrupt.h).
+  for (std::int64_t n = 0; n < steps_; ++n) {
+    if ((n & 0xffff) == 0) pollInterrupt();
+    recordForward(n, visitor);
+  }
   c.statesStored = c.ramWrites + c.diskWrites;
-  for (std::int64_t e = steps_ - 1; e >= 0; --e) restoreStep(e, visitor);
+  for (std::int64_t e = steps_ - 1; e >= 0; --e) {
+    if ((e & 0xffff) == 0) pollInterrupt();
+    restoreStep(e, visitor);
+  }
   rewind();
   return c;
 }
 
-void TwoLevelPlan::rewind() { currentLeaf_ = -1; }
+void TwoLevelPlan::rewind() {
+  currentLeaf_ = -1;
+  if (kind_ == Kind::kDynamic) {
+    held_.clear();
+    held_.reserve(static_cast<std::size_t>(dynamic_->ram + dynamic_->disk + 1));
+    ramBusy_.assign(static_cast<std::size_t>(dynamic_->ram), 0);
+    diskBusy_.assign(static_cast<std::size_t>(dynamic_->disk), 0);
+    freeRam_ = dynamic_->ram;
+    freeDisk_ = dynamic_->disk;
+    nextStore_ = 0;
+  }
+}
 
 // ---- predictions ----
 
@@ -467,8 +664,8 @@ namespace {
 // Counts and bytes of a prediction are int64; every product and sum that could leave that range is
 // computed in 128 bits and refused with a message naming the quantity instead of wrapping around.
 constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
-// online's placement (internal::OnlinePlacement::simulate) walks the forward sweep step by step.
-constexpr std::int64_t kMaxOnlineSteps = std::int64_t{1} << 30;
+// online's placement (internal::CostPlacement::simulate) walks the forward sweep step by step.
+constexpr std::int64_t kMaxOnlineSteps = std::int64_t{1} << 24;
 
 std::int64_t checkedCount(UnsignedInt128 value, const std::string& what) {
   if (value > static_cast<UnsignedInt128>(kMaxCount)) {
@@ -585,24 +782,24 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     }
     p.peakRamBytes = checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
   } else if (name == "online") {
-    // OnlineCheckpointing for N fixed steps: its placement (internal::OnlinePlacement), then each interval
+    // OnlineCheckpointing for N fixed steps: its placement (internal::CostPlacement), then each interval
     // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
     // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
     auto& online = dynamic_cast<OnlineCheckpointing&>(*storage);
     if (steps > kMaxOnlineSteps) {
       throw std::invalid_argument("online is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-                                  " (2^30; its placement is simulated step by step); --steps = " + std::to_string(steps));
+                                  " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
     }
     const bool keepStages = online.keepsStages() && stages > 1;
     const std::int64_t recordBytes =
         keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "online: bytes of two step records") : 0;
     const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
     std::int64_t forwardStores = 0;
-    const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(steps, c, &forwardStores, nullptr);
-    p.plan = "online placement (final spacing " + std::to_string(internal::OnlinePlacement::finalSpacing(steps, c)) +
-             "), revolve per interval, " + std::to_string(c) + " checkpoints + working state" +
+    const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, &forwardStores);
+    p.plan = "online placement (" + std::to_string(positions.size()) + " held), revolve per interval, " +
+             std::to_string(c) + " checkpoints + working state" +
              (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.recomputedSteps = checkedCount(OnlineCheckpointing::predictedForwardSteps(steps, c) -
+    p.recomputedSteps = checkedCount(OnlineCheckpointing::forwardStepsOf(positions, steps, c) -
                                          static_cast<UnsignedInt128>(steps - 1),
                                      "recomputed steps");
     p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
@@ -702,7 +899,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     const bool online = strategy.onlineRequested();
     if (online && steps > kMaxOnlineSteps) {
       throw std::invalid_argument("cams with online=1 is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-                                  " (2^30; its placement is simulated step by step); --steps = " + std::to_string(steps));
+                                  " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
     }
     const std::int64_t units = strategy.usableUnits(stateBytes, online);
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();

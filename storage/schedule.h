@@ -35,14 +35,24 @@
 //               (wd = rd = 0) it is revolve with all slots, the optimum of the game; its disk traffic is
 //               counted by running the schedule without states (O(N)), so it is considered for
 //               N <= kMaxSimulatedSteps only.
-// Which one is optimal for the whole game depends on the costs; the tests compare the plan with a
-// brute-force search over all schedules of the game for small N (equal with free disk and whenever
-// the disk is not the bottleneck) -- see docs/theory/storage.md, "Two-level schedules".
+//   dynamic     the optimum over the schedules that keep their checkpoints as a stack (each segment
+//               [p, e] is reversed from the checkpoint at p, which stays until the segment is done):
+//               the dynamic programme of H-Revolve (Herrmann & Pallez 2020) for two levels with bounded
+//               RAM and disk, written for this game (TwoLevelPlan::dynamic below). Disk slots are
+//               reused as soon as their segment is done, states may be written to disk in the backward
+//               sweep, and a checkpoint at hand may move between the levels. Computed when
+//               N^2 (R + 1)(D + 1) <= kMaxDynamicWork (R, D the slots, at most N each); beyond, only the
+//               two families above are considered.
+// choose() returns the cheapest plan it evaluated. The tests compare it with a brute-force search over
+// every schedule of the game (N <= 7: equal in every case tried) and, for larger N, the dynamic
+// programme with an independent memoised recursion of the same recurrences -- see docs/theory/storage.md,
+// "Two-level schedules".
 #pragma once
 
 #include <hindsight/storage/binomial_checkpointing.h>
 
 #include <cstdint>
+#include <memory>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -111,8 +121,10 @@ struct SchedulePrediction {
 /// The two-level plan for N >= 1 steps, ramSlots >= 1 and diskSlots >= 0 (see the file comment).
 class TwoLevelPlan {
  public:
-  enum class Kind { kLeaves, kAllSlots };
+  enum class Kind { kLeaves, kAllSlots, kDynamic };
   static constexpr std::int64_t kMaxSimulatedSteps = std::int64_t{1} << 24;
+  /// The dynamic programme is solved when N^2 (R + 1)(D + 1) is at most this (about a second).
+  static constexpr std::int64_t kMaxDynamicWork = std::int64_t{1} << 28;
 
   /// The cheapest plan under `costs`. Throws std::invalid_argument when the slots cannot reverse N
   /// steps (N >= 2 needs ramSlots >= 2, or ramSlots == 1 and a disk slot).
@@ -123,6 +135,13 @@ class TwoLevelPlan {
   static TwoLevelPlan leaves(std::int64_t steps, std::int64_t ramSlots, std::int64_t leafCount,
                              std::int64_t lastLength, bool replayLast);
   static TwoLevelPlan allSlots(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots, bool replayLast);
+  /// The optimal stack schedule by dynamic programming (file comment). Throws std::invalid_argument when
+  /// the work exceeds kMaxDynamicWork or the slots cannot reverse N steps. Polls pollInterrupt()
+  /// (engine/interrupt.h) once per segment length.
+  static TwoLevelPlan dynamic(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                              const ScheduleCosts& costs);
+  /// Whether dynamic() is within kMaxDynamicWork for these sizes.
+  static bool dynamicAffordable(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots);
 
   Kind kind() const { return kind_; }
   std::int64_t steps() const { return steps_; }
@@ -162,6 +181,35 @@ class TwoLevelPlan {
   std::int64_t leafSlots(std::int64_t leaf) const;
   Counts countLeaves() const;
   Counts countBySimulation();
+
+  // kDynamic: the tables of the dynamic programme (shared by copies of the plan) and the executor's
+  // checkpoint stack and slot occupancy.
+  struct DynamicTables;
+  struct Held {
+    std::int64_t position;
+    StorageLevel level;
+    std::int64_t slot;
+  };
+  std::shared_ptr<const DynamicTables> dynamic_;
+  std::vector<Held> held_;
+  std::vector<char> ramBusy_, diskBusy_;
+  std::int64_t freeRam_ = 0, freeDisk_ = 0, nextStore_ = -1;
+  std::int64_t peakRam_ = 0, peakDisk_ = 0;  // slots in use at the most (set while counting)
+  std::int64_t takeSlot(StorageLevel level);
+  void releaseSlot(const Held& held);
+  // The decisions: the forward sweep's at a stored position n (level and distance to the next store, 0:
+  // none), the backward sweep's for a segment of `length` states from a checkpoint at hand at `level`.
+  struct Decision {
+    int action;  // kDone, kNone, kStoreRam, kStoreDisk, kMove (backward); the level index (forward)
+    std::int64_t distance;
+  };
+  enum : int { kDone = 0, kNone = 1, kStoreRam = 2, kStoreDisk = 3, kMove = 4 };
+  Decision forwardDecision(std::int64_t length) const;
+  Decision backwardDecision(StorageLevel level, std::int64_t length) const;
+  template <typename Visitor>
+  void dynamicRecord(std::int64_t n, Visitor& visitor);
+  template <typename Visitor>
+  void dynamicRestore(std::int64_t e, Visitor& visitor);
 
   // Maps BinomialSchedule's slots and relative positions onto levels and grid points.
   template <typename Visitor>
@@ -213,7 +261,56 @@ class TwoLevelPlan {
 };
 
 template <typename Visitor>
+void TwoLevelPlan::dynamicRecord(std::int64_t n, Visitor& visitor) {
+  if (n != nextStore_) return;
+  const Decision decision = forwardDecision(steps_ - n);
+  const StorageLevel level = decision.action == 0 ? StorageLevel::kRam : StorageLevel::kDisk;
+  const std::int64_t slot = takeSlot(level);
+  visitor.store(level, slot);
+  held_.push_back(Held{n, level, slot});
+  nextStore_ = decision.distance > 0 ? n + decision.distance : -1;
+}
+
+template <typename Visitor>
+void TwoLevelPlan::dynamicRestore(std::int64_t e, Visitor& visitor) {
+  bool atHand = false;  // whether the state at hand is the top checkpoint's
+  for (;;) {
+    const Held top = held_.back();
+    const std::int64_t length = e - top.position + 1;
+    if (!atHand) visitor.load(top.level, top.slot);
+    atHand = true;
+    if (length == 1) {
+      releaseSlot(top);
+      held_.pop_back();
+      return;
+    }
+    const Decision decision = backwardDecision(top.level, length);
+    if (decision.action == kNone) {
+      visitor.advance(top.position, e);
+      return;
+    }
+    if (decision.action == kMove) {
+      const StorageLevel other = top.level == StorageLevel::kRam ? StorageLevel::kDisk : StorageLevel::kRam;
+      const std::int64_t slot = takeSlot(other);
+      visitor.store(other, slot);
+      releaseSlot(top);
+      held_.back() = Held{top.position, other, slot};
+      continue;
+    }
+    const StorageLevel level = decision.action == kStoreRam ? StorageLevel::kRam : StorageLevel::kDisk;
+    visitor.advance(top.position, top.position + decision.distance);
+    const std::int64_t slot = takeSlot(level);
+    visitor.store(level, slot);
+    held_.push_back(Held{top.position + decision.distance, level, slot});
+  }
+}
+
+template <typename Visitor>
 void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
+  if (kind_ == Kind::kDynamic) {
+    dynamicRecord(n, visitor);
+    return;
+  }
   if (kind_ == Kind::kAllSlots) {
     Adapter<Visitor> adapter{visitor, 0, *this};
     if (n == 0) {
@@ -248,6 +345,10 @@ void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
 
 template <typename Visitor>
 void TwoLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
+  if (kind_ == Kind::kDynamic) {
+    dynamicRestore(e, visitor);
+    return;
+  }
   if (kind_ == Kind::kAllSlots) {
     if (replayLast_ && e == steps_ - 1 && steps_ >= 2) {
       replayLast(0, e, visitor);

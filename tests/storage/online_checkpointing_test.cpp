@@ -5,6 +5,7 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/storage/online_placement.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
@@ -20,6 +21,88 @@ using revolve::toString;
 
 double ratio(UnsignedInt128 a, UnsignedInt128 b) { return static_cast<double>(a) / static_cast<double>(b); }
 
+// Reference formulas written from Griewank & Walther, "Algorithm 799: revolve" (ACM TOMS 26(1), 2000),
+// independently of storage/binomial_checkpointing.cpp: beta(c, r) = (c + r)! / (c! r!), the repetition
+// number r(N, c) = least r with beta(c, r) >= N, and T(N, c) = r N - beta(c + 1, r - 1).
+std::int64_t referenceBeta(std::int64_t c, std::int64_t r) {
+  if (r < 0) return 0;
+  long double value = 1;
+  for (std::int64_t i = 1; i <= r; ++i) value = value * static_cast<long double>(c + i) / static_cast<long double>(i);
+  return value > 4e18L ? std::int64_t{4'000'000'000'000'000'000} : static_cast<std::int64_t>(value + 0.5L);
+}
+std::int64_t referenceOptimum(std::int64_t steps, std::int64_t c) {
+  std::int64_t r = 0;
+  while (referenceBeta(c, r) < steps) ++r;
+  return r * steps - referenceBeta(c + 1, r - 1);
+}
+
+// Stumm & Walther ("New algorithms for optimal online checkpointing", SIAM J. Sci. Comput. 32(2),
+// 2010) prove their online placement optimal, T(N, c) forward steps, for every N <= beta(c, 2) (the
+// repetition number at most 2): online must reach exactly that there, for every N at once (the
+// placement does not know N). Counted by running the placement and reversing each interval with the
+// offline optimum, and compared with the reference formula above.
+// The placement's count for every N up to `last` in one pass (the placement does not know N: the run of
+// N steps holds what the records 1..N-1 left), each compared through `check(N, count)`.
+template <typename Check>
+void forEveryStepCount(std::int64_t c, std::int64_t last, std::int64_t stride, Check&& check) {
+  internal::CostPlacement placement;
+  placement.reset(c);
+  for (std::int64_t steps = 2; steps <= last; ++steps) {
+    placement.offer(steps - 1);
+    if (steps < 2000 || steps % stride == 0 || steps == last)
+      check(steps, OnlineCheckpointing::forwardStepsOf(placement.positions(), steps, c));
+  }
+}
+
+TEST(OnlineCheckpointing, OptimalForEveryStepCountWithRepetitionTwo) {
+  for (std::int64_t c = 1; c <= 60; ++c) {
+    forEveryStepCount(c, referenceBeta(c, 2), 1, [&](std::int64_t steps, UnsignedInt128 count) {
+      ASSERT_EQ(toString(count), std::to_string(referenceOptimum(steps, c))) << "N = " << steps << ", c = " << c;
+    });
+    // The strategy's own prediction is the same placement.
+    EXPECT_EQ(toString(OnlineCheckpointing::predictedForwardSteps(referenceBeta(c, 2), c)),
+              std::to_string(referenceOptimum(referenceBeta(c, 2), c)));
+  }
+}
+
+// Beyond beta(c, 2): never below the offline optimum, and the measured worst ratio to it over every N up
+// to beta(c, 3) (Stumm & Walther's second range) and up to 10^5 (every N to 2000, then every 97th) stays
+// below the figures the header of storage/online_checkpointing.h states (printed;
+// docs/guides/storage_strategies.md quotes them).
+TEST(OnlineCheckpointing, MeasuredAgainstTheOfflineOptimumBeyondRepetitionTwo) {
+  for (const std::int64_t c : {2, 3, 5, 10, 20, 50}) {
+    const std::int64_t third = referenceBeta(c, 3);
+    double worstThird = 1, worstBeyond = 1;
+    std::int64_t worstAt = 0, worstBeyondAt = 0;
+    forEveryStepCount(c, 100'000, 97, [&](std::int64_t steps, UnsignedInt128 online) {
+      const auto optimum = static_cast<UnsignedInt128>(referenceOptimum(steps, c));
+      ASSERT_GE(online, optimum) << "N = " << steps << ", c = " << c;
+      const double q = ratio(online, optimum);
+      if (steps <= third && q > worstThird) {
+        worstThird = q;
+        worstAt = steps;
+      }
+      if (steps > third && q > worstBeyond) {
+        worstBeyond = q;
+        worstBeyondAt = steps;
+      }
+    });
+    std::cout << "[ online/offline ] c = " << c << ": worst ratio " << worstThird << " for N <= beta(c, 3) = "
+              << third << " (at N = " << worstAt << "), " << worstBeyond << " beyond up to 10^5 (at N = "
+              << worstBeyondAt << ")\n";
+    EXPECT_LT(worstThird, 1.08) << "c = " << c;
+    EXPECT_LT(worstBeyond, c == 2 ? 1.15 : 1.07) << "c = " << c;
+  }
+  // The cases where the earlier placement (equidistant, thinned by halves) was furthest from the optimum.
+  for (const auto& [steps, c] : {std::pair<std::int64_t, std::int64_t>{10, 2}, {100, 10}, {1000, 50}}) {
+    const UnsignedInt128 online = OnlineCheckpointing::predictedForwardSteps(steps, c);
+    std::cout << "[ online/offline ] N = " << steps << ", c = " << c << ": " << toString(online) << " / "
+              << referenceOptimum(steps, c) << " = " << ratio(online, static_cast<UnsignedInt128>(referenceOptimum(steps, c)))
+              << '\n';
+    EXPECT_LE(ratio(online, static_cast<UnsignedInt128>(referenceOptimum(steps, c))), 1.03);
+  }
+}
+
 struct Case {
   std::int64_t steps;
   std::int64_t checkpoints;
@@ -29,7 +112,7 @@ class OnlineSchedule : public ::testing::TestWithParam<Case> {};
 
 INSTANTIATE_TEST_SUITE_P(Table, OnlineSchedule,
                          ::testing::Values(Case{1'000'000, 1}, Case{1'000'000, 2}, Case{1'000'000, 5},
-                                           Case{1'000'000, 20}, Case{1'000'000, 100}, Case{10'000, 20},
+                                           Case{100'000, 20}, Case{100'000, 100}, Case{10'000, 20},
                                            Case{10'000, 100}, Case{1'000, 10}, Case{100, 100}, Case{101, 100},
                                            Case{102, 100}, Case{21, 20}, Case{7, 5}, Case{2, 1}),
                          [](const auto& info) {
@@ -41,15 +124,13 @@ TEST_P(OnlineSchedule, WithinItsBoundAndNeverBelowTheOfflineOptimum) {
   const auto [steps, c] = GetParam();
   const UnsignedInt128 online = OnlineCheckpointing::predictedForwardSteps(steps, c);
   const UnsignedInt128 optimum = optimalForwardSteps(steps, c);
-  const UnsignedInt128 bound = OnlineCheckpointing::forwardStepBound(steps, c);
   EXPECT_GE(online, optimum);
-  EXPECT_LE(online, bound);
-  if (c == 1) EXPECT_EQ(toString(online), toString(optimum));
+  EXPECT_LE(ratio(online, optimum), 1.1);
+  if (c == 1 || steps <= referenceBeta(c, 2)) EXPECT_EQ(toString(online), toString(optimum));
   // Up to c + 1 states fit (c checkpoints and the working state): nothing is recomputed, like full storage.
   if (steps <= c + 1) EXPECT_EQ(toString(online), std::to_string(steps - 1));
   std::cout << "[ online/offline ] N = " << steps << ", c = " << c << ": online " << toString(online)
-            << ", revolve optimum " << toString(optimum) << ", ratio " << ratio(online, optimum)
-            << ", proven bound ratio " << ratio(bound, optimum) << '\n';
+            << ", revolve optimum " << toString(optimum) << ", ratio " << ratio(online, optimum) << '\n';
 }
 
 IntegratorOptions pendulumOptions(double t1, double h) {
@@ -88,7 +169,6 @@ TEST_P(OnlineOnPendulum, FixedStepsBitwiseAndAsPredicted) {
     const auto total = static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps);
     EXPECT_EQ(toString(total), toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))
         << "N = " << steps;
-    EXPECT_LE(total, OnlineCheckpointing::forwardStepBound(steps, c)) << "N = " << steps;
     EXPECT_GE(total, optimalForwardSteps(steps, c)) << "N = " << steps;
     EXPECT_LE(storage.counters().peakBytesInMemory, (c + 1) * 16) << "N = " << steps;
     EXPECT_EQ(storage.counters().bytesInMemory, 0);

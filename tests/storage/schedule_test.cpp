@@ -1,6 +1,7 @@
 // Schedules as data (storage/schedule.h): the two-level plan against a brute-force search over every
 // schedule of the game, free disk against revolve, closed-form counts against the schedule run without
 // states, predictions against real runs counter by counter, and N = 1e9.
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/recomputed_stages.h>
@@ -14,6 +15,7 @@
 #include <map>
 #include <queue>
 #include <sstream>
+#include <tuple>
 #include <unordered_map>
 
 namespace hindsight {
@@ -239,6 +241,130 @@ TEST(TwoLevelPlan, EveryActionStreamProducesEachStateInTurnWithinItsSlots) {
         }
       }
     }
+  }
+}
+
+// The stack schedules' optimum by an independent top-down recursion (memoised), read from the game:
+// a segment [p, e] with its first state held at `level` (RAM or disk), m RAM and d disk slots free
+// besides it, and whether that state is at hand; the forward sweep at an unstored state. Each choice
+// is enumerated directly (advance to e and produce it, or to p + j and keep that state at a level, or
+// move the held state to the other level), unlike the bottom-up tables of TwoLevelPlan::dynamic.
+class StackOptimum {
+ public:
+  StackOptimum(std::int64_t ram, std::int64_t disk, const ScheduleCosts& c) : ram_(ram), disk_(disk), c_(c) {}
+  double game(std::int64_t steps) { return forward(steps, ram_, disk_); }
+
+ private:
+  double segment(std::int64_t l, int level, std::int64_t m, std::int64_t d, bool atHand, bool allowMove = true) {
+    const std::int64_t key =
+        ((((l * 2 + level) * (ram_ + 1) + m) * (disk_ + 1) + d) * 2 + (atHand ? 1 : 0)) * 2 + (allowMove ? 1 : 0);
+    if (auto it = memo_.find(key); it != memo_.end()) return it->second;
+    double best = 0;
+    if (!atHand) {
+      best = (level == 1 ? c_.diskRead : 0.0) + segment(l, level, m, d, true);
+    } else if (l >= 2) {
+      best = (l - 1) * c_.forwardStep + segment(l - 1, level, m, d, false);
+      for (std::int64_t j = 1; j + 1 < l; ++j) {
+        const double after = j * c_.forwardStep + segment(j, level, m, d, false);
+        if (m > 0) best = std::min(best, after + segment(l - j, 0, m - 1, d, true));
+        if (d > 0) best = std::min(best, after + c_.diskWrite + segment(l - j, 1, m, d - 1, true));
+      }
+      // Moving the held state to the other level (moving it back would only add cost).
+      if (allowMove) {
+        if (level == 1 && m > 0) best = std::min(best, segment(l, 0, m - 1, d + 1, true, false));
+        if (level == 0 && d > 0) best = std::min(best, c_.diskWrite + segment(l, 1, m + 1, d - 1, true, false));
+      }
+    }
+    memo_[key] = best;
+    return best;
+  }
+  double forward(std::int64_t l, std::int64_t m, std::int64_t d) {
+    const std::int64_t key = -1 - ((l * (ram_ + 1) + m) * (disk_ + 1) + d);
+    if (auto it = memo_.find(key); it != memo_.end()) return it->second;
+    double best = std::numeric_limits<double>::infinity();
+    for (int level = 0; level < 2; ++level) {
+      const std::int64_t m2 = m - (level == 0), d2 = d - (level == 1);
+      if (m2 < 0 || d2 < 0) continue;
+      const double write = level == 1 ? c_.diskWrite : 0.0;
+      best = std::min(best, write + segment(l, level, m2, d2, false));
+      for (std::int64_t j = 1; j < l; ++j)
+        best = std::min(best, write + forward(l - j, m2, d2) + segment(j, level, m2, d2, false));
+    }
+    memo_[key] = best;
+    return best;
+  }
+  std::int64_t ram_, disk_;
+  ScheduleCosts c_;
+  std::map<std::int64_t, double> memo_;
+};
+
+TEST(TwoLevelPlan, DynamicProgrammeEqualsTheBruteForceOptimumOverAllSchedules) {
+  // Every schedule of the game (not only stack schedules) for N <= 7: the dynamic programme is optimal.
+  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1}, {1, 1, 2, 3}, {1, 1, 0.2, 3}, {1, 1, 3, 0.2}};
+  for (const ScheduleCosts& c : costs) {
+    for (int steps = 1; steps <= 7; ++steps) {
+      for (int ram = 1; ram <= 3; ++ram) {
+        for (int disk = 0; disk <= 3; ++disk) {
+          if (steps >= 2 && ram + disk < 2) continue;
+          SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
+                       std::to_string(disk) + " costs " + c.text());
+          const TwoLevelPlan plan = TwoLevelPlan::dynamic(steps, ram, disk, c);
+          EXPECT_NEAR(plan.counts().cost(c), bruteForceOptimum(steps, ram, disk, c), 1e-12);
+          EXPECT_LE(plan.ramSlotsUsed(), ram);
+          EXPECT_LE(plan.diskSlotsUsed(), disk);
+        }
+      }
+    }
+  }
+}
+
+TEST(TwoLevelPlan, DynamicProgrammeEqualsAnIndependentRecursionAndReusesDiskSlots) {
+  for (const ScheduleCosts& c : {ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 2, 1}, ScheduleCosts{1, 1, 0, 0}}) {
+    for (std::int64_t steps : {20, 45, 80}) {
+      for (const auto& [ram, disk] : {std::pair<std::int64_t, std::int64_t>{2, 1}, {3, 4}, {4, 2}, {1, 3}}) {
+        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
+                     std::to_string(disk) + " costs " + c.text());
+        StackOptimum reference(ram, disk, c);
+        const TwoLevelPlan plan = TwoLevelPlan::dynamic(steps, ram, disk, c);
+        // The simulated run costs what the recursion says is optimal.
+        EXPECT_NEAR(plan.counts().cost(c), reference.game(steps), 1e-9);
+        // choose() never returns a dearer plan.
+        EXPECT_LE(TwoLevelPlan::choose(steps, ram, disk, c).counts().cost(c), plan.counts().cost(c) + 1e-9);
+      }
+    }
+  }
+  // Herrmann & Pallez's example size: N = 1000, 6 RAM and 20 disk states, uf : ub : wd : rd = 1:1:0.5:0.5.
+  // Write-once disk checkpoints (the leaves) cost 2184; H-Revolve's optimum is 1843.
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  const TwoLevelPlan plan = TwoLevelPlan::choose(1000, 6, 20, half);
+  EXPECT_EQ(plan.kind(), TwoLevelPlan::Kind::kDynamic);
+  EXPECT_LE(plan.counts().cost(half), 1843.0);
+  EXPECT_GT(plan.counts().diskWrites, plan.diskSlotsUsed()) << "disk slots are reused";
+  std::cout << "[ two-level ] N = 1000, 6 RAM, 20 disk, 1:1:0.5:0.5: cost " << plan.counts().cost(half) << " ("
+            << plan.describe() << "), recomputed " << plan.counts().recomputedSteps << ", disk writes "
+            << plan.counts().diskWrites << ", reads " << plan.counts().diskReads << '\n';
+}
+
+int interruptPolls = 0;
+void interruptAfterTenPolls() {
+  if (++interruptPolls > 10) throw std::runtime_error("interrupted");
+}
+
+TEST(TwoLevelPlan, PlanningPollsTheInterrupt) {
+  // The dynamic programme polls once per segment length, the closed-form search per last-leaf length and
+  // the stateless count every 2^16 steps: a poll that throws ends each of them.
+  struct Restore {
+    ~Restore() { setInterruptPoll(nullptr); }
+  } restore;
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  for (const auto& [steps, ram, disk] : {std::tuple<std::int64_t, std::int64_t, std::int64_t>{1000, 6, 20},
+                                         {1'000'000, 10, 1000}, {4'000'000, 1, 3}}) {
+    SCOPED_TRACE("N " + std::to_string(steps));
+    interruptPolls = 0;
+    setInterruptPoll(&interruptAfterTenPolls);
+    EXPECT_THROW(TwoLevelPlan::choose(steps, ram, disk, half), std::runtime_error);
+    setInterruptPoll(nullptr);
+    EXPECT_GT(interruptPolls, 10);
   }
 }
 
@@ -504,11 +630,11 @@ TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
       }
     }
   }
-  // Without stages, N = 10^9 in closed form (RAM writes then not counted); with them, a clear limit.
-  const SchedulePrediction big = predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs);
-  EXPECT_EQ(big.recomputedSteps + 999'999'999,
-            static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000'000, 100)));
-  EXPECT_EQ(big.ramWrites, -1);
+  // The placement is simulated step by step: N = 10^6 is predicted, N = 10^9 refused with the limit.
+  const SchedulePrediction big = predictSchedule("online:checkpoints=100", 1'000'000, 16, 4, &costs);
+  EXPECT_EQ(big.recomputedSteps + 999'999,
+            static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000, 100)));
+  EXPECT_THROW(predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
   EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
   EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, 4, nullptr, std::cout), std::invalid_argument);
 }
