@@ -49,7 +49,7 @@
 
 #include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/storage/schedule.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <functional>
 #include <optional>

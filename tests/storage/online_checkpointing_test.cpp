@@ -4,7 +4,7 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>

@@ -1,6 +1,6 @@
 // Where the online strategies keep checkpoints while the number of steps is unknown (shared by
 // `online` and `cams` with adaptive steps or online=1). The rule and its guarantee are documented in
-// storage/online_checkpointing.h: the last recorded state is the working state; when the next record
+// engine/online_checkpointing.h: the last recorded state is the working state; when the next record
 // arrives it becomes a candidate if its position is a multiple of the spacing d; checkpoints are all
 // multiples of d among the candidates, at most c while d = 1 and at most F = ceil(c / 2) afterwards;
 // reaching the limit drops every other checkpoint and doubles d (repeated if needed).

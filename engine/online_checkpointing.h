@@ -36,9 +36,9 @@
 // backward sweep's cost is the bound above. The first use of a slot allocates it.
 #pragma once
 
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/online_placement.h>
-#include <hindsight/storage/recomputed_stages.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/online_placement.h>
+#include <hindsight/engine/recomputed_stages.h>
 
 namespace hindsight {
 
@@ -47,7 +47,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   /// checkpoints = 0 derives c from the budget at begin(); otherwise in [1,
   /// BinomialCheckpointing::kMaxCheckpoints].
-  /// stages: as binomial's (storage/recomputed_stages.h): the stage values of the last recomputed step
+  /// stages: as binomial's (engine/recomputed_stages.h): the stage values of the last recomputed step
   /// and of the forward sweep's last step, two step records charged to the budget.
   explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
                                bool stages = false);
