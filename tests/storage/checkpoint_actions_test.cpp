@@ -12,6 +12,8 @@
 namespace hindsight {
 namespace {
 
+using testing::ScratchDirectory;
+
 TEST(CheckpointActions, EveryFixedStepStrategyGivesAValidStreamWithItsPredictedRecomputation) {
   ScratchDirectory dir;
   const ScheduleCosts costs{1.0, 1.0, 0.5, 0.5};

@@ -5,6 +5,7 @@
 #include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/schedule.h>
+#include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
@@ -63,8 +64,10 @@ TEST(PredictionGrid, EveryStrategyIsPredictedOrRefusedByName) {
     const bool refused = std::find(kNotPredicted.begin(), kNotPredicted.end(), name) != kNotPredicted.end();
     EXPECT_TRUE(predicted != refused) << name << ": put it in the grid of predicted strategies or in kNotPredicted";
     if (refused) {
+      const StorageStrategyDoc* doc = findStorageStrategyDoc(name);
+      ASSERT_NE(doc, nullptr) << name;
       try {
-        predictSchedule(name, 10, 16, 4, nullptr);
+        predictSchedule(doc->example, 10, 16, 4, nullptr);  // a valid spec: refused for being unpredictable
         ADD_FAILURE() << name << " is predicted now: move it into the grid";
       } catch (const std::invalid_argument& e) {
         EXPECT_NE(std::string(e.what()).find("not predicted"), std::string::npos) << e.what();
