@@ -150,14 +150,14 @@ strategies = [("full", 1), ("binomial:checkpoints=8", 1), ("cams:checkpoints=8",
               (f"multilevel:ram={4 * state},disk={16 * state},costs=1:1:0.5:0.5", 1),
               ("disk:dir=" + tempfile.gettempdir(), 1)]
 J_full, g_full, _, _ = gradient("full", model, kappa)
-print(f"{'strategy':<44} {'J':>14} {'dJ/dkappa':>22} {'extra steps':>12}")
+print(f"{'strategy':<50} {'J':>14} {'dJ/dkappa':>22} {'extra steps':>12}")
 bitwise = True
 for spec, stages in strategies:
     J, g, extra, leftover = gradient(spec, model, kappa, stages)
     same = J == J_full and g == g_full
     bitwise &= same
     label = spec if stages == 1 else f"{spec} (records of {stages} units)"
-    print(f"{label:<44} {J:14.10f} {g:22.17g} {extra:12d}  {'same bits' if same else 'DIFFERENT'}"
+    print(f"{label:<50} {J:14.10f} {g:22.17g} {extra:12d}  {'same bits' if same else 'DIFFERENT'}"
           f"{'' if leftover == 0 else f', {leftover} items left in storage'}")
 
 eps = 1e-6
