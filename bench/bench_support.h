@@ -11,8 +11,8 @@
 #include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <benchmark/benchmark.h>
 

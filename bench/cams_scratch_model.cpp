@@ -1,14 +1,14 @@
 // Why `cams` keeps step records rather than the stage values of the last recomputed step.
 //
-// binomial/online with stages=1 keep two step records of scratch (storage/recomputed_stages.h): the stages
+// binomial/online with stages=1 keep two step records of scratch (engine/recomputed_stages.h): the stages
 // of the last step a restore recomputed serve the next adjoint step. A plan built around that trick would
 // place checkpoints so that positions are reached by advancing: an adjoint step e then recomputes its
 // stages only when x_{e+1} was loaded rather than advanced into. This program computes that plan's
 // optimum exactly (an O(N^2 M) dynamic program over state checkpoints, with a flag for "the interval's last
-// step has its stages") and compares it with the cams optimum (storage/cams_checkpointing.h) at the same
+// step has its stages") and compares it with the cams optimum (engine/cams_checkpointing.h) at the same
 // bytes, where the scratch takes 2 (w - 1) of the M = C + 1 state units (w = 4 for rk4), and with the
 // scratch for free. Usage: cams_scratch_model N C [C ...]   (N up to a few thousand: exhaustive search)
-#include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
 
 #include <algorithm>
 #include <cstdint>

@@ -34,7 +34,7 @@
 #include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 #include "bench_support.h"
 
 #include <benchmark/benchmark.h>

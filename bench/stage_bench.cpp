@@ -9,8 +9,8 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>

@@ -10,8 +10,8 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/heat_equation.h>
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/storage/storage_factory.h>
 #include "bench_support.h"
 

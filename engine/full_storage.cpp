@@ -7,6 +7,10 @@ namespace hindsight {
 
 FullStorage::FullStorage(std::int64_t budgetBytes, bool stages) : TrajectoryStorage(budgetBytes), stages_(stages) {}
 
+std::unique_ptr<TrajectoryStorage> FullStorage::create(const StorageSpec& spec) {
+  return std::make_unique<FullStorage>(spec.bytes("budget", kDefaultBudget), spec.integer("stages", 0, 0, 1) == 1);
+}
+
 std::string FullStorage::spec() const {
   std::string text = "full";
   if (budgetBytes() != kDefaultBudget) text += ":budget=" + std::to_string(budgetBytes());

@@ -1,14 +1,16 @@
 // Strategy "full": every step's state in memory. Exact, no recomputation; memory N * n * 8 bytes.
-// Spec (storage/storage_factory.h): full[:budget=BYTES][,stages=0|1] (default budget 4 GiB). With
+// Spec (engine/memory_storage_factory.h): full[:budget=BYTES][,stages=0|1] (default budget 4 GiB). With
 // stages=1 every step keeps its stage values too (Integrator::stepDataSize(), 3 n doubles for
 // rk4), so no adjoint step evaluates the right-hand side; memory N (n + stepDataSize) * 8 bytes. It lives in the engine
 // because it needs nothing but memory: a program that links only hindsight::engine has a strategy. Works for
 // unknown N (adaptive steps): states are kept in blocks, so growth never copies what is already stored.
 #pragma once
 
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace hindsight {
@@ -17,6 +19,8 @@ class FullStorage final : public TrajectoryStorage {
  public:
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   explicit FullStorage(std::int64_t budgetBytes = kDefaultBudget, bool stages = false);
+  static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  static std::vector<std::string> keys() { return {"budget", "stages"}; }
 
   std::string spec() const override;
   bool isExact() const override { return true; }

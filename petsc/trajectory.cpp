@@ -25,7 +25,7 @@
 #include <hindsight/petsc/hindsight_petsc.h>
 
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <petsc/private/tsimpl.h>
 

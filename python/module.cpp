@@ -27,6 +27,7 @@
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
+#include <hindsight/storage/checkpoint_actions.h>
 #include <hindsight/storage/schedule.h>
 
 #include <pybind11/iostream.h>
@@ -971,6 +972,24 @@ PYBIND11_MODULE(_hindsight, m) {
     py::dict d = toPython(scheduleToJson(p, stateBytes)).cast<py::dict>();
     if (actions) d["actions"] = stream;
     return d;
+  });
+  m.def("_checkpoint_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
+                                   const std::string& costs) {
+    // storage/checkpoint_actions.h; python/hindsight/checkpoint_schedule.py makes the action objects.
+    std::optional<ScheduleCosts> parsed;
+    if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
+    std::vector<CheckpointAction> actions;
+    {
+      py::gil_scoped_release release;
+      actions = checkpointSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
+    }
+    py::list out;
+    for (const CheckpointAction& a : actions) {
+      out.append(py::make_tuple(static_cast<int>(a.kind), a.n0, a.n1, a.writeIcs, a.writeAdjDeps,
+                                checkpointStorageName(a.storage), a.clearAdjDeps, checkpointStorageName(a.from),
+                                checkpointStorageName(a.to)));
+    }
+    return out;
   });
   m.def("storage_strategy_names", &storageStrategyNames, "Names of the storage strategies (the C++ factory's).");
   m.def("_check_storage_spec", [](const std::string& spec) { return createStorage(spec)->spec(); },

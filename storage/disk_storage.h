@@ -37,7 +37,7 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <functional>
 #include <memory>

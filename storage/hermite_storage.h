@@ -36,7 +36,7 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <memory>
 #include <vector>

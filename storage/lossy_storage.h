@@ -50,7 +50,7 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/storage/time_codec.h>
 
 #include <memory>

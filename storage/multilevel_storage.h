@@ -51,7 +51,7 @@
 
 #include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/storage/schedule.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <functional>
 #include <optional>

@@ -1,16 +1,16 @@
 #include <hindsight/storage/schedule.h>
 
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/engine/interrupt.h>
-#include <hindsight/storage/cams_checkpointing.h>
 #include <hindsight/storage/chunked_state_file.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
-#include <hindsight/storage/online_checkpointing.h>
-#include <hindsight/storage/online_placement.h>
-#include <hindsight/storage/recomputed_stages.h>
+#include <hindsight/engine/online_checkpointing.h>
+#include <hindsight/engine/online_placement.h>
+#include <hindsight/engine/recomputed_stages.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <algorithm>
 #include <charconv>
@@ -746,11 +746,11 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.peakDiskBytes = checkedProduct(p.diskWrites, 8 * rowDoubles, "disk bytes");
   } else if (name == "binomial") {
     // BinomialCheckpointing: revolve with S = min(C + 1, N) slots over the N + 1 positions 0..N, its first
-    // sweep the forward sweep (storage/binomial_checkpointing.h).
+    // sweep the forward sweep (engine/binomial_checkpointing.h).
     auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
     const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
     const std::int64_t states = slots;
-    // stages=1 (storage/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
+    // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
     // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
     const bool keepStages = spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
     const std::int64_t recordBytes = keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
@@ -892,7 +892,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.peakRamBytes = checkedProduct(plan.ramSlotsUsed(), stateBytes, "peak RAM bytes");
     p.peakDiskBytes = checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
   } else if (name == "cams") {
-    // The same model-free plan the strategy runs (storage/cams_checkpointing.h), with the step record of
+    // The same model-free plan the strategy runs (engine/cams_checkpointing.h), with the step record of
     // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
     // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
     const auto& strategy = dynamic_cast<CamsCheckpointing&>(*storage);

@@ -17,10 +17,10 @@
 // hand is lost after each produced state (the adjoint step consumes it); x_{N-1} too must therefore be
 // in a slot when the forward sweep ends (a "working state") or be recomputed from one. With one level
 // the game's optimum is T(N + 1, S) - N recomputed steps for S slots, which `binomial` attains
-// (storage/binomial_checkpointing.h).
+// (engine/binomial_checkpointing.h).
 //
 // The two-level plan (TwoLevelPlan) chooses, by the cost model, the cheapest of two families, both
-// executed by BinomialSchedule (storage/binomial_checkpointing.h):
+// executed by BinomialSchedule (engine/binomial_checkpointing.h):
 //   leaves(K)   cut [0, N) into K balanced leaves (the last one the shortest); the forward sweep
 //               writes the first state of leaves 0..K-2 to disk slots 0..K-2 (write-once); the last
 //               leaf is reversed by revolve over the RAM slots with its last state as working state;
@@ -49,7 +49,7 @@
 // "Two-level schedules".
 #pragma once
 
-#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 
 #include <cstdint>
 #include <memory>

@@ -1,5 +1,7 @@
 #include <hindsight/storage/storage_docs.h>
 
+#include <hindsight/storage/storage_factory.h>
+
 namespace hindsight {
 namespace {
 
@@ -9,8 +11,8 @@ const char* const kBudget = "bytes the strategy may hold in memory, e.g. 512MiB 
 }  // namespace
 
 const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
-  // Texts condensed from the header comment of each strategy (storage/*.h, engine/full_storage.h).
-  static const std::vector<StorageStrategyDoc> docs = {
+  // Texts condensed from the header comment of each strategy (storage/*.h, engine/full_storage.h, engine/*_checkpointing.h).
+  static const std::vector<StorageStrategyDoc> table = {
       {"full",
        "every step's state in memory; nothing is recomputed",
        true,
@@ -104,6 +106,16 @@ const std::vector<StorageStrategyDoc>& storageStrategyDocs() {
                    "StorageError"},
         {"block", "states coded together, in [1, 2^30] (default: about 256 KiB of states, at least 16, at most 4096)"}}},
   };
+  // In the factory's order (the engine's in-memory strategies first), which help texts follow.
+  static const std::vector<StorageStrategyDoc> docs = [] {
+    std::vector<StorageStrategyDoc> ordered;
+    for (const std::string& name : storageStrategyNames()) {
+      for (const StorageStrategyDoc& doc : table) {
+        if (doc.name == name) ordered.push_back(doc);
+      }
+    }
+    return ordered;
+  }();
   return docs;
 }
 

@@ -1,45 +1,30 @@
 #include <hindsight/storage/storage_factory.h>
 
-#include <hindsight/engine/full_storage.h>
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/engine/memory_storage_factory.h>
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/hermite_storage.h>
 #include <hindsight/storage/lossy_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
-#include <hindsight/storage/online_checkpointing.h>
-#include <hindsight/storage/storage_spec.h>
 
 #include <functional>
 
 namespace hindsight {
 namespace {
 
-// FullStorage lives in the engine, which knows nothing of spec strings; its spec is read here.
-std::unique_ptr<TrajectoryStorage> createFull(const StorageSpec& spec) {
-  return std::make_unique<FullStorage>(spec.bytes("budget", FullStorage::kDefaultBudget),
-                                       spec.integer("stages", 0, 0, 1) == 1);
-}
-std::vector<std::string> fullKeys() { return {"budget", "stages"}; }
-
-struct Entry {
-  const char* name;
-  std::vector<std::string> (*keys)();
-  std::unique_ptr<TrajectoryStorage> (*create)(const StorageSpec&);
-};
-
-const std::vector<Entry>& registry() {
-  static const std::vector<Entry> entries = {
-      {"full", &fullKeys, &createFull},
-      {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
-      {"disk", &DiskStorage::keys, &DiskStorage::create},
-      {"lossy", &LossyStorage::keys, &LossyStorage::create},
-      {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
-      {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
-      {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
-      {"cams", &CamsCheckpointing::keys, &CamsCheckpointing::create},
-      {"packed", &LossyStorage::packedKeys, &LossyStorage::createPacked},
-  };
+// The engine's in-memory strategies (engine/memory_storage_factory.h) and then those of this
+// component; each strategy has its row in one of the two tables only.
+const std::vector<StorageStrategyEntry>& registry() {
+  static const std::vector<StorageStrategyEntry> entries = [] {
+    std::vector<StorageStrategyEntry> all = memoryStorageStrategies();
+    all.insert(all.end(), {
+                              {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
+                              {"disk", &DiskStorage::keys, &DiskStorage::create},
+                              {"lossy", &LossyStorage::keys, &LossyStorage::create},
+                              {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
+                              {"packed", &LossyStorage::packedKeys, &LossyStorage::createPacked},
+                          });
+    return all;
+  }();
   return entries;
 }
 
@@ -47,7 +32,7 @@ const std::vector<Entry>& registry() {
 
 std::unique_ptr<TrajectoryStorage> createStorage(const std::string& text) {
   const StorageSpec spec = StorageSpec::parse(text);
-  for (const Entry& entry : registry()) {
+  for (const StorageStrategyEntry& entry : registry()) {
     if (spec.name() == entry.name) {
       spec.requireKeysIn(entry.keys());
       return entry.create(spec);
@@ -59,7 +44,7 @@ std::unique_ptr<TrajectoryStorage> createStorage(const std::string& text) {
 }
 
 std::vector<std::string> storageStrategyKeys(const std::string& name) {
-  for (const Entry& entry : registry()) {
+  for (const StorageStrategyEntry& entry : registry()) {
     if (name == entry.name) return entry.keys();
   }
   std::string names;
@@ -69,7 +54,7 @@ std::vector<std::string> storageStrategyKeys(const std::string& name) {
 
 std::vector<std::string> storageStrategyNames() {
   std::vector<std::string> names;
-  for (const Entry& entry : registry()) names.emplace_back(entry.name);
+  for (const StorageStrategyEntry& entry : registry()) names.emplace_back(entry.name);
   return names;
 }
 

@@ -1,6 +1,7 @@
 // The one factory of trajectory storage strategies (docs/design.md P 2): a spec string
 // "NAME[:key=value,...]" becomes a strategy. Adding a strategy touches its own file, the table in
-// storage_factory.cpp and the typed conformance test list.
+// storage_factory.cpp (or, for an in-memory strategy, engine/memory_storage_factory.cpp) and the typed
+// conformance test list.
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>

@@ -10,6 +10,7 @@ rod of Held, Knueffer & Seifried and its topology optimization (docs/guides/pyth
     hindsight.gradient(my_problem, p, integrator="rk4", step=1e-3)   # a problem written in Python
     hindsight.simulate(my_problem, p, times=[0.5, 1.0])        # forward only: the trajectory
     hindsight.storage_specs()                                   # strategies, keys, documentation
+    hindsight.checkpoint_schedule("binomial:checkpoints=10", steps=1000)   # actions for your own stepper
     hindsight.read_results("run")                              # history, designs, configuration
 
 Errors: bad input raises ValueError with the CLI's message; numerical failures raise
@@ -20,11 +21,14 @@ import os as _os
 
 from . import _hindsight
 from ._hindsight import NumericalError, StorageError, storage_strategy_names
+from .checkpoint_schedule import (Copy, EndForward, EndReverse, Forward, Move, Reverse, StorageType,
+                                  checkpoint_schedule)
 
 __version__ = _hindsight.__version__
 __all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient", "simulate",
-           "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs", "storage_strategy_names", "schedule",
-           "check_storage_spec", "config"]
+           "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs",
+           "storage_strategy_names", "schedule", "check_storage_spec", "config", "checkpoint_schedule", "StorageType",
+           "Forward", "Reverse", "Copy", "Move", "EndForward", "EndReverse"]
 
 
 class Result(dict):

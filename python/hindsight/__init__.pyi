@@ -8,6 +8,14 @@ import numpy.typing as npt
 from ._hindsight import NumericalError as NumericalError
 from ._hindsight import StorageError as StorageError
 from ._hindsight import storage_strategy_names as storage_strategy_names
+from .checkpoint_schedule import Copy as Copy
+from .checkpoint_schedule import EndForward as EndForward
+from .checkpoint_schedule import EndReverse as EndReverse
+from .checkpoint_schedule import Forward as Forward
+from .checkpoint_schedule import Move as Move
+from .checkpoint_schedule import Reverse as Reverse
+from .checkpoint_schedule import StorageType as StorageType
+from .checkpoint_schedule import checkpoint_schedule as checkpoint_schedule
 
 __version__: str
 __all__: List[str]

@@ -1,4 +1,4 @@
-// Fuzzing the storage spec strings (storage/storage_spec.h, storage/storage_factory.h): a spec comes
+// Fuzzing the storage spec strings (engine/storage_spec.h, storage/storage_factory.h): a spec comes
 // from the command line or a configuration file, so createStorage must either build a strategy or
 // throw std::invalid_argument, whatever the text. A strategy it builds describes itself with spec(),
 // and that description must build the same strategy again (the CLI prints it and results files store
@@ -12,7 +12,7 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <filesystem>
 

@@ -5,7 +5,7 @@
 // with a real problem (moderate N), without overflow, within its byte budget.
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <hindsight/engine/adjoint.h>
@@ -69,7 +69,7 @@ TEST(RevolveFormula, KnownValuesAndNoOverflow) {
   EXPECT_EQ(toString(revolve::beta(1'000'000'000, 3)), "18446744073709551616");
 }
 
-// The game the strategy plays (storage/binomial_checkpointing.h, storage/schedule.h): S slots, each
+// The game the strategy plays (engine/binomial_checkpointing.h, storage/schedule.h): S slots, each
 // holding one state; the forward sweep passes x_0 .. x_{N-1} once and may copy any of them into a slot;
 // then x_{N-1}, ..., x_0 are produced in turn, each by loading a slot and advancing (one recomputed step
 // per advance), copying states into free slots on the way; a produced state is consumed. The least

@@ -1,4 +1,4 @@
-// The cams plan (storage/cams_checkpointing.h): its optimum against brute-force enumeration of every
+// The cams plan (engine/cams_checkpointing.h): its optimum against brute-force enumeration of every
 // schedule for tiny N, the fast split search against the exhaustive one, revolve when records do not
 // fit, "store everything" with an unlimited budget, the executor's counts against the plan's value, and
 // the strategy's counters in a real run against the plan.
@@ -6,9 +6,9 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/cams_checkpointing.h>
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 
@@ -104,7 +104,7 @@ TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearch) {
 
 TEST(CamsPlan, WithoutRecordsItIsBinomialOverTheSameSlots) {
   // binomial:checkpoints=C holds C + 1 states and reverses by revolve over all of them (positions 0..N,
-  // storage/binomial_checkpointing.h), the optimum of the game of charged states; its cost in steps is
+  // engine/binomial_checkpointing.h), the optimum of the game of charged states; its cost in steps is
   // N + recomputed + N (every adjoint step recomputes its stages). The plan over the same C + 1 units
   // without records plays the same game, so the two are equal.
   for (std::int64_t c : std::initializer_list<std::int64_t>{1, 2, 3, 5, 10, 20}) {

@@ -12,7 +12,7 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <gtest/gtest.h>
 

@@ -4,8 +4,8 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/storage/online_checkpointing.h>
-#include <hindsight/storage/online_placement.h>
+#include <hindsight/engine/online_checkpointing.h>
+#include <hindsight/engine/online_placement.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
@@ -22,7 +22,7 @@ using revolve::toString;
 double ratio(UnsignedInt128 a, UnsignedInt128 b) { return static_cast<double>(a) / static_cast<double>(b); }
 
 // Reference formulas written from Griewank & Walther, "Algorithm 799: revolve" (ACM TOMS 26(1), 2000),
-// independently of storage/binomial_checkpointing.cpp: beta(c, r) = (c + r)! / (c! r!), the repetition
+// independently of engine/binomial_checkpointing.cpp: beta(c, r) = (c + r)! / (c! r!), the repetition
 // number r(N, c) = least r with beta(c, r) >= N, and T(N, c) = r N - beta(c + 1, r - 1).
 std::int64_t referenceBeta(std::int64_t c, std::int64_t r) {
   if (r < 0) return 0;
@@ -67,7 +67,7 @@ TEST(OnlineCheckpointing, OptimalForEveryStepCountWithRepetitionTwo) {
 
 // Beyond beta(c, 2): never below the offline optimum, and the measured worst ratio to it over every N up
 // to beta(c, 3) (Stumm & Walther's second range) and up to 10^5 (every N to 2000, then every 97th) stays
-// below the figures the header of storage/online_checkpointing.h states (printed;
+// below the figures the header of engine/online_checkpointing.h states (printed;
 // docs/guides/storage_strategies.md quotes them).
 TEST(OnlineCheckpointing, MeasuredAgainstTheOfflineOptimumBeyondRepetitionTwo) {
   for (const std::int64_t c : {2, 3, 5, 10, 20, 50}) {

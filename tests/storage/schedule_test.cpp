@@ -1,11 +1,11 @@
 // Schedules as data (storage/schedule.h): the two-level plan against a brute-force search over every
 // schedule of the game, free disk against revolve, closed-form counts against the schedule run without
 // states, predictions against real runs counter by counter, and N = 1e9.
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/interrupt.h>
-#include <hindsight/storage/binomial_checkpointing.h>
 #include <hindsight/storage/multilevel_storage.h>
-#include <hindsight/storage/recomputed_stages.h>
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/recomputed_stages.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"

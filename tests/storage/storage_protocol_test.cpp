@@ -2,8 +2,8 @@
 // engine: a deterministic step map stands in for the integrator, so every restored state can be
 // compared with the recorded one, and heap allocations during the backward sweep are counted
 // (docs/design.md P 3: restores allocate nothing) with tests/support/allocation_counting.h.
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include "support/allocation_counting.h"
 
 #include <gtest/gtest.h>
@@ -68,7 +68,7 @@ TEST(StorageProtocol, BinomialRestoresExactStatesWithoutAllocating) {
     for (const std::int64_t steps : {1, 2, 5, 100, 777}) {
       BinomialCheckpointing storage(c);
       EXPECT_EQ(runProtocol(storage, steps, steps), 0) << "c = " << c << ", N = " << steps;
-      // Revolve over all C + 1 states (storage/binomial_checkpointing.h): T(N + 1, C + 1) - N.
+      // Revolve over all C + 1 states (engine/binomial_checkpointing.h): T(N + 1, C + 1) - N.
       EXPECT_EQ(revolve::toString(static_cast<UnsignedInt128>(storage.counters().recomputedSteps)),
                 revolve::toString(revolve::optimalRecomputedSteps(steps, std::min(c + 1, steps))))
           << "c = " << c << ", N = " << steps;

@@ -7,7 +7,7 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
-#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/synthetic_rod.h"

@@ -8,7 +8,7 @@
 // J. Sci. Comput. 32(2): revolve's optimum T(N, c) for every N while N is unknown; the rule is a
 // replacement by least predicted cost, as in A-revolve (Hinze & Sternberg 2005) and the last stage of
 // Stumm & Walther's code, here with revolve's exact counts; internal::CostPlacement in
-// storage/online_placement.h):
+// engine/online_placement.h):
 //  * Forward sweep: the last recorded state is the working state (like revolve's current state); when
 //    the next record arrives it is a checkpoint candidate. The first c candidates are kept. From then on
 //    the c checkpoints s_0 = 0 < s_1 < ... < s_{c-1} cut the trajectory into intervals L_i (the last
@@ -37,9 +37,9 @@
 // backward sweep's cost is the bound above. The first use of a slot allocates it.
 #pragma once
 
-#include <hindsight/storage/binomial_checkpointing.h>
-#include <hindsight/storage/online_placement.h>
-#include <hindsight/storage/recomputed_stages.h>
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/online_placement.h>
+#include <hindsight/engine/recomputed_stages.h>
 
 namespace hindsight {
 
@@ -48,7 +48,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   /// checkpoints = 0 derives c from the budget at begin(); otherwise in [1,
   /// BinomialCheckpointing::kMaxCheckpoints].
-  /// stages: as binomial's (storage/recomputed_stages.h): the stage values of the last recomputed step
+  /// stages: as binomial's (engine/recomputed_stages.h): the stage values of the last recomputed step
   /// and of the forward sweep's last step, two step records charged to the budget.
   explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
                                bool stages = false);

@@ -1,4 +1,4 @@
-#include <hindsight/storage/cams_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
 
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/stopwatch.h>

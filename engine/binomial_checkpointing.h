@@ -45,8 +45,8 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/recomputed_stages.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/recomputed_stages.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <cassert>
 #include <cstdint>

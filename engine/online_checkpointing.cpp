@@ -1,4 +1,4 @@
-#include <hindsight/storage/online_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 
 #include <algorithm>
 #include <cstring>

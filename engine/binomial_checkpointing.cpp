@@ -1,4 +1,4 @@
-#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 
 #include <algorithm>
 #include <cstring>

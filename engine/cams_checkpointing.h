@@ -29,7 +29,7 @@
 // through, where advancing is free: H(1, m) = 1 and the two checkpoint terms read F(k, m) + H(l - k, m - 1)
 // and F(k, m) + H(l - k, m - w) - 1. With M units in all, the whole run costs
 //   E(N, M) = N + min(H(N, M - 1), H(N, M - w) - 1)       (x_0 held as a state or as a record).
-// Without records (w > M) this is the optimum over M slots of storage/binomial_checkpointing.h
+// Without records (w > M) this is the optimum over M slots of engine/binomial_checkpointing.h
 // (binomial:checkpoints=M-1: revolve with M slots over the positions 0..N, T(N + 1, M) - N recomputed
 // steps), plus N adjoint recomputations; records can only lower it (tests compare both strategies). The k-searches are exact: the rows are not convex
 // in l (a record serves two steps, so parity shows), but each row stays within a few units of its
@@ -54,8 +54,8 @@
 #pragma once
 
 #include <hindsight/engine/trajectory_storage.h>
-#include <hindsight/storage/online_placement.h>
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/online_placement.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <algorithm>
 #include <cassert>
@@ -125,7 +125,7 @@ class Plan {
 PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 
 /// Online mode (adaptive steps, or cams:...,online=1): the forward sweep keeps checkpoints by the rule of
-/// `online` (storage/online_placement.h) with c = M - 1 of the M units, the last state being the working
+/// `online` (engine/online_placement.h) with c = M - 1 of the M units, the last state being the working
 /// state; once N is known, the intervals between held checkpoints are reversed last to first, interval j
 /// by the plan's replay tables with the M - j - 1 units not held by checkpoints 0..j. One plan serves all
 /// intervals: its rows hold every length up to the longest interval and every unit count up to M - 1.

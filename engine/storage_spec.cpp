@@ -1,4 +1,4 @@
-#include <hindsight/storage/storage_spec.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <hindsight/engine/trajectory_storage.h>
 

@@ -1,6 +1,6 @@
 // Where the online strategies keep checkpoints while the number of steps is unknown.
 //
-// CostPlacement (`online`): documented with its guarantee in storage/online_checkpointing.h.
+// CostPlacement (`online`): documented with its guarantee in engine/online_checkpointing.h.
 // OnlinePlacement (`cams` with adaptive steps or online=1): the last recorded state is the working
 // state; when the next record arrives it becomes a candidate if its position is a multiple of the
 // spacing d; checkpoints are all multiples of d among the candidates, at most c while d = 1 and at most
@@ -8,7 +8,7 @@
 // if needed). Intervals of at most d steps are what cams' record planning relies on.
 #pragma once
 
-#include <hindsight/storage/binomial_checkpointing.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -16,7 +16,7 @@
 
 namespace hindsight::internal {
 
-/// `online`'s placement (the rule and what is known of it: storage/online_checkpointing.h). Once c
+/// `online`'s placement (the rule and what is known of it: engine/online_checkpointing.h). Once c
 /// checkpoints are held, each record offers the previous working state q; with the intervals L_i between
 /// the held positions (interval i reversed later by revolve with c - i slots, T(L_i, c - i) forward
 /// steps), q replaces the checkpoint j >= 1 whose removal (its two intervals merge, the later ones gain a

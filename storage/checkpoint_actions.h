@@ -1,0 +1,79 @@
+// A strategy's plan as a typed action stream in the vocabulary of checkpoint_schedules (Maddison, Dolci &
+// Ham's Python package, used by Firedrake and tlm_adjoint), so that any time-stepper -- not only
+// hindsight's engine -- can reverse its run by it. docs/guides/checkpoint_schedule.md shows a host loop.
+//
+// Steps are indexed as there: step n advances the state at the start of step n (x_n) to x_{n+1}; N steps.
+//   Forward(n0, n1, writeIcs, writeAdjDeps, storage)  advance x_{n0} -> x_{n1} in WORK; writeIcs: first
+//       store x_{n0} (the restart data, "initial conditions") in `storage`; writeAdjDeps: store what the
+//       adjoint of each step n0..n1-1 needs from the forward (the step's stage values, its "tape") in
+//       `storage` (WORK: kept for the Reverse that follows).
+//   Reverse(n1, n0, clearAdjDeps)  the adjoint over steps n1-1 down to n0, from their adjoint data;
+//       clearAdjDeps: that data is released afterwards.
+//   Copy(n, from, to) / Move(n, from, to)  x_n from one storage to another (to WORK: it becomes the state
+//       advanced next); Move releases it in `from`.
+//   EndForward  the forward run has reached x_N;   EndReverse  the adjoint has reached step 0.
+//
+// The stream is a translation of the plan the strategy itself executes (its action stream, the one
+// `hindsight schedule --actions` prints, from the same plan code as a run), read in that vocabulary:
+//   a checkpoint store is writeIcs; a load is Copy (Move at the checkpoint's last use); a recomputation
+//   is a Forward without adjoint data; a cams step record (state and stage values) is a Forward over
+//   that step with writeIcs and writeAdjDeps to RAM, reversed later without recomputation; every other
+//   adjoint step first re-runs its step with writeAdjDeps to WORK -- what hindsight's adjoint step does
+//   itself when it recomputes the step's stages. When the plan holds x_{N-1} (binomial's and cams'
+//   working state), the forward run's last step writes its adjoint data instead (to WORK, or RAM for a
+//   record) and the first Reverse follows EndForward, as in checkpoint_schedules; when the plan replays
+//   x_{N-1} from a checkpoint, the replay is in the stream. So the stream recomputes exactly the steps
+//   the strategy recomputes.
+// Checkpoint stores whose state is never loaded again (binomial's working state x_{N-1}) are left out.
+#pragma once
+
+#include <hindsight/storage/schedule.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+/// Where data lives (checkpoint_schedules' StorageType): RAM and DISK hold checkpoints; WORK is the
+/// state being advanced (and the adjoint data of the step about to be reversed); NONE: released.
+enum class CheckpointStorage { kRam, kDisk, kWork, kNone };
+const char* checkpointStorageName(CheckpointStorage storage);  ///< "RAM", "DISK", "WORK", "NONE"
+
+struct CheckpointAction {
+  enum class Kind { kForward, kReverse, kCopy, kMove, kEndForward, kEndReverse };
+  Kind kind = Kind::kEndForward;
+  /// Forward: n0 -> n1; Reverse: n1 -> n0 (n1 > n0 always); Copy/Move: n0 is the step n, n1 = n0.
+  std::int64_t n0 = 0, n1 = 0;
+  bool writeIcs = false, writeAdjDeps = false;  ///< Forward
+  bool clearAdjDeps = false;                    ///< Reverse
+  CheckpointStorage storage = CheckpointStorage::kWork;  ///< Forward: where it writes
+  CheckpointStorage from = CheckpointStorage::kNone, to = CheckpointStorage::kNone;  ///< Copy/Move
+  /// checkpoint_schedules' repr, e.g. "Forward(0, 10, True, False, StorageType.RAM)".
+  std::string text() const;
+};
+
+/// The action stream of `spec` for N = `steps` fixed steps (N <= 2^24), with the arguments and checks of
+/// predictSchedule/writeScheduleActions (storage/schedule.h): full, disk, binomial, multilevel, cams
+/// (offline). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
+/// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
+/// by a rule of its own (stages=1; cams' step records are expressed).
+std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
+                                                 int stages, const ScheduleCosts* costs);
+
+/// Counts of a stream, as a host executing it would see them (tests and docs).
+struct CheckpointStreamCounts {
+  std::int64_t forwardSteps = 0;      ///< steps advanced before EndForward (N)
+  std::int64_t recomputedSteps = 0;   ///< steps advanced after it, except the one-step re-runs below
+  std::int64_t adjointReruns = 0;     ///< one-step Forwards writing adjoint data to WORK (incl. the forward's last)
+  std::int64_t ramIcsWrites = 0, diskIcsWrites = 0;
+  std::int64_t peakRamCheckpoints = 0, peakDiskCheckpoints = 0;  ///< restart states held at once
+};
+
+/// Executes `actions` on a host that tracks only which step each piece of data belongs to, and throws
+/// std::logic_error naming the action when the stream is not valid for N steps: a Forward not starting
+/// at the WORK state, a Copy/Move of data not held, a Reverse out of order or without its adjoint data,
+/// EndForward before x_N, EndReverse before step 0 is reversed, anything after EndReverse.
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions, std::int64_t steps);
+
+}  // namespace hindsight
