@@ -1,6 +1,8 @@
 #include <hindsight/problems/rod/config.h>
 
 #include <hindsight/engine/runge_kutta.h>
+#include <hindsight/problems/mechanism/mechanism_json.h>
+#include <hindsight/problems/mechanism/mechanism_problem.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
@@ -336,6 +338,25 @@ void Config::validate() const {
     throw std::invalid_argument(message.str());
   }
   createStorage(simulation.storage);  // throws naming the bad part of the spec
+  if (mechanism) {
+    mechanism::Mechanism described = *mechanism;
+    described.member.length = rod.length;
+    described.validate();
+    // Assembles the mechanism at t = 0 (the modes do not enter): positions that cannot be assembled
+    // are bad input, named before any computation.
+    const mechanism::MechanismProblem assembled(described, 1);
+    (void)assembled;
+    if (simulation.model != RodModel::Reduced) {
+      throw std::invalid_argument(
+          "config field 'simulation.model' = full is the built-in slider-crank's full-order rod; with a "
+          "mechanism section it must be reduced");
+    }
+    if (!scenarios.empty()) {
+      throw std::invalid_argument(
+          "config section 'scenarios' varies the built-in slider-crank's crank; it cannot be combined with a "
+          "mechanism section (give each operating case its own configuration)");
+    }
+  }
 }
 
 nlohmann::json toJson(const Config& config) {
@@ -352,15 +373,21 @@ nlohmann::json toJson(const Config& config) {
     out[section] = s;
   }
   if (!config.scenarios.empty()) out["scenarios"] = toJson(config.scenarios);
+  if (config.mechanism) out["mechanism"] = mechanism::toJson(*config.mechanism);
   return out;
 }
 
 Config configFromJson(const nlohmann::json& in) {
   if (!in.is_object()) throw std::invalid_argument("configuration must be a JSON object");
   Config config;
+  const json* described = nullptr;
   for (const auto& [section, value] : in.items()) {
     if (section == "scenarios") {
       config.scenarios = scenariosFromJson(value);
+      continue;
+    }
+    if (section == "mechanism") {
+      described = &value;  // read after the rod section, whose length the member takes
       continue;
     }
     findSection(section);  // an unknown section is named, even when it is empty
@@ -373,6 +400,7 @@ Config configFromJson(const nlohmann::json& in) {
       findField(section, name).read(config, v, {"config field '" + full + "'", render(v), ""});
     }
   }
+  if (described != nullptr) config.mechanism = mechanism::mechanismFromJson(*described, config.rod.length);
   config.validate();
   return config;
 }

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/mechanism/mechanism.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
 #include <hindsight/problems/rod/scenarios.h>
@@ -13,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
 #include <string>
 
 namespace hindsight {
@@ -119,6 +121,10 @@ struct Config {
   OptimizationSettings optimization;
   /// Operating scenarios (problems/rod/scenarios.h); empty: the one scenario of `rod`.
   std::vector<Scenario> scenarios;
+  /// The `mechanism` section (problems/mechanism/mechanism.h): the mechanism the rod is the flexible
+  /// member of. Absent: the built-in slider-crank of docs/design.md §2 (rod.crankRadius, crankSpeed,
+  /// rampTime); present, those three fields are not used. The member's length is rod.length.
+  std::optional<mechanism::Mechanism> mechanism;
 
   /// Checks every field; throws std::invalid_argument naming the field, value and range.
   void validate() const;

@@ -2,6 +2,7 @@
 
 #include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/mechanism/mechanism_problem.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/esl.h>
 #include <hindsight/problems/rod/fe_model.h>
@@ -79,7 +80,20 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   crank.radius = rc.crankRadius;
   crank.omega = rc.crankSpeed;
   crank.rampTime = rc.rampTime;
-  const rod::SliderCrankProblem problem(basis.columnCount(), rc.length, crank);
+  // The built-in slider-crank, or the described mechanism whose flexible member the rod is (the same
+  // invariants p, so the chain to the design below is the same).
+  std::unique_ptr<SecondOrderProblem> problemPointer;
+  int modalOffset = 0;  // q within the minimal coordinates
+  if (config_.mechanism) {
+    mechanism::Mechanism described = *config_.mechanism;
+    described.member.length = rc.length;
+    auto m = std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount());
+    modalOffset = m->freeCount();
+    problemPointer = std::move(m);
+  } else {
+    problemPointer = std::make_unique<rod::SliderCrankProblem>(basis.columnCount(), rc.length, crank);
+  }
+  const SecondOrderProblem& problem = *problemPointer;
   const IntegratorOptions options = integratorOptions();
 
   // q(t_k) at the ESL sample times, which are grid points of the fixed-step grid.
@@ -95,7 +109,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   }
   const StateObserver observer = [&](std::int64_t step, double, ConstVectorRef z) {
     if (stride > 0 && step > 0 && step % stride == 0 && step / stride <= samples) {
-      sampled.col(step / stride - 1) = z.head(n);
+      sampled.col(step / stride - 1) = z.segment(modalOffset, n);
     }
   };
 

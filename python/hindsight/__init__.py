@@ -25,8 +25,8 @@ from .checkpoint_schedule import (Copy, EndForward, EndReverse, Forward, Move, R
                                   checkpoint_schedule)
 
 __version__ = _hindsight.__version__
-__all__ = ["PistonRod", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient", "simulate",
-           "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs",
+__all__ = ["PistonRod", "Mechanism", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient",
+           "simulate", "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs",
            "storage_strategy_names", "schedule", "check_storage_spec", "config", "checkpoint_schedule", "StorageType",
            "Forward", "Reverse", "Copy", "Move", "EndForward", "EndReverse"]
 
@@ -130,6 +130,39 @@ def _in_python_words(error):
     if message == str(error):
         return error
     return type(error)(message)
+
+
+class Mechanism(PistonRod):
+    """The flexible member (the rod section) inside a planar mechanism you describe
+    (docs/tutorials/own_mechanism.md): `description` is the `mechanism` section as a dict, or a path to
+    a JSON file that has one (examples/mechanisms/four_bar.json); `config` and the overrides are the
+    other sections, as for PistonRod. evaluate(), x0 and the rest are PistonRod's. ValueError names
+    the body, joint or field of a bad description."""
+
+    def __init__(self, description, config=None, **overrides):
+        if isinstance(description, (str, _os.PathLike)):
+            import json
+            with open(description) as f:
+                loaded = json.load(f)
+            if not isinstance(loaded, dict) or "mechanism" not in loaded:
+                raise ValueError(f"'{description}' has no mechanism section")
+            merged = {k: v for k, v in loaded.items() if k != "mechanism"}
+            description = loaded["mechanism"]
+        else:
+            merged = {}
+        if not isinstance(description, dict):
+            raise ValueError("description must be a dict (the mechanism section) or a path to a JSON file")
+        if isinstance(config, dict):
+            for section, fields in config.items():
+                merged.setdefault(section, {})
+                if isinstance(fields, dict) and isinstance(merged[section], dict):
+                    merged[section].update(fields)
+                else:
+                    merged[section] = fields
+        elif config is not None:
+            raise ValueError("config must be a dict of sections or None (the description carries the mechanism)")
+        merged["mechanism"] = description
+        super().__init__(merged, **overrides)
 
 
 def optimize(config=None, out="results", resume=False, force=False, callback=None, verbose=False, **overrides):

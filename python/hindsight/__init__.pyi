@@ -58,6 +58,11 @@ class PistonRod:
     def evaluate(self, x: Optional[npt.ArrayLike] = None, gradient: bool = True, storage: Optional[str] = None,
                  adjoint: Optional[str] = None, integrator: Optional[str] = None, psi2: bool = True) -> Result: ...
 
+
+class Mechanism(PistonRod):
+    def __init__(self, description: Union[Dict[str, Any], str, "os.PathLike[str]"], config: Optional[Dict[str, Any]] = None,
+                 **overrides: Any) -> None: ...
+
 def optimize(config: ConfigLike = None, out: Union[str, os.PathLike] = "results", resume: bool = False,
              force: bool = False, callback: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None,
              verbose: bool = False, **overrides: Any) -> Result: ...

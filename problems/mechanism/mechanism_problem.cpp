@@ -1,0 +1,1074 @@
+#include <hindsight/problems/mechanism/mechanism_problem.h>
+
+#include <hindsight/engine/deterministic_math.h>
+
+#include <Eigen/LU>
+#include <unsupported/Eigen/AutoDiff>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <stdexcept>
+#include <type_traits>
+#include <vector>
+
+namespace hindsight::mechanism {
+namespace {
+
+// Dual numbers with derivative vectors on the stack (fixed capacity): arithmetic allocates nothing.
+// A small capacity serves up to 12 minimal coordinates (the common case), the large one the rest.
+template <int Capacity>
+using DerivativesOf = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, Capacity, 1>;
+template <int Capacity>
+using ADOf = Eigen::AutoDiffScalar<DerivativesOf<Capacity>>;
+constexpr int kSmall = 24;
+constexpr int kLarge = 2 * (MechanismProblem::kMaxModes + MechanismProblem::kMaxFree);
+using ADS = ADOf<kSmall>;
+using ADL = ADOf<kLarge>;
+
+inline double valueOf(double x) { return x; }
+template <typename D>
+double valueOf(const Eigen::AutoDiffScalar<D>& x) {
+  return x.value();
+}
+
+/// Constants and seeded variables with derivative vectors of the pass's width.
+template <typename T>
+struct Make;
+template <>
+struct Make<double> {
+  static double constant(double v, int) { return v; }
+  static double variable(double v, int, int) { return v; }
+  /// A value with the derivatives of d (the implicit-function step).
+  static double withDerivatives(double v, double) { return v; }
+};
+template <int C>
+struct Make<ADOf<C>> {
+  static ADOf<C> constant(double v, int nd) { return ADOf<C>(v, DerivativesOf<C>::Zero(nd)); }
+  static ADOf<C> variable(double v, int nd, int i) { return ADOf<C>(v, nd, i); }
+  static ADOf<C> withDerivatives(double v, const ADOf<C>& d) { return ADOf<C>(v, d.derivatives()); }
+};
+
+/// The member's invariants inside p (the order of problems/rod/invariants.h).
+struct View {
+  View(int modes, const double* p) : n(modes), p(p) {}
+  int n;
+  const double* p;
+  double mass() const { return p[0]; }
+  double mc(int k) const { return p[1 + k]; }
+  double j0() const { return p[3]; }
+  int c1Offset() const { return 4; }
+  int c2Offset() const { return 4 + 2 * n; }
+  int a0Offset() const { return 4 + 3 * n; }
+  int ctOffset() const { return 4 + 4 * n; }
+  int meeOffset() const { return 4 + 4 * n + n * n; }
+  int keeOffset() const { return 4 + 4 * n + 2 * n * n; }
+  int bOffset() const { return 4 + 4 * n + 3 * n * n; }
+  double c1(int k, int j) const { return p[c1Offset() + k + 2 * j]; }
+  double c2(int i) const { return p[c2Offset() + i]; }
+  double a0(int i) const { return p[a0Offset() + i]; }
+  double ct(int i, int j) const { return p[ctOffset() + i + n * j]; }
+  // M_ee enters through its symmetric part, as in problems/rod/slider_crank.cpp: the reduced mass
+  // matrix must be symmetric, and the gradient splits evenly between (i, j) and (j, i).
+  double mee(int i, int j) const { return 0.5 * (p[meeOffset() + i + n * j] + p[meeOffset() + j + n * i]); }
+  double kee(int i, int j) const { return p[keeOffset() + i + n * j]; }
+  double b(int i) const { return p[bOffset() + i]; }
+};
+
+constexpr int kGround = -1;
+
+struct PointRef {
+  int body = kGround;  ///< kGround, a rigid body's index, or the member (index = rigid body count)
+  Vec2 local = Vec2::Zero();
+  bool atB = false;  ///< the member's B: local (L + b q, 0)
+};
+
+struct Row {
+  enum Kind { Revolute, Angle, Line, DriveAngle, DriveLine };
+  Kind kind = Revolute;
+  PointRef p1, p2;
+  int body1 = kGround, body2 = kGround;
+  Vec2 axis = Vec2(1.0, 0.0);
+  double offset = 0.0;
+  DriverLaw law;
+};
+
+struct SpringRef {
+  PointRef p1, p2;
+  double stiffness, restLength, damping;
+};
+
+/// The pieces of one point's motion: position P, velocity P', the part of P'' without z'' (quad), and
+/// A s, S A s (for the Jacobian), sin and cos of its body's angle.
+template <typename T>
+struct Pt {
+  T P[2], Pd[2], Q[2], As[2], ASs[2], s, c;
+};
+
+template <typename T>
+struct Buffers {
+  Buffers(int nz, int m, int f, int n)
+      : z(nz), zd(nz), zdd(nz), F(nz), zeta(nz), phi(m), phit(m), quad(m), rhs(m), jac(m * nz), lu(m * m),
+        piv(m), R(nz * f), r(f), b(n), y(f), v(f), mq(n), h(n), a1(n), x(nz) {}
+  std::vector<T> z, zd, zdd, F, zeta, phi, phit, quad, rhs, jac, lu;
+  std::vector<int> piv;
+  std::vector<T> R, r, b, y, v, mq, h, a1, x;
+};
+
+/// In-place LU with partial pivoting (column-major m x m); false if a pivot is exactly zero. The pivot
+/// is chosen by value, so every scalar type takes the same row swaps.
+template <typename T>
+bool luFactor(T* a, int* piv, int m) {
+  for (int k = 0; k < m; ++k) {
+    int p = k;
+    double best = std::abs(valueOf(a[k + m * k]));
+    for (int i = k + 1; i < m; ++i) {
+      const double v = std::abs(valueOf(a[i + m * k]));
+      if (v > best) {
+        best = v;
+        p = i;
+      }
+    }
+    piv[k] = p;
+    if (best == 0.0) return false;
+    if (p != k) {
+      for (int j = 0; j < m; ++j) std::swap(a[k + m * j], a[p + m * j]);
+    }
+    const T inv = 1.0 / a[k + m * k];
+    for (int i = k + 1; i < m; ++i) a[i + m * k] *= inv;
+    for (int j = k + 1; j < m; ++j) {
+      const T akj = a[k + m * j];
+      for (int i = k + 1; i < m; ++i) a[i + m * j] -= a[i + m * k] * akj;
+    }
+  }
+  return true;
+}
+
+template <typename S, typename T>
+void luSolve(const S* a, const int* piv, int m, T* x) {
+  for (int k = 0; k < m; ++k) {
+    if (piv[k] != k) std::swap(x[k], x[piv[k]]);
+  }
+  for (int k = 0; k < m; ++k) {
+    for (int i = k + 1; i < m; ++i) x[i] -= a[i + m * k] * x[k];
+  }
+  for (int k = m - 1; k >= 0; --k) {
+    x[k] /= a[k + m * k];
+    for (int i = 0; i < k; ++i) x[i] -= a[i + m * k] * x[k];
+  }
+}
+
+}  // namespace
+
+struct MechanismProblem::Impl {
+  int nr = 0;    ///< rigid bodies
+  int n = 0;     ///< modes
+  int nz = 0;    ///< full coordinates
+  int m = 0;     ///< constraints
+  int f = 0;     ///< minimal coordinates
+  int base = 0;  ///< member offset in z
+  int nFree = 0;
+  double length = 1.0;
+  Vec2 gravity = Vec2::Zero();
+  std::vector<double> mass, inertia;
+  std::vector<int> independent;  ///< y index -> z index
+  std::vector<int> dependent;    ///< u index -> z index
+  std::vector<Row> rows;         ///< one entry per joint part (Revolute = 2 equations)
+  std::vector<SpringRef> springs;
+  Vector zInitial;  ///< assembled at t = 0, q = 0
+  Vector yInitial, vInitial;
+
+  int bodyOffset(int body) const { return body == nr ? base : 3 * body; }
+
+  PointRef pointRef(const Mechanism& mech, const std::string& body, const std::string& point) const {
+    PointRef r;
+    if (body == "ground") {
+      r.body = kGround;
+      r.local = mech.groundPoints.at(point);
+      return r;
+    }
+    if (body == mech.member.name) {
+      r.body = nr;
+      r.atB = point == "B";
+      r.local = r.atB ? Vec2(length, 0.0) : Vec2::Zero();
+      return r;
+    }
+    for (int k = 0; k < nr; ++k) {
+      if (mech.rigidBodies[k].name == body) {
+        r.body = k;
+        r.local = mech.rigidBodies[k].points.at(point);
+      }
+    }
+    return r;
+  }
+
+  int bodyIndex(const Mechanism& mech, const std::string& body) const {
+    if (body == "ground") return kGround;
+    if (body == mech.member.name) return nr;
+    for (int k = 0; k < nr; ++k) {
+      if (mech.rigidBodies[k].name == body) return k;
+    }
+    return kGround;
+  }
+
+  template <typename T>
+  T angle(int body, const std::vector<T>& z, const T& zero) const {
+    return body == kGround ? zero : z[bodyOffset(body) + 2];
+  }
+
+  /// c = b q and c' = b q' (the member's B moves along its chord by c).
+  template <typename T>
+  void chord(const Buffers<T>& B, bool velocity, T& c, T& cd, const T& zero) const {
+    c = zero;
+    cd = zero;
+    for (int i = 0; i < n; ++i) {
+      c += B.b[i] * B.z[base + 3 + i];
+      if (velocity) cd += B.b[i] * B.zd[base + 3 + i];
+    }
+  }
+
+  template <typename T>
+  void point(const PointRef& r, const Buffers<T>& B, bool velocity, const T& c, const T& cd, const T& zero,
+             Pt<T>& out) const {
+    if (r.body == kGround) {
+      for (int k = 0; k < 2; ++k) {
+        out.P[k] = zero + r.local(k);
+        out.Pd[k] = zero;
+        out.Q[k] = zero;
+        out.As[k] = zero;
+        out.ASs[k] = zero;
+      }
+      out.s = zero;
+      out.c = zero + 1.0;
+      return;
+    }
+    const int o = bodyOffset(r.body);
+    out.s = dmath::sin(B.z[o + 2]);
+    out.c = dmath::cos(B.z[o + 2]);
+    const T sb0 = r.atB ? T(c + r.local(0)) : T(zero + r.local(0));
+    const double sb1 = r.local(1);
+    out.As[0] = out.c * sb0 - out.s * sb1;
+    out.As[1] = out.s * sb0 + out.c * sb1;
+    out.ASs[0] = -out.As[1];
+    out.ASs[1] = out.As[0];
+    out.P[0] = B.z[o] + out.As[0];
+    out.P[1] = B.z[o + 1] + out.As[1];
+    if (!velocity) return;
+    const T& td = B.zd[o + 2];
+    out.Pd[0] = B.zd[o] + out.ASs[0] * td;
+    out.Pd[1] = B.zd[o + 1] + out.ASs[1] * td;
+    const T td2 = td * td;
+    out.Q[0] = -out.As[0] * td2;
+    out.Q[1] = -out.As[1] * td2;
+    if (r.atB) {
+      out.Pd[0] += out.c * cd;
+      out.Pd[1] += out.s * cd;
+      const T k = 2.0 * td * cd;
+      out.Q[0] -= out.s * k;
+      out.Q[1] += out.c * k;
+    }
+  }
+
+  /// row[0..nz) += sign * w^T dP/dz.
+  template <typename T>
+  void addJT(const PointRef& r, const Pt<T>& pt, const T& w0, const T& w1, double sign, const Buffers<T>& B,
+             T* row, int stride) const {
+    if (r.body == kGround) return;
+    const int o = bodyOffset(r.body);
+    row[stride * o] += sign * w0;
+    row[stride * (o + 1)] += sign * w1;
+    row[stride * (o + 2)] += sign * (w0 * pt.ASs[0] + w1 * pt.ASs[1]);
+    if (r.atB) {
+      const T along = sign * (w0 * pt.c + w1 * pt.s);
+      for (int j = 0; j < n; ++j) row[stride * (base + 3 + j)] += along * B.b[j];
+    }
+  }
+
+  /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t.
+  template <typename T>
+  void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero) const {
+    T c, cd;
+    chord(B, quadratic, c, cd, zero);
+    if (jacobian) {
+      for (auto& x : B.jac) x = zero;
+    }
+    Pt<T> a, b;
+    int i = 0;
+    for (const Row& row : rows) {
+      T* jrow = B.jac.data() + i;  // row i of the column-major m x nz matrix: stride m
+      const int mm = m;
+      switch (row.kind) {
+        case Row::Revolute: {
+          point(row.p1, B, quadratic, c, cd, zero, a);
+          point(row.p2, B, quadratic, c, cd, zero, b);
+          B.phi[i] = a.P[0] - b.P[0];
+          B.phi[i + 1] = a.P[1] - b.P[1];
+          if (jacobian) {
+            const T one = zero + 1.0;
+            addJT(row.p1, a, one, zero, 1.0, B, jrow, mm);
+            addJT(row.p2, b, one, zero, -1.0, B, jrow, mm);
+            addJT(row.p1, a, zero, one, 1.0, B, jrow + 1, mm);
+            addJT(row.p2, b, zero, one, -1.0, B, jrow + 1, mm);
+            B.phit[i] = zero;
+            B.phit[i + 1] = zero;
+          }
+          if (quadratic) {
+            B.quad[i] = a.Q[0] - b.Q[0];
+            B.quad[i + 1] = a.Q[1] - b.Q[1];
+          }
+          i += 2;
+          break;
+        }
+        case Row::Angle:
+        case Row::DriveAngle: {
+          double s = 0.0, sd = 0.0, sdd = 0.0;
+          if (row.kind == Row::DriveAngle) row.law.at(t, s, sd, sdd);
+          B.phi[i] = angle(row.body2, B.z, zero) - angle(row.body1, B.z, zero) - (row.offset + s);
+          if (jacobian) {
+            if (row.body2 != kGround) jrow[mm * (bodyOffset(row.body2) + 2)] += 1.0;
+            if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] -= 1.0;
+            B.phit[i] = zero - sd;
+          }
+          if (quadratic) B.quad[i] = zero - sdd;
+          i += 1;
+          break;
+        }
+        case Row::Line:
+        case Row::DriveLine: {
+          point(row.p1, B, quadratic, c, cd, zero, a);
+          point(row.p2, B, quadratic, c, cd, zero, b);
+          T s1 = zero, c1 = zero + 1.0, w1 = zero;
+          if (row.body1 != kGround) {
+            const int o = bodyOffset(row.body1);
+            s1 = dmath::sin(B.z[o + 2]);
+            c1 = dmath::cos(B.z[o + 2]);
+            if (quadratic) w1 = B.zd[o + 2];
+          }
+          // e1 = A1 axis, n1 = S e1; d = P2 - P1.
+          const T e0 = c1 * row.axis(0) - s1 * row.axis(1), e1 = s1 * row.axis(0) + c1 * row.axis(1);
+          const T n0 = -e1, n1 = e0;
+          const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
+          const bool drive = row.kind == Row::DriveLine;
+          double s = 0.0, sd = 0.0, sdd = 0.0;
+          if (drive) row.law.at(t, s, sd, sdd);
+          // Line: n1 . d = 0. DriveLine: e1 . d = offset + s(t).
+          const T& u0 = drive ? e0 : n0;
+          const T& u1 = drive ? e1 : n1;
+          const T du0 = drive ? n0 : T(-e0), du1 = drive ? n1 : T(-e1);  // d(u)/d(theta1)
+          B.phi[i] = u0 * d0 + u1 * d1 - (drive ? row.offset + s : 0.0);
+          if (jacobian) {
+            addJT(row.p2, b, u0, u1, 1.0, B, jrow, mm);
+            addJT(row.p1, a, u0, u1, -1.0, B, jrow, mm);
+            if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] += du0 * d0 + du1 * d1;
+            B.phit[i] = zero - (drive ? sd : 0.0);
+          }
+          if (quadratic) {
+            // d/dt of u is du w1, d^2/dt^2 is -u w1^2 + du w1' (the w1' part is in the Jacobian).
+            const T dd0 = b.Pd[0] - a.Pd[0], dd1 = b.Pd[1] - a.Pd[1];
+            B.quad[i] = u0 * (b.Q[0] - a.Q[0]) + u1 * (b.Q[1] - a.Q[1]) + 2.0 * w1 * (du0 * dd0 + du1 * dd1) -
+                        w1 * w1 * (u0 * d0 + u1 * d1) - (drive ? sdd : 0.0);
+          }
+          i += 1;
+          break;
+        }
+      }
+    }
+  }
+
+  /// Newton's method on the dependent coordinates of B.z (double), the independent ones held fixed.
+  /// Returns the last step's size; `iterations` < 0: until the step is below tol (throws after 50).
+  double newton(double t, Buffers<double>& B, int iterations, double tol) const {
+    double step = 0.0;
+    for (int it = 0; iterations < 0 ? it < 50 : it < iterations; ++it) {
+      constraints(t, B, true, false, 0.0);
+      for (int j = 0; j < m; ++j) {
+        for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * dependent[j]];
+      }
+      if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+        throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+      }
+      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+      luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+      step = 0.0;
+      for (int i = 0; i < m; ++i) {
+        B.z[dependent[i]] -= B.rhs[i];
+        step = std::max(step, std::abs(B.rhs[i]));
+      }
+      if (!std::isfinite(step)) break;
+      if (iterations < 0 && step <= tol) return step;
+    }
+    if (iterations < 0 || !std::isfinite(step)) {
+      throw NumericalError("the mechanism cannot be assembled (Newton on the constraints did not converge)", t);
+    }
+    return step;
+  }
+
+  double driverDistance(double t0, double t1) const {
+    double d = 0.0;
+    for (const Row& r : rows) {
+      if (r.kind != Row::DriveAngle && r.kind != Row::DriveLine) continue;
+      double s0, s1, x, y;
+      r.law.at(t0, s0, x, y);
+      r.law.at(t1, s1, x, y);
+      d = std::max(d, std::abs(s1 - s0));
+    }
+    return d;
+  }
+};
+
+namespace {
+
+struct Work final : ProblemWorkspace {
+  Work(int nz, int m, int f, int n) : d(nz, m, f, n), s(nz, m, f, n), l(nz, m, f, n), zStar(nz), yLast(f), zLast(nz),
+                                      yStep(f), luStar(m * m), pivStar(m), mu(f), nu(nz), fScratch(f) {}
+  Buffers<double> d;
+  Buffers<ADS> s;
+  Buffers<ADL> l;
+  Vector zStar;
+  // Warm start of Newton: the last solved (t, y, z).
+  bool warm = false;
+  double tLast = 0.0;
+  Vector yLast, zLast, yStep;
+  // Phi_u at zStar, factorised (the implicit-function step of the dual passes).
+  std::vector<double> luStar;
+  std::vector<int> pivStar;
+  Vector mu, nu, fScratch;
+};
+
+Work& workOf(ProblemWorkspace* ws) {
+  assert(ws != nullptr);
+  return static_cast<Work&>(*ws);
+}
+
+/// The dependent coordinates at (t, y) into w.zStar (see the header on determinism).
+void solvePositions(const MechanismProblem::Impl& I, double t, ConstVectorRef y, const View& P, Work& w) {
+  Buffers<double>& B = w.d;
+  for (int i = 0; i < I.n; ++i) B.b[i] = P.b(i);
+  const double tStart = w.warm ? w.tLast : 0.0;
+  const Vector& yStart = w.warm ? w.yLast : I.yInitial;
+  const Vector& zStart = w.warm ? w.zLast : I.zInitial;
+  for (int i = 0; i < I.nz; ++i) B.z[i] = zStart(i);
+  // Continuation in steps that move no driver and no minimal coordinate by more than 0.25 (rad or m),
+  // so that Newton stays on the branch (assembly mode) it started on.
+  double distance = I.driverDistance(tStart, t);
+  for (int i = 0; i < I.f; ++i) distance = std::max(distance, std::abs(y(i) - yStart(i)));
+  const int steps = std::max(1, static_cast<int>(std::ceil(distance / 0.25)));
+  for (int k = 1; k <= steps; ++k) {
+    const double theta = static_cast<double>(k) / steps;
+    const double tk = k == steps ? t : tStart + (t - tStart) * theta;
+    for (int i = 0; i < I.f; ++i) B.z[I.independent[i]] = k == steps ? y(i) : yStart(i) + (y(i) - yStart(i)) * theta;
+    I.newton(tk, B, -1, 1e-11);
+  }
+  // Round to a grid and polish: the bits are then a function of (t, y) only.
+  for (int i = 0; i < I.m; ++i) {
+    double& u = B.z[I.dependent[i]];
+    u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
+  }
+  I.newton(t, B, 3, 0.0);
+  for (int i = 0; i < I.nz; ++i) w.zStar(i) = B.z[i];
+  w.warm = true;
+  w.tLast = t;
+  w.yLast = y;
+  w.zLast = w.zStar;
+}
+
+/// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
+/// B.y, B.v, B.b; w.zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
+template <typename T>
+void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, int nd) {
+  const T zero = Make<T>::constant(0.0, nd);
+  const int m = I.m, f = I.f, nz = I.nz;
+  for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(w.zStar(i), nd);
+  for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
+  if constexpr (!std::is_same_v<T, double>) {
+    // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
+    I.constraints(t, B, false, false, zero);
+    for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+    luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+    for (int i = 0; i < m; ++i) B.z[I.dependent[i]] = Make<T>::withDerivatives(w.zStar(I.dependent[i]), -B.rhs[i]);
+  }
+  I.constraints(t, B, true, false, zero);
+  for (int j = 0; j < m; ++j) {
+    for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
+  }
+  if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+    throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+  }
+  if constexpr (std::is_same_v<T, double>) {
+    std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
+    std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
+  }
+  // z' = R y' - Phi_u^{-1} Phi_t.
+  for (int i = 0; i < m; ++i) {
+    T s = B.phit[i];
+    for (int j = 0; j < f; ++j) s += B.jac[i + m * I.independent[j]] * B.v[j];
+    B.rhs[i] = -s;
+  }
+  luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+  for (int j = 0; j < f; ++j) B.zd[I.independent[j]] = B.v[j];
+  for (int i = 0; i < m; ++i) B.zd[I.dependent[i]] = B.rhs[i];
+  // zeta = -Phi_u^{-1} gamma on the dependent rows.
+  I.constraints(t, B, false, true, zero);
+  for (int i = 0; i < m; ++i) B.rhs[i] = -B.quad[i];
+  luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+  for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
+  for (int i = 0; i < m; ++i) B.zeta[I.dependent[i]] = B.rhs[i];
+  // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
+  for (int j = 0; j < f; ++j) {
+    T* col = B.R.data() + nz * j;
+    for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
+    for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
+    luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+    for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
+  }
+}
+
+/// out = M(z) x - (with `rest`) Q(z, z', t): the generalised inertia, gravity, elastic and spring forces
+/// (see the header). x has length nz.
+template <typename T>
+void generalizedForce(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, const T* x, bool rest,
+                      T* out, const T& zero) {
+  const int n = I.n;
+  const Vec2 g = rest ? I.gravity : Vec2::Zero();
+  for (int k = 0; k < I.nr; ++k) {
+    out[3 * k] = I.mass[k] * (x[3 * k] - g(0));
+    out[3 * k + 1] = I.mass[k] * (x[3 * k + 1] - g(1));
+    out[3 * k + 2] = I.inertia[k] * x[3 * k + 2];
+  }
+  // The member (docs/design.md §3 in the frame of its own rigid coordinates).
+  const int o = I.base;
+  const T* z = B.z.data() + o;
+  const T* zd = B.zd.data() + o;
+  const T* xm = x + o;
+  T* F = out + o;
+  const T s = dmath::sin(z[2]), c = dmath::cos(z[2]);
+  T sw0 = zero + P.mc(0), sw1 = zero + P.mc(1), jw = zero + P.j0();
+  for (int i = 0; i < n; ++i) {
+    sw0 += P.c1(0, i) * z[3 + i];
+    sw1 += P.c1(1, i) * z[3 + i];
+    jw += 2.0 * P.c2(i) * z[3 + i];
+  }
+  for (int j = 0; j < n; ++j) {
+    T mq = zero, a1 = zero + P.a0(j);
+    for (int i = 0; i < n; ++i) {
+      mq += P.mee(j, i) * z[3 + i];
+      a1 += z[3 + i] * P.ct(i, j);
+    }
+    B.mq[j] = mq;
+    B.h[j] = P.c2(j) + mq;
+    B.a1[j] = a1;
+    jw += z[3 + j] * mq;
+  }
+  // rho = A^T (R'' - g) (the gravity acts like a frame acceleration).
+  const T gx0 = xm[0] - g(0), gx1 = xm[1] - g(1);
+  const T rho0 = c * gx0 + s * gx1, rho1 = -s * gx0 + c * gx1;
+  const T& thdd = xm[2];
+  T cq0 = zero, cq1 = zero;
+  for (int i = 0; i < n; ++i) {
+    cq0 += P.c1(0, i) * xm[3 + i];
+    cq1 += P.c1(1, i) * xm[3 + i];
+  }
+  // Body-frame force on the frame origin: m rho + S s_w theta'' + C1 q'' - s_w theta'^2 + 2 theta' S C1 q'.
+  T aR0 = P.mass() * rho0 - sw1 * thdd + cq0;
+  T aR1 = P.mass() * rho1 + sw0 * thdd + cq1;
+  T ftheta = -sw1 * rho0 + sw0 * rho1 + jw * thdd;
+  for (int j = 0; j < n; ++j) ftheta += B.a1[j] * xm[3 + j];
+  const T& thd = zd[2];
+  if (rest) {
+    T cqd0 = zero, cqd1 = zero, hqd = zero;
+    for (int i = 0; i < n; ++i) {
+      cqd0 += P.c1(0, i) * zd[3 + i];
+      cqd1 += P.c1(1, i) * zd[3 + i];
+      hqd += B.h[i] * zd[3 + i];
+    }
+    const T thd2 = thd * thd;
+    aR0 += -sw0 * thd2 - 2.0 * thd * cqd1;
+    aR1 += -sw1 * thd2 + 2.0 * thd * cqd0;
+    ftheta += 2.0 * thd * hqd;
+  }
+  F[0] = c * aR0 - s * aR1;
+  F[1] = s * aR0 + c * aR1;
+  F[2] = ftheta;
+  for (int i = 0; i < n; ++i) {
+    T fi = P.c1(0, i) * rho0 + P.c1(1, i) * rho1 + B.a1[i] * thdd;
+    T mx = zero;
+    for (int j = 0; j < n; ++j) mx += P.mee(i, j) * xm[3 + j];
+    fi += mx;
+    if (rest) {
+      T ctqd = zero, keeq = zero;
+      for (int j = 0; j < n; ++j) {
+        ctqd += P.ct(i, j) * zd[3 + j];
+        keeq += P.kee(i, j) * z[3 + j];
+      }
+      fi += keeq - 2.0 * thd * ctqd - B.h[i] * (thd * thd);
+    }
+    F[3 + i] = fi;
+  }
+  if (!rest) return;
+  // Springs and dampers: tension k (l - l0) + d l' pulls point1 towards point2.
+  T cc, ccd;
+  I.chord(B, true, cc, ccd, zero);
+  Pt<T> a, b;
+  for (const SpringRef& sp : I.springs) {
+    I.point(sp.p1, B, true, cc, ccd, zero, a);
+    I.point(sp.p2, B, true, cc, ccd, zero, b);
+    const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
+    using std::sqrt;
+    const T l = sqrt(d0 * d0 + d1 * d1);
+    if (!(valueOf(l) > 0.0)) throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
+    const T e0 = d0 / l, e1 = d1 / l;
+    const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
+    const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
+    const T f0 = tension * e0, f1 = tension * e1;
+    I.addJT(sp.p1, a, f0, f1, -1.0, B, out, 1);
+    I.addJT(sp.p2, b, f0, f1, 1.0, B, out, 1);
+  }
+}
+
+/// r = R^T (M (R a + zeta) - Q) after kinematics().
+template <typename T>
+void residualFromKinematics(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, ConstVectorRef a,
+                            int nd) {
+  const T zero = Make<T>::constant(0.0, nd);
+  for (int i = 0; i < I.nz; ++i) {
+    T s = B.zeta[i];
+    for (int j = 0; j < I.f; ++j) s += B.R[i + I.nz * j] * a(j);
+    B.zdd[i] = s;
+  }
+  generalizedForce(I, P, B, B.zdd.data(), true, B.F.data(), zero);
+  for (int j = 0; j < I.f; ++j) {
+    T s = zero;
+    for (int i = 0; i < I.nz; ++i) s += B.R[i + I.nz * j] * B.F[i];
+    B.r[j] = s;
+  }
+}
+
+template <typename T>
+void loadInputs(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, ConstVectorRef y, ConstVectorRef v,
+                int nd, bool seedState, bool seedB) {
+  for (int i = 0; i < I.f; ++i) {
+    B.y[i] = seedState ? Make<T>::variable(y(i), nd, i) : Make<T>::constant(y(i), nd);
+    B.v[i] = seedState ? Make<T>::variable(v(i), nd, I.f + i) : Make<T>::constant(v(i), nd);
+  }
+  for (int i = 0; i < I.n; ++i) B.b[i] = seedB ? Make<T>::variable(P.b(i), nd, i) : Make<T>::constant(P.b(i), nd);
+}
+
+/// The double pass: positions, kinematics.
+void doublePass(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
+                Work& w) {
+  solvePositions(I, t, y, P, w);
+  loadInputs(I, P, w.d, y, v, 0, false, false);
+  kinematics(I, t, w.d, w, 0);
+}
+
+template <typename T>
+void stateJacobians(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
+                    ConstVectorRef a, MatrixRef ry, MatrixRef rv, Buffers<T>& B, Work& w) {
+  const int nd = 2 * I.f;
+  loadInputs(I, P, B, y, v, nd, true, false);
+  kinematics(I, t, B, w, nd);
+  residualFromKinematics(I, P, B, a, nd);
+  for (int i = 0; i < I.f; ++i) {
+    const auto& d = B.r[i].derivatives();
+    for (int j = 0; j < I.f; ++j) {
+      ry(i, j) = d(j);
+      rv(i, j) = d(I.f + j);
+    }
+  }
+}
+
+template <typename T>
+void chordRowProduct(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
+                     ConstVectorRef a, ConstVectorRef mu, VectorRef out, Buffers<T>& B, Work& w) {
+  const int nd = I.n;
+  loadInputs(I, P, B, y, v, nd, false, true);
+  kinematics(I, t, B, w, nd);
+  residualFromKinematics(I, P, B, a, nd);
+  for (int i = 0; i < I.f; ++i) {
+    const auto& d = B.r[i].derivatives();
+    for (int j = 0; j < I.n; ++j) out(P.bOffset() + j) += mu(i) * d(j);
+  }
+}
+
+}  // namespace
+
+MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
+    : mechanism_(mechanism), modes_(modeCount), impl_(std::make_unique<Impl>()) {
+  if (modeCount < 1 || modeCount > kMaxModes) {
+    throw std::invalid_argument("modeCount = " + std::to_string(modeCount) + " must be in [1, " +
+                                std::to_string(kMaxModes) + "]");
+  }
+  mechanism_.validate();
+  if (static_cast<int>(mechanism_.free.size()) > kMaxFree) {
+    throw std::invalid_argument("mechanism.free lists " + std::to_string(mechanism_.free.size()) +
+                                " coordinates; at most " + std::to_string(kMaxFree) + " are supported");
+  }
+  Impl& I = *impl_;
+  const Mechanism& M = mechanism_;
+  I.nr = static_cast<int>(M.rigidBodies.size());
+  I.n = modeCount;
+  I.base = 3 * I.nr;
+  I.nz = I.base + 3 + I.n;
+  I.m = M.constraintCount();
+  I.nFree = static_cast<int>(M.free.size());
+  I.f = I.nFree + I.n;
+  I.length = M.member.length;
+  I.gravity = M.gravity;
+  for (const RigidBody& b : M.rigidBodies) {
+    I.mass.push_back(b.mass);
+    I.inertia.push_back(b.inertia);
+  }
+  I.zInitial = Vector::Zero(I.nz);
+  for (int k = 0; k < I.nr; ++k) {
+    I.zInitial.segment<2>(3 * k) = M.rigidBodies[k].position;
+    I.zInitial(3 * k + 2) = M.rigidBodies[k].angle;
+  }
+  I.zInitial.segment<2>(I.base) = M.member.position;
+  I.zInitial(I.base + 2) = M.member.angle;
+  std::vector<bool> isFree(I.nz, false);
+  I.vInitial = Vector::Zero(I.f);
+  for (int k = 0; k < I.nFree; ++k) {
+    const FreeCoordinate& fc = M.free[k];
+    const int index = 3 * I.bodyIndex(M, fc.body) + static_cast<int>(fc.coordinate);
+    I.independent.push_back(index);
+    isFree[index] = true;
+    I.vInitial(k) = fc.velocity;
+  }
+  for (int i = 0; i < I.n; ++i) {
+    I.independent.push_back(I.base + 3 + i);
+    isFree[I.base + 3 + i] = true;
+  }
+  for (int i = 0; i < I.base + 3; ++i) {
+    if (!isFree[i]) I.dependent.push_back(i);
+  }
+  auto angleOf = [&](const std::string& body) {
+    if (body == "ground") return 0.0;
+    if (body == M.member.name) return M.member.angle;
+    for (const RigidBody& b : M.rigidBodies) {
+      if (b.name == body) return b.angle;
+    }
+    return 0.0;
+  };
+  for (const Joint& j : M.joints) {
+    Row r;
+    r.p1 = I.pointRef(M, j.body1, j.point1);
+    r.p2 = I.pointRef(M, j.body2, j.point2);
+    r.body1 = I.bodyIndex(M, j.body1);
+    r.body2 = I.bodyIndex(M, j.body2);
+    r.axis = j.axis.normalized();
+    const Driver* driver = nullptr;
+    for (const Driver& d : M.drivers) {
+      if (d.joint == j.name) driver = &d;
+    }
+    const double relative = angleOf(j.body2) - angleOf(j.body1);
+    if (j.type == JointType::Revolute || j.type == JointType::Fixed) {
+      r.kind = Row::Revolute;
+      I.rows.push_back(r);
+      if (j.type == JointType::Fixed) {
+        r.kind = Row::Angle;
+        r.offset = relative;
+        I.rows.push_back(r);
+      }
+      if (driver != nullptr) {
+        r.kind = Row::DriveAngle;
+        r.offset = driver->offset;
+        r.law = driver->law;
+        I.rows.push_back(r);
+      }
+    } else {
+      r.kind = Row::Angle;
+      r.offset = relative;
+      I.rows.push_back(r);
+      r.kind = Row::Line;
+      I.rows.push_back(r);
+      if (driver != nullptr) {
+        r.kind = Row::DriveLine;
+        r.offset = driver->offset;
+        r.law = driver->law;
+        I.rows.push_back(r);
+      }
+    }
+  }
+  for (const Spring& s : M.springs) {
+    I.springs.push_back(SpringRef{I.pointRef(M, s.body1, s.point1), I.pointRef(M, s.body2, s.point2), s.stiffness,
+                                  s.restLength, s.damping});
+  }
+  I.yInitial = Vector::Zero(I.f);
+  for (int k = 0; k < I.nFree; ++k) I.yInitial(k) = I.zInitial(I.independent[k]);
+  // Assemble at t = 0 from the described positions (q = 0, so b does not enter).
+  Work w(I.nz, I.m, I.f, I.n);
+  for (int i = 0; i < I.nz; ++i) w.d.z[i] = I.zInitial(i);
+  for (int i = 0; i < I.n; ++i) w.d.b[i] = 0.0;
+  try {
+    I.newton(0.0, w.d, -1, 1e-12);
+  } catch (const NumericalError& e) {
+    throw std::invalid_argument(std::string("mechanism: the initial positions do not assemble at t = 0: ") + e.what());
+  }
+  for (int i = 0; i < I.nz; ++i) I.zInitial(i) = w.d.z[i];
+}
+
+MechanismProblem::~MechanismProblem() = default;
+
+int MechanismProblem::coordinateCount() const { return impl_->f; }
+int MechanismProblem::freeCount() const { return impl_->nFree; }
+int MechanismProblem::parameterSize() const { return 4 + 5 * modes_ + 3 * modes_ * modes_; }
+int MechanismProblem::fullCoordinateCount() const { return impl_->nz; }
+int MechanismProblem::memberOffset() const { return impl_->base; }
+
+std::unique_ptr<ProblemWorkspace> MechanismProblem::createModelWorkspace() const {
+  return std::make_unique<Work>(impl_->nz, impl_->m, impl_->f, impl_->n);
+}
+
+void MechanismProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRef v0) const {
+  y0 = impl_->yInitial;
+  v0 = impl_->vInitial;
+}
+
+void MechanismProblem::massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                          MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  doublePass(I, P, t, y, v, w);
+  Buffers<double>& B = w.d;
+  // f = -R^T (M zeta - Q).
+  generalizedForce(I, P, B, B.zeta.data(), true, B.F.data(), 0.0);
+  for (int j = 0; j < I.f; ++j) {
+    double s = 0.0;
+    for (int i = 0; i < I.nz; ++i) s += B.R[i + I.nz * j] * B.F[i];
+    f(j) = -s;
+  }
+  // M = R^T M(z) R, column by column, symmetrised.
+  for (int j = 0; j < I.f; ++j) {
+    generalizedForce(I, P, B, B.R.data() + I.nz * j, false, B.x.data(), 0.0);
+    for (int i = 0; i < I.f; ++i) {
+      double s = 0.0;
+      for (int k = 0; k < I.nz; ++k) s += B.R[k + I.nz * i] * B.x[k];
+      mass(i, j) = s;
+    }
+  }
+  for (int j = 0; j < I.f; ++j) {
+    for (int i = 0; i < j; ++i) {
+      const double s = 0.5 * (mass(i, j) + mass(j, i));
+      mass(i, j) = s;
+      mass(j, i) = s;
+    }
+  }
+}
+
+void MechanismProblem::massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
+                                  ProblemWorkspace* ws) const {
+  Work& w = workOf(ws);
+  w.mu.setZero();
+  massMatrixAndForce(t, y, w.mu, p, mass, w.fScratch, ws);
+}
+
+void MechanismProblem::force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+                             ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  doublePass(I, P, t, y, v, w);
+  Buffers<double>& B = w.d;
+  generalizedForce(I, P, B, B.zeta.data(), true, B.F.data(), 0.0);
+  for (int j = 0; j < I.f; ++j) {
+    double s = 0.0;
+    for (int i = 0; i < I.nz; ++i) s += B.R[i + I.nz * j] * B.F[i];
+    f(j) = -s;
+  }
+}
+
+void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                                VectorRef r, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  doublePass(I, P, t, y, v, w);
+  residualFromKinematics(I, P, w.d, a, 0);
+  for (int i = 0; i < I.f; ++i) r(i) = w.d.r[i];
+}
+
+void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  doublePass(I, P, t, y, v, w);
+  if (2 * I.f <= kSmall) {
+    stateJacobians(I, P, t, y, v, a, ry, rv, w.s, w);
+  } else {
+    stateJacobians(I, P, t, y, v, a, ry, rv, w.l, w);
+  }
+}
+
+void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                               ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int n = I.n;
+  doublePass(I, P, t, y, v, w);
+  Buffers<double>& B = w.d;
+  residualFromKinematics(I, P, B, a, 0);
+  // nu = R mu on the member's coordinates; the member's force is linear in the invariants at fixed
+  // z, z', z'' (generalizedForce), so its product with nu is differentiated by hand here.
+  const int o = I.base;
+  for (int i = 0; i < 3 + n; ++i) {
+    double s = 0.0;
+    for (int j = 0; j < I.f; ++j) s += B.R[o + i + I.nz * j] * mu(j);
+    w.nu(i) = s;
+  }
+  const double* z = B.z.data() + o;
+  const double* zd = B.zd.data() + o;
+  const double* x = B.zdd.data() + o;
+  double s, c;
+  dmath::sincos(z[2], &s, &c);
+  const double g0 = x[0] - I.gravity(0), g1 = x[1] - I.gravity(1);
+  const double rho0 = c * g0 + s * g1, rho1 = -s * g0 + c * g1;  // A^T (R'' - g)
+  const double nb0 = c * w.nu(0) + s * w.nu(1), nb1 = -s * w.nu(0) + c * w.nu(1);  // A^T nu_R
+  const double nth = w.nu(2), thd = zd[2], thdd = x[2];
+  auto q = [&](int i) { return z[3 + i]; };
+  auto qd = [&](int i) { return zd[3 + i]; };
+  auto qdd = [&](int i) { return x[3 + i]; };
+  auto nq = [&](int i) { return w.nu(3 + i); };
+  // m: nu_R . m (R'' - g).
+  out(0) += nb0 * rho0 + nb1 * rho1;
+  // s_w = m c + C1 q enters as S s_w theta'' - s_w theta'^2 (force on the frame) and (S s_w) . rho.
+  // d/ds_w of nb . (S s_w thdd - s_w thd^2) + nth (S s_w) . rho, with S^T x = (x1, -x0).
+  const double sig0 = thdd * nb1 - thd * thd * nb0 + nth * rho1;
+  const double sig1 = -thdd * nb0 - thd * thd * nb1 - nth * rho0;
+  out(1) += sig0;
+  out(2) += sig1;
+  // J_w = J0 + 2 C2 q + q^T M_ee q multiplies theta'' in the theta row.
+  const double zeta = nth * thdd;
+  out(3) += zeta;
+  // C1 directly: nb . (C1 q'' + 2 thd S C1 q') + nq . C1^T rho.
+  for (int j = 0; j < n; ++j) {
+    out(P.c1Offset() + 2 * j) += sig0 * q(j) + nb0 * qdd(j) + 2.0 * thd * nb1 * qd(j) + rho0 * nq(j);
+    out(P.c1Offset() + 1 + 2 * j) += sig1 * q(j) + nb1 * qdd(j) - 2.0 * thd * nb0 * qd(j) + rho1 * nq(j);
+  }
+  // h = C2 + M_ee q: 2 thd h . q' (theta row) and -h thd^2 (q rows). A1 = a0 + Ct^T q: A1 . q''
+  // (theta row) and A1 thdd (q rows).
+  double* ct = out.data() + P.ctOffset();
+  double* mee = out.data() + P.meeOffset();
+  double* kee = out.data() + P.keeOffset();
+  for (int j = 0; j < n; ++j) {
+    const double etaJ = 2.0 * thd * nth * qd(j) - thd * thd * nq(j);
+    const double alphaJ = nth * qdd(j) + thdd * nq(j);
+    out(P.c2Offset() + j) += etaJ + 2.0 * zeta * q(j);
+    out(P.a0Offset() + j) += alphaJ;
+    for (int i = 0; i < n; ++i) {
+      const double etaI = 2.0 * thd * nth * qd(i) - thd * thd * nq(i);
+      // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
+      ct[i + n * j] += q(i) * alphaJ - 2.0 * thd * nq(i) * qd(j);
+      // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
+      mee[i + n * j] += zeta * q(i) * q(j) + 0.5 * (etaI * q(j) + etaJ * q(i) + nq(i) * qdd(j) + nq(j) * qdd(i));
+      kee[i + n * j] += nq(i) * q(j);
+    }
+  }
+  // b: through the member's B (position, Jacobian, kinematics), by dual numbers in b.
+  if (n <= kSmall) {
+    chordRowProduct(I, P, t, y, v, a, mu, out, w.s, w);
+  } else {
+    chordRowProduct(I, P, t, y, v, a, mu, out, w.l, w);
+  }
+}
+
+double MechanismProblem::integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
+                                   ProblemWorkspace*) const {
+  const View P(modes_, p.data());
+  const int o = impl_->nFree;
+  double s = 0.0;
+  for (int i = 0; i < modes_; ++i) {
+    for (int j = 0; j < modes_; ++j) s += y(o + i) * P.kee(i, j) * y(o + j);
+  }
+  return s;
+}
+
+void MechanismProblem::addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
+                                                 double scale, VectorRef gy, VectorRef, ProblemWorkspace*) const {
+  const View P(modes_, p.data());
+  const int o = impl_->nFree;
+  for (int i = 0; i < modes_; ++i) {
+    for (int j = 0; j < modes_; ++j) gy(o + i) += scale * (P.kee(i, j) + P.kee(j, i)) * y(o + j);
+  }
+}
+
+void MechanismProblem::addIntegrandParameterGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
+                                                     double scale, VectorRef gp, ProblemWorkspace*) const {
+  const View P(modes_, p.data());
+  const int o = impl_->nFree;
+  for (int j = 0; j < modes_; ++j) {
+    for (int i = 0; i < modes_; ++i) gp(P.keeOffset() + i + modes_ * j) += scale * y(o + i) * y(o + j);
+  }
+}
+
+void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef z,
+                                   VectorRef zDot, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  doublePass(I, View(I.n, p.data()), t, y, v, w);
+  for (int i = 0; i < I.nz; ++i) {
+    z(i) = w.d.z[i];
+    zDot(i) = w.d.zd[i];
+  }
+}
+
+MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                                      ConstVectorRef p, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  doublePass(I, P, t, y, v, w);
+  Buffers<double>& B = w.d;
+  Energies e;
+  // Kinetic: 1/2 z'^T M(z) z'.
+  generalizedForce(I, P, B, B.zd.data(), false, B.x.data(), 0.0);
+  for (int i = 0; i < I.nz; ++i) e.kinetic += 0.5 * B.zd[i] * B.x[i];
+  // Potential: strain, gravity (-m g . position of the centre of mass), springs.
+  const int o = I.base;
+  for (int i = 0; i < I.n; ++i) {
+    for (int j = 0; j < I.n; ++j) e.potential += 0.5 * B.z[o + 3 + i] * P.kee(i, j) * B.z[o + 3 + j];
+  }
+  for (int k = 0; k < I.nr; ++k) e.potential -= I.mass[k] * (I.gravity(0) * B.z[3 * k] + I.gravity(1) * B.z[3 * k + 1]);
+  {
+    double s, c;
+    dmath::sincos(B.z[o + 2], &s, &c);
+    double sw0 = P.mc(0), sw1 = P.mc(1);
+    for (int i = 0; i < I.n; ++i) {
+      sw0 += P.c1(0, i) * B.z[o + 3 + i];
+      sw1 += P.c1(1, i) * B.z[o + 3 + i];
+    }
+    // int rho (R + A w) . g = m R . g + (A s_w) . g
+    e.potential -= P.mass() * (I.gravity(0) * B.z[o] + I.gravity(1) * B.z[o + 1]) +
+                   (c * sw0 - s * sw1) * I.gravity(0) + (s * sw0 + c * sw1) * I.gravity(1);
+  }
+  double cc, ccd;
+  I.chord(B, true, cc, ccd, 0.0);
+  Pt<double> pa, pb;
+  for (const SpringRef& sp : I.springs) {
+    I.point(sp.p1, B, true, cc, ccd, 0.0, pa);
+    I.point(sp.p2, B, true, cc, ccd, 0.0, pb);
+    const double d0 = pb.P[0] - pa.P[0], d1 = pb.P[1] - pa.P[1];
+    const double l = std::sqrt(d0 * d0 + d1 * d1);
+    const double ld = (d0 * (pb.Pd[0] - pa.Pd[0]) + d1 * (pb.Pd[1] - pa.Pd[1])) / l;
+    e.potential += 0.5 * sp.stiffness * (l - sp.restLength) * (l - sp.restLength);
+    e.dissipation += sp.damping * ld * ld;
+  }
+  // The constraint forces: F + Phi_z^T lambda = 0 on the dependent rows gives lambda; their power is
+  // -z'^T Phi_z^T lambda = lambda^T Phi_t (only drivers have Phi_t).
+  residualFromKinematics(I, P, B, a, 0);
+  // Phi_u^T lambda = -F_u: solve with the transpose of the LU (small; form Phi_u^T explicitly).
+  Matrix phiU(I.m, I.m);
+  for (int j = 0; j < I.m; ++j) {
+    for (int i = 0; i < I.m; ++i) phiU(i, j) = B.jac[i + I.m * I.dependent[j]];
+  }
+  Vector rhs(I.m);
+  for (int i = 0; i < I.m; ++i) rhs(i) = -B.F[I.dependent[i]];
+  const Vector lam = phiU.transpose().partialPivLu().solve(rhs);
+  for (int i = 0; i < I.m; ++i) e.drivePower += lam(i) * B.phit[i];
+  return e;
+}
+
+}  // namespace hindsight::mechanism

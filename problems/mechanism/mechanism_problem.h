@@ -1,0 +1,112 @@
+// The equations of motion of a planar mechanism (problems/mechanism/mechanism.h) with one flexible
+// member in the floating frame of reference, as a SecondOrderProblem in minimal coordinates, so that
+// every integrator, storage strategy, adjoint route and objective of the engine applies unchanged
+// (docs/design.md §10).
+//
+// Coordinates. z = (x, y, theta of every rigid body; x, y, beta, q of the member), q the modal
+// coordinates (the rod's modal basis, problems/rod/modal_reduction.h). The minimal coordinates are
+// y = (the listed free rigid coordinates, q); the other rigid coordinates u are dependent and solved
+// from the joints' and drivers' constraints Phi(z, t) = 0 by Newton's method. Velocities and
+// accelerations follow from Phi_z z' + Phi_t = 0 and Phi_z z'' + gamma(z, z', t) = 0:
+//   z' = R y' - (Phi_u^{-1} Phi_t),  z'' = R y'' + zeta,  R = [I; -Phi_u^{-1} Phi_y] (rows by index).
+// The residual is d'Alembert's principle projected on the admissible virtual displacements,
+//   r(t, y, y', y'', p) = R^T (M(z) z'' - Q(z, z', t)),
+// with M, Q of the member from its inertia invariants (the quadratic velocity terms of the floating
+// frame), rigid bodies' m and J, gravity, the elastic K_ee q and the springs. This is the choice of
+// Lauss et al. ("The discrete adjoint method for parameter identification in multibody system
+// dynamics", 2018) for minimal coordinates with closed loops: the engine's discrete adjoints of
+// every integrator stay exact, at the price of a small Newton solve per evaluation. An index-3 DAE with
+// generalized-alpha (Arnold & Bruls) would need a second adjoint for the constraint forces.
+//
+// Derivatives are exact. The dependent coordinates' derivatives come from the implicit-function
+// theorem: one Newton correction in forward-mode dual numbers at the converged point,
+// u = u* - Phi_u(z*)^{-1} Phi(z), has the value u* and the derivative -Phi_u^{-1} Phi_y. Everything
+// after it (R, zeta, M, Q, r) is evaluated in the same dual numbers (Eigen AutoDiffScalar with a
+// fixed-capacity derivative vector: nothing allocated per call), which gives r_y, r_y' and, with b
+// seeded, the derivative in the member's joint displacement row b. The rest of the parameter product
+// (r_p)^T mu is linear in the invariants and written out by hand.
+//
+// Determinism. Newton starts from the configuration of the workspace's previous call (continuation
+// from it when the motion since then is large), so its converged bits would depend on the history of
+// calls. After convergence the dependent coordinates are rounded to a grid of 2^-20 and three Newton
+// steps are taken from there: the result is a function of (t, y) alone (unless two solutions lie within
+// 1e-16 of a grid midpoint), so every storage strategy and thread count gets the same bits.
+//
+// Parameters p: the member's invariants in the layout of problems/rod/invariants.h (b = the u_x row of
+// the modes at B, which is how the member's B attaches), so problems/rod/design_gradient.h chains
+// dpsi/dp to the element densities. The objective is psi1 = int q^T K_ee q dt as for the built-in model.
+#pragma once
+
+#include <hindsight/engine/second_order_problem.h>
+#include <hindsight/problems/mechanism/mechanism.h>
+
+#include <memory>
+
+namespace hindsight::mechanism {
+
+class MechanismProblem final : public SecondOrderProblem {
+ public:
+  static constexpr int kMaxModes = 40;
+  static constexpr int kMaxFree = 6;
+  /// Validates the description (std::invalid_argument naming the element) and assembles it at t = 0
+  /// (std::invalid_argument when the initial positions cannot be assembled or the constraints are
+  /// redundant there).
+  MechanismProblem(const Mechanism& mechanism, int modeCount);
+  ~MechanismProblem() override;
+
+  std::string name() const override { return "mechanism"; }
+  int coordinateCount() const override;
+  int parameterSize() const override;
+  int modeCount() const { return modes_; }
+  int freeCount() const;
+  const Mechanism& mechanism() const { return mechanism_; }
+  /// Size of z (3 per rigid body, 3 + n for the member).
+  int fullCoordinateCount() const;
+  /// Offset of the member's (x, y, beta) in z (q follow).
+  int memberOffset() const;
+
+  std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
+  void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
+  void massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
+                  ProblemWorkspace* ws) const override;
+  void force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+             ProblemWorkspace* ws) const override;
+  void massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, MatrixRef mass,
+                          VectorRef f, ProblemWorkspace* ws) const override;
+  void residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                         MatrixRef ry, MatrixRef rv, ProblemWorkspace* ws) const override;
+  void addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                               ProblemWorkspace* ws) const override;
+  double integrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                   ProblemWorkspace* ws) const override;
+  void addIntegrandStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, double scale,
+                                 VectorRef gy, VectorRef gv, ProblemWorkspace* ws) const override;
+  void addIntegrandParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                     double scale, VectorRef gp, ProblemWorkspace* ws) const override;
+
+  // ---- Diagnostics and tests. ----
+  /// r = M a - f.
+  void residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p, VectorRef r,
+                ProblemWorkspace* ws) const;
+  /// z(t, y) and z'(t, y, y').
+  void coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef z, VectorRef zDot,
+                   ProblemWorkspace* ws) const;
+  struct Energies {
+    double kinetic = 0.0;    ///< 1/2 z'^T M(z) z'
+    double potential = 0.0;  ///< strain 1/2 q^T K_ee q + gravity + springs
+    double drivePower = 0.0; ///< power of the drivers' constraint forces at the acceleration a
+    double dissipation = 0.0;///< power dissipated by the dampers (>= 0)
+  };
+  Energies energies(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                    ProblemWorkspace* ws) const;
+
+  struct Impl;
+
+ private:
+  Mechanism mechanism_;
+  int modes_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hindsight::mechanism

@@ -1,0 +1,119 @@
+// The `mechanism` section of the configuration: the examples read and write back, bad descriptions are
+// named, the described slider-crank gives the built-in model's psi1, psi2 and design gradients, and the
+// four-bar's design gradient matches central differences of psi1.
+#include <hindsight/problems/mechanism/mechanism_json.h>
+#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/rod/piston_rod.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <string>
+
+namespace hindsight {
+namespace {
+
+std::string example(const std::string& name) { return std::string(HINDSIGHT_EXAMPLES_DIR) + "/mechanisms/" + name; }
+
+void coarsen(Config& c) {
+  applySetting(c, "rod.elementsAlongLength=20", false);
+  applySetting(c, "rod.elementsThroughHeight=4", false);
+  applySetting(c, "rod.modeCount=4", false);
+  c.validate();
+}
+
+TEST(MechanismConfig, ExamplesReadAndWriteBack) {
+  for (const char* name : {"slider_crank.json", "slider_crank_mass.json", "four_bar.json"}) {
+    const Config c = readConfigFile(example(name));
+    ASSERT_TRUE(c.mechanism.has_value()) << name;
+    const Config again = configFromJson(toJson(c));
+    EXPECT_EQ(toJson(again).dump(), toJson(c).dump()) << name;
+  }
+}
+
+void expectMessage(const std::function<void(nlohmann::json&)>& edit, const std::string& expected) {
+  std::ifstream in(example("four_bar.json"));
+  nlohmann::json j = nlohmann::json::parse(in);
+  edit(j);
+  try {
+    configFromJson(j);
+    ADD_FAILURE() << "accepted; expected: " << expected;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+  }
+}
+
+TEST(MechanismConfig, BadDescriptionsAreNamed) {
+  expectMessage([](auto& j) { j["mechanism"]["joints"][1]["type"] = "hinge"; },
+                "mechanism.joints[crankPin].type = 'hinge' must be one of: revolute, prismatic, fixed");
+  expectMessage([](auto& j) { j["mechanism"]["joints"][1]["body2"] = "coupla"; },
+                "mechanism.joints[crankPin].body2 = 'coupla' is not a body; bodies: ground, crank, rocker, coupler");
+  expectMessage([](auto& j) { j["mechanism"]["joints"][0]["point1"] = "X"; },
+                "mechanism.joints[crankBearing].point1 = 'X' is not a point of body 'ground'; its points: O2, O4");
+  expectMessage([](auto& j) { j["mechanism"]["rigidBodies"][1]["mass"] = -1.0; },
+                "mechanism.rigidBodies[rocker].mass = -1 is outside the allowed range [0, inf)");
+  expectMessage([](auto& j) { j["mechanism"]["drivers"].clear(); },
+                "so mechanism.free must list 1 coordinate(s), not 0");
+  expectMessage([](auto& j) { j["mechanism"]["drivers"][0]["law"] = "sine"; },
+                "mechanism.drivers[motor].law = 'sine' must be one of: cycloidal-ramp, constant-speed");
+  expectMessage([](auto& j) { j["mechanism"]["drivers"][0]["rampTime"] = 0.0; },
+                "mechanism.drivers[motor].rampTime = 0 is outside the allowed range (0, inf)");
+  expectMessage([](auto& j) { j["mechanism"]["joints"][0]["colour"] = "red"; },
+                "mechanism.joints[crankBearing].colour is not a field");
+  expectMessage([](auto& j) { j["mechanism"]["rigidBodies"][0]["name"] = "rocker"; },
+                "mechanism.rigidBodies[rocker].name = 'rocker' is used twice");
+  expectMessage([](auto& j) { j["simulation"]["model"] = "full"; }, "with a mechanism section it must be reduced");
+  // Positions that cannot be assembled at t = 0 (the rocker far too short to reach the coupler).
+  expectMessage(
+      [](auto& j) {
+        j["mechanism"]["rigidBodies"][1]["points"]["pin"] = {0.01, 0.0};
+        j["mechanism"]["rigidBodies"][1]["points"]["O4"] = {-0.01, 0.0};
+      },
+      "mechanism: the initial positions do not assemble at t = 0");
+}
+
+TEST(MechanismConfig, DescribedSliderCrankGivesTheBuiltInPsiAndGradients) {
+  Config builtIn;
+  coarsen(builtIn);
+  Config described = readConfigFile(example("slider_crank.json"));
+  coarsen(described);
+  const PistonRod a(builtIn), b(described);
+  const PistonRodEvaluation ea = a.evaluate(a.initialDesign()), eb = b.evaluate(b.initialDesign());
+  EXPECT_NEAR(eb.psi1, ea.psi1, 1e-10 * ea.psi1);
+  EXPECT_NEAR(eb.psi2, ea.psi2, 1e-10 * ea.psi2);
+  EXPECT_LT((eb.dpsi1 - ea.dpsi1).norm(), 1e-10 * ea.dpsi1.norm());
+  EXPECT_LT((eb.dpsi2 - ea.dpsi2).norm(), 1e-10 * ea.dpsi2.norm());
+}
+
+TEST(MechanismConfig, FourBarDesignGradientMatchesCentralDifferences) {
+  Config c = readConfigFile(example("four_bar.json"));
+  coarsen(c);
+  applySetting(c, "rod.rampTime=0.5", false);
+  applySetting(c, "rod.endTime=0.8", false);
+  applySetting(c, "rod.modeCount=3", false);
+  c.validate();
+  const PistonRod rod(c);
+  PistonRod::Request onlyPsi1;
+  onlyPsi1.psi2 = false;
+  onlyPsi1.psi2Gradient = false;
+  Vector x = rod.initialDesign();
+  for (int i = 0; i < x.size(); ++i) x(i) = 0.4 + 0.3 * std::sin(1.7 * i);
+  const PistonRodEvaluation e = rod.evaluate(x, onlyPsi1);
+  ASSERT_GT(e.psi1, 0.0);
+  PistonRod::Request value = onlyPsi1;
+  value.psi1Gradient = false;
+  const double scale = e.dpsi1.cwiseAbs().maxCoeff();
+  for (int d : {0, 9, 30, 47, 71}) {
+    const double h = 1e-5;
+    Vector plus = x, minus = x;
+    plus(d) += h;
+    minus(d) -= h;
+    const double fd = (rod.evaluate(plus, value).psi1 - rod.evaluate(minus, value).psi1) / (2 * h);
+    EXPECT_NEAR(e.dpsi1(d), fd, 1e-5 * scale + 1e-5 * std::abs(fd)) << "design variable " << d;
+  }
+}
+
+}  // namespace
+}  // namespace hindsight

@@ -1,0 +1,387 @@
+// The described slider-crank against the built-in model (problems/rod/slider_crank.h, itself checked
+// against Lagrange's equations of the nodal kinetic energy), and every derivative of the generic
+// mechanism equations against finite differences, on a synthetic member (tests/support/synthetic_rod.h).
+#include <hindsight/problems/mechanism/mechanism_problem.h>
+
+#include <hindsight/problems/mechanism/mechanism_json.h>
+
+#include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/gradient_checker.h>
+#include <hindsight/problems/rod/slider_crank.h>
+#include "support/synthetic_rod.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <random>
+
+namespace hindsight::mechanism {
+namespace {
+
+using testing::SyntheticRod;
+
+struct State {
+  State(int f, unsigned seed, int freeCount = 0) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    y = Vector::NullaryExpr(f, [&] { return 0.01 * u(rng); });
+    v = Vector::NullaryExpr(f, [&] { return 0.5 * u(rng); });
+    a = Vector::NullaryExpr(f, [&] { return 20.0 * u(rng); });
+    mu = Vector::NullaryExpr(f, [&] { return u(rng); });
+    for (int i = 0; i < freeCount; ++i) y(i) = 0.3 + 0.2 * u(rng);
+  }
+  Vector y, v, a, mu;
+};
+
+Vector residualOf(const MechanismProblem& problem, ProblemWorkspace* ws, double t, const Vector& y, const Vector& v,
+                  const Vector& a, const Vector& p) {
+  Vector r(y.size());
+  problem.residual(t, y, v, a, p, r, ws);
+  return r;
+}
+
+TEST(MechanismSliderCrank, EqualsTheBuiltInModelTermByTerm) {
+  const int n = 4;
+  const SyntheticRod body(n, 1.0, 7);
+  const Vector p = body.invariants();
+  const rod::CrankMotion crank;
+  const rod::SliderCrankProblem builtIn(n, 1.0, crank);
+  const MechanismProblem described(sliderCrank(crank.radius, 1.0, crank.omega, crank.rampTime), n);
+  ASSERT_EQ(described.coordinateCount(), n);
+  ASSERT_EQ(described.parameterSize(), builtIn.parameterSize());
+  auto wb = builtIn.createModelWorkspace();
+  auto wd = described.createModelWorkspace();
+  const State s(n, 8);
+  for (double t : {0.37, 1.3, 2.6, 2.95}) {
+    Vector rb(n), rd(n);
+    builtIn.residual(t, s.y, s.v, s.a, p, rb, wb.get());
+    described.residual(t, s.y, s.v, s.a, p, rd, wd.get());
+    EXPECT_LT((rb - rd).norm(), 1e-12 * rb.norm()) << "t = " << t << "\n" << rb.transpose() << "\n" << rd.transpose();
+    Matrix mb(n, n), md(n, n);
+    Vector fb(n), fd(n);
+    builtIn.massMatrixAndForce(t, s.y, s.v, p, mb, fb, wb.get());
+    described.massMatrixAndForce(t, s.y, s.v, p, md, fd, wd.get());
+    EXPECT_LT((mb - md).norm(), 1e-12 * mb.norm()) << "t = " << t;
+    EXPECT_LT((fb - fd).norm(), 1e-12 * fb.norm()) << "t = " << t;
+    Matrix ryb(n, n), rvb(n, n), ryd(n, n), rvd(n, n);
+    builtIn.residualJacobians(t, s.y, s.v, s.a, p, ryb, rvb, wb.get());
+    described.residualJacobians(t, s.y, s.v, s.a, p, ryd, rvd, wd.get());
+    EXPECT_LT((ryb - ryd).norm(), 1e-10 * ryb.norm()) << "t = " << t;
+    EXPECT_LT((rvb - rvd).norm(), 1e-10 * rvb.norm()) << "t = " << t;
+    Vector gb = Vector::Zero(p.size()), gd = Vector::Zero(p.size());
+    builtIn.addResidualParameterVjp(t, s.y, s.v, s.a, p, s.mu, gb, wb.get());
+    described.addResidualParameterVjp(t, s.y, s.v, s.a, p, s.mu, gd, wd.get());
+    EXPECT_LT((gb - gd).norm(), 1e-10 * gb.norm()) << "t = " << t;
+    EXPECT_DOUBLE_EQ(builtIn.integrand(t, s.y, s.v, p, wb.get()), described.integrand(t, s.y, s.v, p, wd.get()));
+  }
+}
+
+TEST(MechanismSliderCrank, SimulationAndAdjointGradientEqualTheBuiltInModel) {
+  const int n = 3;
+  const SyntheticRod body(n, 1.0, 7);
+  const Vector p = body.invariants();
+  const rod::CrankMotion crank;
+  const rod::SliderCrankProblem builtIn(n, 1.0, crank);
+  const MechanismProblem described(sliderCrank(crank.radius, 1.0, crank.omega, crank.rampTime), n);
+  IntegratorOptions options;
+  options.method = "generalized-alpha";
+  options.t1 = 1.0;
+  options.step = 2e-3;
+  FullStorage sb, sd;
+  const GradientResult b = computeGradient(builtIn, p, options, sb);
+  const GradientResult d = computeGradient(described, p, options, sd);
+  EXPECT_NEAR(d.objective, b.objective, 1e-11 * b.objective);
+  EXPECT_LT((d.gradient - b.gradient).norm(), 1e-10 * b.gradient.norm());
+}
+
+}  // namespace
+}  // namespace hindsight::mechanism
+
+namespace hindsight::mechanism {
+namespace {
+
+Mechanism fromExample(const std::string& file, double length = 1.0) {
+  std::ifstream in(std::string(HINDSIGHT_EXAMPLES_DIR) + "/mechanisms/" + file);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  return mechanismFromJson(j.at("mechanism"), length);
+}
+
+/// The slider-crank with a free crank (no driver): a crank with inertia, the slider with mass held
+/// by a spring-damper to the ground, gravity. Exercises free coordinates, springs and gravity.
+Mechanism freeSliderCrank() {
+  Mechanism m = fromExample("slider_crank_mass.json");
+  m.drivers.clear();
+  m.rigidBodies[0].inertia = 0.05;
+  m.rigidBodies[0].mass = 0.5;
+  m.addFree("crank", CoordinateKind::Angle, 2.0);
+  m.addGroundPoint("anchor", Vec2(2.0, 0.3));
+  m.addSpring(Spring{"return", "ground", "anchor", "slider", "center", 400.0, 0.5, 3.0});
+  m.gravity = Vec2(0.0, -9.81);
+  return m;
+}
+
+/// Nodal kinetic energy of the synthetic member plus the rigid bodies' (independent of the model's
+/// invariants and inertia forces), and the potential energy from the nodal masses.
+struct NodalEnergy {
+  const SyntheticRod& body;
+  const MechanismProblem& problem;
+  double kinetic(const Vector& z, const Vector& zd) const {
+    const int o = problem.memberOffset(), n = problem.modeCount();
+    const double c = std::cos(z(o + 2)), s = std::sin(z(o + 2));
+    const Eigen::Vector2d local(c * zd(o) + s * zd(o + 1), -s * zd(o) + c * zd(o + 1));
+    const Vector w = body.X + body.phi * z.segment(o + 3, n);
+    const Vector W = body.ex * local(0) + body.ey * local(1) + zd(o + 2) * SyntheticRod::rotateNodewise(w) +
+                     body.phi * zd.segment(o + 3, n);
+    double t = 0.5 * W.dot(body.mass * W);
+    const auto& bodies = problem.mechanism().rigidBodies;
+    for (std::size_t k = 0; k < bodies.size(); ++k) {
+      t += 0.5 * bodies[k].mass * zd.segment<2>(3 * k).squaredNorm() + 0.5 * bodies[k].inertia * zd(3 * k + 2) * zd(3 * k + 2);
+    }
+    return t;
+  }
+  double potential(const Vector& z) const {
+    const int o = problem.memberOffset(), n = problem.modeCount();
+    const Vector q = z.segment(o + 3, n);
+    double v = 0.5 * q.dot(body.kee * q);
+    const Vec2 g = problem.mechanism().gravity;
+    const double c = std::cos(z(o + 2)), s = std::sin(z(o + 2));
+    const Vector w = body.X + body.phi * q;
+    Vector r(w.size());
+    for (int k = 0; k < w.size() / 2; ++k) {
+      r(2 * k) = z(o) + c * w(2 * k) - s * w(2 * k + 1);
+      r(2 * k + 1) = z(o + 1) + s * w(2 * k) + c * w(2 * k + 1);
+    }
+    const Vector gravity = body.ex * g(0) + body.ey * g(1);
+    v -= gravity.dot(body.mass * r);
+    const auto& bodies = problem.mechanism().rigidBodies;
+    for (std::size_t k = 0; k < bodies.size(); ++k) v -= bodies[k].mass * g.dot(z.segment<2>(3 * k));
+    for (const Spring& sp : problem.mechanism().springs) {
+      // Only ground-to-rigid-body springs in these tests.
+      const auto& ground = problem.mechanism().groundPoints;
+      int k = 0;
+      for (std::size_t i = 0; i < bodies.size(); ++i) {
+        if (bodies[i].name == sp.body2) k = static_cast<int>(i);
+      }
+      const double a = z(3 * k + 2);
+      const Vec2 local = bodies[k].points.at(sp.point2);
+      const Vec2 p2 = z.segment<2>(3 * k) + Eigen::Rotation2Dd(a) * local;
+      const double l = (p2 - ground.at(sp.point1)).norm();
+      v += 0.5 * sp.stiffness * (l - sp.restLength) * (l - sp.restLength);
+    }
+    return v;
+  }
+};
+
+struct Case {
+  Case(const Mechanism& m, int modes, unsigned seed)
+      : body(modes, 1.0, seed), problem(m, modes), p(body.invariants()), ws(problem.createModelWorkspace()),
+        s(problem.coordinateCount(), seed + 1, problem.freeCount()) {}
+  Vector residual(double t, const Vector& y, const Vector& v, const Vector& a, const Vector& pp) const {
+    return residualOf(problem, ws.get(), t, y, v, a, pp);
+  }
+  SyntheticRod body;
+  MechanismProblem problem;
+  Vector p;
+  std::unique_ptr<ProblemWorkspace> ws;
+  State s;
+};
+
+void checkDerivatives(Case& c, const std::vector<double>& times) {
+  const int f = c.problem.coordinateCount();
+  for (double t : times) {
+    Matrix ry(f, f), rv(f, f);
+    c.problem.residualJacobians(t, c.s.y, c.s.v, c.s.a, c.p, ry, rv, c.ws.get());
+    for (int i = 0; i < f; ++i) {
+      const auto yCheck = checkGradient([&](const Vector& x) { return c.residual(t, x, c.s.v, c.s.a, c.p)(i); },
+                                        c.s.y, ry.row(i).transpose(), {1e-6});
+      EXPECT_TRUE(yCheck.passed) << "t = " << t << ", row " << i << " of r_y: " << yCheck.message;
+      // r is quadratic in y' (z' is linear in it, zeta quadratic), so a large central-difference step is
+      // exact and avoids round-off.
+      GradientCheckOptions quadratic;
+      quadratic.tolerance = 1e-7;
+      quadratic.relativeStep = 1e-2;
+      const auto vCheck = checkGradient([&](const Vector& x) { return c.residual(t, c.s.y, x, c.s.a, c.p)(i); },
+                                        c.s.v, rv.row(i).transpose(), quadratic);
+      EXPECT_TRUE(vCheck.passed) << "t = " << t << ", row " << i << " of r_v: " << vCheck.message;
+    }
+    Vector vjp = Vector::Zero(c.p.size());
+    c.problem.addResidualParameterVjp(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, vjp, c.ws.get());
+    const auto pCheck = checkGradient([&](const Vector& x) { return c.s.mu.dot(c.residual(t, c.s.y, c.s.v, c.s.a, x)); },
+                                      c.p, vjp, {1e-6, 1e-6});
+    EXPECT_TRUE(pCheck.passed) << "t = " << t << ": " << pCheck.message;
+    // The mass matrix is the acceleration part of the residual, the force minus its rest.
+    Matrix mass(f, f);
+    Vector force(f);
+    c.problem.massMatrixAndForce(t, c.s.y, c.s.v, c.p, mass, force, c.ws.get());
+    const Vector r = c.residual(t, c.s.y, c.s.v, c.s.a, c.p);
+    EXPECT_LT((mass * c.s.a - force - r).norm(), 1e-11 * r.norm()) << "t = " << t;
+    EXPECT_LT((mass - mass.transpose()).norm(), 1e-14 * mass.norm());
+  }
+}
+
+/// Lagrange's equations of L = T - V in the minimal coordinates, T and V from the nodal masses, by
+/// finite differences; z(t, y) and z'(t, y, y') from the model's position and velocity kinematics.
+double lagrangeResidual(Case& c, double t) {
+  const int f = c.problem.coordinateCount(), nz = c.problem.fullCoordinateCount();
+  const NodalEnergy energy{c.body, c.problem};
+  auto T = [&](double tt, const Vector& y, const Vector& v) {
+    Vector z(nz), zd(nz);
+    c.problem.coordinates(tt, y, v, c.p, z, zd, c.ws.get());
+    return energy.kinetic(z, zd);
+  };
+  auto V = [&](double tt, const Vector& y) {
+    Vector z(nz), zd(nz);
+    c.problem.coordinates(tt, y, Vector::Zero(f), c.p, z, zd, c.ws.get());
+    return energy.potential(z);
+  };
+  auto dTdv = [&](double tt, const Vector& y, const Vector& v) {
+    Vector g(f);
+    for (int i = 0; i < f; ++i) {
+      Vector plus = v, minus = v;
+      plus(i) += 1e-3;
+      minus(i) -= 1e-3;
+      g(i) = (T(tt, y, plus) - T(tt, y, minus)) / 2e-3;
+    }
+    return g;
+  };
+  const Vector &y = c.s.y, &v = c.s.v, &a = c.s.a;
+  Vector dLdy(f);
+  for (int i = 0; i < f; ++i) {
+    Vector plus = y, minus = y;
+    plus(i) += 1e-6;
+    minus(i) -= 1e-6;
+    dLdy(i) = (T(t, plus, v) - V(t, plus) - T(t, minus, v) + V(t, minus)) / 2e-6;
+  }
+  const double d = 1e-4;
+  const Vector ddt = (dTdv(t + d, y + d * v + 0.5 * d * d * a, v + d * a) -
+                      dTdv(t - d, y - d * v + 0.5 * d * d * a, v - d * a)) / (2 * d);
+  const Vector lagrange = ddt - dLdy;
+  const Vector r = c.residual(t, y, v, a, c.p);
+  return (lagrange - r).norm() / r.norm();
+}
+
+TEST(MechanismFourBar, RigidLimitFollowsTheClosedFormKinematics) {
+  Case c(fromExample("four_bar.json"), 3, 11);
+  const int nz = c.problem.fullCoordinateCount(), o = c.problem.memberOffset();
+  const double a = 0.15, L = 1.0, rocker = 0.6, ground = 0.9;
+  const DriverLaw law = c.problem.mechanism().drivers[0].law;
+  for (double t : {0.0, 0.7, 1.6, 2.3, 2.9}) {
+    Vector z(nz), zd(nz);
+    const Vector y = Vector::Zero(3), v = Vector::Zero(3);
+    c.problem.coordinates(t, y, v, c.p, z, zd, c.ws.get());
+    double phi, phiDot, phiDdot;
+    law.at(t, phi, phiDot, phiDdot);
+    // Circle intersection of |B - A| = L and |B - O4| = rocker, on the upper branch.
+    auto closed = [&](double angle, double& beta, double& psi) {
+      const Eigen::Vector2d A(a * std::cos(angle), a * std::sin(angle)), O4(ground, 0.0);
+      const Eigen::Vector2d e = O4 - A;
+      const double dist = e.norm();
+      const double along = (L * L - rocker * rocker + dist * dist) / (2 * dist);
+      const double across = std::sqrt(L * L - along * along);
+      const Eigen::Vector2d B = A + along * e / dist + across * Eigen::Vector2d(-e(1), e(0)) / dist;
+      beta = std::atan2(B(1) - A(1), B(0) - A(0));
+      psi = std::atan2(B(1) - O4(1), B(0) - O4(0));
+    };
+    double beta, psi;
+    closed(phi, beta, psi);
+    const double wrap = 2 * M_PI;
+    EXPECT_NEAR(std::remainder(z(o + 2) - beta, wrap), 0.0, 1e-12) << "t = " << t;
+    EXPECT_NEAR(std::remainder(z(5) - psi, wrap), 0.0, 1e-12) << "t = " << t;
+    // Velocities by central differences of the closed form in the crank angle.
+    double bp, pp, bm, pm;
+    closed(phi + 1e-6, bp, pp);
+    closed(phi - 1e-6, bm, pm);
+    EXPECT_NEAR(zd(o + 2), (bp - bm) / 2e-6 * phiDot, 1e-7 * (1.0 + std::abs(phiDot))) << "t = " << t;
+    EXPECT_NEAR(zd(5), (pp - pm) / 2e-6 * phiDot, 1e-7 * (1.0 + std::abs(phiDot))) << "t = " << t;
+  }
+}
+
+TEST(MechanismFourBar, DerivativesMatchFiniteDifferences) {
+  Case c(fromExample("four_bar.json"), 3, 12);
+  checkDerivatives(c, {0.6, 2.4});
+}
+
+TEST(MechanismFreeSliderCrank, DerivativesMatchFiniteDifferences) {
+  Case c(freeSliderCrank(), 3, 13);
+  ASSERT_EQ(c.problem.freeCount(), 1);
+  checkDerivatives(c, {0.3, 1.1});
+}
+
+TEST(MechanismFourBar, ResidualSatisfiesLagrangesEquationsOfTheNodalEnergies) {
+  Case c(fromExample("four_bar.json"), 3, 14);
+  for (double t : {0.5, 2.5}) {
+    const double relative = lagrangeResidual(c, t);
+    std::cout << "[ Lagrange four-bar ] t = " << t << ": relative residual " << relative << "\n";
+    EXPECT_LT(relative, 1e-5) << "t = " << t;
+  }
+}
+
+TEST(MechanismFreeSliderCrank, ResidualSatisfiesLagrangesEquationsOfTheNodalEnergies) {
+  Mechanism m = freeSliderCrank();
+  m.springs[0].damping = 0.0;  // Lagrange's equations of T - V (a damper is not in V)
+  Case c(m, 3, 15);
+  for (double t : {0.4, 1.9}) {
+    const double relative = lagrangeResidual(c, t);
+    std::cout << "[ Lagrange free slider-crank ] t = " << t << ": relative residual " << relative << "\n";
+    EXPECT_LT(relative, 1e-5) << "t = " << t;
+  }
+}
+
+/// Driver work = change of kinetic + potential energy + dissipated energy along an rk4 trajectory
+/// (trapezoidal rule on the powers).
+void checkEnergyBalance(Case& c, double t1, double tolerance) {
+  IntegratorOptions options;
+  options.method = "rk4";
+  options.t1 = t1;
+  options.step = 2.5e-4;
+  const int f = c.problem.coordinateCount();
+  std::vector<std::pair<double, Vector>> states;
+  simulate(c.problem, c.p, options, [&](std::int64_t, double t, ConstVectorRef z) { states.emplace_back(t, z); });
+  double work = 0.0, dissipated = 0.0, e0 = 0.0, e1 = 0.0, previousPower = 0.0, previousLoss = 0.0, scale = 0.0;
+  Matrix mass(f, f);
+  Vector force(f);
+  for (std::size_t k = 0; k < states.size(); ++k) {
+    const double t = states[k].first;
+    const Vector y = states[k].second.head(f), v = states[k].second.tail(f);
+    c.problem.massMatrixAndForce(t, y, v, c.p, mass, force, c.ws.get());
+    const Vector a = mass.llt().solve(force);
+    const auto e = c.problem.energies(t, y, v, a, c.p, c.ws.get());
+    if (k == 0) e0 = e.kinetic + e.potential;
+    e1 = e.kinetic + e.potential;
+    scale = std::max(scale, e.kinetic);
+    if (k > 0) {
+      const double h = t - states[k - 1].first;
+      work += 0.5 * h * (previousPower + e.drivePower);
+      dissipated += 0.5 * h * (previousLoss + e.dissipation);
+    }
+    previousPower = e.drivePower;
+    previousLoss = e.dissipation;
+  }
+  std::cout << "[ energy ] work " << work << ", dE " << e1 - e0 << ", dissipated " << dissipated << "\n";
+  EXPECT_GT(scale, 0.0);
+  EXPECT_NEAR(work, e1 - e0 + dissipated, tolerance * scale);
+}
+
+TEST(MechanismFourBar, DriverWorkEqualsTheEnergyChange) {
+  Case c(fromExample("four_bar.json"), 3, 16);
+  checkEnergyBalance(c, 1.0, 1e-5);
+}
+
+TEST(MechanismSliderCrankMass, DriverWorkEqualsTheEnergyChange) {
+  Case c(fromExample("slider_crank_mass.json"), 3, 17);
+  checkEnergyBalance(c, 1.0, 1e-5);
+}
+
+TEST(MechanismFreeSliderCrank, EnergyIsConservedUpToTheDamping) {
+  Case c(freeSliderCrank(), 3, 18);
+  checkEnergyBalance(c, 0.5, 1e-5);
+}
+
+}  // namespace
+}  // namespace hindsight::mechanism
