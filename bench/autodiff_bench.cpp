@@ -1,9 +1,9 @@
 // What AutoDiffProblem costs against hand-written derivatives, on the damped pendulum. Argument 0:
 // the library's hand-derived Pendulum (second-order adapter: M, f and the residual Jacobians, M^{-1}
-// through a Cholesky factor); 1: AutoDiffPendulum (one templated functor, problems/classic/classic_problems.h);
-// 2: the same first-order equations with hand-written derivatives and no adapter (below), which
-// isolates the cost of the automatic differentiation itself. All are called through Problem&, as
-// the engine calls them; the Gradient runs report psi and dpsi/dm so that agreement can be seen.
+// through a Cholesky factor); 1: AutoDiffPendulum (one templated functor,
+// problems/classic/classic_problems.h); 2: the same first-order equations with hand-written derivatives and
+// no adapter (below), which isolates the cost of the automatic differentiation itself. All are called through
+// Problem&, as the engine calls them; the Gradient runs report psi and dpsi/dm so that agreement can be seen.
 //
 // Raw calls: each iteration alternates between two states, so the adapter's per-stage cache of the
 // acceleration misses as it does for the first call at a new stage (at a stage the engine calls rhs,

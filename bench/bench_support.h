@@ -10,9 +10,9 @@
 
 #include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <benchmark/benchmark.h>
 
@@ -28,9 +28,9 @@ namespace hindsight::bench {
 /// Newton and a dense direct solver, the problem's vector-Jacobian product in the backward rhs when it
 /// has one); label = "cvodes-METHOD/INTERPOLATION-NdN". At CV_HERMITE, Nd 100 also the alternatives,
 /// to show what each choice costs in the same run: "cvodes-adams-aa3" (Anderson acceleration, m = 3),
-/// "cvodes-adams-newton" (Newton + dense, the configuration before the CVODES guide's advice was followed), "cvodes-adams-newton-vjp"
-/// (Newton + dense with the VJP in the backward rhs), "cvodes-METHOD-jacobian"
-/// (the dense F_z^T lambda in the backward rhs), "cvodes-bdf-gmres" (matrix-free Newton-GMRES),
+/// "cvodes-adams-newton" (Newton + dense, the configuration before the CVODES guide's advice was followed),
+/// "cvodes-adams-newton-vjp" (Newton + dense with the VJP in the backward rhs), "cvodes-METHOD-jacobian" (the
+/// dense F_z^T lambda in the backward rhs), "cvodes-bdf-gmres" (matrix-free Newton-GMRES),
 /// "cvodes-METHOD-noquaderr" (quadratures out of the error test: SUNDIALS' default errconQ = false,
 /// hindsight's default includes them).
 template <class Add>

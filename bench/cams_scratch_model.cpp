@@ -42,8 +42,8 @@ I scratchOptimum(I N, I M) {
         I b = replay(l, f), h = replay(l, f);
         if (m >= 1) {
           for (I k = 1; k < l; ++k) {
-            // The left part's last step has its stages only if x_k was advanced into just before (a right part
-            // of one step in a replay interval); the forward sweep stored x_k without advancing.
+            // The left part's last step has its stages only if x_k was advanced into just before (a right
+            // part of one step in a replay interval); the forward sweep stored x_k without advancing.
             b = std::min(b, k + at(F, f, m - 1, l - k) + at(F, l - k == 1 ? 1 : 0, m, k));
             h = std::min(h, at(H, f, m - 1, l - k) + at(F, 0, m, k));
           }
@@ -65,15 +65,16 @@ int main(int argc, char** argv) {
   }
   const I N = std::atoll(argv[1]);
   const I w = 4;  // rk4: the state and three stage states
-  std::printf("| N | C | cams (records) | scratch, same bytes | scratch, bytes for free |\n|---|---|---|---|---|\n");
+  std::printf(
+      "| N | C | cams (records) | scratch, same bytes | scratch, bytes for free |\n|---|---|---|---|---|\n");
   for (int i = 2; i < argc; ++i) {
     const I C = std::atoll(argv[i]);
     const I cams = hindsight::cams::Plan(N, C + 1, w).optimalStepEvaluations();
     const I same = scratchOptimum(N, C + 1 - 2 * (w - 1));
     const I free = scratchOptimum(N, C + 1);
-    std::printf("| %lld | %lld | %lld | %s%lld | %lld |\n", static_cast<long long>(N), static_cast<long long>(C),
-                static_cast<long long>(cams), same < 0 ? "no room " : "", static_cast<long long>(same),
-                static_cast<long long>(free));
+    std::printf("| %lld | %lld | %lld | %s%lld | %lld |\n", static_cast<long long>(N),
+                static_cast<long long>(C), static_cast<long long>(cams), same < 0 ? "no room " : "",
+                static_cast<long long>(same), static_cast<long long>(free));
   }
   return 0;
 }

@@ -9,8 +9,9 @@
 //
 // Counters: evaluations (iterations recorded, 51 for 50 updates), psi1_final and psi2_final (both objectives
 // of the final design, whichever was optimised), psi1_initial, volume_final (V/V0), backtracks (halvings
-// after a diverged simulation, see docs/tutorials/topology_optimization.md), evaluation_s and mma_s (summed over the iterations). Wall time of
-// one repetition = the whole run. Results go to /tmp/hindsight-optimize-bench/OBJECTIVE (overwritten).
+// after a diverged simulation, see docs/tutorials/topology_optimization.md), evaluation_s and mma_s (summed
+// over the iterations). Wall time of one repetition = the whole run. Results go to
+// /tmp/hindsight-optimize-bench/OBJECTIVE (overwritten).
 //
 // Run: build/bench/optimize_bench --benchmark_filter=rod_optimize/psi2
 #include <hindsight/problems/rod/config.h>

@@ -51,8 +51,9 @@ rod::SliderCrankProblem problemOf(const rod::RodConfig& rc, int columns) {
 
 void phaseTable(int largest) {
   const int meshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
-  std::printf("| mesh | designs | model | simulation (fwd+bwd) | forward alone | chain | esl | sum | integrator |\n"
-              "|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  std::printf(
+      "| mesh | designs | model | simulation (fwd+bwd) | forward alone | chain | esl | sum | integrator |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (int m = 0; m <= largest && m < 5; ++m) {
     Config config;
     config.rod.elementsAlongLength = meshes[m][0];
@@ -65,16 +66,19 @@ void phaseTable(int largest) {
     double start = cpuSeconds();
     const rod::FeModel model(rc, x);
     const rod::StiffnessFactorization stiffness(model.stiffness());
-    const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
+    const rod::ModalBasis basis =
+        rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
     const Vector p = rod::computeInvariants(model, basis).pack();
     const double modelCpu = cpuSeconds() - start;
 
     const rod::SliderCrankProblem problem = problemOf(rc, basis.columnCount());
     const int n = basis.columnCount();
     Matrix sampled = Matrix::Zero(n, rc.eslSamples);
-    const std::int64_t stride = static_cast<std::int64_t>(std::llround(options.t1 / options.step)) / rc.eslSamples;
+    const std::int64_t stride =
+        static_cast<std::int64_t>(std::llround(options.t1 / options.step)) / rc.eslSamples;
     const StateObserver observer = [&](std::int64_t step, double, ConstVectorRef z) {
-      if (step > 0 && step % stride == 0 && step / stride <= rc.eslSamples) sampled.col(step / stride - 1) = z.head(n);
+      if (step > 0 && step % stride == 0 && step / stride <= rc.eslSamples)
+        sampled.col(step / stride - 1) = z.head(n);
     };
     start = cpuSeconds();
     const ForwardResult forward = simulate(problem, p, options, observer);
@@ -121,8 +125,9 @@ void integratorTable() {
                         {"generalized-alpha", 5e-4, "full"},
                         {"generalized-alpha", 1e-3, "full"},
                         {"generalized-alpha", 2e-3, "full"}};
-  std::printf("\n| integrator | h | storage | forward CPU s | forward + backward CPU s | (fwd+bwd)/fwd | psi1 |\n"
-              "|---|---:|---|---:|---:|---:|---:|\n");
+  std::printf(
+      "\n| integrator | h | storage | forward CPU s | forward + backward CPU s | (fwd+bwd)/fwd | psi1 |\n"
+      "|---|---:|---|---:|---:|---:|---:|\n");
   for (const Case& c : cases) {
     IntegratorOptions options;
     options.method = c.method;
@@ -143,8 +148,8 @@ void integratorTable() {
       total.push_back(g);
       ratio.push_back(g / f);
     }
-    std::printf("| %s | %g | %s | %.4f | %.4f | %.2f | %.10g |\n", c.method, c.step, c.storage, median(forward),
-                median(total), median(ratio), psi1);
+    std::printf("| %s | %g | %s | %.4f | %.4f | %.2f | %.10g |\n", c.method, c.step, c.storage,
+                median(forward), median(total), median(ratio), psi1);
     std::fflush(stdout);
   }
 }

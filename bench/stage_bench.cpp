@@ -7,10 +7,10 @@
 //     step record is 4 states) from the plans, without running a model, and the time to build the plan.
 // Usage: stage_bench [max_steps_for_plans]   (default 30000)
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/engine/stopwatch.h>
-#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/cams_checkpointing.h>
+#include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
@@ -34,7 +34,9 @@ void sweepRatios() {
   options.method = "rk4";
   options.t1 = 200.0;
   options.step = 1e-3;
-  std::printf("| problem | storage | forward s | backward s | (fwd+bwd)/fwd | rhs evaluations |\n|---|---|---|---|---|---|\n");
+  std::printf(
+      "| problem | storage | forward s | backward s | (fwd+bwd)/fwd | rhs evaluations "
+      "|\n|---|---|---|---|---|---|\n");
   for (const char* spec : {"full", "full:stages=1"}) {
     std::vector<double> forward, backward, ratio;
     std::int64_t rhs = 0;
@@ -52,14 +54,17 @@ void sweepRatios() {
 }
 
 void planTable(std::int64_t maxSteps) {
-  std::printf("\n| N | C | binomial steps | cams steps | cams without records | cams / binomial | plan s |\n"
-              "|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "\n| N | C | binomial steps | cams steps | cams without records | cams / binomial | plan s |\n"
+      "|---|---|---|---|---|---|---|\n");
   for (std::int64_t n : {std::int64_t{3000}, std::int64_t{10000}, std::int64_t{30000}}) {
     if (n > maxSteps) continue;
-    for (std::int64_t c : {std::int64_t{10}, std::int64_t{20}, std::int64_t{50}, std::int64_t{100},
-                           std::int64_t{200}}) {
-      if (n * (c + 2) > cams::Plan::kMaxTableEntries || (n >= 30000 && c > 50) || (n >= 10000 && c > 100)) continue;
-      const std::int64_t binomial = n + static_cast<std::int64_t>(revolve::simulateSchedule(n, c).recomputedSteps) + n;
+    for (std::int64_t c :
+         {std::int64_t{10}, std::int64_t{20}, std::int64_t{50}, std::int64_t{100}, std::int64_t{200}}) {
+      if (n * (c + 2) > cams::Plan::kMaxTableEntries || (n >= 30000 && c > 50) || (n >= 10000 && c > 100))
+        continue;
+      const std::int64_t binomial =
+          n + static_cast<std::int64_t>(revolve::simulateSchedule(n, c).recomputedSteps) + n;
       const Stopwatch watch;
       const cams::Plan plan(n, c + 1, 4);
       const double seconds = watch.seconds();
@@ -68,7 +73,8 @@ void planTable(std::int64_t maxSteps) {
                   static_cast<long long>(c), static_cast<long long>(binomial),
                   static_cast<long long>(plan.optimalStepEvaluations()),
                   static_cast<long long>(statesOnly.optimalStepEvaluations()),
-                  static_cast<double>(plan.optimalStepEvaluations()) / static_cast<double>(binomial), seconds);
+                  static_cast<double>(plan.optimalStepEvaluations()) / static_cast<double>(binomial),
+                  seconds);
       std::fflush(stdout);
     }
   }

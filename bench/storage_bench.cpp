@@ -8,10 +8,10 @@
 // Run (see bench/RESULTS.md):
 //   ./build/bench/storage_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/engine/full_storage.h>
-#include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/online_checkpointing.h>
+#include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/storage/storage_factory.h>
 #include "bench_support.h"
 

@@ -29,7 +29,7 @@ struct EvaluateSettings {
   bool json = false;
   bool printConfig = false;
   bool rodOnly = false;  // evaluate the rod section of a configuration with scenarios
-  int threads = 0;  // 0: not given, the cores available
+  int threads = 0;       // 0: not given, the cores available
   CLI::Option* threadsOption = nullptr;
 };
 
@@ -100,7 +100,8 @@ void checkGradientFile(const EvaluateSettings& s) {
 
 int runEvaluate(const EvaluateSettings& s) {
   if (s.threadsOption->count() > 0 && s.threads < 1)
-    throw std::invalid_argument("--threads = " + std::to_string(s.threads) + " is outside the allowed range [1, inf)");
+    throw std::invalid_argument("--threads = " + std::to_string(s.threads) +
+                                " is outside the allowed range [1, inf)");
   const ThreadLimit threads(s.threads > 0 ? s.threads : availableThreads());
   Config config = s.configFile.empty() ? Config{} : readConfigFile(s.configFile);
   // Every --set and flag first, then the checks across fields once (their order does not matter).
@@ -127,10 +128,11 @@ int runEvaluate(const EvaluateSettings& s) {
   }
   if (!config.scenarios.empty() && !s.rodOnly) {
     // evaluate runs one rod; silently evaluating the rod section would answer another question.
-    throw std::invalid_argument("config field 'scenarios' has " + std::to_string(config.scenarios.size()) +
-                                " scenarios, which evaluate does not run (it evaluates one rod): add --rod-only "
-                                "to evaluate the configuration's rod section, with --set rod.crankSpeed=... "
-                                "for one scenario's speed");
+    throw std::invalid_argument(
+        "config field 'scenarios' has " + std::to_string(config.scenarios.size()) +
+        " scenarios, which evaluate does not run (it evaluates one rod): add --rod-only "
+        "to evaluate the configuration's rod section, with --set rod.crankSpeed=... "
+        "for one scenario's speed");
   }
   checkGradientFile(s);
   const PistonRod rod(config);
@@ -212,8 +214,9 @@ void registerEvaluate(CLI::App& app) {
                "--integrator or --set simulation.integrator/step it also selects trbdf2 with h = 1e-3 s)",
                "TEXT");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
-  s->threadsOption = cmd->add_option("--threads", s->threads,
-                  "threads, >= 1 (default: the cores available); results are bitwise the same for every count");
+  s->threadsOption = cmd->add_option(
+      "--threads", s->threads,
+      "threads, >= 1 (default: the cores available); results are bitwise the same for every count");
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   cmd->add_flag("--rod-only", s->rodOnly,
                 "with a configuration that lists scenarios: evaluate its rod section (refused otherwise)");

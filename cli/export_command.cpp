@@ -28,7 +28,8 @@ struct ExportSettings {
 
 int runExport(const ExportSettings& s) {
   namespace fs = std::filesystem;
-  if (!fs::is_directory(s.directory)) throw std::invalid_argument("export: '" + s.directory + "' is not a directory");
+  if (!fs::is_directory(s.directory))
+    throw std::invalid_argument("export: '" + s.directory + "' is not a directory");
   if (!(s.iso > 0.0 && s.iso < 1.0))
     throw std::invalid_argument("--iso " + std::to_string(s.iso) + " must be in (0, 1)");
   const std::string path = (fs::path(s.directory) / "results.h5").string();
@@ -44,10 +45,11 @@ int runExport(const ExportSettings& s) {
   }
   const Config config = configFromJson(nlohmann::json::parse(data.configurationJson));
   const std::string stem =
-      !s.stem.empty() ? s.stem
-                      : (fs::path(s.directory) /
-                         (data.finished && k == rows - 1 ? "design_final" : "design_iter_" + std::to_string(k)))
-                            .string();
+      !s.stem.empty()
+          ? s.stem
+          : (fs::path(s.directory) /
+             (data.finished && k == rows - 1 ? "design_final" : "design_iter_" + std::to_string(k)))
+                .string();
   for (const char* extension : {".svg", ".dxf", ".stl"}) {
     if (!s.force && fs::exists(stem + extension))
       throw std::invalid_argument(stem + extension + " exists; use --force to overwrite it");
@@ -60,9 +62,9 @@ int runExport(const ExportSettings& s) {
   field.cellHeightMm = 1000.0 * config.rod.height / data.ny;
   const std::vector<std::string> written = exportGeometry(stem, field, s.iso, 1000.0 * config.rod.thickness);
   const Outline outline = contourOutline(field, s.iso);
-  std::cout << "iteration " << k << ", iso " << s.iso << ": " << outline.loops.size() << " outline loops, area "
-            << outline.area() << " mm^2 of " << field.nx * field.cellWidthMm * field.ny * field.cellHeightMm
-            << " mm^2\n";
+  std::cout << "iteration " << k << ", iso " << s.iso << ": " << outline.loops.size()
+            << " outline loops, area " << outline.area() << " mm^2 of "
+            << field.nx * field.cellWidthMm * field.ny * field.cellHeightMm << " mm^2\n";
   for (const std::string& file : written) std::cout << "wrote " << file << '\n';
   return 0;
 }
@@ -72,10 +74,13 @@ int runExport(const ExportSettings& s) {
 void registerExport(CLI::App& app) {
   auto s = std::make_shared<ExportSettings>();
   CLI::App* command = app.add_subcommand(
-      "export", "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL)");
-  command->add_option("directory", s->directory, "result directory (of hindsight optimize --out)")->required();
+      "export",
+      "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL)");
+  command->add_option("directory", s->directory, "result directory (of hindsight optimize --out)")
+      ->required();
   command->add_option("--iso", s->iso, "density of the contour, in (0, 1)")->capture_default_str();
-  s->iterationOption = command->add_option("--iteration", s->iteration, "iteration K of the history (default: the last)");
+  s->iterationOption =
+      command->add_option("--iteration", s->iteration, "iteration K of the history (default: the last)");
   command->add_option("--out", s->stem, "output stem (default DIR/design_final or DIR/design_iter_K)");
   command->add_flag("--force", s->force, "overwrite existing files");
   commands().push_back({command, [s] { return guarded([&] { return runExport(*s); }); }});

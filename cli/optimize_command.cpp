@@ -108,32 +108,32 @@ int runOptimize(const OptimizeSettings& s) {
         << (s.threads > 0 ? s.threads : availableThreads()) << " thread(s) per rank"
         << (threadsSupported() ? "" : " (built without TBB: 1)") << std::endl;
   }
-  out << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength
-            << " x " << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
-            << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
-            << ", filter radius " << config.optimization.filterRadius << ", move limit "
-            << config.optimization.moveLimit << "; results in " << run.resultsPath()
-            << (run.resumedIterations() > 0
-                    ? " (resumed after " + std::to_string(run.resumedIterations()) + " iterations)"
-                    : std::string())
-            << std::endl;
+  out << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength << " x "
+      << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
+      << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
+      << ", filter radius " << config.optimization.filterRadius << ", move limit "
+      << config.optimization.moveLimit << "; results in " << run.resultsPath()
+      << (run.resumedIterations() > 0
+              ? " (resumed after " + std::to_string(run.resumedIterations()) + " iterations)"
+              : std::string())
+      << std::endl;
   const OptimizationRunSummary summary = run.run(out);
   if (!summary.history.empty()) {
     const IterationRecord& first = summary.history.front();
     const IterationRecord& last = summary.history.back();
-    out << std::setprecision(6) << "psi1: " << first.psi1 << " -> " << last.psi1
-              << ", psi2: " << first.psi2 << " -> " << last.psi2 << ", V/V0 " << last.volumeFraction << "; "
-              << summary.history.size() << " evaluations, " << std::setprecision(4) << summary.wallSeconds
-              << " s in this invocation\n";
+    out << std::setprecision(6) << "psi1: " << first.psi1 << " -> " << last.psi1 << ", psi2: " << first.psi2
+        << " -> " << last.psi2 << ", V/V0 " << last.volumeFraction << "; " << summary.history.size()
+        << " evaluations, " << std::setprecision(4) << summary.wallSeconds << " s in this invocation\n";
     if (summary.finished) {
-      out << (last.converged ? "stopped by the convergence rule at iteration " + std::to_string(last.iteration)
-                             : "stopped after optimization.iterations = " +
-                                   std::to_string(config.optimization.iterations) + " updates");
+      out << (last.converged
+                  ? "stopped by the convergence rule at iteration " + std::to_string(last.iteration)
+                  : "stopped after optimization.iterations = " +
+                        std::to_string(config.optimization.iterations) + " updates");
       const int best = bestFeasibleIndex(summary.history, config);
       if (best >= 0) {
         const IterationRecord& b = summary.history[static_cast<std::size_t>(best)];
-        out << std::setprecision(6) << "; best feasible design: iteration " << b.iteration << ", psi1 " << b.psi1
-            << ", V/V0 " << b.volumeFraction;
+        out << std::setprecision(6) << "; best feasible design: iteration " << b.iteration << ", psi1 "
+            << b.psi1 << ", V/V0 " << b.volumeFraction;
       } else {
         out << "; no design met the volume bound";
       }
@@ -161,7 +161,9 @@ void registerOptimize(CLI::App& app) {
   s->flags.add(command, "--objective", "optimization.objective",
                "psi1 (integral compliance) | psi2 (equivalent static loads)", "TEXT");
   s->flags.add(command, "--iterations", "optimization.iterations",
-               "most MMA updates, in [0, 100000] (default 150; the stopping rule optimization.kktTolerance and changeTolerance usually ends the run earlier)", "INT");
+               "most MMA updates, in [0, 100000] (default 150; the stopping rule optimization.kktTolerance "
+               "and changeTolerance usually ends the run earlier)",
+               "INT");
   s->flags.add(command, "--filter-radius", "optimization.filterRadius",
                "density filter radius in elements, in [0, 1000]; 0 = none (default, the paper's choice)",
                "FLOAT");
@@ -171,9 +173,10 @@ void registerOptimize(CLI::App& app) {
                "a design picture every K iterations, K in [0, 100000]; 0 = final only", "INT");
   command->add_option("--out", s->outputDirectory, "output directory")->capture_default_str();
   command->add_flag("--resume", s->resume, "continue DIR/results.h5");
-  s->threadsOption = command->add_option("--threads", s->threads,
-                      "threads per process, >= 1 (default: the cores available); results are bitwise the same "
-                      "for every count");
+  s->threadsOption = command->add_option(
+      "--threads", s->threads,
+      "threads per process, >= 1 (default: the cores available); results are bitwise the same "
+      "for every count");
   command->add_flag("--force", s->force, "overwrite DIR/results.h5");
   commands().push_back({command, [s] { return guarded([&] { return runOptimize(*s); }); }});
 }

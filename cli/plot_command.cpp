@@ -90,7 +90,8 @@ void registerPlot(CLI::App& app) {
   command->add_option("directories", s->directories, "result directories (DIR [DIR2])")
       ->required()
       ->expected(1, 2);
-  command->add_option("--out", s->output, "PNG file (.png; not overwritten without --force)")->capture_default_str();
+  command->add_option("--out", s->output, "PNG file (.png; not overwritten without --force)")
+      ->capture_default_str();
   command->add_flag("--force", s->force, "overwrite the --out file");
   commands().push_back({command, [s] { return guarded([&] { return runPlot(*s); }); }});
 }

@@ -27,14 +27,17 @@ struct ScheduleArgs {
   bool actions = false;
 };
 
-std::string count(std::int64_t value) { return value < 0 ? std::string("not counted") : std::to_string(value); }
+std::string count(std::int64_t value) {
+  return value < 0 ? std::string("not counted") : std::to_string(value);
+}
 
 int runSchedule(const ScheduleArgs& args) {
   const std::int64_t steps = parseScheduleInteger(args.steps, "--steps", 1, kMaxScheduleSteps);
   const std::int64_t stateBytes = parseBytes(args.stateBytes, "--state-bytes");
   const int stages = static_cast<int>(parseScheduleInteger(args.stages, "--stages", 1, kMaxScheduleStages));
   std::unique_ptr<ScheduleCosts> costs;
-  if (!args.costs.empty()) costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
+  if (!args.costs.empty())
+    costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
   if (args.actions) {
     writeScheduleActions(args.storage, steps, stateBytes, stages, costs.get(), std::cout);  // validates first
     return 0;
@@ -49,14 +52,16 @@ int runSchedule(const ScheduleArgs& args) {
             << "\nsteps:             " << p.steps << " (" << p.stages << " rhs per step, states of "
             << formatBytes(stateBytes) << ")\nforward steps:     " << p.forwardSteps
             << "\nrecomputed steps:  " << p.recomputedSteps << "\nrhs evaluations:   " << p.rhsEvaluations
-            << (p.stepDataStored > 0 ? "\nstage values:      " + std::to_string(p.stepDataStored) + " step records stored, " +
-                                           std::to_string(p.stepDataRestored) + " adjoint steps served (no rhs)"
-                                     : std::string())
-            << "\nstates stored:     " << p.statesStored << "\nram:               writes " << count(p.ramWrites)
-            << ", reads " << count(p.ramReads) << ", peak " << formatBytes(p.peakRamBytes)
-            << "\ndisk:              writes " << p.diskWrites << ", reads " << p.diskReads << ", peak "
-            << formatBytes(p.peakDiskBytes) << " (uncompressed)\npredicted cost:    " << std::setprecision(6)
-            << p.totalCost << " (schedule " << p.scheduleCost << " = recomputation + disk I/O)\n";
+            << (p.stepDataStored > 0
+                    ? "\nstage values:      " + std::to_string(p.stepDataStored) + " step records stored, " +
+                          std::to_string(p.stepDataRestored) + " adjoint steps served (no rhs)"
+                    : std::string())
+            << "\nstates stored:     " << p.statesStored << "\nram:               writes "
+            << count(p.ramWrites) << ", reads " << count(p.ramReads) << ", peak "
+            << formatBytes(p.peakRamBytes) << "\ndisk:              writes " << p.diskWrites << ", reads "
+            << p.diskReads << ", peak " << formatBytes(p.peakDiskBytes)
+            << " (uncompressed)\npredicted cost:    " << std::setprecision(6) << p.totalCost << " (schedule "
+            << p.scheduleCost << " = recomputation + disk I/O)\n";
   return 0;
 }
 
@@ -65,19 +70,29 @@ int runSchedule(const ScheduleArgs& args) {
 void registerSchedule(CLI::App& app) {
   auto args = std::make_shared<ScheduleArgs>();
   CLI::App* command = app.add_subcommand(
-      "schedule", "What a storage strategy will do for N fixed steps, without running a model: recomputed "
-                  "steps, rhs evaluations, reads/writes and peak bytes per level, predicted cost");
+      "schedule",
+      "What a storage strategy will do for N fixed steps, without running a model: recomputed "
+      "steps, rhs evaluations, reads/writes and peak bytes per level, predicted cost");
   command->add_option("--storage", args->storage, "storage spec, e.g. binomial:checkpoints=50")->required();
-  command->add_option("--steps", args->steps, "number of fixed steps N, an integer in [1, 4e18] (1e9 style accepted)")->required();
-  command->add_option("--state-bytes", args->stateBytes, "bytes of one state, a multiple of 8 in [8, 16 GiB - 8] (e.g. 8000, 64KiB)")
+  command
+      ->add_option("--steps", args->steps,
+                   "number of fixed steps N, an integer in [1, 4e18] (1e9 style accepted)")
       ->required();
-  command->add_option("--stages", args->stages, "right-hand sides per step of the integrator, an integer in [1, 64] (rk4: 4)")
+  command
+      ->add_option("--state-bytes", args->stateBytes,
+                   "bytes of one state, a multiple of 8 in [8, 16 GiB - 8] (e.g. 8000, 64KiB)")
+      ->required();
+  command
+      ->add_option("--stages", args->stages,
+                   "right-hand sides per step of the integrator, an integer in [1, 64] (rk4: 4)")
       ->capture_default_str();
-  command->add_option("--costs", args->costs,
-                      "cost model uf:ub:wd:rd: seconds of a forward step, an adjoint step, a disk write and a "
-                      "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=)");
+  command->add_option(
+      "--costs", args->costs,
+      "cost model uf:ub:wd:rd: seconds of a forward step, an adjoint step, a disk write and a "
+      "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=)");
   command->add_flag("--json", args->json, "machine-readable output");
-  command->add_flag("--actions", args->actions, "print the action stream (record/restore/store/load/advance)");
+  command->add_flag("--actions", args->actions,
+                    "print the action stream (record/restore/store/load/advance)");
   commands().push_back({command, [args] { return guarded([&] { return runSchedule(*args); }); }});
 }
 

@@ -1,9 +1,9 @@
 // `hindsight verify DIR`: checks DIR/results.h5 as a resume would (problems/topopt/results_file.h:
 // Fletcher32 and content hash of every dataset, the run state's hash, the configuration fingerprint
-// the MPI ranks agreed on, plausibility of the restored design and MMA state) and prints every object checked. Exit 0 when the file is sound, 3 when it is
-// corrupted (the object named), 2 for bad input (no such directory, no results.h5 in it). It only
-// reads, so it may run beside an optimize run writing the same directory: the atomic write means it
-// sees the last complete file.
+// the MPI ranks agreed on, plausibility of the restored design and MMA state) and prints every object
+// checked. Exit 0 when the file is sound, 3 when it is corrupted (the object named), 2 for bad input (no such
+// directory, no results.h5 in it). It only reads, so it may run beside an optimize run writing the same
+// directory: the atomic write means it sees the last complete file.
 #include <hindsight/problems/topopt/results_file.h>
 #include "commands.h"
 

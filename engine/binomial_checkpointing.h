@@ -44,9 +44,9 @@
 // overflow.
 #pragma once
 
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/recomputed_stages.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <cassert>
 #include <cstdint>

@@ -16,7 +16,8 @@ namespace {
 
 std::int64_t noCheckpointCost(std::int64_t l) { return l * (l + 1) / 2; }
 
-__extension__ typedef __int128 Wide;  // exact products of table values (up to ~N^2 / 2) and segment lengths (up to N)
+__extension__ typedef __int128
+    Wide;  // exact products of table values (up to ~N^2 / 2) and segment lengths (up to N)
 
 /// The greatest convex minorant of a row V(0..l), built as l grows (Andrew's monotone chain: a point
 /// removes the vertices it makes non-convex). The rows are not convex (a record serves two steps, so
@@ -47,7 +48,9 @@ class Minorant {
   struct Segment {
     std::int64_t x0, y0, dx, dy;
     /// The minorant at k as numerator over dx.
-    Wide numerator(std::int64_t k) const { return static_cast<Wide>(y0) * dx + static_cast<Wide>(dy) * (k - x0); }
+    Wide numerator(std::int64_t k) const {
+      return static_cast<Wide>(y0) * dx + static_cast<Wide>(dy) * (k - x0);
+    }
   };
   Segment segment(std::int64_t k) const {
     assert(x_.size() >= 2 && k >= 0 && k <= x_.back());
@@ -69,7 +72,8 @@ struct LowerBound {
   std::int64_t ceiling(std::int64_t k) const {
     const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
     const Wide den = static_cast<Wide>(sa.dx) * sb.dx;
-    const Wide num = static_cast<Wide>(s * k + c) * den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
+    const Wide num =
+        static_cast<Wide>(s * k + c) * den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
     const Wide q = num / den;  // truncated towards zero; den > 0
     return static_cast<std::int64_t>(q * den < num ? q + 1 : q);
   }
@@ -77,7 +81,8 @@ struct LowerBound {
   bool risesAfter(std::int64_t k) const {
     const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k - 1);
     return static_cast<Wide>(s) * sa.dx * sb.dx + static_cast<Wide>(sa.dy) * sb.dx -
-               static_cast<Wide>(sb.dy) * sa.dx >= 0;
+               static_cast<Wide>(sb.dy) * sa.dx >=
+           0;
   }
 };
 
@@ -88,8 +93,8 @@ struct LowerBound {
 /// ceil(min h). Exact: only k with ceil(h(k)) >= the incumbent (which cannot improve it) are skipped.
 /// `exhaustive` evaluates every k (for the tests).
 template <typename G>
-std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const G& g, const LowerBound& h,
-                                               std::int64_t guess) {
+std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, const G& g,
+                                               const LowerBound& h, std::int64_t guess) {
   std::int64_t bestK = 1, best = g(1);
   const auto consider = [&](std::int64_t k) {
     const std::int64_t value = g(k);
@@ -150,16 +155,17 @@ Plan Plan::exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t
 
 void Plan::build(bool exhaustiveSearch) {
   if (steps_ < 1 || units_ < 1 || recordUnits_ < 1) {
-    throw std::invalid_argument("cams plan: steps = " + std::to_string(steps_) + ", memory units = " +
-                                std::to_string(units_) + " and record units = " + std::to_string(recordUnits_) +
-                                " must all be >= 1");
+    throw std::invalid_argument("cams plan: steps = " + std::to_string(steps_) +
+                                ", memory units = " + std::to_string(units_) +
+                                " and record units = " + std::to_string(recordUnits_) + " must all be >= 1");
   }
   const std::int64_t N = steps_;
   // More units than N records can use change nothing.
   const std::int64_t M = std::min(units_, (N + 1) * recordUnits_);
   if ((N + 1) > kMaxTableEntries / (M + 1) || N >= std::numeric_limits<std::int32_t>::max()) {
-    throw std::invalid_argument("cams: the plan for " + std::to_string(N) + " steps and " + std::to_string(M) +
-                                " state units needs more than " + std::to_string(kMaxTableEntries) +
+    throw std::invalid_argument("cams: the plan for " + std::to_string(N) + " steps and " +
+                                std::to_string(M) + " state units needs more than " +
+                                std::to_string(kMaxTableEntries) +
                                 " table entries; lower cams.budget/cams.checkpoints or use binomial");
   }
   const std::int64_t w = recordUnits_;
@@ -215,7 +221,9 @@ void Plan::build(bool exhaustiveSearch) {
             const Minorant& right = Mn(own + kState, m - 1);
             const auto a = minimize(
                 l, exhaustiveSearch,
-                [&](std::int64_t k) { return advance * k + V(kReplay + t, m, k) + V(own + kState, m - 1, l - k); },
+                [&](std::int64_t k) {
+                  return advance * k + V(kReplay + t, m, k) + V(own + kState, m - 1, l - k);
+                },
                 LowerBound{l, advance, 0, left, right}, guess(own + t));
             if (a.second < best) best = a.second, decision = a.first;
           }
@@ -233,8 +241,10 @@ void Plan::build(bool exhaustiveSearch) {
             if (b.second < best) best = b.second, decision = -b.first;
           }
           // Upgrade: the anchor (a state, on top of the stack) grows into the record of its step with w - 1
-          // more units; the interval's first advance captures the stage values, and that step's adjoint is free.
-          if (sweep == 0 && t == kState && w >= 2 && m >= w - 1 && V(kReplay + kRecord, m - (w - 1), l) - 1 < best) {
+          // more units; the interval's first advance captures the stage values, and that step's adjoint is
+          // free.
+          if (sweep == 0 && t == kState && w >= 2 && m >= w - 1 &&
+              V(kReplay + kRecord, m - (w - 1), l) - 1 < best) {
             best = V(kReplay + kRecord, m - (w - 1), l) - 1;
             decision = kUpgradeAnchor;
           }
@@ -256,7 +266,8 @@ void Plan::build(bool exhaustiveSearch) {
 
 std::int64_t Plan::decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const {
   assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_);
-  const auto index = static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
+  const auto index =
+      static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
   return decisions_[(sweep ? 2 : 0) + (recordAnchor ? 1 : 0)][index];
 }
 
@@ -363,7 +374,8 @@ struct CountingVisitor {
     if (!record) ++counts.statesStored;
     counts.peakUnits = std::max(counts.peakUnits, executor.heldUnits());
     if (actions != nullptr)
-      actions->push_back(Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, position, position, false});
+      actions->push_back(
+          Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, position, position, false});
   }
   void deliver(std::int64_t position, std::int64_t, bool filled) {
     if (!filled) ++counts.adjointRecomputations;
@@ -389,7 +401,8 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
         ++counts.statesStored;
       counts.peakUnits = std::max(counts.peakUnits, executor.heldUnits());
       if (actions != nullptr)
-        actions->push_back(Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, n, n, false});
+        actions->push_back(
+            Action{record ? Action::Kind::StoreRecord : Action::Kind::StoreState, n, n, false});
     }
   }
   CountingVisitor visitor{counts, executor, actions};
@@ -400,7 +413,7 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 // ---- Online mode ----
 
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
-                            std::int64_t recordUnits) {
+                               std::int64_t recordUnits) {
   const std::int64_t length = std::max<std::int64_t>(longest, 1);
   const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
   if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
@@ -413,8 +426,9 @@ const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longe
 PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits,
                           std::unique_ptr<Plan>* plan) {
   if (steps < 1 || memoryUnits < 2)
-    throw std::invalid_argument("cams online mode: steps = " + std::to_string(steps) + " and memory units = " +
-                                std::to_string(memoryUnits) + " must be >= 1 and >= 2");
+    throw std::invalid_argument("cams online mode: steps = " + std::to_string(steps) +
+                                " and memory units = " + std::to_string(memoryUnits) +
+                                " must be >= 1 and >= 2");
   PlanCounts counts;
   counts.steps = steps;
   counts.forwardSteps = steps;
@@ -427,8 +441,8 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
   if (steps == 1) return counts;
   std::unique_ptr<Plan> local;
   std::unique_ptr<Plan>& cached = plan != nullptr ? *plan : local;
-  const Plan& intervalPlan =
-      onlineIntervalPlan(cached, internal::OnlinePlacement::longestInterval(positions, steps), memoryUnits, recordUnits);
+  const Plan& intervalPlan = onlineIntervalPlan(
+      cached, internal::OnlinePlacement::longestInterval(positions, steps), memoryUnits, recordUnits);
   Executor executor;
   CountingVisitor visitor{counts, executor, nullptr};
   internal::OnlinePlacement::Interval interval{static_cast<std::int64_t>(positions.size()), steps, 0};
@@ -446,7 +460,8 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
 
 // ---- Brute force ----
 
-std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits) {
+std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits,
+                                       std::int64_t recordUnits) {
   // States: per position a digit (0 none, 1 state, 2 record without stage values, 3 record with them),
   // the current position (-1: none usable), the next adjoint step e (-1: done). 0-1 BFS on the costs.
   const int N = static_cast<int>(steps);
@@ -456,9 +471,13 @@ std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUn
   const std::int64_t curCount = N + 1, eCount = N + 1;
   const std::int64_t total = digits * curCount * eCount;
   std::vector<std::int64_t> dist(static_cast<std::size_t>(total), std::numeric_limits<std::int64_t>::max());
-  const auto encode = [&](std::int64_t held, int cur, int e) { return (held * curCount + (cur + 1)) * eCount + (e + 1); };
+  const auto encode = [&](std::int64_t held, int cur, int e) {
+    return (held * curCount + (cur + 1)) * eCount + (e + 1);
+  };
   const auto digit = [](std::int64_t held, int p) { return static_cast<int>((held >> (2 * p)) & 3); };
-  const auto with = [](std::int64_t held, int p, int d) { return (held & ~(std::int64_t{3} << (2 * p))) | (std::int64_t{d} << (2 * p)); };
+  const auto with = [](std::int64_t held, int p, int d) {
+    return (held & ~(std::int64_t{3} << (2 * p))) | (std::int64_t{d} << (2 * p));
+  };
   const auto units = [&](std::int64_t held) {
     std::int64_t u = 0;
     for (int p = 0; p < N; ++p) u += digit(held, p) == 0 ? 0 : (digit(held, p) == 1 ? 1 : recordUnits);
@@ -508,7 +527,7 @@ std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUn
     for (int p = 0; p < N; ++p) {
       const int dp = digit(held, p);
       if (dp != 0) {
-        relax(encode(held, p, e), 0);               // load
+        relax(encode(held, p, e), 0);                // load
         relax(encode(with(held, p, 0), cur, e), 0);  // delete
       }
     }
@@ -532,21 +551,22 @@ std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUn
 CamsCheckpointing::CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool online)
     : TrajectoryStorage(budgetBytes), checkpoints_(checkpoints), online_(online) {
   if (checkpoints < 0 || checkpoints > kMaxCheckpoints) {
-    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints) + " must be an integer in [1, " +
-                                std::to_string(kMaxCheckpoints) + "]");
+    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints) +
+                                " must be an integer in [1, " + std::to_string(kMaxCheckpoints) + "]");
   }
 }
 
 std::unique_ptr<TrajectoryStorage> CamsCheckpointing::create(const StorageSpec& spec) {
   if (spec.has("checkpoints") == spec.has("budget")) {
-    throw std::invalid_argument("cams needs exactly one of cams.budget=BYTES (e.g. cams:budget=1MiB) and "
-                                "cams.checkpoints=C (the bytes of binomial:checkpoints=C), C in [1, " +
-                                std::to_string(kMaxCheckpoints) + "]");
+    throw std::invalid_argument(
+        "cams needs exactly one of cams.budget=BYTES (e.g. cams:budget=1MiB) and "
+        "cams.checkpoints=C (the bytes of binomial:checkpoints=C), C in [1, " +
+        std::to_string(kMaxCheckpoints) + "]");
   }
   const bool online = spec.integer("online", 0, 0, 1) == 1;
   if (spec.has("checkpoints")) {
-    return std::make_unique<CamsCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints), kDefaultBudget,
-                                               online);
+    return std::make_unique<CamsCheckpointing>(spec.integer("checkpoints", 1, 1, kMaxCheckpoints),
+                                               kDefaultBudget, online);
   }
   return std::make_unique<CamsCheckpointing>(0, spec.bytes("budget", 1), online);
 }
@@ -558,21 +578,24 @@ std::string CamsCheckpointing::spec() const {
 }
 
 std::int64_t CamsCheckpointing::usableUnits(std::int64_t stateBytes, bool online) const {
-  const std::int64_t units = online ? std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1) : memoryUnits(stateBytes);
+  const std::int64_t units =
+      online ? std::min(memoryUnits(stateBytes), kMaxCheckpoints + 1) : memoryUnits(stateBytes);
   if (checkpoints_ > 0 && units > budgetBytes() / stateBytes) {
     // As binomial:checkpoints=C refuses C + 1 states beyond its budget, so does the same byte budget here.
-    throw std::invalid_argument("cams.checkpoints = " + std::to_string(checkpoints_) + " needs " +
-                                std::to_string(units) + " states of " + formatBytes(stateBytes) +
-                                ", more than the budget of binomial:checkpoints=" + std::to_string(checkpoints_) +
-                                " (" + formatBytes(budgetBytes()) + "); lower the checkpoints or use cams:budget=BYTES");
+    throw std::invalid_argument(
+        "cams.checkpoints = " + std::to_string(checkpoints_) + " needs " + std::to_string(units) +
+        " states of " + formatBytes(stateBytes) +
+        ", more than the budget of binomial:checkpoints=" + std::to_string(checkpoints_) + " (" +
+        formatBytes(budgetBytes()) + "); lower the checkpoints or use cams:budget=BYTES");
   }
   if (units < (online ? 2 : 1)) {
-    throw std::invalid_argument("cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units) +
-                                " state(s) of " + formatBytes(stateBytes) + "; " +
-                                (online ? "the online mode (adaptive steps or online=1) needs two, a checkpoint and "
-                                          "the working state"
-                                        : "cams needs at least one") +
-                                "; raise the budget");
+    throw std::invalid_argument(
+        "cams.budget = " + formatBytes(budgetBytes()) + " holds " + std::to_string(units) + " state(s) of " +
+        formatBytes(stateBytes) + "; " +
+        (online ? "the online mode (adaptive steps or online=1) needs two, a checkpoint and "
+                  "the working state"
+                : "cams needs at least one") +
+        "; raise the budget");
   }
   return units;
 }
@@ -591,8 +614,8 @@ void CamsCheckpointing::doBegin() {
   const std::int64_t n = info().stateSize;
   units_ = usableUnits(stateBytes(), onlineRun_);
   // A record is the state and the step's stage values; with no step data, records are impossible.
-  recordUnits_ =
-      info().stepDataSize > 0 ? 1 + (info().stepDataSize + n - 1) / n : std::numeric_limits<std::int32_t>::max();
+  recordUnits_ = info().stepDataSize > 0 ? 1 + (info().stepDataSize + n - 1) / n
+                                         : std::numeric_limits<std::int32_t>::max();
   delivered_ = nullptr;
   pendingRecord_ = -1;
   if (onlineRun_) {
@@ -614,7 +637,8 @@ void CamsCheckpointing::doBegin() {
                                 " table entries; add online=1 (cams:...,online=1: online placement, optimal "
                                 "reversal of each interval) or lower cams.budget/cams.checkpoints");
   }
-  if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits_ || plan_->memoryUnits() != capped) {
+  if (!plan_ || plan_->steps() != steps || plan_->recordUnits() != recordUnits_ ||
+      plan_->memoryUnits() != capped) {
     const Stopwatch planning;
     plan_ = std::make_unique<cams::Plan>(steps, units_, recordUnits_);
     mutableCounters().planningSeconds += planning.seconds();
@@ -673,7 +697,6 @@ void CamsCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
     cams::onlineIntervalPlan(intervalPlan_, longest, units_, recordUnits_);
     mutableCounters().planningSeconds += planning.seconds();
     executor_.reserve(std::min(units_, longest + 1));  // no allocation in the restores
-
   }
 }
 

@@ -31,13 +31,14 @@
 //   E(N, M) = N + min(H(N, M - 1), H(N, M - w) - 1)       (x_0 held as a state or as a record).
 // Without records (w > M) this is the optimum over M slots of engine/binomial_checkpointing.h
 // (binomial:checkpoints=M-1: revolve with M slots over the positions 0..N, T(N + 1, M) - N recomputed
-// steps), plus N adjoint recomputations; records can only lower it (tests compare both strategies). The k-searches are exact: the rows are not convex
-// in l (a record serves two steps, so parity shows), but each row stays within a few units of its
-// greatest convex minorant, kept as the row grows; the minorants give a convex lower bound of the cost in
-// k (computed exactly, in 128-bit integer arithmetic: a rounded bound could prune the optimum), so only
-// the k whose bound is below the best found so far (one interval, found by bisection) are evaluated. Planning time is O(N M) searches, each scanning the flat part of that interval: measured
-// 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M = 1001 (bench/RESULTS.md). Tests check the result
-// against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
+// steps), plus N adjoint recomputations; records can only lower it (tests compare both strategies). The
+// k-searches are exact: the rows are not convex in l (a record serves two steps, so parity shows), but each
+// row stays within a few units of its greatest convex minorant, kept as the row grows; the minorants give a
+// convex lower bound of the cost in k (computed exactly, in 128-bit integer arithmetic: a rounded bound could
+// prune the optimum), so only the k whose bound is below the best found so far (one interval, found by
+// bisection) are evaluated. Planning time is O(N M) searches, each scanning the flat part of that interval:
+// measured 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M = 1001 (bench/RESULTS.md). Tests check the
+// result against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
 //
 // Memory: the checkpoints form a stack; the strategy allocates M units once in begin() and charges
 // them with holdBytes(): offline at most (N + 1) w units; the online mode, where N is unknown, at most
@@ -53,9 +54,9 @@
 // offers no step data (generalized-alpha) records are impossible and the plan is revolve's.
 #pragma once
 
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/online_placement.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <algorithm>
 #include <cassert>
@@ -141,7 +142,8 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
 
 /// Smallest cost over every schedule of the model by exhaustive enumeration of all action sequences
 /// (exponential; for tests with N <= 7).
-std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+std::int64_t bruteForceStepEvaluations(std::int64_t steps, std::int64_t memoryUnits,
+                                       std::int64_t recordUnits);
 
 /// The executor: drives a plan through a visitor with
 ///   store(ref, position, isRecord)   copy the current state into a new checkpoint (stack offset ref);
@@ -181,9 +183,9 @@ class Executor {
   struct Task {
     std::int64_t anchor;  // index into checkpoints_
     std::int64_t length;
-    std::int64_t units;   // free units
-    bool sweep;           // H mode: the forward sweep has run through (its checkpoints are stored)
-    std::int64_t next;    // no-checkpoint replay: the next position to deliver (-1: not started)
+    std::int64_t units;  // free units
+    bool sweep;          // H mode: the forward sweep has run through (its checkpoints are stored)
+    std::int64_t next;   // no-checkpoint replay: the next position to deliver (-1: not started)
   };
   std::int64_t push(std::int64_t position, bool record);
   void pop();
@@ -193,7 +195,7 @@ class Executor {
   const Plan* plan_ = nullptr;
   std::vector<Checkpoint> checkpoints_;
   std::vector<Task> tasks_;
-  std::int64_t top_ = 0;  // units held
+  std::int64_t top_ = 0;    // units held
   std::int64_t limit_ = 0;  // top_ never exceeds it
   // Forward sweep: the chain of the sweep interval.
   std::int64_t chainLength_ = 0, chainUnits_ = 0, chainPosition_ = 0, nextForward_ = 0;
@@ -329,7 +331,7 @@ class CamsCheckpointing final : public TrajectoryStorage {
   std::unique_ptr<double[]> memory_;  // units x n doubles
   std::int64_t heldBytes_ = 0;
   std::int64_t units_ = 0;
-  std::int64_t pendingRecord_ = -1;  // forward: ref of the record whose stage values come next
+  std::int64_t pendingRecord_ = -1;    // forward: ref of the record whose stage values come next
   const double* delivered_ = nullptr;  // stage values for restoreStepData, or null
 };
 

@@ -5,10 +5,12 @@
 
 namespace hindsight {
 
-FullStorage::FullStorage(std::int64_t budgetBytes, bool stages) : TrajectoryStorage(budgetBytes), stages_(stages) {}
+FullStorage::FullStorage(std::int64_t budgetBytes, bool stages)
+    : TrajectoryStorage(budgetBytes), stages_(stages) {}
 
 std::unique_ptr<TrajectoryStorage> FullStorage::create(const StorageSpec& spec) {
-  return std::make_unique<FullStorage>(spec.bytes("budget", kDefaultBudget), spec.integer("stages", 0, 0, 1) == 1);
+  return std::make_unique<FullStorage>(spec.bytes("budget", kDefaultBudget),
+                                       spec.integer("stages", 0, 0, 1) == 1);
 }
 
 std::string FullStorage::spec() const {
@@ -35,8 +37,9 @@ void FullStorage::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVec
     capacity =
         std::max<std::int64_t>(1, std::min(capacity, (budgetBytes() - counters().bytesInMemory) / rowBytes));
     holdBytes(capacity * rowBytes);
-    blocks_.push_back(Block{step, capacity,
-                            std::unique_ptr<double[]>(new double[static_cast<std::size_t>(capacity * rowSize())])});
+    blocks_.push_back(
+        Block{step, capacity,
+              std::unique_ptr<double[]>(new double[static_cast<std::size_t>(capacity * rowSize())])});
   }
   std::memcpy(row(step), z.data(), static_cast<std::size_t>(n) * 8);
   ++mutableCounters().statesStored;

@@ -1,9 +1,10 @@
 // Strategy "full": every step's state in memory. Exact, no recomputation; memory N * n * 8 bytes.
 // Spec (engine/memory_storage_factory.h): full[:budget=BYTES][,stages=0|1] (default budget 4 GiB). With
 // stages=1 every step keeps its stage values too (Integrator::stepDataSize(), 3 n doubles for
-// rk4), so no adjoint step evaluates the right-hand side; memory N (n + stepDataSize) * 8 bytes. It lives in the engine
-// because it needs nothing but memory: a program that links only hindsight::engine has a strategy. Works for
-// unknown N (adaptive steps): states are kept in blocks, so growth never copies what is already stored.
+// rk4), so no adjoint step evaluates the right-hand side; memory N (n + stepDataSize) * 8 bytes. It lives in
+// the engine because it needs nothing but memory: a program that links only hindsight::engine has a strategy.
+// Works for unknown N (adaptive steps): states are kept in blocks, so growth never copies what is already
+// stored.
 #pragma once
 
 #include <hindsight/engine/storage_spec.h>

@@ -139,8 +139,8 @@ class Integrator {
   }
   /// adjointStep() with the step data saveStepData() gave after the step from x: the same arithmetic on
   /// the same bits, so the result is bitwise that of adjointStep(), without recomputing the stages.
-  virtual void adjointStepFromData(double t, double h, ConstVectorRef x, ConstVectorRef data, VectorRef lambda,
-                                   VectorRef gradient) {
+  virtual void adjointStepFromData(double t, double h, ConstVectorRef x, ConstVectorRef data,
+                                   VectorRef lambda, VectorRef gradient) {
     (void)data;
     adjointStep(t, h, x, lambda, gradient);
   }

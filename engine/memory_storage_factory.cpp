@@ -31,9 +31,11 @@ std::unique_ptr<TrajectoryStorage> createMemoryStorage(const std::string& text) 
   }
   for (const char* other : {"disk", "lossy", "packed", "hermite", "multilevel"}) {
     if (spec.name() == other) {
-      throw std::invalid_argument("storage strategy '" + spec.name() +
-                                  "' is not in memory: it needs the storage component (hindsight::createStorage, "
-                                  "<hindsight/storage/storage_factory.h>); in memory: " + names);
+      throw std::invalid_argument(
+          "storage strategy '" + spec.name() +
+          "' is not in memory: it needs the storage component (hindsight::createStorage, "
+          "<hindsight/storage/storage_factory.h>); in memory: " +
+          names);
     }
   }
   throw std::invalid_argument("unknown storage strategy '" + spec.name() + "'; in memory: " + names);

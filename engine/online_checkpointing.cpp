@@ -39,8 +39,8 @@ UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, st
   return forwardStepsOf(positions, steps, c);
 }
 
-UnsignedInt128 OnlineCheckpointing::forwardStepsOf(const std::vector<std::int64_t>& positions, std::int64_t steps,
-                                                   std::int64_t c) {
+UnsignedInt128 OnlineCheckpointing::forwardStepsOf(const std::vector<std::int64_t>& positions,
+                                                   std::int64_t steps, std::int64_t c) {
   UnsignedInt128 total = static_cast<UnsignedInt128>(steps - 1);
   const auto held = static_cast<std::int64_t>(positions.size());
   for (std::int64_t j = 0; j < held; ++j) {
@@ -129,10 +129,12 @@ void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   std::int64_t deepest = 1;
   for (std::size_t j = 0; j < positions.size(); ++j) {
     const std::int64_t end = j + 1 < positions.size() ? positions[j + 1] : stepCount() - 1;
-    deepest = std::max(deepest, std::min(activeCheckpoints_ - static_cast<std::int64_t>(j), end - positions[j]));
+    deepest =
+        std::max(deepest, std::min(activeCheckpoints_ - static_cast<std::int64_t>(j), end - positions[j]));
   }
   schedule_.reserve(deepest);
-  interval_ = static_cast<std::int64_t>(placement_.positions().size());  // restore(N - 1) comes from the working state
+  interval_ = static_cast<std::int64_t>(
+      placement_.positions().size());  // restore(N - 1) comes from the working state
 }
 
 void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {

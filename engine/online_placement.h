@@ -56,7 +56,7 @@ class CostPlacement {
       if (held + 1 == c) rebuild();
       return kAppended;
     }
-    if (c == 1) return kSkipped;  // one interval: nothing to merge
+    if (c == 1) return kSkipped;                      // one interval: nothing to merge
     const std::int64_t last = q - positions_.back();  // the last interval if q is kept (>= 1)
     // Keeping the placement: the last interval (1 slot) grows by one, T(l + 1, 1) - T(l, 1) = l. Taking
     // q: the old last interval ends at q, the new one (one step) costs nothing.
@@ -69,7 +69,8 @@ class CostPlacement {
       index = innerIndex_;
     }
     const std::size_t before = static_cast<std::size_t>(c - 2);
-    const Cost lastPair = revolveSteps(positions_[before + 1] - positions_[before] + last, 2) - own_[before] - lastOwn;
+    const Cost lastPair =
+        revolveSteps(positions_[before + 1] - positions_[before] + last, 2) - own_[before] - lastOwn;
     if (index < 0 || lastPair < best) {
       best = lastPair;
       index = c - 1;
@@ -108,13 +109,15 @@ class CostPlacement {
     own_.clear();
     grow_.clear();
     for (std::int64_t i = 0; i + 1 < c; ++i) {
-      const std::int64_t length = positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
+      const std::int64_t length =
+          positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
       own_.push_back(revolveSteps(length, c - i));
       grow_.push_back(revolveSteps(length, c - i + 1) - own_.back());
     }
     suffix_.assign(static_cast<std::size_t>(c), 0);  // suffix_[k] = sum of grow_[k..c-2]
     for (std::int64_t k = c - 2; k >= 0; --k)
-      suffix_[static_cast<std::size_t>(k)] = suffix_[static_cast<std::size_t>(k + 1)] + grow_[static_cast<std::size_t>(k)];
+      suffix_[static_cast<std::size_t>(k)] =
+          suffix_[static_cast<std::size_t>(k + 1)] + grow_[static_cast<std::size_t>(k)];
     innerIndex_ = -1;
     for (std::int64_t j = 1; j + 1 < c; ++j) {
       const auto u = static_cast<std::size_t>(j);
@@ -156,7 +159,8 @@ class OnlinePlacement {
     placement.reset(c);
     std::int64_t written = 0, most = 0;
     for (std::int64_t step = 1; step < steps; ++step) {
-      if (placement.isCandidate(step - 1) && placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
+      if (placement.isCandidate(step - 1) &&
+          placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
         ++written;
         most = std::max(most, static_cast<std::int64_t>(placement.positions().size()));
       }
@@ -174,13 +178,14 @@ class OnlinePlacement {
   /// The interval holding `step` (< N - 1): the last held position at or before it, searched downwards
   /// from index `below` - 1 (the previous interval's index, or positions.size()), so the lookups of a whole
   /// backward sweep cost O(positions) in total.
-  static Interval intervalOf(const std::vector<std::int64_t>& positions, std::int64_t steps, std::int64_t step,
-                             std::int64_t below) {
+  static Interval intervalOf(const std::vector<std::int64_t>& positions, std::int64_t steps,
+                             std::int64_t step, std::int64_t below) {
     std::int64_t j = std::min(below, static_cast<std::int64_t>(positions.size())) - 1;
     while (positions[static_cast<std::size_t>(j)] > step) --j;
     const std::int64_t start = positions[static_cast<std::size_t>(j)];
-    const std::int64_t end =
-        j + 1 < static_cast<std::int64_t>(positions.size()) ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
+    const std::int64_t end = j + 1 < static_cast<std::int64_t>(positions.size())
+                                 ? positions[static_cast<std::size_t>(j + 1)]
+                                 : steps - 1;
     return Interval{j, start, end - start};
   }
   /// The longest interval of a placement of N steps (0 for N <= 1).

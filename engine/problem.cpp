@@ -4,7 +4,9 @@ namespace hindsight {
 
 void Problem::addInitialStateVjp(ConstVectorRef, ConstVectorRef, VectorRef) const {}
 
-std::unique_ptr<ProblemWorkspace> Problem::createWorkspaceFor(ConstVectorRef) const { return createWorkspace(); }
+std::unique_ptr<ProblemWorkspace> Problem::createWorkspaceFor(ConstVectorRef) const {
+  return createWorkspace();
+}
 
 void Problem::rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef outState,
                       VectorRef gradient, ProblemWorkspace* ws) const {

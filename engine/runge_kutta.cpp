@@ -284,16 +284,19 @@ std::int64_t RungeKuttaIntegrator::stepDataSize() const {
 void RungeKuttaIntegrator::saveStepData(VectorRef data) const {
   assert(data.size() == stepDataSize());
   const int first = firstDataStage();
-  for (int i = first; i < stages_; ++i) data.segment(static_cast<Eigen::Index>(i - first) * n_, n_) = stageStates_.col(i);
+  for (int i = first; i < stages_; ++i)
+    data.segment(static_cast<Eigen::Index>(i - first) * n_, n_) = stageStates_.col(i);
 }
 
 void RungeKuttaIntegrator::adjointStepFromData(double t, double h, ConstVectorRef z, ConstVectorRef data,
                                                VectorRef lambda, VectorRef gradient) {
-  assert(z.size() == n_ && data.size() == stepDataSize() && lambda.size() == n_ && gradient.size() == p_.size());
+  assert(z.size() == n_ && data.size() == stepDataSize() && lambda.size() == n_ &&
+         gradient.size() == p_.size());
   const int first = firstDataStage();
   // With a_11 = 0 the first stage state is z_n: computeStages() copies it bit for bit, and so does this.
   if (first == 1) stageStates_.col(0) = z;
-  for (int i = first; i < stages_; ++i) stageStates_.col(i) = data.segment(static_cast<Eigen::Index>(i - first) * n_, n_);
+  for (int i = first; i < stages_; ++i)
+    stageStates_.col(i) = data.segment(static_cast<Eigen::Index>(i - first) * n_, n_);
   adjointFromStages(t, h, lambda, gradient);
 }
 

@@ -61,7 +61,8 @@ void TrajectoryStorage::recordStepData(std::int64_t step, ConstVectorRef data) {
   if (expectedStepDataCall_ != StepDataCall::kRecord || step != nextRecord_ - 1 ||
       data.size() != info_.stepDataSize) {
     throw std::logic_error("TrajectoryStorage::recordStepData(" + std::to_string(step) +
-                           ") not right after record(" + std::to_string(step) + ") with stepDataSize doubles");
+                           ") not right after record(" + std::to_string(step) +
+                           ") with stepDataSize doubles");
   }
   expectedStepDataCall_ = StepDataCall::kNone;
   if (verifyRestores_) stepDataHashes_.push_back(hashState(data));
@@ -72,7 +73,8 @@ bool TrajectoryStorage::restoreStepData(std::int64_t step, VectorRef data) {
   if (expectedStepDataCall_ != StepDataCall::kRestore || step != nextRestore_ + 1 ||
       data.size() != info_.stepDataSize) {
     throw std::logic_error("TrajectoryStorage::restoreStepData(" + std::to_string(step) +
-                           ") not right after restore(" + std::to_string(step) + ") with stepDataSize doubles");
+                           ") not right after restore(" + std::to_string(step) +
+                           ") with stepDataSize doubles");
   }
   expectedStepDataCall_ = StepDataCall::kNone;
   const bool restored = doRestoreStepData(step, data);
@@ -201,10 +203,12 @@ void throwBackwardSweepFailure(const NumericalError& failure, const TrajectorySt
   std::string what = failure.what();
   const std::size_t suffix = what.rfind(" (at t = ");
   if (suffix != std::string::npos) what.erase(suffix);  // NumericalError appends the time again
-  std::string message = "backward sweep (" + sweep + ") with storage '" + storage.spec() + "' failed: " + what;
+  std::string message =
+      "backward sweep (" + sweep + ") with storage '" + storage.spec() + "' failed: " + what;
   if (!storage.isExact()) {
-    message += "; the storage is approximate (the states it restores are not the recorded ones), which a stiff "
-               "problem's backward sweep may not tolerate: try a tighter setting or an exact storage";
+    message +=
+        "; the storage is approximate (the states it restores are not the recorded ones), which a stiff "
+        "problem's backward sweep may not tolerate: try a tighter setting or an exact storage";
   }
   throw NumericalError(message, failure.time());
 }

@@ -31,10 +31,10 @@ namespace petsc {
 /// What the last forward/backward pair of a "hindsight" trajectory did on this rank.
 struct TrajectoryReport {
   std::string spec;
-  StorageCounters counters;        ///< the strategy's own counters (recomputedSteps: its schedule's)
-  std::int64_t steps = 0;          ///< N of the last forward sweep
-  std::int64_t stateSize = 0;      ///< doubles per stored state (the largest local part over the ranks)
-  std::int64_t stageCount = 0;     ///< TSGetStages() count of the TS type
+  StorageCounters counters;              ///< the strategy's own counters (recomputedSteps: its schedule's)
+  std::int64_t steps = 0;                ///< N of the last forward sweep
+  std::int64_t stateSize = 0;            ///< doubles per stored state (the largest local part over the ranks)
+  std::int64_t stageCount = 0;           ///< TSGetStages() count of the TS type
   std::int64_t stageRecomputations = 0;  ///< one-step recomputations for an adjoint step's stage values
   std::int64_t reconstructedStepSizes = 0;  ///< steps whose size was not observed (t_{n+1} - t_n used)
   std::int64_t unreplayedRejections = 0;    ///< recomputed rejected steps the replay did not reproduce

@@ -24,8 +24,8 @@
 // and all raise the failing rank's message.
 #include <hindsight/petsc/hindsight_petsc.h>
 
-#include <hindsight/storage/storage_factory.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <petsc/private/tsimpl.h>
 
@@ -40,7 +40,8 @@
 #include <vector>
 
 #if !defined(PETSC_USE_REAL_DOUBLE) || defined(PETSC_USE_COMPLEX)
-#error "hindsight's PETSc trajectory needs PETSc with real double scalars (Debian's petsc-dev, PETSC_ARCH *-real)"
+#error \
+    "hindsight's PETSc trajectory needs PETSc with real double scalars (Debian's petsc-dev, PETSC_ARCH *-real)"
 #endif
 
 namespace hindsight {
@@ -85,8 +86,8 @@ std::map<TSAdapt, AdaptHook>& adaptHooks() {
   static std::map<TSAdapt, AdaptHook> hooks;
   return hooks;
 }
-PetscErrorCode hookedChoose(TSAdapt adapt, TS ts, PetscReal h, PetscInt* scheme, PetscReal* nextH, PetscBool* accept,
-                            PetscReal* wlte, PetscReal* wltea, PetscReal* wlter) {
+PetscErrorCode hookedChoose(TSAdapt adapt, TS ts, PetscReal h, PetscInt* scheme, PetscReal* nextH,
+                            PetscBool* accept, PetscReal* wlte, PetscReal* wltea, PetscReal* wlter) {
   AdaptHook& hook = adaptHooks()[adapt];
   hook.lastStepSize = h;
   return hook.original(adapt, ts, h, scheme, nextH, accept, wlte, wltea, wlter);
@@ -190,7 +191,8 @@ class Trajectory final : public StepRecomputer {
             "the TS took " + std::to_string(N) + " steps, but " + std::to_string(predictedSteps_) +
             " were predicted from its final time, step size and -ts_max_steps (fixed steps), and strategy " +
             storage->spec() +
-            " needs the number in advance; give -ts_max_steps N (a final time that is a whole number of steps "
+            " needs the number in advance; give -ts_max_steps N (a final time that is a whole number of "
+            "steps "
             "may round either way) or use online");
       }
       storage->finish(N, time, pending_, empty_);
@@ -216,8 +218,8 @@ class Trajectory final : public StepRecomputer {
     }
     if (!backward_ || stepnum != nextGet_) {
       throw std::logic_error("TSTrajectoryGet(" + std::to_string(stepnum) + ") out of order: expected step " +
-                             std::to_string(nextGet_) + " after a forward sweep of " + std::to_string(report.steps) +
-                             " steps");
+                             std::to_string(nextGet_) + " after a forward sweep of " +
+                             std::to_string(report.steps) + " steps");
     }
     const TSConvergedReason reason = ts->reason;
     if (stepnum == 0) {  // after the last adjoint step: x_0, for the adjoint monitor
@@ -378,8 +380,8 @@ class Trajectory final : public StepRecomputer {
     ts->reason = TS_CONVERGED_ITERATING;
     check(TSStep(ts), "TSStep (recomputing a forward step)");
     if (ts->reason < 0) {
-      throw std::runtime_error("recomputing step " + std::to_string(i) + " failed: " +
-                               TSConvergedReasons[ts->reason]);
+      throw std::runtime_error("recomputing step " + std::to_string(i) +
+                               " failed: " + TSConvergedReasons[ts->reason]);
     }
   }
 
@@ -424,8 +426,8 @@ class Trajectory final : public StepRecomputer {
   std::int64_t predictedSteps_ = -1;
   Eigen::VectorXd pending_, previous_, scratch_, stageBuffer_;
   const Eigen::VectorXd empty_;
-  std::vector<double> times_;      // t_0 .. t_N
-  std::vector<double> stepSizes_;  // the step size of step n, n -> n+1
+  std::vector<double> times_;          // t_0 .. t_N
+  std::vector<double> stepSizes_;      // the step size of step n, n -> n+1
   std::vector<double> firstAttempts_;  // the size step n first tried (larger when it was rejected)
   double pendingStepSize_ = 0.0;
   PetscInt pendingRejects_ = 0;
@@ -499,7 +501,8 @@ PetscErrorCode setupOp(TSTrajectory tj, TS ts) {
     try {
       self.createStorage();
     } catch (const std::exception& error) {
-      SETERRQ(PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s %s: %s", kOption, self.specText.c_str(), error.what());
+      SETERRQ(PETSC_COMM_SELF, PETSC_ERR_USER_INPUT, "%s %s: %s", kOption, self.specText.c_str(),
+              error.what());
     }
   }
   PetscFunctionReturn(0);
@@ -512,16 +515,18 @@ PetscErrorCode setFromOptionsOp(TSTrajectory tj, PetscOptionItems* PetscOptionsO
   std::strncpy(spec, self.specText.c_str(), sizeof(spec) - 1);
   PetscBool given = PETSC_FALSE;
   PetscOptionsHeadBegin(PetscOptionsObject, "hindsight trajectory options");
-  PetscCall(PetscOptionsString(kOption,
-                               "hindsight storage strategy NAME[:key=value,...]: full, binomial:checkpoints=C, "
-                               "online:checkpoints=C, cams:checkpoints=C, packed, disk:dir=D, lossy:..., "
-                               "multilevel:ram=R,disk=D,costs=... (docs/guides/petsc.md)",
-                               "", spec, spec, sizeof(spec), &given));
+  PetscCall(
+      PetscOptionsString(kOption,
+                         "hindsight storage strategy NAME[:key=value,...]: full, binomial:checkpoints=C, "
+                         "online:checkpoints=C, cams:checkpoints=C, packed, disk:dir=D, lossy:..., "
+                         "multilevel:ram=R,disk=D,costs=... (docs/guides/petsc.md)",
+                         "", spec, spec, sizeof(spec), &given));
   PetscBool verify = self.verify ? PETSC_TRUE : PETSC_FALSE;
-  PetscCall(PetscOptionsBool("-ts_trajectory_hindsight_verify",
-                             "check every restored state (and stage set) against a hash of the recorded bits; a "
-                             "difference stops the run",
-                             "", verify, &verify, nullptr));
+  PetscCall(
+      PetscOptionsBool("-ts_trajectory_hindsight_verify",
+                       "check every restored state (and stage set) against a hash of the recorded bits; a "
+                       "difference stops the run",
+                       "", verify, &verify, nullptr));
   self.verify = verify == PETSC_TRUE;
   PetscOptionsHeadEnd();
   if (given) {
@@ -547,29 +552,38 @@ PetscErrorCode viewOp(TSTrajectory tj, PetscViewer viewer) {
   PetscCallMPI(MPI_Allreduce(local, largest, 3, MPI_LONG_LONG, MPI_MAX, self.comm()));
   const long long budget = self.storage ? static_cast<long long>(self.storage->budgetBytes()) : 0;
   PetscCall(PetscViewerASCIIPrintf(viewer, "hindsight storage: %s\n", r.spec.c_str()));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "steps: %lld, stored state: %lld doubles per rank (largest local part), "
-                                           "stages per step: %lld\n",
-                                   static_cast<long long>(r.steps), largest[2], static_cast<long long>(r.stageCount)));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "recomputed steps: %lld (checkpoint schedule) + %lld (stage values of "
-                                           "adjoint steps)\n",
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "steps: %lld, stored state: %lld doubles per rank (largest local part), "
+                                   "stages per step: %lld\n",
+                                   static_cast<long long>(r.steps), largest[2],
+                                   static_cast<long long>(r.stageCount)));
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "recomputed steps: %lld (checkpoint schedule) + %lld (stage values of "
+                                   "adjoint steps)\n",
                                    static_cast<long long>(c.recomputedSteps),
                                    static_cast<long long>(r.stageRecomputations)));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "states stored: %lld, step data stored: %lld, adjoint steps from stored "
-                                           "stages: %lld\n",
-                                   static_cast<long long>(c.statesStored), static_cast<long long>(c.stepDataStored),
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "states stored: %lld, step data stored: %lld, adjoint steps from stored "
+                                   "stages: %lld\n",
+                                   static_cast<long long>(c.statesStored),
+                                   static_cast<long long>(c.stepDataStored),
                                    static_cast<long long>(c.stepDataRestored)));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "peak bytes in memory: %lld (largest over ranks; budget %lld per rank)\n",
-                                   largest[0], budget));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "bytes on disk: %lld (largest over ranks), compression ratio %.3f\n",
+  PetscCall(PetscViewerASCIIPrintf(
+      viewer, "peak bytes in memory: %lld (largest over ranks; budget %lld per rank)\n", largest[0], budget));
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "bytes on disk: %lld (largest over ranks), compression ratio %.3f\n",
                                    largest[1], c.compressionRatio()));
   if (r.reconstructedStepSizes > 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "steps whose size was not observed: %lld (recomputed with t_{n+1} - t_n, "
-                                             "possibly a last-bit different step size)\n",
-                                     static_cast<long long>(r.reconstructedStepSizes)));
+    PetscCall(
+        PetscViewerASCIIPrintf(viewer,
+                               "steps whose size was not observed: %lld (recomputed with t_{n+1} - t_n, "
+                               "possibly a last-bit different step size)\n",
+                               static_cast<long long>(r.reconstructedStepSizes)));
   }
   if (r.unreplayedRejections > 0) {
-    PetscCall(PetscViewerASCIIPrintf(viewer, "rejected steps whose replay did not land on the forward time: %lld "
-                                             "(retaken with the accepted size)\n",
+    PetscCall(PetscViewerASCIIPrintf(viewer,
+                                     "rejected steps whose replay did not land on the forward time: %lld "
+                                     "(retaken with the accepted size)\n",
                                      static_cast<long long>(r.unreplayedRejections)));
   }
   PetscFunctionReturn(0);
@@ -594,7 +608,8 @@ PetscErrorCode getTrajectoryReport(TSTrajectory tj, TrajectoryReport* report) {
   PetscFunctionBegin;
   PetscBool match = PETSC_FALSE;
   PetscCall(PetscObjectTypeCompare((PetscObject)tj, "hindsight", &match));
-  PetscCheck(match, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_WRONG, "the trajectory is not of type hindsight");
+  PetscCheck(match, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_WRONG,
+             "the trajectory is not of type hindsight");
   *report = of(tj).report;
   PetscFunctionReturn(0);
 }

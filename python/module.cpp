@@ -25,24 +25,24 @@
 #include <hindsight/problems/topopt/history_schema.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
-#include <hindsight/storage/storage_docs.h>
-#include <hindsight/storage/storage_factory.h>
 #include <hindsight/storage/checkpoint_actions.h>
 #include <hindsight/storage/schedule.h>
+#include <hindsight/storage/storage_docs.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <pybind11/iostream.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <atomic>
-#include <csignal>
 #include <signal.h>  // sigaction (POSIX)
+#include <atomic>
 #include <chrono>
+#include <csignal>
+#include <filesystem>
 #include <mutex>
 #include <optional>
 #include <sstream>
-#include <filesystem>
 #include <thread>
 
 namespace py = pybind11;
@@ -189,11 +189,13 @@ nlohmann::json toCppJson(const py::handle& value, const std::string& where = "co
   if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
     nlohmann::json out = nlohmann::json::array();
     std::size_t index = 0;
-    for (const py::handle item : value) out.push_back(toCppJson(item, where + "[" + std::to_string(index++) + "]"));
+    for (const py::handle item : value)
+      out.push_back(toCppJson(item, where + "[" + std::to_string(index++) + "]"));
     return out;
   }
   if (PyComplex_Check(object) || typeName.rfind("complex", 0) == 0) {
-    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + " must be a real number, not complex");
+    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) +
+                                " must be a real number, not complex");
   }
   // int and NumPy integers; an ndarray has __index__ too but refuses it unless it holds one integer.
   const py::object integer =
@@ -206,7 +208,8 @@ nlohmann::json toCppJson(const py::handle& value, const std::string& where = "co
     const unsigned long long large = PyLong_AsUnsignedLongLong(integer.ptr());
     if (!(large == static_cast<unsigned long long>(-1) && PyErr_Occurred())) return large;
     PyErr_Clear();
-    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + " is outside the 64-bit integer range");
+    throw std::invalid_argument(where + " = " + std::string(py::repr(value)) +
+                                " is outside the 64-bit integer range");
   }
   if (PyFloat_Check(object) || typeName.rfind("float", 0) == 0) return value.cast<double>();  // NumPy floats
   throw std::invalid_argument(where + " = " + std::string(py::repr(value)) + ": a " + typeName +
@@ -263,11 +266,13 @@ Config makeConfig(const py::object& config, const py::dict& overrides) {
   }
   const auto assign = [&](const std::string& key, const py::handle& value) {
     const auto dot = key.find('.');
-    if (dot == std::string::npos || dot == 0 || dot + 1 == key.size() || key.find('.', dot + 1) != std::string::npos)
+    if (dot == std::string::npos || dot == 0 || dot + 1 == key.size() ||
+        key.find('.', dot + 1) != std::string::npos)
       throw std::invalid_argument("override '" + key + "' must have the form section.field");
     nlohmann::json& section = json[key.substr(0, dot)];
     if (section.is_null()) section = nlohmann::json::object();
-    if (!section.is_object()) throw std::invalid_argument("config section '" + key.substr(0, dot) + "' must be a dict");
+    if (!section.is_object())
+      throw std::invalid_argument("config section '" + key.substr(0, dot) + "' must be a dict");
     section[key.substr(dot + 1)] = toCppJson(value, key);
   };
   for (const auto& [keyObject, value] : overrides) {
@@ -275,7 +280,8 @@ Config makeConfig(const py::object& config, const py::dict& overrides) {
     if (key.find('.') != std::string::npos) {
       assign(key, value);
     } else if (py::isinstance<py::dict>(value)) {
-      for (const auto& [field, fieldValue] : value.cast<py::dict>()) assign(key + "." + std::string(py::str(field)), fieldValue);
+      for (const auto& [field, fieldValue] : value.cast<py::dict>())
+        assign(key + "." + std::string(py::str(field)), fieldValue);
     } else {
       throw std::invalid_argument("override '" + key +
                                   "' must be a section given as a dict (rod={'modeCount': 8}) or a "
@@ -300,15 +306,17 @@ class PyPistonRod {
     if (x.ndim() == 2 && x.shape(0) == c.elementsThroughHeight && x.shape(1) == c.elementsAlongLength) {
       return gridToDesign(c, x.data(), "design x");
     }
-    throw std::invalid_argument("design x must have shape (ny, nx) = (" + std::to_string(c.elementsThroughHeight) +
-                                ", " + std::to_string(c.elementsAlongLength) + "): rod.elementsThroughHeight x "
+    throw std::invalid_argument("design x must have shape (ny, nx) = (" +
+                                std::to_string(c.elementsThroughHeight) + ", " +
+                                std::to_string(c.elementsAlongLength) +
+                                "): rod.elementsThroughHeight x "
                                 "rod.elementsAlongLength, end columns 1");
   }
 
   py::array_t<double> x0() const { return gridArray(config().rod, rod_.initialDesign(), 1.0); }
 
-  py::dict evaluate(const py::object& x, bool gradient, const py::object& storage, const py::object& adjoint, const py::object& integrator,
-                    bool psi2Wanted) const {
+  py::dict evaluate(const py::object& x, bool gradient, const py::object& storage, const py::object& adjoint,
+                    const py::object& integrator, bool psi2Wanted) const {
     // The per-call choices go through the CLI's flag path (same validation, messages naming the key).
     Config config = rod_.config();
     if (!storage.is_none()) applyFlag(config, "storage", "simulation.storage", storage.cast<std::string>());
@@ -336,13 +344,14 @@ class PyPistonRod {
     out["warning"] = result.warning;
     out["dpsi1_dx"] = gradient ? py::object(gridArray(c, result.dpsi1, 0.0)) : py::object(py::none());
     out["dpsi2_dx"] = gradient && psi2 ? py::object(gridArray(c, result.dpsi2, 0.0)) : py::object(py::none());
-    out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
-                                                  : py::object(py::none());
+    out["dvolume_dx"] =
+        result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0)) : py::object(py::none());
     // The same derivatives over the design variables (the order of rod.design_variables), for
     // optimizers that work on the variables (scipy.optimize).
     out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
     out["dpsi2_dv"] = gradient && psi2 ? py::object(vectorArray(result.dpsi2)) : py::object(py::none());
-    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
+    out["dvolume_dv"] =
+        result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
     out["summary"] = toPython(summaryToJson(result.summary));
     py::dict seconds;
     seconds["model"] = result.modelSeconds;
@@ -372,11 +381,12 @@ class PyPistonRod {
     out["frequencies_hz"] = py::none();
     out["dpsi1_dx"] = gradient ? py::object(gridArray(c, result.dpsi1, 0.0)) : py::object(py::none());
     out["dpsi2_dx"] = py::none();
-    out["dvolume_dx"] = result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0))
-                                                  : py::object(py::none());
+    out["dvolume_dx"] =
+        result.dvolume.size() > 0 ? py::object(gridArray(c, result.dvolume, 0.0)) : py::object(py::none());
     out["dpsi1_dv"] = gradient ? py::object(vectorArray(result.dpsi1)) : py::object(py::none());
     out["dpsi2_dv"] = py::none();
-    out["dvolume_dv"] = result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
+    out["dvolume_dv"] =
+        result.dvolume.size() > 0 ? py::object(vectorArray(result.dvolume)) : py::object(py::none());
     out["state_size"] = result.stateSize;
     out["omega_max"] = result.omegaMax;
     out["coupling"] = config.simulation.fullOrderCoupling;
@@ -455,8 +465,10 @@ py::dict readResults(const std::string& path) {
   out["history"] = historyColumnArrays(data.history);
   std::vector<double> designs;
   designs.reserve(data.densities.size() * static_cast<std::size_t>(data.nx) * data.ny);
-  for (const Vector& grid : data.densities) designs.insert(designs.end(), grid.data(), grid.data() + grid.size());
-  out["designs"] = ownedArray(std::move(designs), {static_cast<py::ssize_t>(data.densities.size()), data.ny, data.nx});
+  for (const Vector& grid : data.densities)
+    designs.insert(designs.end(), grid.data(), grid.data() + grid.size());
+  out["designs"] =
+      ownedArray(std::move(designs), {static_cast<py::ssize_t>(data.densities.size()), data.ny, data.nx});
   out["configuration"] = py::module_::import("json").attr("loads")(data.configurationJson);
   out["nx"] = data.nx;
   out["ny"] = data.ny;
@@ -466,8 +478,9 @@ py::dict readResults(const std::string& path) {
   out["final_frequencies_hz"] = data.finalFrequenciesHz;
   // dofCount x modeCount in memory; the file's /final/modes is modeCount x dofCount (row = mode).
   const Matrix modes = data.finalModes.transpose();
-  out["final_modes"] = ownedArray(std::vector<double>(modes.data(), modes.data() + modes.size()),
-                                  {static_cast<py::ssize_t>(modes.cols()), static_cast<py::ssize_t>(modes.rows())});
+  out["final_modes"] =
+      ownedArray(std::vector<double>(modes.data(), modes.data() + modes.size()),
+                 {static_cast<py::ssize_t>(modes.cols()), static_cast<py::ssize_t>(modes.rows())});
   if (!data.history.empty() && !data.history.front().scenarioPsi1.empty()) {
     // Runs with scenarios (/scenarios in the file): every scenario's psi per iteration, K x S, as
     // `hindsight plot` draws them ("scenarios" is the name the shared plotting code reads), and psi_s(x0).
@@ -478,8 +491,8 @@ py::dict readResults(const std::string& path) {
       for (const IterationRecord& record : data.history) {
         values.insert(values.end(), (record.*member).begin(), (record.*member).end());
       }
-      return ownedArray(std::move(values), {static_cast<py::ssize_t>(data.history.size()),
-                                            static_cast<py::ssize_t>(scenarios)});
+      return ownedArray(std::move(values),
+                        {static_cast<py::ssize_t>(data.history.size()), static_cast<py::ssize_t>(scenarios)});
     };
     out["scenarios"] = table(&IterationRecord::scenarioPsi1);
     out["scenario_psi2"] = table(&IterationRecord::scenarioPsi2);
@@ -522,7 +535,8 @@ py::dict optimize(const Config& config, const std::string& out, bool resume, boo
     // Progress lines go to Python's sys.stdout (a notebook shows them), or nowhere.
     std::ostream discard(nullptr);  // no buffer: output is dropped
     py::object stdoutObject = py::module_::import("sys").attr("stdout");
-    py::detail::pythonbuf buffer(stdoutObject);  // what py::scoped_ostream_redirect uses; takes the GIL to write
+    py::detail::pythonbuf buffer(
+        stdoutObject);  // what py::scoped_ostream_redirect uses; takes the GIL to write
     std::ostream progress(&buffer);
     Simulating simulating;
     try {
@@ -550,22 +564,26 @@ class PythonProblem final : public Problem {
     parameterSize_ = attribute("parameter_size").cast<int>();
     if (stateSize_ < 1) throw std::invalid_argument("problem.state_size must be >= 1");
     if (parameterSize_ < 0) throw std::invalid_argument("problem.parameter_size must be >= 0");
-    name_ = py::hasattr(object_, "name") ? py::str(object_.attr("name")).cast<std::string>()
-                                         : py::str(py::type::of(object_).attr("__name__")).cast<std::string>();
+    name_ = py::hasattr(object_, "name")
+                ? py::str(object_.attr("name")).cast<std::string>()
+                : py::str(py::type::of(object_).attr("__name__")).cast<std::string>();
     hasJacobian_ = has("rhs_jacobian");
     hasStateVjp_ = has("rhs_state_vjp");
     if (!hasJacobian_ && !hasStateVjp_)
       throw std::invalid_argument("problem needs rhs_jacobian(t, z, p) or rhs_state_vjp(t, z, p, w)");
-    for (const char* method : {"initial_state", "rhs", "rhs_parameter_vjp", "integrand", "integrand_state_gradient",
-                               "integrand_parameter_gradient"}) {
+    for (const char* method : {"initial_state", "rhs", "rhs_parameter_vjp", "integrand",
+                               "integrand_state_gradient", "integrand_parameter_gradient"}) {
       if (!has(method)) throw std::invalid_argument(std::string("problem needs a method ") + method);
     }
     hasTerminal_ = has("terminal");
     if (hasTerminal_ && !has("terminal_gradient"))
-      throw std::invalid_argument("problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
+      throw std::invalid_argument(
+          "problem.terminal needs problem.terminal_gradient(z, p) -> (dphi/dz, dphi/dp)");
     hasInitialVjp_ = has("initial_state_vjp");
     // Bound methods looked up once: a getattr per call would cost more than the copies of z and p.
-    const auto lookup = [&](const char* name) { return has(name) ? py::object(object_.attr(name)) : py::object(py::none()); };
+    const auto lookup = [&](const char* name) {
+      return has(name) ? py::object(object_.attr(name)) : py::object(py::none());
+    };
     methods_.initial_state = lookup("initial_state");
     methods_.initial_state_vjp = lookup("initial_state_vjp");
     methods_.rhs = lookup("rhs");
@@ -597,8 +615,8 @@ class PythonProblem final : public Problem {
   }
   void rhsJacobian(double t, ConstVectorRef z, ConstVectorRef p, MatrixRef jacobian,
                    ProblemWorkspace*) const override {
-    const auto result = checked("rhs_jacobian", methods_.rhs_jacobian(t, array(z), array(p)), stateSize_,
-                                stateSize_);
+    const auto result =
+        checked("rhs_jacobian", methods_.rhs_jacobian(t, array(z), array(p)), stateSize_, stateSize_);
     const auto view = result.unchecked<2>();
     for (int i = 0; i < stateSize_; ++i)
       for (int j = 0; j < stateSize_; ++j) jacobian(i, j) = view(i, j);
@@ -624,8 +642,8 @@ class PythonProblem final : public Problem {
                                  ProblemWorkspace*) const override {
     addInto("integrand_state_gradient", methods_.integrand_state_gradient(t, array(z), array(p)), out, scale);
   }
-  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale, VectorRef out,
-                                     ProblemWorkspace*) const override {
+  void addIntegrandParameterGradient(double t, ConstVectorRef z, ConstVectorRef p, double scale,
+                                     VectorRef out, ProblemWorkspace*) const override {
     addInto("integrand_parameter_gradient", methods_.integrand_parameter_gradient(t, array(z), array(p)), out,
             scale);
   }
@@ -645,7 +663,8 @@ class PythonProblem final : public Problem {
   /// An optional method is present when the attribute exists and is not None.
   bool has(const char* name) const { return py::hasattr(object_, name) && !object_.attr(name).is_none(); }
   py::object attribute(const char* name) const {
-    if (!py::hasattr(object_, name)) throw std::invalid_argument(std::string("problem needs an attribute ") + name);
+    if (!py::hasattr(object_, name))
+      throw std::invalid_argument(std::string("problem needs an attribute ") + name);
     return object_.attr(name);
   }
   static py::array_t<double> array(ConstVectorRef v) {
@@ -658,8 +677,9 @@ class PythonProblem final : public Problem {
                                    : (a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == cols));
     if (!ok) {
       throw std::invalid_argument("problem." + std::string(method) + " must return an array of shape (" +
-                                  std::to_string(rows) + (cols < 0 ? ",)" : ", " + std::to_string(cols) + ")") +
-                                  ", got " + py::repr(value).cast<std::string>().substr(0, 80));
+                                  std::to_string(rows) +
+                                  (cols < 0 ? ",)" : ", " + std::to_string(cols) + ")") + ", got " +
+                                  py::repr(value).cast<std::string>().substr(0, 80));
     }
     return a;
   }
@@ -674,7 +694,8 @@ class PythonProblem final : public Problem {
 
   py::object object_;
   struct Methods {
-    py::object initial_state, initial_state_vjp, rhs, rhs_jacobian, rhs_state_vjp, rhs_parameter_vjp, integrand, integrand_state_gradient, integrand_parameter_gradient, terminal, terminal_gradient;
+    py::object initial_state, initial_state_vjp, rhs, rhs_jacobian, rhs_state_vjp, rhs_parameter_vjp,
+        integrand, integrand_state_gradient, integrand_parameter_gradient, terminal, terminal_gradient;
   } methods_;
   std::string name_;
   int stateSize_ = 0, parameterSize_ = 0;
@@ -712,8 +733,8 @@ void applySolverOptions(const py::dict& solver, GradientOptions& options) {
 /// atol: a float (the scalar tolerance) or a 1-D float64 array of one tolerance per state (the
 /// integrator's and CVODES' per-component tolerances; their sizes are checked against the problem).
 GradientOptions gradientOptions(const std::string& integrator, double step, double t0, double t1,
-                                const std::string& storage, const std::string& adjoint, bool adaptive, double rtol,
-                                const py::object& atol, const py::dict& solver) {
+                                const std::string& storage, const std::string& adjoint, bool adaptive,
+                                double rtol, const py::object& atol, const py::dict& solver) {
   GradientOptions options;
   options.adjoint = parseAdjointMethod(adjoint);
   options.integrator.method = integrator;
@@ -740,7 +761,8 @@ py::dict gradientDict(const GradientResult& result) {
   py::dict out;
   out["psi"] = result.objective;
   out["gradient"] = vectorArray(result.gradient);
-  out["times"] = ownedArray(std::vector<double>(result.times), {static_cast<py::ssize_t>(result.times.size())});
+  out["times"] =
+      ownedArray(std::vector<double>(result.times), {static_cast<py::ssize_t>(result.times.size())});
   out["summary"] = toPython(summaryToJson(result.summary));
   return out;
 }
@@ -748,7 +770,8 @@ py::dict gradientDict(const GradientResult& result) {
 Vector parameterVector(const py::array_t<double, py::array::c_style | py::array::forcecast>& p, int size,
                        const std::string& what) {
   if (p.ndim() != 1 || p.shape(0) != size) {
-    throw std::invalid_argument("p must be a 1-D array of " + what + " = " + std::to_string(size) + " values");
+    throw std::invalid_argument("p must be a 1-D array of " + what + " = " + std::to_string(size) +
+                                " values");
   }
   return Eigen::Map<const Vector>(p.data(), p.shape(0));
 }
@@ -758,11 +781,13 @@ std::unique_ptr<Problem> classicProblem(const std::string& name) {
   if (name == "oscillator") return std::make_unique<Oscillator>();
   if (name == "decay") return std::make_unique<ExponentialDecay>();
   if (name == "pendulum") return std::make_unique<Pendulum>();
-  throw std::invalid_argument("classic problem '" + name + "' is not offered; known: oscillator, decay, pendulum");
+  throw std::invalid_argument("classic problem '" + name +
+                              "' is not offered; known: oscillator, decay, pendulum");
 }
 
 /// The C++ problems of problems/classic by name, for comparisons with a problem written in Python.
-py::dict classicGradient(const std::string& name, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+py::dict classicGradient(const std::string& name,
+                         const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
                          const GradientOptions& options) {
   const std::unique_ptr<Problem> problem = classicProblem(name);
   const Vector parameters = parameterVector(p, problem->parameterSize(), "the problem's parameter count");
@@ -774,7 +799,8 @@ py::dict classicGradient(const std::string& name, const py::array_t<double, py::
   return gradientDict(result);
 }
 
-py::dict gradient(const py::object& problem, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+py::dict gradient(const py::object& problem,
+                  const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
                   const GradientOptions& options) {
   const PythonProblem adapter(problem);
   const Vector parameters = parameterVector(p, adapter.parameterSize(), "problem.parameter_size");
@@ -840,8 +866,10 @@ py::dict simulateProblem(const Problem& problem, const Vector& p, const Integrat
   return out;
 }
 
-py::dict simulateAny(const py::object& problem, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
-                     const GradientOptions& options, const py::object& observer, bool collect, bool derivatives) {
+py::dict simulateAny(const py::object& problem,
+                     const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                     const GradientOptions& options, const py::object& observer, bool collect,
+                     bool derivatives) {
   if (py::isinstance<py::str>(problem)) {
     const std::unique_ptr<Problem> classic = classicProblem(problem.cast<std::string>());
     const Vector parameters = parameterVector(p, classic->parameterSize(), "the problem's parameter count");
@@ -911,24 +939,32 @@ PYBIND11_MODULE(_hindsight, m) {
            py::arg("config") = py::none())
       .def_property_readonly("config", &PyPistonRod::configDict)
       .def_property_readonly("x0", &PyPistonRod::x0)
-      .def_property_readonly("design_count", [](const PyPistonRod& r) { return r.config().rod.designCount(); })
-      .def_property_readonly("shape", [](const PyPistonRod& r) {
-        return py::make_tuple(r.config().rod.elementsThroughHeight, r.config().rod.elementsAlongLength);
-      })
-      .def("design_variables", [](const PyPistonRod& r, const py::object& x) {
-        return vectorArray(r.design(x));
-      })
-      .def("design_grid", [](const PyPistonRod& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& v,
-                             double interfaceValue) {
-        const Vector values = Eigen::Map<const Vector>(v.data(), v.size());
-        return gridArray(r.config().rod, values, interfaceValue);
-      }, py::arg("values"), py::arg("interface_value") = 1.0)
+      .def_property_readonly("design_count",
+                             [](const PyPistonRod& r) { return r.config().rod.designCount(); })
+      .def_property_readonly("shape",
+                             [](const PyPistonRod& r) {
+                               return py::make_tuple(r.config().rod.elementsThroughHeight,
+                                                     r.config().rod.elementsAlongLength);
+                             })
+      .def("design_variables",
+           [](const PyPistonRod& r, const py::object& x) { return vectorArray(r.design(x)); })
+      .def(
+          "design_grid",
+          [](const PyPistonRod& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& v,
+             double interfaceValue) {
+            const Vector values = Eigen::Map<const Vector>(v.data(), v.size());
+            return gridArray(r.config().rod, values, interfaceValue);
+          },
+          py::arg("values"), py::arg("interface_value") = 1.0)
       .def("_evaluate", &PyPistonRod::evaluate, py::arg("x"), py::arg("gradient"), py::arg("storage"),
            py::arg("adjoint"), py::arg("integrator"), py::arg("psi2"));
 
-  m.def("_make_config", [](const py::object& config, const py::kwargs& overrides) {
-    return toPython(toJson(makeConfig(config, overrides)));
-  }, py::arg("config") = py::none());
+  m.def(
+      "_make_config",
+      [](const py::object& config, const py::kwargs& overrides) {
+        return toPython(toJson(makeConfig(config, overrides)));
+      },
+      py::arg("config") = py::none());
   m.def("_optimize", [](const py::object& config, const std::string& out, bool resume, bool force,
                         const py::object& callback, bool verbose, const py::kwargs& overrides) {
     return optimize(makeConfig(config, overrides), out, resume, force, callback, verbose);
@@ -936,21 +972,28 @@ PYBIND11_MODULE(_hindsight, m) {
   m.def("_read_results", &readResults);
   m.def("_history_columns", &historySchema);
   using PArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-  m.def("_gradient", [](const py::object& problem, const PArray& p, const std::string& integrator, double step,
-                        double t0, double t1, const std::string& storage, const std::string& adjoint, bool adaptive,
-                        double rtol, const py::object& atol, const py::dict& solver) {
-    return gradient(problem, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
+  m.def("_gradient",
+        [](const py::object& problem, const PArray& p, const std::string& integrator, double step, double t0,
+           double t1, const std::string& storage, const std::string& adjoint, bool adaptive, double rtol,
+           const py::object& atol, const py::dict& solver) {
+          return gradient(
+              problem, p,
+              gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
+        });
+  m.def("_classic_gradient", [](const std::string& name, const PArray& p, const std::string& integrator,
+                                double step, double t0, double t1, const std::string& storage,
+                                const std::string& adjoint, bool adaptive, double rtol,
+                                const py::object& atol, const py::dict& solver) {
+    return classicGradient(
+        name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
   });
-  m.def("_classic_gradient", [](const std::string& name, const PArray& p, const std::string& integrator, double step,
-                                double t0, double t1, const std::string& storage, const std::string& adjoint,
-                                bool adaptive, double rtol, const py::object& atol, const py::dict& solver) {
-    return classicGradient(name, p, gradientOptions(integrator, step, t0, t1, storage, adjoint, adaptive, rtol, atol, solver));
-  });
-  m.def("_simulate", [](const py::object& problem, const PArray& p, const std::string& integrator, double step,
-                        double t0, double t1, bool adaptive, double rtol, const py::object& atol,
+  m.def("_simulate", [](const py::object& problem, const PArray& p, const std::string& integrator,
+                        double step, double t0, double t1, bool adaptive, double rtol, const py::object& atol,
                         const py::dict& solver, const py::object& observer, bool collect, bool derivatives) {
-    return simulateAny(problem, p, gradientOptions(integrator, step, t0, t1, "full", "discrete", adaptive, rtol, atol, solver),
-                       observer, collect, derivatives);
+    return simulateAny(
+        problem, p,
+        gradientOptions(integrator, step, t0, t1, "full", "discrete", adaptive, rtol, atol, solver), observer,
+        collect, derivatives);
   });
   m.def("_storage_specs", &storageSpecs);
   m.def("_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
@@ -973,8 +1016,8 @@ PYBIND11_MODULE(_hindsight, m) {
     if (actions) d["actions"] = stream;
     return d;
   });
-  m.def("_checkpoint_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
-                                   const std::string& costs) {
+  m.def("_checkpoint_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
+                                   int stages, const std::string& costs) {
     // storage/checkpoint_actions.h; python/hindsight/checkpoint_schedule.py makes the action objects.
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
@@ -986,12 +1029,14 @@ PYBIND11_MODULE(_hindsight, m) {
     py::list out;
     for (const CheckpointAction& a : actions) {
       out.append(py::make_tuple(static_cast<int>(a.kind), a.n0, a.n1, a.writeIcs, a.writeAdjDeps,
-                                checkpointStorageName(a.storage), a.clearAdjDeps, checkpointStorageName(a.from),
-                                checkpointStorageName(a.to)));
+                                checkpointStorageName(a.storage), a.clearAdjDeps,
+                                checkpointStorageName(a.from), checkpointStorageName(a.to)));
     }
     return out;
   });
-  m.def("storage_strategy_names", &storageStrategyNames, "Names of the storage strategies (the C++ factory's).");
-  m.def("_check_storage_spec", [](const std::string& spec) { return createStorage(spec)->spec(); },
-        "Parses a storage spec with the C++ factory; ValueError for a bad one. Returns the normalized spec.");
+  m.def("storage_strategy_names", &storageStrategyNames,
+        "Names of the storage strategies (the C++ factory's).");
+  m.def(
+      "_check_storage_spec", [](const std::string& spec) { return createStorage(spec)->spec(); },
+      "Parses a storage spec with the C++ factory; ValueError for a bad one. Returns the normalized spec.");
 }

@@ -96,7 +96,8 @@ void writeFileAtomically(const std::string& path, const std::function<void(const
   if (!error.empty()) throw StorageError(error, path);
 }
 
-void writeBytesAtomically(const std::string& path, const void* data, std::size_t size, const std::string& what) {
+void writeBytesAtomically(const std::string& path, const void* data, std::size_t size,
+                          const std::string& what) {
   writeStreamAtomically(path, [&](std::FILE* file) -> std::string {
     if (std::fwrite(data, 1, size, file) != size) return "cannot write " + what + ": " + std::strerror(errno);
     return {};

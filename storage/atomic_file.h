@@ -25,7 +25,8 @@ void writeStreamAtomically(const std::string& path, const std::function<std::str
 
 /// `size` bytes at `data` as the whole file: a failed write throws StorageError "cannot write WHAT:
 /// reason" naming `path` (WHAT e.g. "the SVG file").
-void writeBytesAtomically(const std::string& path, const void* data, std::size_t size, const std::string& what);
+void writeBytesAtomically(const std::string& path, const void* data, std::size_t size,
+                          const std::string& what);
 
 /// Removes the temporary files of `path` left by processes that no longer run (killed during a
 /// write); those of running processes stay. Never throws.

@@ -12,28 +12,44 @@ namespace hindsight {
 
 const char* checkpointStorageName(CheckpointStorage storage) {
   switch (storage) {
-    case CheckpointStorage::kRam: return "RAM";
-    case CheckpointStorage::kDisk: return "DISK";
-    case CheckpointStorage::kWork: return "WORK";
-    case CheckpointStorage::kNone: break;
+    case CheckpointStorage::kRam:
+      return "RAM";
+    case CheckpointStorage::kDisk:
+      return "DISK";
+    case CheckpointStorage::kWork:
+      return "WORK";
+    case CheckpointStorage::kNone:
+      break;
   }
   return "NONE";
 }
 
 std::string CheckpointAction::text() const {
   const auto flag = [](bool b) { return b ? "True" : "False"; };
-  const auto where = [](CheckpointStorage s) { return std::string("StorageType.") + checkpointStorageName(s); };
+  const auto where = [](CheckpointStorage s) {
+    return std::string("StorageType.") + checkpointStorageName(s);
+  };
   std::ostringstream out;
   switch (kind) {
     case Kind::kForward:
       out << "Forward(" << n0 << ", " << n1 << ", " << flag(writeIcs) << ", " << flag(writeAdjDeps) << ", "
           << where(storage) << ")";
       break;
-    case Kind::kReverse: out << "Reverse(" << n1 << ", " << n0 << ", " << flag(clearAdjDeps) << ")"; break;
-    case Kind::kCopy: out << "Copy(" << n0 << ", " << where(from) << ", " << where(to) << ")"; break;
-    case Kind::kMove: out << "Move(" << n0 << ", " << where(from) << ", " << where(to) << ")"; break;
-    case Kind::kEndForward: out << "EndForward()"; break;
-    case Kind::kEndReverse: out << "EndReverse()"; break;
+    case Kind::kReverse:
+      out << "Reverse(" << n1 << ", " << n0 << ", " << flag(clearAdjDeps) << ")";
+      break;
+    case Kind::kCopy:
+      out << "Copy(" << n0 << ", " << where(from) << ", " << where(to) << ")";
+      break;
+    case Kind::kMove:
+      out << "Move(" << n0 << ", " << where(from) << ", " << where(to) << ")";
+      break;
+    case Kind::kEndForward:
+      out << "EndForward()";
+      break;
+    case Kind::kEndReverse:
+      out << "EndReverse()";
+      break;
   }
   return out.str();
 }
@@ -59,7 +75,9 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
   bool header = false;
   std::int64_t pending = -1;
   const auto closeHeader = [&] {
-    if (pending >= 0) events.push_back(PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", pending, pending, false});
+    if (pending >= 0)
+      events.push_back(
+          PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", pending, pending, false});
     pending = -1;
   };
   while (std::getline(in, line)) {
@@ -67,15 +85,18 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
     std::string verb, w1, w2, w3;
     words >> verb >> w1 >> w2 >> w3;
     if (verb == "record") {
-      events.push_back(PlanEvent{PlanEvent::Kind::kRecord, CheckpointStorage::kWork, "", std::stoll(w1), 0, false});
+      events.push_back(
+          PlanEvent{PlanEvent::Kind::kRecord, CheckpointStorage::kWork, "", std::stoll(w1), 0, false});
     } else if (verb == "advance") {
-      events.push_back(PlanEvent{PlanEvent::Kind::kAdvance, CheckpointStorage::kWork, "", std::stoll(w1), std::stoll(w2), false});
+      events.push_back(PlanEvent{PlanEvent::Kind::kAdvance, CheckpointStorage::kWork, "", std::stoll(w1),
+                                 std::stoll(w2), false});
     } else if (verb == "restore") {
       if (w2.empty()) {
         header = true;
         closeHeader();
         pending = std::stoll(w1);
-        events.push_back(PlanEvent{PlanEvent::Kind::kBeginRestore, CheckpointStorage::kWork, "", pending, pending, false});
+        events.push_back(
+            PlanEvent{PlanEvent::Kind::kBeginRestore, CheckpointStorage::kWork, "", pending, pending, false});
       } else {
         events.push_back(PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", std::stoll(w1),
                                    std::stoll(w1), w2 == "with"});
@@ -84,8 +105,8 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
       const CheckpointStorage level = w1 == "disk" ? CheckpointStorage::kDisk : CheckpointStorage::kRam;
       if (w2 == "state" || w2 == "record") {
         // cams: checkpoints named by their position; a record holds the state too.
-        events.push_back(PlanEvent{w2 == "record" ? PlanEvent::Kind::kStoreRecord : PlanEvent::Kind::kStore, level,
-                                   "at " + w3, std::stoll(w3), 0, false});
+        events.push_back(PlanEvent{w2 == "record" ? PlanEvent::Kind::kStoreRecord : PlanEvent::Kind::kStore,
+                                   level, "at " + w3, std::stoll(w3), 0, false});
       } else {
         events.push_back(PlanEvent{verb == "store" ? PlanEvent::Kind::kStore : PlanEvent::Kind::kLoad, level,
                                    w1 + " " + w2, -1, 0, false});
@@ -103,9 +124,9 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
 class Translator {
  public:
   struct Usage {
-    std::map<std::int64_t, std::int64_t> loads;      // version -> number of loads
-    std::map<std::int64_t, std::int64_t> seen;       // version -> loads emitted so far (second pass)
-    std::set<std::int64_t> adjDepsUsed;              // steps whose record's adjoint data a Reverse uses
+    std::map<std::int64_t, std::int64_t> loads;  // version -> number of loads
+    std::map<std::int64_t, std::int64_t> seen;   // version -> loads emitted so far (second pass)
+    std::set<std::int64_t> adjDepsUsed;          // steps whose record's adjoint data a Reverse uses
   };
 
   Translator(std::int64_t steps, Usage& usage, bool emit) : steps_(steps), usage_(usage), emit_(emit) {}
@@ -135,7 +156,8 @@ class Translator {
     // when the plan replays it from a checkpoint, the replay is translated like every other restore.
     std::size_t lastDelivery = i;
     bool replays = false;  // anything but loads
-    for (; lastDelivery < events.size() && events[lastDelivery].kind != PlanEvent::Kind::kDeliver; ++lastDelivery) {
+    for (; lastDelivery < events.size() && events[lastDelivery].kind != PlanEvent::Kind::kDeliver;
+         ++lastDelivery) {
       const PlanEvent::Kind kind = events[lastDelivery].kind;
       replays = replays || (kind != PlanEvent::Kind::kLoad && kind != PlanEvent::Kind::kBeginRestore);
     }
@@ -154,9 +176,15 @@ class Translator {
     for (; i < events.size(); ++i) {
       const PlanEvent& ev = events[i];
       switch (ev.kind) {
-        case PlanEvent::Kind::kStore: store(ev); break;
-        case PlanEvent::Kind::kStoreRecord: storeRecord(ev); break;
-        case PlanEvent::Kind::kLoad: load(slotContent(ev.level, ev.key)); break;
+        case PlanEvent::Kind::kStore:
+          store(ev);
+          break;
+        case PlanEvent::Kind::kStoreRecord:
+          storeRecord(ev);
+          break;
+        case PlanEvent::Kind::kLoad:
+          load(slotContent(ev.level, ev.key));
+          break;
         case PlanEvent::Kind::kAdvance:
           need(ev.a);
           forwardTo(ev.b);
@@ -166,8 +194,10 @@ class Translator {
           deliver(ev.a, ev.withStages);
           --expected;
           break;
-        case PlanEvent::Kind::kBeginRestore: break;
-        case PlanEvent::Kind::kRecord: throw std::logic_error("checkpointSchedule: a forward record in the backward sweep");
+        case PlanEvent::Kind::kBeginRestore:
+          break;
+        case PlanEvent::Kind::kRecord:
+          throw std::logic_error("checkpointSchedule: a forward record in the backward sweep");
       }
     }
     if (expected != -1) throw std::logic_error("checkpointSchedule: the plan does not restore every state");
@@ -258,10 +288,12 @@ class Translator {
     if (current_ == n) return;
     const Content* best = nullptr;
     for (const auto& [name, c] : slots_) {
-      if (c.position == n && (best == nullptr || (c.level == CheckpointStorage::kRam && best->level != c.level)))
+      if (c.position == n &&
+          (best == nullptr || (c.level == CheckpointStorage::kRam && best->level != c.level)))
         best = &c;
     }
-    if (best == nullptr) throw std::logic_error("checkpointSchedule: x_" + std::to_string(n) + " is neither at hand nor stored");
+    if (best == nullptr)
+      throw std::logic_error("checkpointSchedule: x_" + std::to_string(n) + " is neither at hand nor stored");
     load(*best);
   }
 
@@ -292,7 +324,8 @@ class Translator {
       if (!pendingIcs_.empty()) {
         // writeIcs goes with the Forward's own storage when it writes adjoint data; else to the
         // checkpoint's level; further levels are copies from WORK first.
-        auto it = std::find(pendingIcs_.begin(), pendingIcs_.end(), a.writeAdjDeps ? a.storage : pendingIcs_.front());
+        auto it = std::find(pendingIcs_.begin(), pendingIcs_.end(),
+                            a.writeAdjDeps ? a.storage : pendingIcs_.front());
         if (it != pendingIcs_.end()) {
           a.writeIcs = true;
           a.storage = *it;
@@ -320,7 +353,8 @@ class Translator {
 
   void deliver(std::int64_t e, bool withStages) {
     if (withStages || heldAdjDeps_.count(e) != 0) {
-      if (heldAdjDeps_.count(e) == 0) throw std::logic_error("checkpointSchedule: a record delivered before it was filled");
+      if (heldAdjDeps_.count(e) == 0)
+        throw std::logic_error("checkpointSchedule: a record delivered before it was filled");
       heldAdjDeps_.erase(e);
       flushIcs();
     } else {
@@ -351,12 +385,16 @@ class Translator {
 
 }  // namespace
 
-std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                                 int stages, const ScheduleCosts* costs) {
+std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
+                                                 std::int64_t stateBytes, int stages,
+                                                 const ScheduleCosts* costs) {
   const StorageSpec parsed = StorageSpec::parse(spec);
   if (parsed.has("stages") && parsed.integer("stages", 0, 0, 1) == 1 && stages > 1) {
-    throw std::invalid_argument(parsed.name() + ".stages = 1 keeps stage values by a rule of its own, which the action "
-                                "stream does not express; use " + parsed.name() + " without stages=1, or cams (whose "
+    throw std::invalid_argument(parsed.name() +
+                                ".stages = 1 keeps stage values by a rule of its own, which the action "
+                                "stream does not express; use " +
+                                parsed.name() +
+                                " without stages=1, or cams (whose "
                                 "step records it expresses)");
   }
   std::ostringstream plan;
@@ -368,9 +406,10 @@ std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::i
   return Translator(steps, usage, true).run(events);
 }
 
-CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions, std::int64_t steps) {
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
+                                             std::int64_t steps) {
   CheckpointStreamCounts counts;
-  std::int64_t work = 0;  // the step of the WORK state, -1 none
+  std::int64_t work = 0;                                        // the step of the WORK state, -1 none
   std::map<CheckpointStorage, std::set<std::int64_t>> ics;      // restart states held per storage
   std::map<CheckpointStorage, std::set<std::int64_t>> adjDeps;  // steps whose adjoint data is held
   bool forwardDone = false, reverseDone = false;
@@ -383,7 +422,8 @@ CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>
         if (work != a.n0) fail("WORK holds x_" + std::to_string(work));
         if (a.n1 <= a.n0 || a.n1 > steps) fail("not a forward range within N = " + std::to_string(steps));
         if (a.writeIcs) {
-          if (a.storage == CheckpointStorage::kWork || a.storage == CheckpointStorage::kNone) fail("ics to WORK");
+          if (a.storage == CheckpointStorage::kWork || a.storage == CheckpointStorage::kNone)
+            fail("ics to WORK");
           ics[a.storage].insert(a.n0);
           (a.storage == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
         }
@@ -393,7 +433,8 @@ CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>
         const std::int64_t length = a.n1 - a.n0;
         if (!forwardDone) {
           counts.forwardSteps += length;
-          if (a.writeAdjDeps && a.storage == CheckpointStorage::kWork && a.n1 == steps && length == 1) ++counts.adjointReruns;
+          if (a.writeAdjDeps && a.storage == CheckpointStorage::kWork && a.n1 == steps && length == 1)
+            ++counts.adjointReruns;
         } else if (a.writeAdjDeps && a.storage == CheckpointStorage::kWork && length == 1) {
           ++counts.adjointReruns;
         } else {
@@ -420,7 +461,8 @@ CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>
         break;
       case CheckpointAction::Kind::kReverse: {
         if (!forwardDone) fail("before EndForward");
-        if (a.n1 != nextReverse + 1 || a.n0 >= a.n1) fail("the adjoint is at step " + std::to_string(nextReverse));
+        if (a.n1 != nextReverse + 1 || a.n0 >= a.n1)
+          fail("the adjoint is at step " + std::to_string(nextReverse));
         for (std::int64_t n = a.n1 - 1; n >= a.n0; --n) {
           bool found = false;
           for (auto& [storage, held] : adjDeps) {
@@ -445,8 +487,10 @@ CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>
         reverseDone = true;
         break;
     }
-    counts.peakRamCheckpoints = std::max<std::int64_t>(counts.peakRamCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kRam].size()));
-    counts.peakDiskCheckpoints = std::max<std::int64_t>(counts.peakDiskCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kDisk].size()));
+    counts.peakRamCheckpoints = std::max<std::int64_t>(
+        counts.peakRamCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kRam].size()));
+    counts.peakDiskCheckpoints = std::max<std::int64_t>(
+        counts.peakDiskCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kDisk].size()));
   }
   if (!reverseDone) throw std::logic_error("the stream ends without EndReverse");
   return counts;

@@ -45,8 +45,8 @@ struct CheckpointAction {
   Kind kind = Kind::kEndForward;
   /// Forward: n0 -> n1; Reverse: n1 -> n0 (n1 > n0 always); Copy/Move: n0 is the step n, n1 = n0.
   std::int64_t n0 = 0, n1 = 0;
-  bool writeIcs = false, writeAdjDeps = false;  ///< Forward
-  bool clearAdjDeps = false;                    ///< Reverse
+  bool writeIcs = false, writeAdjDeps = false;           ///< Forward
+  bool clearAdjDeps = false;                             ///< Reverse
   CheckpointStorage storage = CheckpointStorage::kWork;  ///< Forward: where it writes
   CheckpointStorage from = CheckpointStorage::kNone, to = CheckpointStorage::kNone;  ///< Copy/Move
   /// checkpoint_schedules' repr, e.g. "Forward(0, 10, True, False, StorageType.RAM)".
@@ -58,14 +58,16 @@ struct CheckpointAction {
 /// (offline). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
 /// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
 /// by a rule of its own (stages=1; cams' step records are expressed).
-std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                                 int stages, const ScheduleCosts* costs);
+std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
+                                                 std::int64_t stateBytes, int stages,
+                                                 const ScheduleCosts* costs);
 
 /// Counts of a stream, as a host executing it would see them (tests and docs).
 struct CheckpointStreamCounts {
-  std::int64_t forwardSteps = 0;      ///< steps advanced before EndForward (N)
-  std::int64_t recomputedSteps = 0;   ///< steps advanced after it, except the one-step re-runs below
-  std::int64_t adjointReruns = 0;     ///< one-step Forwards writing adjoint data to WORK (incl. the forward's last)
+  std::int64_t forwardSteps = 0;     ///< steps advanced before EndForward (N)
+  std::int64_t recomputedSteps = 0;  ///< steps advanced after it, except the one-step re-runs below
+  std::int64_t adjointReruns =
+      0;  ///< one-step Forwards writing adjoint data to WORK (incl. the forward's last)
   std::int64_t ramIcsWrites = 0, diskIcsWrites = 0;
   std::int64_t peakRamCheckpoints = 0, peakDiskCheckpoints = 0;  ///< restart states held at once
 };
@@ -74,6 +76,7 @@ struct CheckpointStreamCounts {
 /// std::logic_error naming the action when the stream is not valid for N steps: a Forward not starting
 /// at the WORK state, a Copy/Move of data not held, a Reverse out of order or without its adjoint data,
 /// EndForward before x_N, EndReverse before step 0 is reversed, anything after EndReverse.
-CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions, std::int64_t steps);
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
+                                             std::int64_t steps);
 
 }  // namespace hindsight

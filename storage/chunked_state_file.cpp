@@ -206,12 +206,13 @@ struct ChunkedStateFile::Impl {
     if (options.codec == StateFileOptions::Codec::kTime) {
       const unsigned values[3] = {rank == 2 ? static_cast<unsigned>(chunk[1]) : 1u,
                                   static_cast<unsigned>(options.timeOrder), level};
-      hdf5::check(H5Pset_filter(dcpl.get(), static_cast<H5Z_filter_t>(kTimeCodecFilterId), H5Z_FLAG_MANDATORY, 3,
-                                values),
+      hdf5::check(H5Pset_filter(dcpl.get(), static_cast<H5Z_filter_t>(kTimeCodecFilterId), H5Z_FLAG_MANDATORY,
+                                3, values),
                   "time codec filter 306");
     } else {
       hdf5::check(H5Pset_shuffle(dcpl.get()), "shuffle filter");
-      hdf5::check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level), "zstd filter 32015");
+      hdf5::check(H5Pset_filter(dcpl.get(), kZstdFilterId, H5Z_FLAG_MANDATORY, 1, &level),
+                  "zstd filter 32015");
     }
     hdf5::check(H5Pset_fletcher32(dcpl.get()), "Fletcher32 filter");
     return dcpl;
@@ -226,7 +227,8 @@ struct ChunkedStateFile::Impl {
 
   void create() {
     if (!ensureZstdFilter()) throw std::runtime_error("cannot register the zstd HDF5 filter (id 32015)");
-    if (!ensureTimeCodecFilter()) throw std::runtime_error("cannot register the time codec HDF5 filter (id 306)");
+    if (!ensureTimeCodecFilter())
+      throw std::runtime_error("cannot register the time codec HDF5 filter (id 306)");
     file = hdf5::createFile(path, H5F_ACC_EXCL, "the trajectory file");
     created = true;
     const std::vector<hsize_t> dims = {0, static_cast<hsize_t>(n)};

@@ -10,7 +10,8 @@
 //   root attributes: format ("hindsight trajectory 1"), problem, stateSize, t0, t1,
 //             hindsightVersion, chunkStates, codec ("time" or "zstd"), and stepCount (written when
 //             the forward sweep ends). Filter 306 is not registered with the HDF Group: a file coded
-//             with it is read by hindsight (or any program that registers the filter of storage/time_codec.h).
+//             with it is read by hindsight (or any program that registers the filter of
+//             storage/time_codec.h).
 // zstd is registered with HDF5 under its registered id 32015 (HDF Group filter registry,
 // https://github.com/HDFGroup/hdf5_plugins/blob/master/docs/RegisteredFilterPlugins.md) by our own
 // small callback over libzstd when no plugin provides it, so the file is the same one the official
@@ -40,12 +41,12 @@ namespace hindsight::internal {
 struct StateFileOptions {
   std::string directory;
   std::string filePrefix = "hindsight";
-  int compressionLevel = 3;      ///< zstd level, 1..22
+  int compressionLevel = 3;  ///< zstd level, 1..22
   /// Coding of the rows: kTime (default) predicts each row from the previous rows of its chunk and
   /// codes the residual (storage/time_codec.h, HDF5 filter 306); kZstd is byte shuffle + zstd alone.
   enum class Codec { kTime, kZstd };
   Codec codec = Codec::kTime;
-  int timeOrder = 6;  ///< extrapolation order of kTime, 0..8
+  int timeOrder = 6;             ///< extrapolation order of kTime, 0..8
   std::int64_t chunkStates = 1;  ///< rows per HDF5 chunk and per buffer
   int bufferCount = 3;           ///< >= 1; 1 disables overlap of I/O and computation
   bool keepFile = false;

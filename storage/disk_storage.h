@@ -36,8 +36,8 @@
 // master/docs/RegisteredFilterPlugins.md; Collet & Kucherawy, RFC 8878 (Zstandard).
 #pragma once
 
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <functional>
 #include <memory>
@@ -77,7 +77,9 @@ class DiskStorage final : public TrajectoryStorage {
   ~DiskStorage() override;
 
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"dir", "level", "chunk", "budget", "keep", "codec", "stages"}; }
+  static std::vector<std::string> keys() {
+    return {"dir", "level", "chunk", "budget", "keep", "codec", "stages"};
+  }
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -168,9 +168,10 @@ void HermiteStorage::doFinish(double t, ConstVectorRef z, ConstVectorRef zdot) {
   finished_ = true;
   if (worstRelativeError_ > tolerance_) {
     std::ostringstream msg;
-    msg << "hermite.every = " << every_ << " is too long for this trajectory: the interpolated states are off by "
-        << worstRelativeError_ << " (relative, measured mid-interval in the forward sweep) > hermite.tolerance = "
-        << tolerance_ << "; lower every (the error falls like every^4) or raise tolerance";
+    msg << "hermite.every = " << every_
+        << " is too long for this trajectory: the interpolated states are off by " << worstRelativeError_
+        << " (relative, measured mid-interval in the forward sweep) > hermite.tolerance = " << tolerance_
+        << "; lower every (the error falls like every^4) or raise tolerance";
     throw std::invalid_argument(msg.str());
   }
 }

@@ -15,28 +15,26 @@
 // state is held (one state, allocated at begin()) until the interval's end is kept, then compared
 // with the interpolant there. With N unknown (adaptive steps) the middle is not known in advance:
 // two states are held, at offsets s and 2s from the interval's start (s doubling as the interval
-// grows), so that at its end, of length L, one lies in [L/4, L/2] and both are compared. The largest relative error over the run (max-norm of the difference
-// over the max-norm of the interval's states) is the run's state error e. The summary reports
-// gradient_error_estimate = LossyStorage::kGradientSensitivity x e, the calibrated ratio of gradient
-// to state error that the lossy strategy uses (storage/lossy_storage.h; the same problems, the same
-// caveat: an estimate, not a bound); tests/storage/hermite_storage_test.cpp checks it against the
-// measured gradient error. A run whose state error exceeds the tolerance T is refused at the end of
-// the forward sweep with std::invalid_argument naming hermite.every, e and T (an interval too long
-// for a cubic, e.g. every = N on a run of N steps, instead of a gradient off by orders of magnitude).
-// Intervals of one step have no interior state and contribute nothing.
-// Memory: (2n + 1) * 8 bytes per kept point plus 8 bytes per grid time (restore needs t_n);
-// preallocated when N is known, grown geometrically otherwise; every byte is charged to the budget,
-// and exceeding it throws StorageError.
-// needsDerivative() is true: the engine passes z' = F(t_n, z_n) to record() and finish().
-// interpolate(t) gives z(t) anywhere in [t0, t_N] once finish() has been called, for the continuous
-// adjoint; data stay until the next begin().
-// Throws: std::invalid_argument for every < 1 (factory: naming "hermite.every" and its range) or t
-// outside [t0, t_N] in interpolate(); StorageError when the budget would be exceeded;
-// std::logic_error for interpolate() before finish().
+// grows), so that at its end, of length L, one lies in [L/4, L/2] and both are compared. The largest relative
+// error over the run (max-norm of the difference over the max-norm of the interval's states) is the run's
+// state error e. The summary reports gradient_error_estimate = LossyStorage::kGradientSensitivity x e, the
+// calibrated ratio of gradient to state error that the lossy strategy uses (storage/lossy_storage.h; the same
+// problems, the same caveat: an estimate, not a bound); tests/storage/hermite_storage_test.cpp checks it
+// against the measured gradient error. A run whose state error exceeds the tolerance T is refused at the end
+// of the forward sweep with std::invalid_argument naming hermite.every, e and T (an interval too long for a
+// cubic, e.g. every = N on a run of N steps, instead of a gradient off by orders of magnitude). Intervals of
+// one step have no interior state and contribute nothing. Memory: (2n + 1) * 8 bytes per kept point plus 8
+// bytes per grid time (restore needs t_n); preallocated when N is known, grown geometrically otherwise; every
+// byte is charged to the budget, and exceeding it throws StorageError. needsDerivative() is true: the engine
+// passes z' = F(t_n, z_n) to record() and finish(). interpolate(t) gives z(t) anywhere in [t0, t_N] once
+// finish() has been called, for the continuous adjoint; data stay until the next begin(). Throws:
+// std::invalid_argument for every < 1 (factory: naming "hermite.every" and its range) or t outside [t0, t_N]
+// in interpolate(); StorageError when the budget would be exceeded; std::logic_error for interpolate() before
+// finish().
 #pragma once
 
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 
 #include <memory>
 #include <vector>

@@ -57,8 +57,8 @@ bool LossyStorage::Options::IsValid(std::string* error) const {
   } else if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
     message = "lossy.tolerance = " + shortest(tolerance) + " must be a positive number";
   } else if ((codec == Codec::kRound || codec == Codec::kTime) && tolerance > 0.5) {
-    message = "lossy.tolerance = " + shortest(tolerance) + " must be in (0, 0.5] for codec=" +
-              (codec == Codec::kRound ? "round" : "time") + " (relative)";
+    message = "lossy.tolerance = " + shortest(tolerance) +
+              " must be in (0, 0.5] for codec=" + (codec == Codec::kRound ? "round" : "time") + " (relative)";
   } else if (target != 0.0 && !(target >= kMinTarget && target <= kMaxTarget)) {
     message = "lossy.target = " + shortest(target) + " must be in [1e-14, 0.1]";
   } else if (budgetBytes <= 0) {
@@ -82,7 +82,8 @@ std::unique_ptr<TrajectoryStorage> LossyStorage::create(const StorageSpec& spec)
   options.blockStates = spec.integer("block", 0, 1, std::int64_t{1} << 30);
   if (spec.has("target")) {
     if (spec.has("codec") || spec.has("tolerance"))
-      throw std::invalid_argument("lossy.target sets codec and tolerance itself: give target or codec+tolerance");
+      throw std::invalid_argument(
+          "lossy.target sets codec and tolerance itself: give target or codec+tolerance");
     options.target = spec.real("target", 0.0, kMinTarget, kMaxTarget);
     options.codec = Codec::kTime;
     options.tolerance = options.target / kGradientSensitivity;
@@ -90,7 +91,8 @@ std::unique_ptr<TrajectoryStorage> LossyStorage::create(const StorageSpec& spec)
   }
   const std::string codec = spec.text("codec", "", {"zfp", "round", "time"});
   if (codec.empty())
-    throw std::invalid_argument("lossy needs target=T (e.g. target=1e-6) or codec=zfp|round|time with tolerance");
+    throw std::invalid_argument(
+        "lossy needs target=T (e.g. target=1e-6) or codec=zfp|round|time with tolerance");
   if (!spec.has("tolerance")) throw std::invalid_argument("lossy.tolerance is required, e.g. tolerance=1e-6");
   options.codec = codec == "zfp" ? Codec::kZfp : codec == "round" ? Codec::kRound : Codec::kTime;
   options.tolerance = spec.real("tolerance", 0.0, std::numeric_limits<double>::min(),
@@ -115,16 +117,16 @@ std::string LossyStorage::spec() const {
       text += separator + std::string("budget=") + std::to_string(options_.budgetBytes);
       separator = ',';
     }
-    if (options_.blockStates > 0) text += separator + std::string("block=") + std::to_string(options_.blockStates);
+    if (options_.blockStates > 0)
+      text += separator + std::string("block=") + std::to_string(options_.blockStates);
     return text;
   }
-  std::string text = options_.target > 0.0
-                         ? "lossy:target=" + shortest(options_.target)
-                         : std::string("lossy:codec=") +
-                               (options_.codec == Codec::kZfp     ? "zfp"
-                                : options_.codec == Codec::kRound ? "round"
-                                                                  : "time") +
-                               ",tolerance=" + shortest(options_.tolerance);
+  std::string text = options_.target > 0.0 ? "lossy:target=" + shortest(options_.target)
+                                           : std::string("lossy:codec=") +
+                                                 (options_.codec == Codec::kZfp     ? "zfp"
+                                                  : options_.codec == Codec::kRound ? "round"
+                                                                                    : "time") +
+                                                 ",tolerance=" + shortest(options_.tolerance);
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.blockStates > 0) text += ",block=" + std::to_string(options_.blockStates);
   return text;
@@ -219,7 +221,8 @@ void LossyStorage::compressBlock() {
   } else if (options_.codec == Codec::kTime) {
     for (std::int64_t j = 0; j < n; ++j) {
       double largest = 0.0;
-      for (std::int64_t i = 0; i < count; ++i) largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
+      for (std::int64_t i = 0; i < count; ++i)
+        largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
       scale_[static_cast<std::size_t>(j)] = std::isfinite(largest) ? largest : 0.0;
       bounds_[static_cast<std::size_t>(j)] = options_.tolerance * scale_[static_cast<std::size_t>(j)];
     }
@@ -234,9 +237,11 @@ void LossyStorage::compressBlock() {
     // bound cannot say that such a component is reproduced exactly, so neither does the estimate).
     for (std::int64_t j = 0; j < n; ++j) {
       double largest = 0.0;
-      for (std::int64_t i = 0; i < count; ++i) largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
-      const double relative = largest > 0.0 && std::isfinite(largest) ? options_.tolerance / largest
-                                                                       : std::numeric_limits<double>::infinity();
+      for (std::int64_t i = 0; i < count; ++i)
+        largest = std::max(largest, std::abs(raw_[static_cast<std::size_t>(i * n + j)]));
+      const double relative = largest > 0.0 && std::isfinite(largest)
+                                  ? options_.tolerance / largest
+                                  : std::numeric_limits<double>::infinity();
       worstRelativeError_ = std::max(worstRelativeError_, relative);
     }
     mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;

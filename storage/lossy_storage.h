@@ -14,8 +14,8 @@
 //                0.09 on the reduced rod (200x12, T = 3 and 10 s), 4.6 on the full-order rod (100
 //                trbdf2 steps; the reason for 10 rather than 1), 0.6 on the synthetic slider-crank of
 //                tests/problems/rod, 0.22 on the pendulum and 0.006 on the reaction-diffusion problem;
-//                the tests check achieved <= T on these (docs/theory/storage.md, "Compression along time"). It is a
-//                documented estimate, not a proof: a problem whose gradient is more sensitive to its
+//                the tests check achieved <= T on these (docs/theory/storage.md, "Compression along time").
+//                It is a documented estimate, not a proof: a problem whose gradient is more sensitive to its
 //                states than these can exceed T, and components that fall by decades within a block
 //                (Robertson) lose their small values' digits.
 //   codec=time   prediction along time with quantized residuals (storage/time_codec.h): every
@@ -49,8 +49,8 @@
 // adjoints).
 #pragma once
 
-#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/storage/time_codec.h>
 
 #include <memory>
@@ -70,8 +70,9 @@ class LossyStorage final : public TrajectoryStorage {
 
   struct Options {
     Codec codec = Codec::kZfp;
-    double tolerance = 1e-8;  ///< absolute for zfp, relative for round, relative to the block's scale for time
-    double target = 0.0;      ///< > 0: the gradient error target (codec time, tolerance from it)
+    double tolerance =
+        1e-8;             ///< absolute for zfp, relative for round, relative to the block's scale for time
+    double target = 0.0;  ///< > 0: the gradient error target (codec time, tolerance from it)
     std::int64_t budgetBytes = kDefaultBudget;
     std::int64_t blockStates = 0;  ///< 0: automatic
     /// The strategy "packed": codec time without a bound, every bit restored (isExact() is true).

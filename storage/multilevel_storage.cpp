@@ -21,7 +21,7 @@ namespace {
 constexpr std::int64_t kSlotsPerBlock = 256;
 // Forward steps timed (median) before the plan is chosen, when costs are measured.
 constexpr std::int64_t kProbeSteps = 16;
-}
+}  // namespace
 
 bool MultilevelStorage::Options::IsValid(std::string* error) const {
   std::string message;
@@ -52,9 +52,10 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   const std::string disk = spec.text("disk", "");
   if (disk.find_first_of("123456789") == std::string::npos && disk.find('0') != std::string::npos) {
     // "0", "0B", "0KiB": no disk level. Refused with a pointer to the strategies for RAM alone.
-    throw std::invalid_argument("multilevel.disk = '" + disk +
-                                "': multilevel needs a disk level (a positive byte count, e.g. disk=4GiB); for "
-                                "RAM alone use binomial:checkpoints=C or cams:budget=BYTES");
+    throw std::invalid_argument(
+        "multilevel.disk = '" + disk +
+        "': multilevel needs a disk level (a positive byte count, e.g. disk=4GiB); for "
+        "RAM alone use binomial:checkpoints=C or cams:budget=BYTES");
   }
   options.diskBytes = spec.bytes("disk", 0);
   options.directory = spec.text("dir", "");
@@ -290,12 +291,12 @@ void MultilevelStorage::restoreStride(std::int64_t step, VectorRef z) {
 // append-then-read chunked HDF5 file (storage/chunked_state_file.h) does not allow; the file lives for
 // one run and is removed at its end unless keep=true.
 //
-// Slot format: the state's raw doubles, then two native-endian 64-bit words (the file is read only by the process that wrote it): the slot's index and the
-// FNV-1a hash (engine/hash.h) of the index and the state's bytes. Every read checks both, so a flipped
-// byte, a slot written at another offset or a file truncated or overwritten by something else is a
-// StorageError naming the file and the slot, never a restored state (the chunked file's Fletcher32
-// does the same for schedule=stride). The 16 bytes per slot are not charged to disk=, which counts
-// the states (as the stride's rows are counted uncompressed).
+// Slot format: the state's raw doubles, then two native-endian 64-bit words (the file is read only by the
+// process that wrote it): the slot's index and the FNV-1a hash (engine/hash.h) of the index and the state's
+// bytes. Every read checks both, so a flipped byte, a slot written at another offset or a file truncated or
+// overwritten by something else is a StorageError naming the file and the slot, never a restored state (the
+// chunked file's Fletcher32 does the same for schedule=stride). The 16 bytes per slot are not charged to
+// disk=, which counts the states (as the stride's rows are counted uncompressed).
 struct MultilevelStorage::SlotFile {
   static constexpr std::int64_t kTrailerBytes = 16;
   std::string path;
@@ -308,14 +309,21 @@ struct MultilevelStorage::SlotFile {
   std::vector<char> record;  // one slot, allocated once: reads and writes allocate nothing
 
   SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter)
-      : stateBytes(bytes), recordBytes(bytes + kTrailerBytes), failAfter(failWritesAfter), keep(keepFile),
+      : stateBytes(bytes),
+        recordBytes(bytes + kTrailerBytes),
+        failAfter(failWritesAfter),
+        keep(keepFile),
         record(static_cast<std::size_t>(bytes + kTrailerBytes)) {
     std::error_code ec;
     std::filesystem::create_directories(directory, ec);
     internal::removeStaleScratchFiles(directory);
-    path = (std::filesystem::path(directory) / internal::scratchFileName("hindsight-multilevel", ".slots", keepFile)).string();
+    path = (std::filesystem::path(directory) /
+            internal::scratchFileName("hindsight-multilevel", ".slots", keepFile))
+               .string();
     fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-    if (fd < 0) throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)), path);
+    if (fd < 0)
+      throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)),
+                         path);
   }
   ~SlotFile() {
     if (fd >= 0) ::close(fd);
@@ -330,13 +338,13 @@ struct MultilevelStorage::SlotFile {
 
   void write(std::int64_t slot, const double* z) {
     if (failAfter >= 0 && writes >= failAfter) {
-      throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " + std::strerror(ENOSPC),
-                         path);
+      throw StorageError(
+          "multilevel: writing slot " + std::to_string(slot) + " failed: " + std::strerror(ENOSPC), path);
     }
     ++writes;
-    const std::uint64_t trailer[2] = {static_cast<std::uint64_t>(slot),
-                                      checksum(static_cast<std::uint64_t>(slot), reinterpret_cast<const char*>(z),
-                                               stateBytes)};
+    const std::uint64_t trailer[2] = {
+        static_cast<std::uint64_t>(slot),
+        checksum(static_cast<std::uint64_t>(slot), reinterpret_cast<const char*>(z), stateBytes)};
     std::memcpy(record.data(), z, static_cast<std::size_t>(stateBytes));
     std::memcpy(record.data() + stateBytes, trailer, sizeof trailer);
     std::int64_t done = 0;
@@ -345,8 +353,8 @@ struct MultilevelStorage::SlotFile {
                                  slot * recordBytes + done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
-        throw StorageError("multilevel: writing slot " + std::to_string(slot) + " failed: " +
-                               std::strerror(n < 0 ? errno : ENOSPC),
+        throw StorageError("multilevel: writing slot " + std::to_string(slot) +
+                               " failed: " + std::strerror(n < 0 ? errno : ENOSPC),
                            path);
       }
       done += n;
@@ -369,10 +377,11 @@ struct MultilevelStorage::SlotFile {
     std::memcpy(trailer, record.data() + stateBytes, sizeof trailer);
     if (trailer[0] != static_cast<std::uint64_t>(slot) ||
         trailer[1] != checksum(static_cast<std::uint64_t>(slot), record.data(), stateBytes)) {
-      throw StorageError("multilevel: slot " + std::to_string(slot) +
-                             " of the disk level is corrupted (its checksum does not match the state read back); "
-                             "the file was changed while the run used it",
-                         path);
+      throw StorageError(
+          "multilevel: slot " + std::to_string(slot) +
+              " of the disk level is corrupted (its checksum does not match the state read back); "
+              "the file was changed while the run used it",
+          path);
     }
     std::memcpy(z, record.data(), static_cast<std::size_t>(stateBytes));
   }
@@ -425,9 +434,9 @@ void MultilevelStorage::beginPlan() {
   planRamSlots_ = layout.ramSlots;
   planDiskSlots_ = layout.diskSlots;
   if (planRamSlots_ < 1 || (steps >= 2 && planRamSlots_ + planDiskSlots_ < 2)) {
-    throw StorageError("storage '" + spec() + "' cannot reverse " + std::to_string(steps) + " steps: RAM holds " +
-                       std::to_string(planRamSlots_) + " and disk " + std::to_string(planDiskSlots_) +
-                       " states of " + formatBytes(stateBytes()) +
+    throw StorageError("storage '" + spec() + "' cannot reverse " + std::to_string(steps) +
+                       " steps: RAM holds " + std::to_string(planRamSlots_) + " and disk " +
+                       std::to_string(planDiskSlots_) + " states of " + formatBytes(stateBytes()) +
                        "; RAM must hold one state and both levels two; raise ram or disk");
   }
   if (options_.costs || steps == 1 || planDiskSlots_ == 0) {
@@ -478,11 +487,11 @@ void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
   if (plan_.diskSlotsUsed() > 0) {
     const std::string directory =
         options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-    slotFile_ = std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile, options_.failWriteAfterChunks);
+    slotFile_ =
+        std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile, options_.failWriteAfterChunks);
     filePath_ = slotFile_->path;
   }
 }
-
 
 void MultilevelStorage::recordPlanned(std::int64_t step, const double* z) {
   struct Visitor {
@@ -521,11 +530,13 @@ void MultilevelStorage::doRecord(std::int64_t step, double t, ConstVectorRef z, 
     }
     // step == probeSteps_: the forward step is the median of the intervals between records.
     std::vector<double> intervals;
-    for (std::size_t i = 1; i < probeTimes_.size(); ++i) intervals.push_back(probeTimes_[i] - probeTimes_[i - 1]);
+    for (std::size_t i = 1; i < probeTimes_.size(); ++i)
+      intervals.push_back(probeTimes_[i] - probeTimes_[i - 1]);
     std::sort(intervals.begin(), intervals.end());
     ScheduleCosts measured = costsInUse_;
     const std::size_t m = intervals.size();
-    measured.forwardStep = std::max(1e-9, m % 2 ? intervals[m / 2] : 0.5 * (intervals[m / 2 - 1] + intervals[m / 2]));
+    measured.forwardStep =
+        std::max(1e-9, m % 2 ? intervals[m / 2] : 0.5 * (intervals[m / 2 - 1] + intervals[m / 2]));
     measured.adjointStep = 0.0;  // not measurable before the backward sweep; it does not change the plan
     choosePlan(measured);
     std::vector<double> state(n);

@@ -49,9 +49,9 @@
 // background I/O thread per run while the disk level of schedule=stride is used.
 #pragma once
 
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/storage/schedule.h>
-#include <hindsight/engine/storage_spec.h>
 
 #include <functional>
 #include <optional>

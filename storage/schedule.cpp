@@ -1,16 +1,16 @@
 #include <hindsight/storage/schedule.h>
 
-#include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/cams_checkpointing.h>
+#include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/interrupt.h>
-#include <hindsight/storage/chunked_state_file.h>
-#include <hindsight/storage/disk_storage.h>
-#include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/engine/online_placement.h>
 #include <hindsight/engine/recomputed_stages.h>
-#include <hindsight/storage/storage_factory.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/disk_storage.h>
+#include <hindsight/storage/multilevel_storage.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
 #include <charconv>
@@ -27,7 +27,8 @@ namespace hindsight {
 std::int64_t parseScheduleInteger(const std::string& text, const std::string& field, std::int64_t minimum,
                                   std::int64_t maximum) {
   const std::string message = field + " = '" + text + "' must be an integer in [" + std::to_string(minimum) +
-                              ", " + std::to_string(maximum) + "] (digits, or exact scientific notation as 1e9)";
+                              ", " + std::to_string(maximum) +
+                              "] (digits, or exact scientific notation as 1e9)";
   // mantissa digits [. digits] [e|E [+] digits], read exactly in 128 bits (no double rounding: 9.5e15
   // is 9500000000000000, 1e17 is not 1).
   __extension__ typedef __int128 Wide;
@@ -156,7 +157,9 @@ FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
   }
   return sweep;
 }
-std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) { return firstSweep(length, slots).pushes; }
+std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) {
+  return firstSweep(length, slots).pushes;
+}
 
 // Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
 // and the backward sweep's stores; the working state not included), revolve::simulateSchedule's
@@ -222,8 +225,12 @@ bool replayAffordable(std::int64_t length, std::int64_t ramSlots) {
 
 struct CountingVisitor {
   TwoLevelPlan::Counts& counts;
-  void store(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites); }
-  void load(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads); }
+  void store(StorageLevel level, std::int64_t) {
+    ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites);
+  }
+  void load(StorageLevel level, std::int64_t) {
+    ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads);
+  }
   void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += to - from; }
 };
 
@@ -233,10 +240,11 @@ TwoLevelPlan TwoLevelPlan::leaves(std::int64_t steps, std::int64_t ramSlots, std
                                   std::int64_t lastLength, bool replayLast) {
   if (steps < 1 || ramSlots < 2 || leafCount < 1 || leafCount > steps || lastLength < 1 ||
       steps - lastLength < leafCount - 1 || (leafCount == 1 && lastLength != steps)) {
-    throw std::invalid_argument("two-level plan 'leaves' needs N >= 1, ram slots >= 2, 1 <= K <= N and a last "
-                                "leaf of 1..N-K+1 steps (N = " + std::to_string(steps) + ", ram slots = " +
-                                std::to_string(ramSlots) + ", K = " + std::to_string(leafCount) +
-                                ", last = " + std::to_string(lastLength) + ")");
+    throw std::invalid_argument(
+        "two-level plan 'leaves' needs N >= 1, ram slots >= 2, 1 <= K <= N and a last "
+        "leaf of 1..N-K+1 steps (N = " +
+        std::to_string(steps) + ", ram slots = " + std::to_string(ramSlots) +
+        ", K = " + std::to_string(leafCount) + ", last = " + std::to_string(lastLength) + ")");
   }
   TwoLevelPlan plan;
   plan.kind_ = Kind::kLeaves;
@@ -245,7 +253,8 @@ TwoLevelPlan TwoLevelPlan::leaves(std::int64_t steps, std::int64_t ramSlots, std
   plan.leafCount_ = leafCount;
   plan.lastLength_ = lastLength;
   plan.replayLast_ = replayLast && lastLength >= 2;
-  std::int64_t ram = lastLeafSlots(lastLength, ramSlots, plan.replayLast_) + (lastLength >= 2 && !plan.replayLast_ ? 1 : 0);
+  std::int64_t ram =
+      lastLeafSlots(lastLength, ramSlots, plan.replayLast_) + (lastLength >= 2 && !plan.replayLast_ ? 1 : 0);
   if (leafCount > 1) ram = std::max(ram, std::min(ramSlots, plan.leafLength(0)));
   plan.ramSlotsUsed_ = ram;
   plan.diskSlotsUsed_ = leafCount - 1;
@@ -256,9 +265,11 @@ TwoLevelPlan TwoLevelPlan::leaves(std::int64_t steps, std::int64_t ramSlots, std
 TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
                                     bool replayLast) {
   if (steps < 1 || ramSlots < 1 || diskSlots < 0 || (steps >= 2 && ramSlots + diskSlots < 2)) {
-    throw std::invalid_argument("two-level plan 'allSlots' needs N >= 1, ram slots >= 1 and, for N >= 2, two "
-                                "slots in all (N = " + std::to_string(steps) + ", ram slots = " +
-                                std::to_string(ramSlots) + ", disk slots = " + std::to_string(diskSlots) + ")");
+    throw std::invalid_argument(
+        "two-level plan 'allSlots' needs N >= 1, ram slots >= 1 and, for N >= 2, two "
+        "slots in all (N = " +
+        std::to_string(steps) + ", ram slots = " + std::to_string(ramSlots) +
+        ", disk slots = " + std::to_string(diskSlots) + ")");
   }
   TwoLevelPlan plan;
   plan.kind_ = Kind::kAllSlots;
@@ -292,7 +303,8 @@ TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, s
 //     G_RAM(l, m - 1, d + 1)            (L = disk: keep x_p in RAM instead, its disk slot freed)
 //     wd + G_disk(l, m + 1, d - 1)      (L = RAM: move x_p to disk, its RAM slot freed).
 // The forward sweep at x_p (nothing stored from p on, advancing free), m and d slots free:
-//   H(l, m, d) = min over L of w_L + min( F_L(l, m', d'),  min_{1<=j<=l-1} H(l - j, m', d') + F_L(j, m', d') )
+//   H(l, m, d) = min over L of w_L + min( F_L(l, m', d'),  min_{1<=j<=l-1} H(l - j, m', d') + F_L(j, m', d')
+//   )
 // with w_RAM = 0, w_disk = wd and (m', d') the slots left after storing x_p at L; F_L(l, ...) there
 // stores nothing more in the forward sweep (the later states are replayed from x_p). The game's cost
 // is H(N, R, D). Moving a checkpoint there and back is never cheaper, so applying the two moves to the
@@ -346,7 +358,9 @@ TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, st
   };
   std::vector<DynamicTables::Entry> plain[2];  // G_L at one l before the moves
   for (auto& row : plain) row.resize(static_cast<std::size_t>((t.ram + 1) * (t.disk + 1)));
-  const auto cell = [&](std::int64_t m, std::int64_t d) { return static_cast<std::size_t>(m * (t.disk + 1) + d); };
+  const auto cell = [&](std::int64_t m, std::int64_t d) {
+    return static_cast<std::size_t>(m * (t.disk + 1) + d);
+  };
   for (std::int64_t l = 1; l <= steps; ++l) {
     pollInterrupt();
     for (std::int64_t m = 0; m <= t.ram; ++m) {
@@ -392,7 +406,8 @@ TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, st
           if (cost < best.cost) best = {cost, 0, static_cast<std::int8_t>(level)};
           for (std::int64_t j = 1; j <= l - 1; ++j) {
             cost = write[level] + t.forward[t.index(l - j, m2, d2)].cost + loaded(level, j, m2, d2);
-            if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), static_cast<std::int8_t>(level)};
+            if (cost < best.cost)
+              best = {cost, static_cast<std::int32_t>(j), static_cast<std::int8_t>(level)};
           }
         }
         t.forward[t.index(l, m, d)] = best;
@@ -443,7 +458,8 @@ void TwoLevelPlan::releaseSlot(const Held& held) {
 
 TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
                                   const ScheduleCosts& costs) {
-  if (steps < 1) throw std::invalid_argument("two-level plan: N = " + std::to_string(steps) + " must be >= 1");
+  if (steps < 1)
+    throw std::invalid_argument("two-level plan: N = " + std::to_string(steps) + " must be >= 1");
   if (steps >= 2 && (ramSlots < 1 || ramSlots + diskSlots < 2)) {
     throw std::invalid_argument("two-level plan: " + std::to_string(ramSlots) + " RAM and " +
                                 std::to_string(diskSlots) +
@@ -572,8 +588,9 @@ std::string TwoLevelPlan::describe() const {
   const std::int64_t rest = steps_ - lastLength_;
   const std::int64_t base = rest / (leafCount_ - 1);
   return "leaves: " + std::to_string(leafCount_ - 1) + " of " + std::to_string(base) +
-         (rest % (leafCount_ - 1) ? "-" + std::to_string(base + 1) : std::string()) + " steps starting on disk, a last one of " +
-         std::to_string(lastLength_) + "; revolve over " + std::to_string(ramSlotsUsed_) + " RAM states in each" + last;
+         (rest % (leafCount_ - 1) ? "-" + std::to_string(base + 1) : std::string()) +
+         " steps starting on disk, a last one of " + std::to_string(lastLength_) + "; revolve over " +
+         std::to_string(ramSlotsUsed_) + " RAM states in each" + last;
 }
 
 // Leaves 0..K-2 split N - L steps evenly (the first ones one step longer); leaf K-1 has L steps.
@@ -669,8 +686,9 @@ constexpr std::int64_t kMaxOnlineSteps = std::int64_t{1} << 24;
 
 std::int64_t checkedCount(UnsignedInt128 value, const std::string& what) {
   if (value > static_cast<UnsignedInt128>(kMaxCount)) {
-    throw std::invalid_argument(what + " = " + revolve::toString(value) +
-                                " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
+    throw std::invalid_argument(
+        what + " = " + revolve::toString(value) +
+        " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
   }
   return static_cast<std::int64_t>(value);
 }
@@ -709,21 +727,24 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   const std::string& name = spec.name();
   // full and disk with stages=1: every row the state and its step's S - 1 stage states (an explicit
   // Runge-Kutta method's Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
-  const bool stageRows = (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
+  const bool stageRows =
+      (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
   const std::int64_t rowDoubles = stageRows ? std::int64_t{n} * stages : n;
   if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
   if (rowDoubles > std::numeric_limits<int>::max()) {
-    throw std::invalid_argument(name + ".stages = 1: a row of the state and its " + std::to_string(stages - 1) +
-                                " stage states has " + std::to_string(rowDoubles) +
-                                " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
+    throw std::invalid_argument(
+        name + ".stages = 1: a row of the state and its " + std::to_string(stages - 1) +
+        " stage states has " + std::to_string(rowDoubles) +
+        " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
   }
   if (name == "full") {
     const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
     if (steps > budget / (8 * rowDoubles)) {
-      throw std::invalid_argument("full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
-                                  (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
-                                             : std::string()) +
-                                  " exceed full.budget = " + formatBytes(budget));
+      throw std::invalid_argument(
+          "full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
+          (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
+                     : std::string()) +
+          " exceed full.budget = " + formatBytes(budget));
     }
     p.plan = stageRows ? "every state and its step's stage values in RAM" : "every state in RAM";
     p.statesStored = steps;
@@ -733,7 +754,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   } else if (name == "disk") {
     // DiskStorage's own rule (DiskStorage::layoutFor): rows N + 1, chunk and buffer count from the budget.
     const auto& disk = dynamic_cast<DiskStorage&>(*storage);
-    const DiskStorage::Layout layout = disk.layoutFor(rowDoubles, checkedCount(static_cast<UnsignedInt128>(steps) + 1, "rows"));
+    const DiskStorage::Layout layout =
+        disk.layoutFor(rowDoubles, checkedCount(static_cast<UnsignedInt128>(steps) + 1, "rows"));
     if (layout.bufferBytes > disk.budgetBytes()) {
       throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(layout.bufferBytes) +
                                   " exceeds disk.budget = " + formatBytes(disk.budgetBytes()));
@@ -753,12 +775,15 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
     // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
     const bool keepStages = spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
-    const std::int64_t recordBytes = keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
-    if (recordBytes > binomial.budgetBytes() || states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
-      throw std::invalid_argument("binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
-                                  std::to_string(states) + " states of " + formatBytes(stateBytes) +
-                                  (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
-                                  ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
+    const std::int64_t recordBytes =
+        keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
+    if (recordBytes > binomial.budgetBytes() ||
+        states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
+      throw std::invalid_argument(
+          "binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
+          std::to_string(states) + " states of " + formatBytes(stateBytes) +
+          (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
+          ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
     }
     // The count first: beyond 2^63 it is refused before the O(slots + r) walks below.
     p.recomputedSteps = checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
@@ -787,8 +812,9 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
     auto& online = dynamic_cast<OnlineCheckpointing&>(*storage);
     if (steps > kMaxOnlineSteps) {
-      throw std::invalid_argument("online is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-                                  " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
+      throw std::invalid_argument(
+          "online is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
+          " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
     }
     const bool keepStages = online.keepsStages() && stages > 1;
     const std::int64_t recordBytes =
@@ -799,23 +825,25 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     p.plan = "online placement (" + std::to_string(positions.size()) + " held), revolve per interval, " +
              std::to_string(c) + " checkpoints + working state" +
              (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.recomputedSteps = checkedCount(OnlineCheckpointing::forwardStepsOf(positions, steps, c) -
-                                         static_cast<UnsignedInt128>(steps - 1),
-                                     "recomputed steps");
+    p.recomputedSteps = checkedCount(
+        OnlineCheckpointing::forwardStepsOf(positions, steps, c) - static_cast<UnsignedInt128>(steps - 1),
+        "recomputed steps");
     p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
     p.ramReads = steps;
     // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
     // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
-    p.peakRamBytes = checkedCount(static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
-                                          static_cast<UnsignedInt128>(stateBytes) +
-                                      static_cast<UnsignedInt128>(recordBytes),
-                                  "peak RAM bytes");
+    p.peakRamBytes =
+        checkedCount(static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
+                             static_cast<UnsignedInt128>(stateBytes) +
+                         static_cast<UnsignedInt128>(recordBytes),
+                     "peak RAM bytes");
     p.ramWrites = -1;
     if (keepStages && steps > TwoLevelPlan::kMaxSimulatedSteps) {
       throw std::invalid_argument("online.stages = 1 is predicted up to " +
                                   std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
                                   " steps (its served adjoint steps are counted by running the schedules); "
-                                  "--steps = " + std::to_string(steps));
+                                  "--steps = " +
+                                  std::to_string(steps));
     }
     if (steps <= TwoLevelPlan::kMaxSimulatedSteps) {
       // The backward sweep as OnlineCheckpointing::doRestore runs it, with RecomputedStages' rule for
@@ -862,12 +890,14 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   } else if (name == "multilevel") {
     auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
     if (multilevel.options().stride) {
-      throw std::invalid_argument("multilevel.schedule = stride is not predicted (its RAM blocks and scratch "
-                                  "rounds depend on the run); use schedule=optimal");
+      throw std::invalid_argument(
+          "multilevel.schedule = stride is not predicted (its RAM blocks and scratch "
+          "rounds depend on the run); use schedule=optimal");
     }
     const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
     if (planCosts == nullptr) {
-      throw std::invalid_argument("multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
+      throw std::invalid_argument(
+          "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
     }
     model = *planCosts;  // the spec's own costs take precedence, as in a run
     const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, n);
@@ -898,8 +928,9 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     const auto& strategy = dynamic_cast<CamsCheckpointing&>(*storage);
     const bool online = strategy.onlineRequested();
     if (online && steps > kMaxOnlineSteps) {
-      throw std::invalid_argument("cams with online=1 is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-                                  " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
+      throw std::invalid_argument(
+          "cams with online=1 is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
+          " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
     }
     const std::int64_t units = strategy.usableUnits(stateBytes, online);
     const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
@@ -908,7 +939,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       // Online placement, each interval reversed by the optimal plan.
       std::unique_ptr<cams::Plan> intervalPlan;
       c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
-      p.plan = "cams online: " + std::to_string(units) + " state units, online placement, intervals of at most " +
+      p.plan = "cams online: " + std::to_string(units) +
+               " state units, online placement, intervals of at most " +
                std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally";
       p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
       p.peakRamBytes = checkedProduct(units, stateBytes, "peak RAM bytes");
@@ -920,8 +952,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
       p.ramWrites = c.statesStored + c.recordsStored;
       p.peakRamBytes = checkedProduct(std::min(units, plan.memoryUnits()), stateBytes, "peak RAM bytes");
     }
-    p.plan += "; " + std::to_string(c.recordsStored) + " step records, " + std::to_string(c.adjointRecomputations) +
-              " adjoint steps recompute their stages";
+    p.plan += "; " + std::to_string(c.recordsStored) + " step records, " +
+              std::to_string(c.adjointRecomputations) + " adjoint steps recompute their stages";
     p.recomputedSteps = c.recomputedSteps;
     p.adjointRecomputations = c.adjointRecomputations;
     p.stepDataStored = c.recordsStored;
@@ -935,14 +967,18 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   }
   // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
   // S rhs for every forward, recomputed and stage-recomputing adjoint step.
-  const std::int64_t adjointRecomputations = name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
-  p.rhsEvaluations = checkedCount(static_cast<UnsignedInt128>(stages) *
-                                      (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
-                                       static_cast<UnsignedInt128>(adjointRecomputations)),
-                                  "rhs evaluations");
-  p.scheduleCost = static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) * model.forwardStep +
-                   static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
-                   static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
+  const std::int64_t adjointRecomputations =
+      name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
+  p.rhsEvaluations =
+      checkedCount(static_cast<UnsignedInt128>(stages) *
+                       (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
+                        static_cast<UnsignedInt128>(adjointRecomputations)),
+                   "rhs evaluations");
+  p.scheduleCost =
+      static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) *
+          model.forwardStep +
+      static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
+      static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
   p.totalCost = static_cast<double>(steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
   return p;
 }
@@ -951,8 +987,12 @@ namespace {
 
 struct PrintingVisitor {
   std::ostream& out;
-  void store(StorageLevel level, std::int64_t slot) { out << "store " << levelName(level) << ' ' << slot << '\n'; }
-  void load(StorageLevel level, std::int64_t slot) { out << "load " << levelName(level) << ' ' << slot << '\n'; }
+  void store(StorageLevel level, std::int64_t slot) {
+    out << "store " << levelName(level) << ' ' << slot << '\n';
+  }
+  void load(StorageLevel level, std::int64_t slot) {
+    out << "load " << levelName(level) << ' ' << slot << '\n';
+  }
   void advance(std::int64_t from, std::int64_t to) { out << "advance " << from << ' ' << to << '\n'; }
   // BinomialSchedule's own visitor interface (binomial strategy).
   void loadWorking() { out << "load ram working\n"; }
@@ -962,20 +1002,21 @@ struct PrintingVisitor {
 
 }  // namespace
 
-void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes, int stages,
-                          const ScheduleCosts* costs, std::ostream& out) {
+void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
+                          int stages, const ScheduleCosts* costs, std::ostream& out) {
   predictSchedule(specText, steps, stateBytes, stages, costs);  // validates spec, sizes and budgets
   if (steps > TwoLevelPlan::kMaxSimulatedSteps) {
     throw std::invalid_argument("--actions lists every action, for --steps up to " +
-                                std::to_string(TwoLevelPlan::kMaxSimulatedSteps) + " (2^24); --steps = " +
-                                std::to_string(steps));
+                                std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
+                                " (2^24); --steps = " + std::to_string(steps));
   }
   const std::string name = StorageSpec::parse(specText).name();
   PrintingVisitor visitor{out};
   if (name == "full" || name == "disk") {
     const char* level = name == "full" ? "ram" : "disk";
     for (std::int64_t k = 0; k < steps; ++k) out << "record " << k << "\nstore " << level << ' ' << k << '\n';
-    for (std::int64_t e = steps - 1; e >= 0; --e) out << "restore " << e << "\nload " << level << ' ' << e << '\n';
+    for (std::int64_t e = steps - 1; e >= 0; --e)
+      out << "restore " << e << "\nload " << level << ' ' << e << '\n';
     return;
   }
   if (name == "binomial") {
@@ -1003,16 +1044,18 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
     return;
   }
   if (name == "online") {
-    throw std::invalid_argument("--actions prints offline plans; online thins its checkpoints during the forward "
-                                "sweep (print its counts without --actions)");
+    throw std::invalid_argument(
+        "--actions prints offline plans; online thins its checkpoints during the forward "
+        "sweep (print its counts without --actions)");
   }
   if (name == "cams") {
     // Step records of `stages` state units (the state and S - 1 stage states), as predictSchedule counts
     // them; none for one stage.
     auto storage = createStorage(specText);
     if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
-      throw std::invalid_argument("--actions prints offline plans; cams with online=1 thins its checkpoints "
-                                  "during the forward sweep (print its counts without --actions)");
+      throw std::invalid_argument(
+          "--actions prints offline plans; cams with online=1 thins its checkpoints "
+          "during the forward sweep (print its counts without --actions)");
     }
     const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).usableUnits(stateBytes, false);
     std::vector<cams::Action> actions;
@@ -1020,9 +1063,15 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
     cams::simulate(cams::Plan(steps, units, recordUnits), &actions);
     for (const cams::Action& a : actions) {
       switch (a.kind) {
-        case cams::Action::Kind::StoreState: out << "store ram state " << a.from << '\n'; break;
-        case cams::Action::Kind::StoreRecord: out << "store ram record " << a.from << '\n'; break;
-        case cams::Action::Kind::Advance: out << "advance " << a.from << ' ' << a.to << '\n'; break;
+        case cams::Action::Kind::StoreState:
+          out << "store ram state " << a.from << '\n';
+          break;
+        case cams::Action::Kind::StoreRecord:
+          out << "store ram record " << a.from << '\n';
+          break;
+        case cams::Action::Kind::Advance:
+          out << "advance " << a.from << ' ' << a.to << '\n';
+          break;
         case cams::Action::Kind::Deliver:
           out << "restore " << a.from << (a.withStageValues ? " with stages\n" : " recompute stages\n");
           break;

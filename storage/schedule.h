@@ -90,10 +90,10 @@ const char* levelName(StorageLevel level);
 
 /// What a schedule does, counted (a prediction or, for a run, what happened).
 struct SchedulePrediction {
-  std::string strategy;        ///< the spec
-  std::string plan;            ///< human-readable plan, e.g. "leaves K=12 (revolve in RAM per leaf)"
-  std::int64_t steps = 0;      ///< N
-  int stages = 0;              ///< right-hand sides per step of the integrator (explicit RK: its stages)
+  std::string strategy;    ///< the spec
+  std::string plan;        ///< human-readable plan, e.g. "leaves K=12 (revolve in RAM per leaf)"
+  std::int64_t steps = 0;  ///< N
+  int stages = 0;          ///< right-hand sides per step of the integrator (explicit RK: its stages)
   std::int64_t forwardSteps = 0;
   std::int64_t recomputedSteps = 0;
   std::int64_t rhsEvaluations = 0;  ///< stages * (forward + recomputed + adjoint steps without stored stages)
@@ -103,7 +103,7 @@ struct SchedulePrediction {
   /// Step data (stage values, `stages=1` and cams' records): the strategy's stepDataStored counter (step
   /// records filled, any sweep) and stepDataRestored (adjoint steps served from them, evaluating no rhs).
   std::int64_t stepDataStored = 0, stepDataRestored = 0;
-  std::int64_t statesStored = 0;    ///< the strategy's statesStored counter
+  std::int64_t statesStored = 0;  ///< the strategy's statesStored counter
   std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
   std::int64_t peakRamBytes = 0;   ///< the strategy's peakBytesInMemory
   std::int64_t peakDiskBytes = 0;  ///< uncompressed bytes of states on disk at the most
@@ -134,7 +134,8 @@ class TwoLevelPlan {
   /// frees a slot for revolve (better when slots are few: the game does not get x_{N-1} for free).
   static TwoLevelPlan leaves(std::int64_t steps, std::int64_t ramSlots, std::int64_t leafCount,
                              std::int64_t lastLength, bool replayLast);
-  static TwoLevelPlan allSlots(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots, bool replayLast);
+  static TwoLevelPlan allSlots(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                               bool replayLast);
   /// The optimal stack schedule by dynamic programming (file comment). Throws std::invalid_argument when
   /// the work exceeds kMaxDynamicWork or the slots cannot reverse N steps. Polls pollInterrupt()
   /// (engine/interrupt.h) once per segment length.
@@ -159,8 +160,8 @@ class TwoLevelPlan {
     std::int64_t recomputedSteps = 0, statesStored = 0;
     std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
     double cost(const ScheduleCosts& c) const {
-      return static_cast<double>(recomputedSteps) * c.forwardStep + static_cast<double>(diskWrites) * c.diskWrite +
-             static_cast<double>(diskReads) * c.diskRead;
+      return static_cast<double>(recomputedSteps) * c.forwardStep +
+             static_cast<double>(diskWrites) * c.diskWrite + static_cast<double>(diskReads) * c.diskRead;
     }
   };
   const Counts& counts() const { return counts_; }
@@ -218,7 +219,9 @@ class TwoLevelPlan {
     std::int64_t offset;
     TwoLevelPlan& plan;
     void loadWorking() { visitor.load(StorageLevel::kRam, plan.ramSlotsUsed_ - 1); }
-    void load(std::int64_t slot) { plan.mapSlot(slot, [&](StorageLevel l, std::int64_t s) { visitor.load(l, s); }); }
+    void load(std::int64_t slot) {
+      plan.mapSlot(slot, [&](StorageLevel l, std::int64_t s) { visitor.load(l, s); });
+    }
     void store(std::int64_t slot) {
       plan.mapSlot(slot, [&](StorageLevel l, std::int64_t s) { visitor.store(l, s); });
     }

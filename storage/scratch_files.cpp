@@ -47,8 +47,8 @@ std::string scratchHostTag() {
 std::string scratchFileName(const std::string& prefix, const std::string& extension, bool kept) {
   static std::atomic<std::uint64_t> counter{0};
   const auto now = std::chrono::steady_clock::now().time_since_epoch().count();
-  return prefix + "-" + std::to_string(::getpid()) + "-" + (kept ? std::string("kept") : scratchHostTag()) + "-" +
-         std::to_string(counter.fetch_add(1)) + "-" +
+  return prefix + "-" + std::to_string(::getpid()) + "-" + (kept ? std::string("kept") : scratchHostTag()) +
+         "-" + std::to_string(counter.fetch_add(1)) + "-" +
          std::to_string(static_cast<unsigned long long>(now) % 1000000007ULL) + extension;
 }
 
@@ -97,7 +97,8 @@ int removeStaleScratchFiles(const std::string& directory) noexcept {
     for (const std::filesystem::directory_entry& entry : it) {
       std::error_code entryError;
       if (!entry.is_regular_file(entryError) || entryError) continue;
-      if (isStaleScratchFile(entry.path().filename().string()) && std::filesystem::remove(entry.path(), entryError)) {
+      if (isStaleScratchFile(entry.path().filename().string()) &&
+          std::filesystem::remove(entry.path(), entryError)) {
         ++removed;
       }
     }

@@ -122,7 +122,8 @@ std::size_t TimeCodec::encodeBounded(const double* rows, std::int64_t count, int
       double q = 0.0;
       if (step > 0.0) q = std::nearbyint((x - prediction) / step);
       const double restored = prediction + q * step;
-      if (std::isfinite(x) && std::isfinite(restored) && std::abs(q) < 9.0e15 && std::abs(restored - x) <= bound) {
+      if (std::isfinite(x) && std::isfinite(restored) && std::abs(q) < 9.0e15 &&
+          std::abs(restored - x) <= bound) {
         r[i] = zigzag(static_cast<std::uint64_t>(static_cast<std::int64_t>(q)));
         y[i] = restored;
         componentWorst = std::max(componentWorst, std::abs(restored - x));
@@ -139,7 +140,8 @@ std::size_t TimeCodec::encodeBounded(const double* rows, std::int64_t count, int
   return finish(1, order, count, bounds, out);
 }
 
-std::size_t TimeCodec::finish(int mode, int order, std::int64_t count, const double* bounds, unsigned char* out) {
+std::size_t TimeCodec::finish(int mode, int order, std::int64_t count, const double* bounds,
+                              unsigned char* out) {
   const std::size_t values = static_cast<std::size_t>(count) * static_cast<std::size_t>(n_);
   // Byte shuffle: byte b of residual v goes to plane b.
   unsigned char* planes = shuffled_.data();
@@ -159,7 +161,8 @@ std::size_t TimeCodec::finish(int mode, int order, std::int64_t count, const dou
   }
   const std::size_t capacity = maxEncoded_ - static_cast<std::size_t>(p - out);
   const std::size_t size = ZSTD_compress(p, capacity, planes, values * 8, level_);
-  if (ZSTD_isError(size)) throw StorageError(std::string("time codec: zstd failed: ") + ZSTD_getErrorName(size));
+  if (ZSTD_isError(size))
+    throw StorageError(std::string("time codec: zstd failed: ") + ZSTD_getErrorName(size));
   p += size;
   const std::int64_t payloadBytes = p - payload;
   unsigned char* h = out;
@@ -200,8 +203,8 @@ void TimeCodec::decode(const unsigned char* in, std::size_t size, std::int64_t c
   const std::uint64_t checksum = get<std::uint64_t>(h);
   if (mode > 1 || order > kMaxOrder) corrupt(what, "unknown mode or order");
   if (storedCount != count || storedN != n_ || count > maxStates_) {
-    corrupt(what, "holds " + std::to_string(storedCount) + " x " + std::to_string(storedN) + " values, expected " +
-                      std::to_string(count) + " x " + std::to_string(n_));
+    corrupt(what, "holds " + std::to_string(storedCount) + " x " + std::to_string(storedN) +
+                      " values, expected " + std::to_string(count) + " x " + std::to_string(n_));
   }
   if (payloadBytes < 0 || static_cast<std::uint64_t>(payloadBytes) != size - kHeaderBytes)
     corrupt(what, "payload size does not match");
@@ -211,8 +214,10 @@ void TimeCodec::decode(const unsigned char* in, std::size_t size, std::int64_t c
   const std::size_t values = static_cast<std::size_t>(count) * static_cast<std::size_t>(n_);
   const unsigned char* p = payload;
   const double* bounds = nullptr;
-  std::size_t fixed = static_cast<std::size_t>(exceptionCount) * 16 + (mode == 1 ? static_cast<std::size_t>(n_) * 8 : 0);
-  if (exceptionCount < 0 || static_cast<std::size_t>(exceptionCount) > values || fixed > static_cast<std::size_t>(payloadBytes))
+  std::size_t fixed =
+      static_cast<std::size_t>(exceptionCount) * 16 + (mode == 1 ? static_cast<std::size_t>(n_) * 8 : 0);
+  if (exceptionCount < 0 || static_cast<std::size_t>(exceptionCount) > values ||
+      fixed > static_cast<std::size_t>(payloadBytes))
     corrupt(what, "bad exception count");
   if (mode == 1) {
     bounds = reinterpret_cast<const double*>(p);  // read through memcpy below
@@ -317,7 +322,8 @@ size_t timeCodecFilter(unsigned flags, size_t cdCount, const unsigned cdValues[]
     if (out == nullptr) return 0;
     size_t size = 0;
     try {
-      size = codec->encode(static_cast<const double*>(*buffer), count, order, static_cast<unsigned char*>(out));
+      size =
+          codec->encode(static_cast<const double*>(*buffer), count, order, static_cast<unsigned char*>(out));
     } catch (...) {
       H5free_memory(out);
       return 0;
@@ -331,8 +337,8 @@ size_t timeCodecFilter(unsigned flags, size_t cdCount, const unsigned cdValues[]
   }
 }
 
-const H5Z_class2_t kTimeCodecClass = {H5Z_CLASS_T_VERS, kTimeCodecFilterId, 1, 1, "hindsight time codec",
-                                      nullptr, nullptr, &timeCodecFilter};
+const H5Z_class2_t kTimeCodecClass = {
+    H5Z_CLASS_T_VERS, kTimeCodecFilterId, 1, 1, "hindsight time codec", nullptr, nullptr, &timeCodecFilter};
 
 }  // namespace
 

@@ -19,9 +19,10 @@
 //
 // Block layout (little-endian): magic "HTC1", mode (0 lossless, 1 bounded), order, 2 spare bytes,
 // count (int64), n (int32), exception count (int32), payload bytes (int64), FNV-1a of the payload
-// (uint64) of the header's first 32 bytes and the payload; payload = [bounded: n bounds (double)] [exceptions: (index int64, bits uint64)...] then one
-// zstd frame of the shuffled residuals. decode() checks magic, sizes and the checksum and throws
-// StorageError on any mismatch: a corrupted block is an error, never wrong states.
+// (uint64) of the header's first 32 bytes and the payload; payload = [bounded: n bounds (double)]
+// [exceptions: (index int64, bits uint64)...] then one zstd frame of the shuffled residuals. decode() checks
+// magic, sizes and the checksum and throws StorageError on any mismatch: a corrupted block is an error, never
+// wrong states.
 //
 // Thread-safety: a TimeCodec object holds work buffers; use one per thread. The work buffers are
 // allocated once for the largest block (constructor), so coding allocates nothing.
@@ -73,10 +74,10 @@ class TimeCodec {
   std::int64_t maxStates_;
   int level_;
   std::size_t maxEncoded_;
-  std::vector<std::uint64_t> residuals_;      // component-major
-  std::vector<unsigned char> shuffled_;       // byte planes
-  std::vector<double> reconstructed_;         // bounded mode: one component's series
-  std::vector<std::uint64_t> exceptions_;     // (index, bits) pairs
+  std::vector<std::uint64_t> residuals_;   // component-major
+  std::vector<unsigned char> shuffled_;    // byte planes
+  std::vector<double> reconstructed_;      // bounded mode: one component's series
+  std::vector<std::uint64_t> exceptions_;  // (index, bits) pairs
 };
 
 /// The HDF5 filter id under which the time codec runs in chunked_state_file (lossless mode). 256..511

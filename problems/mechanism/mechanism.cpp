@@ -64,14 +64,16 @@ Joint makeJoint(const std::string& name, JointType type, const std::string& body
 }
 }  // namespace
 
-Mechanism& Mechanism::addRevolute(const std::string& name, const std::string& body1, const std::string& point1,
-                                  const std::string& body2, const std::string& point2) {
+Mechanism& Mechanism::addRevolute(const std::string& name, const std::string& body1,
+                                  const std::string& point1, const std::string& body2,
+                                  const std::string& point2) {
   joints.push_back(makeJoint(name, JointType::Revolute, body1, point1, body2, point2));
   return *this;
 }
 
-Mechanism& Mechanism::addPrismatic(const std::string& name, const std::string& body1, const std::string& point1,
-                                   const std::string& body2, const std::string& point2, const Vec2& axis) {
+Mechanism& Mechanism::addPrismatic(const std::string& name, const std::string& body1,
+                                   const std::string& point1, const std::string& body2,
+                                   const std::string& point2, const Vec2& axis) {
   joints.push_back(makeJoint(name, JointType::Prismatic, body1, point1, body2, point2));
   joints.back().axis = axis;
   return *this;
@@ -107,18 +109,24 @@ int Mechanism::constraintCount() const {
 
 std::string toString(JointType type) {
   switch (type) {
-    case JointType::Revolute: return "revolute";
-    case JointType::Prismatic: return "prismatic";
-    case JointType::Fixed: return "fixed";
+    case JointType::Revolute:
+      return "revolute";
+    case JointType::Prismatic:
+      return "prismatic";
+    case JointType::Fixed:
+      return "fixed";
   }
   return "?";
 }
 
 std::string toString(CoordinateKind kind) {
   switch (kind) {
-    case CoordinateKind::X: return "x";
-    case CoordinateKind::Y: return "y";
-    case CoordinateKind::Angle: return "angle";
+    case CoordinateKind::X:
+      return "x";
+    case CoordinateKind::Y:
+      return "y";
+    case CoordinateKind::Angle:
+      return "angle";
   }
   return "?";
 }
@@ -159,7 +167,8 @@ void Mechanism::validate() const {
     const std::string where = root + ".rigidBodies[" + b.name + "]";
     needName(where, b.name);
     if (!(b.mass >= 0.0) || !std::isfinite(b.mass)) {
-      throw std::invalid_argument(where + ".mass = " + show(b.mass) + " is outside the allowed range [0, inf)");
+      throw std::invalid_argument(where + ".mass = " + show(b.mass) +
+                                  " is outside the allowed range [0, inf)");
     }
     if (!(b.inertia >= 0.0) || !std::isfinite(b.inertia)) {
       throw std::invalid_argument(where + ".inertia = " + show(b.inertia) +
@@ -173,7 +182,8 @@ void Mechanism::validate() const {
     }
   }
   needName(root + ".flexibleMember", member.name);
-  if (!(member.length > 0.0)) throw std::invalid_argument(root + ".flexibleMember: the length must be positive");
+  if (!(member.length > 0.0))
+    throw std::invalid_argument(root + ".flexibleMember: the length must be positive");
   if (!finite(member.position) || !std::isfinite(member.angle)) {
     throw std::invalid_argument(root + ".flexibleMember.position and .angle must be finite");
   }
@@ -183,12 +193,14 @@ void Mechanism::validate() const {
   auto checkPoint = [&](const std::string& where, const std::string& bodyField, const std::string& body,
                         const std::string& pointField, const std::string& point) {
     if (names.count(body) == 0) {
-      throw std::invalid_argument(where + "." + bodyField + " = '" + body + "' is not a body; bodies: " + bodyList);
+      throw std::invalid_argument(where + "." + bodyField + " = '" + body +
+                                  "' is not a body; bodies: " + bodyList);
     }
     if (body == member.name) {
       if (point != "A" && point != "B") {
-        throw std::invalid_argument(where + "." + pointField + " = '" + point + "' is not a point of the flexible " +
-                                    "member '" + body + "'; its points are A and B (the joints that define its frame)");
+        throw std::invalid_argument(where + "." + pointField + " = '" + point +
+                                    "' is not a point of the flexible " + "member '" + body +
+                                    "'; its points are A and B (the joints that define its frame)");
       }
       return;
     }
@@ -199,8 +211,8 @@ void Mechanism::validate() const {
     if (points->count(point) == 0) {
       std::string list;
       for (const auto& [name, position] : *points) list += (list.empty() ? "" : ", ") + name;
-      throw std::invalid_argument(where + "." + pointField + " = '" + point + "' is not a point of body '" + body +
-                                  "'; its points: " + (list.empty() ? "(none)" : list));
+      throw std::invalid_argument(where + "." + pointField + " = '" + point + "' is not a point of body '" +
+                                  body + "'; its points: " + (list.empty() ? "(none)" : list));
     }
   };
 
@@ -211,7 +223,8 @@ void Mechanism::validate() const {
     if (!jointNames.insert(j.name).second) throw std::invalid_argument(where + ".name is used twice");
     checkPoint(where, "body1", j.body1, "point1", j.point1);
     checkPoint(where, "body2", j.body2, "point2", j.point2);
-    if (j.body1 == j.body2) throw std::invalid_argument(where + ": body1 and body2 are the same body '" + j.body1 + "'");
+    if (j.body1 == j.body2)
+      throw std::invalid_argument(where + ": body1 and body2 are the same body '" + j.body1 + "'");
     if (j.type == JointType::Prismatic && !(finite(j.axis) && j.axis.norm() > 0.0)) {
       throw std::invalid_argument(where + ".axis must be a finite non-zero vector");
     }
@@ -227,14 +240,15 @@ void Mechanism::validate() const {
     }
     if (joint == nullptr) throw std::invalid_argument(where + ".joint = '" + d.joint + "' is not a joint");
     if (joint->type == JointType::Fixed) {
-      throw std::invalid_argument(where + ".joint = '" + d.joint + "' is a fixed joint; a driver needs a revolute " +
-                                  "or prismatic joint");
+      throw std::invalid_argument(where + ".joint = '" + d.joint +
+                                  "' is a fixed joint; a driver needs a revolute " + "or prismatic joint");
     }
     if (!drivenJoints.insert(d.joint).second) {
       throw std::invalid_argument(where + ".joint = '" + d.joint + "' has a driver already");
     }
     if (!std::isfinite(d.law.speed)) throw std::invalid_argument(where + ".speed must be finite");
-    if (d.law.kind == DriverLaw::Kind::CycloidalRamp && !(d.law.rampTime > 0.0 && std::isfinite(d.law.rampTime))) {
+    if (d.law.kind == DriverLaw::Kind::CycloidalRamp &&
+        !(d.law.rampTime > 0.0 && std::isfinite(d.law.rampTime))) {
       throw std::invalid_argument(where + ".rampTime = " + show(d.law.rampTime) +
                                   " is outside the allowed range (0, inf)");
     }
@@ -248,9 +262,11 @@ void Mechanism::validate() const {
     checkPoint(where, "body1", s.body1, "point1", s.point1);
     checkPoint(where, "body2", s.body2, "point2", s.point2);
     for (const auto& [field, value] :
-         {std::pair{"stiffness", s.stiffness}, std::pair{"restLength", s.restLength}, std::pair{"damping", s.damping}}) {
+         {std::pair{"stiffness", s.stiffness}, std::pair{"restLength", s.restLength},
+          std::pair{"damping", s.damping}}) {
       if (!(value >= 0.0) || !std::isfinite(value)) {
-        throw std::invalid_argument(where + "." + field + " = " + show(value) + " is outside the allowed range [0, inf)");
+        throw std::invalid_argument(where + "." + field + " = " + show(value) +
+                                    " is outside the allowed range [0, inf)");
       }
     }
   }
@@ -260,8 +276,9 @@ void Mechanism::validate() const {
     bool rigid = false;
     for (const RigidBody& b : rigidBodies) rigid = rigid || b.name == f.body;
     if (!rigid) {
-      throw std::invalid_argument(where + ".body = '" + f.body + "' is not a rigid body (free coordinates are " +
-                                  "rigid bodies' x, y or angle; the flexible member's frame follows its joints)");
+      throw std::invalid_argument(
+          where + ".body = '" + f.body + "' is not a rigid body (free coordinates are " +
+          "rigid bodies' x, y or angle; the flexible member's frame follows its joints)");
     }
     if (!freeSeen.insert({f.body, static_cast<int>(f.coordinate)}).second) {
       throw std::invalid_argument(where + " is listed twice");
@@ -271,11 +288,11 @@ void Mechanism::validate() const {
   const int rigidCoordinates = 3 * static_cast<int>(rigidBodies.size()) + 3;
   const int dof = rigidCoordinates - constraintCount();
   if (dof != static_cast<int>(free.size())) {
-    throw std::invalid_argument(root + ": the rigid bodies and the member's frame have " +
-                                std::to_string(rigidCoordinates) + " coordinates and the joints and drivers " +
-                                std::to_string(constraintCount()) + " constraints, so " + root +
-                                ".free must list " + std::to_string(dof) + " coordinate(s), not " +
-                                std::to_string(free.size()));
+    throw std::invalid_argument(
+        root + ": the rigid bodies and the member's frame have " + std::to_string(rigidCoordinates) +
+        " coordinates and the joints and drivers " + std::to_string(constraintCount()) + " constraints, so " +
+        root + ".free must list " + std::to_string(dof) + " coordinate(s), not " +
+        std::to_string(free.size()));
   }
 }
 

@@ -136,6 +136,7 @@ std::string toString(DriverLaw::Kind kind);
 /// radius r driven by the cycloidal ramp, the member from the crank pin (A) to the slider (B), the
 /// slider of the given mass on a prismatic joint along x. With sliderMass = 0 this is the built-in
 /// model (problems/rod/slider_crank.h).
-Mechanism sliderCrank(double crankRadius, double length, double speed, double rampTime, double sliderMass = 0.0);
+Mechanism sliderCrank(double crankRadius, double length, double speed, double rampTime,
+                      double sliderMass = 0.0);
 
 }  // namespace hindsight::mechanism

@@ -37,7 +37,8 @@ std::string text(const json& object, const std::string& where, const std::string
     return "";
   }
   const json& v = object.at(key);
-  if (!v.is_string()) throw std::invalid_argument(where + "." + key + " = " + render(v) + " must be a string");
+  if (!v.is_string())
+    throw std::invalid_argument(where + "." + key + " = " + render(v) + " must be a string");
   return v.get<std::string>();
 }
 
@@ -45,7 +46,8 @@ Vec2 vec2(const json& object, const std::string& where, const std::string& key, 
   if (!object.contains(key)) return fallback;
   const json& v = object.at(key);
   if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number()) {
-    throw std::invalid_argument(where + "." + key + " = " + render(v) + " must be an array of two numbers [x, y]");
+    throw std::invalid_argument(where + "." + key + " = " + render(v) +
+                                " must be an array of two numbers [x, y]");
   }
   return Vec2(v[0].get<double>(), v[1].get<double>());
 }
@@ -55,7 +57,8 @@ std::map<std::string, Vec2> points(const json& object, const std::string& where)
   if (!object.contains("points")) return out;
   const json& p = object.at("points");
   if (!p.is_object()) throw std::invalid_argument(where + ".points must be an object {name: [x, y]}");
-  for (auto it = p.begin(); it != p.end(); ++it) out[it.key()] = vec2(p, where + ".points", it.key(), Vec2::Zero());
+  for (auto it = p.begin(); it != p.end(); ++it)
+    out[it.key()] = vec2(p, where + ".points", it.key(), Vec2::Zero());
   return out;
 }
 
@@ -87,7 +90,8 @@ json toJson(const std::map<std::string, Vec2>& points) {
 
 Mechanism mechanismFromJson(const json& in, double memberLength) {
   const std::string root = "mechanism";
-  onlyKeys(in, root, {"gravity", "ground", "rigidBodies", "flexibleMember", "joints", "drivers", "springs", "free"});
+  onlyKeys(in, root,
+           {"gravity", "ground", "rigidBodies", "flexibleMember", "joints", "drivers", "springs", "free"});
   Mechanism m;
   m.member.length = memberLength;
   m.gravity = vec2(in, root, "gravity", Vec2::Zero());
@@ -110,7 +114,8 @@ Mechanism mechanismFromJson(const json& in, double memberLength) {
     m.rigidBodies.push_back(body);
   }
   if (!in.contains("flexibleMember")) {
-    throw std::invalid_argument(root + ".flexibleMember is missing (the design member, with its joints A and B)");
+    throw std::invalid_argument(root +
+                                ".flexibleMember is missing (the design member, with its joints A and B)");
   }
   {
     const json& f = in.at("flexibleMember");
@@ -135,7 +140,8 @@ Mechanism mechanismFromJson(const json& in, double memberLength) {
     } else if (type == "fixed") {
       joint.type = JointType::Fixed;
     } else {
-      throw std::invalid_argument(where + ".type = '" + type + "' must be one of: revolute, prismatic, fixed");
+      throw std::invalid_argument(where + ".type = '" + type +
+                                  "' must be one of: revolute, prismatic, fixed");
     }
     joint.body1 = text(j, where, "body1");
     joint.point1 = text(j, where, "point1");
@@ -160,9 +166,11 @@ Mechanism mechanismFromJson(const json& in, double memberLength) {
       driver.law.kind = DriverLaw::Kind::CycloidalRamp;
     } else if (law == "constant-speed") {
       driver.law.kind = DriverLaw::Kind::ConstantSpeed;
-      if (d.contains("rampTime")) throw std::invalid_argument(where + ".rampTime is a field of cycloidal-ramp only");
+      if (d.contains("rampTime"))
+        throw std::invalid_argument(where + ".rampTime is a field of cycloidal-ramp only");
     } else {
-      throw std::invalid_argument(where + ".law = '" + law + "' must be one of: cycloidal-ramp, constant-speed");
+      throw std::invalid_argument(where + ".law = '" + law +
+                                  "' must be one of: cycloidal-ramp, constant-speed");
     }
     driver.law.speed = number(d, where, "speed", 0.0);
     driver.law.rampTime = number(d, where, "rampTime", 1.0);
@@ -222,30 +230,40 @@ json toJson(const Mechanism& m) {
                                       {"angle", b.angle},
                                       {"points", toJson(b.points)}});
   }
-  out["flexibleMember"] = json{{"name", m.member.name}, {"position", toJson(m.member.position)}, {"angle", m.member.angle}};
+  out["flexibleMember"] =
+      json{{"name", m.member.name}, {"position", toJson(m.member.position)}, {"angle", m.member.angle}};
   out["joints"] = json::array();
   for (const Joint& j : m.joints) {
-    json e{{"name", j.name}, {"type", toString(j.type)}, {"body1", j.body1}, {"point1", j.point1},
-           {"body2", j.body2}, {"point2", j.point2}};
+    json e{{"name", j.name},     {"type", toString(j.type)}, {"body1", j.body1},
+           {"point1", j.point1}, {"body2", j.body2},         {"point2", j.point2}};
     if (j.type == JointType::Prismatic) e["axis"] = toJson(j.axis);
     out["joints"].push_back(e);
   }
   out["drivers"] = json::array();
   for (const Driver& d : m.drivers) {
-    json e{{"name", d.name}, {"joint", d.joint}, {"law", toString(d.law.kind)}, {"speed", d.law.speed},
+    json e{{"name", d.name},
+           {"joint", d.joint},
+           {"law", toString(d.law.kind)},
+           {"speed", d.law.speed},
            {"offset", d.offset}};
     if (d.law.kind == DriverLaw::Kind::CycloidalRamp) e["rampTime"] = d.law.rampTime;
     out["drivers"].push_back(e);
   }
   out["springs"] = json::array();
   for (const Spring& s : m.springs) {
-    out["springs"].push_back(json{{"name", s.name}, {"body1", s.body1}, {"point1", s.point1}, {"body2", s.body2},
-                                  {"point2", s.point2}, {"stiffness", s.stiffness}, {"restLength", s.restLength},
+    out["springs"].push_back(json{{"name", s.name},
+                                  {"body1", s.body1},
+                                  {"point1", s.point1},
+                                  {"body2", s.body2},
+                                  {"point2", s.point2},
+                                  {"stiffness", s.stiffness},
+                                  {"restLength", s.restLength},
                                   {"damping", s.damping}});
   }
   out["free"] = json::array();
   for (const FreeCoordinate& f : m.free) {
-    out["free"].push_back(json{{"body", f.body}, {"coordinate", toString(f.coordinate)}, {"velocity", f.velocity}});
+    out["free"].push_back(
+        json{{"body", f.body}, {"coordinate", toString(f.coordinate)}, {"velocity", f.velocity}});
   }
   return out;
 }

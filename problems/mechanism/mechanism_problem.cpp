@@ -108,8 +108,27 @@ struct Pt {
 template <typename T>
 struct Buffers {
   Buffers(int nz, int m, int f, int n)
-      : z(nz), zd(nz), zdd(nz), F(nz), zeta(nz), phi(m), phit(m), quad(m), rhs(m), jac(m * nz), lu(m * m),
-        piv(m), R(nz * f), r(f), b(n), y(f), v(f), mq(n), h(n), a1(n), x(nz) {}
+      : z(nz),
+        zd(nz),
+        zdd(nz),
+        F(nz),
+        zeta(nz),
+        phi(m),
+        phit(m),
+        quad(m),
+        rhs(m),
+        jac(m * nz),
+        lu(m * m),
+        piv(m),
+        R(nz * f),
+        r(f),
+        b(n),
+        y(f),
+        v(f),
+        mq(n),
+        h(n),
+        a1(n),
+        x(nz) {}
   std::vector<T> z, zd, zdd, F, zeta, phi, phit, quad, rhs, jac, lu;
   std::vector<int> piv;
   std::vector<T> R, r, b, y, v, mq, h, a1, x;
@@ -398,7 +417,8 @@ struct MechanismProblem::Impl {
       if (iterations < 0 && step <= tol) return step;
     }
     if (iterations < 0 || !std::isfinite(step)) {
-      throw NumericalError("the mechanism cannot be assembled (Newton on the constraints did not converge)", t);
+      throw NumericalError("the mechanism cannot be assembled (Newton on the constraints did not converge)",
+                           t);
     }
     return step;
   }
@@ -419,8 +439,19 @@ struct MechanismProblem::Impl {
 namespace {
 
 struct Work final : ProblemWorkspace {
-  Work(int nz, int m, int f, int n) : d(nz, m, f, n), s(nz, m, f, n), l(nz, m, f, n), zStar(nz), yLast(f), zLast(nz),
-                                      yStep(f), luStar(m * m), pivStar(m), mu(f), nu(nz), fScratch(f) {}
+  Work(int nz, int m, int f, int n)
+      : d(nz, m, f, n),
+        s(nz, m, f, n),
+        l(nz, m, f, n),
+        zStar(nz),
+        yLast(f),
+        zLast(nz),
+        yStep(f),
+        luStar(m * m),
+        pivStar(m),
+        mu(f),
+        nu(nz),
+        fScratch(f) {}
   Buffers<double> d;
   Buffers<ADS> s;
   Buffers<ADL> l;
@@ -456,7 +487,8 @@ void solvePositions(const MechanismProblem::Impl& I, double t, ConstVectorRef y,
   for (int k = 1; k <= steps; ++k) {
     const double theta = static_cast<double>(k) / steps;
     const double tk = k == steps ? t : tStart + (t - tStart) * theta;
-    for (int i = 0; i < I.f; ++i) B.z[I.independent[i]] = k == steps ? y(i) : yStart(i) + (y(i) - yStart(i)) * theta;
+    for (int i = 0; i < I.f; ++i)
+      B.z[I.independent[i]] = k == steps ? y(i) : yStart(i) + (y(i) - yStart(i)) * theta;
     I.newton(tk, B, -1, 1e-11);
   }
   // Round to a grid and polish: the bits are then a function of (t, y) only.
@@ -485,7 +517,8 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
     I.constraints(t, B, false, false, zero);
     for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
     luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
-    for (int i = 0; i < m; ++i) B.z[I.dependent[i]] = Make<T>::withDerivatives(w.zStar(I.dependent[i]), -B.rhs[i]);
+    for (int i = 0; i < m; ++i)
+      B.z[I.dependent[i]] = Make<T>::withDerivatives(w.zStar(I.dependent[i]), -B.rhs[i]);
   }
   I.constraints(t, B, true, false, zero);
   for (int j = 0; j < m; ++j) {
@@ -615,7 +648,8 @@ void generalizedForce(const MechanismProblem::Impl& I, const View& P, Buffers<T>
     const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
     using std::sqrt;
     const T l = sqrt(d0 * d0 + d1 * d1);
-    if (!(valueOf(l) > 0.0)) throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
+    if (!(valueOf(l) > 0.0))
+      throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
     const T e0 = d0 / l, e1 = d1 / l;
     const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
     const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
@@ -644,13 +678,14 @@ void residualFromKinematics(const MechanismProblem::Impl& I, const View& P, Buff
 }
 
 template <typename T>
-void loadInputs(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, ConstVectorRef y, ConstVectorRef v,
-                int nd, bool seedState, bool seedB) {
+void loadInputs(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, ConstVectorRef y,
+                ConstVectorRef v, int nd, bool seedState, bool seedB) {
   for (int i = 0; i < I.f; ++i) {
     B.y[i] = seedState ? Make<T>::variable(y(i), nd, i) : Make<T>::constant(y(i), nd);
     B.v[i] = seedState ? Make<T>::variable(v(i), nd, I.f + i) : Make<T>::constant(v(i), nd);
   }
-  for (int i = 0; i < I.n; ++i) B.b[i] = seedB ? Make<T>::variable(P.b(i), nd, i) : Make<T>::constant(P.b(i), nd);
+  for (int i = 0; i < I.n; ++i)
+    B.b[i] = seedB ? Make<T>::variable(P.b(i), nd, i) : Make<T>::constant(P.b(i), nd);
 }
 
 /// The double pass: positions, kinematics.
@@ -662,8 +697,8 @@ void doublePass(const MechanismProblem::Impl& I, const View& P, double t, ConstV
 }
 
 template <typename T>
-void stateJacobians(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
-                    ConstVectorRef a, MatrixRef ry, MatrixRef rv, Buffers<T>& B, Work& w) {
+void stateJacobians(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y,
+                    ConstVectorRef v, ConstVectorRef a, MatrixRef ry, MatrixRef rv, Buffers<T>& B, Work& w) {
   const int nd = 2 * I.f;
   loadInputs(I, P, B, y, v, nd, true, false);
   kinematics(I, t, B, w, nd);
@@ -678,8 +713,9 @@ void stateJacobians(const MechanismProblem::Impl& I, const View& P, double t, Co
 }
 
 template <typename T>
-void chordRowProduct(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
-                     ConstVectorRef a, ConstVectorRef mu, VectorRef out, Buffers<T>& B, Work& w) {
+void chordRowProduct(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y,
+                     ConstVectorRef v, ConstVectorRef a, ConstVectorRef mu, VectorRef out, Buffers<T>& B,
+                     Work& w) {
   const int nd = I.n;
   loadInputs(I, P, B, y, v, nd, false, true);
   kinematics(I, t, B, w, nd);
@@ -790,8 +826,8 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
     }
   }
   for (const Spring& s : M.springs) {
-    I.springs.push_back(SpringRef{I.pointRef(M, s.body1, s.point1), I.pointRef(M, s.body2, s.point2), s.stiffness,
-                                  s.restLength, s.damping});
+    I.springs.push_back(SpringRef{I.pointRef(M, s.body1, s.point1), I.pointRef(M, s.body2, s.point2),
+                                  s.stiffness, s.restLength, s.damping});
   }
   I.yInitial = Vector::Zero(I.f);
   for (int k = 0; k < I.nFree; ++k) I.yInitial(k) = I.zInitial(I.independent[k]);
@@ -802,7 +838,8 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
   try {
     I.newton(0.0, w.d, -1, 1e-12);
   } catch (const NumericalError& e) {
-    throw std::invalid_argument(std::string("mechanism: the initial positions do not assemble at t = 0: ") + e.what());
+    throw std::invalid_argument(std::string("mechanism: the initial positions do not assemble at t = 0: ") +
+                                e.what());
   }
   for (int i = 0; i < I.nz; ++i) I.zInitial(i) = w.d.z[i];
 }
@@ -878,8 +915,8 @@ void MechanismProblem::force(double t, ConstVectorRef y, ConstVectorRef v, Const
   }
 }
 
-void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
-                                VectorRef r, ProblemWorkspace* ws) const {
+void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
@@ -889,7 +926,8 @@ void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, Co
 }
 
 void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv, ProblemWorkspace* ws) const {
+                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv,
+                                         ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
@@ -925,7 +963,7 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   double s, c;
   dmath::sincos(z[2], &s, &c);
   const double g0 = x[0] - I.gravity(0), g1 = x[1] - I.gravity(1);
-  const double rho0 = c * g0 + s * g1, rho1 = -s * g0 + c * g1;  // A^T (R'' - g)
+  const double rho0 = c * g0 + s * g1, rho1 = -s * g0 + c * g1;                    // A^T (R'' - g)
   const double nb0 = c * w.nu(0) + s * w.nu(1), nb1 = -s * w.nu(0) + c * w.nu(1);  // A^T nu_R
   const double nth = w.nu(2), thd = zd[2], thdd = x[2];
   auto q = [&](int i) { return z[3 + i]; };
@@ -963,7 +1001,8 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
       // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
       ct[i + n * j] += q(i) * alphaJ - 2.0 * thd * nq(i) * qd(j);
       // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
-      mee[i + n * j] += zeta * q(i) * q(j) + 0.5 * (etaI * q(j) + etaJ * q(i) + nq(i) * qdd(j) + nq(j) * qdd(i));
+      mee[i + n * j] +=
+          zeta * q(i) * q(j) + 0.5 * (etaI * q(j) + etaJ * q(i) + nq(i) * qdd(j) + nq(j) * qdd(i));
       kee[i + n * j] += nq(i) * q(j);
     }
   }
@@ -987,7 +1026,8 @@ double MechanismProblem::integrand(double, ConstVectorRef y, ConstVectorRef, Con
 }
 
 void MechanismProblem::addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
-                                                 double scale, VectorRef gy, VectorRef, ProblemWorkspace*) const {
+                                                 double scale, VectorRef gy, VectorRef,
+                                                 ProblemWorkspace*) const {
   const View P(modes_, p.data());
   const int o = impl_->nFree;
   for (int i = 0; i < modes_; ++i) {
@@ -995,8 +1035,9 @@ void MechanismProblem::addIntegrandStateGradient(double, ConstVectorRef y, Const
   }
 }
 
-void MechanismProblem::addIntegrandParameterGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
-                                                     double scale, VectorRef gp, ProblemWorkspace*) const {
+void MechanismProblem::addIntegrandParameterGradient(double, ConstVectorRef y, ConstVectorRef,
+                                                     ConstVectorRef p, double scale, VectorRef gp,
+                                                     ProblemWorkspace*) const {
   const View P(modes_, p.data());
   const int o = impl_->nFree;
   for (int j = 0; j < modes_; ++j) {
@@ -1004,8 +1045,8 @@ void MechanismProblem::addIntegrandParameterGradient(double, ConstVectorRef y, C
   }
 }
 
-void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef z,
-                                   VectorRef zDot, ProblemWorkspace* ws) const {
+void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                   VectorRef z, VectorRef zDot, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   doublePass(I, View(I.n, p.data()), t, y, v, w);
@@ -1015,8 +1056,9 @@ void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v,
   }
 }
 
-MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                                      ConstVectorRef p, ProblemWorkspace* ws) const {
+MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y, ConstVectorRef v,
+                                                      ConstVectorRef a, ConstVectorRef p,
+                                                      ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
@@ -1031,7 +1073,8 @@ MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y
   for (int i = 0; i < I.n; ++i) {
     for (int j = 0; j < I.n; ++j) e.potential += 0.5 * B.z[o + 3 + i] * P.kee(i, j) * B.z[o + 3 + j];
   }
-  for (int k = 0; k < I.nr; ++k) e.potential -= I.mass[k] * (I.gravity(0) * B.z[3 * k] + I.gravity(1) * B.z[3 * k + 1]);
+  for (int k = 0; k < I.nr; ++k)
+    e.potential -= I.mass[k] * (I.gravity(0) * B.z[3 * k] + I.gravity(1) * B.z[3 * k + 1]);
   {
     double s, c;
     dmath::sincos(B.z[o + 2], &s, &c);

@@ -90,13 +90,13 @@ class MechanismProblem final : public SecondOrderProblem {
   void residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p, VectorRef r,
                 ProblemWorkspace* ws) const;
   /// z(t, y) and z'(t, y, y').
-  void coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef z, VectorRef zDot,
-                   ProblemWorkspace* ws) const;
+  void coordinates(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef z,
+                   VectorRef zDot, ProblemWorkspace* ws) const;
   struct Energies {
-    double kinetic = 0.0;    ///< 1/2 z'^T M(z) z'
-    double potential = 0.0;  ///< strain 1/2 q^T K_ee q + gravity + springs
-    double drivePower = 0.0; ///< power of the drivers' constraint forces at the acceleration a
-    double dissipation = 0.0;///< power dissipated by the dampers (>= 0)
+    double kinetic = 0.0;      ///< 1/2 z'^T M(z) z'
+    double potential = 0.0;    ///< strain 1/2 q^T K_ee q + gravity + springs
+    double drivePower = 0.0;   ///< power of the drivers' constraint forces at the acceleration a
+    double dissipation = 0.0;  ///< power dissipated by the dampers (>= 0)
   };
   Energies energies(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                     ProblemWorkspace* ws) const;

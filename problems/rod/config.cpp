@@ -319,10 +319,9 @@ void Config::validate() const {
                                 std::to_string(optimization.projectionThreshold) + " must be in (0, 1)");
   }
   if (optimization.projectionBeta > 0.0 && optimization.projectionBetaMax < optimization.projectionBeta) {
-    throw std::invalid_argument("config field 'optimization.projectionBetaMax' = " +
-                                std::to_string(optimization.projectionBetaMax) +
-                                " must be >= optimization.projectionBeta = " +
-                                std::to_string(optimization.projectionBeta));
+    throw std::invalid_argument(
+        "config field 'optimization.projectionBetaMax' = " + std::to_string(optimization.projectionBetaMax) +
+        " must be >= optimization.projectionBeta = " + std::to_string(optimization.projectionBeta));
   }
   const IntegratorMethod method = parseIntegratorMethod(simulation.integrator);
   if (simulation.adaptive && method != IntegratorMethod::Dopri5 && method != IntegratorMethod::TrBdf2) {
@@ -366,7 +365,8 @@ nlohmann::json toJson(const Config& config) {
     for (const Field& f : fields) {
       // Without scenarios the default aggregate is not written: such a configuration is the one of
       // before (results files keep their bytes, and older results files resume).
-      if (f.name == "aggregate" && config.scenarios.empty() && config.optimization.aggregate == Aggregate::Sum)
+      if (f.name == "aggregate" && config.scenarios.empty() &&
+          config.optimization.aggregate == Aggregate::Sum)
         continue;
       s[f.name] = f.write(config);
     }
@@ -457,22 +457,22 @@ nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateByt
 
 nlohmann::json summaryToJson(const RunSummary& s) {
   nlohmann::json json = {{"method", s.method},
-          {"adjoint", s.adjoint},
-          {"storage", s.storage},
-          {"steps", s.steps},
-          {"rejected_steps", s.rejectedSteps},
-          {"rhs_evaluations", s.rhsEvaluations},
-          {"jacobian_evaluations", s.jacobianEvaluations},
-          {"factorizations", s.factorizations},
-          {"newton_iterations", s.newtonIterations},
-          {"recomputed_steps", s.recomputedSteps},
-          {"states_stored", s.statesStored},
-          {"peak_bytes_in_memory", s.peakBytesInMemory},
-          {"bytes_on_disk", s.bytesOnDisk},
-          {"compression_ratio", s.compressionRatio},
-          {"forward_seconds", s.forwardSeconds},
-          {"backward_seconds", s.backwardSeconds},
-          {"io_seconds", s.ioSeconds}};
+                         {"adjoint", s.adjoint},
+                         {"storage", s.storage},
+                         {"steps", s.steps},
+                         {"rejected_steps", s.rejectedSteps},
+                         {"rhs_evaluations", s.rhsEvaluations},
+                         {"jacobian_evaluations", s.jacobianEvaluations},
+                         {"factorizations", s.factorizations},
+                         {"newton_iterations", s.newtonIterations},
+                         {"recomputed_steps", s.recomputedSteps},
+                         {"states_stored", s.statesStored},
+                         {"peak_bytes_in_memory", s.peakBytesInMemory},
+                         {"bytes_on_disk", s.bytesOnDisk},
+                         {"compression_ratio", s.compressionRatio},
+                         {"forward_seconds", s.forwardSeconds},
+                         {"backward_seconds", s.backwardSeconds},
+                         {"io_seconds", s.ioSeconds}};
   if (s.predictedStorageSeconds > 0.0 || s.measuredStorageSeconds > 0.0) {
     json["predicted_storage_seconds"] = s.predictedStorageSeconds;
     json["measured_storage_seconds"] = s.measuredStorageSeconds;

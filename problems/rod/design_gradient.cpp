@@ -64,8 +64,8 @@ class NelsonSystem {
     SparseMatrix permuted;
     permuted = matrix.selfadjointView<Eigen::Lower>().twistedBy(ordering_);
     ldlt_.compute(permuted);
-    const bool pivotsUsable =
-        ldlt_.info() == Eigen::Success && ldlt_.vectorD().allFinite() && (ldlt_.vectorD().array() != 0.0).all();
+    const bool pivotsUsable = ldlt_.info() == Eigen::Success && ldlt_.vectorD().allFinite() &&
+                              (ldlt_.vectorD().array() != 0.0).all();
     if (pivotsUsable) return;
     useLu_ = true;
     lu_.analyzePattern(matrix);
@@ -167,8 +167,10 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
                                            const NelsonFactorizations& factorizations) {
   const Stopwatch timer;
   checkBasis(model, basis);
-  if (factorizations.impl().rows != model.freeDofCount() || factorizations.impl().modes != basis.eigenmodeCount)
-    throw std::invalid_argument("computeDesignGradient: the Nelson factorisations belong to another model or basis");
+  if (factorizations.impl().rows != model.freeDofCount() ||
+      factorizations.impl().modes != basis.eigenmodeCount)
+    throw std::invalid_argument(
+        "computeDesignGradient: the Nelson factorisations belong to another model or basis");
   const int n = basis.eigenmodeCount;
   const InvariantLayout layout(n);
   if (invariantGradient.size() != layout.size) {
@@ -301,7 +303,8 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
                                                           eigenvalue, eigenvalueDerivative, massTimesMode));
         ++linearSolves;
         const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
-        contribution(d) = gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
+        contribution(d) =
+            gradientOfMode.dot(v) + c * projection + eigenvalueWeights(i) * eigenvalueDerivative;
       }
     }
   });

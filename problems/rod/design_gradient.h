@@ -81,7 +81,8 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
                                            const DesignGradientExtras& extras = {});
 /// The same with the Nelson operators factorised beforehand (for this model and basis).
 DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
-                                           ConstVectorRef invariantGradient, const DesignGradientOptions& options,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
                                            const DesignGradientExtras& extras,
                                            const NelsonFactorizations& factorizations);
 

@@ -32,9 +32,9 @@ Vector gridToDesign(const rod::RodConfig& config, const double* grid, const std:
       if (v != 1.0) {
         std::ostringstream value;
         value << std::setprecision(17) << v;
-        throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" +
-                                    std::to_string(i) + "] (row " + std::to_string(j) +
-                                    ", interface column " + std::to_string(i) + ") = " + value.str() +
+        throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" + std::to_string(i) +
+                                    "] (row " + std::to_string(j) + ", interface column " +
+                                    std::to_string(i) + ") = " + value.str() +
                                     " must be 1: the end columns are not design variables");
       }
     }
@@ -46,10 +46,9 @@ Vector gridToDesign(const rod::RodConfig& config, const double* grid, const std:
     if (!(v >= config.designLowerBound && v <= 1.0)) {
       std::ostringstream value;
       value << std::setprecision(17) << v;
-      throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" +
-                                  std::to_string(i) + "] (row " + std::to_string(j) + ", column " +
-                                  std::to_string(i) + ") = " + value.str() + " is outside [" +
-                                  std::to_string(config.designLowerBound) + ", 1]");
+      throw std::invalid_argument(source + ": x[" + std::to_string(j) + "][" + std::to_string(i) + "] (row " +
+                                  std::to_string(j) + ", column " + std::to_string(i) + ") = " + value.str() +
+                                  " is outside [" + std::to_string(config.designLowerBound) + ", 1]");
     }
     design(d) = v;
   }

@@ -27,8 +27,10 @@ Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVe
 FirstEigenvalue firstEigenvalue(const FeModel& model, ConstVectorRef eigenvalues, ConstMatrixRef modesFull,
                                 double clusterTolerance) {
   if (eigenvalues.size() < 1 || modesFull.cols() < eigenvalues.size() || modesFull.rows() != model.dofCount())
-    throw std::invalid_argument("firstEigenvalue: need at least one eigenvalue and one mode column per "
-                                "eigenvalue on all " + std::to_string(model.dofCount()) + " DOFs");
+    throw std::invalid_argument(
+        "firstEigenvalue: need at least one eigenvalue and one mode column per "
+        "eigenvalue on all " +
+        std::to_string(model.dofCount()) + " DOFs");
   if (!(clusterTolerance >= 0.0 && std::isfinite(clusterTolerance)))
     throw std::invalid_argument("firstEigenvalue: clusterTolerance = " + std::to_string(clusterTolerance) +
                                 " must be >= 0 and finite");

@@ -2,7 +2,8 @@
 // optimizer's guard against mechanisms, lambda_1(x) >= (2 pi f_min)^2 (optimization.minFirstFrequency).
 //
 // For a simple eigenvalue lambda with mass-normalised mode phi (phi^T M phi = 1),
-//   d lambda / dx_d = phi^T (dK/dx_d - lambda dM/dx_d) phi = E'(x_d) phi_e^T Ke0 phi_e - lambda rho'(x_d) phi_e^T Me0 phi_e
+//   d lambda / dx_d = phi^T (dK/dx_d - lambda dM/dx_d) phi = E'(x_d) phi_e^T Ke0 phi_e - lambda rho'(x_d)
+//   phi_e^T Me0 phi_e
 // on the element e of design variable d (dK/dx_d = E'(x_d) Ke0, dM/dx_d = rho'(x_d) Me0; fe_model.h).
 //
 // Repeated eigenvalue: a multiple lambda_1 is not differentiable (its derivative depends on the
@@ -26,9 +27,9 @@ namespace rod {
 Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVectorRef modeFull);
 
 struct FirstEigenvalue {
-  double value = 0.0;    ///< lambda_1, or the mean of its cluster [1/s^2]
-  int clusterSize = 1;   ///< J: eigenvalues within clusterTolerance lambda_1 of lambda_1
-  Vector gradient;       ///< d value / dx_d, model.designCount() entries
+  double value = 0.0;   ///< lambda_1, or the mean of its cluster [1/s^2]
+  int clusterSize = 1;  ///< J: eigenvalues within clusterTolerance lambda_1 of lambda_1
+  Vector gradient;      ///< d value / dx_d, model.designCount() entries
 };
 
 /// The guarded first eigenvalue and its gradient from ascending eigenvalues and their mass-normalised

@@ -71,7 +71,8 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
   parallelFor(columnBlocks, [&](int b) {
     const int begin = b * columns / columnBlocks;
     const int end = (b + 1) * columns / columnBlocks;
-    result.displacements.middleCols(begin, end - begin) = factorization.solve(Matrix(loads.middleCols(begin, end - begin)));
+    result.displacements.middleCols(begin, end - begin) =
+        factorization.solve(Matrix(loads.middleCols(begin, end - begin)));
   });
   result.value = weight * loads.cwiseProduct(result.displacements).sum();
   if (!withGradient) return result;

@@ -161,7 +161,8 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   const int subspace = std::min(freeDofs, std::max(2 * requested + 1, requested + 20));
 
   if (factorization.size() != stiffness.rows())
-    throw std::invalid_argument("computeModalBasis: the stiffness factorisation does not belong to this model");
+    throw std::invalid_argument(
+        "computeModalBasis: the stiffness factorisation does not belong to this model");
   using MassProduct = Spectra::SparseSymMatProd<double>;
   StiffnessInverse shiftInvert(factorization);
   MassProduct massProduct(mass);

@@ -17,11 +17,12 @@ void parallelFor(int count, const std::function<void(int)>& body) {
 #ifdef HINDSIGHT_HAVE_TBB
   if (count > 1) {
     // Grain 1, simple partitioner: the items are few and coarse (a factorisation each).
-    tbb::parallel_for(tbb::blocked_range<int>(0, count, 1),
-                      [&](const tbb::blocked_range<int>& range) {
-                        for (int i = range.begin(); i != range.end(); ++i) body(i);
-                      },
-                      tbb::simple_partitioner());
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, count, 1),
+        [&](const tbb::blocked_range<int>& range) {
+          for (int i = range.begin(); i != range.end(); ++i) body(i);
+        },
+        tbb::simple_partitioner());
     return;
   }
 #endif
@@ -46,7 +47,8 @@ bool threadsSupported() {
 
 struct ThreadLimit::Impl {
 #ifdef HINDSIGHT_HAVE_TBB
-  explicit Impl(int threads) : control(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads)) {}
+  explicit Impl(int threads)
+      : control(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads)) {}
   tbb::global_control control;
 #else
   explicit Impl(int) {}
@@ -55,7 +57,8 @@ struct ThreadLimit::Impl {
 
 ThreadLimit::ThreadLimit(int threads) {
   if (threads < 1)
-    throw std::invalid_argument("--threads = " + std::to_string(threads) + " is outside the allowed range [1, inf)");
+    throw std::invalid_argument("--threads = " + std::to_string(threads) +
+                                " is outside the allowed range [1, inf)");
   impl_ = std::make_unique<Impl>(threads);
 }
 

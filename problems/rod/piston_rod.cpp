@@ -13,10 +13,10 @@
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>
-#include <stdexcept>
-#include <string>
 #include <limits>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 namespace hindsight {
 

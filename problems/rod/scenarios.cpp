@@ -16,7 +16,8 @@ using nlohmann::json;
 std::string render(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
 double readPositive(const json& value, const std::string& who) {
-  if (!value.is_number()) throw std::invalid_argument(who + " = " + render(value) + " must be a number in (0, inf)");
+  if (!value.is_number())
+    throw std::invalid_argument(who + " = " + render(value) + " must be a number in (0, inf)");
   const double x = value.get<double>();
   if (!(std::isfinite(x) && x > 0.0))
     throw std::invalid_argument(who + " = " + render(value) + " is outside the allowed range (0, inf)");
@@ -30,7 +31,8 @@ std::string toString(Aggregate aggregate) { return aggregate == Aggregate::Max ?
 Aggregate parseAggregate(const std::string& name) {
   if (name == "sum") return Aggregate::Sum;
   if (name == "max") return Aggregate::Max;
-  throw std::invalid_argument("config field 'optimization.aggregate' = \"" + name + "\" must be one of: sum, max");
+  throw std::invalid_argument("config field 'optimization.aggregate' = \"" + name +
+                              "\" must be one of: sum, max");
 }
 
 std::vector<Scenario> scenariosFromJson(const json& in) {
@@ -60,7 +62,8 @@ std::vector<Scenario> scenariosFromJson(const json& in) {
       } else if (field == "weight") {
         s.weight = readPositive(value, who);
       } else {
-        throw std::invalid_argument(who + " is unknown; fields of a scenario: name, crankSpeed, rampTime, "
+        throw std::invalid_argument(who +
+                                    " is unknown; fields of a scenario: name, crankSpeed, rampTime, "
                                     "endTime, crankRadius, weight");
       }
     }
@@ -100,7 +103,8 @@ void validateScenarios(const std::vector<Scenario>& scenarios, const rod::RodCon
     const Scenario& s = scenarios[i];
     const std::string at = "scenarios[" + std::to_string(i) + "]";
     if (!names.insert(s.name).second)
-      throw std::invalid_argument(at + ".name = \"" + s.name + "\" is used by an earlier scenario; names must be unique");
+      throw std::invalid_argument(at + ".name = \"" + s.name +
+                                  "\" is used by an earlier scenario; names must be unique");
     if (!(s.weight > 0.0 && std::isfinite(s.weight))) {
       std::ostringstream m;
       m << at << ".weight = " << s.weight << " is outside the allowed range (0, inf)";
@@ -120,8 +124,8 @@ void validateScenarios(const std::vector<Scenario>& scenarios, const rod::RodCon
     }
     if (!(r.endTime >= r.rampTime)) {
       std::ostringstream m;
-      m << at << ".endTime = " << r.endTime << " is outside the allowed range [rampTime, inf) = [" << r.rampTime
-        << ", inf) (fields a scenario omits take the rod's values)";
+      m << at << ".endTime = " << r.endTime << " is outside the allowed range [rampTime, inf) = ["
+        << r.rampTime << ", inf) (fields a scenario omits take the rod's values)";
       throw std::invalid_argument(m.str());
     }
     try {

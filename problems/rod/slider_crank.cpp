@@ -68,7 +68,7 @@ void frameKinematics(const CrankState& k, double r, double length, const T& c, c
   const T d = length + c;
   const T u = -r * s / d;
   const T cosBeta = sqrt(1.0 - u * u);
-  const T w1 = 1.0 / cosBeta;    // asin'
+  const T w1 = 1.0 / cosBeta;     // asin'
   const T w2 = u * w1 * w1 * w1;  // asin''
   const T ut = -r * co * phiDot / d;
   const T uc = r * s / (d * d);
@@ -539,8 +539,8 @@ void parameterProduct(const SliderCrankLayout& L, const ProductScalars& k, Const
 }
 
 /// outQ = (r_q)^T mu, outV = (r_q')^T mu from the product scalars (h, M_ee q in the workspace).
-void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, ConstVectorRef v, ConstVectorRef a,
-                  ConstVectorRef mu, VectorRef outQ, VectorRef outV, RodWorkspace& w) {
+void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, ConstVectorRef v,
+                  ConstVectorRef a, ConstVectorRef mu, VectorRef outQ, VectorRef outV, RodWorkspace& w) {
   const int n = P.n;
   const double g = k.g, bd = k.bd, r0 = k.r0, r1 = k.r1, s = k.s, alongQ = k.alongQ, alongV = k.alongV;
   const double gmb = g * k.mb;
@@ -593,7 +593,8 @@ void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVecto
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   const Matrix& mee = meeOf(P, w);
-  const ProductScalars k = productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
+  const ProductScalars k =
+      productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
   stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
 }
 
@@ -603,7 +604,8 @@ void SliderCrankProblem::residualVjps(double t, ConstVectorRef q, ConstVectorRef
   auto& w = workspaceOf(ws);
   const View P(layout_, p);
   const Matrix& mee = meeOf(P, w);
-  const ProductScalars k = productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
+  const ProductScalars k =
+      productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
   stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
   parameterProduct(layout_, k, q, v, a, mu, gradient, w);
 }

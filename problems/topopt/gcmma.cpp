@@ -25,8 +25,7 @@ constexpr double kMaxGrowth = 10.0;
 
 bool GcmmaOptions::IsValid(std::string* error) const {
   if (!mma.IsValid(error)) return false;
-  if (!(max_inner_iterations >= 1))
-    return Fail(error, "max_inner_iterations", max_inner_iterations, ">= 1");
+  if (!(max_inner_iterations >= 1)) return Fail(error, "max_inner_iterations", max_inner_iterations, ">= 1");
   if (!(initial_regularization_factor > 0.0 && std::isfinite(initial_regularization_factor)))
     return Fail(error, "initial_regularization_factor", initial_regularization_factor, "> 0 and finite");
   if (!(min_regularization > 0.0 && std::isfinite(min_regularization)))
@@ -51,8 +50,8 @@ void Gcmma::update(double objective, ConstVectorRef objective_gradient, ConstVec
                    ConstMatrixRef constraint_jacobian, ConstVectorRef xmin, ConstVectorRef xmax, Vector& x,
                    const Evaluate& evaluate) {
   const MmaState before = mma_.state();
-  mma_.beginConservativeIteration(objective, objective_gradient, constraints, constraint_jacobian, xmin,
-                                  xmax, x);
+  mma_.beginConservativeIteration(objective, objective_gradient, constraints, constraint_jacobian, xmin, xmax,
+                                  x);
   const double tolerance = options_.conservative_tolerance;
   const bool feasible = m_ == 0 || constraints.maxCoeff() <= 0.0;
 

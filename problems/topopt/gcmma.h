@@ -42,10 +42,10 @@
 namespace hindsight {
 
 struct GcmmaOptions {
-  MmaOptions mma;                    ///< asymptotes, move limit, subproblem solver (as for MMA)
-  int max_inner_iterations = 20;     ///< trials per outer iteration before x_k is kept; >= 1
+  MmaOptions mma;                              ///< asymptotes, move limit, subproblem solver (as for MMA)
+  int max_inner_iterations = 20;               ///< trials per outer iteration before x_k is kept; >= 1
   double initial_regularization_factor = 0.1;  ///< the 0.1 of rho_i's start value; > 0
-  double min_regularization = 1e-5;  ///< lower bound of rho_i (raa0 of MMA); > 0
+  double min_regularization = 1e-5;            ///< lower bound of rho_i (raa0 of MMA); > 0
   /// Conservative means f~_i(x^) + tolerance >= f_i(x^); 0.5 epsimin in the note. >= 0.
   double conservative_tolerance = 0.5e-7;
   /// Descent acceptance (a declared variant, off by default): a trial is also accepted when it is

@@ -19,8 +19,8 @@ constexpr double kEdgeMargin = 1e-6;
 
 void checkField(const DensityField& f, double iso) {
   if (f.nx < 1 || f.ny < 1)
-    throw std::invalid_argument("geometry export: nx = " + std::to_string(f.nx) + ", ny = " + std::to_string(f.ny) +
-                                " must be >= 1");
+    throw std::invalid_argument("geometry export: nx = " + std::to_string(f.nx) +
+                                ", ny = " + std::to_string(f.ny) + " must be >= 1");
   if (f.values.size() != static_cast<Eigen::Index>(f.nx) * f.ny)
     throw std::invalid_argument("geometry export: the density field has " + std::to_string(f.values.size()) +
                                 " values, expected nx * ny = " + std::to_string(f.nx * f.ny));
@@ -107,10 +107,14 @@ Decomposition decompose(const DensityField& f, double iso) {
       // Edge k joins corner k and k + 1: e0 bottom, e1 right, e2 top, e3 left (canonical ids).
       auto edge = [&](int k) {
         switch (k) {
-          case 0: return crossingId(i, j, true);
-          case 1: return crossingId(i + 1, j, false);
-          case 2: return crossingId(i, j + 1, true);
-          default: return crossingId(i, j, false);
+          case 0:
+            return crossingId(i, j, true);
+          case 1:
+            return crossingId(i + 1, j, false);
+          case 2:
+            return crossingId(i, j + 1, true);
+          default:
+            return crossingId(i, j, false);
         }
       };
       const bool saddle = count == 2 && in[0] == in[2];
@@ -252,7 +256,8 @@ void writeOutlineDxf(const std::string& path, const Outline& outline) {
   for (const auto& loop : outline.loops) {
     text += "0\nPOLYLINE\n8\nOUTLINE\n66\n1\n70\n1\n10\n0.0\n20\n0.0\n30\n0.0\n";
     for (const Eigen::Vector2d& p : loop)
-      text += "0\nVERTEX\n8\nOUTLINE\n10\n" + formatNumber(p.x()) + "\n20\n" + formatNumber(p.y()) + "\n30\n0.0\n";
+      text += "0\nVERTEX\n8\nOUTLINE\n10\n" + formatNumber(p.x()) + "\n20\n" + formatNumber(p.y()) +
+              "\n30\n0.0\n";
     text += "0\nSEQEND\n8\nOUTLINE\n";
   }
   text += "0\nENDSEC\n0\nEOF\n";
@@ -270,7 +275,8 @@ void writeSolidStl(const std::string& path, const TriangleMesh& mesh) {
     text += "facet normal " + formatNumber(n.x()) + " " + formatNumber(n.y()) + " " + formatNumber(n.z()) +
             "\n outer loop\n";
     for (const Eigen::Vector3d* p : {&a, &b, &c})
-      text += "  vertex " + formatNumber(p->x()) + " " + formatNumber(p->y()) + " " + formatNumber(p->z()) + "\n";
+      text +=
+          "  vertex " + formatNumber(p->x()) + " " + formatNumber(p->y()) + " " + formatNumber(p->z()) + "\n";
     text += " endloop\nendfacet\n";
   }
   text += "endsolid hindsight_design\n";

@@ -13,15 +13,25 @@ constexpr double kSmallestPositive = std::numeric_limits<double>::min();
 
 HistoryColumn integerColumn(const char* name, const char* description, HistoryRule rule, double upper,
                             int IterationRecord::*member, bool optional = false) {
-  return {name, HistoryColumnType::int32, "1", description, true, optional, rule, HistoryNaN::never, 0.0, upper,
-          nullptr, member};
+  return {name, HistoryColumnType::int32, "1", description, true,    optional,
+          rule, HistoryNaN::never,        0.0, upper,       nullptr, member};
 }
 
 HistoryColumn realColumn(const char* name, const char* unit, const char* description, bool reproducible,
                          HistoryNaN nan, double lower, double upper, double IterationRecord::*member,
                          bool optional = false) {
-  return {name, HistoryColumnType::float64, unit, description, reproducible, optional, HistoryRule::range, nan,
-          lower, upper, member, nullptr};
+  return {name,
+          HistoryColumnType::float64,
+          unit,
+          description,
+          reproducible,
+          optional,
+          HistoryRule::range,
+          nan,
+          lower,
+          upper,
+          member,
+          nullptr};
 }
 
 std::vector<HistoryColumn> makeColumns() {
@@ -32,10 +42,10 @@ std::vector<HistoryColumn> makeColumns() {
       integerColumn("backtracks",
                     "Halvings toward the previous design after a diverged simulation in this iteration.",
                     HistoryRule::range, TopologyOptimizer::maxBacktracks, &IterationRecord::backtracks),
-      realColumn("psi1", "J s", "Integral compliance of the design (with scenarios: of the worst scenario).", true,
-                 HistoryNaN::never, kSmallestPositive, kLargest, &IterationRecord::psi1),
-      realColumn("psi2", "J s", "Equivalent-static-load compliance (with scenarios: of the worst scenario).", true,
-                 HistoryNaN::never, kSmallestPositive, kLargest, &IterationRecord::psi2),
+      realColumn("psi1", "J s", "Integral compliance of the design (with scenarios: of the worst scenario).",
+                 true, HistoryNaN::never, kSmallestPositive, kLargest, &IterationRecord::psi1),
+      realColumn("psi2", "J s", "Equivalent-static-load compliance (with scenarios: of the worst scenario).",
+                 true, HistoryNaN::never, kSmallestPositive, kLargest, &IterationRecord::psi2),
       realColumn("volume_fraction", "1", "V/V0 over all elements, the solid end columns included.", true,
                  HistoryNaN::never, kSmallestPositive, 1.0, &IterationRecord::volumeFraction),
       realColumn("max_design_change", "1",
@@ -56,13 +66,15 @@ std::vector<HistoryColumn> makeColumns() {
                  "First-order optimality residual with the update's multipliers (NaN where no update was "
                  "computed; a finished run whose last row has one stopped by the convergence rule).",
                  true, HistoryNaN::allowed, 0.0, kLargest, &IterationRecord::kktResidual, true),
-      integerColumn("inner_iterations", "GCMMA: trial designs simulated in this iteration's update (0 for MMA).",
-                    HistoryRule::range, std::numeric_limits<int>::max(), &IterationRecord::innerIterations,
-                    true),
+      integerColumn(
+          "inner_iterations", "GCMMA: trial designs simulated in this iteration's update (0 for MMA).",
+          HistoryRule::range, std::numeric_limits<int>::max(), &IterationRecord::innerIterations, true),
   };
 }
 
-const char* typeName(HistoryColumnType type) { return type == HistoryColumnType::int32 ? "int32" : "float64"; }
+const char* typeName(HistoryColumnType type) {
+  return type == HistoryColumnType::int32 ? "int32" : "float64";
+}
 
 }  // namespace
 

@@ -26,9 +26,9 @@ enum class HistoryColumnType { int32, float64 };
 
 /// Which entries of a float64 column may be NaN (an unknown value) in a plausible file.
 enum class HistoryNaN {
-  never,           ///< every entry finite
-  finalEvaluation, ///< all but the last row of a finished run (which made no update) finite
-  allowed          ///< NaN means "not computed"; any other value must lie in [lower, upper]
+  never,            ///< every entry finite
+  finalEvaluation,  ///< all but the last row of a finished run (which made no update) finite
+  allowed           ///< NaN means "not computed"; any other value must lie in [lower, upper]
 };
 
 /// What the reader checks of a column beyond its checksums.
@@ -38,7 +38,7 @@ enum class HistoryRule {
 };
 
 struct HistoryColumn {
-  const char* name;         ///< the dataset /history/NAME and the Python key
+  const char* name;  ///< the dataset /history/NAME and the Python key
   HistoryColumnType type;
   const char* unit;         ///< SI unit, "1" for a ratio or a count
   const char* description;  ///< one sentence, as the documentation's table shows it

@@ -59,9 +59,9 @@ double kktResidual(ConstVectorRef x, ConstVectorRef objective_gradient, ConstVec
   CheckSize("xmax", xmax.size(), n);
   CheckSize("lambda", lambda.size(), m);
   if (constraint_jacobian.rows() != m || constraint_jacobian.cols() != n) {
-    ThrowArgument("kktResidual: constraint_jacobian is " + std::to_string(constraint_jacobian.rows()) + " x " +
-                  std::to_string(constraint_jacobian.cols()) + ", expected " + std::to_string(m) + " x " +
-                  std::to_string(n));
+    ThrowArgument("kktResidual: constraint_jacobian is " + std::to_string(constraint_jacobian.rows()) +
+                  " x " + std::to_string(constraint_jacobian.cols()) + ", expected " + std::to_string(m) +
+                  " x " + std::to_string(n));
   }
   double residual = 0.0;
   for (Eigen::Index j = 0; j < n; ++j) {
@@ -198,7 +198,6 @@ void Mma::checkInputs(double objective, ConstVectorRef objective_gradient, Const
       ThrowArgument(out.str());
     }
   }
-
 }
 
 void Mma::update(double objective, ConstVectorRef objective_gradient, ConstVectorRef constraints,
@@ -232,7 +231,7 @@ void Mma::adaptMoveLimit(double objective, ConstVectorRef constraints) {
 
 void Mma::updateAsymptotes(ConstVectorRef xmin, ConstVectorRef xmax, const Vector& x) {
   const MmaOptions& o = options_;
-  const int k = state_.iteration + 1;  // the number of this iteration, counted from 1 as in the note
+  const int k = state_.iteration + 1;    // the number of this iteration, counted from 1 as in the note
   const double move = state_.moveLimit;  // set by adaptMoveLimit() just before
   Vector& low = state_.low;
   Vector& upp = state_.upp;
@@ -347,8 +346,8 @@ double Mma::conservativeDistance(const Vector& x, const Vector& trial, ConstVect
   double sum = 0.0;
   for (int j = 0; j < n_; ++j) {
     const double step = trial(j) - x(j);
-    sum += (upp(j) - low(j)) * step * step /
-           ((upp(j) - trial(j)) * (trial(j) - low(j)) * (xmax(j) - xmin(j)));
+    sum +=
+        (upp(j) - low(j)) * step * step / ((upp(j) - trial(j)) * (trial(j) - low(j)) * (xmax(j) - xmin(j)));
   }
   return sum;
 }

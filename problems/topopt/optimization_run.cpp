@@ -2,8 +2,8 @@
 #include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <hindsight/engine/stopwatch.h>
-#include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/communicator.h>
+#include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/pictures.h>
 #include <hindsight/storage/atomic_file.h>
 
@@ -74,8 +74,8 @@ void requireSameConfiguration(const Config& requested, const std::string& stored
     const auto valueIn = [&](const nlohmann::json& j) {
       return j.contains(pointer) ? j.at(pointer).dump() : std::string("absent");
     };
-    differences += (differences.empty() ? "" : ", ") + field + " (requested " + valueIn(wanted) + ", stored " +
-                   valueIn(stored) + ")";
+    differences += (differences.empty() ? "" : ", ") + field + " (requested " + valueIn(wanted) +
+                   ", stored " + valueIn(stored) + ")";
   }
   throw std::invalid_argument("--resume: the configuration differs from the one stored in " + path + ": " +
                               differences +
@@ -91,7 +91,8 @@ int bestFeasibleIndex(const std::vector<IterationRecord>& history, const Config&
   const auto objective = [&](const IterationRecord& r) {
     if (config.scenarios.empty()) return usePsi1 ? r.psi1 : r.psi2;
     const std::vector<double>& values = usePsi1 ? r.scenarioPsi1 : r.scenarioPsi2;
-    const std::vector<double>& initial = usePsi1 ? history.front().scenarioPsi1 : history.front().scenarioPsi2;
+    const std::vector<double>& initial =
+        usePsi1 ? history.front().scenarioPsi1 : history.front().scenarioPsi2;
     double aggregate = 0.0;
     for (std::size_t s = 0; s < cases.size() && s < values.size() && s < initial.size(); ++s) {
       const double relative = cases[s].weight * values[s] / initial[s];

@@ -72,9 +72,9 @@ class OptimizationRun {
 
   Config config_;
   OptimizationRunOptions options_;
-  std::unique_ptr<DirectoryLock> lock_;  // held from the constructor until the run is destroyed
-  bool resumedUnverified_ = false;       // resumed from a format 1 file (no checksums)
-  bool root_ = true;                     // rank 0 (or the only process): writes the directory
+  std::unique_ptr<DirectoryLock> lock_;     // held from the constructor until the run is destroyed
+  bool resumedUnverified_ = false;          // resumed from a format 1 file (no checksums)
+  bool root_ = true;                        // rank 0 (or the only process): writes the directory
   std::vector<std::string> scenarioNames_;  // empty without scenarios
   std::string resultsPath_;
   ResultsData data_;

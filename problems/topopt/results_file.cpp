@@ -1,5 +1,5 @@
-#include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/history_schema.h>
+#include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/problems/topopt/run_fingerprint.h>
 
 #include <hindsight/engine/hash.h>
@@ -208,12 +208,13 @@ void writeContents(hid_t file, const ResultsData& data) {
     // The end game's state: MMA's move limit, the objective at xold1 (problems/topopt/mma.h), the best
     // feasible objective so far, then the stopping rule's window of recent objectives, oldest first
     // (OptimizerState::bestObjective, recentObjectives).
-    std::vector<double> endGame = {data.state.mma.moveLimit, data.state.mma.objective, data.state.bestObjective};
+    std::vector<double> endGame = {data.state.mma.moveLimit, data.state.mma.objective,
+                                   data.state.bestObjective};
     endGame.insert(endGame.end(), data.state.recentObjectives.begin(), data.state.recentObjectives.end());
     writer.doubles(group.get(), "/state", "end_game", {static_cast<hsize_t>(endGame.size())}, endGame.data());
     if (data.state.bestDesign.size() > 0) {  // the best feasible design so far, once there is one
-      writer.doubles(group.get(), "/state", "best_design", {static_cast<hsize_t>(data.state.bestDesign.size())},
-                     data.state.bestDesign.data());
+      writer.doubles(group.get(), "/state", "best_design",
+                     {static_cast<hsize_t>(data.state.bestDesign.size())}, data.state.bestDesign.data());
     }
     hdf5::writeAttribute(group.get(), "mma_iteration", root.mmaIteration);
   }
@@ -245,7 +246,8 @@ void writeContents(hid_t file, const ResultsData& data) {
       }
       writer.doubles(group.get(), "/scenarios", name, {rows, scenarios}, table.data());
     }
-    writer.doubles(group.get(), "/scenarios", "objective_scale", {scenarios}, data.state.scenarioScales.data());
+    writer.doubles(group.get(), "/scenarios", "objective_scale", {scenarios},
+                   data.state.scenarioScales.data());
     writer.doubles(group.get(), "/scenarios", "bound", {static_cast<hsize_t>(data.state.bound.size())},
                    data.state.bound.data());
   }
@@ -425,9 +427,8 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
       }
     } else {
       // The final evaluation of a finished run made no update: its entry is not checked.
-      const std::size_t skipFrom = c.nan == HistoryNaN::finalEvaluation && data.finished
-                                       ? rows - 1
-                                       : static_cast<std::size_t>(-1);
+      const std::size_t skipFrom =
+          c.nan == HistoryNaN::finalEvaluation && data.finished ? rows - 1 : static_cast<std::size_t>(-1);
       checkRange(reader, object, column.data(), rows, c.lower, c.upper, skipFrom);
     }
   }
@@ -445,7 +446,8 @@ void checkPlausibility(Reader& reader, const ResultsData& data, const RootAttrib
 
   const MmaState& mma = data.state.mma;
   checkRange(reader, "/state/design", data.state.design, lower, 1.0);
-  if (data.state.bestDesign.size() > 0) checkRange(reader, "/state/best_design", data.state.bestDesign, lower, 1.0);
+  if (data.state.bestDesign.size() > 0)
+    checkRange(reader, "/state/best_design", data.state.bestDesign, lower, 1.0);
   // Before the first (second) update MMA's xold1 (xold2) are zeros, not designs.
   checkRange(reader, "/state/mma_xold1", mma.xold1, mma.iteration >= 1 ? lower : -kLargest,
              mma.iteration >= 1 ? 1.0 : kLargest);
@@ -529,7 +531,8 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
   data.state.iteration = root.updates = hdf5::readIntAttribute(file, "updates");
   data.state.objectiveScale = root.objectiveScale = hdf5::readDoubleAttribute(file, "objective_scale");
   if (hdf5::hasAttribute(file, "configuration_fingerprint")) {
-    data.configurationFingerprint = root.fingerprint = hdf5::readStringAttribute(file, "configuration_fingerprint");
+    data.configurationFingerprint = root.fingerprint =
+        hdf5::readStringAttribute(file, "configuration_fingerprint");
     data.ranks = root.ranks = hdf5::hasAttribute(file, "ranks") ? hdf5::readIntAttribute(file, "ranks") : 0;
     verification.configurationFingerprint = root.fingerprint;
     verification.ranks = root.ranks;
@@ -540,9 +543,9 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
       recomputed = std::string("none (") + e.what() + ")";
     }
     if (recomputed != root.fingerprint || root.ranks < 1) {
-      reader.problem(kRoot, "configuration_fingerprint " + root.fingerprint + " (ranks " + std::to_string(root.ranks) +
-                                ") does not match the stored configuration (" + recomputed +
-                                "): the configuration is not the one the ranks agreed on");
+      reader.problem(kRoot, "configuration_fingerprint " + root.fingerprint + " (ranks " +
+                                std::to_string(root.ranks) + ") does not match the stored configuration (" +
+                                recomputed + "): the configuration is not the one the ranks agreed on");
     }
   }
   if (rowsSigned < 0 || data.nx < 1 || data.ny < 1 || data.state.iteration < 0 ||
@@ -628,7 +631,8 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
                        "has " + std::to_string(best) + " entries, /state/design " + std::to_string(size));
       } else {
         data.state.bestDesign.setZero(static_cast<Eigen::Index>(size));
-        reader.read(group.get(), "/state", "best_design", H5T_NATIVE_DOUBLE, {size}, data.state.bestDesign.data());
+        reader.read(group.get(), "/state", "best_design", H5T_NATIVE_DOUBLE, {size},
+                    data.state.bestDesign.data());
       }
     }
     data.state.mma.iteration = root.mmaIteration = hdf5::readIntAttribute(group.get(), "mma_iteration");
@@ -656,8 +660,9 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
       requireShape(file, group.get(), name, {rows, scenarios});
       reader.read(group.get(), "/scenarios", name, H5T_NATIVE_DOUBLE, {rows, scenarios}, table.data());
       for (hsize_t k = 0; k < rows; ++k)
-        data.history[k].*member = std::vector<double>(table.begin() + static_cast<std::ptrdiff_t>(k * scenarios),
-                                                      table.begin() + static_cast<std::ptrdiff_t>((k + 1) * scenarios));
+        data.history[k].*member =
+            std::vector<double>(table.begin() + static_cast<std::ptrdiff_t>(k * scenarios),
+                                table.begin() + static_cast<std::ptrdiff_t>((k + 1) * scenarios));
     }
     data.state.scenarioScales.setZero(static_cast<Eigen::Index>(scenarios));
     reader.read(group.get(), "/scenarios", "objective_scale", H5T_NATIVE_DOUBLE, {scenarios},
@@ -666,8 +671,8 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
     if (bound != 0 && bound != 4) fail("dataset '/scenarios/bound' must have 0 or 4 entries");
     data.state.bound.setZero(static_cast<Eigen::Index>(bound));
     reader.read(group.get(), "/scenarios", "bound", H5T_NATIVE_DOUBLE, {bound}, data.state.bound.data());
-    checkRange(reader, "/scenarios/objective_scale", data.state.scenarioScales, std::numeric_limits<double>::min(),
-               kLargest);
+    checkRange(reader, "/scenarios/objective_scale", data.state.scenarioScales,
+               std::numeric_limits<double>::min(), kLargest);
   }
   if (verification.checksummed) {
     // Over the stored dataset hashes: a mismatch here means the root attributes changed (a changed

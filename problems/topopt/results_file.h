@@ -37,9 +37,10 @@
 //     (h5py, the C API), which recomputes Fletcher32, and changed attributes, which have no filter.
 //   It detects corruption, not tampering: anyone can recompute both. Reading recomputes every hash;
 //   then the restored state is checked for plausibility: every history column as its schema says
-//   (range, NaN allowed or not, iteration = row index), every other value finite, designs and design variables in [rod.designLowerBound, 1], the
-//   MMA state as MMA leaves it (after an update mma_low < mma_xold1 < mma_upp and
-//   mma_low < design < mma_upp), the counters consistent. Any failure names the dataset.
+//   (range, NaN allowed or not, iteration = row index), every other value finite, designs and design
+//   variables in [rod.designLowerBound, 1], the MMA state as MMA leaves it (after an update mma_low <
+//   mma_xold1 < mma_upp and mma_low < design < mma_upp), the counters consistent. Any failure names the
+//   dataset.
 // Format 1 files (before checksums) are still read: plausibility is checked, the hashes cannot be;
 // ResultsData::checksummed says which, and the next write adds the checksums.
 //

@@ -85,13 +85,15 @@ void agreeOnConfiguration(const Communicator& world, const Config& config, const
   std::size_t offset = 0;
   for (double length : lengths) {
     std::string t(static_cast<std::size_t>(length), '\0');
-    for (std::size_t i = 0; i < t.size(); ++i) t[i] = static_cast<char>(static_cast<unsigned char>(bytes[offset + i]));
+    for (std::size_t i = 0; i < t.size(); ++i)
+      t[i] = static_cast<char>(static_cast<unsigned char>(bytes[offset + i]));
     offset += t.size();
     texts.push_back(std::move(t));
   }
   const nlohmann::json root = nlohmann::json::parse(texts[0]);
-  std::string message = "the MPI ranks were started with different configurations; every rank must get the same "
-                        "--config, --set, flags and hindsight version:";
+  std::string message =
+      "the MPI ranks were started with different configurations; every rank must get the same "
+      "--config, --set, flags and hindsight version:";
   for (int r : differing) {
     const nlohmann::json other = nlohmann::json::parse(texts[static_cast<std::size_t>(r)]);
     std::string fields;
@@ -109,7 +111,8 @@ void agreeOnConfiguration(const Communicator& world, const Config& config, const
       std::string a = valueIn(root), b = valueIn(other);
       if (a.size() > 80) a = a.substr(0, 77) + "...";
       if (b.size() > 80) b = b.substr(0, 77) + "...";
-      fields += (fields.empty() ? " " : ", ") + field + " (rank 0: " + a + ", rank " + std::to_string(r) + ": " + b + ")";
+      fields += (fields.empty() ? " " : ", ") + field + " (rank 0: " + a + ", rank " + std::to_string(r) +
+                ": " + b + ")";
     }
     message += " rank " + std::to_string(r) + " differs from rank 0 in" + fields + ";";
   }

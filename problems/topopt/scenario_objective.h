@@ -52,7 +52,8 @@ class ScenarioObjective {
 
   /// Evaluates every scenario at `design` (collective: every rank calls it with the same design).
   /// `psi1Objective` selects which gradient is gathered (dpsi1 or dpsi2, when requested).
-  ScenarioResults evaluate(ConstVectorRef design, const PistonRod::Request& request, bool psi1Objective) const;
+  ScenarioResults evaluate(ConstVectorRef design, const PistonRod::Request& request,
+                           bool psi1Objective) const;
 
  private:
   std::vector<ScenarioCase> cases_;

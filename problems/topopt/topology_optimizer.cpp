@@ -69,16 +69,17 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
   const OptimizationSettings& settings = config.optimization;
   if (settings.method == "gcmma" && !multiple_ && communicator.size() > 1) {
     // Without scenarios a run has one rank's work; GCMMA's trials would be simulated by every rank.
-    throw std::invalid_argument("optimization.method = gcmma under mpirun needs scenarios (the ranks share "
-                                "their evaluations); without them run one process");
+    throw std::invalid_argument(
+        "optimization.method = gcmma under mpirun needs scenarios (the ranks share "
+        "their evaluations); without them run one process");
   }
   if (settings.minFirstFrequency > 0.0 && communicator.size() > scenarios_.count()) {
     // The eigenvalue constraint depends on the design only (a scenario changes the mechanism, not the
     // rod), so every rank computes it from the full evaluation of a scenario it owns: it needs one.
-    throw std::invalid_argument("optimization.minFirstFrequency > 0 needs every MPI rank to own a scenario: " +
-                                std::to_string(communicator.size()) + " ranks for " +
-                                std::to_string(scenarios_.count()) + " scenario(s); run with at most " +
-                                std::to_string(scenarios_.count()) + " ranks");
+    throw std::invalid_argument(
+        "optimization.minFirstFrequency > 0 needs every MPI rank to own a scenario: " +
+        std::to_string(communicator.size()) + " ranks for " + std::to_string(scenarios_.count()) +
+        " scenario(s); run with at most " + std::to_string(scenarios_.count()) + " ranks");
   }
   if (settings.method == "gcmma") {
     GcmmaOptions options;
@@ -117,8 +118,8 @@ void TopologyOptimizer::restore(const OptimizerState& state) {
   }
   if (multiple_ && state.iteration > 0 && state.scenarioScales.size() != scenarios_.count()) {
     throw std::invalid_argument("optimizer state: " + std::to_string(state.scenarioScales.size()) +
-                                " scenario scales, the configuration has " + std::to_string(scenarios_.count()) +
-                                " scenarios");
+                                " scenario scales, the configuration has " +
+                                std::to_string(scenarios_.count()) + " scenarios");
   }
   if (bound_ != (state.bound.size() == 4)) {
     throw std::invalid_argument("optimizer state: the bound variable's MMA state has " +
@@ -178,9 +179,9 @@ int TopologyOptimizer::constraintCount() const {
 std::optional<HeavisideProjection> TopologyOptimizer::projectionAt(int iteration) const {
   const OptimizationSettings& s = config().optimization;
   if (!(s.projectionBeta > 0.0)) return std::nullopt;
-  return HeavisideProjection(
-      HeavisideProjection::continuationBeta(s.projectionBeta, s.projectionBetaMax, s.projectionEvery, iteration),
-      s.projectionThreshold, config().rod.designLowerBound);
+  return HeavisideProjection(HeavisideProjection::continuationBeta(s.projectionBeta, s.projectionBetaMax,
+                                                                   s.projectionEvery, iteration),
+                             s.projectionThreshold, config().rod.designLowerBound);
 }
 
 Vector TopologyOptimizer::modelDesign(ConstVectorRef design, int iteration) const {
@@ -215,14 +216,17 @@ Vector TopologyOptimizer::constraintsOf(double volumeFraction, ConstVectorRef dv
     if (evaluation == nullptr) throw std::logic_error("the frequency guard needs the full evaluation");
     const double bound = eigenvalueBound(settings.minFirstFrequency);
     const rod::FeModel model(config().rod, modelDesign(design, iteration));
-    const rod::FirstEigenvalue first = rod::firstEigenvalue(model, evaluation->eigenvalues, evaluation->modes);
+    const rod::FirstEigenvalue first =
+        rod::firstEigenvalue(model, evaluation->eigenvalues, evaluation->modes);
     constraint(1) = 1.0 - first.value / bound;
-    if (jacobian != nullptr) jacobian->row(1) = chainToDesign(-first.gradient / bound, design, iteration).transpose();
+    if (jacobian != nullptr)
+      jacobian->row(1) = chainToDesign(-first.gradient / bound, design, iteration).transpose();
   }
   return constraint;
 }
 
-Vector TopologyOptimizer::recordConstraints(const IterationRecord& record, const OptimizationSettings& settings) {
+Vector TopologyOptimizer::recordConstraints(const IterationRecord& record,
+                                            const OptimizationSettings& settings) {
   Vector constraint(settings.minFirstFrequency > 0.0 ? 2 : 1);
   constraint(0) = record.volumeFraction / settings.volumeFraction - 1.0;
   if (settings.minFirstFrequency > 0.0) {
@@ -269,8 +273,9 @@ IterationRecord TopologyOptimizer::step() {
         const double scale = state_.iteration > 0 ? scenarioScale(state_, s) : 0.0;
         if (state_.iteration > 0 && !(value <= maxObjectiveGrowth * scale)) {
           throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) +
-                                   "objective " + toString(settings.objective) + " = " + std::to_string(value) +
-                                   " exceeds " + std::to_string(maxObjectiveGrowth) + " times its initial value",
+                                   "objective " + toString(settings.objective) + " = " +
+                                   std::to_string(value) + " exceeds " + std::to_string(maxObjectiveGrowth) +
+                                   " times its initial value",
                                scenarios_.rod(s).config().rod.endTime);
         }
       }
@@ -284,9 +289,9 @@ IterationRecord TopologyOptimizer::step() {
   ScenarioResults& evaluation = *evaluated;
   times_.localSeconds += evaluation.localSeconds;
   times_.exchangeSeconds += evaluation.exchangeSeconds;
-  times_.smallestExchangeSeconds = times_.exchanges == 0 ? evaluation.exchangeSeconds
-                                                         : std::min(times_.smallestExchangeSeconds,
-                                                                    evaluation.exchangeSeconds);
+  times_.smallestExchangeSeconds = times_.exchanges == 0
+                                       ? evaluation.exchangeSeconds
+                                       : std::min(times_.smallestExchangeSeconds, evaluation.exchangeSeconds);
   ++times_.exchanges;
   record.psi1 = evaluation.psi1[0];
   record.psi2 = evaluation.psi2[0];
@@ -299,8 +304,9 @@ IterationRecord TopologyOptimizer::step() {
   for (int s = 0; s < scenarioCount; ++s) {
     const double objective = usePsi1 ? evaluation.psi1[s] : evaluation.psi2[s];
     if (!(std::isfinite(objective) && objective > 0.0)) {
-      throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) + "objective " +
-                               toString(settings.objective) + " = " + std::to_string(objective) + " at iteration " +
+      throw NumericalError((multiple_ ? "scenario '" + scenarios_.name(s) + "': " : std::string()) +
+                               "objective " + toString(settings.objective) + " = " +
+                               std::to_string(objective) + " at iteration " +
                                std::to_string(state_.iteration) + " is not positive and finite",
                            scenarios_.rod(s).config().rod.endTime);
     }
@@ -395,9 +401,9 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   // The design's constraints (volume; the frequency guard when on, from this rank's full evaluation of a
   // scenario it owns: the eigenpairs are the design's, the same in every scenario and on every rank).
   Matrix ownJacobian;
-  const Vector own = constraintsOf(evaluation.volumeFraction, evaluation.dvolume,
-                                   evaluation.local ? &*evaluation.local : nullptr, design, state_.iteration,
-                                   &ownJacobian);
+  const Vector own =
+      constraintsOf(evaluation.volumeFraction, evaluation.dvolume,
+                    evaluation.local ? &*evaluation.local : nullptr, design, state_.iteration, &ownJacobian);
   const Eigen::Index owned = own.size();
   // NaN (no feasible design yet) is no better than this one.
   const bool bestSoFar = !(next.bestObjective < aggregate);
@@ -419,8 +425,8 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     x = design;
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
-    updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper, gcmma_ ? &trials : nullptr,
-                 next.recentObjectives, bestSoFar, x, record);
+    updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper,
+                 gcmma_ ? &trials : nullptr, next.recentObjectives, bestSoFar, x, record);
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
     // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
@@ -469,11 +475,11 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   record.mmaSeconds = mmaTimer.seconds();
 }
 
-MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective, const Vector& objectiveGradient,
-                                         const Vector& constraints, const Matrix& jacobian, const Vector& lower,
-                                         const Vector& upper, const Gcmma::Evaluate* trials,
-                                         const std::vector<double>& recent, bool bestSoFar, Vector& x,
-                                         IterationRecord& record) {
+MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
+                                         const Vector& objectiveGradient, const Vector& constraints,
+                                         const Matrix& jacobian, const Vector& lower, const Vector& upper,
+                                         const Gcmma::Evaluate* trials, const std::vector<double>& recent,
+                                         bool bestSoFar, Vector& x, IterationRecord& record) {
   const Vector current = x;
   const MmaSubproblemSummary* subproblem;
   MmaState to;
@@ -510,7 +516,8 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   // below changeTolerance says that no step of that size lowers the objective any more: the trust-region
   // methods' stopping test. On an objective with narrow resonance peaks this is the test that ends the
   // run; the residual stalls above any useful tolerance there (docs/guides/optimizer.md).
-  const bool collapsed = trials == nullptr && mma_.options().adaptive_move_limit && to.moveLimit <= settings.changeTolerance;
+  const bool collapsed =
+      trials == nullptr && mma_.options().adaptive_move_limit && to.moveLimit <= settings.changeTolerance;
   settled_ = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0 && feasible && bestSoFar &&
              (stationary || collapsed);
   return to;
@@ -548,7 +555,7 @@ Gcmma::Evaluate TopologyOptimizer::scenarioTrials(const OptimizerState& next) co
       } else {
         value = 0.0;
         value = relative(0);
-      for (int s = 1; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
+        for (int s = 1; s < count; ++s) value += relative(s);  // scenario order, as the MMA step's sum
       }
       return true;
     } catch (const NumericalError&) {

@@ -29,10 +29,10 @@
 // is no higher than that of x_{k-1} (the MMA state keeps it), x_k is the final design: the update is
 // not taken, the record is marked converged, and the run ends after k + 1 records instead of
 // iterations + 1. "No higher" is against every feasible design before x_k, not only x_{k-1}: a run the
-// rule ends ends at its best feasible design. The change test may be replaced by stagnation: the optimized objective of the last
-// five designs varying by at most optimization.objectiveTolerance (relative). Either of kktTolerance and
-// changeTolerance 0 turns the rule off. The decision uses only what step k computes
-// and the stored state, so a resumed run stops at the same iteration.
+// rule ends ends at its best feasible design. The change test may be replaced by stagnation: the optimized
+// objective of the last five designs varying by at most optimization.objectiveTolerance (relative). Either of
+// kktTolerance and changeTolerance 0 turns the rule off. The decision uses only what step k computes and the
+// stored state, so a resumed run stops at the same iteration.
 //
 // Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
 // x, and MMA's large early steps can reach a soft, near-mechanism design (first frequency below 1 Hz)

@@ -234,8 +234,10 @@ TEST(ConfigFuzz, MutatedSettings) {
 // type and edge, duplicate and empty names, unknown fields, and lists that are not lists.
 TEST(ConfigFuzz, RandomScenarios) {
   const auto values = interestingValues();
-  const std::vector<std::string> fields = {"name", "crankSpeed", "rampTime", "endTime", "crankRadius", "weight", "x"};
-  const std::vector<json> names = {json("a"), json("b"), json(""), json("a"), json(" "), json(1), json(nullptr)};
+  const std::vector<std::string> fields = {"name",        "crankSpeed", "rampTime", "endTime",
+                                           "crankRadius", "weight",     "x"};
+  const std::vector<json> names = {json("a"), json("b"), json(""),     json("a"),
+                                   json(" "), json(1),   json(nullptr)};
   const std::string seed = fuzz::seedFiles("config_06").at(0);
   fuzz::Mutator mutator(fuzz::seed(4));
   for (int k = 0; k < fuzz::cases(2000); ++k) {
@@ -254,7 +256,8 @@ TEST(ConfigFuzz, RandomScenarios) {
       }
       input["scenarios"] = list;
     }
-    if (mutator.chance(0.3)) input["optimization"]["aggregate"] = mutator.chance(0.5) ? json("sum") : mutator.pick(values);
+    if (mutator.chance(0.3))
+      input["optimization"]["aggregate"] = mutator.chance(0.5) ? json("sum") : mutator.pick(values);
     const std::string text = input.dump();
     expectConfigOrInvalidArgument([&] { return configFromJson(input); }, text);
     if (HasFailure()) return;
@@ -272,8 +275,9 @@ TEST(ConfigFuzz, SettingsAppliedTogetherDoNotDependOnTheirOrder) {
     const std::size_t count = 1 + mutator.below(4);
     for (std::size_t i = 0; i < count; ++i) {
       const std::string& line = mutator.pick(lines);
-      assignments.push_back(mutator.chance(0.5) ? line
-                                                : line.substr(0, line.find('=') + 1) + tokenString(mutator.pick(values)));
+      assignments.push_back(mutator.chance(0.5)
+                                ? line
+                                : line.substr(0, line.find('=') + 1) + tokenString(mutator.pick(values)));
     }
     const auto apply = [](std::vector<std::string> list) {
       Config config;

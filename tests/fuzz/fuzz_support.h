@@ -3,8 +3,8 @@
 // an input that reproduces it. The number of cases bounds the time; HINDSIGHT_FUZZ_SCALE=k runs k
 // times as many cases and HINDSIGHT_FUZZ_SEED=n other inputs, for longer hunts by hand:
 //   HINDSIGHT_FUZZ_SCALE=50 HINDSIGHT_FUZZ_SEED=7 build-asan/tests/fuzz_tests
-// These tests matter most under AddressSanitizer + UBSan (docs/guides/testing.md, "Sanitizers and fuzzing"), where an
-// out-of-bounds read that happens not to crash is still reported.
+// These tests matter most under AddressSanitizer + UBSan (docs/guides/testing.md, "Sanitizers and fuzzing"),
+// where an out-of-bounds read that happens not to crash is still reported.
 #pragma once
 
 #include <gtest/gtest.h>

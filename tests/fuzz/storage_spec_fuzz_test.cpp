@@ -10,9 +10,9 @@
 
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/engine/storage_spec.h>
 
 #include <filesystem>
 
@@ -175,7 +175,8 @@ TEST(StorageSpecFuzz, TypedGettersOnMutatedValues) {
 // (a setting outside its validity) or StorageError (a budget or a file).
 TEST(StorageSpecFuzz, RunsGiveTheFullGradientOrAnError) {
   const std::string directory =
-      (std::filesystem::temp_directory_path() / ("hindsight-fuzz-runs-" + std::to_string(::getpid()))).string();
+      (std::filesystem::temp_directory_path() / ("hindsight-fuzz-runs-" + std::to_string(::getpid())))
+          .string();
   std::filesystem::create_directories(directory);
   Pendulum problem;
   const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
@@ -191,7 +192,7 @@ TEST(StorageSpecFuzz, RunsGiveTheFullGradientOrAnError) {
   int ran = 0;
   for (int k = 0; k < fuzz::cases(400); ++k) {
     std::string spec = k < static_cast<int>(seeds.size()) ? seeds[static_cast<std::size_t>(k)]
-                                                         : mutator.mutate(mutator.pick(seeds), words, 3);
+                                                          : mutator.mutate(mutator.pick(seeds), words, 3);
     // Files only in the scratch directory.
     for (const char* dirKey : {"dir=/tmp/run", "dir=/tmp"}) {
       const std::size_t at = spec.find(dirKey);
@@ -203,7 +204,8 @@ TEST(StorageSpecFuzz, RunsGiveTheFullGradientOrAnError) {
     } catch (const std::invalid_argument&) {
       continue;
     }
-    if ((spec.rfind("disk", 0) == 0 || spec.rfind("multilevel", 0) == 0) && spec.find("dir=") == std::string::npos) {
+    if ((spec.rfind("disk", 0) == 0 || spec.rfind("multilevel", 0) == 0) &&
+        spec.find("dir=") == std::string::npos) {
       continue;  // would write into the system temp directory
     }
     try {
@@ -211,18 +213,20 @@ TEST(StorageSpecFuzz, RunsGiveTheFullGradientOrAnError) {
       ++ran;
       if (storage->isExact()) {
         EXPECT_EQ(result.objective, reference.objective) << spec;
-        EXPECT_TRUE(result.gradient == reference.gradient) << "exact strategy '" << fuzz::printable(spec)
-                                                           << "' gave another gradient";
+        EXPECT_TRUE(result.gradient == reference.gradient)
+            << "exact strategy '" << fuzz::printable(spec) << "' gave another gradient";
       } else {
         ASSERT_TRUE(result.gradient.allFinite()) << spec;
         const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
         EXPECT_GE(result.summary.gradientErrorEstimate, error)
-            << "approximate strategy '" << fuzz::printable(spec) << "' without an estimate of its error " << error;
+            << "approximate strategy '" << fuzz::printable(spec) << "' without an estimate of its error "
+            << error;
       }
     } catch (const std::invalid_argument&) {
     } catch (const StorageError&) {
     } catch (const std::exception& e) {
-      ADD_FAILURE() << "'" << fuzz::printable(spec) << "' failed with " << typeid(e).name() << ": " << e.what();
+      ADD_FAILURE() << "'" << fuzz::printable(spec) << "' failed with " << typeid(e).name() << ": "
+                    << e.what();
     }
     if (HasFailure()) break;
   }

@@ -7,8 +7,8 @@
 #include <hindsight/engine/hash.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 
 namespace {
 

@@ -3,9 +3,9 @@
 // every state it keeps, attains the optimum of that game over all its C + 1 slots,
 // R(N, S) = T(N + 1, S) - N (exhaustive search over every schedule for small N), through the real storage
 // with a real problem (moderate N), without overflow, within its byte budget.
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <hindsight/engine/adjoint.h>
@@ -121,9 +121,10 @@ class ExhaustiveGame {
 // The same game by a dynamic programme over the forward sweep's next copy at m (or none):
 //   G(1, s) = 0,  G(l, s) = min( T(l, s),  min_m G(l - m, s - 1) + T(m, s) )   (s >= 2 for the copy),
 // T(l, s) from dynamicProgrammingOptimum (the part left of the copy is reversed by revolve's game).
-std::int64_t gameByDynamicProgramming(std::int64_t l, std::int64_t s,
-                                      std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t>& revolveMemo,
-                                      std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t>& memo) {
+std::int64_t gameByDynamicProgramming(
+    std::int64_t l, std::int64_t s,
+    std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t>& revolveMemo,
+    std::map<std::pair<std::int64_t, std::int64_t>, std::int64_t>& memo) {
   if (l == 1) return 0;
   const auto key = std::make_pair(l, s);
   if (const auto it = memo.find(key); it != memo.end()) return it->second;
@@ -141,7 +142,8 @@ std::int64_t gameByDynamicProgramming(std::int64_t l, std::int64_t s,
 TEST(RevolveFormula, TheGameOfChargedStatesCostsRevolveOverOneMorePosition) {
   for (int s = 1; s <= 3; ++s) {
     for (int n = 1; n <= (s == 3 ? 9 : 10); ++n) {
-      ASSERT_EQ(toString(revolve::optimalRecomputedSteps(n, s)), std::to_string(ExhaustiveGame(n, s).optimum()))
+      ASSERT_EQ(toString(revolve::optimalRecomputedSteps(n, s)),
+                std::to_string(ExhaustiveGame(n, s).optimum()))
           << "N = " << n << ", S = " << s;
     }
   }

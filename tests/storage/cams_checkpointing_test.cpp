@@ -3,12 +3,12 @@
 // fit, "store everything" with an unlimited budget, the executor's counts against the plan's value, and
 // the strategy's counters in a real run against the plan.
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/engine/full_storage.h>
-#include <hindsight/engine/interrupt.h>
-#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/cams_checkpointing.h>
+#include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/online_checkpointing.h>
+#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 
@@ -111,7 +111,8 @@ TEST(CamsPlan, WithoutRecordsItIsBinomialOverTheSameSlots) {
     for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 7, 50, 200, 1000}) {
       const std::int64_t binomial =
           n + static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, std::min(c + 1, n))) + n;
-      EXPECT_EQ(cams::Plan(n, c + 1, kNoRecords).optimalStepEvaluations(), binomial) << "N = " << n << ", C = " << c;
+      EXPECT_EQ(cams::Plan(n, c + 1, kNoRecords).optimalStepEvaluations(), binomial)
+          << "N = " << n << ", C = " << c;
     }
   }
 }
@@ -146,7 +147,8 @@ TEST(CamsPlan, RecordsLowerTheCostBelowRevolveAtTheSameBytes) {
   // rk4: a record is 4 states. 3000 steps, the budgets of binomial:checkpoints=10 and 50.
   for (std::int64_t c : std::initializer_list<std::int64_t>{10, 50}) {
     const std::int64_t n = 3000;
-    const std::int64_t revolveCost = n + static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, c + 1)) + n;
+    const std::int64_t revolveCost =
+        n + static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, c + 1)) + n;
     const cams::Plan plan(n, c + 1, 4);
     EXPECT_LT(plan.optimalStepEvaluations(), revolveCost) << c;
     EXPECT_EQ(cams::simulate(plan).stepEvaluations(), plan.optimalStepEvaluations());
@@ -227,7 +229,8 @@ TEST(CamsOnline, NeverCostsMoreThanItsPlacementWithRevolvePerIntervalAndRecordsL
     for (std::int64_t n : std::initializer_list<std::int64_t>{1, 2, 3, 7, 100, 1000, 5000}) {
       const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(n, c, nullptr, nullptr);
       const std::int64_t online =
-          n + static_cast<std::int64_t>(n <= 1 ? 0 : OnlineCheckpointing::forwardStepsOf(positions, n, c)) - (n - 1) + n;
+          n + static_cast<std::int64_t>(n <= 1 ? 0 : OnlineCheckpointing::forwardStepsOf(positions, n, c)) -
+          (n - 1) + n;
       const cams::PlanCounts withoutRecords = cams::simulateOnline(n, c + 1, kNoRecords);
       EXPECT_LE(withoutRecords.stepEvaluations(), online) << "N = " << n << ", C = " << c;
       EXPECT_EQ(withoutRecords.adjointRecomputations, n);
@@ -237,7 +240,8 @@ TEST(CamsOnline, NeverCostsMoreThanItsPlacementWithRevolvePerIntervalAndRecordsL
     }
   }
   // Where records fit, they pay: rk4 records at 5000 steps and 50 checkpoints.
-  EXPECT_LT(cams::simulateOnline(5000, 51, 4).stepEvaluations(), cams::simulateOnline(5000, 51, kNoRecords).stepEvaluations());
+  EXPECT_LT(cams::simulateOnline(5000, 51, 4).stepEvaluations(),
+            cams::simulateOnline(5000, 51, kNoRecords).stepEvaluations());
 }
 
 TEST(CamsOnline, PlacementIsOnlines) {
@@ -247,7 +251,8 @@ TEST(CamsOnline, PlacementIsOnlines) {
       const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(n, c, &stored, &peak);
       const std::int64_t d = internal::OnlinePlacement::finalSpacing(n, c);
       ASSERT_FALSE(positions.empty());
-      for (std::size_t j = 0; j < positions.size(); ++j) EXPECT_EQ(positions[j], static_cast<std::int64_t>(j) * d);
+      for (std::size_t j = 0; j < positions.size(); ++j)
+        EXPECT_EQ(positions[j], static_cast<std::int64_t>(j) * d);
       EXPECT_LE(peak, c);
       EXPECT_LE(internal::OnlinePlacement::longestInterval(positions, n), d);
     }
@@ -275,8 +280,8 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
       EXPECT_EQ(storage->counters().stepDataRestored, counts.steps - counts.adjointRecomputations) << c;
       EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations()) << c;
       // hindsight schedule predicts the same counts without the model.
-      const SchedulePrediction predicted =
-          predictSchedule("cams:checkpoints=" + std::to_string(c) + ",online=1", 1000, 8 * problem.stateSize(), 4, nullptr);
+      const SchedulePrediction predicted = predictSchedule(
+          "cams:checkpoints=" + std::to_string(c) + ",online=1", 1000, 8 * problem.stateSize(), 4, nullptr);
       EXPECT_EQ(predicted.recomputedSteps, storage->counters().recomputedSteps) << c;
       EXPECT_EQ(predicted.rhsEvaluations, r.summary.rhsEvaluations) << c;
       EXPECT_EQ(predicted.statesStored, storage->counters().statesStored) << c;

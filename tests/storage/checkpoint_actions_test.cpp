@@ -27,8 +27,8 @@ TEST(CheckpointActions, EveryFixedStepStrategyGivesAValidStreamWithItsPredictedR
       "cams:checkpoints=3",
       "cams:checkpoints=8",
       "multilevel:ram=48,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(),  // 3 RAM states, cheap disk
-      "multilevel:ram=48,disk=64,costs=1:1:0:0,dir=" + dir.path(),       // 3 + 4 slots, free disk
-      "multilevel:ram=96,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(), // dear disk: RAM only
+      "multilevel:ram=48,disk=64,costs=1:1:0:0,dir=" + dir.path(),        // 3 + 4 slots, free disk
+      "multilevel:ram=96,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(),  // dear disk: RAM only
   };
   for (const std::string& spec : specs) {
     for (int stages : {1, 4}) {
@@ -64,7 +64,8 @@ TEST(CheckpointActions, EveryFixedStepStrategyGivesAValidStreamWithItsPredictedR
 }
 
 TEST(CheckpointActions, TextIsCheckpointSchedulesRepr) {
-  const std::vector<CheckpointAction> actions = checkpointSchedule("binomial:checkpoints=1", 3, 16, 1, nullptr);
+  const std::vector<CheckpointAction> actions =
+      checkpointSchedule("binomial:checkpoints=1", 3, 16, 1, nullptr);
   std::string text;
   for (const CheckpointAction& a : actions) text += a.text() + "\n";
   // revolve with x_0 as the one checkpoint: x_2's adjoint data from the forward run, x_1 from x_0 again.

@@ -74,7 +74,8 @@ TEST_P(CheckpointingAllocation, RecordingAndRestoringAllocateNothing) {
       }
       // `online`: one allocation per slot on its first use, forward or backward.
       const std::int64_t allowed = GetParam().rfind("online", 0) == 0 ? 10 : 0;
-      EXPECT_LE(recordingAllocations + counter.count(), allowed) << GetParam() << (adaptive ? " adaptive" : "");
+      EXPECT_LE(recordingAllocations + counter.count(), allowed)
+          << GetParam() << (adaptive ? " adaptive" : "");
     }
   }
 }

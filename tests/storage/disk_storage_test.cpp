@@ -327,7 +327,8 @@ TEST(DiskStorage, TimeCodecFileHoldsTheTrajectoryBitForBitInFewerBytes) {
       EXPECT_EQ(values[0], 2u);
       EXPECT_EQ(values[1], static_cast<unsigned>(internal::TimeCodec::kLosslessOrder));
       EXPECT_EQ(values[2], 3u);
-      EXPECT_EQ(H5Pget_filter2(dcpl, 1, &flags, &count, values, sizeof name, name, &config), H5Z_FILTER_FLETCHER32);
+      EXPECT_EQ(H5Pget_filter2(dcpl, 1, &flags, &count, values, sizeof name, name, &config),
+                H5Z_FILTER_FLETCHER32);
       H5Pclose(dcpl);
     }
     std::vector<double> stored(observed.size());

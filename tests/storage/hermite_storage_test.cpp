@@ -169,7 +169,8 @@ TEST(HermiteStorage, ErrorEstimateCoversTheGradientErrorAndTooLongIntervalsAreRe
     const GradientResult result = computeGradient(problem, p, options, storage);
     const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
     std::cout << "[ hermite ] M = " << every << ": gradient error " << error << ", estimate "
-              << result.summary.gradientErrorEstimate << " (state error " << storage.stateErrorEstimate() << ")\n";
+              << result.summary.gradientErrorEstimate << " (state error " << storage.stateErrorEstimate()
+              << ")\n";
     EXPECT_GE(result.summary.gradientErrorEstimate, error) << "M = " << every;
     EXPECT_EQ(result.summary.gradientErrorEstimate,
               LossyStorage::kGradientSensitivity * storage.stateErrorEstimate());
@@ -183,7 +184,8 @@ TEST(HermiteStorage, ErrorEstimateCoversTheGradientErrorAndTooLongIntervalsAreRe
       ADD_FAILURE() << spec << " was accepted";
     } catch (const std::invalid_argument& e) {
       const std::string message = e.what();
-      EXPECT_NE(message.find("hermite.every = " + spec.substr(14) + " is too long"), std::string::npos) << message;
+      EXPECT_NE(message.find("hermite.every = " + spec.substr(14) + " is too long"), std::string::npos)
+          << message;
       EXPECT_NE(message.find("hermite.tolerance = 0.01"), std::string::npos) << message;
     }
   }

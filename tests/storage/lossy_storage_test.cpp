@@ -174,7 +174,8 @@ TEST(LossyStorage, MantissaRoundingIsToNearestTiesToEvenWithinItsBound) {
 
 // lossy:target=T on the pendulum (rk4, 2000 steps): the achieved gradient error stays below T, the
 // reported estimate is at most T and at least the error made, and the ratio grows with T.
-// Measured: see tests/problems/classic/lossy_target_test.cpp and docs/theory/storage.md, "Compression along time".
+// Measured: see tests/problems/classic/lossy_target_test.cpp and docs/theory/storage.md, "Compression along
+// time".
 TEST(LossyTarget, AchievedGradientErrorStaysBelowTheTargetOnThePendulum) {
   Pendulum problem;
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
@@ -184,7 +185,8 @@ TEST(LossyTarget, AchievedGradientErrorStaysBelowTheTargetOnThePendulum) {
     const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), *storage);
     EXPECT_EQ(result.objective, reference.objective) << "the forward sweep is not affected";
     const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
-    ::testing::Test::RecordProperty("error_" + ::testing::PrintToString(target), ::testing::PrintToString(error));
+    ::testing::Test::RecordProperty("error_" + ::testing::PrintToString(target),
+                                    ::testing::PrintToString(error));
     EXPECT_GT(error, 0.0) << target;
     EXPECT_LE(error, target) << target;
     EXPECT_LE(result.summary.gradientErrorEstimate, target) << target;
@@ -216,7 +218,8 @@ TEST(LossyTarget, TimeCodecKeepsEveryValueWithinItsComponentsBlockScale) {
         storage.record(step, 0.001 * step, recorded.back(), recorded.back());
       }
       storage.finish(steps, 1.0, recorded.back(), recorded.back());
-      const std::int64_t blockStates = block == 0 ? steps : block;  // 301 states of 56 bytes fit one default block
+      const std::int64_t blockStates =
+          block == 0 ? steps : block;  // 301 states of 56 bytes fit one default block
       Vector z(7);
       for (std::int64_t step = steps - 1; step >= 0; --step) {
         storage.restore(step, z);
@@ -239,10 +242,10 @@ TEST(LossyTarget, TimeCodecKeepsEveryValueWithinItsComponentsBlockScale) {
 }
 
 TEST(LossyStorage, SpecStringsRoundTripThroughTheFactory) {
-  for (const std::string spec : {"lossy:codec=zfp,tolerance=1e-06", "lossy:codec=round,tolerance=0.0001",
-                                 "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64",
-                                 "lossy:target=1e-06", "lossy:target=0.001,block=100",
-                                 "lossy:codec=time,tolerance=1e-05"}) {
+  for (const std::string spec :
+       {"lossy:codec=zfp,tolerance=1e-06", "lossy:codec=round,tolerance=0.0001",
+        "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64", "lossy:target=1e-06",
+        "lossy:target=0.001,block=100", "lossy:codec=time,tolerance=1e-05"}) {
     EXPECT_EQ(createStorage(spec)->spec(), spec);
     EXPECT_FALSE(createStorage(spec)->isExact());
   }

@@ -251,8 +251,8 @@ MultilevelStorage::Options planned(std::int64_t ram, std::int64_t disk, const st
 TEST(MultilevelPlan, BitwiseIdenticalToFullWithinBothBudgetsForMeasuredAndGivenCosts) {
   Pendulum problem;
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
-  const std::optional<ScheduleCosts> costChoices[] = {std::nullopt, ScheduleCosts{1, 1, 0, 0},
-                                                      ScheduleCosts{1, 1, 0.3, 0.3}, ScheduleCosts{1, 1, 50, 50}};
+  const std::optional<ScheduleCosts> costChoices[] = {
+      std::nullopt, ScheduleCosts{1, 1, 0, 0}, ScheduleCosts{1, 1, 0.3, 0.3}, ScheduleCosts{1, 1, 50, 50}};
   for (const Case& c : kCases) {
     for (const auto& costs : costChoices) {
       SCOPED_TRACE(std::string(c.name) + ", costs " + (costs ? costs->text() : "measured"));
@@ -368,7 +368,7 @@ std::string storageErrorOf(MultilevelStorage& storage) {
 
 TEST(MultilevelPlan, CorruptedSlotIsAStorageErrorNamingTheFileAndTheSlot) {
   const ScheduleCosts cheap{1, 1, 0.01, 0.01};  // a plan with disk slots
-  const std::int64_t record = 16 + 16;           // pendulum state + index + checksum
+  const std::int64_t record = 16 + 16;          // pendulum state + index + checksum
   // One byte of the state, of the index and of the checksum of slot 1; one byte in every slot.
   for (std::int64_t offset : {record + 3, record + 16, record + 31, std::int64_t{-1}}) {
     SCOPED_TRACE(offset);
@@ -389,7 +389,8 @@ TEST(MultilevelPlan, CorruptedSlotIsAStorageErrorNamingTheFileAndTheSlot) {
       const std::string message = storageErrorOf(storage);
       EXPECT_NE(message.find("is corrupted"), std::string::npos) << message;
       if (offset >= 0) EXPECT_NE(message.find("slot 1 "), std::string::npos) << message;
-      EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos) << message;
+      EXPECT_NE(message.find("[file: " + dir.path() + "/hindsight-multilevel-"), std::string::npos)
+          << message;
     }
     EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is removed with the storage
   }
@@ -445,11 +446,11 @@ TEST(ScratchFiles, FilesOfDeadProcessesOfThisHostAreRemovedAtTheNextStart) {
                                "hindsight-multilevel-" + dead + "-" + host + "-7-99.h5",
                                "hindsight-multilevel-" + dead + "-" + host + "-3-42.slots"};
   const std::string kept[] = {
-      "hindsight-" + live + "-" + host + "-0-123.h5",              // a running process's
-      "hindsight-multilevel-" + dead + "-kept-1-5.slots",          // kept on purpose (keep=true)
-      "hindsight-multilevel-" + dead + "-0badc0de-1-5.slots",      // another host's
-      "hindsight-multilevel-" + dead + "-3.slots",                 // the older naming
-      "hindsight-" + dead + "-" + host + "-0-123.h5.txt",          // not a scratch file
+      "hindsight-" + live + "-" + host + "-0-123.h5",          // a running process's
+      "hindsight-multilevel-" + dead + "-kept-1-5.slots",      // kept on purpose (keep=true)
+      "hindsight-multilevel-" + dead + "-0badc0de-1-5.slots",  // another host's
+      "hindsight-multilevel-" + dead + "-3.slots",             // the older naming
+      "hindsight-" + dead + "-" + host + "-0-123.h5.txt",      // not a scratch file
       "results.h5",
   };
   for (const std::string& name : stale) EXPECT_TRUE(isStaleScratchFile(name)) << name;
@@ -461,13 +462,16 @@ TEST(ScratchFiles, FilesOfDeadProcessesOfThisHostAreRemovedAtTheNextStart) {
     for (const std::string& name : stale) std::ofstream(dir.path() + "/" + name) << "x";
     for (const std::string& name : kept) std::ofstream(dir.path() + "/" + name) << "x";
     MultilevelStorage::Options options =
-        slots ? planned(800, 1 << 20, dir.path(), ScheduleCosts{1, 1, 0.01, 0.01}) : levels(8000, 1 << 20, dir.path());
+        slots ? planned(800, 1 << 20, dir.path(), ScheduleCosts{1, 1, 0.01, 0.01})
+              : levels(8000, 1 << 20, dir.path());
     MultilevelStorage storage(options);
     Pendulum problem;
     computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
     EXPECT_FALSE(storage.filePath().empty());
-    for (const std::string& name : stale) EXPECT_FALSE(std::filesystem::exists(dir.path() + "/" + name)) << name;
-    for (const std::string& name : kept) EXPECT_TRUE(std::filesystem::exists(dir.path() + "/" + name)) << name;
+    for (const std::string& name : stale)
+      EXPECT_FALSE(std::filesystem::exists(dir.path() + "/" + name)) << name;
+    for (const std::string& name : kept)
+      EXPECT_TRUE(std::filesystem::exists(dir.path() + "/" + name)) << name;
   }
 }
 

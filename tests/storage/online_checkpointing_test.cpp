@@ -3,9 +3,9 @@
 // offline revolve optimum for the same N and c.
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
-#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/engine/online_placement.h>
+#include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
@@ -27,7 +27,8 @@ double ratio(UnsignedInt128 a, UnsignedInt128 b) { return static_cast<double>(a)
 std::int64_t referenceBeta(std::int64_t c, std::int64_t r) {
   if (r < 0) return 0;
   long double value = 1;
-  for (std::int64_t i = 1; i <= r; ++i) value = value * static_cast<long double>(c + i) / static_cast<long double>(i);
+  for (std::int64_t i = 1; i <= r; ++i)
+    value = value * static_cast<long double>(c + i) / static_cast<long double>(i);
   return value > 4e18L ? std::int64_t{4'000'000'000'000'000'000} : static_cast<std::int64_t>(value + 0.5L);
 }
 std::int64_t referenceOptimum(std::int64_t steps, std::int64_t c) {
@@ -57,7 +58,8 @@ void forEveryStepCount(std::int64_t c, std::int64_t last, std::int64_t stride, C
 TEST(OnlineCheckpointing, OptimalForEveryStepCountWithRepetitionTwo) {
   for (std::int64_t c = 1; c <= 60; ++c) {
     forEveryStepCount(c, referenceBeta(c, 2), 1, [&](std::int64_t steps, UnsignedInt128 count) {
-      ASSERT_EQ(toString(count), std::to_string(referenceOptimum(steps, c))) << "N = " << steps << ", c = " << c;
+      ASSERT_EQ(toString(count), std::to_string(referenceOptimum(steps, c)))
+          << "N = " << steps << ", c = " << c;
     });
     // The strategy's own prediction is the same placement.
     EXPECT_EQ(toString(OnlineCheckpointing::predictedForwardSteps(referenceBeta(c, 2), c)),
@@ -87,9 +89,9 @@ TEST(OnlineCheckpointing, MeasuredAgainstTheOfflineOptimumBeyondRepetitionTwo) {
         worstBeyondAt = steps;
       }
     });
-    std::cout << "[ online/offline ] c = " << c << ": worst ratio " << worstThird << " for N <= beta(c, 3) = "
-              << third << " (at N = " << worstAt << "), " << worstBeyond << " beyond up to 10^5 (at N = "
-              << worstBeyondAt << ")\n";
+    std::cout << "[ online/offline ] c = " << c << ": worst ratio " << worstThird
+              << " for N <= beta(c, 3) = " << third << " (at N = " << worstAt << "), " << worstBeyond
+              << " beyond up to 10^5 (at N = " << worstBeyondAt << ")\n";
     EXPECT_LT(worstThird, 1.08) << "c = " << c;
     EXPECT_LT(worstBeyond, c == 2 ? 1.15 : 1.07) << "c = " << c;
   }
@@ -97,8 +99,8 @@ TEST(OnlineCheckpointing, MeasuredAgainstTheOfflineOptimumBeyondRepetitionTwo) {
   for (const auto& [steps, c] : {std::pair<std::int64_t, std::int64_t>{10, 2}, {100, 10}, {1000, 50}}) {
     const UnsignedInt128 online = OnlineCheckpointing::predictedForwardSteps(steps, c);
     std::cout << "[ online/offline ] N = " << steps << ", c = " << c << ": " << toString(online) << " / "
-              << referenceOptimum(steps, c) << " = " << ratio(online, static_cast<UnsignedInt128>(referenceOptimum(steps, c)))
-              << '\n';
+              << referenceOptimum(steps, c) << " = "
+              << ratio(online, static_cast<UnsignedInt128>(referenceOptimum(steps, c))) << '\n';
     EXPECT_LE(ratio(online, static_cast<UnsignedInt128>(referenceOptimum(steps, c))), 1.03);
   }
 }

@@ -24,23 +24,29 @@ using SpecList = std::function<std::vector<std::string>(std::int64_t S, const st
 
 const std::map<std::string, SpecList>& predictedStrategies() {
   static const std::map<std::string, SpecList> grid = {
-      {"full", [](std::int64_t, const std::string&) { return std::vector<std::string>{"full", "full:stages=1"}; }},
+      {"full",
+       [](std::int64_t, const std::string&) {
+         return std::vector<std::string>{"full", "full:stages=1"};
+       }},
       {"disk",
        [](std::int64_t, const std::string& dir) {
-         return std::vector<std::string>{"disk:dir=" + dir, "disk:dir=" + dir + ",stages=1", "disk:dir=" + dir + ",chunk=3"};
+         return std::vector<std::string>{"disk:dir=" + dir, "disk:dir=" + dir + ",stages=1",
+                                         "disk:dir=" + dir + ",chunk=3"};
        }},
       {"binomial",
        [](std::int64_t, const std::string&) {
-         return std::vector<std::string>{"binomial:checkpoints=1", "binomial:checkpoints=3", "binomial:checkpoints=50",
-                                         "binomial:checkpoints=2,stages=1"};
+         return std::vector<std::string>{"binomial:checkpoints=1", "binomial:checkpoints=3",
+                                         "binomial:checkpoints=50", "binomial:checkpoints=2,stages=1"};
        }},
       {"online",
        [](std::int64_t, const std::string&) {
-         return std::vector<std::string>{"online:checkpoints=2", "online:checkpoints=5", "online:checkpoints=3,stages=1"};
+         return std::vector<std::string>{"online:checkpoints=2", "online:checkpoints=5",
+                                         "online:checkpoints=3,stages=1"};
        }},
       {"cams",
        [](std::int64_t S, const std::string&) {
-         return std::vector<std::string>{"cams:checkpoints=1", "cams:checkpoints=6", "cams:budget=" + std::to_string(13 * S),
+         return std::vector<std::string>{"cams:checkpoints=1", "cams:checkpoints=6",
+                                         "cams:budget=" + std::to_string(13 * S),
                                          "cams:checkpoints=4,online=1"};
        }},
       {"multilevel",
@@ -62,7 +68,8 @@ TEST(PredictionGrid, EveryStrategyIsPredictedOrRefusedByName) {
   for (const std::string& name : storageStrategyNames()) {
     const bool predicted = predictedStrategies().count(name) != 0;
     const bool refused = std::find(kNotPredicted.begin(), kNotPredicted.end(), name) != kNotPredicted.end();
-    EXPECT_TRUE(predicted != refused) << name << ": put it in the grid of predicted strategies or in kNotPredicted";
+    EXPECT_TRUE(predicted != refused)
+        << name << ": put it in the grid of predicted strategies or in kNotPredicted";
     if (refused) {
       const StorageStrategyDoc* doc = findStorageStrategyDoc(name);
       ASSERT_NE(doc, nullptr) << name;
@@ -91,14 +98,16 @@ TEST(PredictionGrid, PredictionEqualsTheRunForEveryStrategyNAndStateSize) {
       ASSERT_EQ(reference.summary.steps, steps);
       for (const auto& [name, specs] : predictedStrategies()) {
         for (const std::string& spec : specs(stateBytes, dir.path())) {
-          SCOPED_TRACE(spec + ", N = " + std::to_string(steps) + ", " + std::to_string(gridPoints) + " doubles");
+          SCOPED_TRACE(spec + ", N = " + std::to_string(steps) + ", " + std::to_string(gridPoints) +
+                       " doubles");
           SchedulePrediction predicted;
           try {
             predicted = predictSchedule(spec, steps, stateBytes, 4, nullptr);
           } catch (const std::invalid_argument& e) {
             // The plan's refusal must be the run's too (e.g. two RAM slots and no disk room for N steps).
             auto storage = createStorage(spec);
-            EXPECT_ANY_THROW(computeGradient(problem, p, options, *storage)) << "predicted refusal: " << e.what();
+            EXPECT_ANY_THROW(computeGradient(problem, p, options, *storage))
+                << "predicted refusal: " << e.what();
             continue;
           }
           auto storage = createStorage(spec);

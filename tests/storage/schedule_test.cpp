@@ -3,9 +3,9 @@
 // states, predictions against real runs counter by counter, and N = 1e9.
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/interrupt.h>
-#include <hindsight/storage/multilevel_storage.h>
-#include <hindsight/engine/recomputed_stages.h>
 #include <hindsight/engine/online_checkpointing.h>
+#include <hindsight/engine/recomputed_stages.h>
+#include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
@@ -35,14 +35,18 @@ double bruteForceOptimum(int steps, int ramSlots, int diskSlots, const ScheduleC
     int next;              // forward sweep: steps; backward: the next position to produce
     int at;                // position at hand, -1 none
     std::uint64_t key(int n) const {
-      return (static_cast<std::uint64_t>(levels) * static_cast<std::uint64_t>(n + 2) + static_cast<std::uint64_t>(next + 1)) *
+      return (static_cast<std::uint64_t>(levels) * static_cast<std::uint64_t>(n + 2) +
+              static_cast<std::uint64_t>(next + 1)) *
                  static_cast<std::uint64_t>(n + 2) +
              static_cast<std::uint64_t>(at + 1);
     }
   };
   std::vector<std::uint32_t> power(static_cast<std::size_t>(steps) + 1, 1);
-  for (int i = 1; i <= steps; ++i) power[static_cast<std::size_t>(i)] = power[static_cast<std::size_t>(i) - 1] * 3;
-  const auto level = [&](std::uint32_t levels, int p) { return (levels / power[static_cast<std::size_t>(p)]) % 3; };
+  for (int i = 1; i <= steps; ++i)
+    power[static_cast<std::size_t>(i)] = power[static_cast<std::size_t>(i) - 1] * 3;
+  const auto level = [&](std::uint32_t levels, int p) {
+    return (levels / power[static_cast<std::size_t>(p)]) % 3;
+  };
   using Entry = std::pair<double, std::uint64_t>;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
   std::unordered_map<std::uint64_t, double> best;
@@ -71,7 +75,8 @@ double bruteForceOptimum(int steps, int ramSlots, int diskSlots, const ScheduleC
     // Store the state at hand.
     if (s.at >= 0 && level(s.levels, s.at) == 0) {
       if (ram < ramSlots) push(State{s.levels + power[static_cast<std::size_t>(s.at)], s.next, s.at}, cost);
-      if (disk < diskSlots) push(State{s.levels + 2 * power[static_cast<std::size_t>(s.at)], s.next, s.at}, cost + c.diskWrite);
+      if (disk < diskSlots)
+        push(State{s.levels + 2 * power[static_cast<std::size_t>(s.at)], s.next, s.at}, cost + c.diskWrite);
     }
     // Discard a checkpoint.
     for (int p = 0; p < steps; ++p) {
@@ -79,8 +84,10 @@ double bruteForceOptimum(int steps, int ramSlots, int diskSlots, const ScheduleC
       if (l != 0) push(State{s.levels - l * power[static_cast<std::size_t>(p)], s.next, s.at}, cost);
     }
     if (forward) {
-      if (s.at < steps - 1) push(State{s.levels, steps, s.at + 1}, cost);  // free: the forward sweep
-      else push(State{s.levels, steps - 1, -1}, cost);                      // x_{N-1} must be in a slot now
+      if (s.at < steps - 1)
+        push(State{s.levels, steps, s.at + 1}, cost);  // free: the forward sweep
+      else
+        push(State{s.levels, steps - 1, -1}, cost);  // x_{N-1} must be in a slot now
       continue;
     }
     if (s.at == s.next) {
@@ -104,7 +111,8 @@ TEST(TwoLevelPlan, FreeDiskIsRevolveWithAllSlotsAndTheOptimumOfTheGame) {
     for (int ram = 1; ram <= 3; ++ram) {
       for (int disk = 0; disk <= 2; ++disk) {
         if (steps >= 2 && ram + disk < 2) continue;
-        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " + std::to_string(disk));
+        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
+                     std::to_string(disk));
         const ScheduleCosts free{1.0, 1.0, 0.0, 0.0};
         const TwoLevelPlan plan = TwoLevelPlan::choose(steps, ram, disk, free);
         const double optimum = bruteForceOptimum(steps, ram, disk, free);
@@ -114,8 +122,9 @@ TEST(TwoLevelPlan, FreeDiskIsRevolveWithAllSlotsAndTheOptimumOfTheGame) {
         EXPECT_EQ(plan.counts().recomputedSteps, allRam.counts().recomputedSteps);
         const std::int64_t checkpoints = std::min<std::int64_t>(ram + disk - 1, std::max(1, steps - 1));
         if (steps >= 2 && ram + disk >= 2) {
-          EXPECT_LE(plan.counts().recomputedSteps,
-                    static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, checkpoints)) - (steps - 1));
+          EXPECT_LE(
+              plan.counts().recomputedSteps,
+              static_cast<std::int64_t>(revolve::optimalForwardSteps(steps, checkpoints)) - (steps - 1));
           // The game's optimum with ram + disk slots (this search and the one of
           // binomial_checkpointing_test.cpp are independent): T(N + 1, S) - N, what binomial attains.
           EXPECT_EQ(optimum, static_cast<double>(revolve::optimalRecomputedSteps(steps, ram + disk)));
@@ -128,7 +137,8 @@ TEST(TwoLevelPlan, FreeDiskIsRevolveWithAllSlotsAndTheOptimumOfTheGame) {
 TEST(TwoLevelPlan, EqualsTheBruteForceOptimumOverAllSchedules) {
   // Costs in units of a forward step; the plan is never better than the optimum (it is a schedule of
   // the game) and equal to it in each case below (RecordProperty lists the gaps of the others).
-  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1}, {1, 1, 2, 3}, {1, 1, 10, 10}, {1, 1, 0.2, 3}};
+  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1},
+                                 {1, 1, 2, 3}, {1, 1, 10, 10},   {1, 1, 0.2, 3}};
   int compared = 0, equal = 0;
   std::ostringstream gaps;
   for (const ScheduleCosts& c : costs) {
@@ -164,30 +174,33 @@ TEST(TwoLevelPlan, ClosedFormCountsEqualTheScheduleRunWithoutStates) {
       ++(level == StorageLevel::kRam ? counts.ramWrites : counts.diskWrites);
       if (forward) ++forwardStores;
     }
-    void load(StorageLevel level, std::int64_t) { ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads); }
+    void load(StorageLevel level, std::int64_t) {
+      ++(level == StorageLevel::kRam ? counts.ramReads : counts.diskReads);
+    }
     void advance(std::int64_t from, std::int64_t to) { counts.recomputedSteps += to - from; }
   };
   for (std::int64_t steps : {1, 2, 3, 7, 30, 101, 1000}) {
     for (std::int64_t ram : {2, 3, 5, 40}) {
       for (std::int64_t leaves : {1, 2, 3, 7, 64}) {
-       for (bool replay : {false, true}) {
-        if (leaves > steps) continue;
-        const std::int64_t last = leaves == 1 ? steps : std::max<std::int64_t>(1, steps / leaves + (replay ? 1 : -1));
-        if (steps - last < leaves - 1) continue;
-        SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " K " + std::to_string(leaves) +
-                     (replay ? " replay" : ""));
-        TwoLevelPlan plan = TwoLevelPlan::leaves(steps, ram, leaves, last, replay);
-        Counter counter;
-        std::vector<std::int64_t> produced;
-        for (std::int64_t n = 0; n < steps; ++n) plan.recordForward(n, counter);
-        counter.forward = false;
-        for (std::int64_t e = steps - 1; e >= 0; --e) plan.restoreStep(e, counter);
-        EXPECT_EQ(counter.counts.recomputedSteps, plan.counts().recomputedSteps);
-        EXPECT_EQ(counter.counts.diskWrites, plan.counts().diskWrites);
-        EXPECT_EQ(counter.counts.diskReads, plan.counts().diskReads);
-        EXPECT_EQ(counter.counts.ramReads, plan.counts().ramReads);
-        EXPECT_EQ(counter.forwardStores, plan.counts().statesStored);
-       }
+        for (bool replay : {false, true}) {
+          if (leaves > steps) continue;
+          const std::int64_t last =
+              leaves == 1 ? steps : std::max<std::int64_t>(1, steps / leaves + (replay ? 1 : -1));
+          if (steps - last < leaves - 1) continue;
+          SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " K " +
+                       std::to_string(leaves) + (replay ? " replay" : ""));
+          TwoLevelPlan plan = TwoLevelPlan::leaves(steps, ram, leaves, last, replay);
+          Counter counter;
+          std::vector<std::int64_t> produced;
+          for (std::int64_t n = 0; n < steps; ++n) plan.recordForward(n, counter);
+          counter.forward = false;
+          for (std::int64_t e = steps - 1; e >= 0; --e) plan.restoreStep(e, counter);
+          EXPECT_EQ(counter.counts.recomputedSteps, plan.counts().recomputedSteps);
+          EXPECT_EQ(counter.counts.diskWrites, plan.counts().diskWrites);
+          EXPECT_EQ(counter.counts.diskReads, plan.counts().diskReads);
+          EXPECT_EQ(counter.counts.ramReads, plan.counts().ramReads);
+          EXPECT_EQ(counter.forwardStores, plan.counts().statesStored);
+        }
       }
     }
   }
@@ -203,8 +216,10 @@ TEST(TwoLevelPlan, EveryActionStreamProducesEachStateInTurnWithinItsSlots) {
     void store(StorageLevel level, std::int64_t slot) {
       auto& v = level == StorageLevel::kRam ? ram : disk;
       const std::int64_t limit = level == StorageLevel::kRam ? ramSlots : diskSlots;
-      if (slot < 0 || slot >= limit) ok = false;
-      else v[static_cast<std::size_t>(slot)] = current;
+      if (slot < 0 || slot >= limit)
+        ok = false;
+      else
+        v[static_cast<std::size_t>(slot)] = current;
     }
     void load(StorageLevel level, std::int64_t slot) {
       const auto& v = level == StorageLevel::kRam ? ram : disk;
@@ -218,10 +233,11 @@ TEST(TwoLevelPlan, EveryActionStreamProducesEachStateInTurnWithinItsSlots) {
   for (std::int64_t steps : {1, 2, 5, 33, 400}) {
     for (std::int64_t ram : {1, 2, 4, 17}) {
       for (std::int64_t disk : {0, 1, 3, 50}) {
-        for (const ScheduleCosts& c : {ScheduleCosts{1, 1, 0, 0}, ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 50, 50}}) {
+        for (const ScheduleCosts& c :
+             {ScheduleCosts{1, 1, 0, 0}, ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 50, 50}}) {
           if (steps >= 2 && ram + disk < 2) continue;
-          SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " + std::to_string(disk) +
-                       " costs " + c.text());
+          SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
+                       std::to_string(disk) + " costs " + c.text());
           TwoLevelPlan plan = TwoLevelPlan::choose(steps, ram, disk, c);
           ASSERT_LE(plan.ramSlotsUsed(), ram);
           ASSERT_LE(plan.diskSlotsUsed(), disk);
@@ -255,9 +271,11 @@ class StackOptimum {
   double game(std::int64_t steps) { return forward(steps, ram_, disk_); }
 
  private:
-  double segment(std::int64_t l, int level, std::int64_t m, std::int64_t d, bool atHand, bool allowMove = true) {
+  double segment(std::int64_t l, int level, std::int64_t m, std::int64_t d, bool atHand,
+                 bool allowMove = true) {
     const std::int64_t key =
-        ((((l * 2 + level) * (ram_ + 1) + m) * (disk_ + 1) + d) * 2 + (atHand ? 1 : 0)) * 2 + (allowMove ? 1 : 0);
+        ((((l * 2 + level) * (ram_ + 1) + m) * (disk_ + 1) + d) * 2 + (atHand ? 1 : 0)) * 2 +
+        (allowMove ? 1 : 0);
     if (auto it = memo_.find(key); it != memo_.end()) return it->second;
     double best = 0;
     if (!atHand) {
@@ -272,7 +290,8 @@ class StackOptimum {
       // Moving the held state to the other level (moving it back would only add cost).
       if (allowMove) {
         if (level == 1 && m > 0) best = std::min(best, segment(l, 0, m - 1, d + 1, true, false));
-        if (level == 0 && d > 0) best = std::min(best, c_.diskWrite + segment(l, 1, m + 1, d - 1, true, false));
+        if (level == 0 && d > 0)
+          best = std::min(best, c_.diskWrite + segment(l, 1, m + 1, d - 1, true, false));
       }
     }
     memo_[key] = best;
@@ -300,7 +319,8 @@ class StackOptimum {
 
 TEST(TwoLevelPlan, DynamicProgrammeEqualsTheBruteForceOptimumOverAllSchedules) {
   // Every schedule of the game (not only stack schedules) for N <= 7: the dynamic programme is optimal.
-  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1}, {1, 1, 2, 3}, {1, 1, 0.2, 3}, {1, 1, 3, 0.2}};
+  const ScheduleCosts costs[] = {{1, 1, 0, 0}, {1, 1, 0.5, 0.5}, {1, 1, 1, 1},
+                                 {1, 1, 2, 3}, {1, 1, 0.2, 3},   {1, 1, 3, 0.2}};
   for (const ScheduleCosts& c : costs) {
     for (int steps = 1; steps <= 7; ++steps) {
       for (int ram = 1; ram <= 3; ++ram) {
@@ -319,7 +339,8 @@ TEST(TwoLevelPlan, DynamicProgrammeEqualsTheBruteForceOptimumOverAllSchedules) {
 }
 
 TEST(TwoLevelPlan, DynamicProgrammeEqualsAnIndependentRecursionAndReusesDiskSlots) {
-  for (const ScheduleCosts& c : {ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 2, 1}, ScheduleCosts{1, 1, 0, 0}}) {
+  for (const ScheduleCosts& c :
+       {ScheduleCosts{1, 1, 0.5, 0.5}, ScheduleCosts{1, 1, 2, 1}, ScheduleCosts{1, 1, 0, 0}}) {
     for (std::int64_t steps : {20, 45, 80}) {
       for (const auto& [ram, disk] : {std::pair<std::int64_t, std::int64_t>{2, 1}, {3, 4}, {4, 2}, {1, 3}}) {
         SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
@@ -340,9 +361,9 @@ TEST(TwoLevelPlan, DynamicProgrammeEqualsAnIndependentRecursionAndReusesDiskSlot
   EXPECT_EQ(plan.kind(), TwoLevelPlan::Kind::kDynamic);
   EXPECT_LE(plan.counts().cost(half), 1843.0);
   EXPECT_GT(plan.counts().diskWrites, plan.diskSlotsUsed()) << "disk slots are reused";
-  std::cout << "[ two-level ] N = 1000, 6 RAM, 20 disk, 1:1:0.5:0.5: cost " << plan.counts().cost(half) << " ("
-            << plan.describe() << "), recomputed " << plan.counts().recomputedSteps << ", disk writes "
-            << plan.counts().diskWrites << ", reads " << plan.counts().diskReads << '\n';
+  std::cout << "[ two-level ] N = 1000, 6 RAM, 20 disk, 1:1:0.5:0.5: cost " << plan.counts().cost(half)
+            << " (" << plan.describe() << "), recomputed " << plan.counts().recomputedSteps
+            << ", disk writes " << plan.counts().diskWrites << ", reads " << plan.counts().diskReads << '\n';
 }
 
 int interruptPolls = 0;
@@ -358,7 +379,8 @@ TEST(TwoLevelPlan, PlanningPollsTheInterrupt) {
   } restore;
   const ScheduleCosts half{1, 1, 0.5, 0.5};
   for (const auto& [steps, ram, disk] : {std::tuple<std::int64_t, std::int64_t, std::int64_t>{1000, 6, 20},
-                                         {1'000'000, 10, 1000}, {4'000'000, 1, 3}}) {
+                                         {1'000'000, 10, 1000},
+                                         {4'000'000, 1, 3}}) {
     SCOPED_TRACE("N " + std::to_string(steps));
     interruptPolls = 0;
     setInterruptPoll(&interruptAfterTenPolls);
@@ -407,7 +429,8 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_NE(message("hermite:every=4", 10, 16, 4).find("not predicted"), std::string::npos);
   EXPECT_NE(message("online:checkpoints=5,budget=40", 10, 16, 4).find("online.budget"), std::string::npos);
   EXPECT_NE(message("binomial", 10, 16, 4).find("binomial.checkpoints"), std::string::npos);
-  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"),
+            std::string::npos);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3", "--costs"), std::invalid_argument);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3:-4", "--costs"), std::invalid_argument);
   EXPECT_THROW(ScheduleCosts::parse("0:2:3:4", "--costs"), std::invalid_argument);
@@ -458,15 +481,15 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       "binomial:checkpoints=10",
       "binomial:checkpoints=3000",
       "disk:dir=" + dir.path(),
-      "multilevel:ram=400,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(),     // 25 RAM states, cheap disk
-      "multilevel:ram=400,disk=1MiB,costs=1:1:0:0,dir=" + dir.path(),         // free disk: revolve over all
-      "multilevel:ram=400,disk=320,costs=1:1:0:0,dir=" + dir.path(),          // 25 + 20 slots
-      "multilevel:ram=800,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(),     // dear disk: RAM only
-      "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),       // everything fits in RAM
-      "cams:checkpoints=10",                                                   // states and rk4 step records
-      "cams:budget=640",                                                       // 40 state units
-      "cams:checkpoints=10,online=1",                                          // online placement
-      "full:stages=1",                                                         // every step's stages
+      "multilevel:ram=400,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(),  // 25 RAM states, cheap disk
+      "multilevel:ram=400,disk=1MiB,costs=1:1:0:0,dir=" + dir.path(),      // free disk: revolve over all
+      "multilevel:ram=400,disk=320,costs=1:1:0:0,dir=" + dir.path(),       // 25 + 20 slots
+      "multilevel:ram=800,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(),  // dear disk: RAM only
+      "multilevel:ram=64KiB,disk=1MiB,costs=1:1:1:1,dir=" + dir.path(),    // everything fits in RAM
+      "cams:checkpoints=10",                                               // states and rk4 step records
+      "cams:budget=640",                                                   // 40 state units
+      "cams:checkpoints=10,online=1",                                      // online placement
+      "full:stages=1",                                                     // every step's stages
       "disk:dir=" + dir.path() + ",chunk=64,stages=1",
       "disk:dir=" + dir.path() + ",stages=1",
   };
@@ -495,7 +518,8 @@ TEST(SchedulePrediction, BinomialWritesInClosedFormEqualTheScheduleRun) {
     const std::int64_t slots = std::min(c + 1, steps);
     const ScheduleCounts counts = revolve::simulateSchedule(steps + 1, slots);
     EXPECT_EQ(p.ramWrites, counts.checkpointWrites) << "N " << steps << " c " << c;
-    EXPECT_EQ(revolve::toString(counts.recomputedSteps), std::to_string(p.recomputedSteps)) << "N " << steps << " c " << c;
+    EXPECT_EQ(revolve::toString(counts.recomputedSteps), std::to_string(p.recomputedSteps))
+        << "N " << steps << " c " << c;
     BinomialSchedule schedule;  // the first sweep's pushes (statesStored, and stepDataStored with stages=1)
     schedule.reset(steps + 1, slots, true);
     std::int64_t pushes = 0;
@@ -551,7 +575,8 @@ TEST(SchedulePrediction, BinomialStagesEqualTheStrategysRuleRunWithoutStates) {
   const auto check = [](std::int64_t steps, std::int64_t c) {
     const std::string spec = "binomial:checkpoints=" + std::to_string(c) + ",stages=1";
     const SchedulePrediction p = predictSchedule(spec, steps, 16, 4, nullptr);
-    const SchedulePrediction plain = predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
+    const SchedulePrediction plain =
+        predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
     const StageCounts rule = binomialStagesByRule(steps, c);
     SCOPED_TRACE("N " + std::to_string(steps) + " c " + std::to_string(c));
     EXPECT_EQ(p.stepDataStored, rule.stored);
@@ -562,8 +587,9 @@ TEST(SchedulePrediction, BinomialStagesEqualTheStrategysRuleRunWithoutStates) {
     // One stage (explicit Euler): no step data, nothing kept, as without stages=1.
     const SchedulePrediction euler = predictSchedule(spec, steps, 16, 1, nullptr);
     EXPECT_EQ(euler.stepDataRestored, 0);
-    EXPECT_EQ(euler.rhsEvaluations, predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 1,
-                                                    nullptr).rhsEvaluations);
+    EXPECT_EQ(
+        euler.rhsEvaluations,
+        predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 1, nullptr).rhsEvaluations);
   };
   for (std::int64_t steps = 1; steps <= 200; ++steps)
     for (std::int64_t c = 1; c <= 12; ++c) check(steps, c);
@@ -634,9 +660,12 @@ TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
   const SchedulePrediction big = predictSchedule("online:checkpoints=100", 1'000'000, 16, 4, &costs);
   EXPECT_EQ(big.recomputedSteps + 999'999,
             static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000, 100)));
-  EXPECT_THROW(predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
-  EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs), std::invalid_argument);
-  EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, 4, nullptr, std::cout), std::invalid_argument);
+  EXPECT_THROW(predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs),
+               std::invalid_argument);
+  EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs),
+               std::invalid_argument);
+  EXPECT_THROW(writeScheduleActions("online:checkpoints=3", 10, 16, 4, nullptr, std::cout),
+               std::invalid_argument);
 }
 
 TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
@@ -662,7 +691,8 @@ TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
 
 TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {
   const ScheduleCosts costs{1, 1, 0.5, 0.5};
-  for (const std::string spec : {"full", "binomial:checkpoints=3", "multilevel:ram=64,disk=64", "disk:dir=/tmp"}) {
+  for (const std::string spec :
+       {"full", "binomial:checkpoints=3", "multilevel:ram=64,disk=64", "disk:dir=/tmp"}) {
     std::ostringstream out;
     writeScheduleActions(spec, 12, 16, 4, &costs, out);
     const std::string text = out.str();
@@ -723,9 +753,28 @@ TEST(ScheduleInput, IntegersAreReadCompletelyAndExactly) {
   EXPECT_EQ(parseScheduleInteger("1E+9", "--steps", 1, max), 1'000'000'000);
   EXPECT_EQ(parseScheduleInteger("2.50e1", "--steps", 1, max), 25);
   EXPECT_EQ(parseScheduleInteger("3999999999999999999", "--steps", 1, max), 3'999'999'999'999'999'999);
-  for (const std::string bad : {"", "0", "-1", "1.5", "2.9", "1e17x", "1e", "e5", ".", "4.1e18", "4000000000000000001",
-                                "99999999999999999999999999999999999", "1e40", "1e400", "nan", "inf", "0x10", " 5",
-                                "5 ", "1e-1", "+5", "1,000"}) {
+  for (const std::string bad : {"",
+                                "0",
+                                "-1",
+                                "1.5",
+                                "2.9",
+                                "1e17x",
+                                "1e",
+                                "e5",
+                                ".",
+                                "4.1e18",
+                                "4000000000000000001",
+                                "99999999999999999999999999999999999",
+                                "1e40",
+                                "1e400",
+                                "nan",
+                                "inf",
+                                "0x10",
+                                " 5",
+                                "5 ",
+                                "1e-1",
+                                "+5",
+                                "1,000"}) {
     try {
       parseScheduleInteger(bad, "--steps", 1, max);
       ADD_FAILURE() << "accepted '" << bad << "'";
@@ -742,15 +791,29 @@ TEST(ScheduleInput, IntegersAreReadCompletelyAndExactly) {
 // counted" RAM traffic), peak bytes within the bytes the spec allows, rhs evaluations S (N + R + A).
 // Never a wrapped-around count, never a division by zero.
 TEST(ScheduleInput, ExtremeArgumentsGiveSoundCountsOrAClearRefusal) {
-  const std::vector<std::int64_t> stepsList = {1, 2, 3, 1000, std::int64_t{1} << 31, 9'000'000'000'000'000,
-                                               100'000'000'000'000'000, kMaxScheduleSteps};
-  const std::vector<std::int64_t> bytesList = {8, 8000, 65536, 65544, std::int64_t{1} << 32, kMaxScheduleStateBytes};
-  const std::vector<std::string> specs = {
-      "full", "full:budget=1000000GiB", "full:stages=1,budget=9000000000000000000", "binomial:checkpoints=1",
-      "binomial:checkpoints=2", "binomial:checkpoints=1000,budget=9000000000000000000",
-      "binomial:checkpoints=50,stages=1,budget=9000000000000000000", "online:checkpoints=10",
-      "online:budget=64KiB", "cams:checkpoints=10", "disk:dir=/tmp", "disk:dir=/tmp,chunk=1073741824",
-      "disk:dir=/tmp,stages=1,budget=9000000000000000000"};
+  const std::vector<std::int64_t> stepsList = {1,
+                                               2,
+                                               3,
+                                               1000,
+                                               std::int64_t{1} << 31,
+                                               9'000'000'000'000'000,
+                                               100'000'000'000'000'000,
+                                               kMaxScheduleSteps};
+  const std::vector<std::int64_t> bytesList = {
+      8, 8000, 65536, 65544, std::int64_t{1} << 32, kMaxScheduleStateBytes};
+  const std::vector<std::string> specs = {"full",
+                                          "full:budget=1000000GiB",
+                                          "full:stages=1,budget=9000000000000000000",
+                                          "binomial:checkpoints=1",
+                                          "binomial:checkpoints=2",
+                                          "binomial:checkpoints=1000,budget=9000000000000000000",
+                                          "binomial:checkpoints=50,stages=1,budget=9000000000000000000",
+                                          "online:checkpoints=10",
+                                          "online:budget=64KiB",
+                                          "cams:checkpoints=10",
+                                          "disk:dir=/tmp",
+                                          "disk:dir=/tmp,chunk=1073741824",
+                                          "disk:dir=/tmp,stages=1,budget=9000000000000000000"};
   const std::int64_t maxCount = std::numeric_limits<std::int64_t>::max();
   int sound = 0, refused = 0;
   for (const std::string& spec : specs) {
@@ -782,7 +845,7 @@ TEST(ScheduleInput, ExtremeArgumentsGiveSoundCountsOrAClearRefusal) {
               static_cast<UnsignedInt128>(stages) *
               (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
                static_cast<UnsignedInt128>(spec.rfind("cams", 0) == 0 ? p.adjointRecomputations
-                                                                       : steps - p.stepDataRestored));
+                                                                      : steps - p.stepDataRestored));
           EXPECT_LE(rhs, static_cast<UnsignedInt128>(maxCount));
           EXPECT_EQ(static_cast<UnsignedInt128>(p.rhsEvaluations), rhs);
           EXPECT_TRUE(std::isfinite(p.totalCost));

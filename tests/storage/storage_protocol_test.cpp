@@ -83,7 +83,8 @@ TEST(StorageProtocol, OnlineRestoresExactStatesWithNoStepCountAnnounced) {
       const long allocations = runProtocol(storage, steps, -1);
       // Online allocates a slot on its first use; beyond c + 1 steps the forward sweep has used all c
       // (it keeps every candidate while d = 1), so the backward sweep allocates nothing.
-      if (steps > c + 1 && testing::AllocationCounter::available()) EXPECT_EQ(allocations, 0) << c << " " << steps;
+      if (steps > c + 1 && testing::AllocationCounter::available())
+        EXPECT_EQ(allocations, 0) << c << " " << steps;
       EXPECT_EQ(
           revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
           revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))

@@ -25,8 +25,9 @@ std::vector<double> trajectory(std::int64_t first, std::int64_t count, int n, st
       double x = std::pow(10.0, j % 7 - 3) * std::sin((j + 1) * t + 0.3 * j);
       if (j == n - 1) x = noise(random);
       if (j == n - 2) {
-        const double special[] = {0.0, -0.0, std::numeric_limits<double>::quiet_NaN(), HUGE_VAL, -HUGE_VAL,
-                                  std::numeric_limits<double>::denorm_min(), 1e308, -1e-310};
+        const double special[] = {0.0,      -0.0,      std::numeric_limits<double>::quiet_NaN(),
+                                  HUGE_VAL, -HUGE_VAL, std::numeric_limits<double>::denorm_min(),
+                                  1e308,    -1e-310};
         x = (first + i) % 5 == 0 ? special[(first + i) / 5 % 8] : x;
       }
       rows[static_cast<std::size_t>(i * n + j)] = x;
@@ -53,7 +54,8 @@ TEST(TimeCodec, LosslessBlocksRestoreEveryBitAtEveryOrder) {
       EXPECT_EQ(TimeCodec::blockStates(coded.data(), size), count);
       std::vector<double> restored(rows.size(), 42.0);
       codec.decode(coded.data(), size, count, restored.data());
-      EXPECT_EQ(std::memcmp(restored.data(), rows.data(), rows.size() * 8), 0) << "order " << order << ", count " << count;
+      EXPECT_EQ(std::memcmp(restored.data(), rows.data(), rows.size() * 8), 0)
+          << "order " << order << ", count " << count;
     }
   }
 }
@@ -97,7 +99,8 @@ TEST(TimeCodec, BlocksDecodeOnTheirOwnInReverseAndRandomOrder) {
   for (std::int64_t b : order) {
     const auto& block = coded[static_cast<std::size_t>(b)];
     reader.decode(block.data(), block.size(), blockStates, restored.data());
-    EXPECT_EQ(std::memcmp(restored.data(), original[static_cast<std::size_t>(b)].data(), restored.size() * 8), 0)
+    EXPECT_EQ(std::memcmp(restored.data(), original[static_cast<std::size_t>(b)].data(), restored.size() * 8),
+              0)
         << "block " << b;
   }
 }
@@ -113,7 +116,8 @@ TEST(TimeCodec, BoundedBlocksKeepEveryValueWithinItsComponentsBound) {
       for (int j = 0; j < n; ++j) {
         for (std::int64_t i = 0; i < count; ++i) {
           const double x = std::abs(rows[static_cast<std::size_t>(i * n + j)]);
-          if (std::isfinite(x)) scale[static_cast<std::size_t>(j)] = std::max(scale[static_cast<std::size_t>(j)], x);
+          if (std::isfinite(x))
+            scale[static_cast<std::size_t>(j)] = std::max(scale[static_cast<std::size_t>(j)], x);
         }
         bounds[static_cast<std::size_t>(j)] = tolerance * scale[static_cast<std::size_t>(j)];
       }
@@ -127,7 +131,8 @@ TEST(TimeCodec, BoundedBlocksKeepEveryValueWithinItsComponentsBound) {
       double measured = 0.0;
       for (std::int64_t i = 0; i < count; ++i) {
         for (int j = 0; j < n; ++j) {
-          const double x = rows[static_cast<std::size_t>(i * n + j)], y = restored[static_cast<std::size_t>(i * n + j)];
+          const double x = rows[static_cast<std::size_t>(i * n + j)],
+                       y = restored[static_cast<std::size_t>(i * n + j)];
           if (!std::isfinite(x)) {
             EXPECT_EQ(std::memcmp(&x, &y, 8), 0) << "non-finite values are kept exactly";
             continue;
@@ -139,7 +144,8 @@ TEST(TimeCodec, BoundedBlocksKeepEveryValueWithinItsComponentsBound) {
       }
       EXPECT_EQ(worst, measured) << "the reported error is the one made";
       EXPECT_LE(worst, tolerance);
-      if (tolerance >= 1e-6) EXPECT_GT(worst, 0.0) << "a bounded block at " << tolerance << " loses something";
+      if (tolerance >= 1e-6)
+        EXPECT_GT(worst, 0.0) << "a bounded block at " << tolerance << " loses something";
     }
   }
 }

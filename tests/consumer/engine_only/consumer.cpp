@@ -8,9 +8,9 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
-#include <cstdio>
 
 class Decay final : public hindsight::Problem {
  public:
@@ -66,9 +66,12 @@ int main() {
     const bool full = std::string(spec).rfind("full", 0) == 0;
     const hindsight::StorageCounters& stats = storage->counters();
     std::printf("%s: dpsi/dk = %.17g, %lld recomputed steps, peak %lld bytes\n", spec, r.gradient(0),
-                static_cast<long long>(stats.recomputedSteps), static_cast<long long>(stats.peakBytesInMemory));
+                static_cast<long long>(stats.recomputedSteps),
+                static_cast<long long>(stats.peakBytesInMemory));
     if (r.gradient(0) != result.gradient(0) || r.objective != result.objective) return 1;
-    if (full ? stats.recomputedSteps != 0 : (stats.recomputedSteps == 0 || stats.peakBytesInMemory >= storage0Peak)) return 1;
+    if (full ? stats.recomputedSteps != 0
+             : (stats.recomputedSteps == 0 || stats.peakBytesInMemory >= storage0Peak))
+      return 1;
   }
   try {
     hindsight::createMemoryStorage("disk");

@@ -15,7 +15,9 @@
 namespace hindsight {
 namespace {
 
-std::string example(const std::string& name) { return std::string(HINDSIGHT_EXAMPLES_DIR) + "/mechanisms/" + name; }
+std::string example(const std::string& name) {
+  return std::string(HINDSIGHT_EXAMPLES_DIR) + "/mechanisms/" + name;
+}
 
 void coarsen(Config& c) {
   applySetting(c, "rod.elementsAlongLength=20", false);
@@ -48,10 +50,12 @@ void expectMessage(const std::function<void(nlohmann::json&)>& edit, const std::
 TEST(MechanismConfig, BadDescriptionsAreNamed) {
   expectMessage([](auto& j) { j["mechanism"]["joints"][1]["type"] = "hinge"; },
                 "mechanism.joints[crankPin].type = 'hinge' must be one of: revolute, prismatic, fixed");
-  expectMessage([](auto& j) { j["mechanism"]["joints"][1]["body2"] = "coupla"; },
-                "mechanism.joints[crankPin].body2 = 'coupla' is not a body; bodies: ground, crank, rocker, coupler");
-  expectMessage([](auto& j) { j["mechanism"]["joints"][0]["point1"] = "X"; },
-                "mechanism.joints[crankBearing].point1 = 'X' is not a point of body 'ground'; its points: O2, O4");
+  expectMessage(
+      [](auto& j) { j["mechanism"]["joints"][1]["body2"] = "coupla"; },
+      "mechanism.joints[crankPin].body2 = 'coupla' is not a body; bodies: ground, crank, rocker, coupler");
+  expectMessage(
+      [](auto& j) { j["mechanism"]["joints"][0]["point1"] = "X"; },
+      "mechanism.joints[crankBearing].point1 = 'X' is not a point of body 'ground'; its points: O2, O4");
   expectMessage([](auto& j) { j["mechanism"]["rigidBodies"][1]["mass"] = -1.0; },
                 "mechanism.rigidBodies[rocker].mass = -1 is outside the allowed range [0, inf)");
   expectMessage([](auto& j) { j["mechanism"]["drivers"].clear(); },
@@ -64,7 +68,8 @@ TEST(MechanismConfig, BadDescriptionsAreNamed) {
                 "mechanism.joints[crankBearing].colour is not a field");
   expectMessage([](auto& j) { j["mechanism"]["rigidBodies"][0]["name"] = "rocker"; },
                 "mechanism.rigidBodies[rocker].name = 'rocker' is used twice");
-  expectMessage([](auto& j) { j["simulation"]["model"] = "full"; }, "with a mechanism section it must be reduced");
+  expectMessage([](auto& j) { j["simulation"]["model"] = "full"; },
+                "with a mechanism section it must be reduced");
   // Positions that cannot be assembled at t = 0 (the rocker far too short to reach the coupler).
   expectMessage(
       [](auto& j) {

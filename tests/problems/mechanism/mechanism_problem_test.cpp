@@ -39,8 +39,8 @@ struct State {
   Vector y, v, a, mu;
 };
 
-Vector residualOf(const MechanismProblem& problem, ProblemWorkspace* ws, double t, const Vector& y, const Vector& v,
-                  const Vector& a, const Vector& p) {
+Vector residualOf(const MechanismProblem& problem, ProblemWorkspace* ws, double t, const Vector& y,
+                  const Vector& v, const Vector& a, const Vector& p) {
   Vector r(y.size());
   problem.residual(t, y, v, a, p, r, ws);
   return r;
@@ -62,7 +62,9 @@ TEST(MechanismSliderCrank, EqualsTheBuiltInModelTermByTerm) {
     Vector rb(n), rd(n);
     builtIn.residual(t, s.y, s.v, s.a, p, rb, wb.get());
     described.residual(t, s.y, s.v, s.a, p, rd, wd.get());
-    EXPECT_LT((rb - rd).norm(), 1e-12 * rb.norm()) << "t = " << t << "\n" << rb.transpose() << "\n" << rd.transpose();
+    EXPECT_LT((rb - rd).norm(), 1e-12 * rb.norm()) << "t = " << t << "\n"
+                                                   << rb.transpose() << "\n"
+                                                   << rd.transpose();
     Matrix mb(n, n), md(n, n);
     Vector fb(n), fd(n);
     builtIn.massMatrixAndForce(t, s.y, s.v, p, mb, fb, wb.get());
@@ -78,7 +80,8 @@ TEST(MechanismSliderCrank, EqualsTheBuiltInModelTermByTerm) {
     builtIn.addResidualParameterVjp(t, s.y, s.v, s.a, p, s.mu, gb, wb.get());
     described.addResidualParameterVjp(t, s.y, s.v, s.a, p, s.mu, gd, wd.get());
     EXPECT_LT((gb - gd).norm(), 1e-10 * gb.norm()) << "t = " << t;
-    EXPECT_DOUBLE_EQ(builtIn.integrand(t, s.y, s.v, p, wb.get()), described.integrand(t, s.y, s.v, p, wd.get()));
+    EXPECT_DOUBLE_EQ(builtIn.integrand(t, s.y, s.v, p, wb.get()),
+                     described.integrand(t, s.y, s.v, p, wd.get()));
   }
 }
 
@@ -141,7 +144,8 @@ struct NodalEnergy {
     double t = 0.5 * W.dot(body.mass * W);
     const auto& bodies = problem.mechanism().rigidBodies;
     for (std::size_t k = 0; k < bodies.size(); ++k) {
-      t += 0.5 * bodies[k].mass * zd.segment<2>(3 * k).squaredNorm() + 0.5 * bodies[k].inertia * zd(3 * k + 2) * zd(3 * k + 2);
+      t += 0.5 * bodies[k].mass * zd.segment<2>(3 * k).squaredNorm() +
+           0.5 * bodies[k].inertia * zd(3 * k + 2) * zd(3 * k + 2);
     }
     return t;
   }
@@ -180,7 +184,10 @@ struct NodalEnergy {
 
 struct Case {
   Case(const Mechanism& m, int modes, unsigned seed)
-      : body(modes, 1.0, seed), problem(m, modes), p(body.invariants()), ws(problem.createModelWorkspace()),
+      : body(modes, 1.0, seed),
+        problem(m, modes),
+        p(body.invariants()),
+        ws(problem.createModelWorkspace()),
         s(problem.coordinateCount(), seed + 1, problem.freeCount()) {}
   Vector residual(double t, const Vector& y, const Vector& v, const Vector& a, const Vector& pp) const {
     return residualOf(problem, ws.get(), t, y, v, a, pp);
@@ -198,22 +205,25 @@ void checkDerivatives(Case& c, const std::vector<double>& times) {
     Matrix ry(f, f), rv(f, f);
     c.problem.residualJacobians(t, c.s.y, c.s.v, c.s.a, c.p, ry, rv, c.ws.get());
     for (int i = 0; i < f; ++i) {
-      const auto yCheck = checkGradient([&](const Vector& x) { return c.residual(t, x, c.s.v, c.s.a, c.p)(i); },
-                                        c.s.y, ry.row(i).transpose(), {1e-6});
+      const auto yCheck =
+          checkGradient([&](const Vector& x) { return c.residual(t, x, c.s.v, c.s.a, c.p)(i); }, c.s.y,
+                        ry.row(i).transpose(), {1e-6});
       EXPECT_TRUE(yCheck.passed) << "t = " << t << ", row " << i << " of r_y: " << yCheck.message;
       // r is quadratic in y' (z' is linear in it, zeta quadratic), so a large central-difference step is
       // exact and avoids round-off.
       GradientCheckOptions quadratic;
       quadratic.tolerance = 1e-7;
       quadratic.relativeStep = 1e-2;
-      const auto vCheck = checkGradient([&](const Vector& x) { return c.residual(t, c.s.y, x, c.s.a, c.p)(i); },
-                                        c.s.v, rv.row(i).transpose(), quadratic);
+      const auto vCheck =
+          checkGradient([&](const Vector& x) { return c.residual(t, c.s.y, x, c.s.a, c.p)(i); }, c.s.v,
+                        rv.row(i).transpose(), quadratic);
       EXPECT_TRUE(vCheck.passed) << "t = " << t << ", row " << i << " of r_v: " << vCheck.message;
     }
     Vector vjp = Vector::Zero(c.p.size());
     c.problem.addResidualParameterVjp(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, vjp, c.ws.get());
-    const auto pCheck = checkGradient([&](const Vector& x) { return c.s.mu.dot(c.residual(t, c.s.y, c.s.v, c.s.a, x)); },
-                                      c.p, vjp, {1e-6, 1e-6});
+    const auto pCheck =
+        checkGradient([&](const Vector& x) { return c.s.mu.dot(c.residual(t, c.s.y, c.s.v, c.s.a, x)); }, c.p,
+                      vjp, {1e-6, 1e-6});
     EXPECT_TRUE(pCheck.passed) << "t = " << t << ": " << pCheck.message;
     // The mass matrix is the acceleration part of the residual, the force minus its rest.
     Matrix mass(f, f);
@@ -260,7 +270,8 @@ double lagrangeResidual(Case& c, double t) {
   }
   const double d = 1e-4;
   const Vector ddt = (dTdv(t + d, y + d * v + 0.5 * d * d * a, v + d * a) -
-                      dTdv(t - d, y - d * v + 0.5 * d * d * a, v - d * a)) / (2 * d);
+                      dTdv(t - d, y - d * v + 0.5 * d * d * a, v - d * a)) /
+                     (2 * d);
   const Vector lagrange = ddt - dLdy;
   const Vector r = c.residual(t, y, v, a, c.p);
   return (lagrange - r).norm() / r.norm();
@@ -342,8 +353,10 @@ void checkEnergyBalance(Case& c, double t1, double tolerance) {
   options.step = 2.5e-4;
   const int f = c.problem.coordinateCount();
   std::vector<std::pair<double, Vector>> states;
-  simulate(c.problem, c.p, options, [&](std::int64_t, double t, ConstVectorRef z) { states.emplace_back(t, z); });
-  double work = 0.0, dissipated = 0.0, e0 = 0.0, e1 = 0.0, previousPower = 0.0, previousLoss = 0.0, scale = 0.0;
+  simulate(c.problem, c.p, options,
+           [&](std::int64_t, double t, ConstVectorRef z) { states.emplace_back(t, z); });
+  double work = 0.0, dissipated = 0.0, e0 = 0.0, e1 = 0.0, previousPower = 0.0, previousLoss = 0.0,
+         scale = 0.0;
   Matrix mass(f, f);
   Vector force(f);
   for (std::size_t k = 0; k < states.size(); ++k) {

@@ -1,7 +1,8 @@
-// The CVODES route on the reduced piston rod, configured as the CVODES user guide advises: the backward right-hand side by the rod's vector-Jacobian product gives the gradient of
-// the dense path within the integration tolerance while forming no Jacobian, and the fixed-point
-// Adams route converges on the rod and agrees with a tight discrete adjoint. Reference: the discrete
-// adjoint of rk4 at h = 2e-5 (rk4's error is O(h^4), far below the CVODES tolerances used here).
+// The CVODES route on the reduced piston rod, configured as the CVODES user guide advises: the backward
+// right-hand side by the rod's vector-Jacobian product gives the gradient of the dense path within the
+// integration tolerance while forming no Jacobian, and the fixed-point Adams route converges on the rod and
+// agrees with a tight discrete adjoint. Reference: the discrete adjoint of rk4 at h = 2e-5 (rk4's error is
+// O(h^4), far below the CVODES tolerances used here).
 #include <hindsight/cvodes/cvodes_adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/rod/config.h>

@@ -59,8 +59,9 @@ TEST(FirstEigenvalue, ARepeatedEigenvalueIsGuardedThroughTheClusterMean) {
   const FirstEigenvalue first = firstEigenvalue(model, basis.eigenvalues, basis.modesFull, tolerance);
   EXPECT_EQ(first.clusterSize, 2);
   EXPECT_DOUBLE_EQ(first.value, 0.5 * (basis.eigenvalues(0) + basis.eigenvalues(1)));
-  const Vector expected = 0.5 * (eigenvalueDesignGradient(model, basis.eigenvalues(0), basis.modesFull.col(0)) +
-                                 eigenvalueDesignGradient(model, basis.eigenvalues(1), basis.modesFull.col(1)));
+  const Vector expected =
+      0.5 * (eigenvalueDesignGradient(model, basis.eigenvalues(0), basis.modesFull.col(0)) +
+             eigenvalueDesignGradient(model, basis.eigenvalues(1), basis.modesFull.col(1)));
   EXPECT_LT((first.gradient - expected).cwiseAbs().maxCoeff(), 1e-12 * expected.cwiseAbs().maxCoeff());
   // The trace is basis independent: rotating the two modes within their span changes nothing.
   const double c = std::cos(0.7), s = std::sin(0.7);

@@ -92,7 +92,8 @@ TEST(EvaluateCommand, AdaptiveStepsGivePsi1AndSayWhyPsi2WasSkipped) {
                                "--set simulation.integrator=dopri5 --set simulation.adaptive=true "
                                "--storage online:checkpoints=20");
   ASSERT_EQ(adaptive.exitCode, 0) << adaptive.output;
-  const auto fixed = runCli("evaluate --json --set simulation.integrator=rk4 --set simulation.step=1e-4 " + kCoarse);
+  const auto fixed =
+      runCli("evaluate --json --set simulation.integrator=rk4 --set simulation.step=1e-4 " + kCoarse);
   ASSERT_EQ(fixed.exitCode, 0) << fixed.output;
   const auto a = nlohmann::json::parse(adaptive.output);
   const auto f = nlohmann::json::parse(fixed.output);

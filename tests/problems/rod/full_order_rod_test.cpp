@@ -439,10 +439,10 @@ TEST(FullOrderRodConfig, ModelAndCouplingFieldsAreCheckedStrictly) {
 }
 
 // psi1,full against the reduced psi1 (PistonRod: 10 modes, frame from the closure with b q, the default
-// integration, within 1e-4 of RK4 at 1e-4) at x0 on the full 3 s horizon. Measured: relative difference -1.7e-4 on 40 x 4 and -1.6e-4 on
-// 200 x 12 (trbdf2, h = 1e-3; halving h changes psi1,full by 4e-6 relative). The response is
-// quasi-static in the first bending mode, which both models carry exactly; the rest is the reduced
-// model's modal truncation (static contribution of the dropped modes) and its frame feedback through
+// integration, within 1e-4 of RK4 at 1e-4) at x0 on the full 3 s horizon. Measured: relative difference
+// -1.7e-4 on 40 x 4 and -1.6e-4 on 200 x 12 (trbdf2, h = 1e-3; halving h changes psi1,full by 4e-6 relative).
+// The response is quasi-static in the first bending mode, which both models carry exactly; the rest is the
+// reduced model's modal truncation (static contribution of the dropped modes) and its frame feedback through
 // b q, which the full model's rigid frame lacks. The band 2e-3 covers those with a margin; a
 // modelling error in the loads (a wrong sign or factor in a_P) changes psi1 by far more. The coupling
 // terms themselves change psi1,full by ~1e-4; they are checked by the equation and derivative tests.

@@ -1,7 +1,8 @@
 // Compression along time on the slider-crank (synthetic flexible body, 6 modes, rk4, 4000 steps):
 // disk's time codec restores every bit (gradient bitwise equal to full storage's) and lossy:target=T
 // keeps the achieved relative gradient error below T with an estimate between the two. The real
-// rod's figures (T = 3, 10, 100 s) are in docs/theory/storage.md, "Compression along time" and bench/RESULTS.md.
+// rod's figures (T = 3, 10, 100 s) are in docs/theory/storage.md, "Compression along time" and
+// bench/RESULTS.md.
 #include <hindsight/problems/rod/slider_crank.h>
 
 #include <hindsight/engine/adjoint.h>
@@ -41,7 +42,8 @@ TEST(RodCompression, DiskTimeCodecIsBitwiseAndLossyTargetHoldsItsBound) {
     auto storage = createStorage("lossy:target=" + ::testing::PrintToString(target));
     const GradientResult result = computeGradient(crank.problem, crank.p, crank.options, *storage);
     const double error = (result.gradient - reference.gradient).norm() / reference.gradient.norm();
-    ::testing::Test::RecordProperty("error_" + ::testing::PrintToString(target), ::testing::PrintToString(error));
+    ::testing::Test::RecordProperty("error_" + ::testing::PrintToString(target),
+                                    ::testing::PrintToString(error));
     EXPECT_GT(error, 0.0) << target;
     EXPECT_LE(error, target) << target;
     EXPECT_GE(result.summary.gradientErrorEstimate, error) << target;

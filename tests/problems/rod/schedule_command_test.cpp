@@ -17,20 +17,23 @@ using testing::runCli;
 const std::string kCoarse =
     "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 ";
 
-nlohmann::json lastJson(const std::string& output) { return nlohmann::json::parse(output.substr(output.find('{'))); }
+nlohmann::json lastJson(const std::string& output) {
+  return nlohmann::json::parse(output.substr(output.find('{')));
+}
 
 TEST(ScheduleCommand, PredictsTheCountersOfARealRodRun) {
   const std::string dir = ::testing::TempDir() + "/schedule_command";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
-  for (const std::string storage :
-       {std::string("binomial:checkpoints=20"), std::string("full"), "multilevel:ram=2KiB,disk=64KiB,costs=1:1:0.2:0.2,dir=" + dir,
-        "multilevel:ram=2KiB,disk=1KiB,costs=1:1:0:0,dir=" + dir}) {
+  for (const std::string storage : {std::string("binomial:checkpoints=20"), std::string("full"),
+                                    "multilevel:ram=2KiB,disk=64KiB,costs=1:1:0.2:0.2,dir=" + dir,
+                                    "multilevel:ram=2KiB,disk=1KiB,costs=1:1:0:0,dir=" + dir}) {
     SCOPED_TRACE(storage);
     const std::string gradient = dir + "/g.h5";
     std::filesystem::remove(gradient);
     // RK4 (4 stages, the --stages below): the schedule tool counts explicit stage evaluations.
-    const auto run = runCli("evaluate " + kCoarse + "--set simulation.integrator=rk4 --set simulation.step=1e-4 --storage " +
+    const auto run = runCli("evaluate " + kCoarse +
+                            "--set simulation.integrator=rk4 --set simulation.step=1e-4 --storage " +
                             storage + " --gradient " + gradient + " --json");
     ASSERT_EQ(run.exitCode, 0) << run.output;
     const nlohmann::json summary = lastJson(run.output)["summary"];
@@ -66,7 +69,8 @@ TEST(ScheduleCommand, BadFlagsNameTheFlagAndTheRange) {
   const auto costs = runCli("schedule --storage full --steps 10 --state-bytes 64 --costs 1:2:3");
   EXPECT_EQ(costs.exitCode, 2);
   EXPECT_NE(costs.output.find("--costs"), std::string::npos) << costs.output;
-  const auto needsCosts = runCli("schedule --storage multilevel:ram=1KiB,disk=1MiB --steps 1000 --state-bytes 64");
+  const auto needsCosts =
+      runCli("schedule --storage multilevel:ram=1KiB,disk=1MiB --steps 1000 --state-bytes 64");
   EXPECT_EQ(needsCosts.exitCode, 2);
   EXPECT_NE(needsCosts.output.find("--costs"), std::string::npos) << needsCosts.output;
   const auto unknown = runCli("schedule --storage revolve:checkpoints=3 --steps 10 --state-bytes 64");
@@ -75,20 +79,22 @@ TEST(ScheduleCommand, BadFlagsNameTheFlagAndTheRange) {
 }
 
 TEST(ScheduleCommand, ActionsAndABillionSteps) {
-  const auto actions = runCli("schedule --storage binomial:checkpoints=2 --steps 5 --state-bytes 16 --actions");
+  const auto actions =
+      runCli("schedule --storage binomial:checkpoints=2 --steps 5 --state-bytes 16 --actions");
   ASSERT_EQ(actions.exitCode, 0) << actions.output;
   EXPECT_NE(actions.output.find("restore 0\nload ram 0\n"), std::string::npos) << actions.output;
-  const auto billion =
-      runCli("schedule --storage multilevel:ram=64MiB,disk=1TiB,costs=1e-4:2e-4:2e-5:1e-5 --steps 1e9 "
-             "--state-bytes 8000 --json");
+  const auto billion = runCli(
+      "schedule --storage multilevel:ram=64MiB,disk=1TiB,costs=1e-4:2e-4:2e-5:1e-5 --steps 1e9 "
+      "--state-bytes 8000 --json");
   ASSERT_EQ(billion.exitCode, 0) << billion.output;
   EXPECT_EQ(lastJson(billion.output)["steps"].get<std::int64_t>(), 1'000'000'000);
 }
 
 // Inputs are read completely (1e17 is 10^17, not 1), counted without overflow, refused by name with exit 2.
 TEST(ScheduleCommand, ExtremeInputsAreReadExactlyOrRefusedByName) {
-  const auto big = runCli("schedule --storage binomial:checkpoints=1000 "
-                          "--steps 1e17 --state-bytes 8 --json");
+  const auto big = runCli(
+      "schedule --storage binomial:checkpoints=1000 "
+      "--steps 1e17 --state-bytes 8 --json");
   ASSERT_EQ(big.exitCode, 0) << big.output;
   EXPECT_EQ(lastJson(big.output)["steps"].get<std::int64_t>(), 100'000'000'000'000'000);
   const auto exact = runCli("schedule --storage full --steps 9.5e3 --state-bytes 8 --json");
@@ -115,8 +121,10 @@ TEST(ScheduleCommand, ExtremeInputsAreReadExactlyOrRefusedByName) {
     EXPECT_NE(run.output.find(c.flag), std::string::npos) << run.output;
   }
   // --actions of cams follows --stages: records with rk4's 4 stages, none with one stage.
-  const auto rk4 = runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 4 --actions");
-  const auto euler = runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 1 --actions");
+  const auto rk4 =
+      runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 4 --actions");
+  const auto euler =
+      runCli("schedule --storage cams:checkpoints=6 --steps 60 --state-bytes 16 --stages 1 --actions");
   ASSERT_EQ(rk4.exitCode, 0) << rk4.output;
   ASSERT_EQ(euler.exitCode, 0) << euler.output;
   EXPECT_NE(rk4.output.find("store ram record"), std::string::npos);

@@ -143,7 +143,8 @@ TEST(SliderCrank, CombinedProductsEqualTheSeparateOnes) {
 TEST(SliderCrank, StepsAndAdjointStepsAllocateNothing) {
   // The kernels' scratch (the symmetric M_ee, the crank's last two times, the AD buffers) lives in the
   // workspace made once per solve.
-  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
   Fixture f(8);
   for (const char* method : {"rk4", "generalized-alpha"}) {
     IntegratorOptions options;

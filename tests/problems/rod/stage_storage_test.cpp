@@ -3,11 +3,11 @@
 // every restored step record hash-verified, the byte budget never exceeded, and the adjoint steps served
 // from stored stage values evaluating no right-hand side.
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
-#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/synthetic_rod.h"
@@ -76,7 +76,8 @@ TEST(StageAwareStorage, ReducedRodCamsNeedsFewerRhsThanBinomialAtTheSameBytes) {
     const GradientResult r = computeGradient(problem, p, options, *cams);
     EXPECT_LT(r.summary.rhsEvaluations, b.summary.rhsEvaluations) << c;
     EXPECT_LE(cams->counters().peakBytesInMemory, binomial->counters().peakBytesInMemory) << c;
-    EXPECT_EQ(std::memcmp(r.gradient.data(), b.gradient.data(), sizeof(double) * static_cast<std::size_t>(p.size())),
+    EXPECT_EQ(std::memcmp(r.gradient.data(), b.gradient.data(),
+                          sizeof(double) * static_cast<std::size_t>(p.size())),
               0);
   }
 }

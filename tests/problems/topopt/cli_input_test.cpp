@@ -52,7 +52,8 @@ TEST(CliInput, ParseErrorsExitWithCodeTwo) {
 
 TEST(CliInput, SettingsAreCheckedTogetherWhateverTheirOrder) {
   // rod.rampTime = 5 alone exceeds the default endTime (3); with endTime = 6 it is valid in any order.
-  for (const std::string order : {"--set rod.rampTime=5 --set rod.endTime=6", "--set rod.endTime=6 --set rod.rampTime=5"}) {
+  for (const std::string order :
+       {"--set rod.rampTime=5 --set rod.endTime=6", "--set rod.endTime=6 --set rod.rampTime=5"}) {
     const CliResult result = runCli("evaluate --print-config " + order);
     EXPECT_EQ(result.exitCode, 0) << order << "\n" << result.output;
     EXPECT_NE(result.output.find("\"rampTime\": 5.0"), std::string::npos) << result.output;
@@ -67,12 +68,15 @@ TEST(CliInput, EvaluateRefusesScenariosInsteadOfIgnoringThem) {
   std::ofstream(dir + "/s.json") << R"({"scenarios": [{"name": "a"}, {"name": "b", "crankSpeed": 20}]})";
   const CliResult result = runCli("evaluate --config " + dir + "/s.json");
   EXPECT_EQ(result.exitCode, 2) << result.output;
-  EXPECT_NE(result.output.find("config field 'scenarios' has 2 scenarios"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("config field 'scenarios' has 2 scenarios"), std::string::npos)
+      << result.output;
   EXPECT_EQ(result.output.find("psi1"), std::string::npos) << result.output;
   EXPECT_NE(result.output.find("--rod-only"), std::string::npos) << result.output;
-  const CliResult rodOnly = runCli(
-      "evaluate --rod-only --config " + dir + "/s.json --set rod.elementsAlongLength=8 --set rod.elementsThroughHeight=2 "
-      "--set rod.modeCount=2 --set rod.endTime=0.02 --set rod.rampTime=0.01 --set rod.eslSamples=4 --set simulation.step=1e-3");
+  const CliResult rodOnly =
+      runCli("evaluate --rod-only --config " + dir +
+             "/s.json --set rod.elementsAlongLength=8 --set rod.elementsThroughHeight=2 "
+             "--set rod.modeCount=2 --set rod.endTime=0.02 --set rod.rampTime=0.01 --set rod.eslSamples=4 "
+             "--set simulation.step=1e-3");
   EXPECT_EQ(rodOnly.exitCode, 0) << rodOnly.output;
   EXPECT_NE(rodOnly.output.find("psi1"), std::string::npos) << rodOnly.output;
 }
@@ -82,7 +86,8 @@ TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
   const std::string tiny =
       R"("rod": {"elementsAlongLength": 8, "elementsThroughHeight": 2, "modeCount": 2, "endTime": 0.02,
                  "rampTime": 0.01, "eslSamples": 4}, "simulation": {"step": 1e-3})";
-  std::ofstream(dir + "/with.json") << "{" << tiny << R"(, "scenarios": [{"name": "a"}, {"name": "b", "weight": 2}]})";
+  std::ofstream(dir + "/with.json") << "{" << tiny
+                                    << R"(, "scenarios": [{"name": "a"}, {"name": "b", "weight": 2}]})";
   std::ofstream(dir + "/without.json") << "{" << tiny << "}";
   CliResult result = runCli("optimize --config " + dir + "/with.json --iterations 1 --out " + dir + "/run");
   ASSERT_EQ(result.exitCode, 0) << result.output;
@@ -91,8 +96,8 @@ TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
   EXPECT_EQ(result.exitCode, 2) << result.output;
   EXPECT_NE(result.output.find("differs from the one stored in"), std::string::npos) << result.output;
   EXPECT_NE(result.output.find("scenarios (requested absent, stored [{"), std::string::npos) << result.output;
-  result = runCli("optimize --resume --config " + dir + "/with.json --iterations 2 --set rod.modeCount=3 --out " +
-                  dir + "/run");
+  result = runCli("optimize --resume --config " + dir +
+                  "/with.json --iterations 2 --set rod.modeCount=3 --out " + dir + "/run");
   EXPECT_EQ(result.exitCode, 2) << result.output;
   EXPECT_NE(result.output.find("rod.modeCount (requested 3, stored 2)"), std::string::npos) << result.output;
   // The fingerprint of the agreed configuration is in the results file; verify reports it.
@@ -105,7 +110,8 @@ TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
   for (const char* iteration : {"-2", "-1", "5"}) {
     result = runCli("export " + dir + "/run --iteration " + iteration + " --out " + dir + "/shape");
     EXPECT_EQ(result.exitCode, 2) << iteration << "\n" << result.output;
-    EXPECT_NE(result.output.find("--iteration " + std::string(iteration) + " must be in [0, 1]"), std::string::npos)
+    EXPECT_NE(result.output.find("--iteration " + std::string(iteration) + " must be in [0, 1]"),
+              std::string::npos)
         << result.output;
   }
   EXPECT_FALSE(fs::exists(dir + "/shape.svg"));
@@ -140,11 +146,12 @@ TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
 TEST(CliInput, AFileSizeLimitIsAReportedStorageFailure) {
   const std::string dir = freshDirectory("ulimit");
   // 4 KiB (ulimit -f counts 512-byte blocks in POSIX sh): the results file does not fit.
-  const std::string command = "sh -c 'ulimit -f 8; exec " + std::string(HINDSIGHT_CLI_PATH) +
-                              " optimize --iterations 1 --set rod.elementsAlongLength=8 --set rod.elementsThroughHeight=2"
-                              " --set rod.modeCount=2 --set rod.endTime=0.02 --set rod.rampTime=0.01"
-                              " --set rod.eslSamples=4 --set simulation.step=1e-3 --out " +
-                              dir + "/run' 2>&1";
+  const std::string command =
+      "sh -c 'ulimit -f 8; exec " + std::string(HINDSIGHT_CLI_PATH) +
+      " optimize --iterations 1 --set rod.elementsAlongLength=8 --set rod.elementsThroughHeight=2"
+      " --set rod.modeCount=2 --set rod.endTime=0.02 --set rod.rampTime=0.01"
+      " --set rod.eslSamples=4 --set simulation.step=1e-3 --out " +
+      dir + "/run' 2>&1";
   FILE* pipe = popen(command.c_str(), "r");
   ASSERT_NE(pipe, nullptr);
   std::string output;

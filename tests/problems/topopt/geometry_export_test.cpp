@@ -183,7 +183,8 @@ TEST(GeometryExport, WrittenFilesAreCompleteAndTheStlReadsBackClosed) {
   dxfText << dxf.rdbuf();
   const std::string d = dxfText.str();
   std::size_t polylines = 0;
-  for (std::size_t at = d.find("POLYLINE"); at != std::string::npos; at = d.find("POLYLINE", at + 1)) ++polylines;
+  for (std::size_t at = d.find("POLYLINE"); at != std::string::npos; at = d.find("POLYLINE", at + 1))
+    ++polylines;
   EXPECT_EQ(polylines, contourOutline(f, 0.5).loops.size());
   EXPECT_NE(d.find("$INSUNITS\n70\n4\n"), std::string::npos);  // millimetres
   EXPECT_NE(d.rfind("0\nEOF\n"), std::string::npos);

@@ -82,7 +82,8 @@ ResultsData fixture() {
 }
 
 fs::path scratch(const std::string& name) {
-  const fs::path directory = fs::temp_directory_path() / ("hindsight_history_schema_" + std::to_string(::getpid()));
+  const fs::path directory =
+      fs::temp_directory_path() / ("hindsight_history_schema_" + std::to_string(::getpid()));
   fs::create_directories(directory);
   return directory / name;
 }
@@ -138,7 +139,8 @@ TEST(HistorySchema, FileHoldsEveryColumnAndReadsItBack) {
     ASSERT_GE(H5Gget_info(group, &info), 0);
     for (hsize_t i = 0; i < info.nlinks; ++i) {
       char name[256];
-      ASSERT_GT(H5Lget_name_by_idx(group, ".", H5_INDEX_NAME, H5_ITER_INC, i, name, sizeof name, H5P_DEFAULT), 0);
+      ASSERT_GT(H5Lget_name_by_idx(group, ".", H5_INDEX_NAME, H5_ITER_INC, i, name, sizeof name, H5P_DEFAULT),
+                0);
       stored.insert(name);
     }
     H5Gclose(group);
@@ -162,14 +164,19 @@ TEST(HistorySchema, FileHoldsEveryColumnAndReadsItBack) {
 // the writer that named the columns one by one. (The root hash is not pinned here: it also covers the
 // optimizer state's datasets, whose layout is not the history's.)
 TEST(HistorySchema, EveryColumnIsStoredAsBefore) {
-  const std::pair<const char*, const char*> recorded[] = {
-      {"iteration", "fnv1a64:37c60563f8be8725"},          {"backtracks", "fnv1a64:cbc03cb51860ba16"},
-      {"psi1", "fnv1a64:7c674de76a4460eb"},               {"psi2", "fnv1a64:d3074396a9bacb8a"},
-      {"volume_fraction", "fnv1a64:7b1ec0f9051f276d"},    {"max_design_change", "fnv1a64:550955819e1e78fc"},
-      {"evaluation_seconds", "fnv1a64:bce891cbaf0df7f9"}, {"mma_seconds", "fnv1a64:2b13f69c1ca688b0"},
-      {"total_seconds", "fnv1a64:abf549a974b72e15"},      {"grayness", "fnv1a64:fa9fb2ed57eb10dd"},
-      {"first_frequency_hz", "fnv1a64:ff586e4ca500b093"}, {"kkt_residual", "fnv1a64:5a8d9f421805fcc7"},
-      {"inner_iterations", "fnv1a64:6d72151ca19542ad"}};
+  const std::pair<const char*, const char*> recorded[] = {{"iteration", "fnv1a64:37c60563f8be8725"},
+                                                          {"backtracks", "fnv1a64:cbc03cb51860ba16"},
+                                                          {"psi1", "fnv1a64:7c674de76a4460eb"},
+                                                          {"psi2", "fnv1a64:d3074396a9bacb8a"},
+                                                          {"volume_fraction", "fnv1a64:7b1ec0f9051f276d"},
+                                                          {"max_design_change", "fnv1a64:550955819e1e78fc"},
+                                                          {"evaluation_seconds", "fnv1a64:bce891cbaf0df7f9"},
+                                                          {"mma_seconds", "fnv1a64:2b13f69c1ca688b0"},
+                                                          {"total_seconds", "fnv1a64:abf549a974b72e15"},
+                                                          {"grayness", "fnv1a64:fa9fb2ed57eb10dd"},
+                                                          {"first_frequency_hz", "fnv1a64:ff586e4ca500b093"},
+                                                          {"kkt_residual", "fnv1a64:5a8d9f421805fcc7"},
+                                                          {"inner_iterations", "fnv1a64:6d72151ca19542ad"}};
   ASSERT_EQ(std::size(recorded), historyColumns().size());
   const fs::path path = scratch("hash.h5");
   writeResultsFile(path.string(), fixture());
@@ -177,7 +184,8 @@ TEST(HistorySchema, EveryColumnIsStoredAsBefore) {
   for (std::size_t k = 0; k < historyColumns().size(); ++k) {
     EXPECT_STREQ(historyColumns()[k].name, recorded[k].first) << "the file order of the columns changed";
     const hdf5::Handle dataset = hdf5::openDataset(file.get(), std::string("history/") + recorded[k].first);
-    EXPECT_EQ(hdf5::readStringAttribute(dataset.get(), "content_hash"), recorded[k].second) << recorded[k].first;
+    EXPECT_EQ(hdf5::readStringAttribute(dataset.get(), "content_hash"), recorded[k].second)
+        << recorded[k].first;
   }
   fs::remove_all(path.parent_path());
 }

@@ -205,14 +205,18 @@ TEST(Mma, KktResidualVanishesAtTheKktPointAndMeasuresEachViolation) {
   // clips the step at the bound, so the residual is the distance to it, at most the gradient).
   const Vector at = (Vector(1) << 0.0).finished();
   const Matrix none(0, 1);
-  EXPECT_EQ(kktResidual(at, Vector::Constant(1, 0.3), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
-            0.0);
-  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -0.3), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+  EXPECT_EQ(
+      kktResidual(at, Vector::Constant(1, 0.3), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+      0.0);
+  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -0.3), Vector(0), none, Vector(0), Vector::Zero(1),
+                        Vector::Ones(1)),
             0.3);
-  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -3.0), Vector(0), none, Vector(0), Vector::Zero(1), Vector::Ones(1)),
+  EXPECT_EQ(kktResidual(at, Vector::Constant(1, -3.0), Vector(0), none, Vector(0), Vector::Zero(1),
+                        Vector::Ones(1)),
             1.0);
-  EXPECT_THROW(kktResidual(x, Vector::Zero(n - 1), Vector::Zero(1), g.transpose(), Vector::Zero(1), xmin, xmax),
-               std::invalid_argument);
+  EXPECT_THROW(
+      kktResidual(x, Vector::Zero(n - 1), Vector::Zero(1), g.transpose(), Vector::Zero(1), xmin, xmax),
+      std::invalid_argument);
 }
 
 // MMA's iterates drive the residual to zero on Svanberg's two-sphere problem: large at the start,
@@ -255,14 +259,14 @@ TEST(Mma, AdaptiveMoveLimitShrinksAfterARiseAndGrowsAfterADecrease) {
   };
   EXPECT_DOUBLE_EQ(step(1.0, -0.5), 0.4);  // first update: the configured limit
   EXPECT_EQ(mma.state().objective, 1.0);
-  EXPECT_DOUBLE_EQ(step(2.0, -0.5), 0.2);  // raised: halved
+  EXPECT_DOUBLE_EQ(step(2.0, -0.5), 0.2);   // raised: halved
   EXPECT_DOUBLE_EQ(step(1.5, -0.5), 0.24);  // lowered: 1.2x
   EXPECT_DOUBLE_EQ(step(1.7, 0.3), 0.24);   // infeasible: unchanged, objective forgotten
   EXPECT_TRUE(std::isnan(mma.state().objective));
   EXPECT_DOUBLE_EQ(step(9.0, -0.5), 0.24);  // no feasible predecessor to compare with
   EXPECT_DOUBLE_EQ(step(1.0, -0.5), 0.288);
   EXPECT_DOUBLE_EQ(step(0.5, -0.5), 0.3456);
-  EXPECT_DOUBLE_EQ(step(0.4, -0.5), 0.4);  // capped at move_limit
+  EXPECT_DOUBLE_EQ(step(0.4, -0.5), 0.4);             // capped at move_limit
   for (int k = 0; k < 20; ++k) step(10.0 + k, -0.5);  // rising forever: down to the floor
   EXPECT_DOUBLE_EQ(mma.state().moveLimit, options.min_move_limit);
 

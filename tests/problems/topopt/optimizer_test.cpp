@@ -1107,7 +1107,6 @@ TEST(OptimizeCommand, AFullDiskExitsThreeAndKeepsTheLastCompleteResults) {
 }
 #endif
 
-
 // ---- GCMMA, frequency guard, projection, geometry export ----
 
 TEST(TopologyOptimizer, GcmmaHistoryOnTheRodNeverIncreasesAndEveryAcceptedDesignIsFeasible) {
@@ -1261,7 +1260,8 @@ TEST(TopologyOptimizer, FrequencyGuardRestoresAViolatedFirstFrequencyBound) {
   TopologyOptimizer optimizer(config);
   std::vector<IterationRecord> history;
   while (!optimizer.finished()) history.push_back(optimizer.step());
-  for (const IterationRecord& r : history) std::cout << progressLine(r) << "  f1 " << r.firstFrequencyHz << " Hz\n";
+  for (const IterationRecord& r : history)
+    std::cout << progressLine(r) << "  f1 " << r.firstFrequencyHz << " Hz\n";
   EXPECT_LT(history.front().firstFrequencyHz, 70.0);
   EXPECT_GE(history.back().firstFrequencyHz, 70.0 * (1.0 - 1e-3));
   EXPECT_LT(history.back().psi1, history.front().psi1);

@@ -1,5 +1,6 @@
-// The optimizer-robustness claims (GCMMA never worse, the frequency guard's no step-back), end to end on the default 200 x 12 problem (50 iterations each; minutes of CPU,
-// so DISABLED_ here and run by the ctest entry `optimizer.robustness`, label `long`):
+// The optimizer-robustness claims (GCMMA never worse, the frequency guard's no step-back), end to end on the
+// default 200 x 12 problem (50 iterations each; minutes of CPU, so DISABLED_ here and run by the ctest entry
+// `optimizer.robustness`, label `long`):
 //   ctest --test-dir build -L long -R robustness --output-on-failure
 #include <hindsight/problems/topopt/topology_optimizer.h>
 

@@ -38,7 +38,8 @@ json threeScenarios(const std::string& aggregate) {
   return json::parse(R"({
     "rod": {"elementsAlongLength": 20, "elementsThroughHeight": 4, "modeCount": 4, "endTime": 0.5, "rampTime": 0.5},
     "simulation": {"step": 2e-4},
-    "optimization": {"moveLimit": 0.1, "aggregate": ")" + aggregate + R"("},
+    "optimization": {"moveLimit": 0.1, "aggregate": ")" +
+                     aggregate + R"("},
     "scenarios": [
       {"name": "slow", "crankSpeed": 15.707963267948966},
       {"name": "nominal"},
@@ -105,7 +106,8 @@ TEST(Scenarios, BadInputIsRejectedNamingTheField) {
   EXPECT_NE(errorOf(in).find("scenarios[2].speed is unknown"), std::string::npos) << errorOf(in);
   in = threeScenarios("sum");
   in["scenarios"][2]["name"] = "slow";
-  EXPECT_NE(errorOf(in).find("scenarios[2].name = \"slow\" is used by an earlier scenario"), std::string::npos)
+  EXPECT_NE(errorOf(in).find("scenarios[2].name = \"slow\" is used by an earlier scenario"),
+            std::string::npos)
       << errorOf(in);
   in = threeScenarios("sum");
   in["scenarios"][1].erase("name");
@@ -121,7 +123,8 @@ TEST(Scenarios, BadInputIsRejectedNamingTheField) {
             std::string::npos)
       << errorOf(in);
   in = threeScenarios("worst");
-  EXPECT_NE(errorOf(in).find("'optimization.aggregate' = \"worst\" must be one of: sum, max"), std::string::npos)
+  EXPECT_NE(errorOf(in).find("'optimization.aggregate' = \"worst\" must be one of: sum, max"),
+            std::string::npos)
       << errorOf(in);
   in = threeScenarios("sum");
   in["scenarios"] = json::object();
@@ -186,8 +189,8 @@ TEST(Scenarios, SumAggregateTakesTheMmaStepOfTheWeightedRelativeGradients) {
   Vector alone = x0;
   Mma other(n, 1, options);
   const PistonRodEvaluation fast = PistonRod(cases[2]).evaluate(x0, PistonRod::Request{});
-  other.update(1.0, fast.dpsi1 / fast.psi1, constraint, jacobian, Vector::Constant(n, config.rod.designLowerBound),
-               Vector::Ones(n), alone);
+  other.update(1.0, fast.dpsi1 / fast.psi1, constraint, jacobian,
+               Vector::Constant(n, config.rod.designLowerBound), Vector::Ones(n), alone);
   EXPECT_GT((alone - x1).cwiseAbs().maxCoeff(), 1e-6);
 }
 
@@ -201,7 +204,8 @@ TEST(Scenarios, MaxAggregateFollowsTheWorstScenarioWhenItChanges) {
   const Vector scales = optimizer.state().scenarioScales;
   auto worstValue = [&](const IterationRecord& r) {
     double worst = 0.0;
-    for (int s = 0; s < 3; ++s) worst = std::max(worst, config.scenarios[s].weight * r.scenarioPsi1[s] / scales(s));
+    for (int s = 0; s < 3; ++s)
+      worst = std::max(worst, config.scenarios[s].weight * r.scenarioPsi1[s] / scales(s));
     return worst;
   };
   EXPECT_EQ(history[0].worstScenario, 2);  // fast (its weight 1.04)
@@ -280,7 +284,8 @@ TEST(Scenarios, EquivalentStaticLoadsInParallelGiveTheSerialBits) {
 }
 
 TEST(Scenarios, ResultsFileKeepsEveryScenarioAndAResumedRunIsBitIdentical) {
-  const fs::path base = fs::temp_directory_path() / ("hindsight_scenarios_test_" + std::to_string(::getpid()));
+  const fs::path base =
+      fs::temp_directory_path() / ("hindsight_scenarios_test_" + std::to_string(::getpid()));
   fs::remove_all(base);
   std::ostringstream progress;
   OptimizationRunOptions straight;
@@ -329,7 +334,8 @@ TEST(Scenarios, FrequencyGuardHoldsForEveryAggregate) {
     while (!optimizer.finished()) history.push_back(optimizer.step());
     EXPECT_LT(history.front().firstFrequencyHz, 70.0);
     EXPECT_GE(history.back().firstFrequencyHz, 70.0 * (1.0 - 1e-3));
-    for (int s = 0; s < 3; ++s) EXPECT_LT(history.back().scenarioPsi1[s], history.front().scenarioPsi1[s]) << s;
+    for (int s = 0; s < 3; ++s)
+      EXPECT_LT(history.back().scenarioPsi1[s], history.front().scenarioPsi1[s]) << s;
     config.optimization.minFirstFrequency = 0.0;
     TopologyOptimizer unguarded(config);
     IterationRecord last;
@@ -340,7 +346,8 @@ TEST(Scenarios, FrequencyGuardHoldsForEveryAggregate) {
 
 // GCMMA with scenarios: its trials evaluate every scenario (collectively over ranks; tests/mpi checks 1
 // against 2 ranks). Conservative steps: once the volume bound holds, the aggregate (sum of the relative
-// objectives, or their maximum) never increases, as for one scenario (docs/tutorials/topology_optimization.md, "Robustness options").
+// objectives, or their maximum) never increases, as for one scenario
+// (docs/tutorials/topology_optimization.md, "Robustness options").
 TEST(Scenarios, GcmmaNeverIncreasesTheAggregateOnceFeasible) {
   for (const std::string aggregate : {"sum", "max"}) {
     SCOPED_TRACE(aggregate);
