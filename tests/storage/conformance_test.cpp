@@ -9,10 +9,10 @@
 // same storage object reused for a second run gives the same bits.
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/storage/storage_factory.h>
-#include <hindsight/engine/storage_spec.h>
 
 #include <gtest/gtest.h>
 
@@ -124,7 +124,8 @@ class Conformance : public ::testing::TestWithParam<std::string> {
     EXPECT_EQ(result.summary.steps, reference.summary.steps);
     if (StorageSpec::parse(GetParam()).name() == "full") EXPECT_EQ(counters.recomputedSteps, 0);
     const std::string name = StorageSpec::parse(GetParam()).name();
-    if (storage->keepsStepData() && (name == "full" || name == "disk") && isRungeKutta(parseIntegratorMethod(options.method))) {
+    if (storage->keepsStepData() && (name == "full" || name == "disk") &&
+        isRungeKutta(parseIntegratorMethod(options.method))) {
       // Every step's stage values are kept: no adjoint step evaluates the right-hand side, so the run
       // evaluates it exactly as often as the forward sweep alone.
       EXPECT_EQ(counters.stepDataRestored, result.summary.steps);
@@ -133,8 +134,8 @@ class Conformance : public ::testing::TestWithParam<std::string> {
       EXPECT_LT(result.summary.rhsEvaluations, reference.summary.rhsEvaluations);
     }
 
-    if (storage->keepsStepData() && (name == "binomial" || name == "online") && isRungeKutta(parseIntegratorMethod(options.method)) &&
-        result.summary.steps > 2) {
+    if (storage->keepsStepData() && (name == "binomial" || name == "online") &&
+        isRungeKutta(parseIntegratorMethod(options.method)) && result.summary.steps > 2) {
       // Every restore that recomputes leaves the stages of the step before it, so the next adjoint
       // step finds them; restores that load a checkpoint placed exactly there leave none.
       EXPECT_GT(counters.stepDataRestored, 0);
@@ -151,7 +152,12 @@ class Conformance : public ::testing::TestWithParam<std::string> {
     const std::int64_t recomputed = counters.recomputedSteps;
     const GradientResult again = computeGradient(problem, p, options, *storage);
     expectSameGradient(again, reference, *storage);
-    EXPECT_EQ(storage->counters().recomputedSteps, recomputed);
+    // multilevel without costs= times forward steps and disk I/O at the start of each run and plans by
+    // those times (storage/multilevel_storage.h), so its recomputation count may differ between runs;
+    // the gradient's bits may not.
+    const bool timedPlan =
+        GetParam().rfind("multilevel", 0) == 0 && GetParam().find("costs=") == std::string::npos;
+    if (!timedPlan) EXPECT_EQ(storage->counters().recomputedSteps, recomputed);
     EXPECT_LE(storage->counters().peakBytesInMemory, storage->budgetBytes());
   }
 
