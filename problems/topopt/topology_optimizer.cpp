@@ -260,8 +260,8 @@ IterationRecord TopologyOptimizer::step() {
   record.iteration = state_.iteration;
   // The final evaluation of a run that reached the iteration cap is that of its best feasible design
   // (the class comment); without projection the model of x_k* is the one it was evaluated with.
-  const bool ruleOn = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0;
-  const bool toBest = ruleOn && !update && state_.bestDesign.size() > 0 && settings.projectionBeta == 0.0;
+  const bool toBest =
+      stoppingRuleOn() && !update && state_.bestDesign.size() > 0 && settings.projectionBeta == 0.0;
   Vector design = toBest ? state_.bestDesign : state_.design;
   std::optional<ScenarioResults> evaluated;
   while (!evaluated) {
@@ -293,8 +293,6 @@ IterationRecord TopologyOptimizer::step() {
                                        ? evaluation.exchangeSeconds
                                        : std::min(times_.smallestExchangeSeconds, evaluation.exchangeSeconds);
   ++times_.exchanges;
-  record.psi1 = evaluation.psi1[0];
-  record.psi2 = evaluation.psi2[0];
   record.volumeFraction = evaluation.volumeFraction;
   record.grayness = grayness(modelDesign(design, state_.iteration));
   if (evaluation.local && !evaluation.local->frequenciesHz.empty())
@@ -336,6 +334,10 @@ IterationRecord TopologyOptimizer::step() {
   return record;
 }
 
+bool TopologyOptimizer::stoppingRuleOn() const {
+  return config().optimization.kktTolerance > 0.0 && config().optimization.changeTolerance > 0.0;
+}
+
 double TopologyOptimizer::scenarioScale(const OptimizerState& state, int s) const {
   return multiple_ ? state.scenarioScales(s) : state.objectiveScale;
 }
@@ -375,7 +377,8 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   record.psi2 = evaluation.psi2[worst];
   if (!update) return;
 
-  // The stagnation window: the aggregate the update minimizes (sum, or max, of the relative objectives).
+  // The aggregate the update minimizes (sum, or max, of the relative objectives, in scenario order from
+  // the first term: not from zero, which could flip the sign of a zero); the stagnation window's entry.
   double aggregate = relative(0);
   for (int s = 1; s < count; ++s)
     aggregate = bound_ ? std::max(aggregate, relative(s)) : aggregate + relative(s);
@@ -413,19 +416,14 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   }
   Vector x;
   if (!bound_) {
-    // Summed in scenario order from the first term (not from zero, which could flip the sign of a zero).
-    double objective = relative(0);
     Vector gradient = gradients[0];
-    for (int s = 1; s < count; ++s) {
-      objective += relative(s);
-      gradient += gradients[s];
-    }
+    for (int s = 1; s < count; ++s) gradient += gradients[s];
     const Vector& constraint = own;
     const Matrix& jacobian = ownJacobian;
     x = design;
     const Vector lower = Vector::Constant(n, config().rod.designLowerBound), upper = Vector::Ones(n);
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
-    updateDesign(state_.mma, objective, gradient, constraint, jacobian, lower, upper,
+    updateDesign(state_.mma, aggregate, gradient, constraint, jacobian, lower, upper,
                  gcmma_ ? &trials : nullptr, next.recentObjectives, bestSoFar, x, record);
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
@@ -518,8 +516,7 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   // run; the residual stalls above any useful tolerance there (docs/guides/optimizer.md).
   const bool collapsed =
       trials == nullptr && mma_.options().adaptive_move_limit && to.moveLimit <= settings.changeTolerance;
-  settled_ = settings.kktTolerance > 0.0 && settings.changeTolerance > 0.0 && feasible && bestSoFar &&
-             (stationary || collapsed);
+  settled_ = stoppingRuleOn() && feasible && bestSoFar && (stationary || collapsed);
   return to;
 }
 

@@ -249,6 +249,8 @@ class TopologyOptimizer final {
   Gcmma::Evaluate scenarioTrials(const OptimizerState& next) const;
   void updateFromScenarios(const ScenarioResults& results, OptimizerState& next, const Vector& design,
                            IterationRecord& record);
+  // kktTolerance and changeTolerance both > 0: the stopping rule, and with it the end at the best design.
+  bool stoppingRuleOn() const;
   // psi_s(x0), the scale of scenario s: the state's objectiveScale without a scenarios list.
   double scenarioScale(const OptimizerState& state, int s) const;
 
