@@ -65,7 +65,6 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
       throw NumericalError(std::string("the modal reduction of this design failed: ") + e.what(), 0.0);
     }
   }();
-  const rod::StiffnessFactorization& stiffness = *stiffnessPointer;
   const rod::InertiaInvariants invariants = rod::computeInvariants(model, basis);
   const Vector p = invariants.pack();
   for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
