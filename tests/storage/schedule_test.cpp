@@ -429,7 +429,10 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_NE(message("hermite:every=4", 10, 16, 4).find("not predicted"), std::string::npos);
   EXPECT_NE(message("online:checkpoints=5,budget=40", 10, 16, 4).find("online.budget"), std::string::npos);
   EXPECT_NE(message("binomial", 10, 16, 4).find("binomial.checkpoints"), std::string::npos);
-  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"),
+  // The stride is predicted by walking it, up to 2^24 steps.
+  EXPECT_EQ(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4), "no error");
+  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", (std::int64_t{1} << 24) + 1, 16, 4)
+                .find("multilevel.schedule = stride is predicted up to --steps"),
             std::string::npos);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3", "--costs"), std::invalid_argument);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3:-4", "--costs"), std::invalid_argument);
