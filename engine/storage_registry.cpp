@@ -25,7 +25,8 @@ ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& f
     } catch (const std::exception&) {
       throw std::invalid_argument(expected);
     }
-    if (used != part.size() || !(values[i] >= 0.0 && values[i] <= kMaxCost)) throw std::invalid_argument(expected);
+    if (used != part.size() || !(values[i] >= 0.0 && values[i] <= kMaxCost))
+      throw std::invalid_argument(expected);
     position = end + 1;
   }
   if (values[0] <= 0.0) throw std::invalid_argument(expected);
@@ -97,8 +98,9 @@ std::int64_t checkedCount(UnsignedInt128 value, const std::string& what) {
       digits.insert(digits.begin(), static_cast<char>('0' + static_cast<int>(rest % 10)));
       rest /= 10;
     } while (rest != 0);
-    throw std::invalid_argument(what + " = " + digits +
-                                " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
+    throw std::invalid_argument(
+        what + " = " + digits +
+        " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
   }
   return static_cast<std::int64_t>(value);
 }
@@ -112,10 +114,10 @@ std::int64_t stageRowDoubles(const PredictionRequest& request, bool stageRows, c
   const std::int64_t n = request.stateBytes / 8;
   const std::int64_t rowDoubles = stageRows ? n * request.stages : n;
   if (rowDoubles > std::numeric_limits<int>::max()) {
-    throw std::invalid_argument(name + ".stages = 1: a row of the state and its " +
-                                std::to_string(request.stages - 1) + " stage states has " +
-                                std::to_string(rowDoubles) +
-                                " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
+    throw std::invalid_argument(
+        name + ".stages = 1: a row of the state and its " + std::to_string(request.stages - 1) +
+        " stage states has " + std::to_string(rowDoubles) +
+        " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
   }
   return rowDoubles;
 }
@@ -146,11 +148,11 @@ SchedulePrediction predictFromRows(const std::vector<StorageStrategyRow>& rows, 
   // every forward, recomputed and stage-recomputing adjoint step. For cams, steps - stepDataRestored are
   // its adjoint recomputations; for the others it is the adjoint steps without stored stage values.
   const UnsignedInt128 steps = static_cast<UnsignedInt128>(request.steps);
-  p.rhsEvaluations = prediction::checkedCount(
-      static_cast<UnsignedInt128>(request.stages) *
-          (steps + static_cast<UnsignedInt128>(p.recomputedSteps) +
-           static_cast<UnsignedInt128>(request.steps - p.stepDataRestored)),
-      "rhs evaluations");
+  p.rhsEvaluations =
+      prediction::checkedCount(static_cast<UnsignedInt128>(request.stages) *
+                                   (steps + static_cast<UnsignedInt128>(p.recomputedSteps) +
+                                    static_cast<UnsignedInt128>(request.steps - p.stepDataRestored)),
+                               "rhs evaluations");
   // The request's cost model, or the row's own (multilevel's costs=).
   const ScheduleCosts& model = p.costs;
   p.scheduleCost = static_cast<double>(p.recomputedSteps + p.adjointRecomputations) * model.forwardStep +

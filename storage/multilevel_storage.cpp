@@ -679,9 +679,10 @@ void MultilevelStorage::predictStride(const Options& options, const PredictionRe
     counter.restore(e, restored);
   }
   const StorageCounters& c = counter.counters();
-  p.plan = "stride " + std::to_string(counter.stride()) + ": " + std::to_string(counter.statesInRam()) +
-           " kept states in RAM, " + std::to_string(counter.statesOnDisk()) +
-           " on disk, the states between recomputed into scratch slots";
+  p.plan =
+      "stride " + std::to_string(counter.stride()) + ": " + std::to_string(counter.statesInRam()) +
+      " kept states in RAM, " + std::to_string(counter.statesOnDisk()) +
+      " on disk, the states between recomputed into the free RAM slots (in rounds where they do not all fit)";
   p.recomputedSteps = c.recomputedSteps;
   p.statesStored = c.statesStored;
   p.ramWrites = -1;  // scratch copies are not counted by the run either
