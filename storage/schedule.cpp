@@ -901,6 +901,16 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     }
     model = *planCosts;  // the spec's own costs take precedence, as in a run
     const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, n);
+    // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
+    // name neither the levels nor the state size.
+    if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
+      throw std::invalid_argument("multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
+                                  " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) +
+                                  " hold " + std::to_string(layout.ramSlots) + " and " +
+                                  std::to_string(layout.diskSlots) + " states of --state-bytes = " +
+                                  formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
+                                  "; RAM must hold one state and both levels two: raise ram or disk");
+    }
     const TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
     p.plan = plan.describe();
     const TwoLevelPlan::Counts& c = plan.counts();
