@@ -30,20 +30,82 @@ const char* const kLists[] = {"rigidBodies", "joints", "drivers", "springs", "fr
 // The parser's vocabulary: every key and keyword of the section, the seeds' names, numbers at the
 // edges of double, and JSON's structural characters.
 std::vector<std::string> dictionary() {
-  std::vector<std::string> words = {
-      "\"mechanism\"", "\"gravity\"",    "\"ground\"",   "\"points\"",   "\"rigidBodies\"",    "\"flexibleMember\"",
-      "\"joints\"",    "\"drivers\"",    "\"springs\"",  "\"free\"",     "\"name\"",           "\"mass\"",
-      "\"inertia\"",   "\"position\"",   "\"angle\"",    "\"type\"",     "\"body1\"",          "\"point1\"",
-      "\"body2\"",     "\"point2\"",     "\"axis\"",     "\"joint\"",    "\"law\"",            "\"speed\"",
-      "\"rampTime\"",  "\"offset\"",     "\"stiffness\"", "\"restLength\"", "\"damping\"",     "\"body\"",
-      "\"coordinate\"", "\"velocity\"",  "\"revolute\"", "\"prismatic\"", "\"fixed\"",         "\"cycloidal-ramp\"",
-      "\"constant-speed\"", "\"x\"",     "\"y\"",        "\"A\"",        "\"B\"",              "\"ground\"",
-      "\"crank\"",     "\"slider\"",     "\"rod\"",      "\"rocker\"",   "\"coupler\"",        "\"bob\"",
-      "\"O\"",         "\"pin\"",        "\"center\"",   "1e400",        "-1e400",             "1e-400",
-      "-0",            "0",              "-1",           "1e300",        "4.9e-324",           "NaN",
-      "null",          "true",           "false",        "\"\"",         "[]",                 "{}",
-      "[0, 0]",        "[1e300, 1e300]", "{",            "}",            "[",                  "]",
-      ",",             ":",              "\"",           "\\u0000"};
+  std::vector<std::string> words = {"\"mechanism\"",
+                                    "\"gravity\"",
+                                    "\"ground\"",
+                                    "\"points\"",
+                                    "\"rigidBodies\"",
+                                    "\"flexibleMember\"",
+                                    "\"joints\"",
+                                    "\"drivers\"",
+                                    "\"springs\"",
+                                    "\"free\"",
+                                    "\"name\"",
+                                    "\"mass\"",
+                                    "\"inertia\"",
+                                    "\"position\"",
+                                    "\"angle\"",
+                                    "\"type\"",
+                                    "\"body1\"",
+                                    "\"point1\"",
+                                    "\"body2\"",
+                                    "\"point2\"",
+                                    "\"axis\"",
+                                    "\"joint\"",
+                                    "\"law\"",
+                                    "\"speed\"",
+                                    "\"rampTime\"",
+                                    "\"offset\"",
+                                    "\"stiffness\"",
+                                    "\"restLength\"",
+                                    "\"damping\"",
+                                    "\"body\"",
+                                    "\"coordinate\"",
+                                    "\"velocity\"",
+                                    "\"revolute\"",
+                                    "\"prismatic\"",
+                                    "\"fixed\"",
+                                    "\"cycloidal-ramp\"",
+                                    "\"constant-speed\"",
+                                    "\"x\"",
+                                    "\"y\"",
+                                    "\"A\"",
+                                    "\"B\"",
+                                    "\"ground\"",
+                                    "\"crank\"",
+                                    "\"slider\"",
+                                    "\"rod\"",
+                                    "\"rocker\"",
+                                    "\"coupler\"",
+                                    "\"bob\"",
+                                    "\"O\"",
+                                    "\"pin\"",
+                                    "\"center\"",
+                                    "1e400",
+                                    "-1e400",
+                                    "1e-400",
+                                    "-0",
+                                    "0",
+                                    "-1",
+                                    "1e300",
+                                    "4.9e-324",
+                                    "NaN",
+                                    "null",
+                                    "true",
+                                    "false",
+                                    "\"\"",
+                                    "[]",
+                                    "{}",
+                                    "[0, 0]",
+                                    "[1e300, 1e300]",
+                                    "{",
+                                    "}",
+                                    "[",
+                                    "]",
+                                    ",",
+                                    ":",
+                                    "\"",
+                                    "\\u0000"};
   return words;
 }
 
@@ -91,14 +153,16 @@ std::vector<json> interestingValues() {
 
 // The mesh and time span of the evaluations: milliseconds each (the Python tests' TINY).
 void makeTiny(Config& config) {
-  for (const char* setting : {"rod.elementsAlongLength=8", "rod.elementsThroughHeight=2", "rod.modeCount=2",
-                              "rod.rampTime=0.01", "rod.endTime=0.02", "rod.eslSamples=4", "simulation.step=1e-3"})
+  for (const char* setting :
+       {"rod.elementsAlongLength=8", "rod.elementsThroughHeight=2", "rod.modeCount=2", "rod.rampTime=0.01",
+        "rod.endTime=0.02", "rod.eslSamples=4", "simulation.step=1e-3"})
     applySetting(config, setting, /*validate=*/false);
 }
 
 json tinySections(json input) {
-  input["rod"] = {{"elementsAlongLength", 8}, {"elementsThroughHeight", 2}, {"modeCount", 2}, {"rampTime", 0.01},
-                  {"endTime", 0.02},         {"eslSamples", 4}};
+  input["rod"] = {{"elementsAlongLength", 8}, {"elementsThroughHeight", 2},
+                  {"modeCount", 2},           {"rampTime", 0.01},
+                  {"endTime", 0.02},          {"eslSamples", 4}};
   input["simulation"] = {{"step", 1e-3}};
   return input;
 }
@@ -116,7 +180,8 @@ void expectSoundMechanism(const Config& accepted, const std::string& input, bool
     const json out = toJson(accepted);
     EXPECT_EQ(toJson(configFromJson(out)), out) << input;
   } catch (const std::exception& e) {
-    ADD_FAILURE() << "an accepted mechanism does not read back: " << e.what() << "\n" << fuzz::printable(input);
+    ADD_FAILURE() << "an accepted mechanism does not read back: " << e.what() << "\n"
+                  << fuzz::printable(input);
   }
   if (!evaluate) return;
   Config config = accepted;
@@ -132,7 +197,8 @@ void expectSoundMechanism(const Config& accepted, const std::string& input, bool
     request.psi2 = false;
     request.psi2Gradient = false;
     const PistonRodEvaluation e = rod.evaluate(rod.initialDesign(), request);
-    EXPECT_TRUE(std::isfinite(e.psi1) && e.psi1 >= 0.0) << "psi1 = " << e.psi1 << " for\n" << fuzz::printable(input);
+    EXPECT_TRUE(std::isfinite(e.psi1) && e.psi1 >= 0.0) << "psi1 = " << e.psi1 << " for\n"
+                                                        << fuzz::printable(input);
     EXPECT_TRUE(e.dpsi1.allFinite()) << "a non-finite gradient for\n" << fuzz::printable(input);
   } catch (const NumericalError& e) {
     EXPECT_GT(std::string(e.what()).size(), 10u) << input;
@@ -154,7 +220,8 @@ Outcome expectConfigOrInvalidArgument(Read&& read, const std::string& input, boo
     outcome.message = e.what();
     EXPECT_FALSE(outcome.message.empty()) << input;
   } catch (const std::exception& e) {
-    ADD_FAILURE() << "threw " << typeid(e).name() << " (" << e.what() << ") instead of std::invalid_argument for\n"
+    ADD_FAILURE() << "threw " << typeid(e).name() << " (" << e.what()
+                  << ") instead of std::invalid_argument for\n"
                   << fuzz::printable(input);
   }
   return outcome;
@@ -208,9 +275,10 @@ TEST(MechanismFuzz, RandomFieldValues) {
   const auto all = seeds();
   const auto values = interestingValues();
   const std::vector<std::string> fieldNames = {
-      "name",   "mass",   "inertia", "position", "angle",    "points",    "type",       "body1",   "point1",
-      "body2",  "point2", "axis",    "joint",    "law",      "speed",     "rampTime",   "offset",  "stiffness",
-      "restLength", "damping", "body", "coordinate", "velocity", "gravity", "ground", "colour"};
+      "name",       "mass",     "inertia", "position",  "angle",      "points",  "type",
+      "body1",      "point1",   "body2",   "point2",    "axis",       "joint",   "law",
+      "speed",      "rampTime", "offset",  "stiffness", "restLength", "damping", "body",
+      "coordinate", "velocity", "gravity", "ground",    "colour"};
   fuzz::Mutator mutator(fuzz::seed(22));
   int accepted = 0;
   for (int k = 0; k < fuzz::cases(1500); ++k) {
@@ -263,7 +331,8 @@ TEST(MechanismFuzz, RandomFieldValues) {
                   mutator.pick(values);
               break;
             case 1:
-              m["ground"]["points"][mutator.pick(std::vector<std::string>{"O", "O2", "S", ""})] = mutator.pick(values);
+              m["ground"]["points"][mutator.pick(std::vector<std::string>{"O", "O2", "S", ""})] =
+                  mutator.pick(values);
               break;
             default:
               m["gravity"] = mutator.pick(values);
@@ -277,12 +346,14 @@ TEST(MechanismFuzz, RandomFieldValues) {
         case 8:  // a numeric field scaled far out of its range or negated
           if (element != nullptr && element->is_object()) {
             for (auto& [key, value] : element->items()) {
-              if (value.is_number() && mutator.chance(0.5)) value = value.get<double>() * (mutator.chance(0.5) ? -1.0 : 1e200);
+              if (value.is_number() && mutator.chance(0.5))
+                value = value.get<double>() * (mutator.chance(0.5) ? -1.0 : 1e200);
             }
           }
           break;
         default:  // any field of an element set to any value
-          if (element != nullptr && element->is_object()) (*element)[mutator.pick(fieldNames)] = mutator.pick(values);
+          if (element != nullptr && element->is_object())
+            (*element)[mutator.pick(fieldNames)] = mutator.pick(values);
       }
     }
     const std::string text = input.dump(-1, ' ', false, json::error_handler_t::replace);
@@ -305,20 +376,26 @@ TEST(MechanismFuzz, EverySingleFaultIsNamedWithItsElementAndField) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
   // Faults by the kind of field: values no field of that kind may take.
-  const std::vector<json> badNumbers = {json(nan), json(inf), json(-inf), json("1"), json(nullptr),
-                                        json(true), json::array(), json::object()};
+  const std::vector<json> badNumbers = {json(nan),     json(inf),  json(-inf),    json("1"),
+                                        json(nullptr), json(true), json::array(), json::object()};
   const std::vector<json> badNonNegative = {json(-1.0), json(-1e-300), json(-1e300)};
-  const std::vector<json> badVectors = {json(1.0),          json::array(),           json::array({1.0}),
-                                        json::array({1, 2, 3}), json::array({nan, 0.0}), json::array({0.0, inf}),
-                                        json::array({"a", 0.0}), json("[0, 0]"),         json(nullptr)};
+  const std::vector<json> badVectors = {json(1.0),
+                                        json::array(),
+                                        json::array({1.0}),
+                                        json::array({1, 2, 3}),
+                                        json::array({nan, 0.0}),
+                                        json::array({0.0, inf}),
+                                        json::array({"a", 0.0}),
+                                        json("[0, 0]"),
+                                        json(nullptr)};
   const std::vector<json> badTexts = {json(1), json(nullptr), json(true), json::array(), json::object()};
   const std::vector<json> badReferences = {json("nowhere"), json(""), json("Ground")};
   const std::set<std::string> nonNegative = {"mass", "inertia", "stiffness", "restLength", "damping"};
-  const std::set<std::string> numbers = {"mass",  "inertia", "angle",     "speed",      "rampTime",
+  const std::set<std::string> numbers = {"mass",   "inertia",  "angle",     "speed",      "rampTime",
                                          "offset", "velocity", "stiffness", "restLength", "damping"};
   const std::set<std::string> vectors = {"position", "axis"};
-  const std::set<std::string> references = {"body1", "point1", "body2", "point2", "joint", "body",
-                                            "type",  "law",    "coordinate"};
+  const std::set<std::string> references = {"body1", "point1", "body2", "point2",    "joint",
+                                            "body",  "type",   "law",   "coordinate"};
   int cases = 0;
   for (const json& seed : seeds()) {
     for (const char* list : kLists) {
@@ -327,21 +404,25 @@ TEST(MechanismFuzz, EverySingleFaultIsNamedWithItsElementAndField) {
       for (std::size_t i = 0; i < elements.size(); ++i) {
         const json& element = elements[i];
         // How the messages name the element: by its name, or the free coordinate by its index.
-        const std::string where = std::string("mechanism.") + list +
-                                  (element.contains("name") ? "[" + element["name"].get<std::string>() + "]" : "");
+        const std::string where =
+            std::string("mechanism.") + list +
+            (element.contains("name") ? "[" + element["name"].get<std::string>() + "]" : "");
         for (const auto& [field, original] : element.items()) {
           std::vector<json> faults;
           if (numbers.count(field)) faults = badNumbers;
-          if (nonNegative.count(field)) faults.insert(faults.end(), badNonNegative.begin(), badNonNegative.end());
+          if (nonNegative.count(field))
+            faults.insert(faults.end(), badNonNegative.begin(), badNonNegative.end());
           if (field == "rampTime") faults.push_back(json(0.0));
           if (vectors.count(field)) faults = badVectors;
           if (field == "axis") faults.push_back(json::array({0.0, 0.0}));
           if (field == "name" || references.count(field)) faults = badTexts;
-          if (references.count(field)) faults.insert(faults.end(), badReferences.begin(), badReferences.end());
+          if (references.count(field))
+            faults.insert(faults.end(), badReferences.begin(), badReferences.end());
           for (const json& fault : faults) {
             json input = tinySections(seed);
             input["mechanism"][list][i][field] = fault;
-            const std::string text = input["mechanism"][list][i].dump(-1, ' ', false, json::error_handler_t::replace);
+            const std::string text =
+                input["mechanism"][list][i].dump(-1, ' ', false, json::error_handler_t::replace);
             ++cases;
             try {
               configFromJson(input);
@@ -354,13 +435,13 @@ TEST(MechanismFuzz, EverySingleFaultIsNamedWithItsElementAndField) {
                                         message.find(std::string("mechanism.") + list) != std::string::npos;
               std::string partner = field;
               if (field.rfind("body", 0) == 0 && field.size() == 5) partner = "point" + field.substr(4);
-              const bool namesField = message.find(field) != std::string::npos ||
-                                      message.find(partner) != std::string::npos;
+              const bool namesField =
+                  message.find(field) != std::string::npos || message.find(partner) != std::string::npos;
               EXPECT_TRUE(namesElement && namesField)
                   << "'" << message << "' for " << where << "." << field << " = " << fault.dump();
             } catch (const std::exception& e) {
-              ADD_FAILURE() << typeid(e).name() << " (" << e.what() << ") for " << where << "." << field << " = "
-                            << fault.dump();
+              ADD_FAILURE() << typeid(e).name() << " (" << e.what() << ") for " << where << "." << field
+                            << " = " << fault.dump();
             }
           }
         }
@@ -376,7 +457,9 @@ TEST(MechanismFuzz, EverySingleFaultIsNamedWithItsElementAndField) {
 // or, now and then, one too many, a wrong reference or an impossible pose. Accepted ones are
 // evaluated.
 json randomMechanism(fuzz::Mutator& mutator, double length) {
-  const auto uniform = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(mutator.rng()); };
+  const auto uniform = [&](double a, double b) {
+    return std::uniform_real_distribution<double>(a, b)(mutator.rng());
+  };
   struct Pose {
     std::string name;
     double x, y, angle;
@@ -414,7 +497,9 @@ json randomMechanism(fuzz::Mutator& mutator, double length) {
     m["rigidBodies"][static_cast<std::size_t>(body)]["points"][name] = {c * dx + s * dy, -s * dx + c * dy};
     return name;
   };
-  const auto nameOf = [&](int body) { return body < 0 ? std::string("ground") : bodies[static_cast<std::size_t>(body)].name; };
+  const auto nameOf = [&](int body) {
+    return body < 0 ? std::string("ground") : bodies[static_cast<std::size_t>(body)].name;
+  };
   const double ax = member.x, ay = member.y;
   const double bx = ax + length * std::cos(member.angle), by = ay + length * std::sin(member.angle);
   m["joints"] = json::array();
@@ -423,7 +508,8 @@ json randomMechanism(fuzz::Mutator& mutator, double length) {
   const int jointCount = static_cast<int>(mutator.below(static_cast<std::size_t>(2 + 2 * rigid)));
   const int others = static_cast<int>(rigid);  // bodies -1 (ground) .. rigid - 1
   for (int j = 0; j < jointCount; ++j) {
-    const std::string type = mutator.pick(std::vector<std::string>{"revolute", "revolute", "prismatic", "fixed"});
+    const std::string type =
+        mutator.pick(std::vector<std::string>{"revolute", "revolute", "prismatic", "fixed"});
     json joint = {{"name", "j" + std::to_string(j)}, {"type", type}};
     // One end on the member (A or B) half of the time, else between two different rigid bodies/ground.
     int body1 = static_cast<int>(mutator.below(static_cast<std::size_t>(others + 1))) - 1;
@@ -456,8 +542,9 @@ json randomMechanism(fuzz::Mutator& mutator, double length) {
           if (b.name == name) return b.angle;
         return 0.0;
       };
-      const double offset =
-          type == "revolute" ? angleOf(joint["body2"].get<std::string>()) - angleOf(joint["body1"].get<std::string>()) : 0.0;
+      const double offset = type == "revolute" ? angleOf(joint["body2"].get<std::string>()) -
+                                                     angleOf(joint["body1"].get<std::string>())
+                                               : 0.0;
       json driver = {{"name", "d" + std::to_string(j)},
                      {"joint", joint["name"]},
                      {"speed", uniform(-20, 20)},
@@ -531,15 +618,16 @@ TEST(MechanismFuzz, HugeLists) {
       json input = tinySections(seed);
       json& m = input["mechanism"];
       json copies = json::array();
-      const json prototype = m.contains(list) && !m[list].empty() ? m[list][0] : json::object({{"body", "crank"}});
+      const json prototype =
+          m.contains(list) && !m[list].empty() ? m[list][0] : json::object({{"body", "crank"}});
       for (std::size_t i = 0; i < count; ++i) {
         json copy = prototype;
         if (copy.contains("name")) copy["name"] = std::string(list) + std::to_string(i);
         copies.push_back(copy);
       }
       m[list] = copies;
-      expectConfigOrInvalidArgument([&] { return configFromJson(input); }, std::string(list) + " x " + std::to_string(count),
-                                    false);
+      expectConfigOrInvalidArgument([&] { return configFromJson(input); },
+                                    std::string(list) + " x " + std::to_string(count), false);
     }
   }
   // A valid description with many bodies: each welded to the ground (a fixed joint, as many
@@ -551,16 +639,23 @@ TEST(MechanismFuzz, HugeLists) {
     json& m = input["mechanism"];
     for (std::size_t i = 0; i < count; ++i) {
       const std::string name = "weight" + std::to_string(i);
-      m["rigidBodies"].push_back({{"name", name}, {"mass", 1.0}, {"position", {0.0, -1.0}}, {"points", {{"c", {0.0, 0.0}}}}});
+      m["rigidBodies"].push_back(
+          {{"name", name}, {"mass", 1.0}, {"position", {0.0, -1.0}}, {"points", {{"c", {0.0, 0.0}}}}});
       m["ground"]["points"][name] = {0.0, -1.0};
-      m["joints"].push_back({{"name", "weld" + std::to_string(i)}, {"type", "fixed"}, {"body1", "ground"}, {"point1", name},
-                             {"body2", name}, {"point2", "c"}});
+      m["joints"].push_back({{"name", "weld" + std::to_string(i)},
+                             {"type", "fixed"},
+                             {"body1", "ground"},
+                             {"point1", name},
+                             {"body2", name},
+                             {"point2", "c"}});
     }
-    const Outcome outcome =
-        expectConfigOrInvalidArgument([&] { return configFromJson(input); }, std::to_string(count) + " welded bodies", true);
+    const Outcome outcome = expectConfigOrInvalidArgument([&] { return configFromJson(input); },
+                                                          std::to_string(count) + " welded bodies", true);
     const std::size_t bodies = count + 2;  // and the seed's crank and slider
-    EXPECT_EQ(outcome.accepted, bodies <= static_cast<std::size_t>(mechanism::kMaxRigidBodies)) << outcome.message;
-    if (!outcome.accepted) EXPECT_NE(outcome.message.find("mechanism.rigidBodies lists"), std::string::npos) << outcome.message;
+    EXPECT_EQ(outcome.accepted, bodies <= static_cast<std::size_t>(mechanism::kMaxRigidBodies))
+        << outcome.message;
+    if (!outcome.accepted)
+      EXPECT_NE(outcome.message.find("mechanism.rigidBodies lists"), std::string::npos) << outcome.message;
   }
 }
 
@@ -591,7 +686,8 @@ TEST(MechanismFuzz, CliExitsTwoNamingTheFault) {
     ++refused;
     const auto run = testing::runCli("evaluate --config " + path);
     EXPECT_EQ(run.exitCode, 2) << run.output;
-    EXPECT_NE(run.output.find(message.substr(0, 60)), std::string::npos) << run.output << "\nexpected: " << message;
+    EXPECT_NE(run.output.find(message.substr(0, 60)), std::string::npos)
+        << run.output << "\nexpected: " << message;
   }
   EXPECT_EQ(refused, 4);
 }

@@ -30,8 +30,8 @@ struct Arguments {
   bool actions = false;
 
   std::string commandLine() const {
-    std::string line = "schedule --storage '" + storage + "' --steps '" + steps + "' --state-bytes '" + stateBytes +
-                       "' --stages '" + stages + "'";
+    std::string line = "schedule --storage '" + storage + "' --steps '" + steps + "' --state-bytes '" +
+                       stateBytes + "' --stages '" + stages + "'";
     if (!costs.empty()) line += " --costs '" + costs + "'";
     return line + (actions ? " --actions" : " --json");
   }
@@ -94,9 +94,9 @@ void expectSound(const Arguments& a, const Outcome& o) {
   EXPECT_EQ(p.steps, o.steps) << input;
   EXPECT_EQ(p.stages, o.stages) << input;
   EXPECT_EQ(p.forwardSteps, o.steps) << input;
-  for (const std::int64_t count : {p.recomputedSteps, p.rhsEvaluations, p.adjointRecomputations, p.stepDataStored,
-                                   p.stepDataRestored, p.statesStored, p.ramReads, p.diskWrites, p.diskReads,
-                                   p.peakRamBytes, p.peakDiskBytes}) {
+  for (const std::int64_t count :
+       {p.recomputedSteps, p.rhsEvaluations, p.adjointRecomputations, p.stepDataStored, p.stepDataRestored,
+        p.statesStored, p.ramReads, p.diskWrites, p.diskReads, p.peakRamBytes, p.peakDiskBytes}) {
     EXPECT_GE(count, 0) << input;
   }
   EXPECT_GE(p.ramWrites, -1) << input;  // -1: not counted
@@ -116,8 +116,8 @@ void expectSound(const Arguments& a, const Outcome& o) {
   const std::size_t specCosts = a.storage.find("costs=");
   if (a.storage.rfind("multilevel", 0) == 0 && specCosts != std::string::npos) {
     const std::size_t end = a.storage.find(',', specCosts);
-    costs = ScheduleCosts::parse(a.storage.substr(specCosts + 6, end == std::string::npos ? end : end - specCosts - 6),
-                                 "costs");
+    costs = ScheduleCosts::parse(
+        a.storage.substr(specCosts + 6, end == std::string::npos ? end : end - specCosts - 6), "costs");
   }
   const double fixed = static_cast<double>(o.steps) * (costs.forwardStep + costs.adjointStep);
   EXPECT_GE(p.totalCost, fixed * (1 - 1e-12)) << input;
@@ -138,23 +138,58 @@ bool expectPredictionOrInvalidArgument(const Arguments& a) {
     EXPECT_TRUE(namesTheInput(e.what())) << "'" << e.what() << "' names no flag for\n"
                                          << fuzz::printable(a.commandLine());
   } catch (const std::exception& e) {
-    ADD_FAILURE() << "threw " << typeid(e).name() << " (" << e.what() << ") instead of std::invalid_argument for\n"
+    ADD_FAILURE() << "threw " << typeid(e).name() << " (" << e.what()
+                  << ") instead of std::invalid_argument for\n"
                   << fuzz::printable(a.commandLine());
   }
   return false;
 }
 
-const std::vector<std::string> kStepSeeds = {"1",    "2",     "7",    "1000",  "30000",        "1e6",
-                                             "2.5e6", "16777216", "1e9", "4e18", "3999999999999999999", "1E+5"};
-const std::vector<std::string> kByteSeeds = {"8", "64", "8000", "64KiB", "1MiB", "4GiB", "17179869176", "10MB"};
+const std::vector<std::string> kStepSeeds = {
+    "1", "2", "7", "1000", "30000", "1e6", "2.5e6", "16777216", "1e9", "4e18", "3999999999999999999", "1E+5"};
+const std::vector<std::string> kByteSeeds = {"8",    "64",   "8000",        "64KiB",
+                                             "1MiB", "4GiB", "17179869176", "10MB"};
 const std::vector<std::string> kStageSeeds = {"1", "2", "4", "7", "64"};
-const std::vector<std::string> kCostSeeds = {"",       "1:1:0:0",          "1e-4:2e-4:1e-5:1e-5",
-                                             "1:1:0.2:0.2", "1e30:1e30:1e30:1e30", "0.5:0:100:100"};
+const std::vector<std::string> kCostSeeds = {
+    "", "1:1:0:0", "1e-4:2e-4:1e-5:1e-5", "1:1:0.2:0.2", "1e30:1e30:1e30:1e30", "0.5:0:100:100"};
 
 std::vector<std::string> dictionary() {
-  return {"0",   "1",  "-1", "e",    "E",   "e+",  "e-", ".",   "+",   "-",    "x",   " ",   "\t", ":",
-          "::",  "9",  "1e17", "1e18", "4.1e18", "1e400", "nan", "inf", "0x10", "KiB", "MiB", "GiB", "TiB", "B",
-          "kB",  "18446744073709551616", "9223372036854775807", "4e18", "1e308", "1e-320", ",", "="};
+  return {"0",
+          "1",
+          "-1",
+          "e",
+          "E",
+          "e+",
+          "e-",
+          ".",
+          "+",
+          "-",
+          "x",
+          " ",
+          "\t",
+          ":",
+          "::",
+          "9",
+          "1e17",
+          "1e18",
+          "4.1e18",
+          "1e400",
+          "nan",
+          "inf",
+          "0x10",
+          "KiB",
+          "MiB",
+          "GiB",
+          "TiB",
+          "B",
+          "kB",
+          "18446744073709551616",
+          "9223372036854775807",
+          "4e18",
+          "1e308",
+          "1e-320",
+          ",",
+          "="};
 }
 
 // Plans whose time grows with N: online and cams simulate their placement step by step, multilevel
@@ -192,9 +227,9 @@ bool slow(const Arguments& a) {
 // The storage seeds and a few specs the schedule tool is used with.
 std::vector<std::string> specSeeds() {
   auto specs = fuzz::seedLines("storage_specs.txt");
-  for (const char* extra : {"binomial:checkpoints=10,stages=1", "full:stages=1", "cams:checkpoints=3,online=1",
-                            "multilevel:ram=1MiB,disk=1GiB", "multilevel:ram=512,disk=1TiB,costs=1:1:1e-3:1e-3",
-                            "disk:dir=/tmp,stages=1"})
+  for (const char* extra : {"binomial:checkpoints=10,stages=1", "full:stages=1",
+                            "cams:checkpoints=3,online=1", "multilevel:ram=1MiB,disk=1GiB",
+                            "multilevel:ram=512,disk=1TiB,costs=1:1:1e-3:1e-3", "disk:dir=/tmp,stages=1"})
     specs.push_back(extra);
   // Predictions write nothing; a directory that exists keeps createStorage's checks the run's.
   for (std::string& spec : specs) {
@@ -315,7 +350,8 @@ TEST(ScheduleFuzz, FoundInputsAreRefusedByName) {
   };
   // A multilevel RAM level that holds no state: the plan's own message named neither level nor size.
   for (const char* steps : {"1", "2", "1000"}) {
-    const std::string message = refusal({"multilevel:ram=512,disk=4KiB,costs=1:1:0:0", steps, "3411280", "63"});
+    const std::string message =
+        refusal({"multilevel:ram=512,disk=4KiB,costs=1:1:0:0", steps, "3411280", "63"});
     EXPECT_NE(message.find("multilevel.ram = 512 B"), std::string::npos) << message;
     EXPECT_NE(message.find("--state-bytes"), std::string::npos) << message;
   }
@@ -331,14 +367,15 @@ TEST(ScheduleFuzz, CommandExitsZeroOrTwo) {
   const auto words = dictionary();
   fuzz::Mutator mutator(fuzz::seed(33));
   for (int k = 0; k < 8; ++k) {
-    Arguments a{mutator.pick(specs), mutator.pick(kStepSeeds), mutator.pick(kByteSeeds), mutator.pick(kStageSeeds),
-                mutator.pick(kCostSeeds)};
+    Arguments a{mutator.pick(specs), mutator.pick(kStepSeeds), mutator.pick(kByteSeeds),
+                mutator.pick(kStageSeeds), mutator.pick(kCostSeeds)};
     if (k % 2 == 1) a.steps = mutator.mutate(a.steps, words, 2);
     if (k % 4 == 3) a.stateBytes = mutator.mutate(a.stateBytes, words, 2);
     if (simulated(a.storage)) a.steps = "30";
     for (std::string* text : {&a.steps, &a.stateBytes, &a.storage}) {  // the shell quotes them
-      text->erase(std::remove_if(text->begin(), text->end(), [](char c) { return c == '\'' || c < 32 || c > 126; }),
-                  text->end());
+      text->erase(
+          std::remove_if(text->begin(), text->end(), [](char c) { return c == '\'' || c < 32 || c > 126; }),
+          text->end());
     }
     std::string message;
     std::optional<SchedulePrediction> prediction;
