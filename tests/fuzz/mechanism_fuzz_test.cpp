@@ -659,6 +659,28 @@ TEST(MechanismFuzz, HugeLists) {
   }
 }
 
+// Driver speeds far beyond any motion: the position solve's continuation between two calls took
+// ceil(distance / 0.25) Newton solves (1e9 rad/s: minutes for 0.02 s), converted to int from
+// inf or beyond INT_MAX (undefined). Now a NumericalError saying so, at once.
+TEST(MechanismFuzz, AbsurdDriverSpeedsFailFastByName) {
+  for (const double speed : {1e9, 1e300, -1e300}) {
+    json input = tinySections(seeds().at(4));  // a constant-speed driver
+    input["mechanism"]["drivers"][0]["speed"] = speed;
+    const Config config = configFromJson(input);
+    const PistonRod rod(config);
+    PistonRod::Request request;
+    request.psi2 = false;
+    request.psi2Gradient = false;
+    try {
+      rod.evaluate(rod.initialDesign(), request);
+      ADD_FAILURE() << "speed " << speed << " evaluated";
+    } catch (const NumericalError& e) {
+      EXPECT_NE(std::string(e.what()).find("drivers or free coordinates move by"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 #ifdef HINDSIGHT_CLI_PATH
 // The command-line tool: a refused description exits 2 with the same message on stderr, an accepted
 // one 0 with psi1 (a handful of processes; the properties above are in-process).
