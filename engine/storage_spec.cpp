@@ -19,6 +19,18 @@ std::string join(const std::vector<std::string>& items) {
 
 StorageSpec StorageSpec::parse(const std::string& text) {
   StorageSpec spec;
+  // A control character (a NUL from a JSON "\u0000", a tab) would be echoed into the messages below,
+  // and a NUL ends what.(): the message would stop before it names the key and the valid ones.
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x20 || c == 0x7f) {
+      static const char* hex = "0123456789abcdef";
+      throw std::invalid_argument("storage spec '" + text.substr(0, i) +
+                                  "...' has a control character (byte 0x" + hex[c >> 4] + hex[c & 15] +
+                                  ") at position " + std::to_string(i) +
+                                  "; a spec is printable text such as binomial:checkpoints=50");
+    }
+  }
   const auto colon = text.find(':');
   spec.name_ = text.substr(0, colon);
   if (spec.name_.empty()) throw std::invalid_argument("storage spec '" + text + "' has no strategy name");

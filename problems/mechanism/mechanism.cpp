@@ -149,6 +149,10 @@ std::string show(double x) {
 
 void Mechanism::validate() const {
   const std::string root = "mechanism";
+  if (rigidBodies.size() > static_cast<std::size_t>(kMaxRigidBodies)) {
+    throw std::invalid_argument(root + ".rigidBodies lists " + std::to_string(rigidBodies.size()) +
+                                " bodies; at most " + std::to_string(kMaxRigidBodies) + " are supported");
+  }
   // Bodies and their names.
   std::vector<std::string> bodyNames{"ground"};
   std::set<std::string> names{"ground"};

@@ -96,6 +96,12 @@ struct FreeCoordinate {
   double velocity = 0.0;  ///< initial velocity; the initial value is the body's position/angle
 };
 
+/// Rigid bodies a description may have. The model solves its constraints with dense Jacobians in dual
+/// numbers (problems/mechanism/mechanism_problem.h), whose memory grows with the square and whose work
+/// with the cube of the coordinates: 32 bodies take a few megabytes, 400 took gigabytes and minutes
+/// before the first step. validate() refuses more, naming mechanism.rigidBodies.
+constexpr int kMaxRigidBodies = 32;
+
 struct Mechanism {
   Vec2 gravity = Vec2::Zero();  ///< [m/s^2]
   std::map<std::string, Vec2> groundPoints;

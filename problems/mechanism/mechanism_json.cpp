@@ -9,7 +9,14 @@ namespace {
 
 using nlohmann::json;
 
-std::string render(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
+std::string render(const json& value) {
+  // dump() writes a non-finite double (from a Python dict) as null, which is not what was given.
+  if (value.is_number_float() && !std::isfinite(value.get<double>())) {
+    const double x = value.get<double>();
+    return std::isnan(x) ? "nan" : (x > 0 ? "inf" : "-inf");
+  }
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
 
 void onlyKeys(const json& object, const std::string& where, const std::set<std::string>& allowed) {
   if (!object.is_object()) throw std::invalid_argument(where + " must be a JSON object");

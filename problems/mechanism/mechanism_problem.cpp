@@ -483,7 +483,17 @@ void solvePositions(const MechanismProblem::Impl& I, double t, ConstVectorRef y,
   // so that Newton stays on the branch (assembly mode) it started on.
   double distance = I.driverDistance(tStart, t);
   for (int i = 0; i < I.f; ++i) distance = std::max(distance, std::abs(y(i) - yStart(i)));
-  const int steps = std::max(1, static_cast<int>(std::ceil(distance / 0.25)));
+  // A million pieces is 250000 rad or m between two calls (the slider-crank moves by 400 in a whole
+  // run): beyond it a driver's speed or a diverged coordinate (inf, NaN) would make the continuation
+  // run for hours, and the conversion to int would be undefined.
+  const double pieces = std::ceil(distance / 0.25);
+  if (!(pieces <= 1e6)) {
+    throw NumericalError("the mechanism's drivers or free coordinates move by " + std::to_string(distance) +
+                             " (rad or m) between two evaluations, more than the position solve follows; a "
+                             "driver's speed or the motion is far too large",
+                         t);
+  }
+  const int steps = std::max(1, static_cast<int>(pieces));
   for (int k = 1; k <= steps; ++k) {
     const double theta = static_cast<double>(k) / steps;
     const double tk = k == steps ? t : tStart + (t - tStart) * theta;

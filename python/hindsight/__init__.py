@@ -406,6 +406,9 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
     forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
     peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
     actions=True the dict also holds the action stream as text. ValueError names a bad argument."""
+    if not isinstance(spec, str):
+        raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
+                        f"{type(spec).__name__} {spec!r}")
     steps = _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
     state_bytes = _schedule_integer("state_bytes", state_bytes, 8, 8 * 2147483647)
     stages = _schedule_integer("stages", stages, 1, 64)
@@ -422,7 +425,9 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
 def _schedule_integer(name, value, low, high):
     """An integer argument of schedule(): ints and NumPy integers; bools, floats (2.9 would be read as 2)
     and strings are a TypeError, values outside [low, high] a ValueError naming the argument."""
-    if isinstance(value, bool) or not hasattr(value, "__index__"):
+    import numpy as np
+    # NumPy's bool_ still has a (deprecated) __index__: True would be read as 1 step, like bool.
+    if isinstance(value, (bool, np.bool_)) or not hasattr(value, "__index__"):
         raise TypeError(f"{name} must be an integer in [{low}, {high}], not {type(value).__name__} {value!r}")
     value = operator.index(value)
     if not low <= value <= high:
