@@ -699,18 +699,27 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
   const int n = static_cast<int>(stateBytes / 8);
   if (multilevel.options().stride || !multilevel.plansFor(steps, n)) {
-    predictStride(multilevel.options(), request, p);
+    if (multilevel.options().costs) p.costs = *multilevel.options().costs;  // the spec's own, as below
+    try {
+      predictStride(multilevel.options(), request, p);
+    } catch (const StorageError& e) {
+      // A run would fail at its start; for a prediction the sizes are the input: name them as flags.
+      throw std::invalid_argument("multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
+                                  " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) +
+                                  " with --state-bytes = " + formatBytes(stateBytes) + ": " + e.what());
+    }
     return;
   }
   const Layout layout = multilevel.layoutFor(steps, n);
   // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
   // name neither the levels nor the state size.
   if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
-    throw std::invalid_argument("multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
-                                " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) + " hold " +
-                                std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
-                                " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " +
-                                std::to_string(steps) + "; RAM must hold one state and both levels two: raise ram or disk");
+    throw std::invalid_argument(
+        "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
+        " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) + " hold " +
+        std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
+        " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
+        "; RAM must hold one state and both levels two: raise ram or disk");
   }
   // As beginPlan: the spec's own costs first; without them a run measures its costs, except when there is
   // nothing to choose (one step, or no disk slot: every plan is revolve in RAM), where it plans by 1:1:0:0.

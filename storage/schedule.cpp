@@ -246,7 +246,8 @@ TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, st
     for (std::int64_t m = 0; m <= t.ram; ++m) {
       for (std::int64_t d = 0; d <= t.disk; ++d) {
         for (int level = 0; level < 2; ++level) {
-          DynamicTables::Entry best{l == 1 ? 0.0 : kInfinity, 0, l == 1 ? kDone : kNone};
+          DynamicTables::Entry best{l == 1 ? 0.0 : kInfinity, 0,
+                                    static_cast<std::int8_t>(l == 1 ? kDone : kNone)};
           if (l >= 2) {
             best.cost = static_cast<double>(l - 1) * uf + loaded(level, l - 1, m, d);
             for (std::int64_t j = 1; j <= l - 2; ++j) {
