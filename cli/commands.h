@@ -4,7 +4,7 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -29,7 +29,7 @@ int runSelected(CLI::App& app);
 /// Command-line flags that stand for configuration fields (`--move-limit` is optimization.moveLimit).
 /// CLI11 only collects their text; apply() hands the text of every flag that was given to
 /// applyFlag(), so a flag accepts exactly what its field accepts (the one validation path of
-/// problems/rod/config.cpp) and an absent flag leaves the configuration alone -- no sentinel values.
+/// problems/app/config.cpp) and an absent flag leaves the configuration alone -- no sentinel values.
 class ConfigFlags {
  public:
   /// Registers `flag` on `app` for config field `key` ("section.field"); `typeName` is shown in --help.

@@ -1,10 +1,11 @@
 // `hindsight evaluate`: psi1, psi2, the volume fraction, the modes' frequencies and the run summary
 // of one piston-rod design; with --gradient, also dpsi1/dx, dpsi2/dx and dV/dx into an HDF5 file.
 // psi2 is skipped (and said so) with adaptive steps, which cannot place its load times.
+#include <hindsight/problems/app/full_order_evaluation.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/parallel.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include "commands.h"
 
 #include <nlohmann/json.hpp>

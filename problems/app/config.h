@@ -5,7 +5,7 @@
 // command line goes through the same checks.
 #pragma once
 
-#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/mechanism/mechanism.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
@@ -25,7 +25,7 @@ enum class RodModel { Reduced, Full };
 enum class Objective { Psi1, Psi2 };
 
 // The configuration's choices by name: the JSON strings, parsed and printed here only (the adjoint
-// route's names live with AdjointMethod in cvodes/gradient_routes.h). parse* throws
+// route's names live with AdjointMethod in problems/app/gradient_routes.h). parse* throws
 // std::invalid_argument listing the names.
 std::string toString(RodModel model);
 std::string toString(Objective objective);
@@ -153,5 +153,10 @@ void applySetting(Config& config, const std::string& assignment, bool validate =
 /// validate as for applySetting.
 void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text,
                bool validate = true);
+
+/// The configurations of every scenario in order: [config] when there are none (name "rod",
+/// weight 1), otherwise config with the scenario's rod and no scenarios.
+std::vector<ScenarioCase> scenarioCases(const Config& config);
+std::vector<Config> scenarioConfigs(const Config& config);
 
 }  // namespace hindsight

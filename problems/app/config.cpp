@@ -1,4 +1,4 @@
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <hindsight/engine/runge_kutta.h>
 #include <hindsight/problems/mechanism/mechanism_json.h>
@@ -484,6 +484,25 @@ nlohmann::json summaryToJson(const RunSummary& s) {
   }
   if (s.planningSeconds > 0.0) json["planning_seconds"] = s.planningSeconds;
   return json;
+}
+
+std::vector<ScenarioCase> scenarioCases(const Config& config) {
+  if (config.scenarios.empty()) return {ScenarioCase{"rod", 1.0}};
+  std::vector<ScenarioCase> out;
+  for (const Scenario& s : config.scenarios) out.push_back({s.name, s.weight});
+  return out;
+}
+
+std::vector<Config> scenarioConfigs(const Config& config) {
+  if (config.scenarios.empty()) return {config};
+  std::vector<Config> out;
+  for (const Scenario& s : config.scenarios) {
+    Config c = config;
+    c.scenarios.clear();
+    c.rod = scenarioRod(config.rod, s);
+    out.push_back(c);
+  }
+  return out;
 }
 
 }  // namespace hindsight
