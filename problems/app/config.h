@@ -2,7 +2,9 @@
 // the simulation and gradient settings, and the optimisation settings. Read from and written to JSON
 // strictly: an unknown field, a wrong type or an out-of-range value throws std::invalid_argument
 // naming the field ("rod.modeCount"), the value and the allowed range. `--set KEY=VALUE` on the
-// command line goes through the same checks.
+// command line goes through the same checks. The fields, their types, ranges, units and descriptions
+// are one table, problems/app/config_schema.h, which the reader, the writer, `hindsight config` and
+// the CLI reference share; the defaults are the member initializers below.
 #pragma once
 
 #include <hindsight/problems/app/gradient_routes.h>
