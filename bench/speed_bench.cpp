@@ -68,7 +68,8 @@ void phaseTable(int largest) {
     const rod::StiffnessFactorization stiffness(model.stiffness());
     const rod::ModalBasis basis =
         rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
-    const Vector p = rod::computeInvariants(model, basis).pack();
+    const rod::InertiaInvariants invariants = rod::computeInvariants(model, basis);
+    const Vector p = invariants.pack();
     const double modelCpu = cpuSeconds() - start;
 
     const rod::SliderCrankProblem problem = problemOf(rc, basis.columnCount());
@@ -93,8 +94,8 @@ void phaseTable(int largest) {
     const Vector dpsi = rod::computeDesignGradient(model, basis, gradient.gradient, chain).gradient;
     const double chainCpu = cpuSeconds() - start;
     start = cpuSeconds();
-    const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
-    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1, stiffness, false);
+    const rod::EslResult esl =
+        rod::evaluateEslAtLoadDesign(model, basis, invariants.kee, sampled, options.t1, false);
     const double eslCpu = cpuSeconds() - start;
     if (!(forward.objective == gradient.objective) || !dpsi.allFinite() || !(esl.value > 0.0)) {
       std::fprintf(stderr, "inconsistent evaluation at mesh %d\n", m);

@@ -269,15 +269,23 @@ GradientResult computeGradient(const Problem& problem, ConstVectorRef p, const I
   problem.addTerminalGradient(sweep.problemState(sweep.z), p, lambda.head(n), gradient);
   Vector& z = sweep.zPrevious;
   const std::vector<double>& times = sweep.times;
+  // x_{n+1} with the forward bits, for a method that reads its step's solution from it: the final state,
+  // then each restored state (only an exact storage restores the forward bits).
+  const bool withEnd = sweep.integrator->usesStepEnd() && storage.isExact();
+  Vector zEnd;
+  if (withEnd) zEnd = sweep.z;
   for (std::int64_t step = result.summary.steps - 1; step >= 0; --step) {
     pollInterrupt();
     try {
       storage.restore(step, z);
+      const double h = times[step + 1] - times[step];
       if (sweep.stepData.size() > 0 && storage.restoreStepData(step, sweep.stepData)) {
-        sweep.integrator->adjointStepFromData(times[step], times[step + 1] - times[step], z, sweep.stepData,
-                                              lambda, gradient);
+        sweep.integrator->adjointStepFromData(times[step], h, z, sweep.stepData, lambda, gradient);
+      } else if (withEnd) {
+        sweep.integrator->adjointStepWithEnd(times[step], h, z, zEnd, lambda, gradient);
+        zEnd = z;
       } else {
-        sweep.integrator->adjointStep(times[step], times[step + 1] - times[step], z, lambda, gradient);
+        sweep.integrator->adjointStep(times[step], h, z, lambda, gradient);
       }
     } catch (const NumericalError& e) {
       throwBackwardSweepFailure(e, storage, "discrete adjoint, step " + std::to_string(step));

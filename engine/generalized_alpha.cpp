@@ -169,12 +169,27 @@ double GeneralizedAlphaIntegrator::step(double t, double h, VectorRef x, double*
 void GeneralizedAlphaIntegrator::adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda,
                                              VectorRef gradient) {
   assert(x.size() == 4 * f_ && lambda.size() == 4 * f_ && gradient.size() == p_.size());
+  // The same code path as step(): the converged acceleration has the forward sweep's bits.
+  solveStep(t, h, x);
+  adjointAtSolution(t, h, x, lambda, gradient);
+}
+
+void GeneralizedAlphaIntegrator::adjointStepWithEnd(double t, double h, ConstVectorRef x, ConstVectorRef xEnd,
+                                                    VectorRef lambda, VectorRef gradient) {
+  assert(x.size() == 4 * f_ && xEnd.size() == 4 * f_);
+  // step() stored accel_ as d_{n+1} and solveStep() ended with kinematics() from it: the same bits.
+  accel_ = xEnd.segment(2 * f_, f_);
+  kinematics(h, x);
+  adjointAtSolution(t, h, x, lambda, gradient);
+}
+
+void GeneralizedAlphaIntegrator::adjointAtSolution(double t, double h, ConstVectorRef x, VectorRef lambda,
+                                                   VectorRef gradient) {
+  assert(x.size() == 4 * f_ && lambda.size() == 4 * f_ && gradient.size() == p_.size());
   const Coefficients& c = coefficients_;
   const double tNext = t + h;
   const double ratio = (1.0 - c.alphaF) / (1.0 - c.alphaM);
   const double betaPrime = h * h * c.beta, gammaPrime = h * c.gamma;
-  // The same code path as step(): the converged acceleration has the forward sweep's bits.
-  solveStep(t, h, x);
   // Adjoints of y_{n+1}, v_{n+1}, with the end point of the trapezoidal rule (notation of
   // docs/generalized_alpha.md: Q, V).
   adjointY_ = lambda.segment(0, f_);

@@ -29,7 +29,9 @@
 //
 // State size 4f (f = coordinateCount()); the head (y, v) is the problem state z. No error estimate
 // (fixed step only) and no state derivative (storages that interpolate, Hermite, are refused). The
-// workspace is allocated in the constructor; step() and adjointStep() allocate nothing.
+// workspace is allocated in the constructor; step() and adjointStep() allocate nothing. The backward
+// sweep of an exact storage passes x_{n+1} (adjointStepWithEnd): its d_{n+1} is the converged
+// acceleration, so the backward step evaluates one Jacobian and no Newton iteration.
 //
 // References: J. Chung, G. M. Hulbert, J. Appl. Mech. 60 (1993) 371-375; H. M. Hilber, T. J. R.
 // Hughes, R. L. Taylor, Earthq. Eng. Struct. Dyn. 5 (1977) 283-292; M. Arnold, O. Bruls, Multibody
@@ -72,6 +74,10 @@ class GeneralizedAlphaIntegrator final : public Integrator {
   void addInitialStateVjp(double t0, ConstVectorRef x0, ConstVectorRef lambda, VectorRef gradient) override;
   double step(double t, double h, VectorRef x, double* errorNorm = nullptr) override;
   void adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient) override;
+  /// x_{n+1} holds the converged acceleration d_{n+1} (the step stores accel_ there): no Newton solve.
+  bool usesStepEnd() const override { return true; }
+  void adjointStepWithEnd(double t, double h, ConstVectorRef x, ConstVectorRef xEnd, VectorRef lambda,
+                          VectorRef gradient) override;
 
   bool hasStateDerivative() const override { return false; }
   /// Throws std::logic_error: not available (see the file comment).
@@ -86,6 +92,8 @@ class GeneralizedAlphaIntegrator final : public Integrator {
   void kinematics(double h, ConstVectorRef x);
   /// Solves the step's residual for accel_ (and the kinematics) from x_n; x is not changed.
   void solveStep(double t, double h, ConstVectorRef x);
+  /// The transpose of the step from x_n whose solution accel_, yNext_, vNext_, aNext_ is in place.
+  void adjointAtSolution(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient);
   /// S = M + betaPrime r_y + gammaPrime r_v at (t, y, v, accel) into lu_ (mass_, ry_, rv_ evaluated).
   void factorizeIterationMatrix(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef accel,
                                 double betaPrime, double gammaPrime);

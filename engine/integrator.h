@@ -129,6 +129,19 @@ class Integrator {
   /// sets lambda <- dpsi/dx_n and adds the step's contribution to gradient (size np).
   virtual void adjointStep(double t, double h, ConstVectorRef x, VectorRef lambda, VectorRef gradient) = 0;
 
+  /// True when adjointStepWithEnd() can use x_{n+1} to skip work (the sweep then keeps the state of the
+  /// step after, which the exact storages restore with the forward sweep's bits).
+  virtual bool usesStepEnd() const { return false; }
+  /// adjointStep() when x_{n+1} = xEnd, the state step() produced from x, is at hand with its forward
+  /// bits: a method whose step solves for a quantity that x_{n+1} holds reads it instead of solving again.
+  /// The result is bitwise that of adjointStep(). Only for exact storages: an approximate x_{n+1} would
+  /// not be the solution of the step from x.
+  virtual void adjointStepWithEnd(double t, double h, ConstVectorRef x, ConstVectorRef xEnd, VectorRef lambda,
+                                  VectorRef gradient) {
+    (void)xEnd;
+    adjointStep(t, h, x, lambda, gradient);
+  }
+
   /// Step data: the doubles per step that let adjointStepFromData() run without evaluating
   /// the right-hand side (a Runge-Kutta method's stage values); 0 when the method offers none.
   virtual std::int64_t stepDataSize() const { return 0; }

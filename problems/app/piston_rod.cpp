@@ -65,8 +65,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
       throw NumericalError(std::string("the modal reduction of this design failed: ") + e.what(), 0.0);
     }
   }();
-  const rod::StiffnessFactorization& stiffness = *stiffnessPointer;
-  const Vector p = rod::computeInvariants(model, basis).pack();
+  const rod::InertiaInvariants invariants = rod::computeInvariants(model, basis);
+  const Vector p = invariants.pack();
   for (int i = 0; i < basis.eigenmodeCount; ++i) out.frequenciesHz.push_back(basis.frequencyHz(i));
   out.eigenvalues = basis.eigenvalues.head(basis.eigenmodeCount);
   out.gapRatio = basis.gapRatio;
@@ -161,8 +161,9 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   out.psi2 = std::numeric_limits<double>::quiet_NaN();
   if (request.psi2) {
     phase.restart();
-    const Matrix loads = rod::equivalentStaticLoads(model, basis, sampled);
-    const rod::EslResult esl = rod::evaluateEsl(model, loads, options.t1, stiffness, request.psi2Gradient);
+    // The loads come from this design's own simulation: psi2 follows from K_ee without a solve with K.
+    const rod::EslResult esl =
+        rod::evaluateEslAtLoadDesign(model, basis, invariants.kee, sampled, options.t1, request.psi2Gradient);
     out.psi2 = esl.value;
     if (request.psi2Gradient) out.dpsi2 = esl.gradient;
     out.eslSeconds = phase.seconds();

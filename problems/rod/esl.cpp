@@ -41,6 +41,8 @@ void checkEslArguments(const FeModel& model, ConstMatrixRef loads, double endTim
   }
 }
 
+Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double weight);
+
 }  // namespace
 
 EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime) {
@@ -75,9 +77,40 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
         factorization.solve(Matrix(loads.middleCols(begin, end - begin)));
   });
   result.value = weight * loads.cwiseProduct(result.displacements).sum();
-  if (!withGradient) return result;
-  const Matrix displacementsFull = model.extendColumnsToFull(result.displacements);
-  result.gradient.resize(model.designCount());
+  if (withGradient)
+    result.gradient = eslGradient(model, model.extendColumnsToFull(result.displacements), weight);
+  return result;
+}
+
+EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis, ConstMatrixRef kee,
+                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient) {
+  const Eigen::Index n = basis.columnCount();
+  if (basis.modesFull.rows() != model.dofCount() || kee.rows() != n || kee.cols() != n ||
+      modalCoordinates.rows() != n || modalCoordinates.cols() < 1) {
+    std::ostringstream message;
+    message << "evaluateEslAtLoadDesign: kee is " << kee.rows() << " x " << kee.cols()
+            << " and modalCoordinates " << modalCoordinates.rows() << " x " << modalCoordinates.cols()
+            << ", expected " << n << " x " << n << " and " << n
+            << " rows, at least one column, for a basis of this model";
+    throw std::invalid_argument(message.str());
+  }
+  if (!std::isfinite(endTime) || !(endTime > 0.0)) {
+    std::ostringstream message;
+    message << "evaluateEslAtLoadDesign: endTime = " << endTime << " is outside the allowed range (0, inf)";
+    throw std::invalid_argument(message.str());
+  }
+  const double weight = endTime / static_cast<double>(modalCoordinates.cols());
+  EslResult result;
+  result.value = weight * (kee * modalCoordinates).cwiseProduct(modalCoordinates).sum();
+  if (withGradient) result.gradient = eslGradient(model, basis.modesFull * modalCoordinates, weight);
+  return result;
+}
+
+namespace {
+
+// -weight sum_k u_k^T (dK/dx_d) u_k for every design variable, u_k the columns of `displacementsFull`.
+Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double weight) {
+  Vector gradient(model.designCount());
   // Every design variable's entry on its own: fixed blocks in parallel.
   const int designs = model.designCount();
   const int designBlocks = (designs + 255) / 256;
@@ -87,11 +120,13 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
       const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
       for (int a = 0; a < 8; ++a) local.row(a) = displacementsFull.row(dofs[a]);
       const double energy = local.cwiseProduct(model.unitStiffness() * local).sum();
-      result.gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
+      gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
     }
   });
-  return result;
+  return gradient;
 }
+
+}  // namespace
 
 }  // namespace rod
 }  // namespace hindsight

@@ -38,5 +38,15 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
 EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime,
                       const StiffnessFactorization& stiffnessFactorization, bool withGradient);
 
+/// psi2 at the design the loads come from, where u_k = Phi q_k exactly: the value
+/// (t1 / N) sum_k q_k^T K_ee q_k from the modal stiffness `kee` = Phi^T K Phi (n x n; the invariants'
+/// element-wise form) and the gradient from the displacements Phi q_k, without solving with K. The same
+/// quantity as evaluateEsl() on equivalentStaticLoads(), without its round-off: the solve through K's
+/// factor loses up to ~4e-10 relative on a design with weak elements (K's condition grows like
+/// 1 / E(x_min)). `modalCoordinates` is n x N, column k - 1 holding q(t_k); EslResult::displacements is
+/// left empty. Throws std::invalid_argument if the sizes do not match or endTime <= 0.
+EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis, ConstMatrixRef kee,
+                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient);
+
 }  // namespace rod
 }  // namespace hindsight

@@ -409,9 +409,9 @@ void stateJacobians(const SliderCrankLayout& layout, const CrankState& crank, do
 
 }  // namespace
 
-void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv,
-                                           ProblemWorkspace* ws) const {
+void SliderCrankProblem::residualJacobiansByAutoDiff(double t, ConstVectorRef q, ConstVectorRef v,
+                                                     ConstVectorRef a, ConstVectorRef p, MatrixRef rq,
+                                                     MatrixRef rv, ProblemWorkspace* ws) const {
   auto& w = workspaceOf(ws);
   const CrankState& crank = crankOf(crank_, t, w);
   if (2 * layout_.modes <= kSmallCapacity) {
@@ -435,28 +435,48 @@ struct ProductScalars {
 /// Forward AD in the two channels c, c' (fixed size: no heap, no unused capacity copied).
 using AD2 = Eigen::AutoDiffScalar<Eigen::Vector2d>;
 
-/// The product scalars; also leaves h = c2 + M_ee q in w.h and A1 = a0 + Ct^T q in w.a1.
-ProductScalars productScalars(const View& P, const Matrix& mee, const CrankState& crank, double radius,
+/// The residual's scalars that do not depend on mu, with their partials in the channels c = b q (C) and
+/// c' = b q' (Cd); also leaves h = c2 + M_ee q in w.h, M_ee q in w.meeQ, A1 = a0 + Ct^T q in w.a1 and
+/// Ct q' in w.ctV. Shared by the products with mu and the Jacobians.
+struct ChannelScalars {
+  double g, gC, bd, bdC, bdCd, bc, r0, r1, r0C, r1C;  // frame: dbeta/dc, beta', beta_c, rho
+  double ba, s, sC, sCd;                              // b a, beta_q a + beta_c
+  double jw, sw0, sw1, hQd;                           // J_w, s_w, h . q'
+  double kappa, kappaC, kappaCd;
+};
+
+ChannelScalars channelScalars(const View& P, const Matrix& mee, const CrankState& crank, double radius,
                               double length, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
-                              ConstVectorRef mu, RodWorkspace& w) {
+                              RodWorkspace& w) {
   const int n = P.n;
+  ChannelScalars k;
   // Frame scalars and their partials in c (direction 0) and c' (direction 1).
   Frame<AD2> fr;
   frameKinematics(crank, radius, length, AD2(dot(P, q), 2, 0), AD2(dot(P, v), 2, 1), fr);
-  const double g = fr.g.value(), gC = fr.g.derivatives()(0);
-  const double bd = fr.betaDot.value(), bdC = fr.betaDot.derivatives()(0), bdCd = fr.betaDot.derivatives()(1);
-  const double bc = fr.betaC.value(), bcC = fr.betaC.derivatives()(0), bcCd = fr.betaC.derivatives()(1);
-  const double r0 = fr.rho0.value(), r1 = fr.rho1.value();
-  const double r0C = fr.rho0.derivatives()(0), r1C = fr.rho1.derivatives()(0);
-  const double ba = dot(P, a);
-  const double s = g * ba + bc, sC = gC * ba + bcC, sCd = bcCd;  // beta_q a + beta_c and partials
+  k.g = fr.g.value();
+  k.gC = fr.g.derivatives()(0);
+  k.bd = fr.betaDot.value();
+  k.bdC = fr.betaDot.derivatives()(0);
+  k.bdCd = fr.betaDot.derivatives()(1);
+  k.bc = fr.betaC.value();
+  const double bcC = fr.betaC.derivatives()(0), bcCd = fr.betaC.derivatives()(1);
+  k.r0 = fr.rho0.value();
+  k.r1 = fr.rho1.value();
+  k.r0C = fr.rho0.derivatives()(0);
+  k.r1C = fr.rho1.derivatives()(0);
+  k.ba = dot(P, a);
+  k.s = k.g * k.ba + k.bc;  // beta_q a + beta_c and partials
+  k.sC = k.gC * k.ba + bcC;
+  k.sCd = bcCd;
 
   // The q-dependent quantities of the residual (see the header).
-  double jw = P.j0(), sw0 = P.mc(0), sw1 = P.mc(1);
+  k.jw = P.j0();
+  k.sw0 = P.mc(0);
+  k.sw1 = P.mc(1);
   for (int i = 0; i < n; ++i) {
-    jw += 2.0 * P.c2(i) * q(i);
-    sw0 += P.c1(0, i) * q(i);
-    sw1 += P.c1(1, i) * q(i);
+    k.jw += 2.0 * P.c2(i) * q(i);
+    k.sw0 += P.c1(0, i) * q(i);
+    k.sw1 += P.c1(1, i) * q(i);
   }
   // Ct q' column by column (axpy form).
   w.ctV.setZero();
@@ -464,7 +484,8 @@ ProductScalars productScalars(const View& P, const Matrix& mee, const CrankState
     const double* ct = P.p + P.layout.cTilde() + n * j;
     for (int i = 0; i < n; ++i) w.ctV(i) += ct[i] * v(j);
   }
-  double a1a = 0.0, muA1 = 0.0, hQd = 0.0, muH = 0.0, muCtQd = 0.0, mb = 0.0, c1mu0 = 0.0, c1mu1 = 0.0;
+  double a1a = 0.0;
+  k.hQd = 0.0;
   for (int j = 0; j < n; ++j) {
     double a1 = P.a0(j), mq = 0.0;
     for (int i = 0; i < n; ++i) {
@@ -475,27 +496,81 @@ ProductScalars productScalars(const View& P, const Matrix& mee, const CrankState
     w.h(j) = h;
     w.meeQ(j) = mq;
     w.a1(j) = a1;
-    jw += q(j) * mq;
+    k.jw += q(j) * mq;
     a1a += a1 * a(j);
-    muA1 += mu(j) * a1;
-    hQd += h * v(j);
-    muH += mu(j) * h;
+    k.hQd += h * v(j);
+  }
+  const double x = -k.sw1 * k.r0 + k.sw0 * k.r1, xC = -k.sw1 * k.r0C + k.sw0 * k.r1C;
+  k.kappa = a1a + k.jw * k.s + x + 2.0 * k.bd * k.hQd;
+  k.kappaC = k.jw * k.sC + xC + 2.0 * k.bdC * k.hQd;
+  k.kappaCd = k.jw * k.sCd + 2.0 * k.bdCd * k.hQd;
+  return k;
+}
+
+/// The product scalars; also leaves h, M_ee q, A1 and Ct q' in the workspace (channelScalars).
+ProductScalars productScalars(const View& P, const Matrix& mee, const CrankState& crank, double radius,
+                              double length, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                              ConstVectorRef mu, RodWorkspace& w) {
+  const int n = P.n;
+  const ChannelScalars k = channelScalars(P, mee, crank, radius, length, q, v, a, w);
+  double muA1 = 0.0, muH = 0.0, muCtQd = 0.0, mb = 0.0, c1mu0 = 0.0, c1mu1 = 0.0;
+  for (int j = 0; j < n; ++j) {
+    muA1 += mu(j) * w.a1(j);
+    muH += mu(j) * w.h(j);
     muCtQd += mu(j) * w.ctV(j);
     mb += mu(j) * P.b(j);
     c1mu0 += P.c1(0, j) * mu(j);
     c1mu1 += P.c1(1, j) * mu(j);
   }
-  const double x = -sw1 * r0 + sw0 * r1, xC = -sw1 * r0C + sw0 * r1C;
-  const double kappa = a1a + jw * s + x + 2.0 * bd * hQd;
-  const double kappaC = jw * sC + xC + 2.0 * bdC * hQd;
-  const double kappaCd = jw * sCd + 2.0 * bdCd * hQd;
-
+  const double g = k.g, bd = k.bd;
   // Coefficients of b (dependence through c and c').
-  const double alongQ = muA1 * sC + mb * (gC * kappa + g * kappaC) + (c1mu0 * r0C + c1mu1 * r1C) -
-                        2.0 * bd * bdC * muH - 2.0 * bdC * muCtQd;
-  const double alongV = muA1 * sCd + mb * g * kappaCd - 2.0 * bd * bdCd * muH - 2.0 * bdCd * muCtQd;
-  return ProductScalars{g,  bd,    bc, r0,   r1,     ba,     s,
-                        jw, kappa, mb, muA1, alongQ, alongV, g * (muA1 + mb * g * jw)};
+  const double alongQ = muA1 * k.sC + mb * (k.gC * k.kappa + g * k.kappaC) + (c1mu0 * k.r0C + c1mu1 * k.r1C) -
+                        2.0 * bd * k.bdC * muH - 2.0 * k.bdC * muCtQd;
+  const double alongV = muA1 * k.sCd + mb * g * k.kappaCd - 2.0 * bd * k.bdCd * muH - 2.0 * k.bdCd * muCtQd;
+  return ProductScalars{g,    bd,      k.bc, k.r0, k.r1,   k.ba,   k.s,
+                        k.jw, k.kappa, mb,   muA1, alongQ, alongV, g * (muA1 + mb * g * k.jw)};
+}
+
+/// r_q and r_q' in O(n^2): the transpose of stateProduct() written out for every mu at once,
+///   r_q  = K_ee + s Ct^T - beta'^2 M_ee + g b kappa_q^T + u b^T,
+///   r_q' = -2 beta' Ct + 2 g beta' b h^T + w b^T,
+/// kappa_q = Ct a + s (2 c2 + 2 M_ee q) + C1^T (rho1, -rho0) + 2 beta' M_ee q', and u, w the partials
+/// of r through the channels c, c' (the coefficients of b in stateProduct()).
+void channelJacobians(const View& P, const Matrix& mee, const CrankState& crank, double radius, double length,
+                      ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, MatrixRef rq, MatrixRef rv,
+                      RodWorkspace& w) {
+  const int n = P.n;
+  const ChannelScalars k = channelScalars(P, mee, crank, radius, length, q, v, a, w);
+  const double g = k.g, bd = k.bd, s = k.s;
+  // Ct a column by column (axpy form).
+  w.ctA.setZero();
+  for (int j = 0; j < n; ++j) {
+    const double* ct = P.p + P.layout.cTilde() + n * j;
+    for (int i = 0; i < n; ++i) w.ctA(i) += ct[i] * a(j);
+  }
+  const double alongB = k.gC * k.kappa + g * k.kappaC;
+  for (int i = 0; i < n; ++i) {
+    double meeQd = 0.0;
+    for (int j = 0; j < n; ++j) meeQd += mee(j, i) * v(j);
+    const double jwQ = 2.0 * P.c2(i) + 2.0 * w.meeQ(i);  // M_ee is used symmetric
+    const double xQ = P.c1(0, i) * k.r1 - P.c1(1, i) * k.r0;
+    w.eta(i) = g * (w.ctA(i) + s * jwQ + xQ + 2.0 * bd * meeQd);  // g kappa_q
+    w.alpha(i) = w.a1(i) * k.sC + P.b(i) * alongB + (P.c1(0, i) * k.r0C + P.c1(1, i) * k.r1C) -
+                 2.0 * bd * k.bdC * w.h(i) - 2.0 * k.bdC * w.ctV(i);  // u
+    w.gb(i) =
+        w.a1(i) * k.sCd + P.b(i) * g * k.kappaCd - 2.0 * bd * k.bdCd * w.h(i) - 2.0 * k.bdCd * w.ctV(i);  // w
+  }
+  const double bd2 = bd * bd, twoGbd = 2.0 * g * bd;
+  for (int i = 0; i < n; ++i) {
+    const double* kee = P.p + P.layout.kee() + n * i;
+    const double* ct = P.p + P.layout.cTilde() + n * i;
+    const double bi = P.b(i), etaI = w.eta(i), hI = twoGbd * w.h(i);
+    for (int r = 0; r < n; ++r) {
+      const double br = P.b(r);
+      rq(r, i) = kee[r] + s * P.ct(i, r) - bd2 * mee(r, i) + br * etaI + w.alpha(r) * bi;
+      rv(r, i) = -2.0 * bd * ct[r] + br * hI + w.gb(r) * bi;
+    }
+  }
 }
 
 /// out += (r_p)^T mu from the product scalars (h, A1 in the workspace).
@@ -608,6 +683,14 @@ void SliderCrankProblem::residualVjps(double t, ConstVectorRef q, ConstVectorRef
       productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
   stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
   parameterProduct(layout_, k, q, v, a, mu, gradient, w);
+}
+
+void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                           ConstVectorRef p, MatrixRef rq, MatrixRef rv,
+                                           ProblemWorkspace* ws) const {
+  auto& w = workspaceOf(ws);
+  const View P(layout_, p);
+  channelJacobians(P, meeOf(P, w), crankOf(crank_, t, w), crank_.radius, length_, q, v, a, rq, rv, w);
 }
 
 double SliderCrankProblem::integrand(double, ConstVectorRef q, ConstVectorRef, ConstVectorRef p,

@@ -82,8 +82,14 @@ class SliderCrankProblem final : public SecondOrderProblem {
   /// One frame kinematics and one product of q with each invariant matrix for both.
   void massMatrixAndForce(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef p, MatrixRef mass,
                           VectorRef f, ProblemWorkspace* ws) const override;
+  /// r_q and r_q' in O(n^2) from the compact residual: the frame differentiated in the channels
+  /// c = b q, c' = b q' (the transposed form of residualStateVjp() for every mu at once).
   void residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                          MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const override;
+  /// The same Jacobians by forward-mode AD through the whole residual (O(n^3), 2n directions): an
+  /// independent derivation the tests hold residualJacobians() to.
+  void residualJacobiansByAutoDiff(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
+                                   ConstVectorRef p, MatrixRef rq, MatrixRef rv, ProblemWorkspace* ws) const;
   void addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
                                ConstVectorRef p, ConstVectorRef mu, VectorRef out,
                                ProblemWorkspace* ws) const override;

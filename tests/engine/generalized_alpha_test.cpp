@@ -242,6 +242,38 @@ TEST_P(AlphaMethod, GradientIsTheDerivativeOfTheComputedObjective) {
   EXPECT_TRUE(check.passed) << check.message;
 }
 
+// The backward step that reads d_{n+1} from x_{n+1} (what the sweep of an exact storage does) is the
+// backward step that solves for it again, bit for bit, over a whole trajectory; and the sweep takes it
+// (one Jacobian per backward step, no Newton iteration).
+TEST_P(AlphaMethod, BackwardStepFromTheStepsEndEqualsTheSolvingOneBitwise) {
+  ElasticPendulum problem;
+  const Vector p = ElasticPendulum::nominalParameters();
+  const IntegratorOptions options = alphaOptions(GetParam().method, GetParam().rho, 0.5, 1e-2);
+  auto solving = createIntegrator(problem, p, options);
+  auto reading = createIntegrator(problem, p, options);
+  ASSERT_TRUE(reading->usesStepEnd());
+  Vector x(solving->stateSize());
+  solving->initialState(0.0, x);
+  std::vector<Vector> states{x};
+  for (int n = 0; n < 50; ++n) {
+    solving->step(0.01 * n, 0.01, x);
+    states.push_back(x);
+  }
+  Vector lambdaSolving = Vector::LinSpaced(x.size(), 0.3, -1.1), lambdaReading = lambdaSolving;
+  Vector gradientSolving = Vector::Zero(p.size()), gradientReading = gradientSolving;
+  for (int n = 49; n >= 0; --n) {
+    solving->adjointStep(0.01 * n, 0.01, states[n], lambdaSolving, gradientSolving);
+    reading->adjointStepWithEnd(0.01 * n, 0.01, states[n], states[n + 1], lambdaReading, gradientReading);
+  }
+  EXPECT_TRUE(lambdaSolving.cwiseEqual(lambdaReading).all());
+  EXPECT_TRUE(gradientSolving.cwiseEqual(gradientReading).all());
+  EXPECT_EQ(reading->counters().newtonIterations, 0);
+  EXPECT_EQ(reading->counters().jacobianEvaluations, 50);
+  const GradientResult swept = gradientWithFullStorage(problem, p, options);
+  // One per forward step, one per backward step, one for d_0 in the initial state's product.
+  EXPECT_EQ(swept.summary.jacobianEvaluations, 2 * 50 + 1);
+}
+
 TEST_P(AlphaMethod, StorageRecordsTheIntegratorState) {
   // (y, v, d, a): the storage holds 4f values per step, and psi matches the trapezoidal rule.
   ElasticPendulum problem;

@@ -49,6 +49,41 @@ TEST(Esl, AtTheLoadDesignDisplacementsAreTheModalShapes) {
   EXPECT_LT((result.displacements - basis.modesFree * q).norm(), 1e-8 * (basis.modesFree * q).norm());
 }
 
+// The shortcut the piston rod takes (the loads from this design's own simulation) is the same psi2 and
+// gradient as the solve with K, up to the solve's round-off (worse at the random design: K's condition
+// grows like 1 / E(x_min)). A wrong weight, a missing factor or a transposed K_ee is off by O(1).
+TEST(Esl, AtTheLoadDesignWithoutSolvingEqualsTheSolve) {
+  const RodConfig config = coarseConfig();
+  for (unsigned seed : {5u, 6u}) {
+    const Vector design =
+        seed == 5u ? Vector(Vector::Constant(config.designCount(), 0.5)) : randomDesign(config, seed);
+    const FeModel model(config, design);
+    const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
+    const Matrix q = modalSamples(basis.columnCount(), config.eslSamples, seed);
+    const EslResult solved = evaluateEsl(model, equivalentStaticLoads(model, basis, q), config.endTime);
+    const EslResult direct =
+        evaluateEslAtLoadDesign(model, basis, computeInvariants(model, basis).kee, q, config.endTime, true);
+    const double tolerance = seed == 5u ? 1e-11 : 1e-8;
+    EXPECT_NEAR(direct.value, solved.value, tolerance * solved.value) << "seed " << seed;
+    EXPECT_LT((direct.gradient - solved.gradient).norm(), tolerance * solved.gradient.norm())
+        << "seed " << seed;
+    const EslResult valueOnly =
+        evaluateEslAtLoadDesign(model, basis, computeInvariants(model, basis).kee, q, config.endTime, false);
+    EXPECT_EQ(valueOnly.value, direct.value);
+    EXPECT_EQ(valueOnly.gradient.size(), 0);
+  }
+  const FeModel model(config, Vector::Constant(config.designCount(), 0.5));
+  const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
+  const Matrix kee = computeInvariants(model, basis).kee;
+  const int n = basis.columnCount();
+  EXPECT_THROW(evaluateEslAtLoadDesign(model, basis, kee, Matrix::Zero(n + 1, 4), 3.0, false),
+               std::invalid_argument);
+  EXPECT_THROW(evaluateEslAtLoadDesign(model, basis, kee, Matrix::Zero(n, 0), 3.0, false),
+               std::invalid_argument);
+  EXPECT_THROW(evaluateEslAtLoadDesign(model, basis, kee, Matrix::Zero(n, 4), -1.0, false),
+               std::invalid_argument);
+}
+
 // dpsi2/dx_e = -(t1/N) sum_k u_k^T K'_e u_k with the loads held fixed, for every design variable, at
 // x0 = 0.5 and at a random design with values on both sides of 0.1.
 TEST(Esl, GradientWithFixedLoadsMatchesFiniteDifferences) {
