@@ -158,7 +158,9 @@ TEST(ConfigSchema, AllowedValuesAreShownAsTheMessagesSayThem) {
   EXPECT_EQ(findConfigField("optimization.moveLimit").allowed(), "(0, 1]");
   EXPECT_EQ(findConfigField("rod.length").allowed(), "(0, inf]");
   EXPECT_EQ(findConfigField("simulation.adjoint").allowed(), "discrete, continuous, cvodes");
-  EXPECT_EQ(errorOf([] { findConfigField("rod.modes"); }).rfind("config field 'rod.modes' is unknown; fields of 'rod': ", 0),
+  EXPECT_EQ(errorOf([] {
+              findConfigField("rod.modes");
+            }).rfind("config field 'rod.modes' is unknown; fields of 'rod': ", 0),
             0u);
   EXPECT_EQ(errorOf([] { findConfigField("solver.step"); }),
             "config section 'solver' is unknown; sections: rod, simulation, optimization");
@@ -174,7 +176,8 @@ TEST(ConfigSchema, ConfigCommandAndFlagsComeFromTheTable) {
   const testing::CliResult markdown = testing::runCli("config --markdown");
   EXPECT_EQ(markdown.exitCode, 0);
   EXPECT_EQ(markdown.output, configFieldsMarkdown());
-  const std::string help = testing::runCli("evaluate --help").output + testing::runCli("optimize --help").output;
+  const std::string help =
+      testing::runCli("evaluate --help").output + testing::runCli("optimize --help").output;
   int flags = 0;
   for (const ConfigField& f : configFields()) {
     if (f.flag.empty()) continue;
