@@ -6,6 +6,7 @@
 // input, naming the flag and its allowed range.
 #include <hindsight/problems/app/config.h>
 #include <hindsight/storage/schedule.h>
+#include <hindsight/storage/storage_factory.h>
 #include "commands.h"
 
 #include <cmath>
@@ -73,7 +74,15 @@ void registerSchedule(CLI::App& app) {
       "schedule",
       "What a storage strategy will do for N fixed steps, without running a model: recomputed "
       "steps, rhs evaluations, reads/writes and peak bytes per level, predicted cost");
-  command->add_option("--storage", args->storage, "storage spec, e.g. binomial:checkpoints=50")->required();
+  // The strategies it predicts, from the registry's rows (storage/storage_factory.h).
+  std::string predicted;
+  for (const StorageStrategyRow& row : storageStrategies()) {
+    if (row.predict != nullptr) predicted += (predicted.empty() ? "" : ", ") + row.name();
+  }
+  command
+      ->add_option("--storage", args->storage,
+                   "storage spec NAME[:key=value,...], e.g. binomial:checkpoints=50; predicted: " + predicted)
+      ->required();
   command
       ->add_option("--steps", args->steps,
                    "number of fixed steps N, an integer in [1, 4e18] (1e9 style accepted)")

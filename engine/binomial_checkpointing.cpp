@@ -89,6 +89,70 @@ std::string toString(UnsignedInt128 value) {
   return digits;
 }
 
+// The checkpoints BinomialSchedule::reset(length, slots, true) pushes in the first sweep (x_0 not
+// counted) and the position of the last one (0 when none). Once the rest fits the free slots
+// (l <= free + 2, repetition number 1) every split is 1 and positions top + 1 .. length - 2 are all
+// pushed: counted at once, so this takes O(pushes while r >= 2), not O(min(slots, length)).
+FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
+  FirstSweep sweep;
+  std::int64_t free = slots - 1;
+  while (length - sweep.top >= 2 && free > 0) {
+    if (length - sweep.top <= free + 2) {
+      if (length - sweep.top >= 3) {
+        sweep.pushes += length - sweep.top - 2;
+        sweep.top = length - 2;
+      }
+      break;
+    }
+    const std::int64_t target = sweep.top + binomialSplit(length - sweep.top, free + 1);
+    if (target >= length - 1) break;
+    ++sweep.pushes;
+    sweep.top = target;
+    --free;
+  }
+  return sweep;
+}
+
+// Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
+// and the backward sweep's stores; the working state not included), simulateSchedule's
+// checkpointWrites in closed form. W(l, s), the stores at positions >= 1 while reversing l steps whose
+// first state is held, with s slots (the first sweep stores exactly what the restore of l - 1 would),
+// follows the schedule's split m = binomialSplit(l, s):
+//     W(l, s) = [l - m >= 2] + W(l - m, s - 1) + W(m, s),   W(1, s) = W(l, 1) = 0,
+// and W(l, s) = l - 2 when l <= s + 1 (r = 1: every position but the last is stored). On an exact
+// binomial length, W(beta(s, r), s) = beta(s - 1, r) - 1 (W + 1 obeys Pascal's rule with ones on the
+// border). With r the repetition number of l, binomialSplit takes m = beta(s, r - 1) (the left part
+// exact) or m = l - beta(s - 1, r - 1) (the right part exact), so one part is closed form and the
+// other continues with s - 1 or with a smaller r: O(s + r) iterations. The tests compare it with
+// simulateSchedule.
+std::int64_t checkpointWrites(std::int64_t length, std::int64_t slots) {
+  const auto exactWrites = [](std::int64_t s, std::int64_t r) {  // W(beta(s, r), s)
+    return s <= 1 ? std::int64_t{0} : static_cast<std::int64_t>(beta(s - 1, r)) - 1;
+  };
+  std::int64_t writes = 1;  // x_0
+  std::int64_t l = length, s = slots;
+  while (l >= 2 && s >= 2) {
+    const std::int64_t r = repetitionNumber(l, s);
+    if (r <= 1) {
+      writes += l - 2;
+      break;
+    }
+    const std::int64_t m = binomialSplit(l, s);
+    if (l - m >= 2) ++writes;
+    if (static_cast<UnsignedInt128>(m) == beta(s, r - 1)) {
+      writes += exactWrites(s, r - 1);
+      l -= m;
+      --s;
+    } else {
+      if (static_cast<UnsignedInt128>(l - m) != beta(s - 1, r - 1))
+        throw std::logic_error("checkpointWrites: binomialSplit left no part of binomial length");
+      writes += exactWrites(s - 1, r - 1);
+      l = m;
+    }
+  }
+  return writes;
+}
+
 namespace {
 
 struct CountingVisitor {
@@ -276,6 +340,51 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   if (step == info().stepCount - 1) schedule_.restoreStep(step + 1, visitor);  // x_N: nothing to do
   schedule_.restoreStep(step, visitor);
   if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
+}
+
+void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                                    const PredictionRequest& request, SchedulePrediction& p) {
+  // BinomialCheckpointing: revolve with S = min(C + 1, N) slots over the N + 1 positions 0..N, its first
+  // sweep the forward sweep (engine/binomial_checkpointing.h).
+  const auto& binomial = dynamic_cast<const BinomialCheckpointing&>(storage);
+  const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
+  const int stages = request.stages;
+  const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
+  const std::int64_t states = slots;
+  // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
+  // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
+  const bool keepStages = binomial.stages_ && prediction::hasStageValues(stages);
+  const std::int64_t recordBytes =
+      keepStages ? prediction::checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
+  if (recordBytes > binomial.budgetBytes() || states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
+    throw std::invalid_argument(
+        "binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
+        std::to_string(states) + " states of " + formatBytes(stateBytes) +
+        (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
+        ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
+  }
+  // The count first: beyond 2^63 it is refused before the O(slots + r) walks below.
+  p.recomputedSteps =
+      prediction::checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
+  const std::int64_t firstPushes = revolve::firstSweep(steps + 1, slots).pushes;
+  const std::int64_t writes = revolve::checkpointWrites(steps + 1, slots);
+  p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N, x_N never restored)" +
+           (keepStages ? ", stages of the last recomputed step kept" : "");
+  p.statesStored = 1 + firstPushes;
+  p.ramReads = steps;
+  p.ramWrites = writes;
+  if (keepStages) {
+    // RecomputedStages' rule: the adjoint step of e has its stages when e = N - 1 (the forward sweep's
+    // last step, never recomputed) or when the restore of e + 1 recomputed (its last step is
+    // e -> e + 1). The restores that recompute nothing are those of the checkpoint positions, each
+    // stored once and loaded once directly: `writes` - 1 of them among x_1 .. x_{N-1}. A restore that
+    // recomputes stores stage values after every advance (one more than its checkpoint stores); summed
+    // over the backward sweep with the forward sweep's one record that is N minus the first sweep's
+    // pushes.
+    p.stepDataRestored = steps - writes + 1;
+    p.stepDataStored = steps - firstPushes;
+  }
+  p.peakRamBytes = prediction::checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
 }
 
 }  // namespace hindsight

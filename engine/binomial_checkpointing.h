@@ -45,6 +45,7 @@
 #pragma once
 
 #include <hindsight/engine/recomputed_stages.h>
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
@@ -74,6 +75,16 @@ UnsignedInt128 optimalRecomputedSteps(std::int64_t steps, std::int64_t slots);
 std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots);
 /// Decimal rendering of a 128-bit count, for messages.
 std::string toString(UnsignedInt128 value);
+/// The checkpoints BinomialSchedule::reset(length, slots, true) pushes in its first sweep (x_0 not
+/// counted) and the position of the last one (0 when none), in O(pushes while r >= 2).
+struct FirstSweep {
+  std::int64_t pushes = 0;
+  std::int64_t top = 0;
+};
+FirstSweep firstSweep(std::int64_t length, std::int64_t slots);
+/// Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
+/// and the backward sweep's stores), simulateSchedule's checkpointWrites in closed form, O(slots + r).
+std::int64_t checkpointWrites(std::int64_t length, std::int64_t slots);
 
 }  // namespace revolve
 
@@ -177,7 +188,9 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   explicit BinomialCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
                                  bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget", "stages"}; }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -757,4 +757,50 @@ bool CamsCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
   return restored;
 }
 
+void CamsCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                                const PredictionRequest& request, SchedulePrediction& p) {
+  // The same model-free plan the strategy runs (engine/cams_checkpointing.h), with the step record of
+  // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
+  // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
+  const auto& strategy = dynamic_cast<const CamsCheckpointing&>(storage);
+  const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
+  const int stages = request.stages;
+
+  const bool online = strategy.onlineRequested();
+  if (online && steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "cams with online=1 is predicted up to --steps = " + std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
+  }
+  const std::int64_t units = strategy.usableUnits(stateBytes, online);
+  const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+  cams::PlanCounts c;
+  if (online) {
+    // Online placement, each interval reversed by the optimal plan.
+    std::unique_ptr<cams::Plan> intervalPlan;
+    c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
+    p.plan = "cams online: " + std::to_string(units) +
+             " state units, online placement, intervals of at most " +
+             std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally";
+    p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
+    p.peakRamBytes = prediction::checkedProduct(units, stateBytes, "peak RAM bytes");
+  } else {
+    const cams::Plan plan(steps, units, recordUnits);
+    c = cams::simulate(plan);
+    p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
+             (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units";
+    p.ramWrites = c.statesStored + c.recordsStored;
+    p.peakRamBytes =
+        prediction::checkedProduct(std::min(units, plan.memoryUnits()), stateBytes, "peak RAM bytes");
+  }
+  p.plan += "; " + std::to_string(c.recordsStored) + " step records, " +
+            std::to_string(c.adjointRecomputations) + " adjoint steps recompute their stages";
+  p.recomputedSteps = c.recomputedSteps;
+  p.adjointRecomputations = c.adjointRecomputations;
+  p.stepDataStored = c.recordsStored;
+  p.stepDataRestored = steps - c.adjointRecomputations;
+  p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
+  p.ramReads = steps;
+}
+
 }  // namespace hindsight

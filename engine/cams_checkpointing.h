@@ -55,6 +55,7 @@
 #pragma once
 
 #include <hindsight/engine/online_placement.h>
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
@@ -287,7 +288,9 @@ class CamsCheckpointing final : public TrajectoryStorage {
   /// online: the online mode (cams::simulateOnline) even for fixed steps; adaptive steps always use it.
   CamsCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes, bool online = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget", "online"}; }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

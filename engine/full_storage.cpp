@@ -73,3 +73,31 @@ bool FullStorage::doRestoreStepData(std::int64_t step, VectorRef data) {
 }
 
 }  // namespace hindsight
+
+namespace hindsight {
+
+void FullStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                          const PredictionRequest& request, SchedulePrediction& p) {
+  const auto& full = dynamic_cast<const FullStorage&>(storage);
+  const std::int64_t steps = request.steps;
+  // stages=1: every row the state and its step's S - 1 stage states (an explicit Runge-Kutta method's
+  // Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
+  const bool stageRows = full.stages_ && prediction::hasStageValues(request.stages);
+  const std::int64_t rowDoubles = prediction::stageRowDoubles(request, stageRows, "full");
+  if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
+  const std::int64_t budget = full.budgetBytes();
+  if (steps > budget / (8 * rowDoubles)) {
+    throw std::invalid_argument(
+        "full: " + std::to_string(steps) + " states of " + formatBytes(request.stateBytes) +
+        (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
+                   : std::string()) +
+        " exceed full.budget = " + formatBytes(budget));
+  }
+  p.plan = stageRows ? "every state and its step's stage values in RAM" : "every state in RAM";
+  p.statesStored = steps;
+  p.ramWrites = steps;
+  p.ramReads = steps;
+  p.peakRamBytes = steps * 8 * rowDoubles;  // <= full.budget (checked above)
+}
+
+}  // namespace hindsight

@@ -7,6 +7,7 @@
 // stored.
 #pragma once
 
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
@@ -21,7 +22,9 @@ class FullStorage final : public TrajectoryStorage {
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
   explicit FullStorage(std::int64_t budgetBytes = kDefaultBudget, bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"budget", "stages"}; }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

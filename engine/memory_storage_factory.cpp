@@ -8,37 +8,97 @@
 #include <stdexcept>
 
 namespace hindsight {
+namespace {
 
-const std::vector<StorageStrategyEntry>& memoryStorageStrategies() {
-  static const std::vector<StorageStrategyEntry> entries = {
-      {"full", &FullStorage::keys, &FullStorage::create},
-      {"binomial", &BinomialCheckpointing::keys, &BinomialCheckpointing::create},
-      {"online", &OnlineCheckpointing::keys, &OnlineCheckpointing::create},
-      {"cams", &CamsCheckpointing::keys, &CamsCheckpointing::create},
+const char* const kBudget =
+    "bytes the strategy may hold in memory, e.g. 512MiB (default 4 GiB); exceeding it is a "
+    "StorageError";
+
+}  // namespace
+
+const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
+  // Texts condensed from the header comment of each strategy (engine/full_storage.h,
+  // engine/*_checkpointing.h).
+  static const std::vector<StorageStrategyRow> rows = {
+      {{"full",
+        "every step's state in memory; nothing is recomputed",
+        true,
+        "full",
+        {{"budget", kBudget},
+         {"stages",
+          "0 | 1: keep each step's stage values too, so no adjoint step evaluates the right-hand side "
+          "(default 0)"}}},
+       &FullStorage::create,
+       &FullStorage::predict,
+       {}},
+      {{"binomial",
+        "revolve-optimal offline checkpointing for a known number of steps (Griewank & Walther 2000); fixed "
+        "steps only",
+        true,
+        "binomial:checkpoints=50",
+        {{"checkpoints",
+          "number of checkpoints C in [1, 1e9] (default 1); the strategy holds C + 1 states and "
+          "reverses by revolve over all of them (T(N + 1, C + 1) - N recomputed steps)"},
+         {"budget", kBudget},
+         {"stages",
+          "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
+          "recomputation evaluates no right-hand side (default 0)"}}},
+       &BinomialCheckpointing::create,
+       &BinomialCheckpointing::predict,
+       {}},
+      {{"online",
+        "checkpointing while the number of steps is unknown (adaptive steps), re-planned with the binomial "
+        "schedule once it is known",
+        true,
+        "online:checkpoints=50",
+        {{"checkpoints", "number of checkpoints c in [1, 1e9] (default: as many as the budget holds)"},
+         {"budget", kBudget},
+         {"stages",
+          "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "
+          "recomputation evaluates no right-hand side (default 0)"}}},
+       &OnlineCheckpointing::create,
+       &OnlineCheckpointing::predict,
+       {}},
+      {{"cams",
+        "optimal stage-aware checkpointing (after Zhang & Constantinescu, CAMS): checkpoints hold states or "
+        "a "
+        "step's stage values; fixed steps get the optimal plan, adaptive steps (or online=1) the online "
+        "mode: "
+        "checkpoints placed as online places them, each interval reversed by the optimal plan",
+        true,
+        "cams:checkpoints=10",
+        {{"checkpoints",
+          "C in [1, 1e6]: the byte budget of binomial:checkpoints=C (C + 1 states); exactly one of "
+          "checkpoints, budget"},
+         {"budget", "bytes for the checkpoints; exactly one of checkpoints, budget"},
+         {"online",
+          "0 or 1 (default 0): the online mode for fixed steps too (plans in seconds at N = 1e6; "
+          "adaptive steps always use it)"}}},
+       &CamsCheckpointing::create,
+       &CamsCheckpointing::predict,
+       {}},
   };
-  return entries;
+  return rows;
 }
 
 std::unique_ptr<TrajectoryStorage> createMemoryStorage(const std::string& text) {
   const StorageSpec spec = StorageSpec::parse(text);
-  std::string names;
-  for (const StorageStrategyEntry& entry : memoryStorageStrategies()) {
-    if (spec.name() == entry.name) {
-      spec.requireKeysIn(entry.keys());
-      return entry.create(spec);
+  if (findStorageStrategy(memoryStorageStrategies(), spec.name()) == nullptr) {
+    std::string names;
+    for (const StorageStrategyRow& row : memoryStorageStrategies())
+      names += (names.empty() ? "" : ", ") + row.name();
+    for (const char* other : {"disk", "lossy", "packed", "hermite", "multilevel"}) {
+      if (spec.name() == other) {
+        throw std::invalid_argument(
+            "storage strategy '" + spec.name() +
+            "' is not in memory: it needs the storage component (hindsight::createStorage, "
+            "<hindsight/storage/storage_factory.h>); in memory: " +
+            names);
+      }
     }
-    names += (names.empty() ? "" : ", ") + std::string(entry.name);
+    throw std::invalid_argument("unknown storage strategy '" + spec.name() + "'; in memory: " + names);
   }
-  for (const char* other : {"disk", "lossy", "packed", "hermite", "multilevel"}) {
-    if (spec.name() == other) {
-      throw std::invalid_argument(
-          "storage strategy '" + spec.name() +
-          "' is not in memory: it needs the storage component (hindsight::createStorage, "
-          "<hindsight/storage/storage_factory.h>); in memory: " +
-          names);
-    }
-  }
-  throw std::invalid_argument("unknown storage strategy '" + spec.name() + "'; in memory: " + names);
+  return createFromRows(memoryStorageStrategies(), text);
 }
 
 }  // namespace hindsight

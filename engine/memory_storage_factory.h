@@ -5,6 +5,7 @@
 // (storage/storage_factory.h) accepts every spec, these four included, from this one table.
 #pragma once
 
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
@@ -14,16 +15,9 @@
 
 namespace hindsight {
 
-/// One strategy of a factory: its spec name, the keys its spec accepts, and how it is made from a
-/// parsed spec whose keys were checked against keys().
-struct StorageStrategyEntry {
-  const char* name;
-  std::vector<std::string> (*keys)();
-  std::unique_ptr<TrajectoryStorage> (*create)(const StorageSpec& spec);
-};
-
-/// The in-memory strategies, in the order help texts list them: full, binomial, online, cams.
-const std::vector<StorageStrategyEntry>& memoryStorageStrategies();
+/// The rows of the in-memory strategies (engine/storage_registry.h), in the order help texts list them:
+/// full, binomial, online, cams.
+const std::vector<StorageStrategyRow>& memoryStorageStrategies();
 
 /// A strategy from "NAME[:key=value,...]" for NAME in full, binomial, online, cams. Throws
 /// std::invalid_argument for an unknown key or out-of-range value (naming it and the range), and for

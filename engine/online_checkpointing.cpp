@@ -94,7 +94,6 @@ void OnlineCheckpointing::doBegin() {
   activeCheckpoints_ = checkpointsFor(stateBytes(), recordBytes);
   placement_.reset(activeCheckpoints_);
   slots_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(activeCheckpoints_, 1 << 16)));
-  interval_ = -1;
   holdBytes(stateBytes() + recordBytes);
   heldBytes_ += stateBytes() + recordBytes;
   recomputedStages_.reset(info().stepDataSize);
@@ -132,9 +131,8 @@ void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
     deepest =
         std::max(deepest, std::min(activeCheckpoints_ - static_cast<std::int64_t>(j), end - positions[j]));
   }
-  schedule_.reserve(deepest);
-  interval_ = static_cast<std::int64_t>(
-      placement_.positions().size());  // restore(N - 1) comes from the working state
+  reversal_.reserve(deepest);
+  reversal_.reset(&placement_.positions(), stepCount(), activeCheckpoints_);  // N - 1: the working state
 }
 
 void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
@@ -162,14 +160,7 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
     return;
   }
-  if (interval_ == static_cast<std::int64_t>(placement_.positions().size()) || step < intervalStart_) {
-    // The previous interval is done: the next one is the last held checkpoint at or before `step`.
-    const internal::OnlinePlacement::Interval interval =
-        internal::OnlinePlacement::intervalOf(placement_.positions(), stepCount(), step, interval_);
-    interval_ = interval.index;
-    intervalStart_ = interval.start;
-    schedule_.reset(interval.length, activeCheckpoints_ - interval.index, false);
-  }
+  const internal::OnlinePlacement::Interval& interval = reversal_.enter(step);
   struct Visitor {
     OnlineCheckpointing& self;
     VectorRef z;
@@ -186,10 +177,94 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
         ++self.mutableCounters().stepDataStored;
       }
     }
-  } visitor{*this, z, bytes, intervalStart_, interval_};
+  } visitor{*this, z, bytes, interval.start, interval.index};
   recomputedStages_.beginRestore(step);
-  schedule_.restoreStep(step - intervalStart_, visitor);
+  reversal_.restoreStep(step, visitor);
   if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
+}
+
+void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                                  const PredictionRequest& request, SchedulePrediction& p) {
+  // OnlineCheckpointing for N fixed steps: its placement (internal::CostPlacement), then each interval
+  // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
+  // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
+  const auto& online = dynamic_cast<const OnlineCheckpointing&>(storage);
+  const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
+  const int stages = request.stages;
+
+  if (steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "online is predicted up to --steps = " + std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
+  }
+  const bool keepStages = online.keepsStages() && stages > 1;
+  const std::int64_t recordBytes =
+      keepStages
+          ? prediction::checkedProduct(2 * (stages - 1), stateBytes, "online: bytes of two step records")
+          : 0;
+  const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
+  std::int64_t forwardStores = 0;
+  const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, &forwardStores);
+  p.plan = "online placement (" + std::to_string(positions.size()) + " held), revolve per interval, " +
+           std::to_string(c) + " checkpoints + working state" +
+           (keepStages ? ", stages of the last recomputed step kept" : "");
+  p.recomputedSteps = prediction::checkedCount(
+      OnlineCheckpointing::forwardStepsOf(positions, steps, c) - static_cast<UnsignedInt128>(steps - 1),
+      "recomputed steps");
+  p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
+  p.ramReads = steps;
+  // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
+  // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
+  p.peakRamBytes = prediction::checkedCount(
+      static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
+              static_cast<UnsignedInt128>(stateBytes) +
+          static_cast<UnsignedInt128>(recordBytes),
+      "peak RAM bytes");
+  p.ramWrites = -1;
+  if (keepStages && steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument("online.stages = 1 is predicted up to " +
+                                std::to_string(prediction::kMaxWalkedSteps) +
+                                " steps (its served adjoint steps are counted by running the schedules); "
+                                "--steps = " +
+                                std::to_string(steps));
+  }
+  if (steps <= prediction::kMaxWalkedSteps) {
+    // The backward sweep as OnlineCheckpointing::doRestore runs it, with RecomputedStages' rule for
+    // stages=1 (one-double "stage values": only which step they belong to matters).
+    struct Simulation {
+      internal::RecomputedStages stages;
+      bool keep;
+      std::int64_t offset = 0, stores = 0, stepDataStored = 0;
+      void loadWorking() {}
+      void load(std::int64_t) {}
+      void store(std::int64_t) { ++stores; }
+      void advance(std::int64_t from, std::int64_t to) {
+        if (keep && to > from) {
+          stages.pending(offset + to - 1);
+          ++stepDataStored;
+        }
+      }
+    } sim;
+    sim.keep = keepStages;
+    sim.stages.reset(keepStages ? 1 : 0);
+    std::int64_t served = 0;
+    Vector data = Vector::Zero(1);
+    if (keepStages) sim.stages.recordLast(steps - 1, data);
+    if (keepStages && sim.stages.restore(steps - 1, data)) ++served;  // x_{N-1}: the working state
+    internal::OnlineReversal reversal;  // the strategy's own backward sweep, with a counting visitor
+    reversal.reset(&positions, steps, c);
+    for (std::int64_t e = steps - 2; e >= 0; --e) {
+      sim.offset = reversal.enter(e).start;
+      if (keepStages) sim.stages.beginRestore(e);
+      reversal.restoreStep(e, sim);
+      if (keepStages && sim.stages.restore(e, data)) ++served;
+    }
+    p.ramWrites = forwardStores + sim.stores + 1;
+    if (keepStages) {
+      p.stepDataStored = sim.stepDataStored;
+      p.stepDataRestored = served;
+    }
+  }
 }
 
 }  // namespace hindsight

@@ -40,8 +40,52 @@
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/online_placement.h>
 #include <hindsight/engine/recomputed_stages.h>
+#include <hindsight/engine/storage_registry.h>
 
 namespace hindsight {
+
+namespace internal {
+
+/// online's backward sweep once its forward sweep has placed the checkpoints: the interval of each
+/// restored step (the last held position at or before it), reversed by revolve with c - j slots for
+/// interval j. The strategy runs it with a visitor that copies states and recomputes, its prediction
+/// (OnlineCheckpointing::predict) with one that counts: one code for both.
+class OnlineReversal {
+ public:
+  /// Capacity for the deepest interval (no allocation in the backward sweep).
+  void reserve(std::int64_t slots) { schedule_.reserve(slots); }
+  /// A new backward sweep over `positions` (held, increasing, from 0) of N steps with c checkpoints;
+  /// x_{N-1} is the working state and not restored here.
+  void reset(const std::vector<std::int64_t>* positions, std::int64_t steps, std::int64_t checkpoints) {
+    positions_ = positions;
+    steps_ = steps;
+    checkpoints_ = checkpoints;
+    interval_ = OnlinePlacement::Interval{static_cast<std::int64_t>(positions->size()), steps, 0};
+  }
+  /// Enters the interval of `step` (< N - 1, steps in decreasing order) when the previous one is done;
+  /// returns it (its index is the slot of its first state).
+  const OnlinePlacement::Interval& enter(std::int64_t step) {
+    if (step < interval_.start) {
+      interval_ = OnlinePlacement::intervalOf(*positions_, steps_, step, interval_.index);
+      schedule_.reset(interval_.length, checkpoints_ - interval_.index, false);
+    }
+    return interval_;
+  }
+  /// Restores `step` by revolve within its interval (enter(step) first); the visitor sees positions and
+  /// slots relative to the interval (BinomialSchedule's visitor).
+  template <typename Visitor>
+  void restoreStep(std::int64_t step, Visitor& visitor) {
+    schedule_.restoreStep(step - interval_.start, visitor);
+  }
+
+ private:
+  const std::vector<std::int64_t>* positions_ = nullptr;
+  std::int64_t steps_ = 0, checkpoints_ = 0;
+  OnlinePlacement::Interval interval_{0, 0, 0};
+  BinomialSchedule schedule_;
+};
+
+}  // namespace internal
 
 class OnlineCheckpointing final : public TrajectoryStorage {
  public:
@@ -53,7 +97,9 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   explicit OnlineCheckpointing(std::int64_t checkpoints, std::int64_t budgetBytes = kDefaultBudget,
                                bool stages = false);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"checkpoints", "budget", "stages"}; }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   std::string spec() const override;
   bool isExact() const override { return true; }
@@ -94,10 +140,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   std::unique_ptr<double[]> working_;
   std::int64_t heldBytes_ = 0;
   bool workingValid_ = false;
-  // Backward sweep: the interval being reversed.
-  std::int64_t interval_ = -1;
-  std::int64_t intervalStart_ = 0;
-  BinomialSchedule schedule_;
+  internal::OnlineReversal reversal_;  // backward sweep
 };
 
 }  // namespace hindsight

@@ -179,3 +179,30 @@ bool DiskStorage::doRestoreStepData(std::int64_t step, VectorRef data) {
 }
 
 }  // namespace hindsight
+
+namespace hindsight {
+
+void DiskStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                          const PredictionRequest& request, SchedulePrediction& p) {
+  const auto& disk = dynamic_cast<const DiskStorage&>(storage);
+  const std::int64_t steps = request.steps;
+  // stages=1: every row the state and its step's S - 1 stage states, every adjoint step served.
+  const bool stageRows = disk.options_.stages && prediction::hasStageValues(request.stages);
+  const std::int64_t rowDoubles = prediction::stageRowDoubles(request, stageRows, "disk");
+  if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
+  // The run's own rule (layoutFor): rows N + 1, chunk and buffer count from the budget.
+  const DiskStorage::Layout layout =
+      disk.layoutFor(rowDoubles, prediction::checkedCount(static_cast<UnsignedInt128>(steps) + 1, "rows"));
+  if (layout.bufferBytes > disk.budgetBytes()) {
+    throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(layout.bufferBytes) +
+                                " exceeds disk.budget = " + formatBytes(disk.budgetBytes()));
+  }
+  p.plan = "every state on disk, " + std::to_string(layout.chunkStates) + " states per chunk";
+  p.statesStored = steps;
+  p.diskWrites = prediction::checkedCount(static_cast<UnsignedInt128>(steps) + 1, "disk writes");
+  p.diskReads = steps;
+  p.peakRamBytes = layout.bufferCount * layout.bufferBytes;
+  p.peakDiskBytes = prediction::checkedProduct(p.diskWrites, 8 * rowDoubles, "disk bytes");
+}
+
+}  // namespace hindsight

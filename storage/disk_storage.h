@@ -36,6 +36,7 @@
 // master/docs/RegisteredFilterPlugins.md; Collet & Kucherawy, RFC 8878 (Zstandard).
 #pragma once
 
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
@@ -77,9 +78,9 @@ class DiskStorage final : public TrajectoryStorage {
   ~DiskStorage() override;
 
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() {
-    return {"dir", "level", "chunk", "budget", "keep", "codec", "stages"};
-  }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -51,7 +51,6 @@ class HermiteStorage final : public TrajectoryStorage {
   explicit HermiteStorage(std::int64_t every = kDefaultEvery, std::int64_t budgetBytes = kDefaultBudget,
                           double tolerance = kDefaultTolerance);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"every", "budget", "tolerance"}; }
 
   std::string spec() const override;
   bool isExact() const override { return false; }

@@ -83,11 +83,9 @@ class LossyStorage final : public TrajectoryStorage {
   /// Throws std::invalid_argument when !options.IsValid().
   explicit LossyStorage(Options options);
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() { return {"codec", "tolerance", "budget", "block", "target"}; }
   /// "packed[:budget=B,block=S]": every state in memory, coded losslessly along time (the same blocks,
   /// codec and integrity checks as lossy:codec=time and disk's default codec, without quantization).
   static std::unique_ptr<TrajectoryStorage> createPacked(const StorageSpec& spec);
-  static std::vector<std::string> packedKeys() { return {"budget", "block"}; }
 
   std::string spec() const override;
   bool isExact() const override { return options_.lossless; }

@@ -4,6 +4,7 @@
 #include <hindsight/storage/scratch_files.h>
 
 #include <hindsight/engine/hash.h>
+#include <hindsight/engine/interrupt.h>
 
 #include <hindsight/engine/stopwatch.h>
 
@@ -157,11 +158,12 @@ std::int64_t MultilevelStorage::acquireSlot(std::int64_t wanted) {
     count = std::max<std::int64_t>(1, count);
     holdBytes(count * stateBytes());
     const int n = info().stateSize;
-    slotBlocks_.emplace_back(new double[static_cast<std::size_t>(count * n)]);
+    slotBlocks_.emplace_back(counting_ ? nullptr : new double[static_cast<std::size_t>(count * n)]);
     for (std::int64_t i = count - 1; i >= 0; --i) {
       freeSlots_.push_back(static_cast<std::int64_t>(slots_.size() + static_cast<std::size_t>(i)));
     }
-    for (std::int64_t i = 0; i < count; ++i) slots_.push_back(slotBlocks_.back().get() + i * n);
+    for (std::int64_t i = 0; i < count; ++i)
+      slots_.push_back(counting_ ? nullptr : slotBlocks_.back().get() + i * n);
   }
   const std::int64_t slot = freeSlots_.back();
   freeSlots_.pop_back();
@@ -191,14 +193,17 @@ void MultilevelStorage::recordStride(std::int64_t step, double t, ConstVectorRef
                                       ? (info().stepCount + stride_ - 1) / stride_ - slotsInUseByKept_
                                       : kSlotsPerBlock;
       const std::int64_t slot = acquireSlot(std::min(wanted, ramKeptLimit_ - slotsInUseByKept_));
-      std::memcpy(slots_[static_cast<std::size_t>(slot)], z.data(), bytes);
+      if (!counting_) std::memcpy(slots_[static_cast<std::size_t>(slot)], z.data(), bytes);
       kept_.push_back(Kept{step, slot, -1});
       ++slotsInUseByKept_;
       return;
     }
     if (diskRows_ < diskCapacity_) {
-      if (!file_) openFile();
-      file_->append(t, z.data());
+      if (!counting_) {
+        if (!file_) openFile();
+        file_->append(t, z.data());
+      }
+      ++diskWrites_;
       kept_.push_back(Kept{step, -1, diskRows_++});
       return;
     }
@@ -221,6 +226,7 @@ void MultilevelStorage::finishStride() {
   c.statesStored = static_cast<std::int64_t>(kept_.size());
   statesInRam_ = slotsInUseByKept_;
   cursor_ = static_cast<std::int64_t>(kept_.size()) - 1;
+  if (counting_) c.uncompressedBytes = diskRows_ * stateBytes();
   if (file_) {
     file_->finishWriting(stepCount());
     c.bytesOnDisk = file_->fileBytes();
@@ -235,10 +241,12 @@ void MultilevelStorage::finishStride() {
 void MultilevelStorage::loadKept(std::size_t index, VectorRef z) {
   const Kept& k = kept_[index];
   if (k.slot >= 0) {
-    std::memcpy(z.data(), slots_[static_cast<std::size_t>(k.slot)],
-                static_cast<std::size_t>(info().stateSize) * 8);
+    if (!counting_)
+      std::memcpy(z.data(), slots_[static_cast<std::size_t>(k.slot)],
+                  static_cast<std::size_t>(info().stateSize) * 8);
   } else {
-    file_->read(k.row, z.data());
+    if (!counting_) file_->read(k.row, z.data());
+    ++diskReads_;
   }
 }
 
@@ -259,7 +267,7 @@ void MultilevelStorage::restoreStride(std::int64_t step, VectorRef z) {
     }
     releaseScratch();
   } else if (!scratch_.empty() && step == scratchFirst_ + static_cast<std::int64_t>(scratch_.size()) - 1) {
-    std::memcpy(z.data(), slots_[static_cast<std::size_t>(scratch_.back())], bytes);
+    if (!counting_) std::memcpy(z.data(), slots_[static_cast<std::size_t>(scratch_.back())], bytes);
     releaseSlot(scratch_.back());
     scratch_.pop_back();
   } else {
@@ -271,7 +279,7 @@ void MultilevelStorage::restoreStride(std::int64_t step, VectorRef z) {
     loadKept(static_cast<std::size_t>(cursor_), z);
     for (std::int64_t i = checkpoint.step; i < step; ++i) {
       recompute(i, z);
-      if (i + 1 >= scratchFirst_ && i + 1 < step) {
+      if (i + 1 >= scratchFirst_ && i + 1 < step && !counting_) {
         std::memcpy(
             slots_[static_cast<std::size_t>(scratch_[static_cast<std::size_t>(i + 1 - scratchFirst_)])],
             z.data(), bytes);
@@ -415,11 +423,13 @@ void MultilevelStorage::doBegin() {
   beginPlan();
 }
 
-bool MultilevelStorage::canPlan() const {
+bool MultilevelStorage::canPlan() const { return plansFor(info().stepCount, info().stateSize); }
+
+bool MultilevelStorage::plansFor(std::int64_t steps, int stateSize) const {
   // Measured costs need RAM for the states recorded while forward steps are timed (see beginPlan).
-  const Layout layout = layoutFor(info().stepCount, info().stateSize);
-  return options_.costs || info().stepCount <= 1 || layout.diskSlots == 0 ||
-         std::min<std::int64_t>({kProbeSteps, info().stepCount - 1, (layout.ramSlots - 1) / 2}) >= 1;
+  const Layout layout = layoutFor(steps, stateSize);
+  return options_.costs || steps <= 1 || layout.diskSlots == 0 ||
+         std::min<std::int64_t>({kProbeSteps, steps - 1, (layout.ramSlots - 1) / 2}) >= 1;
 }
 
 void MultilevelStorage::beginPlan() {
@@ -608,6 +618,119 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
     ramPool_.reset();
     poolSlots_ = 0;
   }
+}
+
+}  // namespace hindsight
+
+namespace hindsight {
+
+namespace {
+
+// The stride's recomputations, counted by TrajectoryStorage::recompute and not carried out. The stride
+// recomputes each segment once when its scratch fits and in rounds otherwise, so the walk is bounded
+// by a work limit instead of N alone.
+class CountingRecomputer final : public StepRecomputer {
+ public:
+  void advance(std::int64_t, VectorRef) override {
+    if (++advances_ > kMaxAdvances) {
+      throw std::invalid_argument(
+          "multilevel.schedule = stride is predicted by walking its recomputations, at most 2^32 of them; "
+          "this one recomputes more (raise ram or disk, or lower --steps)");
+    }
+    if ((advances_ & 0xffffff) == 0) pollInterrupt();
+  }
+
+ private:
+  static constexpr std::int64_t kMaxAdvances = std::int64_t{1} << 32;
+  std::int64_t advances_ = 0;
+};
+
+}  // namespace
+
+void MultilevelStorage::predictStride(const Options& options, const PredictionRequest& request,
+                                      SchedulePrediction& p) {
+  // The stride's own code (beginStride, recordStride, finishStride, restoreStride) on a copy in counting
+  // mode, driven through the storage interface as the engine drives it: N records, finish, N restores.
+  if (request.steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "multilevel.schedule = stride is predicted up to --steps = " +
+        std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24; its placement is walked step by step); --steps = " + std::to_string(request.steps));
+  }
+  MultilevelStorage counter(options);
+  counter.counting_ = true;
+  counter.setVerifyRestores(false);
+  TrajectoryInfo info;
+  info.problemName = "hindsight schedule";
+  info.stateSize = static_cast<int>(request.stateBytes / 8);
+  info.t1 = static_cast<double>(request.steps);
+  info.stepCount = request.steps;
+  CountingRecomputer recomputer;
+  const Vector z = Vector::Zero(info.stateSize);
+  Vector restored(info.stateSize);
+  counter.begin(info, recomputer);
+  for (std::int64_t k = 0; k < request.steps; ++k) {
+    if ((k & 0xffff) == 0) pollInterrupt();
+    counter.record(k, static_cast<double>(k), z, z);
+  }
+  counter.finish(request.steps, static_cast<double>(request.steps), z, z);
+  for (std::int64_t e = request.steps - 1; e >= 0; --e) {
+    if ((e & 0xffff) == 0) pollInterrupt();
+    counter.restore(e, restored);
+  }
+  const StorageCounters& c = counter.counters();
+  p.plan =
+      "stride " + std::to_string(counter.stride()) + ": " + std::to_string(counter.statesInRam()) +
+      " kept states in RAM, " + std::to_string(counter.statesOnDisk()) +
+      " on disk, the states between recomputed into the free RAM slots (in rounds where they do not all fit)";
+  p.recomputedSteps = c.recomputedSteps;
+  p.statesStored = c.statesStored;
+  p.ramWrites = -1;  // scratch copies are not counted by the run either
+  p.ramReads = -1;
+  p.diskWrites = counter.diskWrites();
+  p.diskReads = counter.diskReads();
+  p.peakRamBytes = c.peakBytesInMemory;
+  p.peakDiskBytes = c.uncompressedBytes;
+}
+
+void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
+                                const PredictionRequest& request, SchedulePrediction& p) {
+  const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
+  const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
+  const int n = static_cast<int>(stateBytes / 8);
+  if (multilevel.options().stride || !multilevel.plansFor(steps, n)) {
+    predictStride(multilevel.options(), request, p);
+    return;
+  }
+  const Layout layout = multilevel.layoutFor(steps, n);
+  // As beginPlan: the spec's own costs first; without them a run measures its costs, except when there is
+  // nothing to choose (one step, or no disk slot: every plan is revolve in RAM), where it plans by 1:1:0:0.
+  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : request.costs;
+  const ScheduleCosts unit;
+  const bool nothingToChoose = steps == 1 || layout.diskSlots == 0;
+  if (planCosts == nullptr && !nothingToChoose)
+    throw std::invalid_argument(
+        "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
+  if (planCosts != nullptr) p.costs = *planCosts;  // the spec's own costs take precedence, as in a run
+  TwoLevelPlan plan =
+      TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
+                           multilevel.options().costs || !nothingToChoose ? *planCosts : unit);
+  p.plan = plan.describe();
+  const TwoLevelPlan::Counts& c = plan.counts();
+  p.recomputedSteps = c.recomputedSteps;
+  p.statesStored = c.statesStored;
+  p.ramWrites = c.ramWrites;
+  p.ramReads = c.ramReads;
+  p.diskWrites = c.diskWrites;
+  p.diskReads = c.diskReads;
+  if (p.ramWrites < 0 && steps <= TwoLevelPlan::kMaxSimulatedSteps) {
+    // The RAM copies of the leaves plan, by running the plan the strategy runs with a counting visitor.
+    const TwoLevelPlan::Counts walked = plan.walk();
+    p.ramWrites = walked.ramWrites;
+    p.ramReads = walked.ramReads;
+  }
+  p.peakRamBytes = prediction::checkedProduct(plan.ramSlotsUsed(), stateBytes, "peak RAM bytes");
+  p.peakDiskBytes = prediction::checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
 }
 
 }  // namespace hindsight

@@ -49,6 +49,7 @@
 // background I/O thread per run while the disk level of schedule=stride is used.
 #pragma once
 
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 #include <hindsight/storage/schedule.h>
@@ -90,9 +91,9 @@ class MultilevelStorage final : public TrajectoryStorage {
   explicit MultilevelStorage(Options options);
   ~MultilevelStorage() override;
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
-  static std::vector<std::string> keys() {
-    return {"ram", "disk", "dir", "level", "keep", "costs", "schedule"};
-  }
+  /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
+  static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
+                      const PredictionRequest& request, SchedulePrediction& p);
 
   /// Slots of each level schedule=optimal has for N steps of stateSize entries.
   struct Layout {
@@ -101,6 +102,9 @@ class MultilevelStorage final : public TrajectoryStorage {
   };
   Layout layoutFor(std::int64_t steps, int stateSize) const;
   const Options& options() const { return options_; }
+  /// Whether a run of `steps` fixed steps of `stateSize` entries follows the two-level plan; else it takes
+  /// the stride (schedule=stride, or no costs= and RAM too small to time forward steps).
+  bool plansFor(std::int64_t steps, int stateSize) const;
   /// schedule=optimal with fixed steps in the current or last run: its plan, the costs it was chosen
   /// by (given or measured), and the schedule's predicted and measured seconds (recomputation + disk).
   bool usesPlan() const { return usesPlan_; }
@@ -108,7 +112,7 @@ class MultilevelStorage final : public TrajectoryStorage {
   const ScheduleCosts& costs() const { return costsInUse_; }
   double predictedSeconds() const { return usesPlan_ ? plan_.counts().cost(costsInUse_) : 0.0; }
   double measuredSeconds() const { return recomputeSeconds_ + slotIoSeconds_; }
-  /// States written to and read from the disk level in the last run (schedule=optimal).
+  /// States written to and read from the disk level in the last run (either schedule).
   std::int64_t diskWrites() const { return diskWrites_; }
   std::int64_t diskReads() const { return diskReads_; }
 
@@ -134,6 +138,7 @@ class MultilevelStorage final : public TrajectoryStorage {
   void finishStride();
   void restoreStride(std::int64_t step, VectorRef z);
   bool canPlan() const;
+  static void predictStride(const Options& options, const PredictionRequest& request, SchedulePrediction& p);
   void beginPlan();
   void choosePlan(const ScheduleCosts& costs);
   void recordPlanned(std::int64_t step, const double* z);
@@ -188,6 +193,10 @@ class MultilevelStorage final : public TrajectoryStorage {
   double recomputeSeconds_ = 0.0;
   double slotIoSeconds_ = 0.0;
   std::int64_t diskWrites_ = 0, diskReads_ = 0;
+  // The stride's counting executor (predict): the same placement, slots and scratch rounds, with no
+  // state copied, no RAM slot allocated (only charged) and no file written; recompute() reaches a
+  // recomputer that only counts.
+  bool counting_ = false;
 };
 
 }  // namespace hindsight

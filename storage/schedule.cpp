@@ -1,23 +1,14 @@
 #include <hindsight/storage/schedule.h>
 
 #include <hindsight/engine/cams_checkpointing.h>
-#include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/interrupt.h>
-#include <hindsight/engine/online_checkpointing.h>
-#include <hindsight/engine/online_placement.h>
-#include <hindsight/engine/recomputed_stages.h>
 #include <hindsight/engine/storage_spec.h>
-#include <hindsight/storage/chunked_state_file.h>
-#include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
-#include <charconv>
-#include <cmath>
 #include <limits>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -82,123 +73,12 @@ std::int64_t parseScheduleInteger(const std::string& text, const std::string& fi
   return static_cast<std::int64_t>(mantissa);
 }
 
-// ---- ScheduleCosts ----
-
-ScheduleCosts ScheduleCosts::parse(const std::string& text, const std::string& field) {
-  const std::string expected = field + " = '" + text +
-                               "' must be four numbers uf:ub:wd:rd in [0, 1e30] (seconds of a forward step, "
-                               "an adjoint step, a disk write and a disk read of one state), uf > 0";
-  double values[4];
-  std::size_t position = 0;
-  for (int i = 0; i < 4; ++i) {
-    const std::size_t end = i < 3 ? text.find(':', position) : text.size();
-    if (end == std::string::npos) throw std::invalid_argument(expected);
-    const std::string part = text.substr(position, end - position);
-    std::size_t used = 0;
-    try {
-      values[i] = std::stod(part, &used);
-    } catch (const std::exception&) {
-      throw std::invalid_argument(expected);
-    }
-    if (used != part.size() || !(values[i] >= 0.0 && values[i] <= kMaxScheduleCost))
-      throw std::invalid_argument(expected);
-    position = end + 1;
-  }
-  if (values[0] <= 0.0) throw std::invalid_argument(expected);
-  return ScheduleCosts{values[0], values[1], values[2], values[3]};
-}
-
-std::string ScheduleCosts::text() const {
-  // Shortest text that reads back to the same doubles (the spec round-trips).
-  std::string out;
-  for (double value : {forwardStep, adjointStep, diskWrite, diskRead}) {
-    char buffer[32];
-    const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
-    if (!out.empty()) out += ':';
-    out.append(buffer, result.ptr);
-  }
-  return out;
-}
-
-const char* levelName(StorageLevel level) { return level == StorageLevel::kRam ? "ram" : "disk"; }
-
 // ---- TwoLevelPlan ----
 
 namespace {
 
 std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
   return static_cast<std::int64_t>(revolve::optimalForwardSteps(length, slots));
-}
-
-// The checkpoints BinomialSchedule::reset(length, slots, true) pushes in the first sweep (x_0 not
-// counted) and the position of the last one (0 when none). Once the rest fits the free slots
-// (l <= free + 2, repetition number 1) every split is 1 and positions top + 1 .. length - 2 are all
-// pushed: counted at once, so this takes O(pushes while r >= 2), not O(min(slots, length)).
-struct FirstSweep {
-  std::int64_t pushes = 0;
-  std::int64_t top = 0;
-};
-FirstSweep firstSweep(std::int64_t length, std::int64_t slots) {
-  FirstSweep sweep;
-  std::int64_t free = slots - 1;
-  while (length - sweep.top >= 2 && free > 0) {
-    if (length - sweep.top <= free + 2) {
-      if (length - sweep.top >= 3) {
-        sweep.pushes += length - sweep.top - 2;
-        sweep.top = length - 2;
-      }
-      break;
-    }
-    const std::int64_t target = sweep.top + revolve::binomialSplit(length - sweep.top, free + 1);
-    if (target >= length - 1) break;
-    ++sweep.pushes;
-    sweep.top = target;
-    --free;
-  }
-  return sweep;
-}
-std::int64_t firstSweepPushes(std::int64_t length, std::int64_t slots) {
-  return firstSweep(length, slots).pushes;
-}
-
-// Checkpoint writes of a whole BinomialSchedule run (reset(length, slots, true): x_0, the first sweep's
-// and the backward sweep's stores; the working state not included), revolve::simulateSchedule's
-// checkpointWrites in closed form. W(l, s), the stores at positions >= 1 while reversing l steps whose
-// first state is held, with s slots (the first sweep stores exactly what the restore of l - 1 would),
-// follows the schedule's split m = binomialSplit(l, s):
-//     W(l, s) = [l - m >= 2] + W(l - m, s - 1) + W(m, s),   W(1, s) = W(l, 1) = 0,
-// and W(l, s) = l - 2 when l <= s + 1 (r = 1: every position but the last is stored). On an exact
-// binomial length, W(beta(s, r), s) = beta(s - 1, r) - 1 (W + 1 obeys Pascal's rule with ones on the
-// border). With r the repetition number of l, binomialSplit takes m = beta(s, r - 1) (the left part
-// exact) or m = l - beta(s - 1, r - 1) (the right part exact), so one part is closed form and the
-// other continues with s - 1 or with a smaller r: O(s + r) iterations. The tests compare it with
-// revolve::simulateSchedule.
-std::int64_t revolveWrites(std::int64_t length, std::int64_t slots) {
-  const auto exactWrites = [](std::int64_t s, std::int64_t r) {  // W(beta(s, r), s)
-    return s <= 1 ? std::int64_t{0} : static_cast<std::int64_t>(revolve::beta(s - 1, r)) - 1;
-  };
-  std::int64_t writes = 1;  // x_0
-  std::int64_t l = length, s = slots;
-  while (l >= 2 && s >= 2) {
-    const std::int64_t r = revolve::repetitionNumber(l, s);
-    if (r <= 1) {
-      writes += l - 2;
-      break;
-    }
-    const std::int64_t m = revolve::binomialSplit(l, s);
-    if (l - m >= 2) ++writes;
-    if (static_cast<UnsignedInt128>(m) == revolve::beta(s, r - 1)) {
-      writes += exactWrites(s, r - 1);
-      l -= m;
-      --s;
-    } else {
-      if (static_cast<UnsignedInt128>(l - m) != revolve::beta(s - 1, r - 1))
-        throw std::logic_error("revolveWrites: binomialSplit left no part of binomial length");
-      writes += exactWrites(s - 1, r - 1);
-      l = m;
-    }
-  }
-  return writes;
 }
 
 // Replaying x_{N-1} is evaluated while the first sweep has at most this many pushes to walk through;
@@ -216,7 +96,7 @@ std::int64_t lastLeafRecomputed(std::int64_t length, std::int64_t ramSlots, bool
   if (length < 2) return 0;
   const std::int64_t slots = lastLeafSlots(length, ramSlots, replay);
   const std::int64_t sweep = revolveSteps(length, slots) - (length - 1);
-  return replay ? sweep + (length - 1 - firstSweep(length, slots).top) : sweep;
+  return replay ? sweep + (length - 1 - revolve::firstSweep(length, slots).top) : sweep;
 }
 
 bool replayAffordable(std::int64_t length, std::int64_t ramSlots) {
@@ -286,7 +166,7 @@ TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, s
     plan.revolveSlots_ = std::min(ramCheckpoints + plan.diskSlotsUsed_, steps - 1);
     plan.ramSlotsUsed_ = plan.revolveSlots_ - plan.diskSlotsUsed_ + (plan.replayLast_ ? 0 : 1);
   }
-  plan.counts_ = plan.countBySimulation();
+  plan.counts_ = plan.walk();
   return plan;
 }
 
@@ -422,7 +302,7 @@ TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, st
   plan.steps_ = steps;
   plan.ramSlots_ = t.ram;
   plan.dynamic_ = std::move(tables);
-  plan.counts_ = plan.countBySimulation();  // also the slots in use at the most (takeSlot)
+  plan.counts_ = plan.walk();  // also the slots in use at the most (takeSlot)
   plan.ramSlotsUsed_ = plan.peakRam_;
   plan.diskSlotsUsed_ = plan.peakDisk_;
   return plan;
@@ -631,7 +511,7 @@ TwoLevelPlan::Counts TwoLevelPlan::countLeaves() const {
     c.recomputedSteps += (k - 1 - extra) * revolveSteps(base, std::min(ramSlots_, base));
     if (extra > 0) c.recomputedSteps += extra * revolveSteps(base + 1, std::min(ramSlots_, base + 1));
   }
-  const std::int64_t pushes = last >= 2 ? firstSweepPushes(last, leafSlots(k - 1)) : 0;
+  const std::int64_t pushes = last >= 2 ? revolve::firstSweep(last, leafSlots(k - 1)).pushes : 0;
   c.diskWrites = k - 1;
   c.diskReads = k - 1;
   c.statesStored = (k - 1) + 1 + pushes + (last >= 2 && !replayLast_ ? 1 : 0);
@@ -643,7 +523,7 @@ TwoLevelPlan::Counts TwoLevelPlan::countLeaves() const {
   return c;
 }
 
-TwoLevelPlan::Counts TwoLevelPlan::countBySimulation() {
+TwoLevelPlan::Counts TwoLevelPlan::walk() {
   Counts c;
   CountingVisitor visitor{c};
   rewind();
@@ -676,30 +556,6 @@ void TwoLevelPlan::rewind() {
 
 // ---- predictions ----
 
-namespace {
-
-// Counts and bytes of a prediction are int64; every product and sum that could leave that range is
-// computed in 128 bits and refused with a message naming the quantity instead of wrapping around.
-constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
-// online's placement (internal::CostPlacement::simulate) walks the forward sweep step by step.
-constexpr std::int64_t kMaxOnlineSteps = std::int64_t{1} << 24;
-
-std::int64_t checkedCount(UnsignedInt128 value, const std::string& what) {
-  if (value > static_cast<UnsignedInt128>(kMaxCount)) {
-    throw std::invalid_argument(
-        what + " = " + revolve::toString(value) +
-        " exceed the counters' range (2^63 - 1); lower --steps or raise the checkpoints");
-  }
-  return static_cast<std::int64_t>(value);
-}
-
-std::int64_t checkedProduct(std::int64_t a, std::int64_t b, const std::string& what) {
-  assert(a >= 0 && b >= 0);
-  return checkedCount(static_cast<UnsignedInt128>(a) * static_cast<UnsignedInt128>(b), what);
-}
-
-}  // namespace
-
 SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
                                    int stages, const ScheduleCosts* costs) {
   if (steps < 1 || steps > kMaxScheduleSteps) {
@@ -715,272 +571,8 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     throw std::invalid_argument("--stages = " + std::to_string(stages) + " must be an integer in [1, " +
                                 std::to_string(kMaxScheduleStages) + "]");
   }
-  const StorageSpec spec = StorageSpec::parse(specText);
-  auto storage = createStorage(specText);  // validates names, keys and values as a run would
-  const int n = static_cast<int>(stateBytes / 8);
-  ScheduleCosts model = costs ? *costs : ScheduleCosts{};
-  SchedulePrediction p;
-  p.strategy = storage->spec();
-  p.steps = steps;
-  p.stages = stages;
-  p.forwardSteps = steps;
-  const std::string& name = spec.name();
-  // full and disk with stages=1: every row the state and its step's S - 1 stage states (an explicit
-  // Runge-Kutta method's Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
-  const bool stageRows =
-      (name == "full" || name == "disk") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
-  const std::int64_t rowDoubles = stageRows ? std::int64_t{n} * stages : n;
-  if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
-  if (rowDoubles > std::numeric_limits<int>::max()) {
-    throw std::invalid_argument(
-        name + ".stages = 1: a row of the state and its " + std::to_string(stages - 1) +
-        " stage states has " + std::to_string(rowDoubles) +
-        " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
-  }
-  if (name == "full") {
-    const std::int64_t budget = spec.bytes("budget", FullStorage::kDefaultBudget);
-    if (steps > budget / (8 * rowDoubles)) {
-      throw std::invalid_argument(
-          "full: " + std::to_string(steps) + " states of " + formatBytes(stateBytes) +
-          (stageRows ? " with their stage values (" + formatBytes(8 * rowDoubles) + " a step)"
-                     : std::string()) +
-          " exceed full.budget = " + formatBytes(budget));
-    }
-    p.plan = stageRows ? "every state and its step's stage values in RAM" : "every state in RAM";
-    p.statesStored = steps;
-    p.ramWrites = steps;
-    p.ramReads = steps;
-    p.peakRamBytes = steps * 8 * rowDoubles;  // <= full.budget (checked above)
-  } else if (name == "disk") {
-    // DiskStorage's own rule (DiskStorage::layoutFor): rows N + 1, chunk and buffer count from the budget.
-    const auto& disk = dynamic_cast<DiskStorage&>(*storage);
-    const DiskStorage::Layout layout =
-        disk.layoutFor(rowDoubles, checkedCount(static_cast<UnsignedInt128>(steps) + 1, "rows"));
-    if (layout.bufferBytes > disk.budgetBytes()) {
-      throw std::invalid_argument("disk: one chunk buffer of " + formatBytes(layout.bufferBytes) +
-                                  " exceeds disk.budget = " + formatBytes(disk.budgetBytes()));
-    }
-    p.plan = "every state on disk, " + std::to_string(layout.chunkStates) + " states per chunk";
-    p.statesStored = steps;
-    p.diskWrites = checkedCount(static_cast<UnsignedInt128>(steps) + 1, "disk writes");
-    p.diskReads = steps;
-    p.peakRamBytes = layout.bufferCount * layout.bufferBytes;
-    p.peakDiskBytes = checkedProduct(p.diskWrites, 8 * rowDoubles, "disk bytes");
-  } else if (name == "binomial") {
-    // BinomialCheckpointing: revolve with S = min(C + 1, N) slots over the N + 1 positions 0..N, its first
-    // sweep the forward sweep (engine/binomial_checkpointing.h).
-    auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
-    const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
-    const std::int64_t states = slots;
-    // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
-    // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
-    const bool keepStages = spec.integer("stages", 0, 0, 1) == 1 && stages > 1;
-    const std::int64_t recordBytes =
-        keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
-    if (recordBytes > binomial.budgetBytes() ||
-        states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
-      throw std::invalid_argument(
-          "binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +
-          std::to_string(states) + " states of " + formatBytes(stateBytes) +
-          (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
-          ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
-    }
-    // The count first: beyond 2^63 it is refused before the O(slots + r) walks below.
-    p.recomputedSteps = checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
-    const std::int64_t firstPushes = firstSweepPushes(steps + 1, slots);
-    const std::int64_t writes = revolveWrites(steps + 1, slots);
-    p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N, x_N never restored)" +
-             (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.statesStored = 1 + firstPushes;
-    p.ramReads = steps;
-    p.ramWrites = writes;
-    if (keepStages) {
-      // RecomputedStages' rule: the adjoint step of e has its stages when e = N - 1 (the forward sweep's
-      // last step, never recomputed) or when the restore of e + 1 recomputed (its last step is
-      // e -> e + 1). The restores that recompute nothing are those of the checkpoint positions, each
-      // stored once and loaded once directly: `writes` - 1 of them among x_1 .. x_{N-1}. A restore that
-      // recomputes stores stage values after every advance (one more than its checkpoint stores); summed
-      // over the backward sweep with the forward sweep's one record that is N minus the first sweep's
-      // pushes.
-      p.stepDataRestored = steps - writes + 1;
-      p.stepDataStored = steps - firstPushes;
-    }
-    p.peakRamBytes = checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
-  } else if (name == "online") {
-    // OnlineCheckpointing for N fixed steps: its placement (internal::CostPlacement), then each interval
-    // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
-    // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
-    auto& online = dynamic_cast<OnlineCheckpointing&>(*storage);
-    if (steps > kMaxOnlineSteps) {
-      throw std::invalid_argument(
-          "online is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-          " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
-    }
-    const bool keepStages = online.keepsStages() && stages > 1;
-    const std::int64_t recordBytes =
-        keepStages ? checkedProduct(2 * (stages - 1), stateBytes, "online: bytes of two step records") : 0;
-    const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
-    std::int64_t forwardStores = 0;
-    const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, &forwardStores);
-    p.plan = "online placement (" + std::to_string(positions.size()) + " held), revolve per interval, " +
-             std::to_string(c) + " checkpoints + working state" +
-             (keepStages ? ", stages of the last recomputed step kept" : "");
-    p.recomputedSteps = checkedCount(
-        OnlineCheckpointing::forwardStepsOf(positions, steps, c) - static_cast<UnsignedInt128>(steps - 1),
-        "recomputed steps");
-    p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
-    p.ramReads = steps;
-    // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
-    // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
-    p.peakRamBytes =
-        checkedCount(static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
-                             static_cast<UnsignedInt128>(stateBytes) +
-                         static_cast<UnsignedInt128>(recordBytes),
-                     "peak RAM bytes");
-    p.ramWrites = -1;
-    if (keepStages && steps > TwoLevelPlan::kMaxSimulatedSteps) {
-      throw std::invalid_argument("online.stages = 1 is predicted up to " +
-                                  std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
-                                  " steps (its served adjoint steps are counted by running the schedules); "
-                                  "--steps = " +
-                                  std::to_string(steps));
-    }
-    if (steps <= TwoLevelPlan::kMaxSimulatedSteps) {
-      // The backward sweep as OnlineCheckpointing::doRestore runs it, with RecomputedStages' rule for
-      // stages=1 (one-double "stage values": only which step they belong to matters).
-      struct Simulation {
-        internal::RecomputedStages stages;
-        bool keep;
-        std::int64_t offset = 0, stores = 0, stepDataStored = 0;
-        void loadWorking() {}
-        void load(std::int64_t) {}
-        void store(std::int64_t) { ++stores; }
-        void advance(std::int64_t from, std::int64_t to) {
-          if (keep && to > from) {
-            stages.pending(offset + to - 1);
-            ++stepDataStored;
-          }
-        }
-      } sim;
-      sim.keep = keepStages;
-      sim.stages.reset(keepStages ? 1 : 0);
-      std::int64_t served = 0;
-      Vector data = Vector::Zero(1);
-      if (keepStages) sim.stages.recordLast(steps - 1, data);
-      if (keepStages && sim.stages.restore(steps - 1, data)) ++served;  // x_{N-1}: the working state
-      BinomialSchedule schedule;
-      internal::OnlinePlacement::Interval interval{static_cast<std::int64_t>(positions.size()), steps, 0};
-      for (std::int64_t e = steps - 2; e >= 0; --e) {
-        if (e < interval.start) {
-          // As OnlineCheckpointing::doRestore: interval j by revolve with c - j slots.
-          interval = internal::OnlinePlacement::intervalOf(positions, steps, e, interval.index);
-          schedule.reset(interval.length, c - interval.index, false);
-          sim.offset = interval.start;
-        }
-        if (keepStages) sim.stages.beginRestore(e);
-        schedule.restoreStep(e - interval.start, sim);
-        if (keepStages && sim.stages.restore(e, data)) ++served;
-      }
-      p.ramWrites = forwardStores + sim.stores + 1;
-      if (keepStages) {
-        p.stepDataStored = sim.stepDataStored;
-        p.stepDataRestored = served;
-      }
-    }
-  } else if (name == "multilevel") {
-    auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
-    if (multilevel.options().stride) {
-      throw std::invalid_argument(
-          "multilevel.schedule = stride is not predicted (its RAM blocks and scratch "
-          "rounds depend on the run); use schedule=optimal");
-    }
-    const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
-    if (planCosts == nullptr) {
-      throw std::invalid_argument(
-          "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
-    }
-    model = *planCosts;  // the spec's own costs take precedence, as in a run
-    const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, n);
-    const TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
-    p.plan = plan.describe();
-    const TwoLevelPlan::Counts& c = plan.counts();
-    p.recomputedSteps = c.recomputedSteps;
-    p.statesStored = c.statesStored;
-    p.ramWrites = c.ramWrites;
-    p.ramReads = c.ramReads;
-    p.diskWrites = c.diskWrites;
-    p.diskReads = c.diskReads;
-    if (p.ramWrites < 0 && steps <= TwoLevelPlan::kMaxSimulatedSteps) {
-      TwoLevelPlan copy = plan;
-      TwoLevelPlan::Counts simulated;
-      CountingVisitor visitor{simulated};
-      for (std::int64_t k = 0; k < steps; ++k) copy.recordForward(k, visitor);
-      for (std::int64_t e = steps - 1; e >= 0; --e) copy.restoreStep(e, visitor);
-      p.ramWrites = simulated.ramWrites;
-      p.ramReads = simulated.ramReads;
-    }
-    p.peakRamBytes = checkedProduct(plan.ramSlotsUsed(), stateBytes, "peak RAM bytes");
-    p.peakDiskBytes = checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
-  } else if (name == "cams") {
-    // The same model-free plan the strategy runs (engine/cams_checkpointing.h), with the step record of
-    // an explicit Runge-Kutta method: the state and S - 1 stage states (rk4: 4 state units), as
-    // CamsCheckpointing::doBegin sizes it for Integrator::stepDataSize() = (S - 1) n.
-    const auto& strategy = dynamic_cast<CamsCheckpointing&>(*storage);
-    const bool online = strategy.onlineRequested();
-    if (online && steps > kMaxOnlineSteps) {
-      throw std::invalid_argument(
-          "cams with online=1 is predicted up to --steps = " + std::to_string(kMaxOnlineSteps) +
-          " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
-    }
-    const std::int64_t units = strategy.usableUnits(stateBytes, online);
-    const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
-    cams::PlanCounts c;
-    if (online) {
-      // Online placement, each interval reversed by the optimal plan.
-      std::unique_ptr<cams::Plan> intervalPlan;
-      c = cams::simulateOnline(steps, units, recordUnits, &intervalPlan);
-      p.plan = "cams online: " + std::to_string(units) +
-               " state units, online placement, intervals of at most " +
-               std::to_string(intervalPlan ? intervalPlan->steps() : 0) + " steps reversed optimally";
-      p.ramWrites = -1;  // thinning rewrites slots; the run does not count its copies either
-      p.peakRamBytes = checkedProduct(units, stateBytes, "peak RAM bytes");
-    } else {
-      const cams::Plan plan(steps, units, recordUnits);
-      c = cams::simulate(plan);
-      p.plan = "cams: " + std::to_string(plan.memoryUnits()) + " state units, records of " +
-               (stages > 1 ? std::to_string(recordUnits) : std::string("-")) + " units";
-      p.ramWrites = c.statesStored + c.recordsStored;
-      p.peakRamBytes = checkedProduct(std::min(units, plan.memoryUnits()), stateBytes, "peak RAM bytes");
-    }
-    p.plan += "; " + std::to_string(c.recordsStored) + " step records, " +
-              std::to_string(c.adjointRecomputations) + " adjoint steps recompute their stages";
-    p.recomputedSteps = c.recomputedSteps;
-    p.adjointRecomputations = c.adjointRecomputations;
-    p.stepDataStored = c.recordsStored;
-    p.stepDataRestored = steps - c.adjointRecomputations;
-    p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
-    p.ramReads = steps;
-  } else {
-    throw std::invalid_argument("storage '" + name +
-                                "' is not predicted: its counters depend on the run (adaptive doubling, "
-                                "compression); predicted are full, disk, binomial, online, multilevel, cams");
-  }
-  // An adjoint step re-evaluates its S stages unless it has them stored (cams records, stages=1):
-  // S rhs for every forward, recomputed and stage-recomputing adjoint step.
-  const std::int64_t adjointRecomputations =
-      name == "cams" ? p.adjointRecomputations : steps - p.stepDataRestored;
-  p.rhsEvaluations =
-      checkedCount(static_cast<UnsignedInt128>(stages) *
-                       (static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(p.recomputedSteps) +
-                        static_cast<UnsignedInt128>(adjointRecomputations)),
-                   "rhs evaluations");
-  p.scheduleCost =
-      static_cast<double>(p.recomputedSteps + (name == "cams" ? p.adjointRecomputations : 0)) *
-          model.forwardStep +
-      static_cast<double>(name == "disk" || name == "multilevel" ? p.diskWrites : 0) * model.diskWrite +
-      static_cast<double>(name == "disk" || name == "multilevel" ? p.diskReads : 0) * model.diskRead;
-  p.totalCost = static_cast<double>(steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
-  return p;
+  // Each strategy's own prediction, from its row (engine/storage_registry.h).
+  return predictFromRows(storageStrategies(), specText, PredictionRequest{steps, stateBytes, stages, costs});
 }
 
 namespace {
@@ -1082,6 +674,12 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   // multilevel (predictSchedule has rejected everything else)
   auto storage = createStorage(specText);
   auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
+  if (!multilevel.plansFor(steps, static_cast<int>(stateBytes / 8))) {
+    throw std::invalid_argument(
+        "--actions prints two-level plans; this multilevel run takes the stride (schedule=stride, or no "
+        "costs= and RAM for fewer than 3 states), whose scratch rounds are not a plan (print its counts "
+        "without --actions)");
+  }
   const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
   const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
   TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);

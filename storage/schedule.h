@@ -50,6 +50,7 @@
 #pragma once
 
 #include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/storage_registry.h>
 
 #include <cstdint>
 #include <memory>
@@ -72,44 +73,6 @@ constexpr double kMaxScheduleCost = 1e30;
 /// naming `field` and the allowed range otherwise (also for "1.5", "1e17x", "" and overflow).
 std::int64_t parseScheduleInteger(const std::string& text, const std::string& field, std::int64_t minimum,
                                   std::int64_t maximum);
-
-/// The four costs of the model, in seconds (any common unit works for planning).
-struct ScheduleCosts {
-  double forwardStep = 1.0;
-  double adjointStep = 1.0;
-  double diskWrite = 0.0;
-  double diskRead = 0.0;
-  /// Parses "uf:ub:wd:rd" (four numbers in [0, kMaxScheduleCost], uf > 0); throws
-  /// std::invalid_argument naming `field` and the expected form.
-  static ScheduleCosts parse(const std::string& text, const std::string& field);
-  std::string text() const;
-};
-
-enum class StorageLevel { kRam, kDisk };
-const char* levelName(StorageLevel level);
-
-/// What a schedule does, counted (a prediction or, for a run, what happened).
-struct SchedulePrediction {
-  std::string strategy;    ///< the spec
-  std::string plan;        ///< human-readable plan, e.g. "leaves K=12 (revolve in RAM per leaf)"
-  std::int64_t steps = 0;  ///< N
-  int stages = 0;          ///< right-hand sides per step of the integrator (explicit RK: its stages)
-  std::int64_t forwardSteps = 0;
-  std::int64_t recomputedSteps = 0;
-  std::int64_t rhsEvaluations = 0;  ///< stages * (forward + recomputed + adjoint steps without stored stages)
-  /// cams: adjoint steps that recompute their stages (no step record held); their forward-step cost is
-  /// part of scheduleCost (for cams, ub is the adjoint step given its stage values). 0 otherwise.
-  std::int64_t adjointRecomputations = 0;
-  /// Step data (stage values, `stages=1` and cams' records): the strategy's stepDataStored counter (step
-  /// records filled, any sweep) and stepDataRestored (adjoint steps served from them, evaluating no rhs).
-  std::int64_t stepDataStored = 0, stepDataRestored = 0;
-  std::int64_t statesStored = 0;  ///< the strategy's statesStored counter
-  std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
-  std::int64_t peakRamBytes = 0;   ///< the strategy's peakBytesInMemory
-  std::int64_t peakDiskBytes = 0;  ///< uncompressed bytes of states on disk at the most
-  double scheduleCost = 0.0;       ///< R uf + W wd + Q rd
-  double totalCost = 0.0;          ///< N uf + N ub + scheduleCost
-};
 
 /// Receives a plan's actions (tests and `hindsight schedule --actions`; the strategies execute them).
 /// Positions are grid points 0..N-1; "current" is the state at hand.
@@ -165,6 +128,9 @@ class TwoLevelPlan {
     }
   };
   const Counts& counts() const { return counts_; }
+  /// The counts of one pass (forward then backward) of the plan with a counting visitor, as the strategy
+  /// runs it (O(N + actions); rewinds before and after).
+  Counts walk();
 
   /// Forward sweep, n = 0, 1, ..., N-1 in order: stores of the recorded state.
   template <typename Visitor>
@@ -181,7 +147,6 @@ class TwoLevelPlan {
   std::int64_t leafOf(std::int64_t n) const;
   std::int64_t leafSlots(std::int64_t leaf) const;
   Counts countLeaves() const;
-  Counts countBySimulation();
 
   // kDynamic: the tables of the dynamic programme (shared by copies of the plan) and the executor's
   // checkpoint stack and slot occupancy.
@@ -388,11 +353,12 @@ void TwoLevelPlan::replayLast(std::int64_t start, std::int64_t e, Visitor& visit
   schedule_.restoreStep(e - start, none);
 }
 
-/// Predictions for the strategies whose counters follow from N alone (fixed steps): full, disk,
-/// binomial (also stages=1, for an explicit Runge-Kutta method of `stages` stages), multilevel
-/// (schedule=optimal), cams. `costs` may be omitted (nullptr) for all but multilevel
-/// without costs= in its spec. Throws std::invalid_argument naming the field for bad input and for
-/// strategies whose counters depend on the run (online, lossy, hermite, multilevel schedule=stride).
+/// What strategy `spec` does for N fixed steps: its registry row's prediction (engine/storage_registry.h;
+/// predicted are full, disk, binomial (also stages=1, for an explicit Runge-Kutta method of `stages`
+/// stages), online, cams, multilevel with either schedule). `costs` may be omitted (nullptr) for all but
+/// multilevel's plan without costs= in its spec. Throws std::invalid_argument naming the flag or field
+/// for bad input, and for strategies whose counters depend on the run (lossy, packed, hermite: "is not
+/// predicted" and the row's reason).
 SchedulePrediction predictSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
                                    int stages, const ScheduleCosts* costs);
 

@@ -1,32 +1,26 @@
-// The documentation of every storage strategy and of each of its spec keys, for help texts and the
-// Python module's hindsight.storage_specs(). The strategies and their keys themselves come from the
-// factory (storage/storage_factory.h); this table only describes them, and
-// tests/storage/storage_docs_test.cpp checks that it describes exactly the factory's strategies and
-// keys, so a new strategy is documented here when it is added to the factory.
+// The documentation of every storage strategy and of each of its spec keys, for help texts, the Python
+// module's hindsight.storage_specs() and the table of docs/guides/storage_strategies.md. It is the
+// documentation part of the registry's rows (storage/storage_factory.h, storageStrategies()), so a
+// strategy and its documentation are one row; tests/storage/storage_docs_test.cpp checks the examples
+// and that the documentation's table is the one generated here.
 #pragma once
+
+#include <hindsight/engine/storage_registry.h>
 
 #include <string>
 #include <vector>
 
 namespace hindsight {
 
-struct StorageKeyDoc {
-  std::string key;
-  std::string doc;  ///< meaning, allowed values and default
-};
-
-struct StorageStrategyDoc {
-  std::string name;
-  std::string summary;  ///< one or two sentences: what is kept, what is recomputed
-  bool exact = true;    ///< restore() returns the recorded bits (gradient bitwise equal to "full")
-  std::string example;  ///< a valid spec string
-  std::vector<StorageKeyDoc> keys;
-};
-
 /// One entry per documented strategy, in the factory's order.
 const std::vector<StorageStrategyDoc>& storageStrategyDocs();
 
-/// The entry of `name`, or nullptr when the strategy is not documented.
+/// The entry of `name`, or nullptr when there is no such strategy.
 const StorageStrategyDoc* findStorageStrategyDoc(const std::string& name);
+
+/// The Markdown table of every strategy (name, exact, predicted, example, keys) for
+/// docs/guides/storage_strategies.md, between its markers (the test regenerates it with
+/// HINDSIGHT_REGENERATE=1).
+std::string storageStrategiesMarkdown();
 
 }  // namespace hindsight

@@ -6,55 +6,145 @@
 #include <hindsight/storage/lossy_storage.h>
 #include <hindsight/storage/multilevel_storage.h>
 
-#include <functional>
+#include <stdexcept>
 
 namespace hindsight {
 namespace {
 
-// The engine's in-memory strategies (engine/memory_storage_factory.h) and then those of this
-// component; each strategy has its row in one of the two tables only.
-const std::vector<StorageStrategyEntry>& registry() {
-  static const std::vector<StorageStrategyEntry> entries = [] {
-    std::vector<StorageStrategyEntry> all = memoryStorageStrategies();
-    all.insert(all.end(), {
-                              {"hermite", &HermiteStorage::keys, &HermiteStorage::create},
-                              {"disk", &DiskStorage::keys, &DiskStorage::create},
-                              {"lossy", &LossyStorage::keys, &LossyStorage::create},
-                              {"multilevel", &MultilevelStorage::keys, &MultilevelStorage::create},
-                              {"packed", &LossyStorage::packedKeys, &LossyStorage::createPacked},
-                          });
-    return all;
-  }();
-  return entries;
-}
+const char* const kBudget =
+    "bytes the strategy may hold in memory, e.g. 512MiB (default 4 GiB); exceeding it is a "
+    "StorageError";
 
 }  // namespace
 
+const std::vector<StorageStrategyRow>& storageStrategies() {
+  // The engine's in-memory rows (engine/memory_storage_factory.h) and then this component's; each
+  // strategy has its row in one of the two lists only. Texts condensed from the header comment of each
+  // strategy (storage/*.h).
+  static const std::vector<StorageStrategyRow> rows = [] {
+    std::vector<StorageStrategyRow> all = memoryStorageStrategies();
+    all.insert(
+        all.end(),
+        {
+            {{"hermite",
+              "(z, z') at every M-th grid point, states in between from cubic Hermite interpolation; the "
+              "gradient "
+              "error shrinks like (M h)^4",
+              false,
+              "hermite:every=4",
+              {{"every", "keep every M-th grid point, M in [1, 1e9] (default 10)"},
+               {"budget", kBudget},
+               {"tolerance",
+                "the largest relative interpolation error accepted, measured mid-interval in the forward "
+                "sweep (the run is refused beyond it; gradient_error_estimate = 10 x that error), in "
+                "[1e-14, 1] (default 0.01)"}}},
+             &HermiteStorage::create,
+             nullptr,
+             "it keeps (z, z') at every M-th grid point, but whether a run is accepted depends on the "
+             "interpolation error it measures"},
+            {{"disk",
+              "every step's state in an HDF5 file (chunked; lossless prediction along time, or shuffle + "
+              "zstd), "
+              "written "
+              "and read by a background thread",
+              true,
+              "disk:dir=/tmp/hindsight",
+              {{"dir", "directory of the file, created if missing (required)"},
+               {"level", "zstd level in [1, 22] (default 3)"},
+               {"chunk",
+                "states per HDF5 chunk and I/O buffer, in [1, 2^30] (default: about 1 MiB of states, at most "
+                "4096)"},
+               {"budget", "bytes of the I/O buffers held in memory (default 64 MiB)"},
+               {"keep", "true | false: keep the file after the backward sweep (default false)"},
+               {"codec",
+                "time (default): prediction along time, lossless residual coding | zstd: byte shuffle + zstd "
+                "per "
+                "chunk"},
+               {"stages", "0 | 1: each row holds the state and the step's stage values (default 0)"}}},
+             &DiskStorage::create,
+             &DiskStorage::predict,
+             {}},
+            {{"lossy",
+              "every step's state in memory, compressed with a bounded error (a gradient error target, or "
+              "ZFP "
+              "absolute, mantissa rounding or time-prediction relative bounds); the gradient error is "
+              "O(tolerance)",
+              false,
+              "lossy:codec=zfp,tolerance=1e-10",
+              {{"target",
+                "the relative gradient error T accepted; chooses codec=time and its tolerance (give target "
+                "or "
+                "codec + tolerance)"},
+               {"codec",
+                "zfp (absolute error bound) | round | time (relative error bounds, tolerance in (0, 0.5])"},
+               {"tolerance", "the error bound T > 0, with codec"},
+               {"budget", kBudget},
+               {"block",
+                "states compressed together, in [1, 2^30] (default: about 256 KiB of states, at most "
+                "4096)"}}},
+             &LossyStorage::create,
+             nullptr,
+             "its bytes depend on how well the states compress"},
+            {{"multilevel",
+              "states in RAM and in a file on disk up to a budget each, reversed by the two-level plan "
+              "cheapest under a cost model (fixed steps) or by a uniform stride with recomputation of "
+              "the states between (schedule=stride, adaptive steps)",
+              true,
+              "multilevel:ram=64MiB,disk=1GiB",
+              {{"ram", "bytes held in memory (required)"},
+               {"disk",
+                "bytes of states written to the file, counted uncompressed (required, positive: disk=0 is "
+                "refused, binomial or cams hold states in RAM alone)"},
+               {"dir", "directory of the file (default: the system temp directory)"},
+               {"level", "zstd level in [1, 22] (default 3)"},
+               {"keep", "true | false: keep the file after the backward sweep (default false)"},
+               {"costs",
+                "uf:ub:wd:rd, seconds of a forward step, an adjoint step, a disk write and a read (default: "
+                "measured at the start of the run; storage/schedule.h)"},
+               {"schedule", "optimal (default, fixed steps) | stride"}}},
+             &MultilevelStorage::create,
+             &MultilevelStorage::predict,
+             {}},
+            {{"packed",
+              "every step's state in memory, coded losslessly along time in blocks (prediction + "
+              "bit-difference "
+              "residuals + shuffle + zstd, the codec of disk); every bit restored",
+              true,
+              "packed",
+              {{"budget",
+                "bytes of coded blocks held in memory, e.g. 512MiB (default 4 GiB); exceeding it is a "
+                "StorageError"},
+               {"block",
+                "states coded together, in [1, 2^30] (default: about 256 KiB of states, at least 16, at most "
+                "4096)"}}},
+             &LossyStorage::createPacked,
+             nullptr,
+             "its bytes depend on how well the states compress"},
+        });
+    return all;
+  }();
+  return rows;
+}
+
 std::unique_ptr<TrajectoryStorage> createStorage(const std::string& text) {
-  const StorageSpec spec = StorageSpec::parse(text);
-  for (const StorageStrategyEntry& entry : registry()) {
-    if (spec.name() == entry.name) {
-      spec.requireKeysIn(entry.keys());
-      return entry.create(spec);
-    }
-  }
-  std::string names;
-  for (const auto& n : storageStrategyNames()) names += (names.empty() ? "" : ", ") + n;
-  throw std::invalid_argument("unknown storage strategy '" + spec.name() + "'; known: " + names);
+  return createFromRows(storageStrategies(), text);
 }
 
 std::vector<std::string> storageStrategyKeys(const std::string& name) {
-  for (const StorageStrategyEntry& entry : registry()) {
-    if (name == entry.name) return entry.keys();
+  const StorageStrategyRow* row = findStorageStrategy(storageStrategies(), name);
+  if (row == nullptr) {
+    throw std::invalid_argument("unknown storage strategy '" + name + "'; known: " + [] {
+      std::string names;
+      for (const auto& n : storageStrategyNames()) names += (names.empty() ? "" : ", ") + n;
+      return names;
+    }());
   }
-  std::string names;
-  for (const auto& n : storageStrategyNames()) names += (names.empty() ? "" : ", ") + n;
-  throw std::invalid_argument("unknown storage strategy '" + name + "'; known: " + names);
+  return row->keys();
 }
 
 std::vector<std::string> storageStrategyNames() {
   std::vector<std::string> names;
-  for (const StorageStrategyEntry& entry : registry()) names.emplace_back(entry.name);
+  for (const StorageStrategyRow& row : storageStrategies()) names.push_back(row.name());
   return names;
 }
 

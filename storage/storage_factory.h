@@ -1,9 +1,11 @@
 // The one factory of trajectory storage strategies (docs/design.md P 2): a spec string
-// "NAME[:key=value,...]" becomes a strategy. Adding a strategy touches its own file, the table in
-// storage_factory.cpp (or, for an in-memory strategy, engine/memory_storage_factory.cpp) and the typed
-// conformance test list.
+// "NAME[:key=value,...]" becomes a strategy. Every strategy is one row of the registry
+// (engine/storage_registry.h: name, documented keys, factory, prediction); adding a strategy touches its
+// own files, its row in storage_factory.cpp (or, for an in-memory strategy, in
+// engine/memory_storage_factory.cpp) and the typed conformance test list.
 #pragma once
 
+#include <hindsight/engine/storage_registry.h>
 #include <hindsight/engine/trajectory_storage.h>
 
 #include <memory>
@@ -11,6 +13,10 @@
 #include <vector>
 
 namespace hindsight {
+
+/// Every row: the engine's in-memory strategies (full, binomial, online, cams), then hermite, disk, lossy,
+/// multilevel, packed; help texts list them in this order.
+const std::vector<StorageStrategyRow>& storageStrategies();
 
 /// Throws std::invalid_argument for an unknown name (listing the known ones), an unknown key
 /// (listing the valid ones) or an out-of-range value (naming it and the range).

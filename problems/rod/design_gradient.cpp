@@ -42,6 +42,32 @@ Permutation nelsonOrdering(const FeModel& model) {
   return inverse.inverse();
 }
 
+// K and M on the free DOFs, both in the pattern of K + M and permuted symmetrically into the shared
+// ordering, once per design: each mode's operator K - lambda M is then formed on the value arrays, entry
+// by entry the arithmetic of the sparse difference (k - lambda m; an entry absent from one matrix is an
+// explicit zero there), without a sparse sum and a symmetric permutation per mode.
+struct PermutedOperators {
+  SparseMatrix stiffness, mass;
+};
+
+PermutedOperators permutedOperators(const FeModel& model, const Permutation& ordering) {
+  SparseMatrix stiffness = model.stiffness() + 0.0 * model.mass();
+  SparseMatrix mass = 0.0 * model.stiffness() + model.mass();
+  stiffness.makeCompressed();
+  mass.makeCompressed();
+  PermutedOperators permuted;
+  permuted.stiffness = stiffness.selfadjointView<Eigen::Lower>().twistedBy(ordering);
+  permuted.mass = mass.selfadjointView<Eigen::Lower>().twistedBy(ordering);
+  permuted.stiffness.makeCompressed();
+  permuted.mass.makeCompressed();
+  if (permuted.stiffness.nonZeros() != permuted.mass.nonZeros() ||
+      !std::equal(permuted.stiffness.innerIndexPtr(),
+                  permuted.stiffness.innerIndexPtr() + permuted.stiffness.nonZeros(),
+                  permuted.mass.innerIndexPtr()))
+    throw std::logic_error("Nelson operators: K and M do not share one permuted pattern");
+  return permuted;
+}
+
 // Nelson's modified operator for one mode: K - lambda M with row and column k replaced by e_k, where
 // k = argmax |phi| (free-DOF index). Factorised once, reused for every right-hand side.
 //
@@ -51,9 +77,27 @@ Permutation nelsonOrdering(const FeModel& model) {
 // the pivoting sparse LU.
 class NelsonSystem {
  public:
-  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree, const Permutation& ordering)
+  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree, const Permutation& ordering,
+               const PermutedOperators& operators)
       : ordering_(ordering) {
     modeFree.cwiseAbs().maxCoeff(&pivot_);
+    // P (K - lambda M) P^T with the pivot's row and column (index P(k) after the permutation) set to e.
+    SparseMatrix permuted = operators.stiffness;
+    const Eigen::Index count = permuted.nonZeros();
+    Eigen::Map<Vector>(permuted.valuePtr(), count) -=
+        eigenvalue * Eigen::Map<const Vector>(operators.mass.valuePtr(), count);
+    const int permutedPivot = ordering_.indices()(pivot_);
+    for (int column = 0; column < permuted.outerSize(); ++column) {
+      for (SparseMatrix::InnerIterator it(permuted, column); it; ++it) {
+        if (it.row() == permutedPivot || column == permutedPivot)
+          it.valueRef() = (it.row() == column) ? 1.0 : 0.0;
+      }
+    }
+    ldlt_.compute(permuted);
+    const bool pivotsUsable = ldlt_.info() == Eigen::Success && ldlt_.vectorD().allFinite() &&
+                              (ldlt_.vectorD().array() != 0.0).all();
+    if (pivotsUsable) return;
+    useLu_ = true;
     SparseMatrix matrix = model.stiffness() - eigenvalue * model.mass();
     matrix.makeCompressed();
     for (int column = 0; column < matrix.outerSize(); ++column) {
@@ -61,13 +105,6 @@ class NelsonSystem {
         if (it.row() == pivot_ || column == pivot_) it.valueRef() = (it.row() == column) ? 1.0 : 0.0;
       }
     }
-    SparseMatrix permuted;
-    permuted = matrix.selfadjointView<Eigen::Lower>().twistedBy(ordering_);
-    ldlt_.compute(permuted);
-    const bool pivotsUsable = ldlt_.info() == Eigen::Success && ldlt_.vectorD().allFinite() &&
-                              (ldlt_.vectorD().array() != 0.0).all();
-    if (pivotsUsable) return;
-    useLu_ = true;
     lu_.analyzePattern(matrix);
     lu_.factorize(matrix);
     if (lu_.info() != Eigen::Success) {
@@ -139,13 +176,14 @@ NelsonFactorizations::NelsonFactorizations(const FeModel& model, const ModalBasi
   checkBasis(model, basis);
   const int n = basis.eigenmodeCount;
   impl_->ordering = nelsonOrdering(model);
+  const PermutedOperators operators = permutedOperators(model, impl_->ordering);
   impl_->systems.resize(static_cast<std::size_t>(n));
   impl_->rows = model.freeDofCount();
   impl_->modes = n;
   // Each mode's factorisation on its own (its own slot): bitwise the same for any thread count.
   parallelFor(n, [&](int i) {
     impl_->systems[static_cast<std::size_t>(i)] = std::make_unique<NelsonSystem>(
-        model, basis.eigenvalues(i), Vector(basis.modesFree.col(i)), impl_->ordering);
+        model, basis.eigenvalues(i), Vector(basis.modesFree.col(i)), impl_->ordering, operators);
   });
 }
 
@@ -333,7 +371,7 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   const Vector modeFree = basis.modesFree.col(mode);
   const Vector massTimesMode = model.mass() * modeFree;
   const Permutation ordering = nelsonOrdering(model);
-  const NelsonSystem system(model, eigenvalue, modeFree, ordering);
+  const NelsonSystem system(model, eigenvalue, modeFree, ordering, permutedOperators(model, ordering));
   const double x = model.design()(designIndex);
   const double stiffnessSlope = model.simp().stiffnessDerivative(x);
   const double densitySlope = model.simp().densityDerivative(x);

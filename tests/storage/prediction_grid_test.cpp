@@ -1,11 +1,11 @@
-// Every strategy of the factory is either predicted -- and then its prediction equals a real run counter
-// by counter on a grid of N, budgets and state sizes (2 doubles and 8200 > 8191 doubles, where disk's
-// chunk rule changes) -- or refused by the prediction with a message that it is not predicted. A new
-// strategy fails this test until it is put in one of the two lists.
+// Every row of the registry (storage/storage_factory.h, storageStrategies()) is either predicted -- and
+// then its prediction equals a real run counter by counter on a grid of N, budgets and state sizes (2
+// doubles and 8200 > 8191 doubles, where disk's chunk rule changes) -- or has no prediction and is
+// refused with its row's reason. The test iterates the rows: a new predicting row fails it until its
+// specs are in the grid below, a new row without a prediction is asked with its documented example.
 #include <hindsight/problems/classic/heat_equation.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/schedule.h>
-#include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/storage_fixtures.h"
 
@@ -55,36 +55,47 @@ const std::map<std::string, SpecList>& predictedStrategies() {
          return std::vector<std::string>{
              "multilevel:ram=" + states(3) + ",disk=" + states(40) + ",costs=1:1:0.5:0.5,dir=" + dir,
              "multilevel:ram=" + states(2) + ",disk=" + states(3) + ",costs=1:1:0:0,dir=" + dir,
-             "multilevel:ram=" + states(4) + ",disk=" + states(40) + ",costs=1:1:100:100,dir=" + dir};
+             "multilevel:ram=" + states(4) + ",disk=" + states(40) + ",costs=1:1:100:100,dir=" + dir,
+             // the stride: kept states in RAM and on disk, RAM alone (the I/O buffers do not fit), and the
+             // stride a run without costs= takes when RAM cannot time forward steps
+             "multilevel:ram=" + states(20) + ",disk=" + states(10) + ",schedule=stride,dir=" + dir,
+             "multilevel:ram=" + states(4) + ",disk=" + states(40) + ",schedule=stride,dir=" + dir,
+             "multilevel:ram=" + states(2) + ",disk=" + states(5) + ",dir=" + dir};
        }},
   };
   return grid;
 }
 
-// Counters that depend on the run (adaptive doubling, compression, interpolation error).
-const std::vector<std::string> kNotPredicted = {"lossy", "hermite", "packed"};
-
-TEST(PredictionGrid, EveryStrategyIsPredictedOrRefusedByName) {
-  for (const std::string& name : storageStrategyNames()) {
-    const bool predicted = predictedStrategies().count(name) != 0;
-    const bool refused = std::find(kNotPredicted.begin(), kNotPredicted.end(), name) != kNotPredicted.end();
-    EXPECT_TRUE(predicted != refused)
-        << name << ": put it in the grid of predicted strategies or in kNotPredicted";
-    if (refused) {
-      const StorageStrategyDoc* doc = findStorageStrategyDoc(name);
-      ASSERT_NE(doc, nullptr) << name;
-      try {
-        predictSchedule(doc->example, 10, 16, 4, nullptr);  // a valid spec: refused for being unpredictable
-        ADD_FAILURE() << name << " is predicted now: move it into the grid";
-      } catch (const std::invalid_argument& e) {
-        EXPECT_NE(std::string(e.what()).find("not predicted"), std::string::npos) << e.what();
-      }
+TEST(PredictionGrid, EveryRowIsPredictedOnTheGridOrRefusedWithItsReason) {
+  for (const StorageStrategyRow& row : storageStrategies()) {
+    if (row.predict != nullptr) {
+      EXPECT_EQ(predictedStrategies().count(row.name()), 1u)
+          << row.name() << " is predicted: give it specs in the grid of this test";
+      continue;
     }
+    EXPECT_EQ(predictedStrategies().count(row.name()), 0u) << row.name();
+    EXPECT_FALSE(row.notPredicted.empty()) << row.name() << ": say why it is not predicted";
+    try {
+      predictSchedule(row.doc.example, 10, 16, 4, nullptr);  // a valid spec: refused for being unpredictable
+      ADD_FAILURE() << row.name() << " is predicted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("is not predicted: " + row.notPredicted), std::string::npos)
+          << e.what();
+    }
+  }
+  for (const auto& [name, specs] : predictedStrategies()) {
+    const StorageStrategyRow* row = findStorageStrategy(storageStrategies(), name);
+    ASSERT_NE(row, nullptr) << name;
+    EXPECT_NE(row->predict, nullptr) << name;
   }
 }
 
 TEST(PredictionGrid, PredictionEqualsTheRunForEveryStrategyNAndStateSize) {
   ScratchDirectory dir;
+  // Each spec of the grid is predicted (not refused) somewhere on it, and the stride keeps states on disk
+  // somewhere, so no row is covered by refusals alone.
+  std::map<std::string, int> predictedRuns;
+  bool strideOnDisk = false;
   for (int gridPoints : {2, 8200}) {
     const HeatEquation problem(gridPoints, 2);
     const Vector p = problem.nominalParameters();
@@ -96,8 +107,12 @@ TEST(PredictionGrid, PredictionEqualsTheRunForEveryStrategyNAndStateSize) {
       options.t1 = options.step * static_cast<double>(steps);
       const GradientResult reference = testing::fullReference(problem, p, options);
       ASSERT_EQ(reference.summary.steps, steps);
-      for (const auto& [name, specs] : predictedStrategies()) {
-        for (const std::string& spec : specs(stateBytes, dir.path())) {
+      for (const StorageStrategyRow& row : storageStrategies()) {
+        if (row.predict == nullptr || predictedStrategies().count(row.name()) == 0) continue;
+        const std::string& name = row.name();
+        const std::vector<std::string> specs = predictedStrategies().at(name)(stateBytes, dir.path());
+        for (std::size_t index = 0; index < specs.size(); ++index) {
+          const std::string& spec = specs[index];
           SCOPED_TRACE(spec + ", N = " + std::to_string(steps) + ", " + std::to_string(gridPoints) +
                        " doubles");
           SchedulePrediction predicted;
@@ -110,6 +125,7 @@ TEST(PredictionGrid, PredictionEqualsTheRunForEveryStrategyNAndStateSize) {
                 << "predicted refusal: " << e.what();
             continue;
           }
+          ++predictedRuns[name + " #" + std::to_string(index)];
           auto storage = createStorage(spec);
           storage->setVerifyRestores(true);
           const GradientResult run = computeGradient(problem, p, options, *storage);
@@ -125,11 +141,20 @@ TEST(PredictionGrid, PredictionEqualsTheRunForEveryStrategyNAndStateSize) {
           if (const auto* multilevel = dynamic_cast<const MultilevelStorage*>(storage.get())) {
             EXPECT_EQ(predicted.diskWrites, multilevel->diskWrites()) << predicted.plan;
             EXPECT_EQ(predicted.diskReads, multilevel->diskReads()) << predicted.plan;
+            if (!multilevel->usesPlan()) {
+              EXPECT_EQ(predicted.peakDiskBytes, c.uncompressedBytes) << predicted.plan;
+              strideOnDisk = strideOnDisk || multilevel->statesOnDisk() > 0;
+            }
           }
         }
       }
     }
   }
+  for (const auto& [name, specs] : predictedStrategies()) {
+    for (std::size_t index = 0; index < specs(16, "d").size(); ++index)
+      EXPECT_GT(predictedRuns[name + " #" + std::to_string(index)], 0) << name << " spec " << index;
+  }
+  EXPECT_TRUE(strideOnDisk);
 }
 
 }  // namespace

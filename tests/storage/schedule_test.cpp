@@ -429,7 +429,10 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_NE(message("hermite:every=4", 10, 16, 4).find("not predicted"), std::string::npos);
   EXPECT_NE(message("online:checkpoints=5,budget=40", 10, 16, 4).find("online.budget"), std::string::npos);
   EXPECT_NE(message("binomial", 10, 16, 4).find("binomial.checkpoints"), std::string::npos);
-  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4).find("stride"),
+  // The stride is predicted by walking it, up to 2^24 steps.
+  EXPECT_EQ(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", 10, 16, 4), "no error");
+  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride", (std::int64_t{1} << 24) + 1, 16, 4)
+                .find("multilevel.schedule = stride is predicted up to --steps"),
             std::string::npos);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3", "--costs"), std::invalid_argument);
   EXPECT_THROW(ScheduleCosts::parse("1:2:3:-4", "--costs"), std::invalid_argument);
@@ -506,6 +509,40 @@ TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
       ::testing::Test::RecordProperty(spec, p.plan);
     }
   }
+}
+
+// multilevel's stride, predicted by running its own placement and scratch rounds in counting mode, against
+// real runs: kept states in RAM and on disk, RAM alone with scratch rounds, and the stride a run without
+// costs= takes when RAM holds fewer than 3 states.
+TEST(SchedulePrediction, MultilevelStrideAgreesExactlyWithRealRuns) {
+  Pendulum problem;
+  const IntegratorOptions options = fixedStepRk4();
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  ASSERT_EQ(reference.summary.steps, 2000);
+  ScratchDirectory dir;
+  const ScheduleCosts costs{1.0, 1.0, 0.5, 0.5};
+  bool onDisk = false, rounds = false;
+  for (const std::string& spec : {
+           "multilevel:ram=1KiB,disk=4KiB,schedule=stride,dir=" + dir.path(),
+           "multilevel:ram=160,disk=1MiB,schedule=stride,dir=" + dir.path(),
+           "multilevel:ram=96,disk=16,schedule=stride,dir=" + dir.path(),
+           "multilevel:ram=32,disk=1MiB,dir=" + dir.path(),
+       }) {
+    SCOPED_TRACE(spec);
+    const auto [p, storage] = expectPredictionEqualsRun(spec, options, reference, costs);
+    auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+    ASSERT_NE(multilevel, nullptr);
+    EXPECT_FALSE(multilevel->usesPlan());
+    EXPECT_EQ(p.diskWrites, multilevel->diskWrites()) << p.plan;
+    EXPECT_EQ(p.diskReads, multilevel->diskReads()) << p.plan;
+    EXPECT_EQ(p.peakDiskBytes, storage->counters().uncompressedBytes) << p.plan;
+    EXPECT_EQ(p.diskWrites, multilevel->statesOnDisk()) << p.plan;
+    onDisk = onDisk || multilevel->statesOnDisk() > 0;
+    // Rounds: more recomputed steps than one pass over each segment between kept states.
+    rounds = rounds || p.recomputedSteps > reference.summary.steps;
+  }
+  EXPECT_TRUE(onDisk);
+  EXPECT_TRUE(rounds);
 }
 
 // revolve's checkpoint writes in closed form (binomial's ram_writes, and with stages=1 the adjoint steps

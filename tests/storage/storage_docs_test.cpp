@@ -1,11 +1,17 @@
-// storage/storage_docs.h describes exactly the factory's strategies and keys, and every documented
-// example spec is accepted by the factory.
+// storage/storage_docs.h describes exactly the registry's strategies and keys, every documented example
+// spec is accepted by the factory, and the table of docs/guides/storage_strategies.md is the one generated
+// from the rows. With HINDSIGHT_REGENERATE=1 in the environment the test rewrites that table instead
+// (then review the diff and commit it).
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 namespace hindsight {
 namespace {
@@ -13,7 +19,7 @@ namespace {
 TEST(StorageDocs, DocumentsEveryStrategyAndKeyOfTheFactory) {
   std::vector<std::string> documented;
   for (const StorageStrategyDoc& doc : storageStrategyDocs()) documented.push_back(doc.name);
-  EXPECT_EQ(documented, storageStrategyNames()) << "add the new strategy to storage/storage_docs.cpp";
+  EXPECT_EQ(documented, storageStrategyNames());
   for (const std::string& name : storageStrategyNames()) {
     const StorageStrategyDoc* doc = findStorageStrategyDoc(name);
     ASSERT_NE(doc, nullptr) << name;
@@ -46,6 +52,35 @@ TEST(StorageDocs, KeysOfAnUnknownStrategyNameTheKnownOnes) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("unknown storage strategy 'nope'; known: full"), std::string::npos);
   }
+}
+
+TEST(StorageDocs, DocumentationTableIsGeneratedFromTheRows) {
+  const std::filesystem::path path =
+      std::filesystem::path(HINDSIGHT_SOURCE_DIR) / "docs/guides/storage_strategies.md";
+  constexpr const char* kBegin =
+      "<!-- storage-strategies: generated from the registry's rows (storage/storage_docs.h) -->\n";
+  constexpr const char* kEnd = "<!-- storage-strategies: end -->\n";
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    text = buffer.str();
+  }
+  const std::size_t begin = text.find(kBegin);
+  std::size_t end = text.find(kEnd);
+  ASSERT_NE(begin, std::string::npos) << path << " lacks the marker " << kBegin;
+  ASSERT_NE(end, std::string::npos) << path << " lacks the marker " << kEnd;
+  ASSERT_LT(begin, end);
+  const std::size_t from = begin + std::string(kBegin).size();
+  const char* regenerate = std::getenv("HINDSIGHT_REGENERATE");
+  if (regenerate != nullptr && std::string(regenerate) == "1") {
+    text.replace(from, end - from, storageStrategiesMarkdown());
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    end = text.find(kEnd);
+  }
+  EXPECT_EQ(text.substr(from, end - from), storageStrategiesMarkdown())
+      << path << ": the table of strategies differs from the registry's rows; regenerate (file header)";
 }
 
 }  // namespace
