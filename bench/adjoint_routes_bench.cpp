@@ -16,7 +16,7 @@
 // On Robertson the continuous route runs with the implicit backward trbdf2 (forward trbdf2, full
 // storage): the default backward dopri5 is stability-limited on the stiff adjoint system (see
 // engine/continuous_adjoint.h).
-#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include "bench_support.h"
 

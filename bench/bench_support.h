@@ -8,11 +8,11 @@
 // before: caches of earlier benchmarks, the model). No library does this; it is 30 lines of procfs.
 #pragma once
 
-#include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
+#include <hindsight/problems/app/gradient_routes.h>
 
 #include <benchmark/benchmark.h>
 

@@ -21,6 +21,7 @@
 //
 // Run: build/bench/full_order_bench --benchmark_filter='full_order/200x12/'
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/app/full_order_evaluation.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/rod_config.h>
 #include <hindsight/storage/storage_factory.h>

@@ -14,7 +14,7 @@
 // /tmp/hindsight-optimize-bench/OBJECTIVE (overwritten).
 //
 // Run: build/bench/optimize_bench --benchmark_filter=rod_optimize/psi2
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 
 #include <benchmark/benchmark.h>

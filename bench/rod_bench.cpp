@@ -27,12 +27,12 @@
 //
 // Run: build/bench/rod_bench --benchmark_filter=... --benchmark_repetitions=3
 //      (see bench/run_suite.py and bench/RESULTS.md)
-#include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/problems/app/gradient_routes.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 #include "bench_support.h"

@@ -10,12 +10,12 @@
 //     of 3, with full:stages=1 for rk4 (the backward sweep then recomputes no stage).
 // Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1]
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/esl.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 

@@ -1,6 +1,7 @@
 #include "commands.h"
 
 #include <hindsight/engine/types.h>
+#include <hindsight/problems/app/config_schema.h>
 
 #include <iostream>
 #include <stdexcept>
@@ -20,13 +21,27 @@ void registerCommands(CLI::App& app) {
   registerVerify(app);
   registerExport(app);
   registerSchedule(app);
+  registerConfig(app);
 }
 
-void ConfigFlags::add(CLI::App* app, const std::string& flag, const std::string& key,
-                      const std::string& description, const std::string& typeName) {
-  Entry& entry = entries_.emplace_back(Entry{flag, key, "", nullptr});
-  entry.option =
-      app->add_option(flag, entry.text, description + " (config field " + key + ")")->type_name(typeName);
+void ConfigFlags::add(CLI::App* app, const std::string& key, const std::string& note) {
+  const ConfigField& field = findConfigField(key);
+  if (field.flag.empty()) throw std::logic_error("ConfigFlags::add: config field " + key + " has no flag");
+  const std::string defaultValue = [&] {
+    const nlohmann::json value = field.get(Config{});
+    return value.is_string() ? value.get<std::string>() : value.dump();
+  }();
+  std::string help = field.description;
+  if (field.type == ConfigFieldType::choice) help += "; one of " + field.allowed();
+  if (field.type == ConfigFieldType::integer || field.type == ConfigFieldType::real)
+    help += "; in " + field.allowed();
+  help += "; default " + defaultValue + note + " (config field " + key + ")";
+  const char* typeName = field.type == ConfigFieldType::integer ? "INT"
+                         : field.type == ConfigFieldType::real  ? "FLOAT"
+                         : key == "simulation.storage"          ? "STORAGE"
+                                                                : "TEXT";
+  Entry& entry = entries_.emplace_back(Entry{field.flag, key, "", nullptr});
+  entry.option = app->add_option(field.flag, entry.text, help)->type_name(typeName);
 }
 
 void ConfigFlags::apply(Config& config) const {

@@ -4,7 +4,7 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -29,12 +29,12 @@ int runSelected(CLI::App& app);
 /// Command-line flags that stand for configuration fields (`--move-limit` is optimization.moveLimit).
 /// CLI11 only collects their text; apply() hands the text of every flag that was given to
 /// applyFlag(), so a flag accepts exactly what its field accepts (the one validation path of
-/// problems/rod/config.cpp) and an absent flag leaves the configuration alone -- no sentinel values.
+/// problems/app/config.cpp) and an absent flag leaves the configuration alone -- no sentinel values.
 class ConfigFlags {
  public:
-  /// Registers `flag` on `app` for config field `key` ("section.field"); `typeName` is shown in --help.
-  void add(CLI::App* app, const std::string& flag, const std::string& key, const std::string& description,
-           const std::string& typeName);
+  /// Registers on `app` the flag of config field `key` ("section.field"): its name, help text, type and
+  /// default come from the field's row (problems/app/config_schema.h); `note` is appended to the help.
+  void add(CLI::App* app, const std::string& key, const std::string& note = "");
   /// Applies the given flags in registration order; throws std::invalid_argument naming the flag.
   void apply(Config& config) const;
   bool given(const std::string& flag) const;
@@ -57,5 +57,11 @@ void registerPlot(CLI::App& app);
 void registerVerify(CLI::App& app);
 void registerExport(CLI::App& app);
 void registerSchedule(CLI::App& app);
+void registerConfig(CLI::App& app);
+
+/// The footer of the --help of a command that reads a configuration: where the fields are listed.
+inline constexpr const char* kConfigFieldsFooter =
+    "Every configuration field (--set section.field=value), its default and its allowed values: "
+    "hindsight config";
 
 }  // namespace hindsight::cli

@@ -1,10 +1,11 @@
 // `hindsight evaluate`: psi1, psi2, the volume fraction, the modes' frequencies and the run summary
 // of one piston-rod design; with --gradient, also dpsi1/dx, dpsi2/dx and dV/dx into an HDF5 file.
 // psi2 is skipped (and said so) with adaptive steps, which cannot place its load times.
+#include <hindsight/problems/app/full_order_evaluation.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 #include <hindsight/problems/rod/parallel.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include "commands.h"
 
 #include <nlohmann/json.hpp>
@@ -203,16 +204,12 @@ void registerEvaluate(CLI::App& app) {
   cmd->add_option("--gradient", s->gradientFile,
                   "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx) to this HDF5 file");
   cmd->add_flag("--force", s->force, "overwrite an existing --gradient file (never the --design input)");
-  s->flags.add(cmd, "--storage", "simulation.storage",
-               "trajectory storage spec, e.g. binomial:checkpoints=50", "STORAGE");
-  s->flags.add(cmd, "--integrator", "simulation.integrator",
-               "rk4 | dopri5 | trbdf2 | sdirk2 | midpoint | generalized-alpha | hht-alpha (reduced model)",
-               "TEXT");
-  s->flags.add(cmd, "--adjoint", "simulation.adjoint", "discrete | continuous | cvodes", "TEXT");
-  s->flags.add(cmd, "--model", "simulation.model",
-               "reduced (floating frame, modal coordinates) | full (unreduced FE rod; without --config, "
-               "--integrator or --set simulation.integrator/step it also selects trbdf2 with h = 1e-3 s)",
-               "TEXT");
+  s->flags.add(cmd, "simulation.storage");
+  s->flags.add(cmd, "simulation.integrator");
+  s->flags.add(cmd, "simulation.adjoint");
+  s->flags.add(cmd, "simulation.model",
+               "; without --config, --integrator or --set simulation.integrator/step, full also selects "
+               "trbdf2 with h = 1e-3 s");
   cmd->add_flag("--json", s->json, "exactly one JSON object on stdout");
   s->threadsOption = cmd->add_option(
       "--threads", s->threads,
@@ -220,6 +217,7 @@ void registerEvaluate(CLI::App& app) {
   cmd->add_flag("--print-config", s->printConfig, "print the complete configuration and exit");
   cmd->add_flag("--rod-only", s->rodOnly,
                 "with a configuration that lists scenarios: evaluate its rod section (refused otherwise)");
+  cmd->footer(kConfigFieldsFooter);
   commands().push_back({cmd, [s] { return guarded([&] { return runEvaluate(*s); }); }});
 }
 

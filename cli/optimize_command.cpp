@@ -158,19 +158,9 @@ void registerOptimize(CLI::App& app) {
       "Topology optimization of the piston rod (MMA; psi1 exact adjoint or psi2 equivalent static loads)");
   command->add_option("--config", s->configFile, "JSON configuration file (defaults: the paper's problem)");
   command->add_option("--set", s->settings, "section.field=value, applied after --config (repeatable)");
-  s->flags.add(command, "--objective", "optimization.objective",
-               "psi1 (integral compliance) | psi2 (equivalent static loads)", "TEXT");
-  s->flags.add(command, "--iterations", "optimization.iterations",
-               "most MMA updates, in [0, 100000] (default 150; the stopping rule optimization.kktTolerance "
-               "and changeTolerance usually ends the run earlier)",
-               "INT");
-  s->flags.add(command, "--filter-radius", "optimization.filterRadius",
-               "density filter radius in elements, in [0, 1000]; 0 = none (default, the paper's choice)",
-               "FLOAT");
-  s->flags.add(command, "--move-limit", "optimization.moveLimit",
-               "MMA move limit in (0, 1] (default 0.5, Svanberg's standard value)", "FLOAT");
-  s->flags.add(command, "--picture-every", "optimization.pictureEvery",
-               "a design picture every K iterations, K in [0, 100000]; 0 = final only", "INT");
+  for (const char* key : {"optimization.objective", "optimization.iterations", "optimization.filterRadius",
+                          "optimization.moveLimit", "optimization.pictureEvery"})
+    s->flags.add(command, key);
   command->add_option("--out", s->outputDirectory, "output directory")->capture_default_str();
   command->add_flag("--resume", s->resume, "continue DIR/results.h5");
   s->threadsOption = command->add_option(
@@ -178,6 +168,7 @@ void registerOptimize(CLI::App& app) {
       "threads per process, >= 1 (default: the cores available); results are bitwise the same "
       "for every count");
   command->add_flag("--force", s->force, "overwrite DIR/results.h5");
+  command->footer(kConfigFieldsFooter);
   commands().push_back({command, [s] { return guarded([&] { return runOptimize(*s); }); }});
 }
 

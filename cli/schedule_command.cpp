@@ -4,7 +4,7 @@
 // steps, right-hand-side evaluations, reads and writes per level, peak bytes per level and the
 // predicted cost; --actions prints the action stream instead (one action per line). Exit 2 for bad
 // input, naming the flag and its allowed range.
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "commands.h"

@@ -13,15 +13,16 @@
 // interrupt poll (engine/interrupt.h) re-acquires it every ~50 ms on the main thread and runs
 // PyErr_CheckSignals, so Ctrl-C raises KeyboardInterrupt out of a long evaluation. A problem written
 // in Python keeps the GIL (its callbacks are Python code, which sees Ctrl-C itself).
-#include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/problem.h>
+#include <hindsight/problems/app/config.h>
+#include <hindsight/problems/app/full_order_evaluation.h>
+#include <hindsight/problems/app/gradient_routes.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/classic/classic_problems.h>
-#include <hindsight/problems/rod/config.h>
 #include <hindsight/problems/rod/design_io.h>
 #include <hindsight/problems/rod/full_order_rod.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/problems/topopt/history_schema.h>
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>

@@ -60,8 +60,8 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/problems/rod/config.h>
 #include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/rod_config.h>
 #include <hindsight/problems/rod/slider_crank.h>
 
 #include <Eigen/SparseCholesky>
@@ -152,26 +152,6 @@ class FullOrderRodProblem final : public Problem {
 /// at h = 1e-3 s (omega_1 h ~ 0.2) psi1,full changes by 4e-6 relative when h is halved (40 x 4 mesh).
 inline constexpr const char* kFullOrderDefaultIntegrator = "trbdf2";
 inline constexpr double kFullOrderDefaultStep = 1e-3;
-
-/// What evaluateFullOrderRod() returns.
-struct FullOrderRodEvaluation {
-  double psi1 = 0.0;
-  double volumeFraction = 0.0;
-  Vector dpsi1;  ///< d psi1,full / dx (empty unless asked)
-  Vector dvolume;
-  RunSummary summary;
-  int stateSize = 0;
-  double omegaMax = 0.0;  ///< sqrt of the largest eigenvalue of M^{-1} K [rad/s]
-  double modelSeconds = 0.0;
-  double simulationSeconds = 0.0;
-};
-
-/// psi1,full (and with `gradient` dpsi1/dx by the discrete adjoint over config.simulation.storage)
-/// for one design, integrator options as PistonRod::integratorOptions(). Throws std::invalid_argument
-/// when the adjoint route is not "discrete", or when an explicit
-/// method's step exceeds its stability limit 2.78 / omega_max (naming the limit), and NumericalError
-/// for a failed simulation.
-FullOrderRodEvaluation evaluateFullOrderRod(const Config& config, ConstVectorRef design, bool gradient);
 
 }  // namespace rod
 }  // namespace hindsight

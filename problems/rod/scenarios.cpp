@@ -1,7 +1,5 @@
 #include <hindsight/problems/rod/scenarios.h>
 
-#include <hindsight/problems/rod/config.h>
-
 #include <cmath>
 #include <limits>
 #include <set>
@@ -134,25 +132,6 @@ void validateScenarios(const std::vector<Scenario>& scenarios, const rod::RodCon
       throw std::invalid_argument(at + " ('" + s.name + "'): " + e.what());
     }
   }
-}
-
-std::vector<ScenarioCase> scenarioCases(const Config& config) {
-  if (config.scenarios.empty()) return {ScenarioCase{"rod", 1.0}};
-  std::vector<ScenarioCase> out;
-  for (const Scenario& s : config.scenarios) out.push_back({s.name, s.weight});
-  return out;
-}
-
-std::vector<Config> scenarioConfigs(const Config& config) {
-  if (config.scenarios.empty()) return {config};
-  std::vector<Config> out;
-  for (const Scenario& s : config.scenarios) {
-    Config c = config;
-    c.scenarios.clear();
-    c.rod = scenarioRod(config.rod, s);
-    out.push_back(c);
-  }
-  return out;
 }
 
 }  // namespace hindsight

@@ -27,8 +27,6 @@
 
 namespace hindsight {
 
-struct Config;
-
 struct Scenario {
   std::string name;
   std::optional<double> crankSpeed;   ///< Omega [rad/s] after the ramp, > 0
@@ -57,13 +55,11 @@ rod::RodConfig scenarioRod(const rod::RodConfig& rod, const Scenario& scenario);
 /// std::invalid_argument naming "scenarios[i]...".
 void validateScenarios(const std::vector<Scenario>& scenarios, const rod::RodConfig& rod);
 
-/// The configurations of every scenario in order: [config] when there are none (name "rod",
-/// weight 1), otherwise config with the scenario's rod and no scenarios.
+/// A scenario's name and weight (the application configuration's scenarioCases() lists them,
+/// problems/app/config.h).
 struct ScenarioCase {
   std::string name;
   double weight = 1.0;
 };
-std::vector<ScenarioCase> scenarioCases(const Config& config);
-std::vector<Config> scenarioConfigs(const Config& config);
 
 }  // namespace hindsight

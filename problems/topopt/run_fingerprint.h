@@ -16,7 +16,7 @@
 // (problems/topopt/results_file.h); `hindsight verify` recomputes it from the stored configuration.
 #pragma once
 
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <nlohmann/json.hpp>
 

@@ -16,7 +16,7 @@
 // scenario; the owning rank's message carries the original text. No rank is left waiting.
 #pragma once
 
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/topopt/communicator.h>
 
 #include <optional>

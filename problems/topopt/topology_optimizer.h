@@ -74,8 +74,8 @@
 // are deterministic, MMA restores exactly).
 #pragma once
 
-#include <hindsight/problems/rod/config.h>
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/config.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/topopt/density_filter.h>
 #include <hindsight/problems/topopt/gcmma.h>
 #include <hindsight/problems/topopt/heaviside_projection.h>

@@ -4,7 +4,7 @@
 // quadrature, the backward adjoint and the backward quadrature. The example prints, in its .out
 // file, G = int_0^4e7 y3 dt = 3.9983e+07 and dG/dp = (7.6842e+05, -3.0691e+00, 5.1144e-04) (5
 // significant digits) at p = (0.04, 1e4, 3e7).
-#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/app/gradient_routes.h>
 
 #include <gtest/gtest.h>
 

@@ -2,8 +2,8 @@
 // closed forms for the linear problems; convergence to the tight discrete gradient on the nonlinear
 // pendulum as tolerances tighten; the continuous adjoint's two sources of forward states (storage
 // interpolation and restored windows) agree; bad options are named.
-#include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/full_storage.h>
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/hermite_storage.h>
 #include "support/engine_fixtures.h"

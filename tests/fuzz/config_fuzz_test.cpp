@@ -1,11 +1,11 @@
-// Fuzzing the configuration readers (problems/rod/config.h): configFromJson, readConfigFile and
+// Fuzzing the configuration readers (problems/app/config.h): configFromJson, readConfigFile and
 // applySetting take a user's input, so whatever they are given they must either return a
 // configuration that validate()s, holds only finite numbers and survives a JSON round trip, or throw
 // std::invalid_argument. Any other exception (a JSON library error, std::out_of_range, bad_alloc)
 // would escape the CLI's error handling as an internal error instead of exit code 2 with the field.
 #include "fuzz/fuzz_support.h"
 
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <cmath>
 #include <limits>

@@ -1,8 +1,8 @@
 // Uses an installed hindsight with every component, as a user would: a problem from hindsight::classic,
-// the three-route dispatcher of hindsight::cvodes with a storage made from a spec string
-// (hindsight::storage), and an MMA object from hindsight::topopt. Exit code 0 only when the discrete and
-// CVODES gradients of z' = -k z, psi = int z^2 dt agree with the closed form.
-#include <hindsight/cvodes/gradient_routes.h>
+// the three-route dispatcher of hindsight::app (its CVODES route from hindsight::cvodes) with a storage
+// made from a spec string (hindsight::storage), and an MMA object from hindsight::topopt. Exit code 0
+// only when the discrete and CVODES gradients of z' = -k z, psi = int z^2 dt agree with the closed form.
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/topopt/mma.h>
 

@@ -1,9 +1,9 @@
 // The `mechanism` section of the configuration: the examples read and write back, bad descriptions are
 // named, the described slider-crank gives the built-in model's psi1, psi2 and design gradients, and the
 // four-bar's design gradient matches central differences of psi1.
+#include <hindsight/problems/app/config.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/mechanism/mechanism_json.h>
-#include <hindsight/problems/rod/config.h>
-#include <hindsight/problems/rod/piston_rod.h>
 
 #include <gtest/gtest.h>
 

@@ -5,7 +5,7 @@
 // O(h^4), far below the CVODES tolerances used here).
 #include <hindsight/cvodes/cvodes_adjoint.h>
 #include <hindsight/engine/full_storage.h>
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>

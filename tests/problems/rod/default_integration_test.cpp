@@ -1,7 +1,7 @@
 // The default time integration of the piston rod against a tight reference: psi1 and dpsi1/dx of the
 // default configuration (docs/guides/performance.md) within 1e-4 (relative) of RK4 at h = 1e-4, which is
 // converged to ~1e-11 (halving its step moves psi1 by less than that).
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/piston_rod.h>
 
 #include <gtest/gtest.h>
 

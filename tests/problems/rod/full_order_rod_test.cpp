@@ -4,14 +4,15 @@
 // the discrete-adjoint dpsi/dx against finite differences of the computed psi for every element
 // (rk4 and trbdf2), a modal-superposition check with the coupling dropped, and psi1,full against the
 // reduced psi1 of PistonRod.
+#include <hindsight/problems/app/full_order_evaluation.h>
 #include <hindsight/problems/rod/full_order_rod.h>
 
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
 #include <hindsight/engine/runge_kutta.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/piston_rod.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/allocation_counting.h"
 

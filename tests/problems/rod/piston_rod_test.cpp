@@ -1,6 +1,6 @@
 // The piston rod end to end: psi1(x0) against the paper, and dpsi1/dx (through the simulation,
 // the invariants and the eigenvector sensitivities) against finite differences of psi1.
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/piston_rod.h>
 
 #include <hindsight/engine/gradient_checker.h>
 

@@ -3,7 +3,7 @@
 // accurately, the modal data carried round-off that changes erratically with the design (lambda_1 off by
 // ~eps lambda_max, 2e-10 relative on the design below), and central differences with small steps measured
 // that noise, not the derivative. These tests evaluate the full 200 x 12 model (~1 s each, 16 in all).
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/piston_rod.h>
 
 #include <gtest/gtest.h>
 

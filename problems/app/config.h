@@ -2,10 +2,12 @@
 // the simulation and gradient settings, and the optimisation settings. Read from and written to JSON
 // strictly: an unknown field, a wrong type or an out-of-range value throws std::invalid_argument
 // naming the field ("rod.modeCount"), the value and the allowed range. `--set KEY=VALUE` on the
-// command line goes through the same checks.
+// command line goes through the same checks. The fields, their types, ranges, units and descriptions
+// are one table, problems/app/config_schema.h, which the reader, the writer, `hindsight config` and
+// the CLI reference share; the defaults are the member initializers below.
 #pragma once
 
-#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/mechanism/mechanism.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/rod_config.h>
@@ -25,7 +27,7 @@ enum class RodModel { Reduced, Full };
 enum class Objective { Psi1, Psi2 };
 
 // The configuration's choices by name: the JSON strings, parsed and printed here only (the adjoint
-// route's names live with AdjointMethod in cvodes/gradient_routes.h). parse* throws
+// route's names live with AdjointMethod in problems/app/gradient_routes.h). parse* throws
 // std::invalid_argument listing the names.
 std::string toString(RodModel model);
 std::string toString(Objective objective);
@@ -153,5 +155,10 @@ void applySetting(Config& config, const std::string& assignment, bool validate =
 /// validate as for applySetting.
 void applyFlag(Config& config, const std::string& flag, const std::string& key, const std::string& text,
                bool validate = true);
+
+/// The configurations of every scenario in order: [config] when there are none (name "rod",
+/// weight 1), otherwise config with the scenario's rod and no scenarios.
+std::vector<ScenarioCase> scenarioCases(const Config& config);
+std::vector<Config> scenarioConfigs(const Config& config);
 
 }  // namespace hindsight

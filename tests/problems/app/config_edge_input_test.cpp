@@ -1,7 +1,7 @@
 // Inputs the configuration readers let escape as JSON library exceptions instead of
 // std::invalid_argument (found by the config fuzz test): numbers beyond double (json::out_of_range 406)
 // and --set values with invalid UTF-8 (json::type_error 316 while writing the error message).
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
-#include <hindsight/problems/rod/piston_rod.h>
+#include <hindsight/problems/app/piston_rod.h>
 
-#include <hindsight/cvodes/gradient_routes.h>
 #include <hindsight/engine/stopwatch.h>
+#include <hindsight/problems/app/gradient_routes.h>
 #include <hindsight/problems/mechanism/mechanism_problem.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/esl.h>

@@ -6,7 +6,7 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <string>
 #include <vector>

@@ -1,8 +1,10 @@
 // One entry point for dpsi/dp whichever adjoint method computes it (docs/design.md §4 and §5):
 // computeGradientByMethod() picks the route by name and makes the storage from its spec string; the routes
 // themselves are computeGradient() (discrete, engine/adjoint.h), computeGradientContinuous() and
-// computeGradientCvodes(). It lives here, beside CVODES, because it is the one place that offers all
-// three; the engine knows neither CVODES nor spec strings. The CLI exposes the choice as
+// computeGradientCvodes(). It lives in the application layer (problems/app/, docs/guides/architecture.md)
+// because that is the lowest layer that sees all three: the engine knows neither CVODES nor spec
+// strings, cvodes/ is one route among three, and the problems below this layer (problems/rod/) describe
+// models without choosing how their gradients are computed. The CLI exposes the choice as
 // --adjoint discrete|continuous|cvodes.
 //
 //   discrete   the transpose of the integrator's step map over a trajectory storage strategy

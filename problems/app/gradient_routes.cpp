@@ -1,4 +1,4 @@
-#include <hindsight/cvodes/gradient_routes.h>
+#include <hindsight/problems/app/gradient_routes.h>
 
 #include <hindsight/storage/storage_factory.h>
 

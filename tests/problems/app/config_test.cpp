@@ -1,4 +1,4 @@
-#include <hindsight/problems/rod/config.h>
+#include <hindsight/problems/app/config.h>
 
 #include <gtest/gtest.h>
 
