@@ -11,9 +11,9 @@
 #include "support/run_cli.h"
 
 #include <hindsight/engine/types.h>
+#include <hindsight/problems/app/config.h>
+#include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/mechanism/mechanism_json.h>
-#include <hindsight/problems/rod/config.h>
-#include <hindsight/problems/rod/piston_rod.h>
 
 #include <cmath>
 #include <limits>
