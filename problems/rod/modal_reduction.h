@@ -1,9 +1,11 @@
 // Modal reduction of the pinned-roller rod: the shape functions Phi of docs/design.md §2.
 //
 // Solves K phi = lambda M phi on the free DOFs (constrained K, M of FeModel) for the lowest n + 1
-// eigenpairs with Spectra's SymGEigsShiftSolver in shift-invert mode (shift 0: K is positive definite
-// once A is pinned and B rolls), keeps the lowest n, and reports the spectral gap lambda_{n+1}/lambda_n:
-// eigenvector sensitivities (Nelson 1976) degrade when the truncation cuts through a cluster.
+// eigenpairs by Spectra's Lanczos solver (SymEigsSolver) on the standard symmetric form of the pencil
+// built from the one LDL^T of K (K is positive definite once A is pinned and B rolls; the largest
+// eigenvalues of C = D^-1/2 L^-1 P M P^T L^-T D^-1/2 are 1/lambda), keeps the lowest n, and reports the
+// spectral gap lambda_{n+1}/lambda_n: eigenvector sensitivities (Nelson 1976) degrade when the truncation
+// cuts through a cluster.
 //
 // Modes are ascending in lambda, mass-normalised (phi^T M phi = 1) and signed deterministically: the
 // first free-DOF entry whose magnitude is at least a tenth of the largest magnitude is positive. (The
@@ -86,9 +88,9 @@ Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixR
 Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull);
 
 /// One sparse LDL^T factorisation of the constrained stiffness K of a design (AMD ordering), shared by
-/// everything that solves with K: the eigen-solve (shift-invert at 0), the refinement, the inertia-relief
-/// modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run time by the
-/// system (Debian alternatives), which would make the bits depend on the machine.
+/// everything that solves with K: the eigen-solve (Lanczos on its transformed pencil), the refinement, the
+/// inertia-relief modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run
+/// time by the system (Debian alternatives), which would make the bits depend on the machine.
 class StiffnessFactorization {
  public:
   /// Throws std::runtime_error when K is not positive definite (a zero or negative pivot).
