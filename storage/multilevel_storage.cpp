@@ -698,15 +698,17 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
   const int n = static_cast<int>(stateBytes / 8);
+  // The spec's own costs take precedence over --costs (already in p), as in a run, for both schedules.
+  if (multilevel.options().costs) p.costs = *multilevel.options().costs;
+  // For a prediction the sizes are the input: a level that cannot hold the states is named as flags.
+  const std::string levels = "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
+                             " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes);
   if (multilevel.options().stride || !multilevel.plansFor(steps, n)) {
-    if (multilevel.options().costs) p.costs = *multilevel.options().costs;  // the spec's own, as below
     try {
       predictStride(multilevel.options(), request, p);
-    } catch (const StorageError& e) {
-      // A run would fail at its start; for a prediction the sizes are the input: name them as flags.
-      throw std::invalid_argument("multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
-                                  " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) +
-                                  " with --state-bytes = " + formatBytes(stateBytes) + ": " + e.what());
+    } catch (const StorageError& e) {  // a run would fail at its start
+      throw std::invalid_argument(levels + " with --state-bytes = " + formatBytes(stateBytes) + ": " +
+                                  e.what());
     }
     return;
   }
@@ -715,9 +717,7 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   // name neither the levels nor the state size.
   if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
     throw std::invalid_argument(
-        "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
-        " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) + " hold " +
-        std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
+        levels + " hold " + std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
         " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
         "; RAM must hold one state and both levels two: raise ram or disk");
   }
@@ -729,7 +729,6 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   if (planCosts == nullptr && !nothingToChoose)
     throw std::invalid_argument(
         "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
-  if (planCosts != nullptr) p.costs = *planCosts;  // the spec's own costs take precedence, as in a run
   TwoLevelPlan plan =
       TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
                            multilevel.options().costs || !nothingToChoose ? *planCosts : unit);

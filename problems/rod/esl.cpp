@@ -27,6 +27,14 @@ Matrix equivalentStaticLoads(const FeModel& model, const ModalBasis& basis, Cons
 
 namespace {
 
+void checkEndTime(const char* function, double endTime) {
+  if (!std::isfinite(endTime) || !(endTime > 0.0)) {
+    std::ostringstream message;
+    message << function << ": endTime = " << endTime << " is outside the allowed range (0, inf)";
+    throw std::invalid_argument(message.str());
+  }
+}
+
 void checkEslArguments(const FeModel& model, ConstMatrixRef loads, double endTime) {
   if (loads.rows() != model.freeDofCount() || loads.cols() < 1) {
     std::ostringstream message;
@@ -34,11 +42,7 @@ void checkEslArguments(const FeModel& model, ConstMatrixRef loads, double endTim
             << ", expected freeDofCount() = " << model.freeDofCount() << " rows and at least one column";
     throw std::invalid_argument(message.str());
   }
-  if (!std::isfinite(endTime) || !(endTime > 0.0)) {
-    std::ostringstream message;
-    message << "evaluateEsl: endTime = " << endTime << " is outside the allowed range (0, inf)";
-    throw std::invalid_argument(message.str());
-  }
+  checkEndTime("evaluateEsl", endTime);
 }
 
 Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double weight);
@@ -94,11 +98,7 @@ EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis,
             << " rows, at least one column, for a basis of this model";
     throw std::invalid_argument(message.str());
   }
-  if (!std::isfinite(endTime) || !(endTime > 0.0)) {
-    std::ostringstream message;
-    message << "evaluateEslAtLoadDesign: endTime = " << endTime << " is outside the allowed range (0, inf)";
-    throw std::invalid_argument(message.str());
-  }
+  checkEndTime("evaluateEslAtLoadDesign", endTime);
   const double weight = endTime / static_cast<double>(modalCoordinates.cols());
   EslResult result;
   result.value = weight * (kee * modalCoordinates).cwiseProduct(modalCoordinates).sum();
