@@ -66,6 +66,8 @@ class MechanismProblem final : public SecondOrderProblem {
   int memberOffset() const;
 
   std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
+  /// Keeps the symmetric part of M_ee of p for the whole solve.
+  std::unique_ptr<ProblemWorkspace> createModelWorkspaceFor(ConstVectorRef p) const override;
   void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
   void massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
                   ProblemWorkspace* ws) const override;
@@ -84,6 +86,21 @@ class MechanismProblem final : public SecondOrderProblem {
                                  VectorRef gy, VectorRef gv, ProblemWorkspace* ws) const override;
   void addIntegrandParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                      double scale, VectorRef gp, ProblemWorkspace* ws) const override;
+
+  // ---- The reference path in full coordinates z (tests hold the chord path to it). ----
+  /// M = R^T M(z) R and f = -R^T (M(z) zeta - Q) with R, zeta in full coordinates (O(n^3)).
+  void massMatrixAndForceByProjection(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                      MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const;
+  /// r = R^T (M(z) z'' - Q) in full coordinates.
+  void residualByProjection(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                            VectorRef r, ProblemWorkspace* ws) const;
+  /// r_y, r_y' by dual numbers in all 2f directions through the full-coordinate residual.
+  void residualJacobiansByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                   ConstVectorRef p, MatrixRef ry, MatrixRef rv, ProblemWorkspace* ws) const;
+  /// (r_p)^T mu with the b part by dual numbers in the n entries of b through the full-coordinate path.
+  void addResidualParameterVjpByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                         ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                         ProblemWorkspace* ws) const;
 
   // ---- Diagnostics and tests. ----
   /// r = M a - f.
@@ -106,7 +123,8 @@ class MechanismProblem final : public SecondOrderProblem {
  private:
   Mechanism mechanism_;
   int modes_;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<Impl> impl_;   ///< full coordinates (reference path, diagnostics)
+  std::unique_ptr<Impl> chord_;  ///< the chord system (rigid coordinates and c = b q)
 };
 
 }  // namespace hindsight::mechanism
