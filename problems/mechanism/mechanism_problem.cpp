@@ -25,6 +25,9 @@ constexpr int kSmall = 24;
 constexpr int kLarge = 2 * (MechanismProblem::kMaxModes + MechanismProblem::kMaxFree);
 using ADS = ADOf<kSmall>;
 using ADL = ADOf<kLarge>;
+/// Two fixed directions: the chord kinematics in (c, c') or, with one free coordinate fewer, (sigma,
+/// sigma'); fixed size, so no loop over a dynamic derivative vector.
+using AD2 = Eigen::AutoDiffScalar<Eigen::Vector2d>;
 
 inline double valueOf(double x) { return x; }
 template <typename D>
@@ -41,6 +44,12 @@ struct Make<double> {
   static double variable(double v, int, int) { return v; }
   /// A value with the derivatives of d (the implicit-function step).
   static double withDerivatives(double v, double) { return v; }
+};
+template <>
+struct Make<AD2> {
+  static AD2 constant(double v, int) { return AD2(v, Eigen::Vector2d::Zero()); }
+  static AD2 variable(double v, int, int i) { return AD2(v, 2, i); }
+  static AD2 withDerivatives(double v, const AD2& d) { return AD2(v, d.derivatives()); }
 };
 template <int C>
 struct Make<ADOf<C>> {
@@ -145,6 +154,12 @@ struct Buffers {
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
+inline void sinCos(const AD2& x, AD2& s, AD2& c) {
+  double sv, cv;
+  dmath::sincos(x.value(), &sv, &cv);
+  s = AD2(sv, cv * x.derivatives());
+  c = AD2(cv, -sv * x.derivatives());
+}
 template <int C>
 void sinCos(const ADOf<C>& x, ADOf<C>& s, ADOf<C>& c) {
   double sv, cv;
@@ -176,6 +191,10 @@ bool luFactor(T* a, int* piv, int m) {
     for (int i = k + 1; i < m; ++i) a[i + m * k] *= inv;
     for (int j = k + 1; j < m; ++j) {
       const T akj = a[k + m * j];
+      // Constraint Jacobians are sparse: a zero of U's row k changes nothing in its column.
+      if constexpr (std::is_same_v<T, double>) {
+        if (akj == 0.0) continue;
+      }
       for (int i = k + 1; i < m; ++i) a[i + m * j] -= a[i + m * k] * akj;
     }
   }
@@ -188,10 +207,16 @@ void luSolve(const S* a, const int* piv, int m, T* x) {
     if (piv[k] != k) std::swap(x[k], x[piv[k]]);
   }
   for (int k = 0; k < m; ++k) {
+    if constexpr (std::is_same_v<T, double>) {
+      if (x[k] == 0.0) continue;
+    }
     for (int i = k + 1; i < m; ++i) x[i] -= a[i + m * k] * x[k];
   }
   for (int k = m - 1; k >= 0; --k) {
     x[k] /= a[k + m * k];
+    if constexpr (std::is_same_v<T, double>) {
+      if (x[k] == 0.0) continue;
+    }
     for (int i = 0; i < k; ++i) x[i] -= a[i + m * k] * x[k];
   }
 }
@@ -489,6 +514,7 @@ struct Work final : ProblemWorkspace {
         l(I.nz, I.m, I.f, I.n),
         cd(C.nz, C.m, C.f, 1),
         cs(C.nz, C.m, C.f, 1),
+        c2(C.nz, C.m, C.f, 1),
         zStar(I.nz),
         zChord(C.nz),
         sigmaLast(C.f),
@@ -522,6 +548,7 @@ struct Work final : ProblemWorkspace {
   // The chord system (problems/mechanism/mechanism_problem.h): rigid coordinates and c = b q.
   Buffers<double> cd;
   Buffers<ADS> cs;
+  Buffers<AD2> c2;
   Vector zStar;   ///< full coordinates of the reference path
   Vector zChord;  ///< solved positions of the chord system
   // Warm start of Newton: the last solved (t, sigma, z).
@@ -531,7 +558,7 @@ struct Work final : ProblemWorkspace {
   // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
   // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
   // point.
-  bool kinematicsValid = false;
+  bool kinematicsValid = false, velocitiesValid = false;
   double tKinematics = 0.0;
   Vector sigmaKinematics, sigmaDotKinematics;
   // sigma = (free coordinates, b q) and its derivatives at the current call.
@@ -606,38 +633,21 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
   w.zLast = w.zChord;
 }
 
+/// Which part of kinematics(): the position level (z, Phi_u factorised, R), the velocity level (z',
+/// zeta; needs the position level of the same point in B), or both.
+enum class Part { All, Positions, Velocities };
+
 /// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
-/// B.y, B.v, B.b; w.zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
+/// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
 template <typename T>
 void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, const Vector& zStar,
-                int nd) {
+                int nd, Part part = Part::All) {
   const T zero = Make<T>::constant(0.0, nd);
   const int m = I.m, f = I.f, nz = I.nz;
-  for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
-  for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
-  if constexpr (!std::is_same_v<T, double>) {
-    // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
-    I.constraints(t, B, false, false, zero);
-    for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
-    luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
-    for (int i = 0; i < m; ++i)
-      B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
-  }
-  I.constraints(t, B, true, false, zero);
   // Phi_u^{-1}: in double a factorisation at this point, kept in w.luStar for the dual passes; in dual
   // numbers that factorisation of the same point and one step of iterative refinement,
   // x = x0 + Phi_u0^{-1} (b - Phi_u x0) with x0 = Phi_u0^{-1} b0, whose derivative
   // Phi_u0^{-1} (b' - Phi_u' x0) is exact: no factorisation in dual numbers.
-  if constexpr (std::is_same_v<T, double>) {
-    for (int j = 0; j < m; ++j) {
-      for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
-    }
-    if (!luFactor(B.lu.data(), B.piv.data(), m)) {
-      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-    }
-    std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
-    std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
-  }
   auto solve = [&] {  // B.rhs = Phi_u^{-1} B.rhs
     if constexpr (std::is_same_v<T, double>) {
       luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
@@ -653,7 +663,40 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
       for (int i = 0; i < m; ++i) B.rhs[i] += x0[i];
     }
   };
-  // z' = R y' - Phi_u^{-1} Phi_t.
+  if (part != Part::Velocities) {
+    for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
+    for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
+    if constexpr (!std::is_same_v<T, double>) {
+      // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
+      I.constraints(t, B, false, false, zero);
+      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+      luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+      for (int i = 0; i < m; ++i)
+        B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
+    }
+    I.constraints(t, B, true, false, zero);
+    if constexpr (std::is_same_v<T, double>) {
+      for (int j = 0; j < m; ++j) {
+        for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
+      }
+      if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+        throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+      }
+      std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
+      std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
+    }
+    // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
+    for (int j = 0; j < f; ++j) {
+      T* col = B.R.data() + nz * j;
+      for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
+      for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
+      solve();
+      for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
+    }
+  }
+  if (part == Part::Positions) return;
+  // z' = R y' - Phi_u^{-1} Phi_t (Phi_t of the position pass: the constraint pass below does not
+  // touch the Jacobian).
   for (int i = 0; i < m; ++i) {
     T s = B.phit[i];
     for (int j = 0; j < f; ++j) s += B.jac[i + m * I.independent[j]] * B.v[j];
@@ -668,14 +711,6 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   solve();
   for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
   for (int i = 0; i < m; ++i) B.zeta[I.dependent[i]] = B.rhs[i];
-  // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
-  for (int j = 0; j < f; ++j) {
-    T* col = B.R.data() + nz * j;
-    for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
-    for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
-    solve();
-    for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
-  }
 }
 
 /// out = M(z) x - (with `rest`) Q(z, z', t): the generalised inertia, gravity, elastic and spring forces
@@ -1008,21 +1043,21 @@ void chordResidual(const MechanismProblem::Impl& C, const View& P, Buffers<T>& B
 /// factorises Phi_u into w.luStar for the dual passes. Nothing to do when they are those of the last
 /// call; with `anyVelocity` (the mass matrix, which does not depend on the velocities) any sigma' will do.
 void chordKinematics(const MechanismProblem::Impl& C, double t, Work& w, bool anyVelocity = false) {
-  if (w.kinematicsValid && t == w.tKinematics && w.sigma == w.sigmaKinematics &&
-      (anyVelocity || w.sigmaDot == w.sigmaDotKinematics)) {
-    return;
-  }
-  solvePositions(C, t, w.sigma, w);
   Buffers<double>& B = w.cd;
-  for (int i = 0; i < C.f; ++i) {
-    B.y[i] = w.sigma(i);
-    B.v[i] = w.sigmaDot(i);
+  if (!(w.kinematicsValid && t == w.tKinematics && w.sigma == w.sigmaKinematics)) {
+    solvePositions(C, t, w.sigma, w);
+    for (int i = 0; i < C.f; ++i) B.y[i] = w.sigma(i);
+    B.b[0] = 1.0;
+    kinematics(C, t, B, w, w.zChord, 0, Part::Positions);
+    w.kinematicsValid = true;
+    w.velocitiesValid = false;
+    w.tKinematics = t;
+    w.sigmaKinematics = w.sigma;
   }
-  B.b[0] = 1.0;
-  kinematics(C, t, B, w, w.zChord, 0);
-  w.kinematicsValid = true;
-  w.tKinematics = t;
-  w.sigmaKinematics = w.sigma;
+  if (anyVelocity || (w.velocitiesValid && w.sigmaDot == w.sigmaDotKinematics)) return;
+  for (int i = 0; i < C.f; ++i) B.v[i] = w.sigmaDot(i);
+  kinematics(C, t, B, w, w.zChord, 0, Part::Velocities);
+  w.velocitiesValid = true;
   w.sigmaDotKinematics = w.sigmaDot;
 }
 
@@ -1359,6 +1394,37 @@ void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl&
   }
 }
 
+/// The chord system's kinematics in two directions, sigma_j (0) and sigma'_j (1), into w.cs with nd
+/// directions, the two at dy and dv (the others zero).
+void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, int j, int nd, int dy,
+                            int dv) {
+  Buffers<AD2>& A = w.c2;
+  for (int i = 0; i < C.f; ++i) {
+    A.y[i] = i == j ? AD2(w.sigma(i), 2, 0) : Make<AD2>::constant(w.sigma(i), 2);
+    A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
+  }
+  A.b[0] = Make<AD2>::constant(1.0, 2);
+  kinematics(C, t, A, w, w.zChord, 2);
+  auto put = [&](const AD2& x, ADS& out) {
+    DerivativesOf<kSmall> d = DerivativesOf<kSmall>::Zero(nd);
+    d(dy) = x.derivatives()(0);
+    d(dv) = x.derivatives()(1);
+    out = ADS(x.value(), d);
+  };
+  Buffers<ADS>& B = w.cs;
+  for (int i = 0; i < C.nz; ++i) {
+    put(A.z[i], B.z[i]);
+    put(A.zd[i], B.zd[i]);
+    put(A.zeta[i], B.zeta[i]);
+  }
+  for (int i = 0; i < C.nz * C.f; ++i) put(A.R[i], B.R[i]);
+  for (int i = 0; i <= C.nr; ++i) {
+    put(A.sn[i], B.sn[i]);
+    put(A.cs[i], B.cs[i]);
+  }
+  put(A.b[0], B.b[0]);
+}
+
 }  // namespace
 
 void MechanismProblem::massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
@@ -1424,13 +1490,17 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
   const int dSw0 = 2 * k, dSw1 = dSw0 + 1, dJw = dSw0 + 2, dA1a = dSw0 + 3, dC1v0 = dSw0 + 4,
             dC1v1 = dSw0 + 5, dHv = dSw0 + 6;
   Buffers<ADS>& B = w.cs;
-  for (int i = 0; i < k; ++i) {
-    B.y[i] = Make<ADS>::variable(w.sigma(i), 2 * k, i);
-    B.v[i] = Make<ADS>::variable(w.sigmaDot(i), 2 * k, k + i);
+  if (k == 1) {
+    twoDirectionKinematics(C, t, w, 0, nd, 0, 1);
+  } else {
+    for (int i = 0; i < k; ++i) {
+      B.y[i] = Make<ADS>::variable(w.sigma(i), 2 * k, i);
+      B.v[i] = Make<ADS>::variable(w.sigmaDot(i), 2 * k, k + i);
+    }
+    B.b[0] = Make<ADS>::constant(1.0, 2 * k);
+    kinematics(C, t, B, w, w.zChord, 2 * k);
+    widen(C, B, 2 * k, nd);
   }
-  B.b[0] = Make<ADS>::constant(1.0, 2 * k);
-  kinematics(C, t, B, w, w.zChord, 2 * k);
-  widen(C, B, 2 * k, nd);
   for (int j = 0; j < k; ++j) w.seedDdot[j] = Make<ADS>::constant(w.sigmaDdot(j), nd);
   ADS m[kMoments], phi[4];
   constants(mom, kMoments, nd, m);
@@ -1530,14 +1600,10 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   const int nd = 3;
   Buffers<ADS>& B = w.cs;
   for (int i = 0; i < k; ++i) {
-    B.y[i] = i == ci ? Make<ADS>::variable(w.sigma(i), 2, 0) : Make<ADS>::constant(w.sigma(i), 2);
-    B.v[i] = i == ci ? Make<ADS>::variable(w.sigmaDot(i), 2, 1) : Make<ADS>::constant(w.sigmaDot(i), 2);
     w.seedDdot[i] =
         i == ci ? Make<ADS>::variable(w.sigmaDdot(i), nd, 2) : Make<ADS>::constant(w.sigmaDdot(i), nd);
   }
-  B.b[0] = Make<ADS>::constant(1.0, 2);
-  kinematics(C, t, B, w, w.zChord, 2);
-  widen(C, B, 2, nd);
+  twoDirectionKinematics(C, t, w, ci, nd, 0, 1);
   ADS m[kMoments], phi[4];
   constants(mom, kMoments, nd, m);
   chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
