@@ -475,7 +475,9 @@ struct MechanismProblem::Impl {
     return step;
   }
 
-  /// Simplified Newton from B.z (double): Phi_u factorised once there, `iterations` corrections.
+  /// Simplified Newton from B.z (double): Phi_u factorised once there; at least two and at most
+  /// `iterations` corrections, ending when one is below 1e-15 (each step depends on B.z only, so the
+  /// result is a function of the start).
   void polish(double t, Buffers<double>& B, int iterations) const {
     constraints(t, B, true, false, 0.0);
     for (int j = 0; j < m; ++j) {
@@ -488,7 +490,12 @@ struct MechanismProblem::Impl {
       if (it > 0) constraints(t, B, false, false, 0.0);
       for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
       luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
-      for (int i = 0; i < m; ++i) B.z[dependent[i]] -= B.rhs[i];
+      double step = 0.0;
+      for (int i = 0; i < m; ++i) {
+        B.z[dependent[i]] -= B.rhs[i];
+        step = std::max(step, std::abs(B.rhs[i]));
+      }
+      if (it >= 1 && step <= 1e-15) break;
     }
   }
 
@@ -521,6 +528,8 @@ struct Work final : ProblemWorkspace {
         zLast(C.nz),
         sigmaKinematics(C.f),
         sigmaDotKinematics(C.f),
+        sigmaTwo(C.f),
+        sigmaDotTwo(C.f),
         sigma(C.f),
         sigmaDot(C.f),
         sigmaDdot(C.f),
@@ -561,6 +570,11 @@ struct Work final : ProblemWorkspace {
   bool kinematicsValid = false, velocitiesValid = false;
   double tKinematics = 0.0;
   Vector sigmaKinematics, sigmaDotKinematics;
+  // The same for the two-direction dual kinematics in c2 (twoDirectionKinematics()).
+  bool twoValid = false;
+  int twoSeed = 0;
+  double tTwo = 0.0;
+  Vector sigmaTwo, sigmaDotTwo;
   // sigma = (free coordinates, b q) and its derivatives at the current call.
   Vector sigma, sigmaDot, sigmaDdot;
   std::vector<ADS> seedDdot;
@@ -619,8 +633,8 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
     C.newton(tk, B, -1, 1e-11);
   }
   // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
-  // 5e-7 three simplified Newton steps (one factorisation) reach round-off: each multiplies the error by
-  // about 5e-7 times the constraints' curvature.
+  // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
+  // error by about 5e-7 times the constraints' curvature.
   for (int i = 0; i < C.m; ++i) {
     double& u = B.z[C.dependent[i]];
     u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
@@ -1291,21 +1305,6 @@ void constants(const double* values, int count, int nd, ADS* out) {
   for (int i = 0; i < count; ++i) out[i] = Make<ADS>::constant(values[i], nd);
 }
 
-/// The chord system's kinematics of the double pass (w.cd) as dual constants in B.
-void constantKinematics(const MechanismProblem::Impl& C, const Buffers<double>& D, Buffers<ADS>& B, int nd) {
-  for (int i = 0; i < C.nz; ++i) {
-    B.z[i] = Make<ADS>::constant(D.z[i], nd);
-    B.zd[i] = Make<ADS>::constant(D.zd[i], nd);
-    B.zeta[i] = Make<ADS>::constant(D.zeta[i], nd);
-  }
-  for (int i = 0; i < C.nz * C.f; ++i) B.R[i] = Make<ADS>::constant(D.R[i], nd);
-  for (int i = 0; i <= C.nr; ++i) {
-    B.sn[i] = Make<ADS>::constant(D.sn[i], nd);
-    B.cs[i] = Make<ADS>::constant(D.cs[i], nd);
-  }
-  B.b[0] = Make<ADS>::constant(1.0, nd);
-}
-
 /// Widens the dual numbers of the chord system's kinematics from `from` to `to` directions (the
 /// kinematics depend on sigma and sigma' only, so they run in fewer directions than the residual).
 void widen(const MechanismProblem::Impl& C, Buffers<ADS>& B, int from, int to) {
@@ -1331,6 +1330,49 @@ void widen(const MechanismProblem::Impl& C, Buffers<ADS>& B, int from, int to) {
 
 namespace {
 
+/// The derivatives of the chord residual rho (dRho[i + k e]) and of phi (dPhi[4 e + i]) in the
+/// directions e = sigma''_j (j < k), A1 . a (k), C1 a (k + 1, k + 2): the acceleration part of
+/// chordForce() (no gravity, velocity or spring terms), linear, at the kinematics of w.cd.
+void accelerationDerivatives(const MechanismProblem::Impl& C, const View& P, Work& w, const double* mom,
+                             double* dRho, double* dPhi) {
+  const Buffers<double>& B = w.cd;
+  double* F = w.cd.x.data();
+  const int k = C.f, o = C.base;
+  const double s = B.sn[C.nr], c = B.cs[C.nr];
+  for (int e = 0; e < k + 3; ++e) {
+    for (int i = 0; i < C.nz; ++i) F[i] = 0.0;
+    double* phi = dPhi + 4 * e;
+    phi[0] = phi[1] = phi[2] = phi[3] = 0.0;
+    if (e < k) {
+      const double* x = B.R.data() + C.nz * e;  // d z''/d sigma''_e
+      for (int b = 0; b < C.nr; ++b) {
+        F[3 * b] = C.mass[b] * x[3 * b];
+        F[3 * b + 1] = C.mass[b] * x[3 * b + 1];
+        F[3 * b + 2] = C.inertia[b] * x[3 * b + 2];
+      }
+      const double rho0 = c * x[o] + s * x[o + 1], rho1 = -s * x[o] + c * x[o + 1], thdd = x[o + 2];
+      const double aR0 = P.mass() * rho0 - mom[kSw1] * thdd, aR1 = P.mass() * rho1 + mom[kSw0] * thdd;
+      F[o] = c * aR0 - s * aR1;
+      F[o + 1] = s * aR0 + c * aR1;
+      F[o + 2] = -mom[kSw1] * rho0 + mom[kSw0] * rho1 + mom[kJw] * thdd;
+      phi[0] = rho0;
+      phi[1] = rho1;
+      phi[2] = thdd;
+    } else if (e == k) {
+      F[o + 2] = 1.0;  // A1 . a in the frame angle's row
+    } else {
+      // C1 a in the body-frame force on the frame origin, rotated to the global axes.
+      F[o] = e == k + 1 ? c : -s;
+      F[o + 1] = e == k + 1 ? s : c;
+    }
+    for (int j = 0; j < k; ++j) {
+      double sum = 0.0;
+      for (int i = 0; i < C.nz; ++i) sum += B.R[i + C.nz * j] * F[i];
+      dRho[j + k * e] = sum;
+    }
+  }
+}
+
 /// The mass matrix and (unless massOnly) the force of the chord path.
 void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, double t,
                   ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, MatrixRef mass, VectorRef f, Work& w,
@@ -1342,46 +1384,40 @@ void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl&
   const Matrix& mee = meeOf(P, w);
   double mom[kMoments];
   modalProducts(P, mee, y.data() + nf, v.data() + nf, nullptr, false, w, mom);
-  // The residual is linear in sigma'' and in the moments A1 . a, C1 a: dual numbers in these k + 3
-  // directions at a = 0 give the force (the values) and the mass matrix (the derivatives). Positions
-  // and velocities do not depend on them and stay double.
-  const int nd = k + 3;
-  Buffers<ADS>& B = w.cs;
-  constantKinematics(C, w.cd, B, nd);
-  for (int j = 0; j < k; ++j) w.seedDdot[j] = Make<ADS>::variable(0.0, nd, j);
-  ADS m[kMoments], phi[4];
-  constants(mom, kMoments, nd, m);
-  m[kA1a] = Make<ADS>::variable(0.0, nd, k);
-  m[kC1a0] = Make<ADS>::variable(0.0, nd, k + 1);
-  m[kC1a1] = Make<ADS>::variable(0.0, nd, k + 2);
-  chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
-  const double phiValue[4] = {phi[0].value(), phi[1].value(), phi[2].value(), phi[3].value()};
   if (!massOnly) {
-    const double rc = B.r[ci].value();
-    for (int i = 0; i < nf; ++i) f(i) = -B.r[i].value();
-    for (int l = 0; l < n; ++l) f(nf + l) = -(modalRow(P, w, phiValue, l) + P.b(l) * rc);
+    // The force: the residual at a = 0 (chordInputs() set sigma'' = 0, modalProducts() the moments of a).
+    double phi[4];
+    chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
+    for (int i = 0; i < nf; ++i) f(i) = -w.cd.r[i];
+    for (int l = 0; l < n; ++l) f(nf + l) = -(modalRow(P, w, phi, l) + P.b(l) * w.cd.r[ci]);
   }
-  // d/da_m of a chord scalar X: through c'' = b a and the moments.
-  auto modal = [&](const ADS& x, int j) {
-    const auto& d = x.derivatives();
-    return d(ci) * P.b(j) + d(k) * w.a1(j) + d(k + 1) * P.c1(0, j) + d(k + 2) * P.c1(1, j);
+  // The mass matrix: the residual is linear in sigma'' and in the moments A1 . a, C1 a; its
+  // derivatives in these k + 3 directions are the acceleration part of chordResidual(), in double.
+  const int nd = k + 3;
+  double dRho[(MechanismProblem::kMaxFree + 1) * (MechanismProblem::kMaxFree + 4)];
+  double dPhi[4 * (MechanismProblem::kMaxFree + 4)];
+  accelerationDerivatives(C, P, w, mom, dRho, dPhi);
+  // d/da_j of a chord scalar with derivatives d: through c'' = b a and the moments.
+  auto modal = [&](const double* d, int j) {
+    return d[ci] * P.b(j) + d[k] * w.a1(j) + d[k + 1] * P.c1(0, j) + d[k + 2] * P.c1(1, j);
   };
+  double rowOf[MechanismProblem::kMaxFree + 4];
   for (int i = 0; i < nf; ++i) {
-    for (int j = 0; j < nf; ++j) mass(i, j) = B.r[i].derivatives()(j);
-    for (int j = 0; j < n; ++j) mass(i, nf + j) = modal(B.r[i], j);
+    for (int e = 0; e < nd; ++e) rowOf[e] = dRho[i + k * e];
+    for (int j = 0; j < nf; ++j) mass(i, j) = rowOf[j];
+    for (int j = 0; j < n; ++j) mass(i, nf + j) = modal(rowOf, j);
   }
-  for (int j = 0; j < n; ++j) w.along(j) = modal(B.r[ci], j);
+  for (int e = 0; e < nd; ++e) rowOf[e] = dRho[ci + k * e];
+  for (int j = 0; j < n; ++j) w.along(j) = modal(rowOf, j);
   for (int l = 0; l < n; ++l) {
     double u[4];
-    modalRowPhi(P, w, phiValue[3], l, u);
+    modalRowPhi(P, w, 0.0, l, u);  // beta' does not depend on the acceleration (dPhi of beta' = 0)
     const double bl = P.b(l);
-    for (int j = 0; j < nf; ++j) {
-      mass(nf + l, j) = u[0] * phi[0].derivatives()(j) + u[1] * phi[1].derivatives()(j) +
-                        u[2] * phi[2].derivatives()(j) + u[3] * phi[3].derivatives()(j) +
-                        bl * B.r[ci].derivatives()(j);
-    }
-    const double uc = u[0] * phi[0].derivatives()(ci) + u[1] * phi[1].derivatives()(ci) +
-                      u[2] * phi[2].derivatives()(ci) + u[3] * phi[3].derivatives()(ci);
+    auto uphi = [&](int e) {
+      return u[0] * dPhi[4 * e] + u[1] * dPhi[4 * e + 1] + u[2] * dPhi[4 * e + 2] + u[3] * dPhi[4 * e + 3];
+    };
+    for (int j = 0; j < nf; ++j) mass(nf + l, j) = uphi(j) + bl * dRho[ci + k * j];
+    const double uc = uphi(ci);
     for (int j = 0; j < n; ++j) mass(nf + l, nf + j) = mee(l, j) + uc * P.b(j) + bl * w.along(j);
   }
   const int fc = I.f;
@@ -1399,12 +1435,22 @@ void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl&
 void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, int j, int nd, int dy,
                             int dv) {
   Buffers<AD2>& A = w.c2;
-  for (int i = 0; i < C.f; ++i) {
-    A.y[i] = i == j ? AD2(w.sigma(i), 2, 0) : Make<AD2>::constant(w.sigma(i), 2);
-    A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
+  // The adjoint asks for the Jacobians and the parameter product at one point; without free
+  // coordinates both seed (c, c').
+  if (!(w.twoValid && j == w.twoSeed && t == w.tTwo && w.sigma == w.sigmaTwo &&
+        w.sigmaDot == w.sigmaDotTwo)) {
+    for (int i = 0; i < C.f; ++i) {
+      A.y[i] = i == j ? AD2(w.sigma(i), 2, 0) : Make<AD2>::constant(w.sigma(i), 2);
+      A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
+    }
+    A.b[0] = Make<AD2>::constant(1.0, 2);
+    kinematics(C, t, A, w, w.zChord, 2);
+    w.twoValid = true;
+    w.twoSeed = j;
+    w.tTwo = t;
+    w.sigmaTwo = w.sigma;
+    w.sigmaDotTwo = w.sigmaDot;
   }
-  A.b[0] = Make<AD2>::constant(1.0, 2);
-  kinematics(C, t, A, w, w.zChord, 2);
   auto put = [&](const AD2& x, ADS& out) {
     DerivativesOf<kSmall> d = DerivativesOf<kSmall>::Zero(nd);
     d(dy) = x.derivatives()(0);
