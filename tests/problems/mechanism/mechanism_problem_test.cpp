@@ -8,7 +8,9 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
+#include <hindsight/engine/integrator.h>
 #include <hindsight/problems/rod/slider_crank.h>
+#include "support/allocation_counting.h"
 #include "support/synthetic_rod.h"
 
 #include <gtest/gtest.h>
@@ -451,6 +453,40 @@ TEST(MechanismChordPath, FreeSliderCrankEqualsTheFullCoordinateReference) {
 TEST(MechanismChordPath, SliderCrankMassEqualsTheFullCoordinateReference) {
   Case c(fromExample("slider_crank_mass.json"), 5, 23);
   checkAgainstReference(c, {0.5, 2.5});
+}
+
+TEST(MechanismChordPath, StepsAndAdjointStepsAllocateNothing) {
+  // Newton's buffers, the dual numbers (fixed capacity) and the kept kinematics live in the workspace.
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
+  for (const Mechanism& m : {fromExample("four_bar.json"), freeSliderCrank()}) {
+    const SyntheticRod body(4, 1.0, 31);
+    const MechanismProblem problem(m, 4);
+    const Vector p = body.invariants();
+    for (const char* method : {"rk4", "generalized-alpha"}) {
+      IntegratorOptions options;
+      options.method = method;
+      const std::unique_ptr<Integrator> integrator = createIntegrator(problem, p, options);
+      const int size = integrator->stateSize();
+      Vector z(size), zStart(size), lambda = Vector::Ones(size), gradient = Vector::Zero(p.size());
+      integrator->initialState(0.0, z);
+      integrator->step(0.0, 1e-3, z, nullptr);
+      zStart = z;
+      long forward = 0, adjoint = 0;
+      {
+        testing::AllocationCounter counter;
+        for (int i = 0; i < 10; ++i) integrator->step(1e-3 * (i + 1), 1e-3, z, nullptr);
+        forward = counter.count();
+      }
+      {
+        testing::AllocationCounter counter;
+        for (int i = 0; i < 10; ++i) integrator->adjointStep(1e-3 * (i + 1), 1e-3, zStart, lambda, gradient);
+        adjoint = counter.count();
+      }
+      EXPECT_EQ(forward, 0) << method << ", " << problem.freeCount() << " free";
+      EXPECT_EQ(adjoint, 0) << method << ", " << problem.freeCount() << " free";
+    }
+  }
 }
 
 }  // namespace
