@@ -97,7 +97,8 @@ void phaseTable(int largest) {
     start = cpuSeconds();
     rod::DesignGradientOptions chain;
     chain.method = config.simulation.eigenvectorRoute;
-    const Vector dpsi = rod::computeDesignGradient(model, basis, gradient.gradient, chain).gradient;
+    const Vector dpsi =
+        rod::computeDesignGradient(model, basis, gradient.gradient, chain, {}, stiffness).gradient;
     const double chainCpu = cpuSeconds() - start;
     start = cpuSeconds();
     const rod::EslResult esl =

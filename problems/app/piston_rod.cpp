@@ -8,7 +8,6 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 
@@ -53,7 +52,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   // A design the eigensolver cannot handle (a near-mechanism: the stiffness is singular or not positive
   // definite, or the eigenpairs do not converge) is a numerical outcome of that design, like a diverged
   // simulation: as NumericalError the optimizer's divergence guard and GCMMA's trials step back from it
-  // instead of ending the run. One factorisation of K serves the eigen-solve, its refinement and ESL.
+  // instead of ending the run. One factorisation of K serves the eigen-solve, its refinement, ESL and the
+  // chain's adjoint solves.
   std::unique_ptr<rod::StiffnessFactorization> stiffnessPointer;
   const rod::ModalBasis basis = [&] {
     try {
@@ -116,18 +116,9 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   phase.restart();
   if (request.psi1Gradient) {
     GradientResult result;
-    std::unique_ptr<rod::NelsonFactorizations> nelson;
     if (config_.simulation.adjoint == AdjointMethod::Discrete) {
-      // The Nelson operators depend on the model and the modes only: they are factorised on the second
-      // core while the time integration runs. Each task computes the same bits on any thread.
-      parallelFor(2, [&](int task) {
-        if (task == 0) {
-          auto storage = createStorage(config_.simulation.storage);
-          result = computeGradient(problem, p, options, *storage, observer);
-        } else {
-          nelson = std::make_unique<rod::NelsonFactorizations>(model, basis);
-        }
-      });
+      auto storage = createStorage(config_.simulation.storage);
+      result = computeGradient(problem, p, options, *storage, observer);
     } else {
       // The continuous and CVODES routes take their own steps; the ESL samples come from a
       // separate fixed-step forward run when psi2 is asked for.
@@ -148,8 +139,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     out.simulationSeconds = phase.restart();
     rod::DesignGradientOptions chain;
     chain.method = config_.simulation.eigenvectorRoute;
-    if (!nelson) nelson = std::make_unique<rod::NelsonFactorizations>(model, basis);
-    out.dpsi1 = rod::computeDesignGradient(model, basis, result.gradient, chain, {}, *nelson).gradient;
+    out.dpsi1 =
+        rod::computeDesignGradient(model, basis, result.gradient, chain, {}, *stiffnessPointer).gradient;
     out.chainSeconds = phase.seconds();
   } else {
     ForwardResult result = simulate(problem, p, options, observer);

@@ -101,6 +101,13 @@ class StiffnessFactorization {
   Eigen::Index size() const { return size_; }
   /// K^-1 B.
   Matrix solve(ConstMatrixRef b) const { return solver_.solve(b); }
+  /// Right-hand sides stored by rows (one row per DOF, one column per right-hand side).
+  using RowBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  /// K^-1 B in place for the columns of `block`, bitwise equal to solve() column by column: the same
+  /// operations in the same order for each column. The triangular sweeps read each entry of L once for
+  /// all columns, where a column-by-column solve streams the whole factor (60 MB at 800 x 48) once per
+  /// column and is bound by memory bandwidth. `scratch` is resized on first use only.
+  void solveInPlace(RowBlock& block, RowBlock& scratch) const;
 
  private:
   Eigen::SimplicialLDLT<SparseMatrix> solver_;
