@@ -8,9 +8,15 @@
 //     psi2 without its gradient ("esl"), the sum, and the forward sweep alone for scale.
 //  2. (forward + backward) / forward CPU per integrator on the 200 x 12 rod (invariants of x0), median
 //     of 3, with full:stages=1 for rk4 (the backward sweep then recomputes no stage).
-// Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1]
+//  3. the built-in slider-crank (problems/rod/slider_crank.h) against the same slider-crank through the
+//     mechanism description (problems/mechanism/mechanism_problem.h) on the default configuration:
+//     CPU of the discrete adjoint (forward + backward) and of the whole evaluation (PistonRod: model,
+//     dpsi1/dx, psi2 and its gradient), median of 3, and the largest difference of dpsi1/dx.
+// Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1,
+//        the mechanism table only: 2]
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/problems/app/piston_rod.h>
+#include <hindsight/problems/mechanism/mechanism_problem.h>
 #include <hindsight/problems/rod/design_gradient.h>
 #include <hindsight/problems/rod/esl.h>
 #include <hindsight/problems/rod/fe_model.h>
@@ -156,12 +162,64 @@ void integratorTable() {
   }
 }
 
+void mechanismTable() {
+  Config builtIn;
+  const rod::RodConfig& rc = builtIn.rod;
+  Config described = builtIn;
+  described.mechanism = mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
+  const PistonRod builtInRod(builtIn), describedRod(described);
+  const Vector x = builtInRod.initialDesign();
+  const rod::FeModel model(rc, x);
+  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  const Vector p = rod::computeInvariants(model, basis).pack();
+  mechanism::Mechanism m = *described.mechanism;
+  m.member.length = rc.length;
+  const rod::SliderCrankProblem closedForm = problemOf(rc, basis.columnCount());
+  const mechanism::MechanismProblem general(m, basis.columnCount());
+  const IntegratorOptions options = builtInRod.integratorOptions();
+  std::printf(
+      "\n| slider-crank | simulation + adjoint CPU s | evaluation CPU s | psi1 |\n"
+      "|---|---:|---:|---:|\n");
+  Vector reference;
+  for (int k = 0; k < 2; ++k) {
+    const SecondOrderProblem& problem = k == 0 ? static_cast<const SecondOrderProblem&>(closedForm) : general;
+    const PistonRod& piston = k == 0 ? builtInRod : describedRod;
+    std::vector<double> simulation, evaluation;
+    double psi1 = 0.0;
+    Vector dpsi;
+    for (int run = 0; run < 3; ++run) {
+      const auto storage = createStorage(builtIn.simulation.storage);
+      double start = cpuSeconds();
+      computeGradient(problem, p, options, *storage);
+      simulation.push_back(cpuSeconds() - start);
+      start = cpuSeconds();
+      const PistonRodEvaluation e = piston.evaluate(x);
+      evaluation.push_back(cpuSeconds() - start);
+      psi1 = e.psi1;
+      dpsi = e.dpsi1;
+    }
+    if (k == 0) reference = dpsi;
+    std::printf("| %s | %.4f | %.4f | %.16g |\n", k == 0 ? "built-in (closed form)" : "described (mechanism)",
+                median(simulation), median(evaluation), psi1);
+    if (k == 1) {
+      std::printf("\nlargest |d psi1/dx| difference: %.3g (largest entry %.3g)\n",
+                  (dpsi - reference).cwiseAbs().maxCoeff(), reference.cwiseAbs().maxCoeff());
+    }
+    std::fflush(stdout);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const int largest = argc > 1 ? std::atoi(argv[1]) : 3;
-  const bool integratorsOnly = argc > 2 && std::atoi(argv[2]) == 1;
-  if (!integratorsOnly) phaseTable(largest);
+  const int only = argc > 2 ? std::atoi(argv[2]) : 0;
+  if (only == 2) {
+    mechanismTable();
+    return 0;
+  }
+  if (only != 1) phaseTable(largest);
   integratorTable();
+  mechanismTable();
   return 0;
 }

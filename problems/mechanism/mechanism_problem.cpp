@@ -25,6 +25,9 @@ constexpr int kSmall = 24;
 constexpr int kLarge = 2 * (MechanismProblem::kMaxModes + MechanismProblem::kMaxFree);
 using ADS = ADOf<kSmall>;
 using ADL = ADOf<kLarge>;
+/// Two fixed directions: the chord kinematics in (c, c') or, with one free coordinate fewer, (sigma,
+/// sigma'); fixed size, so no loop over a dynamic derivative vector.
+using AD2 = Eigen::AutoDiffScalar<Eigen::Vector2d>;
 
 inline double valueOf(double x) { return x; }
 template <typename D>
@@ -41,6 +44,12 @@ struct Make<double> {
   static double variable(double v, int, int) { return v; }
   /// A value with the derivatives of d (the implicit-function step).
   static double withDerivatives(double v, double) { return v; }
+};
+template <>
+struct Make<AD2> {
+  static AD2 constant(double v, int) { return AD2(v, Eigen::Vector2d::Zero()); }
+  static AD2 variable(double v, int, int i) { return AD2(v, 2, i); }
+  static AD2 withDerivatives(double v, const AD2& d) { return AD2(v, d.derivatives()); }
 };
 template <int C>
 struct Make<ADOf<C>> {
@@ -76,6 +85,11 @@ struct View {
 };
 
 constexpr int kGround = -1;
+
+/// The member's moments: the scalars through which its frame rows depend on q, q' and a
+/// (chordForce()): s_w = m c + C1 q (2), J_w = J0 + 2 C2 q + q^T M_ee q, A1 . a, C1 a (2), C1 q' (2),
+/// h . q' (h = C2 + M_ee q).
+enum Moment { kSw0, kSw1, kJw, kA1a, kC1a0, kC1a1, kC1v0, kC1v1, kHv, kMoments };
 
 struct PointRef {
   int body = kGround;  ///< kGround, a rigid body's index, or the member (index = rigid body count)
@@ -128,11 +142,31 @@ struct Buffers {
         mq(n),
         h(n),
         a1(n),
-        x(nz) {}
+        x(nz),
+        sn((nz - n) / 3),
+        cs((nz - n) / 3) {}
   std::vector<T> z, zd, zdd, F, zeta, phi, phit, quad, rhs, jac, lu;
   std::vector<int> piv;
   std::vector<T> R, r, b, y, v, mq, h, a1, x;
+  // sin and cos of every body's angle (the member last) at z: one evaluation per constraint pass
+  // instead of one per point.
+  std::vector<T> sn, cs;
 };
+
+inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
+inline void sinCos(const AD2& x, AD2& s, AD2& c) {
+  double sv, cv;
+  dmath::sincos(x.value(), &sv, &cv);
+  s = AD2(sv, cv * x.derivatives());
+  c = AD2(cv, -sv * x.derivatives());
+}
+template <int C>
+void sinCos(const ADOf<C>& x, ADOf<C>& s, ADOf<C>& c) {
+  double sv, cv;
+  dmath::sincos(x.value(), &sv, &cv);
+  s = ADOf<C>(sv, cv * x.derivatives());
+  c = ADOf<C>(cv, -sv * x.derivatives());
+}
 
 /// In-place LU with partial pivoting (column-major m x m); false if a pivot is exactly zero. The pivot
 /// is chosen by value, so every scalar type takes the same row swaps.
@@ -157,6 +191,10 @@ bool luFactor(T* a, int* piv, int m) {
     for (int i = k + 1; i < m; ++i) a[i + m * k] *= inv;
     for (int j = k + 1; j < m; ++j) {
       const T akj = a[k + m * j];
+      // Constraint Jacobians are sparse: a zero of U's row k changes nothing in its column.
+      if constexpr (std::is_same_v<T, double>) {
+        if (akj == 0.0) continue;
+      }
       for (int i = k + 1; i < m; ++i) a[i + m * j] -= a[i + m * k] * akj;
     }
   }
@@ -169,10 +207,16 @@ void luSolve(const S* a, const int* piv, int m, T* x) {
     if (piv[k] != k) std::swap(x[k], x[piv[k]]);
   }
   for (int k = 0; k < m; ++k) {
+    if constexpr (std::is_same_v<T, double>) {
+      if (x[k] == 0.0) continue;
+    }
     for (int i = k + 1; i < m; ++i) x[i] -= a[i + m * k] * x[k];
   }
   for (int k = m - 1; k >= 0; --k) {
     x[k] /= a[k + m * k];
+    if constexpr (std::is_same_v<T, double>) {
+      if (x[k] == 0.0) continue;
+    }
     for (int i = 0; i < k; ++i) x[i] -= a[i + m * k] * x[k];
   }
 }
@@ -262,8 +306,8 @@ struct MechanismProblem::Impl {
       return;
     }
     const int o = bodyOffset(r.body);
-    out.s = dmath::sin(B.z[o + 2]);
-    out.c = dmath::cos(B.z[o + 2]);
+    out.s = B.sn[r.body];
+    out.c = B.cs[r.body];
     const T sb0 = r.atB ? T(c + r.local(0)) : T(zero + r.local(0));
     const double sb1 = r.local(1);
     out.As[0] = out.c * sb0 - out.s * sb1;
@@ -303,9 +347,17 @@ struct MechanismProblem::Impl {
     }
   }
 
-  /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t.
+  /// B.sn, B.cs at B.z.
+  template <typename T>
+  void updateTrig(Buffers<T>& B) const {
+    for (int k = 0; k <= nr; ++k) sinCos(B.z[bodyOffset(k) + 2], B.sn[k], B.cs[k]);
+  }
+
+  /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
+  /// also B.sn, B.cs at B.z, which the forces after it use.
   template <typename T>
   void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero) const {
+    updateTrig(B);
     T c, cd;
     chord(B, quadratic, c, cd, zero);
     if (jacobian) {
@@ -359,8 +411,8 @@ struct MechanismProblem::Impl {
           T s1 = zero, c1 = zero + 1.0, w1 = zero;
           if (row.body1 != kGround) {
             const int o = bodyOffset(row.body1);
-            s1 = dmath::sin(B.z[o + 2]);
-            c1 = dmath::cos(B.z[o + 2]);
+            s1 = B.sn[row.body1];
+            c1 = B.cs[row.body1];
             if (quadratic) w1 = B.zd[o + 2];
           }
           // e1 = A1 axis, n1 = S e1; d = P2 - P1.
@@ -423,6 +475,30 @@ struct MechanismProblem::Impl {
     return step;
   }
 
+  /// Simplified Newton from B.z (double): Phi_u factorised once there; at least two and at most
+  /// `iterations` corrections, ending when one is below 1e-15 (each step depends on B.z only, so the
+  /// result is a function of the start).
+  void polish(double t, Buffers<double>& B, int iterations) const {
+    constraints(t, B, true, false, 0.0);
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * dependent[j]];
+    }
+    if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+    }
+    for (int it = 0; it < iterations; ++it) {
+      if (it > 0) constraints(t, B, false, false, 0.0);
+      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+      luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+      double step = 0.0;
+      for (int i = 0; i < m; ++i) {
+        B.z[dependent[i]] -= B.rhs[i];
+        step = std::max(step, std::abs(B.rhs[i]));
+      }
+      if (it >= 1 && step <= 1e-15) break;
+    }
+  }
+
   double driverDistance(double t0, double t1) const {
     double d = 0.0;
     for (const Row& r : rows) {
@@ -439,31 +515,79 @@ struct MechanismProblem::Impl {
 namespace {
 
 struct Work final : ProblemWorkspace {
-  Work(int nz, int m, int f, int n)
-      : d(nz, m, f, n),
-        s(nz, m, f, n),
-        l(nz, m, f, n),
-        zStar(nz),
-        yLast(f),
-        zLast(nz),
-        yStep(f),
-        luStar(m * m),
-        pivStar(m),
-        mu(f),
-        nu(nz),
-        fScratch(f) {}
+  Work(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C)
+      : d(I.nz, I.m, I.f, I.n),
+        s(I.nz, I.m, I.f, I.n),
+        l(I.nz, I.m, I.f, I.n),
+        cd(C.nz, C.m, C.f, 1),
+        cs(C.nz, C.m, C.f, 1),
+        c2(C.nz, C.m, C.f, 1),
+        zStar(I.nz),
+        zChord(C.nz),
+        sigmaLast(C.f),
+        zLast(C.nz),
+        sigmaKinematics(C.f),
+        sigmaDotKinematics(C.f),
+        sigmaTwo(C.f),
+        sigmaDotTwo(C.f),
+        sigma(C.f),
+        sigmaDot(C.f),
+        sigmaDdot(C.f),
+        seedDdot(C.f),
+        luStar(I.m * I.m),
+        pivStar(I.m),
+        x0(I.m),
+        mu(I.f),
+        nu(I.nz),
+        fScratch(I.f),
+        meeSym(I.n, I.n),
+        meeQ(I.n),
+        h(I.n),
+        a1(I.n),
+        keeQ(I.n),
+        ctV(I.n),
+        meeA(I.n),
+        ctA(I.n),
+        meeV(I.n),
+        along(I.n),
+        vel(I.n) {}
   Buffers<double> d;
   Buffers<ADS> s;
   Buffers<ADL> l;
-  Vector zStar;
-  // Warm start of Newton: the last solved (t, y, z).
+  // The chord system (problems/mechanism/mechanism_problem.h): rigid coordinates and c = b q.
+  Buffers<double> cd;
+  Buffers<ADS> cs;
+  Buffers<AD2> c2;
+  Vector zStar;   ///< full coordinates of the reference path
+  Vector zChord;  ///< solved positions of the chord system
+  // Warm start of Newton: the last solved (t, sigma, z).
   bool warm = false;
   double tLast = 0.0;
-  Vector yLast, zLast, yStep;
-  // Phi_u at zStar, factorised (the implicit-function step of the dual passes).
+  Vector sigmaLast, zLast;
+  // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
+  // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
+  // point.
+  bool kinematicsValid = false, velocitiesValid = false;
+  double tKinematics = 0.0;
+  Vector sigmaKinematics, sigmaDotKinematics;
+  // The same for the two-direction dual kinematics in c2 (twoDirectionKinematics()).
+  bool twoValid = false;
+  int twoSeed = 0;
+  double tTwo = 0.0;
+  Vector sigmaTwo, sigmaDotTwo;
+  // sigma = (free coordinates, b q) and its derivatives at the current call.
+  Vector sigma, sigmaDot, sigmaDdot;
+  std::vector<ADS> seedDdot;
+  // Phi_u at the solved positions, factorised (the implicit-function step of the dual passes).
   std::vector<double> luStar;
   std::vector<int> pivStar;
+  std::vector<double> x0;  ///< scratch of the dual solves (kinematics())
   Vector mu, nu, fScratch;
+  // The symmetric part of M_ee: once per solve for a workspace made for a fixed p.
+  bool parametersFixed = false;
+  Matrix meeSym;
+  // Products of the modal coordinates with the invariant matrices (modalProducts()).
+  Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel;
 };
 
 Work& workOf(ProblemWorkspace* ws) {
@@ -471,18 +595,25 @@ Work& workOf(ProblemWorkspace* ws) {
   return static_cast<Work&>(*ws);
 }
 
-/// The dependent coordinates at (t, y) into w.zStar (see the header on determinism).
-void solvePositions(const MechanismProblem::Impl& I, double t, ConstVectorRef y, const View& P, Work& w) {
-  Buffers<double>& B = w.d;
-  for (int i = 0; i < I.n; ++i) B.b[i] = P.b(i);
+/// The dependent coordinates of the chord system at (t, sigma) into w.zChord (see the header on
+/// determinism). They depend on the modal coordinates only through c = b q, the last entry of sigma.
+void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sigma, Work& w) {
+  Buffers<double>& B = w.cd;
+  B.b[0] = 1.0;
+  if (w.warm && t == w.tLast && sigma == w.sigmaLast) {
+    // The same point as the last call (the adjoint asks for the Jacobians and the parameter product
+    // at one point): the positions are a function of (t, sigma), so they are the last ones.
+    w.zChord = w.zLast;
+    return;
+  }
   const double tStart = w.warm ? w.tLast : 0.0;
-  const Vector& yStart = w.warm ? w.yLast : I.yInitial;
-  const Vector& zStart = w.warm ? w.zLast : I.zInitial;
-  for (int i = 0; i < I.nz; ++i) B.z[i] = zStart(i);
+  const Vector& yStart = w.warm ? w.sigmaLast : C.yInitial;
+  const Vector& zStart = w.warm ? w.zLast : C.zInitial;
+  for (int i = 0; i < C.nz; ++i) B.z[i] = zStart(i);
   // Continuation in steps that move no driver and no minimal coordinate by more than 0.25 (rad or m),
   // so that Newton stays on the branch (assembly mode) it started on.
-  double distance = I.driverDistance(tStart, t);
-  for (int i = 0; i < I.f; ++i) distance = std::max(distance, std::abs(y(i) - yStart(i)));
+  double distance = C.driverDistance(tStart, t);
+  for (int i = 0; i < C.f; ++i) distance = std::max(distance, std::abs(sigma(i) - yStart(i)));
   // A million pieces is 250000 rad or m between two calls (the slider-crank moves by 400 in a whole
   // run): beyond it a driver's speed or a diverged coordinate (inf, NaN) would make the continuation
   // run for hours, and the conversion to int would be undefined.
@@ -497,73 +628,103 @@ void solvePositions(const MechanismProblem::Impl& I, double t, ConstVectorRef y,
   for (int k = 1; k <= steps; ++k) {
     const double theta = static_cast<double>(k) / steps;
     const double tk = k == steps ? t : tStart + (t - tStart) * theta;
-    for (int i = 0; i < I.f; ++i)
-      B.z[I.independent[i]] = k == steps ? y(i) : yStart(i) + (y(i) - yStart(i)) * theta;
-    I.newton(tk, B, -1, 1e-11);
+    for (int i = 0; i < C.f; ++i)
+      B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
+    C.newton(tk, B, -1, 1e-11);
   }
-  // Round to a grid and polish: the bits are then a function of (t, y) only.
-  for (int i = 0; i < I.m; ++i) {
-    double& u = B.z[I.dependent[i]];
+  // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
+  // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
+  // error by about 5e-7 times the constraints' curvature.
+  for (int i = 0; i < C.m; ++i) {
+    double& u = B.z[C.dependent[i]];
     u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
   }
-  I.newton(t, B, 3, 0.0);
-  for (int i = 0; i < I.nz; ++i) w.zStar(i) = B.z[i];
+  C.polish(t, B, 3);
+  for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
   w.warm = true;
   w.tLast = t;
-  w.yLast = y;
-  w.zLast = w.zStar;
+  w.sigmaLast = sigma;
+  w.zLast = w.zChord;
 }
 
+/// Which part of kinematics(): the position level (z, Phi_u factorised, R), the velocity level (z',
+/// zeta; needs the position level of the same point in B), or both.
+enum class Part { All, Positions, Velocities };
+
 /// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
-/// B.y, B.v, B.b; w.zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
+/// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
 template <typename T>
-void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, int nd) {
+void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, const Vector& zStar,
+                int nd, Part part = Part::All) {
   const T zero = Make<T>::constant(0.0, nd);
   const int m = I.m, f = I.f, nz = I.nz;
-  for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(w.zStar(i), nd);
-  for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
-  if constexpr (!std::is_same_v<T, double>) {
-    // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
-    I.constraints(t, B, false, false, zero);
-    for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
-    luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
-    for (int i = 0; i < m; ++i)
-      B.z[I.dependent[i]] = Make<T>::withDerivatives(w.zStar(I.dependent[i]), -B.rhs[i]);
+  // Phi_u^{-1}: in double a factorisation at this point, kept in w.luStar for the dual passes; in dual
+  // numbers that factorisation of the same point and one step of iterative refinement,
+  // x = x0 + Phi_u0^{-1} (b - Phi_u x0) with x0 = Phi_u0^{-1} b0, whose derivative
+  // Phi_u0^{-1} (b' - Phi_u' x0) is exact: no factorisation in dual numbers.
+  auto solve = [&] {  // B.rhs = Phi_u^{-1} B.rhs
+    if constexpr (std::is_same_v<T, double>) {
+      luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+    } else {
+      double* x0 = w.x0.data();
+      for (int i = 0; i < m; ++i) x0[i] = B.rhs[i].value();
+      luSolve(w.luStar.data(), w.pivStar.data(), m, x0);
+      for (int j = 0; j < m; ++j) {
+        const T* column = B.jac.data() + m * I.dependent[j];
+        for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
+      }
+      luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+      for (int i = 0; i < m; ++i) B.rhs[i] += x0[i];
+    }
+  };
+  if (part != Part::Velocities) {
+    for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
+    for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
+    if constexpr (!std::is_same_v<T, double>) {
+      // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
+      I.constraints(t, B, false, false, zero);
+      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+      luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+      for (int i = 0; i < m; ++i)
+        B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
+    }
+    I.constraints(t, B, true, false, zero);
+    if constexpr (std::is_same_v<T, double>) {
+      for (int j = 0; j < m; ++j) {
+        for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
+      }
+      if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+        throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+      }
+      std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
+      std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
+    }
+    // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
+    for (int j = 0; j < f; ++j) {
+      T* col = B.R.data() + nz * j;
+      for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
+      for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
+      solve();
+      for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
+    }
   }
-  I.constraints(t, B, true, false, zero);
-  for (int j = 0; j < m; ++j) {
-    for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
-  }
-  if (!luFactor(B.lu.data(), B.piv.data(), m)) {
-    throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-  }
-  if constexpr (std::is_same_v<T, double>) {
-    std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
-    std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
-  }
-  // z' = R y' - Phi_u^{-1} Phi_t.
+  if (part == Part::Positions) return;
+  // z' = R y' - Phi_u^{-1} Phi_t (Phi_t of the position pass: the constraint pass below does not
+  // touch the Jacobian).
   for (int i = 0; i < m; ++i) {
     T s = B.phit[i];
     for (int j = 0; j < f; ++j) s += B.jac[i + m * I.independent[j]] * B.v[j];
     B.rhs[i] = -s;
   }
-  luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+  solve();
   for (int j = 0; j < f; ++j) B.zd[I.independent[j]] = B.v[j];
   for (int i = 0; i < m; ++i) B.zd[I.dependent[i]] = B.rhs[i];
   // zeta = -Phi_u^{-1} gamma on the dependent rows.
   I.constraints(t, B, false, true, zero);
   for (int i = 0; i < m; ++i) B.rhs[i] = -B.quad[i];
-  luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+  solve();
   for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
   for (int i = 0; i < m; ++i) B.zeta[I.dependent[i]] = B.rhs[i];
-  // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
-  for (int j = 0; j < f; ++j) {
-    T* col = B.R.data() + nz * j;
-    for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
-    for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
-    luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
-    for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
-  }
 }
 
 /// out = M(z) x - (with `rest`) Q(z, z', t): the generalised inertia, gravity, elastic and spring forces
@@ -584,7 +745,8 @@ void generalizedForce(const MechanismProblem::Impl& I, const View& P, Buffers<T>
   const T* zd = B.zd.data() + o;
   const T* xm = x + o;
   T* F = out + o;
-  const T s = dmath::sin(z[2]), c = dmath::cos(z[2]);
+  const T& s = B.sn[I.nr];
+  const T& c = B.cs[I.nr];
   T sw0 = zero + P.mc(0), sw1 = zero + P.mc(1), jw = zero + P.j0();
   for (int i = 0; i < n; ++i) {
     sw0 += P.c1(0, i) * z[3 + i];
@@ -698,12 +860,36 @@ void loadInputs(const MechanismProblem::Impl& I, const View& P, Buffers<T>& B, C
     B.b[i] = seedB ? Make<T>::variable(P.b(i), nd, i) : Make<T>::constant(P.b(i), nd);
 }
 
-/// The double pass: positions, kinematics.
-void doublePass(const MechanismProblem::Impl& I, const View& P, double t, ConstVectorRef y, ConstVectorRef v,
-                Work& w) {
-  solvePositions(I, t, y, P, w);
+/// sigma = (free coordinates, b q) and its first two derivatives (a may be null: sigma'' not needed).
+void chordInputs(const MechanismProblem::Impl& I, const View& P, ConstVectorRef y, ConstVectorRef v,
+                 const double* a, Work& w) {
+  const int k = I.nFree;
+  double c = 0.0, cd = 0.0, cdd = 0.0;
+  for (int i = 0; i < I.n; ++i) {
+    c += P.b(i) * y(k + i);
+    cd += P.b(i) * v(k + i);
+    if (a != nullptr) cdd += P.b(i) * a[k + i];
+  }
+  for (int i = 0; i < k; ++i) {
+    w.sigma(i) = y(i);
+    w.sigmaDot(i) = v(i);
+    w.sigmaDdot(i) = a != nullptr ? a[i] : 0.0;
+  }
+  w.sigma(k) = c;
+  w.sigmaDot(k) = cd;
+  w.sigmaDdot(k) = cdd;
+}
+
+/// The reference path in full coordinates: positions from the chord system, kinematics of z.
+void fullPass(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
+              ConstVectorRef y, ConstVectorRef v, Work& w) {
+  chordInputs(I, P, y, v, nullptr, w);
+  w.kinematicsValid = false;  // cd and luStar are overwritten below
+  solvePositions(C, t, w.sigma, w);
+  for (int i = 0; i < I.base + 3; ++i) w.zStar(i) = w.zChord(i);
+  for (int i = 0; i < I.n; ++i) w.zStar(I.base + 3 + i) = y(I.nFree + i);
   loadInputs(I, P, w.d, y, v, 0, false, false);
-  kinematics(I, t, w.d, w, 0);
+  kinematics(I, t, w.d, w, w.zStar, 0);
 }
 
 template <typename T>
@@ -711,7 +897,7 @@ void stateJacobians(const MechanismProblem::Impl& I, const View& P, double t, Co
                     ConstVectorRef v, ConstVectorRef a, MatrixRef ry, MatrixRef rv, Buffers<T>& B, Work& w) {
   const int nd = 2 * I.f;
   loadInputs(I, P, B, y, v, nd, true, false);
-  kinematics(I, t, B, w, nd);
+  kinematics(I, t, B, w, w.zStar, nd);
   residualFromKinematics(I, P, B, a, nd);
   for (int i = 0; i < I.f; ++i) {
     const auto& d = B.r[i].derivatives();
@@ -728,11 +914,231 @@ void chordRowProduct(const MechanismProblem::Impl& I, const View& P, double t, C
                      Work& w) {
   const int nd = I.n;
   loadInputs(I, P, B, y, v, nd, false, true);
-  kinematics(I, t, B, w, nd);
+  kinematics(I, t, B, w, w.zStar, nd);
   residualFromKinematics(I, P, B, a, nd);
   for (int i = 0; i < I.f; ++i) {
     const auto& d = B.r[i].derivatives();
     for (int j = 0; j < I.n; ++j) out(P.bOffset() + j) += mu(i) * d(j);
+  }
+}
+
+// ---- The chord path: the production path of every evaluation (see the header). ----
+
+/// The symmetric part of M_ee (View::mee), kept for a whole solve when the workspace was made for p.
+const Matrix& meeOf(const View& P, Work& w) {
+  if (!w.parametersFixed) {
+    for (int j = 0; j < P.n; ++j) {
+      for (int i = 0; i < P.n; ++i) w.meeSym(i, j) = P.mee(i, j);
+    }
+  }
+  return w.meeSym;
+}
+
+/// The products of q, q', q'' = a with the invariant matrices into the workspace (M_ee q, h = c2 +
+/// M_ee q, A1 = a0 + Ct^T q, K_ee q, Ct q', M_ee a; with `jacobian` also Ct a and M_ee q') and the
+/// member's moments (enum Moment). a == nullptr stands for a = 0. O(n^2).
+void modalProducts(const View& P, const Matrix& mee, const double* q, const double* v, const double* a,
+                   bool jacobian, Work& w, double* moments) {
+  const int n = P.n;
+  const Eigen::Map<const Vector> Q(q, n), V(v, n);
+  const Eigen::Map<const Matrix> ct(P.p + P.ctOffset(), n, n), kee(P.p + P.keeOffset(), n, n);
+  w.meeQ.noalias() = mee * Q;
+  w.a1.noalias() = ct.transpose() * Q;
+  w.keeQ.noalias() = kee * Q;
+  w.ctV.noalias() = ct * V;
+  double sw0 = P.mc(0), sw1 = P.mc(1), jw = P.j0(), a1a = 0.0, c1a0 = 0.0, c1a1 = 0.0, c1v0 = 0.0, c1v1 = 0.0,
+         hv = 0.0;
+  for (int i = 0; i < n; ++i) {
+    w.h(i) = P.c2(i) + w.meeQ(i);
+    w.a1(i) += P.a0(i);
+    sw0 += P.c1(0, i) * q[i];
+    sw1 += P.c1(1, i) * q[i];
+    jw += (2.0 * P.c2(i) + w.meeQ(i)) * q[i];
+    c1v0 += P.c1(0, i) * v[i];
+    c1v1 += P.c1(1, i) * v[i];
+    hv += w.h(i) * v[i];
+  }
+  if (a != nullptr) {
+    const Eigen::Map<const Vector> A(a, n);
+    w.meeA.noalias() = mee * A;
+    for (int i = 0; i < n; ++i) {
+      a1a += w.a1(i) * a[i];
+      c1a0 += P.c1(0, i) * a[i];
+      c1a1 += P.c1(1, i) * a[i];
+    }
+    if (jacobian) w.ctA.noalias() = ct * A;
+  } else {
+    w.meeA.setZero();
+    if (jacobian) w.ctA.setZero();
+  }
+  if (jacobian) w.meeV.noalias() = mee * V;
+  moments[kSw0] = sw0;
+  moments[kSw1] = sw1;
+  moments[kJw] = jw;
+  moments[kA1a] = a1a;
+  moments[kC1a0] = c1a0;
+  moments[kC1a1] = c1a1;
+  moments[kC1v0] = c1v0;
+  moments[kC1v1] = c1v1;
+  moments[kHv] = hv;
+}
+
+/// The chord system's generalised force out = M z'' - Q (x = z'') on the rigid coordinates and c: the
+/// rigid bodies, gravity, the springs, and the member's frame rows written with its moments (the same
+/// terms as generalizedForce()); the modal rows are modalRow()'s. phi = (rho0, rho1, beta'', beta'), the
+/// frame scalars the modal rows depend on.
+template <typename T>
+void chordForce(const MechanismProblem::Impl& C, const View& P, Buffers<T>& B, const T* x, const T* mom,
+                T* out, T* phi, const T& zero) {
+  const Vec2 g = C.gravity;
+  for (int k = 0; k < C.nr; ++k) {
+    out[3 * k] = C.mass[k] * (x[3 * k] - g(0));
+    out[3 * k + 1] = C.mass[k] * (x[3 * k + 1] - g(1));
+    out[3 * k + 2] = C.inertia[k] * x[3 * k + 2];
+  }
+  const int o = C.base;
+  const T* zd = B.zd.data() + o;
+  const T* xm = x + o;
+  const T& s = B.sn[C.nr];
+  const T& c = B.cs[C.nr];
+  const T gx0 = xm[0] - g(0), gx1 = xm[1] - g(1);
+  const T rho0 = c * gx0 + s * gx1, rho1 = -s * gx0 + c * gx1;
+  const T& thdd = xm[2];
+  const T& thd = zd[2];
+  const T thd2 = thd * thd;
+  const T aR0 = P.mass() * rho0 - mom[kSw1] * thdd + mom[kC1a0] - mom[kSw0] * thd2 - 2.0 * thd * mom[kC1v1];
+  const T aR1 = P.mass() * rho1 + mom[kSw0] * thdd + mom[kC1a1] - mom[kSw1] * thd2 + 2.0 * thd * mom[kC1v0];
+  out[o] = c * aR0 - s * aR1;
+  out[o + 1] = s * aR0 + c * aR1;
+  out[o + 2] = -mom[kSw1] * rho0 + mom[kSw0] * rho1 + mom[kJw] * thdd + mom[kA1a] + 2.0 * thd * mom[kHv];
+  out[o + 3] = zero;
+  phi[0] = rho0;
+  phi[1] = rho1;
+  phi[2] = thdd;
+  phi[3] = thd;
+  T cc, ccd;
+  C.chord(B, true, cc, ccd, zero);
+  Pt<T> a, b;
+  for (const SpringRef& sp : C.springs) {
+    C.point(sp.p1, B, true, cc, ccd, zero, a);
+    C.point(sp.p2, B, true, cc, ccd, zero, b);
+    const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
+    using std::sqrt;
+    const T l = sqrt(d0 * d0 + d1 * d1);
+    if (!(valueOf(l) > 0.0))
+      throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
+    const T e0 = d0 / l, e1 = d1 / l;
+    const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
+    const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
+    const T f0 = tension * e0, f1 = tension * e1;
+    C.addJT(sp.p1, a, f0, f1, -1.0, B, out, 1);
+    C.addJT(sp.p2, b, f0, f1, 1.0, B, out, 1);
+  }
+}
+
+/// B.r = R^T (M (R sigma'' + zeta) - Q) of the chord system after its kinematics.
+template <typename T>
+void chordResidual(const MechanismProblem::Impl& C, const View& P, Buffers<T>& B, const T* sigmaDdot,
+                   const T* mom, T* phi, const T& zero) {
+  for (int i = 0; i < C.nz; ++i) {
+    T s = B.zeta[i];
+    for (int j = 0; j < C.f; ++j) s += B.R[i + C.nz * j] * sigmaDdot[j];
+    B.zdd[i] = s;
+  }
+  chordForce(C, P, B, B.zdd.data(), mom, B.F.data(), phi, zero);
+  for (int j = 0; j < C.f; ++j) {
+    T s = zero;
+    for (int i = 0; i < C.nz; ++i) s += B.R[i + C.nz * j] * B.F[i];
+    B.r[j] = s;
+  }
+}
+
+/// Positions (Newton) and kinematics of the chord system in double at w.sigma, w.sigmaDot; also
+/// factorises Phi_u into w.luStar for the dual passes. Nothing to do when they are those of the last
+/// call; with `anyVelocity` (the mass matrix, which does not depend on the velocities) any sigma' will do.
+void chordKinematics(const MechanismProblem::Impl& C, double t, Work& w, bool anyVelocity = false) {
+  Buffers<double>& B = w.cd;
+  if (!(w.kinematicsValid && t == w.tKinematics && w.sigma == w.sigmaKinematics)) {
+    solvePositions(C, t, w.sigma, w);
+    for (int i = 0; i < C.f; ++i) B.y[i] = w.sigma(i);
+    B.b[0] = 1.0;
+    kinematics(C, t, B, w, w.zChord, 0, Part::Positions);
+    w.kinematicsValid = true;
+    w.velocitiesValid = false;
+    w.tKinematics = t;
+    w.sigmaKinematics = w.sigma;
+  }
+  if (anyVelocity || (w.velocitiesValid && w.sigmaDot == w.sigmaDotKinematics)) return;
+  for (int i = 0; i < C.f; ++i) B.v[i] = w.sigmaDot(i);
+  kinematics(C, t, B, w, w.zChord, 0, Part::Velocities);
+  w.velocitiesValid = true;
+  w.sigmaDotKinematics = w.sigmaDot;
+}
+
+/// The modal row l without the b rho_c term: the member's F_q (docs/design.md §3),
+///   F_q = C1^T rho + A1 beta'' + M_ee a + K_ee q - 2 beta' Ct q' - h beta'^2,
+/// from the products of modalProducts() and phi = (rho0, rho1, beta'', beta').
+inline double modalRow(const View& P, const Work& w, const double* phi, int l) {
+  return P.c1(0, l) * phi[0] + P.c1(1, l) * phi[1] + w.a1(l) * phi[2] + w.meeA(l) + w.keeQ(l) -
+         2.0 * phi[3] * w.ctV(l) - w.h(l) * (phi[3] * phi[3]);
+}
+
+/// dF_q,l/dphi (phi = (rho0, rho1, beta'', beta')).
+inline void modalRowPhi(const View& P, const Work& w, double betaDot, int l, double* u) {
+  u[0] = P.c1(0, l);
+  u[1] = P.c1(1, l);
+  u[2] = w.a1(l);
+  u[3] = -2.0 * w.ctV(l) - 2.0 * w.h(l) * betaDot;
+}
+
+/// d(mu . r)/dp at fixed kinematics for the invariants other than b (r is linear in them): nu = R mu
+/// on the member's coordinates (frame, q), the member's z, z', z'' (frame pointers of 3, modal of n).
+void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, const double* zf,
+                            const double* zdf, const double* xf, const double* q, const double* qd,
+                            const double* qdd, const Vector& nuv, VectorRef out) {
+  const int n = I.n;
+  double s, c;
+  dmath::sincos(zf[2], &s, &c);
+  const double g0 = xf[0] - I.gravity(0), g1 = xf[1] - I.gravity(1);
+  const double rho0 = c * g0 + s * g1, rho1 = -s * g0 + c * g1;                // A^T (R'' - g)
+  const double nb0 = c * nuv(0) + s * nuv(1), nb1 = -s * nuv(0) + c * nuv(1);  // A^T nu_R
+  const double nth = nuv(2), thd = zdf[2], thdd = xf[2];
+  auto nq = [&](int i) { return nuv(3 + i); };
+  // m: nu_R . m (R'' - g).
+  out(0) += nb0 * rho0 + nb1 * rho1;
+  // s_w = m c + C1 q enters as S s_w theta'' - s_w theta'^2 (force on the frame) and (S s_w) . rho.
+  // d/ds_w of nb . (S s_w thdd - s_w thd^2) + nth (S s_w) . rho, with S^T x = (x1, -x0).
+  const double sig0 = thdd * nb1 - thd * thd * nb0 + nth * rho1;
+  const double sig1 = -thdd * nb0 - thd * thd * nb1 - nth * rho0;
+  out(1) += sig0;
+  out(2) += sig1;
+  // J_w = J0 + 2 C2 q + q^T M_ee q multiplies theta'' in the theta row.
+  const double zeta = nth * thdd;
+  out(3) += zeta;
+  // C1 directly: nb . (C1 q'' + 2 thd S C1 q') + nq . C1^T rho.
+  for (int j = 0; j < n; ++j) {
+    out(P.c1Offset() + 2 * j) += sig0 * q[j] + nb0 * qdd[j] + 2.0 * thd * nb1 * qd[j] + rho0 * nq(j);
+    out(P.c1Offset() + 1 + 2 * j) += sig1 * q[j] + nb1 * qdd[j] - 2.0 * thd * nb0 * qd[j] + rho1 * nq(j);
+  }
+  // h = C2 + M_ee q: 2 thd h . q' (theta row) and -h thd^2 (q rows). A1 = a0 + Ct^T q: A1 . q''
+  // (theta row) and A1 thdd (q rows).
+  double* ct = out.data() + P.ctOffset();
+  double* mee = out.data() + P.meeOffset();
+  double* kee = out.data() + P.keeOffset();
+  for (int j = 0; j < n; ++j) {
+    const double etaJ = 2.0 * thd * nth * qd[j] - thd * thd * nq(j);
+    const double alphaJ = nth * qdd[j] + thdd * nq(j);
+    out(P.c2Offset() + j) += etaJ + 2.0 * zeta * q[j];
+    out(P.a0Offset() + j) += alphaJ;
+    for (int i = 0; i < n; ++i) {
+      const double etaI = 2.0 * thd * nth * qd[i] - thd * thd * nq(i);
+      // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
+      ct[i + n * j] += q[i] * alphaJ - 2.0 * thd * nq(i) * qd[j];
+      // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
+      mee[i + n * j] +=
+          zeta * q[i] * q[j] + 0.5 * (etaI * q[j] + etaJ * q[i] + nq(i) * qdd[j] + nq(j) * qdd[i]);
+      kee[i + n * j] += nq(i) * q[j];
+    }
   }
 }
 
@@ -842,16 +1248,30 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
   I.yInitial = Vector::Zero(I.f);
   for (int k = 0; k < I.nFree; ++k) I.yInitial(k) = I.zInitial(I.independent[k]);
   // Assemble at t = 0 from the described positions (q = 0, so b does not enter).
-  Work w(I.nz, I.m, I.f, I.n);
-  for (int i = 0; i < I.nz; ++i) w.d.z[i] = I.zInitial(i);
-  for (int i = 0; i < I.n; ++i) w.d.b[i] = 0.0;
+  Buffers<double> assembly(I.nz, I.m, I.f, I.n);
+  for (int i = 0; i < I.nz; ++i) assembly.z[i] = I.zInitial(i);
+  for (int i = 0; i < I.n; ++i) assembly.b[i] = 0.0;
   try {
-    I.newton(0.0, w.d, -1, 1e-12);
+    I.newton(0.0, assembly, -1, 1e-12);
   } catch (const NumericalError& e) {
     throw std::invalid_argument(std::string("mechanism: the initial positions do not assemble at t = 0: ") +
                                 e.what());
   }
-  for (int i = 0; i < I.nz; ++i) I.zInitial(i) = w.d.z[i];
+  for (int i = 0; i < I.nz; ++i) I.zInitial(i) = assembly.z[i];
+  // The chord system: the same bodies and constraints with one coordinate c = b q in place of q (one
+  // "mode" whose displacement row at B is 1), independent like the free coordinates.
+  chord_ = std::make_unique<Impl>(I);
+  Impl& C = *chord_;
+  C.n = 1;
+  C.nz = I.base + 4;
+  C.f = I.nFree + 1;
+  C.independent.assign(I.independent.begin(), I.independent.begin() + I.nFree);
+  C.independent.push_back(I.base + 3);
+  C.zInitial = I.zInitial.head(I.base + 4);
+  C.zInitial(I.base + 3) = 0.0;
+  C.yInitial = Vector::Zero(C.f);
+  C.yInitial.head(I.nFree) = I.yInitial.head(I.nFree);
+  C.vInitial = Vector::Zero(C.f);
 }
 
 MechanismProblem::~MechanismProblem() = default;
@@ -863,7 +1283,14 @@ int MechanismProblem::fullCoordinateCount() const { return impl_->nz; }
 int MechanismProblem::memberOffset() const { return impl_->base; }
 
 std::unique_ptr<ProblemWorkspace> MechanismProblem::createModelWorkspace() const {
-  return std::make_unique<Work>(impl_->nz, impl_->m, impl_->f, impl_->n);
+  return std::make_unique<Work>(*impl_, *chord_);
+}
+
+std::unique_ptr<ProblemWorkspace> MechanismProblem::createModelWorkspaceFor(ConstVectorRef p) const {
+  auto w = std::make_unique<Work>(*impl_, *chord_);
+  meeOf(View(modes_, p.data()), *w);
+  w->parametersFixed = true;
+  return w;
 }
 
 void MechanismProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRef v0) const {
@@ -871,12 +1298,390 @@ void MechanismProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRe
   v0 = impl_->vInitial;
 }
 
+namespace {
+
+/// Dual numbers that are constants, except the listed directions.
+void constants(const double* values, int count, int nd, ADS* out) {
+  for (int i = 0; i < count; ++i) out[i] = Make<ADS>::constant(values[i], nd);
+}
+
+/// Widens the dual numbers of the chord system's kinematics from `from` to `to` directions (the
+/// kinematics depend on sigma and sigma' only, so they run in fewer directions than the residual).
+void widen(const MechanismProblem::Impl& C, Buffers<ADS>& B, int from, int to) {
+  auto pad = [&](ADS& x) {
+    DerivativesOf<kSmall> d = DerivativesOf<kSmall>::Zero(to);
+    d.head(from) = x.derivatives();
+    x.derivatives() = d;
+  };
+  for (int i = 0; i < C.nz; ++i) {
+    pad(B.z[i]);
+    pad(B.zd[i]);
+    pad(B.zeta[i]);
+  }
+  for (int i = 0; i < C.nz * C.f; ++i) pad(B.R[i]);
+  for (int i = 0; i <= C.nr; ++i) {
+    pad(B.sn[i]);
+    pad(B.cs[i]);
+  }
+  pad(B.b[0]);
+}
+
+}  // namespace
+
+namespace {
+
+/// The derivatives of the chord residual rho (dRho[i + k e]) and of phi (dPhi[4 e + i]) in the
+/// directions e = sigma''_j (j < k), A1 . a (k), C1 a (k + 1, k + 2): the acceleration part of
+/// chordForce() (no gravity, velocity or spring terms), linear, at the kinematics of w.cd.
+void accelerationDerivatives(const MechanismProblem::Impl& C, const View& P, Work& w, const double* mom,
+                             double* dRho, double* dPhi) {
+  const Buffers<double>& B = w.cd;
+  double* F = w.cd.x.data();
+  const int k = C.f, o = C.base;
+  const double s = B.sn[C.nr], c = B.cs[C.nr];
+  for (int e = 0; e < k + 3; ++e) {
+    for (int i = 0; i < C.nz; ++i) F[i] = 0.0;
+    double* phi = dPhi + 4 * e;
+    phi[0] = phi[1] = phi[2] = phi[3] = 0.0;
+    if (e < k) {
+      const double* x = B.R.data() + C.nz * e;  // d z''/d sigma''_e
+      for (int b = 0; b < C.nr; ++b) {
+        F[3 * b] = C.mass[b] * x[3 * b];
+        F[3 * b + 1] = C.mass[b] * x[3 * b + 1];
+        F[3 * b + 2] = C.inertia[b] * x[3 * b + 2];
+      }
+      const double rho0 = c * x[o] + s * x[o + 1], rho1 = -s * x[o] + c * x[o + 1], thdd = x[o + 2];
+      const double aR0 = P.mass() * rho0 - mom[kSw1] * thdd, aR1 = P.mass() * rho1 + mom[kSw0] * thdd;
+      F[o] = c * aR0 - s * aR1;
+      F[o + 1] = s * aR0 + c * aR1;
+      F[o + 2] = -mom[kSw1] * rho0 + mom[kSw0] * rho1 + mom[kJw] * thdd;
+      phi[0] = rho0;
+      phi[1] = rho1;
+      phi[2] = thdd;
+    } else if (e == k) {
+      F[o + 2] = 1.0;  // A1 . a in the frame angle's row
+    } else {
+      // C1 a in the body-frame force on the frame origin, rotated to the global axes.
+      F[o] = e == k + 1 ? c : -s;
+      F[o + 1] = e == k + 1 ? s : c;
+    }
+    for (int j = 0; j < k; ++j) {
+      double sum = 0.0;
+      for (int i = 0; i < C.nz; ++i) sum += B.R[i + C.nz * j] * F[i];
+      dRho[j + k * e] = sum;
+    }
+  }
+}
+
+/// The mass matrix and (unless massOnly) the force of the chord path.
+void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, double t,
+                  ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, MatrixRef mass, VectorRef f, Work& w,
+                  bool massOnly) {
+  const View P(I.n, p.data());
+  const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
+  chordInputs(I, P, y, v, nullptr, w);
+  chordKinematics(C, t, w, massOnly);
+  const Matrix& mee = meeOf(P, w);
+  double mom[kMoments];
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, nullptr, false, w, mom);
+  if (!massOnly) {
+    // The force: the residual at a = 0 (chordInputs() set sigma'' = 0, modalProducts() the moments of a).
+    double phi[4];
+    chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
+    for (int i = 0; i < nf; ++i) f(i) = -w.cd.r[i];
+    for (int l = 0; l < n; ++l) f(nf + l) = -(modalRow(P, w, phi, l) + P.b(l) * w.cd.r[ci]);
+  }
+  // The mass matrix: the residual is linear in sigma'' and in the moments A1 . a, C1 a; its
+  // derivatives in these k + 3 directions are the acceleration part of chordResidual(), in double.
+  const int nd = k + 3;
+  double dRho[(MechanismProblem::kMaxFree + 1) * (MechanismProblem::kMaxFree + 4)];
+  double dPhi[4 * (MechanismProblem::kMaxFree + 4)];
+  accelerationDerivatives(C, P, w, mom, dRho, dPhi);
+  // d/da_j of a chord scalar with derivatives d: through c'' = b a and the moments.
+  auto modal = [&](const double* d, int j) {
+    return d[ci] * P.b(j) + d[k] * w.a1(j) + d[k + 1] * P.c1(0, j) + d[k + 2] * P.c1(1, j);
+  };
+  double rowOf[MechanismProblem::kMaxFree + 4];
+  for (int i = 0; i < nf; ++i) {
+    for (int e = 0; e < nd; ++e) rowOf[e] = dRho[i + k * e];
+    for (int j = 0; j < nf; ++j) mass(i, j) = rowOf[j];
+    for (int j = 0; j < n; ++j) mass(i, nf + j) = modal(rowOf, j);
+  }
+  for (int e = 0; e < nd; ++e) rowOf[e] = dRho[ci + k * e];
+  for (int j = 0; j < n; ++j) w.along(j) = modal(rowOf, j);
+  for (int l = 0; l < n; ++l) {
+    double u[4];
+    modalRowPhi(P, w, 0.0, l, u);  // beta' does not depend on the acceleration (dPhi of beta' = 0)
+    const double bl = P.b(l);
+    auto uphi = [&](int e) {
+      return u[0] * dPhi[4 * e] + u[1] * dPhi[4 * e + 1] + u[2] * dPhi[4 * e + 2] + u[3] * dPhi[4 * e + 3];
+    };
+    for (int j = 0; j < nf; ++j) mass(nf + l, j) = uphi(j) + bl * dRho[ci + k * j];
+    const double uc = uphi(ci);
+    for (int j = 0; j < n; ++j) mass(nf + l, nf + j) = mee(l, j) + uc * P.b(j) + bl * w.along(j);
+  }
+  const int fc = I.f;
+  for (int j = 0; j < fc; ++j) {
+    for (int i = 0; i < j; ++i) {
+      const double s = 0.5 * (mass(i, j) + mass(j, i));
+      mass(i, j) = s;
+      mass(j, i) = s;
+    }
+  }
+}
+
+/// The chord system's kinematics in two directions, sigma_j (0) and sigma'_j (1), into w.cs with nd
+/// directions, the two at dy and dv (the others zero).
+void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, int j, int nd, int dy,
+                            int dv) {
+  Buffers<AD2>& A = w.c2;
+  // The adjoint asks for the Jacobians and the parameter product at one point; without free
+  // coordinates both seed (c, c').
+  if (!(w.twoValid && j == w.twoSeed && t == w.tTwo && w.sigma == w.sigmaTwo &&
+        w.sigmaDot == w.sigmaDotTwo)) {
+    for (int i = 0; i < C.f; ++i) {
+      A.y[i] = i == j ? AD2(w.sigma(i), 2, 0) : Make<AD2>::constant(w.sigma(i), 2);
+      A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
+    }
+    A.b[0] = Make<AD2>::constant(1.0, 2);
+    kinematics(C, t, A, w, w.zChord, 2);
+    w.twoValid = true;
+    w.twoSeed = j;
+    w.tTwo = t;
+    w.sigmaTwo = w.sigma;
+    w.sigmaDotTwo = w.sigmaDot;
+  }
+  auto put = [&](const AD2& x, ADS& out) {
+    DerivativesOf<kSmall> d = DerivativesOf<kSmall>::Zero(nd);
+    d(dy) = x.derivatives()(0);
+    d(dv) = x.derivatives()(1);
+    out = ADS(x.value(), d);
+  };
+  Buffers<ADS>& B = w.cs;
+  for (int i = 0; i < C.nz; ++i) {
+    put(A.z[i], B.z[i]);
+    put(A.zd[i], B.zd[i]);
+    put(A.zeta[i], B.zeta[i]);
+  }
+  for (int i = 0; i < C.nz * C.f; ++i) put(A.R[i], B.R[i]);
+  for (int i = 0; i <= C.nr; ++i) {
+    put(A.sn[i], B.sn[i]);
+    put(A.cs[i], B.cs[i]);
+  }
+  put(A.b[0], B.b[0]);
+}
+
+}  // namespace
+
 void MechanismProblem::massMatrixAndForce(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                           MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const {
+  massAndForce(*impl_, *chord_, t, y, v, p, mass, f, workOf(ws), false);
+}
+
+void MechanismProblem::massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
+                                  ProblemWorkspace* ws) const {
+  Work& w = workOf(ws);
+  w.mu.setZero();
+  massAndForce(*impl_, *chord_, t, y, w.mu, p, mass, w.fScratch, w, true);
+}
+
+void MechanismProblem::force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
+                             ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int n = I.n, nf = I.nFree;
+  chordInputs(I, P, y, v, nullptr, w);
+  chordKinematics(C, t, w);
+  double mom[kMoments], phi[4];
+  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, nullptr, false, w, mom);
+  chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
+  for (int i = 0; i < nf; ++i) f(i) = -w.cd.r[i];
+  for (int l = 0; l < n; ++l) f(nf + l) = -(modalRow(P, w, phi, l) + P.b(l) * w.cd.r[nf]);
+}
+
+void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int n = I.n, nf = I.nFree;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  double mom[kMoments], phi[4];
+  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
+  chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
+  for (int i = 0; i < nf; ++i) r(i) = w.cd.r[i];
+  for (int l = 0; l < n; ++l) r(nf + l) = modalRow(P, w, phi, l) + P.b(l) * w.cd.r[nf];
+}
+
+void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv,
+                                         ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  const Matrix& mee = meeOf(P, w);
+  double mom[kMoments];
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
+  // Dual numbers in sigma (k), sigma' (k) and the seven moments that depend on q or q' (the chain to
+  // q, q' below): the chord system's Jacobians in 2k + 7 directions, whatever the number of modes.
+  const int nd = 2 * k + 7;
+  const int dSw0 = 2 * k, dSw1 = dSw0 + 1, dJw = dSw0 + 2, dA1a = dSw0 + 3, dC1v0 = dSw0 + 4,
+            dC1v1 = dSw0 + 5, dHv = dSw0 + 6;
+  Buffers<ADS>& B = w.cs;
+  if (k == 1) {
+    twoDirectionKinematics(C, t, w, 0, nd, 0, 1);
+  } else {
+    for (int i = 0; i < k; ++i) {
+      B.y[i] = Make<ADS>::variable(w.sigma(i), 2 * k, i);
+      B.v[i] = Make<ADS>::variable(w.sigmaDot(i), 2 * k, k + i);
+    }
+    B.b[0] = Make<ADS>::constant(1.0, 2 * k);
+    kinematics(C, t, B, w, w.zChord, 2 * k);
+    widen(C, B, 2 * k, nd);
+  }
+  for (int j = 0; j < k; ++j) w.seedDdot[j] = Make<ADS>::constant(w.sigmaDdot(j), nd);
+  ADS m[kMoments], phi[4];
+  constants(mom, kMoments, nd, m);
+  m[kSw0] = Make<ADS>::variable(mom[kSw0], nd, dSw0);
+  m[kSw1] = Make<ADS>::variable(mom[kSw1], nd, dSw1);
+  m[kJw] = Make<ADS>::variable(mom[kJw], nd, dJw);
+  m[kA1a] = Make<ADS>::variable(mom[kA1a], nd, dA1a);
+  m[kC1v0] = Make<ADS>::variable(mom[kC1v0], nd, dC1v0);
+  m[kC1v1] = Make<ADS>::variable(mom[kC1v1], nd, dC1v1);
+  m[kHv] = Make<ADS>::variable(mom[kHv], nd, dHv);
+  chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
+  const double thdd = phi[2].value(), thd = phi[3].value();
+  // d/dq_j and d/dq'_j of a chord scalar: through c = b q, c' = b q' and the moments' gradients
+  // (s_w: C1, J_w: 2 h, A1 . a: Ct a, h . q': M_ee q' and h, C1 q': C1).
+  auto dq = [&](const ADS& x, int j) {
+    const auto& d = x.derivatives();
+    return d(ci) * P.b(j) + d(dSw0) * P.c1(0, j) + d(dSw1) * P.c1(1, j) + d(dJw) * 2.0 * w.h(j) +
+           d(dA1a) * w.ctA(j) + d(dHv) * w.meeV(j);
+  };
+  auto dv = [&](const ADS& x, int j) {
+    const auto& d = x.derivatives();
+    return d(k + ci) * P.b(j) + d(dC1v0) * P.c1(0, j) + d(dC1v1) * P.c1(1, j) + d(dHv) * w.h(j);
+  };
+  for (int i = 0; i < nf; ++i) {
+    const auto& d = B.r[i].derivatives();
+    for (int j = 0; j < nf; ++j) {
+      ry(i, j) = d(j);
+      rv(i, j) = d(k + j);
+    }
+    for (int j = 0; j < n; ++j) {
+      ry(i, nf + j) = dq(B.r[i], j);
+      rv(i, nf + j) = dv(B.r[i], j);
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    w.along(j) = dq(B.r[ci], j);
+    w.vel(j) = dv(B.r[ci], j);
+  }
+  const auto& drc = B.r[ci].derivatives();
+  const double* ct = p.data() + P.ctOffset();
+  const double* kee = p.data() + P.keeOffset();
+  for (int l = 0; l < n; ++l) {
+    double u[4];
+    modalRowPhi(P, w, thd, l, u);
+    const double bl = P.b(l);
+    auto uphi = [&](int direction) {
+      return u[0] * phi[0].derivatives()(direction) + u[1] * phi[1].derivatives()(direction) +
+             u[2] * phi[2].derivatives()(direction) + u[3] * phi[3].derivatives()(direction);
+    };
+    for (int j = 0; j < nf; ++j) {
+      ry(nf + l, j) = uphi(j) + bl * drc(j);
+      rv(nf + l, j) = uphi(k + j) + bl * drc(k + j);
+    }
+    const double uq = uphi(ci), uv = uphi(k + ci);
+    // The direct terms: A1_l beta'' (dA1_l/dq_j = Ct_jl), K_ee q, -beta'^2 h, -2 beta' Ct q'.
+    for (int j = 0; j < n; ++j) {
+      ry(nf + l, nf + j) =
+          thdd * ct[j + n * l] + kee[l + n * j] - thd * thd * mee(l, j) + uq * P.b(j) + bl * w.along(j);
+      rv(nf + l, nf + j) = -2.0 * thd * ct[l + n * j] + uv * P.b(j) + bl * w.vel(j);
+    }
+  }
+}
+
+void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                               ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int n = I.n, nf = I.nFree, k = C.f, ci = nf, o = I.base;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  double mom[kMoments];
+  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
+  // The invariants other than b at fixed kinematics: nu = R mu on the member (frame rows from the chord
+  // system's R with mu_c = b . mu_q, modal rows mu_q).
+  double mb = 0.0;
+  for (int l = 0; l < n; ++l) mb += P.b(l) * mu(nf + l);
+  const Buffers<double>& D = w.cd;
+  double xf[3];
+  for (int i = 0; i < 3; ++i) {
+    double s = 0.0, x = D.zeta[o + i];
+    for (int j = 0; j < k; ++j) {
+      const double rij = D.R[o + i + C.nz * j];
+      s += rij * (j == ci ? mb : mu(j));
+      x += rij * w.sigmaDdot(j);
+    }
+    w.nu(i) = s;
+    xf[i] = x;
+  }
+  for (int l = 0; l < n; ++l) w.nu(3 + l) = mu(nf + l);
+  memberParameterProduct(I, P, D.z.data() + o, D.zd.data() + o, xf, y.data() + nf, v.data() + nf,
+                         a.data() + nf, w.nu, out);
+  // b: through c = b q, c' = b q', c'' = b a (dual numbers in these three) and the explicit b rho_c of
+  // the modal rows.
+  const int nd = 3;
+  Buffers<ADS>& B = w.cs;
+  for (int i = 0; i < k; ++i) {
+    w.seedDdot[i] =
+        i == ci ? Make<ADS>::variable(w.sigmaDdot(i), nd, 2) : Make<ADS>::constant(w.sigmaDdot(i), nd);
+  }
+  twoDirectionKinematics(C, t, w, ci, nd, 0, 1);
+  ADS m[kMoments], phi[4];
+  constants(mom, kMoments, nd, m);
+  chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
+  // mu . r = mu_f . r_f + mu_q . F_q + (mu_q . b) r_c; F_q depends on c through phi.
+  double muU[4] = {0.0, 0.0, 0.0, 0.0};
+  for (int l = 0; l < n; ++l) {
+    double u[4];
+    modalRowPhi(P, w, phi[3].value(), l, u);
+    for (int e = 0; e < 4; ++e) muU[e] += mu(nf + l) * u[e];
+  }
+  double g[3];
+  for (int x = 0; x < 3; ++x) {
+    double s = mb * B.r[ci].derivatives()(x);
+    for (int i = 0; i < nf; ++i) s += mu(i) * B.r[i].derivatives()(x);
+    for (int e = 0; e < 4; ++e) s += muU[e] * phi[e].derivatives()(x);
+    g[x] = s;
+  }
+  const double rc = B.r[ci].value();
+  for (int j = 0; j < n; ++j) {
+    out(P.bOffset() + j) += g[0] * y(nf + j) + g[1] * v(nf + j) + g[2] * a(nf + j) + mu(nf + j) * rc;
+  }
+}
+
+// ---- The reference path in full coordinates (tests). ----
+
+void MechanismProblem::massMatrixAndForceByProjection(double t, ConstVectorRef y, ConstVectorRef v,
+                                                      ConstVectorRef p, MatrixRef mass, VectorRef f,
+                                                      ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  doublePass(I, P, t, y, v, w);
+  fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   // f = -R^T (M zeta - Q).
   generalizedForce(I, P, B, B.zeta.data(), true, B.F.data(), 0.0);
@@ -903,45 +1708,23 @@ void MechanismProblem::massMatrixAndForce(double t, ConstVectorRef y, ConstVecto
   }
 }
 
-void MechanismProblem::massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
-                                  ProblemWorkspace* ws) const {
-  Work& w = workOf(ws);
-  w.mu.setZero();
-  massMatrixAndForce(t, y, w.mu, p, mass, w.fScratch, ws);
-}
-
-void MechanismProblem::force(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, VectorRef f,
-                             ProblemWorkspace* ws) const {
+void MechanismProblem::residualByProjection(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                            ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  doublePass(I, P, t, y, v, w);
-  Buffers<double>& B = w.d;
-  generalizedForce(I, P, B, B.zeta.data(), true, B.F.data(), 0.0);
-  for (int j = 0; j < I.f; ++j) {
-    double s = 0.0;
-    for (int i = 0; i < I.nz; ++i) s += B.R[i + I.nz * j] * B.F[i];
-    f(j) = -s;
-  }
-}
-
-void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
-  const Impl& I = *impl_;
-  Work& w = workOf(ws);
-  const View P(I.n, p.data());
-  doublePass(I, P, t, y, v, w);
+  fullPass(I, *chord_, P, t, y, v, w);
   residualFromKinematics(I, P, w.d, a, 0);
   for (int i = 0; i < I.f; ++i) r(i) = w.d.r[i];
 }
 
-void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv,
-                                         ProblemWorkspace* ws) const {
+void MechanismProblem::residualJacobiansByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v,
+                                                   ConstVectorRef a, ConstVectorRef p, MatrixRef ry,
+                                                   MatrixRef rv, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  doublePass(I, P, t, y, v, w);
+  fullPass(I, *chord_, P, t, y, v, w);
   if (2 * I.f <= kSmall) {
     stateJacobians(I, P, t, y, v, a, ry, rv, w.s, w);
   } else {
@@ -949,75 +1732,26 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
   }
 }
 
-void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
-                                               ProblemWorkspace* ws) const {
+void MechanismProblem::addResidualParameterVjpByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v,
+                                                         ConstVectorRef a, ConstVectorRef p,
+                                                         ConstVectorRef mu, VectorRef out,
+                                                         ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  const int n = I.n;
-  doublePass(I, P, t, y, v, w);
+  fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   residualFromKinematics(I, P, B, a, 0);
-  // nu = R mu on the member's coordinates; the member's force is linear in the invariants at fixed
-  // z, z', z'' (generalizedForce), so its product with nu is differentiated by hand here.
   const int o = I.base;
-  for (int i = 0; i < 3 + n; ++i) {
+  for (int i = 0; i < 3 + I.n; ++i) {
     double s = 0.0;
     for (int j = 0; j < I.f; ++j) s += B.R[o + i + I.nz * j] * mu(j);
     w.nu(i) = s;
   }
-  const double* z = B.z.data() + o;
-  const double* zd = B.zd.data() + o;
-  const double* x = B.zdd.data() + o;
-  double s, c;
-  dmath::sincos(z[2], &s, &c);
-  const double g0 = x[0] - I.gravity(0), g1 = x[1] - I.gravity(1);
-  const double rho0 = c * g0 + s * g1, rho1 = -s * g0 + c * g1;                    // A^T (R'' - g)
-  const double nb0 = c * w.nu(0) + s * w.nu(1), nb1 = -s * w.nu(0) + c * w.nu(1);  // A^T nu_R
-  const double nth = w.nu(2), thd = zd[2], thdd = x[2];
-  auto q = [&](int i) { return z[3 + i]; };
-  auto qd = [&](int i) { return zd[3 + i]; };
-  auto qdd = [&](int i) { return x[3 + i]; };
-  auto nq = [&](int i) { return w.nu(3 + i); };
-  // m: nu_R . m (R'' - g).
-  out(0) += nb0 * rho0 + nb1 * rho1;
-  // s_w = m c + C1 q enters as S s_w theta'' - s_w theta'^2 (force on the frame) and (S s_w) . rho.
-  // d/ds_w of nb . (S s_w thdd - s_w thd^2) + nth (S s_w) . rho, with S^T x = (x1, -x0).
-  const double sig0 = thdd * nb1 - thd * thd * nb0 + nth * rho1;
-  const double sig1 = -thdd * nb0 - thd * thd * nb1 - nth * rho0;
-  out(1) += sig0;
-  out(2) += sig1;
-  // J_w = J0 + 2 C2 q + q^T M_ee q multiplies theta'' in the theta row.
-  const double zeta = nth * thdd;
-  out(3) += zeta;
-  // C1 directly: nb . (C1 q'' + 2 thd S C1 q') + nq . C1^T rho.
-  for (int j = 0; j < n; ++j) {
-    out(P.c1Offset() + 2 * j) += sig0 * q(j) + nb0 * qdd(j) + 2.0 * thd * nb1 * qd(j) + rho0 * nq(j);
-    out(P.c1Offset() + 1 + 2 * j) += sig1 * q(j) + nb1 * qdd(j) - 2.0 * thd * nb0 * qd(j) + rho1 * nq(j);
-  }
-  // h = C2 + M_ee q: 2 thd h . q' (theta row) and -h thd^2 (q rows). A1 = a0 + Ct^T q: A1 . q''
-  // (theta row) and A1 thdd (q rows).
-  double* ct = out.data() + P.ctOffset();
-  double* mee = out.data() + P.meeOffset();
-  double* kee = out.data() + P.keeOffset();
-  for (int j = 0; j < n; ++j) {
-    const double etaJ = 2.0 * thd * nth * qd(j) - thd * thd * nq(j);
-    const double alphaJ = nth * qdd(j) + thdd * nq(j);
-    out(P.c2Offset() + j) += etaJ + 2.0 * zeta * q(j);
-    out(P.a0Offset() + j) += alphaJ;
-    for (int i = 0; i < n; ++i) {
-      const double etaI = 2.0 * thd * nth * qd(i) - thd * thd * nq(i);
-      // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
-      ct[i + n * j] += q(i) * alphaJ - 2.0 * thd * nq(i) * qd(j);
-      // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
-      mee[i + n * j] +=
-          zeta * q(i) * q(j) + 0.5 * (etaI * q(j) + etaJ * q(i) + nq(i) * qdd(j) + nq(j) * qdd(i));
-      kee[i + n * j] += nq(i) * q(j);
-    }
-  }
+  memberParameterProduct(I, P, B.z.data() + o, B.zd.data() + o, B.zdd.data() + o, B.z.data() + o + 3,
+                         B.zd.data() + o + 3, B.zdd.data() + o + 3, w.nu, out);
   // b: through the member's B (position, Jacobian, kinematics), by dual numbers in b.
-  if (n <= kSmall) {
+  if (I.n <= kSmall) {
     chordRowProduct(I, P, t, y, v, a, mu, out, w.s, w);
   } else {
     chordRowProduct(I, P, t, y, v, a, mu, out, w.l, w);
@@ -1059,7 +1793,7 @@ void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v,
                                    VectorRef z, VectorRef zDot, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  doublePass(I, View(I.n, p.data()), t, y, v, w);
+  fullPass(I, *chord_, View(I.n, p.data()), t, y, v, w);
   for (int i = 0; i < I.nz; ++i) {
     z(i) = w.d.z[i];
     zDot(i) = w.d.zd[i];
@@ -1072,7 +1806,7 @@ MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y
   const Impl& I = *impl_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  doublePass(I, P, t, y, v, w);
+  fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   Energies e;
   // Kinetic: 1/2 z'^T M(z) z'.

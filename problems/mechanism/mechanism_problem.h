@@ -18,19 +18,35 @@
 // every integrator stay exact, at the price of a small Newton solve per evaluation. An index-3 DAE with
 // generalized-alpha (Arnold & Bruls) would need a second adjoint for the constraint forces.
 //
+// The chord path (every evaluation). The joints attach to the member at A and B only, and B moves
+// along the chord by c = b q, so the constraints see the modal coordinates only through c. Positions,
+// velocities, R and zeta are therefore solved on the chord system: the rigid coordinates plus c, whose
+// independent coordinates are sigma = (free coordinates, c), k = (number free) + 1 of them. The member's
+// modal rows, F_q = C1^T rho + A1 beta'' + M_ee a + K_ee q - 2 beta' Ct q' - h beta'^2 (rho the frame's
+// acceleration in its own axes), are written out, and the residual is
+//   r_free = rho_free,  r_q = F_q + b rho_c,  rho = R_chord^T F_chord (k entries),
+// where the member's frame rows of F_chord depend on q, q', a only through nine moments (s_w = m c +
+// C1 q, J_w, A1 . a, C1 a, C1 q', h . q'). The Jacobians are the direct O(n^2) terms of F_q plus
+// rank-few corrections: dual numbers run only through the chord system, in sigma and sigma' (the
+// kinematics, 2k directions) and the moments (seven more), and the chain to q, q' uses the moments'
+// gradients (C1, 2 h, Ct a, M_ee q', h). The mass matrix is the same in sigma'' and the moments of a;
+// the product with b goes through c, c', c'' (three directions) and the explicit b rho_c.
+//
 // Derivatives are exact. The dependent coordinates' derivatives come from the implicit-function
 // theorem: one Newton correction in forward-mode dual numbers at the converged point,
-// u = u* - Phi_u(z*)^{-1} Phi(z), has the value u* and the derivative -Phi_u^{-1} Phi_y. Everything
-// after it (R, zeta, M, Q, r) is evaluated in the same dual numbers (Eigen AutoDiffScalar with a
-// fixed-capacity derivative vector: nothing allocated per call), which gives r_y, r_y' and, with b
-// seeded, the derivative in the member's joint displacement row b. The rest of the parameter product
-// (r_p)^T mu is linear in the invariants and written out by hand.
+// u = u* - Phi_u(z*)^{-1} Phi(z), has the value u* and the derivative -Phi_u^{-1} Phi_y; the solves
+// with Phi_u in dual numbers use the double factorisation and one refinement step, whose derivative
+// is exact. The rest of the parameter product (r_p)^T mu is linear in the invariants and written out by
+// hand. The full-coordinate route (z with all of q, R^T (M(z) z'' - Q) by dual numbers in all 2f
+// directions) stays as the tests' reference (the *ByProjection and *ByAutoDiff methods).
 //
 // Determinism. Newton starts from the configuration of the workspace's previous call (continuation
 // from it when the motion since then is large), so its converged bits would depend on the history of
-// calls. After convergence the dependent coordinates are rounded to a grid of 2^-20 and three Newton
-// steps are taken from there: the result is a function of (t, y) alone (unless two solutions lie within
-// 1e-16 of a grid midpoint), so every storage strategy and thread count gets the same bits.
+// calls. After convergence the dependent coordinates are rounded to a grid of 2^-20 and two or three
+// simplified Newton steps (Phi_u factorised at the grid point) are taken from there: the result is a
+// function of (t, sigma) alone (unless two solutions lie within 1e-16 of a grid midpoint), so every
+// storage strategy and thread count gets the same bits. A workspace keeps the positions and kinematics
+// of its last point: the engine asks for the mass matrix, Jacobians and force at one point.
 //
 // Parameters p: the member's invariants in the layout of problems/rod/invariants.h (b = the u_x row of
 // the modes at B, which is how the member's B attaches), so problems/rod/design_gradient.h chains
@@ -66,6 +82,8 @@ class MechanismProblem final : public SecondOrderProblem {
   int memberOffset() const;
 
   std::unique_ptr<ProblemWorkspace> createModelWorkspace() const override;
+  /// Keeps the symmetric part of M_ee of p for the whole solve.
+  std::unique_ptr<ProblemWorkspace> createModelWorkspaceFor(ConstVectorRef p) const override;
   void initialCoordinates(ConstVectorRef p, VectorRef y0, VectorRef v0) const override;
   void massMatrix(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef mass,
                   ProblemWorkspace* ws) const override;
@@ -84,6 +102,21 @@ class MechanismProblem final : public SecondOrderProblem {
                                  VectorRef gy, VectorRef gv, ProblemWorkspace* ws) const override;
   void addIntegrandParameterGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                                      double scale, VectorRef gp, ProblemWorkspace* ws) const override;
+
+  // ---- The reference path in full coordinates z (tests hold the chord path to it). ----
+  /// M = R^T M(z) R and f = -R^T (M(z) zeta - Q) with R, zeta in full coordinates (O(n^3)).
+  void massMatrixAndForceByProjection(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
+                                      MatrixRef mass, VectorRef f, ProblemWorkspace* ws) const;
+  /// r = R^T (M(z) z'' - Q) in full coordinates.
+  void residualByProjection(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                            VectorRef r, ProblemWorkspace* ws) const;
+  /// r_y, r_y' by dual numbers in all 2f directions through the full-coordinate residual.
+  void residualJacobiansByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                   ConstVectorRef p, MatrixRef ry, MatrixRef rv, ProblemWorkspace* ws) const;
+  /// (r_p)^T mu with the b part by dual numbers in the n entries of b through the full-coordinate path.
+  void addResidualParameterVjpByAutoDiff(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                         ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                         ProblemWorkspace* ws) const;
 
   // ---- Diagnostics and tests. ----
   /// r = M a - f.
@@ -106,7 +139,8 @@ class MechanismProblem final : public SecondOrderProblem {
  private:
   Mechanism mechanism_;
   int modes_;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<Impl> impl_;   ///< full coordinates (reference path, diagnostics)
+  std::unique_ptr<Impl> chord_;  ///< the chord system (rigid coordinates and c = b q)
 };
 
 }  // namespace hindsight::mechanism

@@ -6,9 +6,12 @@
 #include <hindsight/problems/mechanism/mechanism_json.h>
 
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
+#include <hindsight/engine/integrator.h>
 #include <hindsight/problems/rod/slider_crank.h>
+#include "support/allocation_counting.h"
 #include "support/synthetic_rod.h"
 
 #include <gtest/gtest.h>
@@ -210,10 +213,10 @@ void checkDerivatives(Case& c, const std::vector<double>& times) {
                         ry.row(i).transpose(), {1e-6});
       EXPECT_TRUE(yCheck.passed) << "t = " << t << ", row " << i << " of r_y: " << yCheck.message;
       // r is quadratic in y' (z' is linear in it, zeta quadratic), so a large central-difference step is
-      // exact and avoids round-off.
+      // exact and avoids round-off (a step of 1e-2 left 6e-13 of round-off in a component of 2e-6).
       GradientCheckOptions quadratic;
       quadratic.tolerance = 1e-7;
-      quadratic.relativeStep = 1e-2;
+      quadratic.relativeStep = 1e-1;
       const auto vCheck =
           checkGradient([&](const Vector& x) { return c.residual(t, c.s.y, x, c.s.a, c.p)(i); }, c.s.v,
                         rv.row(i).transpose(), quadratic);
@@ -394,6 +397,121 @@ TEST(MechanismSliderCrankMass, DriverWorkEqualsTheEnergyChange) {
 TEST(MechanismFreeSliderCrank, EnergyIsConservedUpToTheDamping) {
   Case c(freeSliderCrank(), 3, 18);
   checkEnergyBalance(c, 0.5, 1e-5);
+}
+
+}  // namespace
+}  // namespace hindsight::mechanism
+
+namespace hindsight::mechanism {
+namespace {
+
+/// The chord path (production) against the reference path in full coordinates: the residual, the
+/// mass matrix and force by projection, the Jacobians and the b part of the parameter product by dual
+/// numbers in all directions.
+void checkAgainstReference(Case& c, const std::vector<double>& times) {
+  const int f = c.problem.coordinateCount();
+  auto reference = c.problem.createModelWorkspace();
+  for (double t : times) {
+    Vector r(f), rr(f);
+    c.problem.residual(t, c.s.y, c.s.v, c.s.a, c.p, r, c.ws.get());
+    c.problem.residualByProjection(t, c.s.y, c.s.v, c.s.a, c.p, rr, reference.get());
+    EXPECT_LT((r - rr).norm(), 1e-13 * rr.norm()) << "t = " << t;
+    Matrix mass(f, f), massReference(f, f);
+    Vector force(f), forceReference(f);
+    c.problem.massMatrixAndForce(t, c.s.y, c.s.v, c.p, mass, force, c.ws.get());
+    c.problem.massMatrixAndForceByProjection(t, c.s.y, c.s.v, c.p, massReference, forceReference,
+                                             reference.get());
+    EXPECT_LT((mass - massReference).norm(), 1e-13 * massReference.norm()) << "t = " << t;
+    EXPECT_LT((force - forceReference).norm(), 1e-13 * forceReference.norm()) << "t = " << t;
+    Matrix ry(f, f), rv(f, f), ryReference(f, f), rvReference(f, f);
+    c.problem.residualJacobians(t, c.s.y, c.s.v, c.s.a, c.p, ry, rv, c.ws.get());
+    c.problem.residualJacobiansByAutoDiff(t, c.s.y, c.s.v, c.s.a, c.p, ryReference, rvReference,
+                                          reference.get());
+    for (int i = 0; i < f; ++i) {
+      EXPECT_LT((ry.row(i) - ryReference.row(i)).norm(), 1e-12 * ryReference.norm())
+          << "t = " << t << " row " << i;
+      EXPECT_LT((rv.row(i) - rvReference.row(i)).norm(), 1e-12 * rvReference.norm())
+          << "t = " << t << " row " << i;
+    }
+    Vector g = Vector::Zero(c.p.size()), gReference = Vector::Zero(c.p.size());
+    c.problem.addResidualParameterVjp(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, g, c.ws.get());
+    c.problem.addResidualParameterVjpByAutoDiff(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, gReference,
+                                                reference.get());
+    EXPECT_LT((g - gReference).norm(), 1e-13 * gReference.norm()) << "t = " << t;
+  }
+}
+
+TEST(MechanismChordPath, FourBarEqualsTheFullCoordinateReference) {
+  Case c(fromExample("four_bar.json"), 4, 21);
+  checkAgainstReference(c, {0.3, 1.2, 2.4});
+}
+
+TEST(MechanismChordPath, FreeSliderCrankEqualsTheFullCoordinateReference) {
+  Case c(freeSliderCrank(), 4, 22);
+  checkAgainstReference(c, {0.3, 1.1});
+}
+
+TEST(MechanismChordPath, SliderCrankMassEqualsTheFullCoordinateReference) {
+  Case c(fromExample("slider_crank_mass.json"), 5, 23);
+  checkAgainstReference(c, {0.5, 2.5});
+}
+
+TEST(MechanismChordPath, StepsAndAdjointStepsAllocateNothing) {
+  // Newton's buffers, the dual numbers (fixed capacity) and the kept kinematics live in the workspace.
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
+  for (const Mechanism& m : {fromExample("four_bar.json"), freeSliderCrank()}) {
+    const SyntheticRod body(4, 1.0, 31);
+    const MechanismProblem problem(m, 4);
+    const Vector p = body.invariants();
+    for (const char* method : {"rk4", "generalized-alpha"}) {
+      IntegratorOptions options;
+      options.method = method;
+      const std::unique_ptr<Integrator> integrator = createIntegrator(problem, p, options);
+      const int size = integrator->stateSize();
+      Vector z(size), zStart(size), lambda = Vector::Ones(size), gradient = Vector::Zero(p.size());
+      integrator->initialState(0.0, z);
+      integrator->step(0.0, 1e-3, z, nullptr);
+      zStart = z;
+      long forward = 0, adjoint = 0;
+      {
+        testing::AllocationCounter counter;
+        for (int i = 0; i < 10; ++i) integrator->step(1e-3 * (i + 1), 1e-3, z, nullptr);
+        forward = counter.count();
+      }
+      {
+        testing::AllocationCounter counter;
+        for (int i = 0; i < 10; ++i) integrator->adjointStep(1e-3 * (i + 1), 1e-3, zStart, lambda, gradient);
+        adjoint = counter.count();
+      }
+      EXPECT_EQ(forward, 0) << method << ", " << problem.freeCount() << " free";
+      EXPECT_EQ(adjoint, 0) << method << ", " << problem.freeCount() << " free";
+    }
+  }
+}
+
+TEST(MechanismChordPath, RecomputationGivesTheSameBits) {
+  // The positions are a function of (t, sigma) (rounded and polished Newton) and a workspace reuses the
+  // kinematics of its last point only when the point is bitwise the same: a gradient whose forward
+  // states are recomputed from checkpoints (other warm starts, other call orders) has the same bits as
+  // one that stored them all.
+  for (const Mechanism& m : {fromExample("four_bar.json"), freeSliderCrank()}) {
+    const SyntheticRod body(3, 1.0, 41);
+    const MechanismProblem problem(m, 3);
+    const Vector p = body.invariants();
+    IntegratorOptions options;
+    options.method = "generalized-alpha";
+    options.t1 = 0.4;
+    options.step = 2e-3;
+    FullStorage full;
+    BinomialCheckpointing binomial(6);
+    const GradientResult a = computeGradient(problem, p, options, full);
+    const GradientResult b = computeGradient(problem, p, options, binomial);
+    EXPECT_GT(b.summary.recomputedSteps, 0);
+    EXPECT_EQ(a.objective, b.objective);
+    EXPECT_TRUE(a.gradient == b.gradient)
+        << "largest difference " << (a.gradient - b.gradient).cwiseAbs().maxCoeff();
+  }
 }
 
 }  // namespace
