@@ -291,9 +291,25 @@ void BinomialCheckpointing::doBegin() {
   schedule_.reset(steps + 1, slotCount_, true);
 }
 
+namespace {
+
+// binomial's plan, one code for the run (doRecord, doRestore) and the prediction's counting run
+// (countPlan): revolve over the positions 0..N with the slots, its first sweep the forward sweep; the
+// restore of x_{N-1} first passes x_N, the schedule's end position, which is never restored.
+std::int64_t planRecordSlot(BinomialSchedule& schedule, std::int64_t step) {
+  return step == 0 ? 0 : schedule.recordForward(step);
+}
+template <typename Visitor>
+void planRestore(BinomialSchedule& schedule, std::int64_t steps, std::int64_t step, Visitor& visitor) {
+  if (step == steps - 1) schedule.restoreStep(step + 1, visitor);
+  schedule.restoreStep(step, visitor);
+}
+
+}  // namespace
+
 void BinomialCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
   const auto n = static_cast<std::size_t>(info().stateSize);
-  const std::int64_t slot = step == 0 ? 0 : schedule_.recordForward(step);
+  const std::int64_t slot = planRecordSlot(schedule_, step);
   if (slot >= 0) {
     std::memcpy(slots_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * sizeof(double));
     ++mutableCounters().statesStored;
@@ -337,9 +353,78 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     }
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
   recomputedStages_.beginRestore(step);
-  if (step == info().stepCount - 1) schedule_.restoreStep(step + 1, visitor);  // x_N: nothing to do
-  schedule_.restoreStep(step, visitor);
+  planRestore(schedule_, info().stepCount, step, visitor);
   if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
+}
+
+BinomialCheckpointing::PlanCounts BinomialCheckpointing::countPlan(std::int64_t steps, std::int64_t slots,
+                                                                   bool keepStages) {
+  // The strategy's own plan (planRecordSlot, planRestore) with a visitor that counts instead of copying
+  // states and stepping, and RecomputedStages' rule for stages=1 on one-double "stage values" (only which
+  // step they belong to matters), in the order of a run: records 0..N-1 (the stages of the last step
+  // recorded, as doRecordStepData), then for e = N-1..0 the restore of e and its step data.
+  struct Counting {
+    internal::RecomputedStages stages;
+    bool keep = false;
+    UnsignedInt128 recomputed = 0;
+    std::int64_t stores = 0, stepDataStored = 0;
+    void loadWorking() {}
+    void load(std::int64_t) {}
+    void store(std::int64_t) { ++stores; }
+    void advance(std::int64_t from, std::int64_t to) {
+      recomputed += static_cast<UnsignedInt128>(to - from);
+      if (keep && to > from) {
+        stages.pending(to - 1);
+        ++stepDataStored;
+      }
+    }
+  } counting;
+  counting.keep = keepStages;
+  counting.stages.reset(keepStages ? 1 : 0);
+  Vector data = Vector::Zero(1);
+  BinomialSchedule schedule;
+  schedule.reset(steps + 1, slots, true);
+  PlanCounts counts;
+  for (std::int64_t step = 0; step < steps; ++step) {
+    if (planRecordSlot(schedule, step) >= 0) ++counts.statesStored;
+  }
+  if (keepStages) {
+    counting.stages.recordLast(steps - 1, data);
+    ++counting.stepDataStored;
+  }
+  for (std::int64_t e = steps - 1; e >= 0; --e) {
+    if (keepStages) counting.stages.beginRestore(e);
+    planRestore(schedule, steps, e, counting);
+    if (keepStages && counting.stages.restore(e, data)) ++counts.stepDataRestored;
+  }
+  counts.recomputedSteps = counting.recomputed;
+  counts.ramWrites = counts.statesStored + counting.stores;
+  counts.stepDataStored = counting.stepDataStored;
+  return counts;
+}
+
+BinomialCheckpointing::PlanCounts BinomialCheckpointing::closedFormCounts(std::int64_t steps,
+                                                                          std::int64_t slots,
+                                                                          bool keepStages) {
+  // revolve's formulas (the header): R(N, S) = T(N + 1, S) - N, the first sweep's pushes and the
+  // checkpoint writes of the whole schedule. With stages=1 (RecomputedStages' rule): the adjoint step
+  // of e has its stages when e = N - 1 (the forward sweep's last step, never recomputed) or when the
+  // restore of e + 1 recomputed (its last step is e -> e + 1). The restores that recompute nothing are
+  // those of the checkpoint positions, each stored once and loaded once directly: `writes` - 1 of them
+  // among x_1 .. x_{N-1}. A restore that recomputes stores stage values after every advance (one more
+  // than its checkpoint stores); summed over the backward sweep with the forward sweep's one record
+  // that is N minus the first sweep's pushes.
+  PlanCounts counts;
+  counts.recomputedSteps = revolve::optimalRecomputedSteps(steps, slots);
+  const std::int64_t firstPushes = revolve::firstSweep(steps + 1, slots).pushes;
+  const std::int64_t writes = revolve::checkpointWrites(steps + 1, slots);
+  counts.statesStored = 1 + firstPushes;
+  counts.ramWrites = writes;
+  if (keepStages) {
+    counts.stepDataRestored = steps - writes + 1;
+    counts.stepDataStored = steps - firstPushes;
+  }
+  return counts;
 }
 
 void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
@@ -363,26 +448,21 @@ void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const Stor
         (keepStages ? " and two step records of " + formatBytes(recordBytes / 2) : "") +
         ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
   }
-  // The count first: beyond 2^63 it is refused before the O(slots + r) walks below.
-  p.recomputedSteps =
-      prediction::checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
-  const std::int64_t firstPushes = revolve::firstSweep(steps + 1, slots).pushes;
-  const std::int64_t writes = revolve::checkpointWrites(steps + 1, slots);
+  // The count first: beyond 2^63 it is refused before the plan is run or walked.
+  prediction::checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
+  // The strategy's own plan run with a counting visitor up to 2^24 steps; beyond, revolve's closed forms,
+  // equal to it (tests/storage/binomial_checkpointing_test.cpp compares the two).
+  const PlanCounts counts = steps <= prediction::kMaxWalkedSteps ? countPlan(steps, slots, keepStages)
+                                                                 : closedFormCounts(steps, slots, keepStages);
+  p.recomputedSteps = prediction::checkedCount(counts.recomputedSteps, "recomputed steps");
   p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N, x_N never restored)" +
            (keepStages ? ", stages of the last recomputed step kept" : "");
-  p.statesStored = 1 + firstPushes;
+  p.statesStored = counts.statesStored;
   p.ramReads = steps;
-  p.ramWrites = writes;
+  p.ramWrites = counts.ramWrites;
   if (keepStages) {
-    // RecomputedStages' rule: the adjoint step of e has its stages when e = N - 1 (the forward sweep's
-    // last step, never recomputed) or when the restore of e + 1 recomputed (its last step is
-    // e -> e + 1). The restores that recompute nothing are those of the checkpoint positions, each
-    // stored once and loaded once directly: `writes` - 1 of them among x_1 .. x_{N-1}. A restore that
-    // recomputes stores stage values after every advance (one more than its checkpoint stores); summed
-    // over the backward sweep with the forward sweep's one record that is N minus the first sweep's
-    // pushes.
-    p.stepDataRestored = steps - writes + 1;
-    p.stepDataStored = steps - firstPushes;
+    p.stepDataRestored = counts.stepDataRestored;
+    p.stepDataStored = counts.stepDataStored;
   }
   p.peakRamBytes = prediction::checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
 }

@@ -197,6 +197,19 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   bool keepsStepData() const override { return stages_; }
   std::int64_t checkpoints() const { return checkpoints_; }
 
+  /// The counters of a run of N >= 1 fixed steps with S >= 1 slots (S = min(C + 1, N)) and, with
+  /// keepStages, stages=1 for an integrator with stage values: recomputed steps, statesStored, RAM
+  /// writes (slot copies), stepDataStored and stepDataRestored.
+  struct PlanCounts {
+    UnsignedInt128 recomputedSteps = 0;
+    std::int64_t statesStored = 0, ramWrites = 0, stepDataStored = 0, stepDataRestored = 0;
+  };
+  /// By running the strategy's own plan (the code doRecord and doRestore run) with a counting visitor:
+  /// O(N + actions) time, O(S) memory.
+  static PlanCounts countPlan(std::int64_t steps, std::int64_t slots, bool keepStages);
+  /// By revolve's closed forms, O(S + r): what the prediction uses beyond prediction::kMaxWalkedSteps.
+  static PlanCounts closedFormCounts(std::int64_t steps, std::int64_t slots, bool keepStages);
+
  private:
   void doBegin() override;
   void doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef zdot) override;

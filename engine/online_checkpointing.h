@@ -4,29 +4,35 @@
 // Spec: online:budget=BYTES | online:checkpoints=C[,budget=BYTES]   (default budget 4 GiB).
 // With only a budget, c = floor(budget / stateBytes) - 1 checkpoints (one state is the working state).
 //
-// Algorithm (the aim of Stumm & Walther 2010, "New algorithms for optimal online checkpointing", SIAM
-// J. Sci. Comput. 32(2): revolve's optimum T(N, c) for every N while N is unknown; the rule is a
-// replacement by least predicted cost, as in A-revolve (Hinze & Sternberg 2005) and the last stage of
-// Stumm & Walther's code, here with revolve's exact counts; internal::CostPlacement in
-// engine/online_placement.h):
+// Algorithm (after Stumm & Walther 2010, "New algorithms for optimal online checkpointing", SIAM J. Sci.
+// Comput. 32(2): revolve's optimum T(N, c) for every N while N is unknown, as far as an online rule can;
+// internal::CostPlacement in engine/online_placement.h):
 //  * Forward sweep: the last recorded state is the working state (like revolve's current state); when
 //    the next record arrives it is a checkpoint candidate. The first c candidates are kept. From then on
 //    the c checkpoints s_0 = 0 < s_1 < ... < s_{c-1} cut the trajectory into intervals L_i (the last
 //    one up to the working state), interval i to be reversed with the c - i slots not held by earlier
-//    checkpoints, T(L_i, c - i) forward steps. The candidate replaces the checkpoint j >= 1 that gives
-//    the least sum_i T(L_i, c - i) were the run to end at the next record, unless keeping the placement
-//    is cheaper.
+//    checkpoints, T(L_i, c - i) forward steps. Up to N = beta(c, 2) and beyond beta(c, 3), the candidate
+//    replaces the checkpoint j >= 1 that gives the least sum_i T(L_i, c - i) were the run to end at this
+//    record, unless keeping the placement is cheaper (cost rule). For beta(c, 2) < N <= beta(c, 3) a
+//    candidate is taken every third record, or when it lands on one of the positions revolve holds at
+//    N = beta(c, 3) (then kept), and replaces the latest checkpoint whose merged interval stays within
+//    what its slots reverse at repetition number 2 (three-step rule, as Stumm & Walther's second
+//    algorithm; the details in engine/online_placement.h).
 //  * Backward sweep, N known: x_{N-1} is the working state; interval j (last to first) is reversed by
 //    the offline binomial schedule (BinomialSchedule) with the c - j slots not held by s_0..s_{j-1}.
 // The forward steps, counted like revolve's T(N, c) (see binomial_checkpointing.h), are
 //     (N - 1) + sum_i T(L_i, c - i)  >=  T(N, c),
 // equal to predictedForwardSteps(N, c) exactly. What is known of them (tests/storage/
-// online_checkpointing_test.cpp; measured, not proven): equal to the offline optimum T(N, c) for every
-// N <= beta(c, 2) (c <= 60 checked), where Stumm & Walther prove their online algorithm optimal; at most
-// 1.08 T(N, c) for N <= beta(c, 3) and c = 2..50 (1.071 at c = 2, <= 1.05 for c >= 3), and beyond, up
-// to N = 10^5, at most 1.14 T(N, c) for c = 2 and 1.07 T(N, c) for c = 3..50 (the ratios per c in
-// docs/guides/storage_strategies.md). c = 1: T(N, 1) exactly.
-// Cost of the rule: O(1) evaluations of T per record and O(c) per replacement.
+// online_checkpointing_test.cpp): equal to the offline optimum T(N, c) for every N <= beta(c, 2) + 1
+// (c <= 60 checked), where Stumm & Walther prove their online algorithm optimal. No online rule can be
+// at T(N, c) for every N up to beta(c, 2) + 2 (exhaustive search over every placement, c = 2..6), so
+// one forward step above it somewhere in (beta(c, 2), beta(c, 3)] is the least possible there; the three-step
+// rule is at most T(N, c) + 1 for every N <= beta(c, 3) when c <= 9 and T(N, c) + 2 for c = 10..60
+// (worst ratio 1.071 at c = 2, 1.048 at c = 3, <= 1.025 for c >= 5). Beyond beta(c, 3), up to N = 10^5,
+// measured at most 1.14 T(N, c) for c = 2 and 1.07 T(N, c) for c = 3..50 (the ratios per c in
+// docs/guides/storage_strategies.md); no bound is proven there. c = 1: T(N, 1) exactly.
+// Cost of the rules: O(1) evaluations of T per record and O(c) per replacement (cost rule), O(c) per
+// candidate taken, about every third record (three-step rule).
 // Memory: at most c checkpoints plus one working state, allocated on first use and charged with
 // holdBytes(); it never exceeds the budget. counters().statesStored counts the checkpoint writes of
 // the forward sweep plus the final working state x_{N-1} (the copy made at every step is not counted).

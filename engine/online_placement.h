@@ -16,14 +16,22 @@
 
 namespace hindsight::internal {
 
-/// `online`'s placement (the rule and what is known of it: engine/online_checkpointing.h). Once c
-/// checkpoints are held, each record offers the previous working state q; with the intervals L_i between
-/// the held positions (interval i reversed later by revolve with c - i slots, T(L_i, c - i) forward
-/// steps), q replaces the checkpoint j >= 1 whose removal (its two intervals merge, the later ones gain a
-/// slot each, q starts a new last interval) gives the least total sum_i T(L_i, c - i) were the run to end
-/// at the next record, provided that total is not above keeping the placement (ties: the earlier j, and
-/// replacing). Only the last interval changes between replacements, so a record costs O(1) evaluations
-/// of T and a replacement O(c).
+/// `online`'s placement (the rules and what is known of them: engine/online_checkpointing.h). Once c
+/// checkpoints are held, each record offers the previous working state q; the intervals L_i between the
+/// held positions are reversed later by revolve with c - i slots (T(L_i, c - i) forward steps).
+///  * Cost rule (run lengths N <= beta(c, 2) and N > beta(c, 3)): q replaces the checkpoint j >= 1 whose
+///    removal (its two intervals merge, the later ones gain a slot each, q starts a new last interval)
+///    gives the least total sum_i T(L_i, c - i) were the run to end at this record, provided that total
+///    is not above keeping the placement (ties: the earlier j, and replacing). Only the last interval
+///    changes between replacements, so a record costs O(1) evaluations of T and a replacement O(c).
+///  * Three-step rule (beta(c, 2) < N <= beta(c, 3), after Stumm & Walther's second online algorithm):
+///    q is taken when the last interval has reached 3 steps, or when q is the next of the final
+///    positions F_k = sum_{i<k} beta(c - i, 2) (the placement revolve has at N = beta(c, 3)) in order;
+///    a checkpoint taken at F_k stays until beta(c, 3). q replaces the latest checkpoint j >= 1 not at a
+///    final position whose two intervals merge into at most beta(s, 2) steps, s = c - j + 1 the slots
+///    of the merged interval (the most an interval of s slots holds at repetition number 2); landing on
+///    F_k before the last interval has 3 steps replaces the latest checkpoint if it is not final. O(c)
+///    per taken candidate, about every third record.
 class CostPlacement {
  public:
   static constexpr std::int64_t kSkipped = -2;   ///< offer(): the candidate is not kept
@@ -35,11 +43,18 @@ class CostPlacement {
     // No allocation while recording, up to 2^16 checkpoints (a budget-derived c can be far larger than N).
     const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints, 1 << 16));
     positions_.reserve(reserve);
+    final_.reserve(reserve);
+    final_.clear();
     own_.reserve(reserve);
     grow_.reserve(reserve);
     suffix_.reserve(reserve + 1);
     innerBest_ = 0;
     innerIndex_ = -1;
+    second_ = revolve::beta(checkpoints, 2);
+    third_ = revolve::beta(checkpoints, 3);
+    nextFinal_ = second_;
+    finalCount_ = 1;
+    stale_ = false;
   }
   /// The held positions, increasing; position i is in slot i.
   const std::vector<std::int64_t>& positions() const { return positions_; }
@@ -53,10 +68,17 @@ class CostPlacement {
     const std::int64_t c = checkpoints_;
     if (held < c) {
       positions_.push_back(q);
+      final_.push_back(held == 0);  // x_0 is never dropped
       if (held + 1 == c) rebuild();
       return kAppended;
     }
-    if (c == 1) return kSkipped;                      // one interval: nothing to merge
+    if (c == 1) return kSkipped;                               // one interval: nothing to merge
+    const auto steps = static_cast<UnsignedInt128>(step) + 1;  // the run's length were it to end now
+    if (steps > second_ && steps <= third_) return offerThreeStep(q);
+    if (stale_) {
+      rebuild();
+      stale_ = false;
+    }
     const std::int64_t last = q - positions_.back();  // the last interval if q is kept (>= 1)
     // Keeping the placement: the last interval (1 slot) grows by one, T(l + 1, 1) - T(l, 1) = l. Taking
     // q: the old last interval ends at q, the new one (one step) costs nothing.
@@ -76,8 +98,7 @@ class CostPlacement {
       index = c - 1;
     }
     if (best > skip) return kSkipped;
-    positions_.erase(positions_.begin() + index);
-    positions_.push_back(q);
+    drop(index, q, false);
     rebuild();
     return index;
   }
@@ -96,6 +117,38 @@ class CostPlacement {
 
  private:
   __extension__ typedef __int128 Cost;
+
+  // Drops checkpoint j and appends q (marked final or not).
+  void drop(std::int64_t j, std::int64_t q, bool final) {
+    positions_.erase(positions_.begin() + j);
+    final_.erase(final_.begin() + j);
+    positions_.push_back(q);
+    final_.push_back(final);
+  }
+  // The three-step rule (class comment). The cost rule's tables are rebuilt once it resumes.
+  std::int64_t offerThreeStep(std::int64_t q) {
+    const std::int64_t c = checkpoints_;
+    const bool landing = finalCount_ < c && static_cast<UnsignedInt128>(q) == nextFinal_;
+    const bool early = q - positions_.back() < 3;
+    if (early && !landing) return kSkipped;
+    for (std::int64_t j = c - 1; j >= 1; --j) {
+      const auto u = static_cast<std::size_t>(j);
+      if (final_[u]) continue;
+      const std::int64_t end = j + 1 < c ? positions_[u + 1] : q;
+      // Landing early on a final position drops the latest checkpoint whatever its merged length.
+      if (!(early && j == c - 1) &&
+          static_cast<UnsignedInt128>(end - positions_[u - 1]) > revolve::beta(c - j + 1, 2))
+        continue;
+      drop(j, q, landing);
+      if (landing) {
+        nextFinal_ += revolve::beta(c - finalCount_, 2);
+        ++finalCount_;
+      }
+      stale_ = true;
+      return j;
+    }
+    return kSkipped;
+  }
   static Cost revolveSteps(std::int64_t length, std::int64_t slots) {
     if (length <= 1) return 0;
     if (slots == 1) return static_cast<Cost>(length) * static_cast<Cost>(length - 1) / 2;
@@ -132,6 +185,10 @@ class CostPlacement {
 
   std::int64_t checkpoints_ = 1;
   std::vector<std::int64_t> positions_;
+  std::vector<char> final_;  // position i is a final position of the three-step rule (or x_0)
+  UnsignedInt128 second_ = 0, third_ = 0, nextFinal_ = 0;
+  std::int64_t finalCount_ = 1;  // final positions held, x_0 included
+  bool stale_ = false;           // own_, grow_, suffix_ not rebuilt since the three-step rule moved
   std::vector<Cost> own_, grow_, suffix_;
   Cost innerBest_ = 0;
   std::int64_t innerIndex_ = -1;

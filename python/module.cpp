@@ -901,6 +901,10 @@ py::list storageSpecs() {
     entry["summary"] = doc != nullptr ? doc->summary : std::string();
     entry["exact"] = doc != nullptr ? py::object(py::bool_(doc->exact)) : py::object(py::none());
     entry["example"] = doc != nullptr ? doc->example : name;
+    // The registry's prediction: whether `hindsight.schedule` predicts the strategy, and why not.
+    const StorageStrategyRow* row = findStorageStrategy(storageStrategies(), name);
+    entry["predicted"] = row != nullptr && row->predict != nullptr;
+    entry["not_predicted"] = row != nullptr && row->predict == nullptr ? row->notPredicted : std::string();
     out.append(entry);
   }
   return out;

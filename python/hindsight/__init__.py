@@ -396,7 +396,8 @@ def _hermite(grid, states, rates, wanted):
 
 def storage_specs():
     """Every storage strategy of the C++ factory with its keys and their documentation: a list of dicts
-    (name, summary, exact, example, key_docs = {key: doc})."""
+    (name, summary, exact, example, key_docs = {key: doc}, predicted: whether schedule() predicts it,
+    not_predicted: why not, else "")."""
     return [Result(entry) for entry in _hindsight._storage_specs()]
 
 

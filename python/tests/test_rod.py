@@ -5,6 +5,7 @@ import subprocess
 
 import h5py
 import numpy as np
+import pytest
 
 import hindsight
 from conftest import COARSE, COARSE_SET
@@ -111,6 +112,18 @@ def test_storage_specs_come_from_the_factory():
         assert hindsight.check_storage_spec(spec.example)
     binomial = next(s for s in specs if s.name == "binomial")
     assert "checkpoints" in binomial.key_docs and binomial.exact is True
+    # The registry's prediction: a predicted row is predicted by schedule(), the others say why not
+    # and schedule() refuses them with that reason.
+    for spec in specs:
+        assert isinstance(spec.predicted, bool)
+        if spec.predicted:
+            assert spec.not_predicted == ""
+        else:
+            assert spec.not_predicted, spec.name
+            with pytest.raises(ValueError, match="is not predicted"):
+                hindsight.schedule(spec.example, steps=10, state_bytes=16, stages=1)
+    assert binomial.predicted and next(s for s in specs if s.name == "online").predicted
+    hindsight.schedule(binomial.example, steps=10, state_bytes=16, stages=1)
 
 
 def test_full_order_model_equals_cli_bitwise(cli, tmp_path):

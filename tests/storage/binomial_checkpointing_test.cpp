@@ -237,6 +237,39 @@ TEST_P(BinomialOnPendulum, BitwiseGradientOfFullAndOptimalRecomputation) {
   }
 }
 
+// The prediction runs the strategy's own plan with a counting visitor (up to 2^24 steps) and uses
+// revolve's closed forms beyond: the two agree counter by counter, with and without stages=1, on every
+// N up to 300 for 1..9 slots and on larger cases. (The counting run itself is held equal to real runs by
+// tests/storage/prediction_grid_test.cpp.)
+TEST(BinomialCheckpointing, ClosedFormCountsEqualTheCountingRunOfItsPlan) {
+  const auto expectEqual = [](std::int64_t steps, std::int64_t slots, bool keepStages) {
+    const auto run = BinomialCheckpointing::countPlan(steps, slots, keepStages);
+    const auto closed = BinomialCheckpointing::closedFormCounts(steps, slots, keepStages);
+    const std::string where =
+        "N = " + std::to_string(steps) + ", S = " + std::to_string(slots) + (keepStages ? ", stages=1" : "");
+    EXPECT_EQ(toString(run.recomputedSteps), toString(closed.recomputedSteps)) << where;
+    EXPECT_EQ(run.statesStored, closed.statesStored) << where;
+    EXPECT_EQ(run.ramWrites, closed.ramWrites) << where;
+    EXPECT_EQ(run.stepDataStored, closed.stepDataStored) << where;
+    EXPECT_EQ(run.stepDataRestored, closed.stepDataRestored) << where;
+  };
+  for (std::int64_t steps = 1; steps <= 300; ++steps) {
+    for (std::int64_t slots = 1; slots <= std::min<std::int64_t>(9, steps); ++slots) {
+      expectEqual(steps, slots, false);
+      expectEqual(steps, slots, true);
+    }
+  }
+  for (const auto& [steps, slots] : {std::pair<std::int64_t, std::int64_t>{1000, 3},
+                                     {10'000, 11},
+                                     {30'001, 11},
+                                     {100'000, 51},
+                                     {65'536, 2},
+                                     {5000, 5000}}) {
+    expectEqual(steps, slots, false);
+    expectEqual(steps, slots, true);
+  }
+}
+
 TEST(BinomialCheckpointing, ReusableForASecondRun) {
   Pendulum problem;
   const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
