@@ -9,6 +9,7 @@
 #include <Eigen/SparseLU>
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -150,7 +151,8 @@ class NelsonSystem {
 // K - lambda_i M cost 4.6 s where the deflated solves cost about 1 s.
 //
 // A mode whose iteration does not reach the tolerance within the iteration limit (a gap lambda_{n+1} /
-// lambda_n close to 1) is solved directly with Nelson's modified operator instead. Every column's
+// lambda_n close to 1), or meets a direction of non-positive curvature (an operator that is not positive
+// definite on range(Q)), is solved directly with Nelson's modified operator instead. Every column's
 // arithmetic is its own, in a fixed order: the same bits for any thread count and any grouping.
 struct DeflatedAdjoint {
   static constexpr double kTolerance = 1e-14;  // on ||r_k|| / ||r_0||, r = Q^T (h - (K - lambda M) x)
@@ -179,7 +181,7 @@ DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis
     const auto count = static_cast<Eigen::Index>(members.size());
     Matrix x = Matrix::Zero(rows, count), r(rows, count), z(rows, count), p(rows, count), w(rows, count);
     Vector rho(count), initialNorm(count);
-    std::vector<char> active(static_cast<std::size_t>(count), 1);
+    std::vector<char> active(static_cast<std::size_t>(count), 1), failed(static_cast<std::size_t>(count), 0);
     StiffnessFactorization::RowBlock block, scratch;
     std::vector<Eigen::Index> columns;
     columns.reserve(static_cast<std::size_t>(count));
@@ -220,7 +222,15 @@ DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis
         auto wc = w.col(c);
         wc.noalias() = stiffness * pc;
         wc.noalias() -= basis.eigenvalues(i) * (mass * pc);
-        const double alpha = rho(c) / pc.dot(wc);
+        const double curvature = pc.dot(wc);
+        if (!(curvature > 0.0 && std::isfinite(curvature) && rho(c) > 0.0)) {
+          // Not positive definite on range(Q) after all (the modes are not the lowest, or a gap of ~1):
+          // stop at once and leave the mode to the direct solve below.
+          active[static_cast<std::size_t>(c)] = 0;
+          failed[static_cast<std::size_t>(c)] = 1;
+          continue;
+        }
+        const double alpha = rho(c) / curvature;
         x.col(c) += alpha * pc;
         auto rc = r.col(c);
         rc -= alpha * wc;
@@ -245,7 +255,7 @@ DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis
     for (Eigen::Index c = 0; c < count; ++c) {
       const int i = members[static_cast<std::size_t>(c)];
       auto solution = out.solutions.col(i);
-      if (active[static_cast<std::size_t>(c)]) {
+      if (active[static_cast<std::size_t>(c)] || failed[static_cast<std::size_t>(c)]) {
         out.iterations[static_cast<std::size_t>(i)] = -1;  // not converged: solved directly below
         continue;
       }

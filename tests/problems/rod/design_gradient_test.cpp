@@ -225,6 +225,15 @@ TEST(DesignGradient, AdjointNelsonAgreesWithNelsonPerVariable) {
         << nx;
     direct.adjointIterationLimit = -1;
     EXPECT_THROW(computeDesignGradient(model, basis, weights, direct, extras), std::invalid_argument);
+    // A mode whose eigenvalue lies above the first discarded one makes K - lambda M indefinite on the
+    // complement of the kept modes: the iteration meets non-positive curvature or does not converge, and
+    // the mode goes to the factorised operator (the others keep iterating).
+    ModalBasis shifted = basis;
+    shifted.eigenvalues(modes - 1) = 3.0 * basis.firstDiscardedEigenvalue;
+    const DesignGradientResult fallback =
+        computeDesignGradient(model, shifted, weights, DesignGradientOptions{}, extras);
+    EXPECT_EQ(fallback.factorizations, 1) << nx;
+    EXPECT_TRUE(fallback.gradient.allFinite()) << nx;
   }
 }
 
