@@ -162,13 +162,13 @@ struct DeflatedAdjoint {
 
 DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis,
                                    const StiffnessFactorization& stiffnessFactorization,
-                                   const Matrix& rightHandSides, int iterationLimit) {
+                                   const Matrix& massModes, const Matrix& rightHandSides,
+                                   int iterationLimit) {
   const int n = basis.eigenmodeCount;
   const Eigen::Index rows = model.freeDofCount();
   const SparseMatrix& stiffness = model.stiffness();
   const SparseMatrix& mass = model.mass();
   const Matrix& modes = basis.modesFree;
-  const Matrix massModes = mass * modes;
   DeflatedAdjoint out;
   out.solutions.resize(rows, n);
   out.iterations.assign(static_cast<std::size_t>(n), 0);
@@ -422,14 +422,15 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
   const SparseMatrix& mass = model.mass();
   const bool adjointRoute = options.method == EigenvectorSensitivityMethod::AdjointNelson;
   DeflatedAdjoint adjoints;
+  // M phi_i on the free DOFs, once for the right-hand sides, the deflation and the per-mode chain.
+  const Matrix massModesFree = mass * basis.modesFree;
   if (adjointRoute) {
     Matrix rightHandSides(model.freeDofCount(), n);
     for (int i = 0; i < n; ++i) {
-      const Vector massTimesMode = mass * basis.modesFree.col(i);
       rightHandSides.col(i) =
-          modeGradient.col(i) - modeGradient.col(i).dot(basis.modesFree.col(i)) * massTimesMode;
+          modeGradient.col(i) - modeGradient.col(i).dot(basis.modesFree.col(i)) * massModesFree.col(i);
     }
-    adjoints = solveAdjointNelson(model, basis, stiffnessFactorization, rightHandSides,
+    adjoints = solveAdjointNelson(model, basis, stiffnessFactorization, massModesFree, rightHandSides,
                                   options.adjointIterationLimit);
   }
   std::unique_ptr<Permutation> ordering;
@@ -446,7 +447,7 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     const double eigenvalue = basis.eigenvalues(i);
     const Vector& modeFree = basis.modesFree.col(i);
     const Vector gradientOfMode = modeGradient.col(i);
-    const Vector massTimesMode = mass * modeFree;
+    const Vector massTimesMode = massModesFree.col(i);
     const double projection = gradientOfMode.dot(modeFree);
     const Vector modeFull = modes.col(i);
 
