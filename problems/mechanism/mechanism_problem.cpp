@@ -727,6 +727,30 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   for (int i = 0; i < m; ++i) B.zeta[I.dependent[i]] = B.rhs[i];
 }
 
+// Springs and dampers: tension k (l - l0) + d l' pulls point1 towards point2; their generalised forces are
+// added to `out`. One code for the full-coordinate reference and the chord path (both after kinematics).
+template <typename T>
+void addSpringForces(const MechanismProblem::Impl& I, Buffers<T>& B, T* out, const T& zero) {
+  T cc, ccd;
+  I.chord(B, true, cc, ccd, zero);
+  Pt<T> a, b;
+  for (const SpringRef& sp : I.springs) {
+    I.point(sp.p1, B, true, cc, ccd, zero, a);
+    I.point(sp.p2, B, true, cc, ccd, zero, b);
+    const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
+    using std::sqrt;
+    const T l = sqrt(d0 * d0 + d1 * d1);
+    if (!(valueOf(l) > 0.0))
+      throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
+    const T e0 = d0 / l, e1 = d1 / l;
+    const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
+    const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
+    const T f0 = tension * e0, f1 = tension * e1;
+    I.addJT(sp.p1, a, f0, f1, -1.0, B, out, 1);
+    I.addJT(sp.p2, b, f0, f1, 1.0, B, out, 1);
+  }
+}
+
 /// out = M(z) x - (with `rest`) Q(z, z', t): the generalised inertia, gravity, elastic and spring forces
 /// (see the header). x has length nz.
 template <typename T>
@@ -810,25 +834,7 @@ void generalizedForce(const MechanismProblem::Impl& I, const View& P, Buffers<T>
     F[3 + i] = fi;
   }
   if (!rest) return;
-  // Springs and dampers: tension k (l - l0) + d l' pulls point1 towards point2.
-  T cc, ccd;
-  I.chord(B, true, cc, ccd, zero);
-  Pt<T> a, b;
-  for (const SpringRef& sp : I.springs) {
-    I.point(sp.p1, B, true, cc, ccd, zero, a);
-    I.point(sp.p2, B, true, cc, ccd, zero, b);
-    const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
-    using std::sqrt;
-    const T l = sqrt(d0 * d0 + d1 * d1);
-    if (!(valueOf(l) > 0.0))
-      throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
-    const T e0 = d0 / l, e1 = d1 / l;
-    const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
-    const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
-    const T f0 = tension * e0, f1 = tension * e1;
-    I.addJT(sp.p1, a, f0, f1, -1.0, B, out, 1);
-    I.addJT(sp.p2, b, f0, f1, 1.0, B, out, 1);
-  }
+  addSpringForces(I, B, out, zero);
 }
 
 /// r = R^T (M (R a + zeta) - Q) after kinematics().
@@ -1016,24 +1022,7 @@ void chordForce(const MechanismProblem::Impl& C, const View& P, Buffers<T>& B, c
   phi[1] = rho1;
   phi[2] = thdd;
   phi[3] = thd;
-  T cc, ccd;
-  C.chord(B, true, cc, ccd, zero);
-  Pt<T> a, b;
-  for (const SpringRef& sp : C.springs) {
-    C.point(sp.p1, B, true, cc, ccd, zero, a);
-    C.point(sp.p2, B, true, cc, ccd, zero, b);
-    const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
-    using std::sqrt;
-    const T l = sqrt(d0 * d0 + d1 * d1);
-    if (!(valueOf(l) > 0.0))
-      throw NumericalError("a spring's two points coincide (its direction is undefined)", 0.0);
-    const T e0 = d0 / l, e1 = d1 / l;
-    const T ld = e0 * (b.Pd[0] - a.Pd[0]) + e1 * (b.Pd[1] - a.Pd[1]);
-    const T tension = sp.stiffness * (l - sp.restLength) + sp.damping * ld;
-    const T f0 = tension * e0, f1 = tension * e1;
-    C.addJT(sp.p1, a, f0, f1, -1.0, B, out, 1);
-    C.addJT(sp.p2, b, f0, f1, 1.0, B, out, 1);
-  }
+  addSpringForces(C, B, out, zero);
 }
 
 /// B.r = R^T (M (R sigma'' + zeta) - Q) of the chord system after its kinematics.
