@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
@@ -144,13 +146,18 @@ struct Buffers {
         a1(n),
         x(nz),
         sn((nz - n) / 3),
-        cs((nz - n) / 3) {}
+        cs((nz - n) / 3),
+        trigAngle((nz - n) / 3, std::numeric_limits<double>::quiet_NaN()) {}
   std::vector<T> z, zd, zdd, F, zeta, phi, phit, quad, rhs, jac, lu;
   std::vector<int> piv;
   std::vector<T> R, r, b, y, v, mq, h, a1, x;
   // sin and cos of every body's angle (the member last) at z: one evaluation per constraint pass
   // instead of one per point.
   std::vector<T> sn, cs;
+  // In double: the angles sn, cs were evaluated at (NaN: none yet). Newton's iterations move few
+  // angles (a driven crank's is exact after the first, a prismatic slider's never moves), and a sine
+  // of the same bits has the same bits.
+  std::vector<double> trigAngle;
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
@@ -350,7 +357,14 @@ struct MechanismProblem::Impl {
   /// B.sn, B.cs at B.z.
   template <typename T>
   void updateTrig(Buffers<T>& B) const {
-    for (int k = 0; k <= nr; ++k) sinCos(B.z[bodyOffset(k) + 2], B.sn[k], B.cs[k]);
+    for (int k = 0; k <= nr; ++k) {
+      if constexpr (std::is_same_v<T, double>) {
+        const double angle = B.z[bodyOffset(k) + 2];
+        if (std::memcmp(&angle, &B.trigAngle[k], sizeof angle) == 0) continue;  // bitwise (-0 is not 0)
+        B.trigAngle[k] = angle;
+      }
+      sinCos(B.z[bodyOffset(k) + 2], B.sn[k], B.cs[k]);
+    }
   }
 
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
@@ -448,8 +462,10 @@ struct MechanismProblem::Impl {
 
   /// Newton's method on the dependent coordinates of B.z (double), the independent ones held fixed.
   /// Returns the last step's size; `iterations` < 0: until the step is below tol (throws after 50).
-  double newton(double t, Buffers<double>& B, int iterations, double tol) const {
-    double step = 0.0;
+  /// With `quadratic` also when the convergence is quadratic and predicts the next step below
+  /// 1e-16: e_(k+1) ~ C s_k^2 with C ~ s_k / s_(k-1)^2 (one factorisation fewer than waiting for it).
+  double newton(double t, Buffers<double>& B, int iterations, double tol, bool quadratic = false) const {
+    double step = 0.0, previous = 0.0;
     for (int it = 0; iterations < 0 ? it < 50 : it < iterations; ++it) {
       constraints(t, B, true, false, 0.0);
       for (int j = 0; j < m; ++j) {
@@ -467,6 +483,10 @@ struct MechanismProblem::Impl {
       }
       if (!std::isfinite(step)) break;
       if (iterations < 0 && step <= tol) return step;
+      if (quadratic && it >= 1 && step <= 1e-7 && step < previous &&
+          step * step * step <= 1e-16 * previous * previous)
+        return step;
+      previous = step;
     }
     if (iterations < 0 || !std::isfinite(step)) {
       throw NumericalError("the mechanism cannot be assembled (Newton on the constraints did not converge)",
@@ -476,8 +496,9 @@ struct MechanismProblem::Impl {
   }
 
   /// Simplified Newton from B.z (double): Phi_u factorised once there; at least two and at most
-  /// `iterations` corrections, ending when one is below 1e-15 (each step depends on B.z only, so the
-  /// result is a function of the start).
+  /// `iterations` corrections, ending when one is below 1e-15 or the linear rate s_k / s_(k-1) predicts
+  /// the next below 1e-17 (each step depends on B.z only, so the result is a function of the start).
+  /// Leaves Phi_u of the start factorised in B.lu and Phi_z, Phi_t of the start in B.jac, B.phit.
   void polish(double t, Buffers<double>& B, int iterations) const {
     constraints(t, B, true, false, 0.0);
     for (int j = 0; j < m; ++j) {
@@ -486,6 +507,7 @@ struct MechanismProblem::Impl {
     if (!luFactor(B.lu.data(), B.piv.data(), m)) {
       throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
     }
+    double previous = 0.0;
     for (int it = 0; it < iterations; ++it) {
       if (it > 0) constraints(t, B, false, false, 0.0);
       for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
@@ -495,7 +517,8 @@ struct MechanismProblem::Impl {
         B.z[dependent[i]] -= B.rhs[i];
         step = std::max(step, std::abs(B.rhs[i]));
       }
-      if (it >= 1 && step <= 1e-15) break;
+      if (it >= 1 && (step <= 1e-15 || (step < previous && step * step <= 1e-17 * previous))) break;
+      previous = step;
     }
   }
 
@@ -526,6 +549,8 @@ struct Work final : ProblemWorkspace {
         zChord(C.nz),
         sigmaLast(C.f),
         zLast(C.nz),
+        tangentT(C.m),
+        tangentS(C.m, C.f),
         sigmaKinematics(C.f),
         sigmaDotKinematics(C.f),
         sigmaTwo(C.f),
@@ -564,6 +589,10 @@ struct Work final : ProblemWorkspace {
   bool warm = false;
   double tLast = 0.0;
   Vector sigmaLast, zLast;
+  // The tangent of the solution at the last point (the predictor of a short move).
+  bool tangentValid = false;
+  Vector tangentT;
+  Matrix tangentS;
   // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
   // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
   // point.
@@ -625,12 +654,25 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
                          t);
   }
   const int steps = std::max(1, static_cast<int>(pieces));
-  for (int k = 1; k <= steps; ++k) {
-    const double theta = static_cast<double>(k) / steps;
-    const double tk = k == steps ? t : tStart + (t - tStart) * theta;
-    for (int i = 0; i < C.f; ++i)
-      B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
-    C.newton(tk, B, -1, 1e-11);
+  if (steps == 1 && w.tangentValid) {
+    // A short move: the first-order predictor along the last point's tangent (error of the order of
+    // the move squared) and Newton with the quadratic test. Only the grid point below depends on it.
+    const double dt = t - tStart;
+    for (int i = 0; i < C.m; ++i) {
+      double u = zStart(C.dependent[i]) + w.tangentT(i) * dt;
+      for (int j = 0; j < C.f; ++j) u += w.tangentS(i, j) * (sigma(j) - yStart(j));
+      B.z[C.dependent[i]] = u;
+    }
+    for (int i = 0; i < C.f; ++i) B.z[C.independent[i]] = sigma(i);
+    C.newton(t, B, -1, 1e-11, true);
+  } else {
+    for (int k = 1; k <= steps; ++k) {
+      const double theta = static_cast<double>(k) / steps;
+      const double tk = k == steps ? t : tStart + (t - tStart) * theta;
+      for (int i = 0; i < C.f; ++i)
+        B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
+      C.newton(tk, B, -1, 1e-11);
+    }
   }
   // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
   // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
@@ -640,6 +682,17 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
     u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
   }
   C.polish(t, B, 3);
+  // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point
+  // (polish() left it factorised): du/dt = -Phi_u^-1 Phi_t, du/dsigma = -Phi_u^-1 Phi_sigma.
+  for (int i = 0; i < C.m; ++i) B.rhs[i] = -B.phit[i];
+  luSolve(B.lu.data(), B.piv.data(), C.m, B.rhs.data());
+  for (int i = 0; i < C.m; ++i) w.tangentT(i) = B.rhs[i];
+  for (int j = 0; j < C.f; ++j) {
+    for (int i = 0; i < C.m; ++i) B.rhs[i] = -B.jac[i + C.m * C.independent[j]];
+    luSolve(B.lu.data(), B.piv.data(), C.m, B.rhs.data());
+    for (int i = 0; i < C.m; ++i) w.tangentS(i, j) = B.rhs[i];
+  }
+  w.tangentValid = true;
   for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
   w.warm = true;
   w.tLast = t;
