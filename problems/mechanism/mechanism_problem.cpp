@@ -27,9 +27,14 @@ constexpr int kSmall = 24;
 constexpr int kLarge = 2 * (MechanismProblem::kMaxModes + MechanismProblem::kMaxFree);
 using ADS = ADOf<kSmall>;
 using ADL = ADOf<kLarge>;
-/// Two fixed directions: the chord kinematics in (c, c') or, with one free coordinate fewer, (sigma,
-/// sigma'); fixed size, so no loop over a dynamic derivative vector.
-using AD2 = Eigen::AutoDiffScalar<Eigen::Vector2d>;
+/// Fixed numbers of directions: no loop over a dynamic derivative vector. AD2: the chord kinematics in
+/// (sigma_j, sigma'_j); AD9: the residual's Jacobians of a mechanism without free coordinates (c, c'
+/// and the seven moments); AD3: the parameter product's (c, c', c'').
+template <int N>
+using ADFixed = Eigen::AutoDiffScalar<Eigen::Matrix<double, N, 1>>;
+using AD2 = ADFixed<2>;
+using AD3 = ADFixed<3>;
+using AD9 = ADFixed<9>;
 
 inline double valueOf(double x) { return x; }
 template <typename D>
@@ -47,11 +52,12 @@ struct Make<double> {
   /// A value with the derivatives of d (the implicit-function step).
   static double withDerivatives(double v, double) { return v; }
 };
-template <>
-struct Make<AD2> {
-  static AD2 constant(double v, int) { return AD2(v, Eigen::Vector2d::Zero()); }
-  static AD2 variable(double v, int, int i) { return AD2(v, 2, i); }
-  static AD2 withDerivatives(double v, const AD2& d) { return AD2(v, d.derivatives()); }
+template <int N>
+struct Make<ADFixed<N>> {
+  using D = Eigen::Matrix<double, N, 1>;
+  static ADFixed<N> constant(double v, int) { return ADFixed<N>(v, D::Zero()); }
+  static ADFixed<N> variable(double v, int, int i) { return ADFixed<N>(v, N, i); }
+  static ADFixed<N> withDerivatives(double v, const ADFixed<N>& d) { return ADFixed<N>(v, d.derivatives()); }
 };
 template <int C>
 struct Make<ADOf<C>> {
@@ -161,11 +167,12 @@ struct Buffers {
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
-inline void sinCos(const AD2& x, AD2& s, AD2& c) {
+template <int N>
+void sinCos(const ADFixed<N>& x, ADFixed<N>& s, ADFixed<N>& c) {
   double sv, cv;
   dmath::sincos(x.value(), &sv, &cv);
-  s = AD2(sv, cv * x.derivatives());
-  c = AD2(cv, -sv * x.derivatives());
+  s = ADFixed<N>(sv, cv * x.derivatives());
+  c = ADFixed<N>(cv, -sv * x.derivatives());
 }
 template <int C>
 void sinCos(const ADOf<C>& x, ADOf<C>& s, ADOf<C>& c) {
@@ -545,6 +552,8 @@ struct Work final : ProblemWorkspace {
         cd(C.nz, C.m, C.f, 1),
         cs(C.nz, C.m, C.f, 1),
         c2(C.nz, C.m, C.f, 1),
+        c3(C.nz, C.m, C.f, 1),
+        c9(C.nz, C.m, C.f, 1),
         zStar(I.nz),
         zChord(C.nz),
         sigmaLast(C.f),
@@ -558,7 +567,6 @@ struct Work final : ProblemWorkspace {
         sigma(C.f),
         sigmaDot(C.f),
         sigmaDdot(C.f),
-        seedDdot(C.f),
         luStar(I.m * I.m),
         pivStar(I.m),
         x0(I.m),
@@ -583,8 +591,10 @@ struct Work final : ProblemWorkspace {
   Buffers<double> cd;
   Buffers<ADS> cs;
   Buffers<AD2> c2;
-  Vector zStar;   ///< full coordinates of the reference path
-  Vector zChord;  ///< solved positions of the chord system
+  Buffers<AD3> c3;  ///< the parameter product
+  Buffers<AD9> c9;  ///< the Jacobians without free coordinates
+  Vector zStar;     ///< full coordinates of the reference path
+  Vector zChord;    ///< solved positions of the chord system
   // Warm start of Newton: the last solved (t, sigma, z).
   bool warm = false;
   double tLast = 0.0;
@@ -606,7 +616,6 @@ struct Work final : ProblemWorkspace {
   Vector sigmaTwo, sigmaDotTwo;
   // sigma = (free coordinates, b q) and its derivatives at the current call.
   Vector sigma, sigmaDot, sigmaDdot;
-  std::vector<ADS> seedDdot;
   // Phi_u at the solved positions, factorised (the implicit-function step of the dual passes).
   std::vector<double> luStar;
   std::vector<int> pivStar;
@@ -706,9 +715,12 @@ enum class Part { All, Positions, Velocities };
 
 /// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
 /// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
+/// rStar (dual passes whose b is constant): R of the same point in double (column-major nz x f), whose
+/// dependent rows are the implicit function's derivatives, du = R_u dy; without it one Newton
+/// correction in dual numbers gives them (b may then carry derivatives).
 template <typename T>
 void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, const Vector& zStar,
-                int nd, Part part = Part::All) {
+                int nd, Part part = Part::All, const double* rStar = nullptr) {
   const T zero = Make<T>::constant(0.0, nd);
   const int m = I.m, f = I.f, nz = I.nz;
   // Phi_u^{-1}: in double a factorisation at this point, kept in w.luStar for the dual passes; in dual
@@ -734,12 +746,21 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
     for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
     for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
     if constexpr (!std::is_same_v<T, double>) {
-      // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
-      I.constraints(t, B, false, false, zero);
-      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
-      luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
-      for (int i = 0; i < m; ++i)
-        B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
+      if (rStar != nullptr) {
+        for (int i = 0; i < m; ++i) {
+          const int u = I.dependent[i];
+          T du = zero;
+          for (int j = 0; j < f; ++j) du += rStar[u + nz * j] * B.y[j];
+          B.z[u] = Make<T>::withDerivatives(zStar(u), du);
+        }
+      } else {
+        // u = u* - Phi_u^{-1} Phi(z): the value u*, the derivative of the implicit function.
+        I.constraints(t, B, false, false, zero);
+        for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+        luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+        for (int i = 0; i < m; ++i)
+          B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
+      }
     }
     I.constraints(t, B, true, false, zero);
     if constexpr (std::is_same_v<T, double>) {
@@ -1342,9 +1363,10 @@ void MechanismProblem::initialCoordinates(ConstVectorRef, VectorRef y0, VectorRe
 
 namespace {
 
-/// Dual numbers that are constants, except the listed directions.
-void constants(const double* values, int count, int nd, ADS* out) {
-  for (int i = 0; i < count; ++i) out[i] = Make<ADS>::constant(values[i], nd);
+/// Dual numbers that are constants.
+template <typename ADT>
+void constants(const double* values, int count, int nd, ADT* out) {
+  for (int i = 0; i < count; ++i) out[i] = Make<ADT>::constant(values[i], nd);
 }
 
 /// Widens the dual numbers of the chord system's kinematics from `from` to `to` directions (the
@@ -1472,10 +1494,12 @@ void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl&
   }
 }
 
-/// The chord system's kinematics in two directions, sigma_j (0) and sigma'_j (1), into w.cs with nd
-/// directions, the two at dy and dv (the others zero).
-void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, int j, int nd, int dy,
-                            int dv) {
+/// The chord system's kinematics in two directions, sigma_j (0) and sigma'_j (1), into B with nd
+/// directions, the two at dy and dv (the others zero). Needs chordKinematics() at the same point (its R
+/// gives the positions' derivatives).
+template <typename ADT>
+void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, int j, int nd, int dy, int dv,
+                            Buffers<ADT>& B) {
   Buffers<AD2>& A = w.c2;
   // The adjoint asks for the Jacobians and the parameter product at one point; without free
   // coordinates both seed (c, c').
@@ -1486,20 +1510,18 @@ void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, 
       A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
     }
     A.b[0] = Make<AD2>::constant(1.0, 2);
-    kinematics(C, t, A, w, w.zChord, 2);
+    kinematics(C, t, A, w, w.zChord, 2, Part::All, w.cd.R.data());
     w.twoValid = true;
     w.twoSeed = j;
     w.tTwo = t;
     w.sigmaTwo = w.sigma;
     w.sigmaDotTwo = w.sigmaDot;
   }
-  auto put = [&](const AD2& x, ADS& out) {
-    DerivativesOf<kSmall> d = DerivativesOf<kSmall>::Zero(nd);
-    d(dy) = x.derivatives()(0);
-    d(dv) = x.derivatives()(1);
-    out = ADS(x.value(), d);
+  auto put = [&](const AD2& x, ADT& out) {
+    out = Make<ADT>::constant(x.value(), nd);
+    out.derivatives()(dy) = x.derivatives()(0);
+    out.derivatives()(dv) = x.derivatives()(1);
   };
-  Buffers<ADS>& B = w.cs;
   for (int i = 0; i < C.nz; ++i) {
     put(A.z[i], B.z[i]);
     put(A.zd[i], B.zd[i]);
@@ -1559,56 +1581,54 @@ void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, Co
   for (int l = 0; l < n; ++l) r(nf + l) = modalRow(P, w, phi, l) + P.b(l) * w.cd.r[nf];
 }
 
-void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv,
-                                         ProblemWorkspace* ws) const {
-  const Impl& I = *impl_;
-  const Impl& C = *chord_;
-  Work& w = workOf(ws);
-  const View P(I.n, p.data());
+namespace {
+
+/// The chord path's r_y, r_y' after chordKinematics() and modalProducts() (mom) at the point, with dual
+/// numbers of type ADT (AD9 without free coordinates, ADS with them).
+template <typename ADT>
+void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
+                    const double* mom, const Matrix& mee, MatrixRef ry, MatrixRef rv, Work& w,
+                    Buffers<ADT>& B) {
   const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
-  const Matrix& mee = meeOf(P, w);
-  double mom[kMoments];
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
   // Dual numbers in sigma (k), sigma' (k) and the seven moments that depend on q or q' (the chain to
   // q, q' below): the chord system's Jacobians in 2k + 7 directions, whatever the number of modes.
   const int nd = 2 * k + 7;
   const int dSw0 = 2 * k, dSw1 = dSw0 + 1, dJw = dSw0 + 2, dA1a = dSw0 + 3, dC1v0 = dSw0 + 4,
             dC1v1 = dSw0 + 5, dHv = dSw0 + 6;
-  Buffers<ADS>& B = w.cs;
-  if (k == 1) {
-    twoDirectionKinematics(C, t, w, 0, nd, 0, 1);
-  } else {
+  if constexpr (std::is_same_v<ADT, ADS>) {
     for (int i = 0; i < k; ++i) {
       B.y[i] = Make<ADS>::variable(w.sigma(i), 2 * k, i);
       B.v[i] = Make<ADS>::variable(w.sigmaDot(i), 2 * k, k + i);
     }
     B.b[0] = Make<ADS>::constant(1.0, 2 * k);
-    kinematics(C, t, B, w, w.zChord, 2 * k);
+    kinematics(C, t, B, w, w.zChord, 2 * k, Part::All, w.cd.R.data());
     widen(C, B, 2 * k, nd);
+  } else {
+    static_assert(std::is_same_v<ADT, AD9>, "fixed-size Jacobians are for k = 1 (2 k + 7 = 9 directions)");
+    assert(k == 1);
+    twoDirectionKinematics(C, t, w, 0, nd, 0, 1, B);
   }
-  for (int j = 0; j < k; ++j) w.seedDdot[j] = Make<ADS>::constant(w.sigmaDdot(j), nd);
-  ADS m[kMoments], phi[4];
+  ADT seedDdot[MechanismProblem::kMaxFree + 1];
+  for (int j = 0; j < k; ++j) seedDdot[j] = Make<ADT>::constant(w.sigmaDdot(j), nd);
+  ADT m[kMoments], phi[4];
   constants(mom, kMoments, nd, m);
-  m[kSw0] = Make<ADS>::variable(mom[kSw0], nd, dSw0);
-  m[kSw1] = Make<ADS>::variable(mom[kSw1], nd, dSw1);
-  m[kJw] = Make<ADS>::variable(mom[kJw], nd, dJw);
-  m[kA1a] = Make<ADS>::variable(mom[kA1a], nd, dA1a);
-  m[kC1v0] = Make<ADS>::variable(mom[kC1v0], nd, dC1v0);
-  m[kC1v1] = Make<ADS>::variable(mom[kC1v1], nd, dC1v1);
-  m[kHv] = Make<ADS>::variable(mom[kHv], nd, dHv);
-  chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
+  m[kSw0] = Make<ADT>::variable(mom[kSw0], nd, dSw0);
+  m[kSw1] = Make<ADT>::variable(mom[kSw1], nd, dSw1);
+  m[kJw] = Make<ADT>::variable(mom[kJw], nd, dJw);
+  m[kA1a] = Make<ADT>::variable(mom[kA1a], nd, dA1a);
+  m[kC1v0] = Make<ADT>::variable(mom[kC1v0], nd, dC1v0);
+  m[kC1v1] = Make<ADT>::variable(mom[kC1v1], nd, dC1v1);
+  m[kHv] = Make<ADT>::variable(mom[kHv], nd, dHv);
+  chordResidual<ADT>(C, P, B, seedDdot, m, phi, Make<ADT>::constant(0.0, nd));
   const double thdd = phi[2].value(), thd = phi[3].value();
   // d/dq_j and d/dq'_j of a chord scalar: through c = b q, c' = b q' and the moments' gradients
   // (s_w: C1, J_w: 2 h, A1 . a: Ct a, h . q': M_ee q' and h, C1 q': C1).
-  auto dq = [&](const ADS& x, int j) {
+  auto dq = [&](const ADT& x, int j) {
     const auto& d = x.derivatives();
     return d(ci) * P.b(j) + d(dSw0) * P.c1(0, j) + d(dSw1) * P.c1(1, j) + d(dJw) * 2.0 * w.h(j) +
            d(dA1a) * w.ctA(j) + d(dHv) * w.meeV(j);
   };
-  auto dv = [&](const ADS& x, int j) {
+  auto dv = [&](const ADT& x, int j) {
     const auto& d = x.derivatives();
     return d(k + ci) * P.b(j) + d(dC1v0) * P.c1(0, j) + d(dC1v1) * P.c1(1, j) + d(dHv) * w.h(j);
   };
@@ -1628,8 +1648,8 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
     w.vel(j) = dv(B.r[ci], j);
   }
   const auto& drc = B.r[ci].derivatives();
-  const double* ct = p.data() + P.ctOffset();
-  const double* kee = p.data() + P.keeOffset();
+  const double* ct = P.p + P.ctOffset();
+  const double* kee = P.p + P.keeOffset();
   for (int l = 0; l < n; ++l) {
     double u[4];
     modalRowPhi(P, w, thd, l, u);
@@ -1649,6 +1669,28 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
           thdd * ct[j + n * l] + kee[l + n * j] - thd * thd * mee(l, j) + uq * P.b(j) + bl * w.along(j);
       rv(nf + l, nf + j) = -2.0 * thd * ct[l + n * j] + uv * P.b(j) + bl * w.vel(j);
     }
+  }
+}
+
+}  // namespace
+
+void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                         ConstVectorRef p, MatrixRef ry, MatrixRef rv,
+                                         ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int nf = I.nFree;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  const Matrix& mee = meeOf(P, w);
+  double mom[kMoments];
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
+  if (C.f == 1) {
+    chordJacobians(I, C, P, t, mom, mee, ry, rv, w, w.c9);
+  } else {
+    chordJacobians(I, C, P, t, mom, mee, ry, rv, w, w.cs);
   }
 }
 
@@ -1686,15 +1728,16 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   // b: through c = b q, c' = b q', c'' = b a (dual numbers in these three) and the explicit b rho_c of
   // the modal rows.
   const int nd = 3;
-  Buffers<ADS>& B = w.cs;
+  Buffers<AD3>& B = w.c3;
+  AD3 seedDdot[kMaxFree + 1];
   for (int i = 0; i < k; ++i) {
-    w.seedDdot[i] =
-        i == ci ? Make<ADS>::variable(w.sigmaDdot(i), nd, 2) : Make<ADS>::constant(w.sigmaDdot(i), nd);
+    seedDdot[i] =
+        i == ci ? Make<AD3>::variable(w.sigmaDdot(i), nd, 2) : Make<AD3>::constant(w.sigmaDdot(i), nd);
   }
-  twoDirectionKinematics(C, t, w, ci, nd, 0, 1);
-  ADS m[kMoments], phi[4];
+  twoDirectionKinematics(C, t, w, ci, nd, 0, 1, B);
+  AD3 m[kMoments], phi[4];
   constants(mom, kMoments, nd, m);
-  chordResidual<ADS>(C, P, B, w.seedDdot.data(), m, phi, Make<ADS>::constant(0.0, nd));
+  chordResidual<AD3>(C, P, B, seedDdot, m, phi, Make<AD3>::constant(0.0, nd));
   // mu . r = mu_f . r_f + mu_q . F_q + (mu_q . b) r_c; F_q depends on c through phi.
   double muU[4] = {0.0, 0.0, 0.0, 0.0};
   for (int l = 0; l < n; ++l) {
