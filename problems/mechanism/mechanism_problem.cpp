@@ -502,31 +502,24 @@ struct MechanismProblem::Impl {
     return step;
   }
 
-  /// Simplified Newton from B.z (double): Phi_u factorised once there; at least two and at most
-  /// `iterations` corrections, ending when one is below 1e-15 or the linear rate s_k / s_(k-1) predicts
-  /// the next below 1e-17 (each step depends on B.z only, so the result is a function of the start).
-  /// Leaves Phi_u of the start factorised in B.lu and Phi_z, Phi_t of the start in B.jac, B.phit.
-  void polish(double t, Buffers<double>& B, int iterations) const {
-    constraints(t, B, true, false, 0.0);
-    for (int j = 0; j < m; ++j) {
-      for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * dependent[j]];
+  /// One simplified Newton correction of B.z's dependent coordinates with the factorised Phi_u (lu,
+  /// piv) and Phi in B.phi (with `evaluate` first evaluated at B.z); returns the step's size.
+  double correct(double t, Buffers<double>& B, const double* lu, const int* piv, bool evaluate) const {
+    if (evaluate) constraints(t, B, false, false, 0.0);
+    for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
+    luSolve(lu, piv, m, B.rhs.data());
+    double step = 0.0;
+    for (int i = 0; i < m; ++i) {
+      B.z[dependent[i]] -= B.rhs[i];
+      step = std::max(step, std::abs(B.rhs[i]));
     }
-    if (!luFactor(B.lu.data(), B.piv.data(), m)) {
-      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-    }
-    double previous = 0.0;
-    for (int it = 0; it < iterations; ++it) {
-      if (it > 0) constraints(t, B, false, false, 0.0);
-      for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
-      luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
-      double step = 0.0;
-      for (int i = 0; i < m; ++i) {
-        B.z[dependent[i]] -= B.rhs[i];
-        step = std::max(step, std::abs(B.rhs[i]));
-      }
-      if (it >= 1 && (step <= 1e-15 || (step < previous && step * step <= 1e-17 * previous))) break;
-      previous = step;
-    }
+    return step;
+  }
+
+  /// Simplified Newton's stopping rule: the step is below 1e-15, or the linear rate s_k / s_(k-1)
+  /// predicts the next below 1e-17.
+  static bool settled(double step, double previous, int it) {
+    return step <= 1e-15 || (it >= 1 && step < previous && step * step <= 1e-17 * previous);
   }
 
   double driverDistance(double t0, double t1) const {
@@ -560,6 +553,10 @@ struct Work final : ProblemWorkspace {
         zLast(C.nz),
         tangentT(C.m),
         tangentS(C.m, C.f),
+        gridZ(C.m),
+        gridLu(C.m * C.m),
+        gridFirst(C.m),
+        gridPiv(C.m),
         sigmaKinematics(C.f),
         sigmaDotKinematics(C.f),
         sigmaTwo(C.f),
@@ -599,10 +596,16 @@ struct Work final : ProblemWorkspace {
   bool warm = false;
   double tLast = 0.0;
   Vector sigmaLast, zLast;
-  // The tangent of the solution at the last point (the predictor of a short move).
+  // The tangent of the solution at the last grid point (the predictor of a short move).
   bool tangentValid = false;
   Vector tangentT;
   Matrix tangentS;
+  // The last polish (solvePositions()): its time and grid point, Phi_u factorised there, its first
+  // correction and that correction's size.
+  bool gridValid = false;
+  double gridT = 0.0, gridStep = 0.0;
+  std::vector<double> gridZ, gridLu, gridFirst;
+  std::vector<int> gridPiv;
   // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
   // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
   // point.
@@ -663,17 +666,32 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
                          t);
   }
   const int steps = std::max(1, static_cast<int>(pieces));
+  const int m = C.m;
+  const bool sameTime = w.gridValid && t == w.gridT;
   if (steps == 1 && w.tangentValid) {
     // A short move: the first-order predictor along the last point's tangent (error of the order of
     // the move squared) and Newton with the quadratic test. Only the grid point below depends on it.
     const double dt = t - tStart;
-    for (int i = 0; i < C.m; ++i) {
+    for (int i = 0; i < m; ++i) {
       double u = zStart(C.dependent[i]) + w.tangentT(i) * dt;
       for (int j = 0; j < C.f; ++j) u += w.tangentS(i, j) * (sigma(j) - yStart(j));
       B.z[C.dependent[i]] = u;
     }
     for (int i = 0; i < C.f; ++i) B.z[C.independent[i]] = sigma(i);
-    C.newton(t, B, -1, 1e-11, true);
+    // At the time of the last grid point (the integrator's Newton iterations move sigma by little),
+    // simplified Newton with that point's Phi_u first: its rate is the move, so a few evaluations
+    // without a factorisation; full Newton if it is slow.
+    bool settledWarm = false;
+    if (sameTime) {
+      double previous = 0.0;
+      for (int it = 0; it < 4 && !settledWarm; ++it) {
+        const double step = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), true);
+        if (!std::isfinite(step)) break;
+        settledWarm = C.settled(step, previous, it);
+        previous = step;
+      }
+    }
+    if (!settledWarm) C.newton(t, B, -1, 1e-11, true);
   } else {
     for (int k = 1; k <= steps; ++k) {
       const double theta = static_cast<double>(k) / steps;
@@ -686,22 +704,51 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
   // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
   // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
   // error by about 5e-7 times the constraints' curvature.
-  for (int i = 0; i < C.m; ++i) {
+  bool sameGrid = sameTime;
+  for (int i = 0; i < m; ++i) {
     double& u = B.z[C.dependent[i]];
     u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
+    if (std::memcmp(&u, &w.gridZ[i], sizeof u) != 0) sameGrid = false;
   }
-  C.polish(t, B, 3);
-  // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point
-  // (polish() left it factorised): du/dt = -Phi_u^-1 Phi_t, du/dsigma = -Phi_u^-1 Phi_sigma.
-  for (int i = 0; i < C.m; ++i) B.rhs[i] = -B.phit[i];
-  luSolve(B.lu.data(), B.piv.data(), C.m, B.rhs.data());
-  for (int i = 0; i < C.m; ++i) w.tangentT(i) = B.rhs[i];
-  for (int j = 0; j < C.f; ++j) {
-    for (int i = 0; i < C.m; ++i) B.rhs[i] = -B.jac[i + C.m * C.independent[j]];
-    luSolve(B.lu.data(), B.piv.data(), C.m, B.rhs.data());
-    for (int i = 0; i < C.m; ++i) w.tangentS(i, j) = B.rhs[i];
+  // The polish: simplified Newton from the grid point with Phi_u factorised there, two or three
+  // corrections (settled()). Its first correction, the factorisation and the tangent below are
+  // functions of (t, grid point), so when both are those of the last polish they are taken from it
+  // with the same bits.
+  double previous = 0.0;
+  if (sameGrid) {
+    for (int i = 0; i < m; ++i) B.z[C.dependent[i]] = w.gridFirst[i];
+    previous = w.gridStep;
+  } else {
+    C.constraints(t, B, true, false, 0.0);
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) w.gridLu[i + m * j] = B.jac[i + m * C.dependent[j]];
+    }
+    if (!luFactor(w.gridLu.data(), w.gridPiv.data(), m)) {
+      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+    }
+    for (int i = 0; i < m; ++i) w.gridZ[i] = B.z[C.dependent[i]];
+    w.gridT = t;
+    // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point:
+    // du/dt = -Phi_u^-1 Phi_t, du/dsigma = -Phi_u^-1 Phi_sigma.
+    for (int i = 0; i < m; ++i) B.rhs[i] = -B.phit[i];
+    luSolve(w.gridLu.data(), w.gridPiv.data(), m, B.rhs.data());
+    for (int i = 0; i < m; ++i) w.tangentT(i) = B.rhs[i];
+    for (int j = 0; j < C.f; ++j) {
+      for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * C.independent[j]];
+      luSolve(w.gridLu.data(), w.gridPiv.data(), m, B.rhs.data());
+      for (int i = 0; i < m; ++i) w.tangentS(i, j) = B.rhs[i];
+    }
+    w.tangentValid = true;
+    previous = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), false);  // Phi of the grid point
+    for (int i = 0; i < m; ++i) w.gridFirst[i] = B.z[C.dependent[i]];
+    w.gridStep = previous;
+    w.gridValid = true;
   }
-  w.tangentValid = true;
+  for (int it = 1; it < 3; ++it) {
+    const double step = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), true);
+    if (C.settled(step, previous, it)) break;
+    previous = step;
+  }
   for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
   w.warm = true;
   w.tLast = t;
