@@ -580,7 +580,10 @@ struct Work final : ProblemWorkspace {
         ctA(I.n),
         meeV(I.n),
         along(I.n),
-        vel(I.n) {}
+        vel(I.n),
+        qKey(I.n),
+        vKey(I.n),
+        aKey(I.n) {}
   Buffers<double> d;
   Buffers<ADS> s;
   Buffers<ADL> l;
@@ -627,8 +630,12 @@ struct Work final : ProblemWorkspace {
   // The symmetric part of M_ee: once per solve for a workspace made for a fixed p.
   bool parametersFixed = false;
   Matrix meeSym;
-  // Products of the modal coordinates with the invariant matrices (modalProducts()).
+  // Products of the modal coordinates with the invariant matrices (modalProducts()), the member's
+  // moments, and the q, q', a they were formed from (kept only for a fixed p).
   Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel;
+  double moments[kMoments] = {};
+  Vector qKey, vKey, aKey;
+  bool qKept = false, vKept = false, aKept = false, aZero = false, vJacobian = false, aJacobian = false;
 };
 
 Work& workOf(ProblemWorkspace* ws) {
@@ -1061,53 +1068,83 @@ const Matrix& meeOf(const View& P, Work& w) {
   return w.meeSym;
 }
 
+/// Whether x[0, n) has the bits kept in key (kept: a workspace made for a fixed p).
+bool keptBits(const double* x, const Vector& key, bool kept) {
+  return kept && std::memcmp(x, key.data(), sizeof(double) * key.size()) == 0;
+}
+
 /// The products of q, q', q'' = a with the invariant matrices into the workspace (M_ee q, h = c2 +
 /// M_ee q, A1 = a0 + Ct^T q, K_ee q, Ct q', M_ee a; with `jacobian` also Ct a and M_ee q') and the
-/// member's moments (enum Moment). a == nullptr stands for a = 0. O(n^2).
+/// member's moments (enum Moment). a == nullptr stands for a = 0. O(n^2). For a workspace made for a
+/// fixed p, the products of q, of q' and of a are kept with the bits they were formed from: the engine
+/// asks for the mass matrix, the Jacobians, the force and the parameter product at one point.
 void modalProducts(const View& P, const Matrix& mee, const double* q, const double* v, const double* a,
                    bool jacobian, Work& w, double* moments) {
   const int n = P.n;
+  const bool keep = w.parametersFixed;
   const Eigen::Map<const Vector> Q(q, n), V(v, n);
   const Eigen::Map<const Matrix> ct(P.p + P.ctOffset(), n, n), kee(P.p + P.keeOffset(), n, n);
-  w.meeQ.noalias() = mee * Q;
-  w.a1.noalias() = ct.transpose() * Q;
-  w.keeQ.noalias() = kee * Q;
-  w.ctV.noalias() = ct * V;
-  double sw0 = P.mc(0), sw1 = P.mc(1), jw = P.j0(), a1a = 0.0, c1a0 = 0.0, c1a1 = 0.0, c1v0 = 0.0, c1v1 = 0.0,
-         hv = 0.0;
-  for (int i = 0; i < n; ++i) {
-    w.h(i) = P.c2(i) + w.meeQ(i);
-    w.a1(i) += P.a0(i);
-    sw0 += P.c1(0, i) * q[i];
-    sw1 += P.c1(1, i) * q[i];
-    jw += (2.0 * P.c2(i) + w.meeQ(i)) * q[i];
-    c1v0 += P.c1(0, i) * v[i];
-    c1v1 += P.c1(1, i) * v[i];
-    hv += w.h(i) * v[i];
-  }
-  if (a != nullptr) {
-    const Eigen::Map<const Vector> A(a, n);
-    w.meeA.noalias() = mee * A;
+  if (!keptBits(q, w.qKey, keep && w.qKept)) {
+    w.meeQ.noalias() = mee * Q;
+    w.a1.noalias() = ct.transpose() * Q;
+    w.keeQ.noalias() = kee * Q;
+    double sw0 = P.mc(0), sw1 = P.mc(1), jw = P.j0();
     for (int i = 0; i < n; ++i) {
-      a1a += w.a1(i) * a[i];
-      c1a0 += P.c1(0, i) * a[i];
-      c1a1 += P.c1(1, i) * a[i];
+      w.h(i) = P.c2(i) + w.meeQ(i);
+      w.a1(i) += P.a0(i);
+      sw0 += P.c1(0, i) * q[i];
+      sw1 += P.c1(1, i) * q[i];
+      jw += (2.0 * P.c2(i) + w.meeQ(i)) * q[i];
     }
-    if (jacobian) w.ctA.noalias() = ct * A;
-  } else {
-    w.meeA.setZero();
-    if (jacobian) w.ctA.setZero();
+    w.moments[kSw0] = sw0;
+    w.moments[kSw1] = sw1;
+    w.moments[kJw] = jw;
+    std::memcpy(w.qKey.data(), q, sizeof(double) * n);
+    w.qKept = keep;
+    w.vKept = w.aKept = false;  // their moments use h and A1
   }
-  if (jacobian) w.meeV.noalias() = mee * V;
-  moments[kSw0] = sw0;
-  moments[kSw1] = sw1;
-  moments[kJw] = jw;
-  moments[kA1a] = a1a;
-  moments[kC1a0] = c1a0;
-  moments[kC1a1] = c1a1;
-  moments[kC1v0] = c1v0;
-  moments[kC1v1] = c1v1;
-  moments[kHv] = hv;
+  if (!(keptBits(v, w.vKey, keep && w.vKept) && (w.vJacobian || !jacobian))) {
+    w.ctV.noalias() = ct * V;
+    double c1v0 = 0.0, c1v1 = 0.0, hv = 0.0;
+    for (int i = 0; i < n; ++i) {
+      c1v0 += P.c1(0, i) * v[i];
+      c1v1 += P.c1(1, i) * v[i];
+      hv += w.h(i) * v[i];
+    }
+    if (jacobian) w.meeV.noalias() = mee * V;
+    w.moments[kC1v0] = c1v0;
+    w.moments[kC1v1] = c1v1;
+    w.moments[kHv] = hv;
+    std::memcpy(w.vKey.data(), v, sizeof(double) * n);
+    w.vKept = keep;
+    w.vJacobian = jacobian;
+  }
+  const bool aSame =
+      a == nullptr ? (keep && w.aKept && w.aZero) : (!w.aZero && keptBits(a, w.aKey, keep && w.aKept));
+  if (!(aSame && (w.aJacobian || !jacobian))) {
+    double a1a = 0.0, c1a0 = 0.0, c1a1 = 0.0;
+    if (a != nullptr) {
+      const Eigen::Map<const Vector> A(a, n);
+      w.meeA.noalias() = mee * A;
+      for (int i = 0; i < n; ++i) {
+        a1a += w.a1(i) * a[i];
+        c1a0 += P.c1(0, i) * a[i];
+        c1a1 += P.c1(1, i) * a[i];
+      }
+      if (jacobian) w.ctA.noalias() = ct * A;
+      std::memcpy(w.aKey.data(), a, sizeof(double) * n);
+    } else {
+      w.meeA.setZero();
+      if (jacobian) w.ctA.setZero();
+    }
+    w.moments[kA1a] = a1a;
+    w.moments[kC1a0] = c1a0;
+    w.moments[kC1a1] = c1a1;
+    w.aKept = keep;
+    w.aZero = a == nullptr;
+    w.aJacobian = jacobian;
+  }
+  std::copy(w.moments, w.moments + kMoments, moments);
 }
 
 /// The chord system's generalised force out = M z'' - Q (x = z'') on the rigid coordinates and c: the
