@@ -567,6 +567,7 @@ struct Work final : ProblemWorkspace {
         luStar(I.m * I.m),
         pivStar(I.m),
         x0(I.m),
+        x1(I.m),
         mu(I.f),
         nu(I.nz),
         fScratch(I.f),
@@ -625,7 +626,7 @@ struct Work final : ProblemWorkspace {
   // Phi_u at the solved positions, factorised (the implicit-function step of the dual passes).
   std::vector<double> luStar;
   std::vector<int> pivStar;
-  std::vector<double> x0;  ///< scratch of the dual solves (kinematics())
+  std::vector<double> x0, x1;  ///< scratch of the dual solves (kinematics())
   Vector mu, nu, fScratch;
   // The symmetric part of M_ee: once per solve for a workspace made for a fixed p.
   bool parametersFixed = false;
@@ -769,42 +770,59 @@ enum class Part { All, Positions, Velocities };
 
 /// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
 /// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
-/// rStar (dual passes whose b is constant): R of the same point in double (column-major nz x f), whose
-/// dependent rows are the implicit function's derivatives, du = R_u dy; without it one Newton
-/// correction in dual numbers gives them (b may then carry derivatives).
+/// known (dual passes whose b is constant): the double kinematics of the same point (all parts, at the
+/// same y'). Its R's dependent rows are the implicit function's derivatives, du = R_u dy, and its R, z'
+/// and zeta are the solves' values; without it one Newton correction in dual numbers gives du (b may
+/// then carry derivatives) and the solves refine their own double solution.
 template <typename T>
 void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& w, const Vector& zStar,
-                int nd, Part part = Part::All, const double* rStar = nullptr) {
+                int nd, Part part = Part::All, const Buffers<double>* known = nullptr) {
   const T zero = Make<T>::constant(0.0, nd);
   const int m = I.m, f = I.f, nz = I.nz;
   // Phi_u^{-1}: in double a factorisation at this point, kept in w.luStar for the dual passes; in dual
   // numbers that factorisation of the same point and one step of iterative refinement,
   // x = x0 + Phi_u0^{-1} (b - Phi_u x0) with x0 = Phi_u0^{-1} b0, whose derivative
   // Phi_u0^{-1} (b' - Phi_u' x0) is exact: no factorisation in dual numbers.
-  auto solve = [&] {  // B.rhs = Phi_u^{-1} B.rhs
+  // With `known`, x0 is its solution (value, the full vector of nz whose dependent rows are taken) and
+  // only the derivatives are solved, one double solve per direction.
+  auto solve = [&](const double* value) {  // B.rhs = Phi_u^{-1} B.rhs
     if constexpr (std::is_same_v<T, double>) {
       luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
     } else {
       double* x0 = w.x0.data();
-      for (int i = 0; i < m; ++i) x0[i] = B.rhs[i].value();
-      luSolve(w.luStar.data(), w.pivStar.data(), m, x0);
+      if (known != nullptr) {
+        for (int i = 0; i < m; ++i) x0[i] = value[I.dependent[i]];
+      } else {
+        for (int i = 0; i < m; ++i) x0[i] = B.rhs[i].value();
+        luSolve(w.luStar.data(), w.pivStar.data(), m, x0);
+      }
       for (int j = 0; j < m; ++j) {
         const T* column = B.jac.data() + m * I.dependent[j];
         for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
       }
-      luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
-      for (int i = 0; i < m; ++i) B.rhs[i] += x0[i];
+      if (known != nullptr) {
+        double* d = w.x1.data();
+        for (int e = 0; e < nd; ++e) {
+          for (int i = 0; i < m; ++i) d[i] = B.rhs[i].derivatives()(e);
+          luSolve(w.luStar.data(), w.pivStar.data(), m, d);
+          for (int i = 0; i < m; ++i) B.rhs[i].derivatives()(e) = d[i];
+        }
+        for (int i = 0; i < m; ++i) B.rhs[i].value() = x0[i];
+      } else {
+        luSolve(w.luStar.data(), w.pivStar.data(), m, B.rhs.data());
+        for (int i = 0; i < m; ++i) B.rhs[i] += x0[i];
+      }
     }
   };
   if (part != Part::Velocities) {
     for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
     for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
     if constexpr (!std::is_same_v<T, double>) {
-      if (rStar != nullptr) {
+      if (known != nullptr) {
         for (int i = 0; i < m; ++i) {
           const int u = I.dependent[i];
           T du = zero;
-          for (int j = 0; j < f; ++j) du += rStar[u + nz * j] * B.y[j];
+          for (int j = 0; j < f; ++j) du += known->R[u + nz * j] * B.y[j];
           B.z[u] = Make<T>::withDerivatives(zStar(u), du);
         }
       } else {
@@ -832,7 +850,7 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
       T* col = B.R.data() + nz * j;
       for (int i = 0; i < f; ++i) col[I.independent[i]] = Make<T>::constant(i == j ? 1.0 : 0.0, nd);
       for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * I.independent[j]];
-      solve();
+      solve(known != nullptr ? known->R.data() + nz * j : nullptr);
       for (int i = 0; i < m; ++i) col[I.dependent[i]] = B.rhs[i];
     }
   }
@@ -844,13 +862,13 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
     for (int j = 0; j < f; ++j) s += B.jac[i + m * I.independent[j]] * B.v[j];
     B.rhs[i] = -s;
   }
-  solve();
+  solve(known != nullptr ? known->zd.data() : nullptr);
   for (int j = 0; j < f; ++j) B.zd[I.independent[j]] = B.v[j];
   for (int i = 0; i < m; ++i) B.zd[I.dependent[i]] = B.rhs[i];
   // zeta = -Phi_u^{-1} gamma on the dependent rows.
   I.constraints(t, B, false, true, zero);
   for (int i = 0; i < m; ++i) B.rhs[i] = -B.quad[i];
-  solve();
+  solve(known != nullptr ? known->zeta.data() : nullptr);
   for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
   for (int i = 0; i < m; ++i) B.zeta[I.dependent[i]] = B.rhs[i];
 }
@@ -1594,7 +1612,7 @@ void twoDirectionKinematics(const MechanismProblem::Impl& C, double t, Work& w, 
       A.v[i] = i == j ? AD2(w.sigmaDot(i), 2, 1) : Make<AD2>::constant(w.sigmaDot(i), 2);
     }
     A.b[0] = Make<AD2>::constant(1.0, 2);
-    kinematics(C, t, A, w, w.zChord, 2, Part::All, w.cd.R.data());
+    kinematics(C, t, A, w, w.zChord, 2, Part::All, &w.cd);
     w.twoValid = true;
     w.twoSeed = j;
     w.tTwo = t;
@@ -1685,7 +1703,7 @@ void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Imp
       B.v[i] = Make<ADS>::variable(w.sigmaDot(i), 2 * k, k + i);
     }
     B.b[0] = Make<ADS>::constant(1.0, 2 * k);
-    kinematics(C, t, B, w, w.zChord, 2 * k, Part::All, w.cd.R.data());
+    kinematics(C, t, B, w, w.zChord, 2 * k, Part::All, &w.cd);
     widen(C, B, 2 * k, nd);
   } else {
     static_assert(std::is_same_v<ADT, AD9>, "fixed-size Jacobians are for k = 1 (2 k + 7 = 9 directions)");
