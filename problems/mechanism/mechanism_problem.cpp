@@ -220,18 +220,24 @@ void luSolve(const S* a, const int* piv, int m, T* x) {
   for (int k = 0; k < m; ++k) {
     if (piv[k] != k) std::swap(x[k], x[piv[k]]);
   }
+  // x[k] is read into a local: the compiler cannot tell that the stores to x[i] (i != k) leave it alone,
+  // and would load it again in every iteration instead of vectorising the column update.
   for (int k = 0; k < m; ++k) {
+    const T xk = x[k];
     if constexpr (std::is_same_v<T, double>) {
-      if (x[k] == 0.0) continue;
+      if (xk == 0.0) continue;
     }
-    for (int i = k + 1; i < m; ++i) x[i] -= a[i + m * k] * x[k];
+    const S* column = a + m * k;
+    for (int i = k + 1; i < m; ++i) x[i] -= column[i] * xk;
   }
   for (int k = m - 1; k >= 0; --k) {
     x[k] /= a[k + m * k];
+    const T xk = x[k];
     if constexpr (std::is_same_v<T, double>) {
-      if (x[k] == 0.0) continue;
+      if (xk == 0.0) continue;
     }
-    for (int i = 0; i < k; ++i) x[i] -= a[i + m * k] * x[k];
+    const S* column = a + m * k;
+    for (int i = 0; i < k; ++i) x[i] -= column[i] * xk;
   }
 }
 
