@@ -508,6 +508,17 @@ struct MechanismProblem::Impl {
     return step;
   }
 
+  /// Phi, Phi_z, Phi_t at B.z and Phi_u factorised into (lu, piv).
+  void factorise(double t, Buffers<double>& B, double* lu, int* piv) const {
+    constraints(t, B, true, false, 0.0);
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) lu[i + m * j] = B.jac[i + m * dependent[j]];
+    }
+    if (!luFactor(lu, piv, m)) {
+      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+    }
+  }
+
   /// One simplified Newton correction of B.z's dependent coordinates with the factorised Phi_u (lu,
   /// piv) and Phi in B.phi (with `evaluate` first evaluated at B.z); returns the step's size.
   double correct(double t, Buffers<double>& B, const double* lu, const int* piv, bool evaluate) const {
@@ -705,7 +716,22 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
         previous = step;
       }
     }
-    if (!settledWarm) C.newton(t, B, -1, 1e-11, true);
+    if (!settledWarm) {
+      // One Newton step with Phi_u factorised at the predictor, then simplified steps with that
+      // factorisation, whose rate is the predictor's error (about the move squared): two or three
+      // evaluations of Phi instead of a second factorisation. Full Newton if they are slow.
+      C.factorise(t, B, B.lu.data(), B.piv.data());
+      double previous = C.correct(t, B, B.lu.data(), B.piv.data(), false);
+      if (std::isfinite(previous) && previous <= 1e-3) {
+        for (int it = 1; it < 5 && !settledWarm; ++it) {
+          const double step = C.correct(t, B, B.lu.data(), B.piv.data(), true);
+          if (!std::isfinite(step)) break;
+          settledWarm = C.settled(step, previous, it);
+          previous = step;
+        }
+      }
+      if (!settledWarm) C.newton(t, B, -1, 1e-11, true);
+    }
   } else {
     for (int k = 1; k <= steps; ++k) {
       const double theta = static_cast<double>(k) / steps;
@@ -733,13 +759,7 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
     for (int i = 0; i < m; ++i) B.z[C.dependent[i]] = w.gridFirst[i];
     previous = w.gridStep;
   } else {
-    C.constraints(t, B, true, false, 0.0);
-    for (int j = 0; j < m; ++j) {
-      for (int i = 0; i < m; ++i) w.gridLu[i + m * j] = B.jac[i + m * C.dependent[j]];
-    }
-    if (!luFactor(w.gridLu.data(), w.gridPiv.data(), m)) {
-      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-    }
+    C.factorise(t, B, w.gridLu.data(), w.gridPiv.data());
     for (int i = 0; i < m; ++i) w.gridZ[i] = B.z[C.dependent[i]];
     w.gridT = t;
     // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point:
