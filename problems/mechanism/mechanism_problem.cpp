@@ -571,8 +571,8 @@ struct Work final : ProblemWorkspace {
         tangentT(C.m),
         tangentS(C.m, C.f),
         gridZ(C.m),
+        gridSigma(C.f),
         gridLu(C.m * C.m),
-        gridFirst(C.m),
         gridPiv(C.m),
         sigmaKinematics(C.f),
         sigmaDotKinematics(C.f),
@@ -621,11 +621,11 @@ struct Work final : ProblemWorkspace {
   bool tangentValid = false;
   Vector tangentT;
   Matrix tangentS;
-  // The last polish (solvePositions()): its time and grid point, Phi_u factorised there, its first
-  // correction and that correction's size.
+  // The last polish (solvePositions()): its time, grid point and rounded sigma, and Phi_u factorised
+  // there.
   bool gridValid = false;
-  double gridT = 0.0, gridStep = 0.0;
-  std::vector<double> gridZ, gridLu, gridFirst;
+  double gridT = 0.0;
+  std::vector<double> gridZ, gridSigma, gridLu;
   std::vector<int> gridPiv;
   // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
   // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
@@ -743,25 +743,30 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
   }
   // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
   // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
-  // error by about 5e-7 times the constraints' curvature.
+  // error by about 5e-7 times the constraints' curvature. Phi_u is factorised at the grid point with
+  // sigma rounded to the same grid, a function of (t, grid point, rounded sigma): it is kept and serves
+  // the next solve with the same three (the integrator's Newton iterations move sigma and the solution
+  // by far less than the grid), with the same bits. Phi in the corrections is at sigma itself.
+  auto onGrid = [](double x) { return std::ldexp(std::nearbyint(std::ldexp(x, 20)), -20); };
   bool sameGrid = sameTime;
   for (int i = 0; i < m; ++i) {
     double& u = B.z[C.dependent[i]];
-    u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
+    u = onGrid(u);
     if (std::memcmp(&u, &w.gridZ[i], sizeof u) != 0) sameGrid = false;
   }
-  // The polish: simplified Newton from the grid point with Phi_u factorised there, two or three
-  // corrections (settled()). Its first correction, the factorisation and the tangent below are
-  // functions of (t, grid point), so when both are those of the last polish they are taken from it
-  // with the same bits.
-  double previous = 0.0;
-  if (sameGrid) {
-    for (int i = 0; i < m; ++i) B.z[C.dependent[i]] = w.gridFirst[i];
-    previous = w.gridStep;
-  } else {
+  for (int j = 0; j < C.f; ++j) {
+    const double g = onGrid(sigma(j));
+    if (std::memcmp(&g, &w.gridSigma[j], sizeof g) != 0) sameGrid = false;
+  }
+  if (!sameGrid) {
+    for (int j = 0; j < C.f; ++j) {
+      w.gridSigma[j] = onGrid(sigma(j));
+      B.z[C.independent[j]] = w.gridSigma[j];
+    }
     C.factorise(t, B, w.gridLu.data(), w.gridPiv.data());
     for (int i = 0; i < m; ++i) w.gridZ[i] = B.z[C.dependent[i]];
     w.gridT = t;
+    w.gridValid = true;
     // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point:
     // du/dt = -Phi_u^-1 Phi_t, du/dsigma = -Phi_u^-1 Phi_sigma.
     for (int i = 0; i < m; ++i) B.rhs[i] = -B.phit[i];
@@ -773,14 +778,12 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
       for (int i = 0; i < m; ++i) w.tangentS(i, j) = B.rhs[i];
     }
     w.tangentValid = true;
-    previous = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), false);  // Phi of the grid point
-    for (int i = 0; i < m; ++i) w.gridFirst[i] = B.z[C.dependent[i]];
-    w.gridStep = previous;
-    w.gridValid = true;
+    for (int j = 0; j < C.f; ++j) B.z[C.independent[j]] = sigma(j);
   }
-  for (int it = 1; it < 3; ++it) {
+  double previous = 0.0;
+  for (int it = 0; it < 3; ++it) {
     const double step = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), true);
-    if (C.settled(step, previous, it)) break;
+    if (it >= 1 && C.settled(step, previous, it)) break;
     previous = step;
   }
   for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
