@@ -33,20 +33,29 @@
 // the product with b goes through c, c', c'' (three directions) and the explicit b rho_c.
 //
 // Derivatives are exact. The dependent coordinates' derivatives come from the implicit-function
-// theorem: one Newton correction in forward-mode dual numbers at the converged point,
-// u = u* - Phi_u(z*)^{-1} Phi(z), has the value u* and the derivative -Phi_u^{-1} Phi_y; the solves
-// with Phi_u in dual numbers use the double factorisation and one refinement step, whose derivative
-// is exact. The rest of the parameter product (r_p)^T mu is linear in the invariants and written out by
-// hand. The full-coordinate route (z with all of q, R^T (M(z) z'' - Q) by dual numbers in all 2f
-// directions) stays as the tests' reference (the *ByProjection and *ByAutoDiff methods).
+// theorem, du = R_u dy with R of the double kinematics at the same point (in the reference path, whose
+// b carries derivatives, one Newton correction in forward-mode dual numbers at the converged point,
+// u = u* - Phi_u(z*)^{-1} Phi(z)); the solves with Phi_u in dual numbers take their values from the
+// double kinematics and solve for the derivatives Phi_u^{-1} (b' - Phi_u' x) with its factorisation.
+// The dual numbers have fixed sizes where the number of directions is fixed (2 for the kinematics, 9
+// for the Jacobians without free coordinates, 3 for the parameter product). The rest of the parameter
+// product (r_p)^T mu is linear in the invariants and written out by hand. The full-coordinate route (z
+// with all of q, R^T (M(z) z'' - Q) by dual numbers in all 2f directions) stays as the tests' reference
+// (the *ByProjection and *ByAutoDiff methods).
 //
-// Determinism. Newton starts from the configuration of the workspace's previous call (continuation
-// from it when the motion since then is large), so its converged bits would depend on the history of
-// calls. After convergence the dependent coordinates are rounded to a grid of 2^-20 and two or three
-// simplified Newton steps (Phi_u factorised at the grid point) are taken from there: the result is a
-// function of (t, sigma) alone (unless two solutions lie within 1e-16 of a grid midpoint), so every
-// storage strategy and thread count gets the same bits. A workspace keeps the positions and kinematics
-// of its last point: the engine asks for the mass matrix, Jacobians and force at one point.
+// Determinism and cost. Newton starts from the workspace's previous solution, moved along its tangent
+// (du/dt, du/dsigma) for a short move (continuation from it when the motion is large): one
+// factorisation of Phi_u at this predictor and simplified steps with it, ended by their rate. Its
+// converged bits would depend on the history of calls, so the dependent coordinates are then rounded
+// to a grid of 2^-20 and two or three simplified Newton steps are taken from there with Phi_u
+// factorised at the grid point and sigma rounded to the same grid: the result is a function of
+// (t, sigma) alone (unless two solutions lie within 1e-16 of a grid midpoint), so every storage
+// strategy and thread count gets the same bits. That factorisation is a function of (t, grid point,
+// rounded sigma) and is kept for the next solve with the same three (the integrator's Newton
+// iterations), which then needs no factorisation at all. A workspace keeps the positions and
+// kinematics of its last point, the dual kinematics of its last point, the member's products of q, q'
+// and a (for a fixed p), and each body's sine and cosine with the angle's bits: the engine asks for
+// the mass matrix, Jacobians, force and parameter product at one point.
 //
 // Parameters p: the member's invariants in the layout of problems/rod/invariants.h (b = the u_x row of
 // the modes at B, which is how the member's B attaches), so problems/rod/design_gradient.h chains
