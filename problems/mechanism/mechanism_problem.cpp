@@ -570,6 +570,7 @@ struct Work final : ProblemWorkspace {
         zLast(C.nz),
         tangentT(C.m),
         tangentS(C.m, C.f),
+        uPredicted(C.m),
         gridZ(C.m),
         gridSigma(C.f),
         gridLu(C.m * C.m),
@@ -621,6 +622,7 @@ struct Work final : ProblemWorkspace {
   bool tangentValid = false;
   Vector tangentT;
   Matrix tangentS;
+  std::vector<double> uPredicted;  ///< the predictor's dependent coordinates (restarts)
   // The last polish (solvePositions()): its time, grid point and rounded sigma, and Phi_u factorised
   // there.
   bool gridValid = false;
@@ -706,31 +708,35 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
     // At the time of the last grid point (the integrator's Newton iterations move sigma by little),
     // simplified Newton with that point's Phi_u first: its rate is the move, so a few evaluations
     // without a factorisation; full Newton if it is slow.
-    bool settledWarm = false;
-    if (sameTime) {
-      double previous = 0.0;
-      for (int it = 0; it < 4 && !settledWarm; ++it) {
-        const double step = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), true);
-        if (!std::isfinite(step)) break;
-        settledWarm = C.settled(step, previous, it);
+    for (int i = 0; i < m; ++i) w.uPredicted[i] = B.z[C.dependent[i]];
+    auto restart = [&] {
+      for (int i = 0; i < m; ++i) B.z[C.dependent[i]] = w.uPredicted[i];
+    };
+    // Simplified Newton from the correction `first` on (its predecessor's size `previous`); false if
+    // a step grows or is not finite, or after five corrections.
+    auto simplified = [&](const double* lu, const int* piv, double previous, int first) {
+      for (int it = first; it < 5; ++it) {
+        const double step = C.correct(t, B, lu, piv, true);
+        if (!std::isfinite(step) || (it >= 1 && step >= previous)) return false;
+        if (C.settled(step, previous, it)) return true;
         previous = step;
       }
-    }
+      return false;
+    };
+    bool settledWarm = sameTime && simplified(w.gridLu.data(), w.gridPiv.data(), 0.0, 0);
     if (!settledWarm) {
       // One Newton step with Phi_u factorised at the predictor, then simplified steps with that
       // factorisation, whose rate is the predictor's error (about the move squared): two or three
-      // evaluations of Phi instead of a second factorisation. Full Newton if they are slow.
+      // evaluations of Phi instead of a second factorisation. Full Newton from the predictor if they
+      // are slow.
+      restart();
       C.factorise(t, B, B.lu.data(), B.piv.data());
-      double previous = C.correct(t, B, B.lu.data(), B.piv.data(), false);
-      if (std::isfinite(previous) && previous <= 1e-3) {
-        for (int it = 1; it < 5 && !settledWarm; ++it) {
-          const double step = C.correct(t, B, B.lu.data(), B.piv.data(), true);
-          if (!std::isfinite(step)) break;
-          settledWarm = C.settled(step, previous, it);
-          previous = step;
-        }
+      const double first = C.correct(t, B, B.lu.data(), B.piv.data(), false);
+      settledWarm = std::isfinite(first) && first <= 1e-3 && simplified(B.lu.data(), B.piv.data(), first, 1);
+      if (!settledWarm) {
+        restart();
+        C.newton(t, B, -1, 1e-11, true);
       }
-      if (!settledWarm) C.newton(t, B, -1, 1e-11, true);
     }
   } else {
     for (int k = 1; k <= steps; ++k) {
