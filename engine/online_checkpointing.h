@@ -38,7 +38,7 @@
 //  * So online is below Stumm & Walther's count on their whole range beta(c, 2) < N <= beta(c, 3) and
 //    equal to it below (c = 2..60 checked). Beyond beta(c + 1, 3), up to N = 10^5, measured for
 //    c = 2..50: at most 1.31 R(N, c + 1) (c = 2, N = 32), 1.19 (c = 3), 1.12 (c = 5), 1.05 for c >= 9,
-//    1.04 for c >= 11, 1.005 for c >= 37; no bound is proven there, and for some c in 22..36 the cost
+//    1.04 for c >= 11, 1.005 for c >= 37; no bound is proven there, and for c = 22 and 25..36 the cost
 //    rule is up to 0.6 % above T(N, c) - (N - 1) at some N > beta(c, 3) (the table per c in
 //    docs/guides/storage_strategies.md).
 //    c = 1: T(N - 1, 2) exactly.

@@ -304,8 +304,9 @@ TEST_P(OnlineOnPendulum, FixedStepsBitwiseAndAsPredicted) {
   const std::int64_t c = GetParam();
   Pendulum problem;
   const Vector p = Eigen::Vector4d(1.5, 0.8, 0.3, 1.2);
-  // 15 (c = 3), 40 (c = 5) and 1000 (c = 20) lie in (beta(c, 2), beta(c, 3)]: the three-step rule.
-  for (const std::int64_t steps : {1, 2, 3, 7, 15, 40, 64, 1000}) {
+  // 15 (c = 2), 20 (c = 3), 40 (c = 5) and 1000 (c = 20) lie in (beta(c + 1, 2), beta(c + 1, 3)]: the
+  // six-step rule.
+  for (const std::int64_t steps : {1, 2, 3, 7, 15, 20, 40, 64, 1000}) {
     const auto options = pendulumOptions(2.0, 2.0 / static_cast<double>(steps));
     FullStorage full;
     const GradientResult reference = computeGradient(problem, p, options, full);
