@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <ostream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -465,6 +466,33 @@ void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const Stor
     p.stepDataStored = counts.stepDataStored;
   }
   p.peakRamBytes = prediction::checkedProduct(states, stateBytes, "--state-bytes") + recordBytes;
+}
+
+void BinomialCheckpointing::writeActions(const TrajectoryStorage& storage, const StorageSpec&,
+                                         const PredictionRequest& request, std::ostream& out) {
+  // The schedule doBegin, doRecord and doRestore run: revolve over positions 0..N with S slots.
+  const auto& binomial = dynamic_cast<const BinomialCheckpointing&>(storage);
+  const std::int64_t steps = request.steps;
+  const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
+  prediction::ActionWriter writer{out};
+  BinomialSchedule schedule;
+  schedule.reset(steps + 1, slots, true);
+  for (std::int64_t k = 0; k < steps; ++k) {
+    out << "record " << k << '\n';
+    const std::int64_t slot = k == 0 ? 0 : schedule.recordForward(k);
+    if (slot >= 0) writer.store(slot);
+  }
+  struct Skip {
+    void loadWorking() {}
+    void load(std::int64_t) {}
+    void store(std::int64_t) {}
+    void advance(std::int64_t, std::int64_t) {}
+  } skip;
+  schedule.restoreStep(steps, skip);  // x_N: the schedule's end position, never restored
+  for (std::int64_t e = steps - 1; e >= 0; --e) {
+    out << "restore " << e << '\n';
+    schedule.restoreStep(e, writer);
+  }
 }
 
 }  // namespace hindsight

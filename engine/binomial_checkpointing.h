@@ -51,6 +51,7 @@
 
 #include <cassert>
 #include <cstdint>
+#include <iosfwd>
 #include <memory>
 #include <vector>
 
@@ -191,6 +192,9 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
+  /// The registry's action stream: the BinomialSchedule a run executes, written action by action.
+  static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
+                           const PredictionRequest& request, std::ostream& out);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <deque>
 #include <limits>
+#include <ostream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -801,6 +802,39 @@ void CamsCheckpointing::predict(const TrajectoryStorage& storage, const StorageS
   p.stepDataRestored = steps - c.adjointRecomputations;
   p.statesStored = c.forwardStores;  // the strategy counts the checkpoints of the forward sweep
   p.ramReads = steps;
+}
+
+void CamsCheckpointing::writeActions(const TrajectoryStorage& storage, const StorageSpec&,
+                                     const PredictionRequest& request, std::ostream& out) {
+  const auto& cams = dynamic_cast<const CamsCheckpointing&>(storage);
+  if (cams.onlineRequested()) {
+    throw std::invalid_argument(
+        "--actions prints offline plans; cams with online=1 thins its checkpoints "
+        "during the forward sweep (print its counts without --actions)");
+  }
+  // Step records of `stages` state units (the state and S - 1 stage states), as predict counts them;
+  // none for one stage.
+  const std::int64_t units = cams.usableUnits(request.stateBytes, false);
+  std::vector<cams::Action> actions;
+  const std::int64_t recordUnits =
+      request.stages > 1 ? request.stages : std::numeric_limits<std::int32_t>::max();
+  cams::simulate(cams::Plan(request.steps, units, recordUnits), &actions);
+  for (const cams::Action& a : actions) {
+    switch (a.kind) {
+      case cams::Action::Kind::StoreState:
+        out << "store ram state " << a.from << '\n';
+        break;
+      case cams::Action::Kind::StoreRecord:
+        out << "store ram record " << a.from << '\n';
+        break;
+      case cams::Action::Kind::Advance:
+        out << "advance " << a.from << ' ' << a.to << '\n';
+        break;
+      case cams::Action::Kind::Deliver:
+        out << "restore " << a.from << (a.withStageValues ? " with stages\n" : " recompute stages\n");
+        break;
+    }
+  }
 }
 
 }  // namespace hindsight

@@ -62,6 +62,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cstdint>
+#include <iosfwd>
 #include <limits>
 #include <memory>
 #include <string>
@@ -291,6 +292,10 @@ class CamsCheckpointing final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
+  /// The registry's action stream: the plan's actions (cams::simulate), step records of `stages` state
+  /// units; the online mode (online=1) is refused, its placement not being a fixed plan.
+  static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
+                           const PredictionRequest& request, std::ostream& out);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

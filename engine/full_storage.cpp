@@ -100,4 +100,9 @@ void FullStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
   p.peakRamBytes = steps * 8 * rowDoubles;  // <= full.budget (checked above)
 }
 
+void FullStorage::writeActions(const TrajectoryStorage&, const StorageSpec&, const PredictionRequest& request,
+                               std::ostream& out) {
+  prediction::writeEveryStateActions(request.steps, StorageLevel::kRam, out);
+}
+
 }  // namespace hindsight

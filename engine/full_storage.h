@@ -11,6 +11,7 @@
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -25,6 +26,9 @@ class FullStorage final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
+  /// The registry's action stream: every state recorded into its own RAM slot and loaded back.
+  static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
+                           const PredictionRequest& request, std::ostream& out);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

@@ -30,6 +30,8 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
           "(default 0)"}}},
        &FullStorage::create,
        &FullStorage::predict,
+       {},
+       &FullStorage::writeActions,
        {}},
       {{"binomial",
         "revolve-optimal offline checkpointing for a known number of steps (Griewank & Walther 2000); fixed "
@@ -45,6 +47,8 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
           "recomputation evaluates no right-hand side (default 0)"}}},
        &BinomialCheckpointing::create,
        &BinomialCheckpointing::predict,
+       {},
+       &BinomialCheckpointing::writeActions,
        {}},
       {{"online",
         "checkpointing while the number of steps is unknown (adaptive steps), re-planned with the binomial "
@@ -58,7 +62,10 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
           "recomputation evaluates no right-hand side (default 0)"}}},
        &OnlineCheckpointing::create,
        &OnlineCheckpointing::predict,
-       {}},
+       {},
+       nullptr,
+       "--actions prints offline plans; online thins its checkpoints during the forward sweep (print its "
+       "counts without --actions)"},
       {{"cams",
         "optimal stage-aware checkpointing (after Zhang & Constantinescu, CAMS): checkpoints hold states or "
         "a "
@@ -76,6 +83,8 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
           "adaptive steps always use it)"}}},
        &CamsCheckpointing::create,
        &CamsCheckpointing::predict,
+       {},
+       &CamsCheckpointing::writeActions,
        {}},
   };
   return rows;

@@ -45,7 +45,7 @@ UnsignedInt128 OnlineCheckpointing::forwardStepsOf(const std::vector<std::int64_
   const auto held = static_cast<std::int64_t>(positions.size());
   for (std::int64_t j = 0; j < held; ++j) {
     const std::int64_t end = j + 1 < held ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
-    total += revolve::optimalForwardSteps(end - positions[static_cast<std::size_t>(j)], c - j);
+    total += revolve::optimalForwardSteps(end - positions[static_cast<std::size_t>(j)], c + 1 - j);
   }
   return total;
 }
@@ -60,6 +60,11 @@ void OnlineCheckpointing::releaseAll() {
 }
 
 double* OnlineCheckpointing::slot(std::int64_t index) {
+  // Slot c is the working state's memory: free for the backward sweep once x_{N-1} is consumed.
+  if (index == activeCheckpoints_) {
+    assert(!workingValid_ && working_);
+    return working_.get();
+  }
   assert(index < activeCheckpoints_);
   while (static_cast<std::int64_t>(slots_.size()) <= index) slots_.emplace_back();
   auto& memory = slots_[static_cast<std::size_t>(index)];
@@ -122,14 +127,15 @@ void OnlineCheckpointing::commitWorkingState(std::int64_t step) {
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
   ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
-  // Interval j is reversed with min(c - j, its length) slots at the most: reserved now, so that the
-  // backward sweep allocates nothing.
+  // Interval j is reversed with min(c + 1 - j, its length) slots at the most: reserved now, so that the
+  // backward sweep allocates nothing (slots 0..c-1 are allocated once c checkpoints are held, and
+  // shorter placements have intervals of one step, which store nothing; slot c is the working state's).
   const std::vector<std::int64_t>& positions = placement_.positions();
   std::int64_t deepest = 1;
   for (std::size_t j = 0; j < positions.size(); ++j) {
     const std::int64_t end = j + 1 < positions.size() ? positions[j + 1] : stepCount() - 1;
-    deepest =
-        std::max(deepest, std::min(activeCheckpoints_ - static_cast<std::int64_t>(j), end - positions[j]));
+    deepest = std::max(deepest,
+                       std::min(activeCheckpoints_ + 1 - static_cast<std::int64_t>(j), end - positions[j]));
   }
   reversal_.reserve(deepest);
   reversal_.reset(&placement_.positions(), stepCount(), activeCheckpoints_);  // N - 1: the working state
@@ -153,10 +159,7 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   if (workingValid_) {
     assert(step == stepCount() - 1);
     std::memcpy(z.data(), working_.get(), bytes);
-    workingValid_ = false;
-    working_.reset();
-    releaseBytes(stateBytes());
-    heldBytes_ -= stateBytes();
+    workingValid_ = false;  // its memory is now slot c of the intervals' reversal (slot())
     if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
     return;
   }
@@ -186,7 +189,7 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
 void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                   const PredictionRequest& request, SchedulePrediction& p) {
   // OnlineCheckpointing for N fixed steps: its placement (internal::CostPlacement), then each interval
-  // j reversed by BinomialSchedule with c - j slots; recomputed steps in closed form
+  // j reversed by BinomialSchedule with c + 1 - j slots; recomputed steps in closed form
   // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
   const auto& online = dynamic_cast<const OnlineCheckpointing&>(storage);
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;

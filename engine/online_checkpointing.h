@@ -5,37 +5,49 @@
 // With only a budget, c = floor(budget / stateBytes) - 1 checkpoints (one state is the working state).
 //
 // Algorithm (after Stumm & Walther 2010, "New algorithms for optimal online checkpointing", SIAM J. Sci.
-// Comput. 32(2): revolve's optimum T(N, c) for every N while N is unknown, as far as an online rule can;
-// internal::CostPlacement in engine/online_placement.h):
+// Comput. 32(2), moved to the game below; internal::CostPlacement in engine/online_placement.h):
 //  * Forward sweep: the last recorded state is the working state (like revolve's current state); when
 //    the next record arrives it is a checkpoint candidate. The first c candidates are kept. From then on
 //    the c checkpoints s_0 = 0 < s_1 < ... < s_{c-1} cut the trajectory into intervals L_i (the last
-//    one up to the working state), interval i to be reversed with the c - i slots not held by earlier
-//    checkpoints, T(L_i, c - i) forward steps. Up to N = beta(c, 2) and beyond beta(c, 3), the candidate
-//    replaces the checkpoint j >= 1 that gives the least sum_i T(L_i, c - i) were the run to end at this
-//    record, unless keeping the placement is cheaper (cost rule). For beta(c, 2) < N <= beta(c, 3) a
-//    candidate is taken every third record, or when it lands on one of the positions revolve holds at
-//    N = beta(c, 3) (then kept), and replaces the latest checkpoint whose merged interval stays within
-//    what its slots reverse at repetition number 2 (three-step rule, as Stumm & Walther's second
-//    algorithm; the details in engine/online_placement.h).
-//  * Backward sweep, N known: x_{N-1} is the working state; interval j (last to first) is reversed by
-//    the offline binomial schedule (BinomialSchedule) with the c - j slots not held by s_0..s_{j-1}.
-// The forward steps, counted like revolve's T(N, c) (see binomial_checkpointing.h), are
-//     (N - 1) + sum_i T(L_i, c - i)  >=  T(N, c),
-// equal to predictedForwardSteps(N, c) exactly. What is known of them (tests/storage/
-// online_checkpointing_test.cpp): equal to the offline optimum T(N, c) for every N <= beta(c, 2) + 1
-// (c <= 60 checked), where Stumm & Walther prove their online algorithm optimal. No online rule can be
-// at T(N, c) for every N up to beta(c, 2) + 2 (exhaustive search over every placement, c = 2..6), so
-// one forward step above it somewhere in (beta(c, 2), beta(c, 3)] is the least possible there; the three-step
-// rule is at most T(N, c) + 1 for every N <= beta(c, 3) when c <= 9 and T(N, c) + 2 for c = 10..60
-// (worst ratio 1.071 at c = 2, 1.048 at c = 3, <= 1.025 for c >= 5). Beyond beta(c, 3), up to N = 10^5,
-// measured at most 1.14 T(N, c) for c = 2 and 1.07 T(N, c) for c = 3..50 (the ratios per c in
-// docs/guides/storage_strategies.md); no bound is proven there. c = 1: T(N, 1) exactly.
+//    one up to the working state).
+//  * Backward sweep, N known: x_{N-1} is the working state and is consumed first; its slot is then
+//    free, so interval j (last to first) is reversed by the offline binomial schedule (BinomialSchedule)
+//    with c + 1 - j slots: its own, those of s_{j+1}..s_{c-1} and the working state's.
+// The game: recomputed steps sum_i T(L_i, c + 1 - i) with sum_i L_i = N - 1, for a placement chosen
+// while N is unknown. Up to N = beta(c + 1, 2) and beyond beta(c + 1, 3) the candidate replaces the
+// checkpoint j >= 1 that gives the least sum were the run to end at this record, unless keeping the
+// placement is cheaper (cost rule). For beta(c + 1, 2) < N <= beta(c + 1, 3) a candidate is taken
+// every sixth record, or when it lands on one of the positions that fill every interval to what its
+// slots reverse at repetition number 2 (then kept), and replaces the latest checkpoint whose merged
+// interval stays within that (six-step rule: Stumm & Walther's three-step rule with the last interval's
+// two slots instead of one; the details in engine/online_placement.h).
+// The recomputed steps equal predictedForwardSteps(N, c) - (N - 1) exactly. What is known of them
+// (tests/storage/online_checkpointing_test.cpp), with B(N, c) the least count of the game over every
+// placement (N known; closed form: the N - 1 - c smallest of the values r = 1, 2, ... taken
+// beta(c, r + 1) - 1 times each, checked against a dynamic programme), R(N, c + 1) = T(N + 1, c + 1) - N
+// binomial's count at the same c + 1 states, and T(N, c) - (N - 1) Stumm & Walther's count (c
+// snapshots and the current state, also c + 1 states in memory):
+//  * B(N, c) = R(N, c + 1) for N <= beta(c + 1, 2) - 2, and B > R beyond (the working state holds
+//    x_{N-1}, where binomial would hold an earlier state); B(N, c) <= T(N, c) - (N - 1), equal for
+//    N <= beta(c, 2), below beyond.
+//  * online = B(N, c) for every N <= beta(c + 1, 2) + 1 (c <= 60 checked). No online rule reaches B for
+//    every N up to beta(c + 1, 2) + 2, nor stays within one step of it up to beta(c + 1, 2) + 4; within
+//    two steps up to beta(c + 1, 3) is possible (exhaustive search over every placement, c = 2..5), and
+//    the six-step rule is within two steps of B for every N <= beta(c + 1, 3) (c = 2..60): the least
+//    possible there for c <= 5.
+//  * So online is below Stumm & Walther's count on their whole range beta(c, 2) < N <= beta(c, 3) and
+//    equal to it below (c = 2..60 checked). Beyond beta(c + 1, 3), up to N = 10^5, measured for
+//    c = 2..50: at most 1.31 R(N, c + 1) (c = 2, N = 32), 1.19 (c = 3), 1.12 (c = 5), 1.05 for c >= 9,
+//    1.04 for c >= 11, 1.005 for c >= 37; no bound is proven there, and for c = 22 and 25..36 the cost
+//    rule is up to 0.6 % above T(N, c) - (N - 1) at some N > beta(c, 3) (the table per c in
+//    docs/guides/storage_strategies.md).
+//    c = 1: T(N - 1, 2) exactly.
 // Cost of the rules: O(1) evaluations of T per record and O(c) per replacement (cost rule), O(c) per
-// candidate taken, about every third record (three-step rule).
-// Memory: at most c checkpoints plus one working state, allocated on first use and charged with
-// holdBytes(); it never exceeds the budget. counters().statesStored counts the checkpoint writes of
-// the forward sweep plus the final working state x_{N-1} (the copy made at every step is not counted).
+// candidate taken, about every sixth record (six-step rule).
+// Memory: at most c checkpoints plus one working state (whose memory is slot c of the backward sweep),
+// allocated on first use and charged with holdBytes(); it never exceeds the budget. counters().statesStored
+// counts the checkpoint writes of the forward sweep plus the final working state x_{N-1} (the copy made at
+// every step is not counted).
 //
 // Preconditions: none on N (works for fixed and adaptive steps). Throws std::invalid_argument from
 // begin() when c < 1 or (c + 1) states do not fit in the budget, naming online.checkpoints/online.budget.
@@ -53,9 +65,10 @@ namespace hindsight {
 namespace internal {
 
 /// online's backward sweep once its forward sweep has placed the checkpoints: the interval of each
-/// restored step (the last held position at or before it), reversed by revolve with c - j slots for
-/// interval j. The strategy runs it with a visitor that copies states and recomputes, its prediction
-/// (OnlineCheckpointing::predict) with one that counts: one code for both.
+/// restored step (the last held position at or before it), reversed by revolve with c + 1 - j slots for
+/// interval j: slots j..c, slot c being the working state's, free once x_{N-1} is consumed. The strategy runs
+/// it with a visitor that copies states and recomputes, its prediction (OnlineCheckpointing::predict) with
+/// one that counts: one code for both.
 class OnlineReversal {
  public:
   /// Capacity for the deepest interval (no allocation in the backward sweep).
@@ -73,7 +86,7 @@ class OnlineReversal {
   const OnlinePlacement::Interval& enter(std::int64_t step) {
     if (step < interval_.start) {
       interval_ = OnlinePlacement::intervalOf(*positions_, steps_, step, interval_.index);
-      schedule_.reset(interval_.length, checkpoints_ - interval_.index, false);
+      schedule_.reset(interval_.length, checkpoints_ + 1 - interval_.index, false);
     }
     return interval_;
   }
@@ -122,7 +135,7 @@ class OnlineCheckpointing final : public TrajectoryStorage {
   /// (N - 1) + recomputed steps of this algorithm for N steps and c checkpoints, without states
   /// (the placement simulated step by step).
   static UnsignedInt128 predictedForwardSteps(std::int64_t steps, std::int64_t c);
-  /// (N - 1) + sum_j T(L_j, c - j) for held positions (increasing, starting at 0) of N steps.
+  /// (N - 1) + sum_j T(L_j, c + 1 - j) for held positions (increasing, starting at 0) of N steps.
   static UnsignedInt128 forwardStepsOf(const std::vector<std::int64_t>& positions, std::int64_t steps,
                                        std::int64_t c);
 

@@ -18,20 +18,23 @@ namespace hindsight::internal {
 
 /// `online`'s placement (the rules and what is known of them: engine/online_checkpointing.h). Once c
 /// checkpoints are held, each record offers the previous working state q; the intervals L_i between the
-/// held positions are reversed later by revolve with c - i slots (T(L_i, c - i) forward steps).
-///  * Cost rule (run lengths N <= beta(c, 2) and N > beta(c, 3)): q replaces the checkpoint j >= 1 whose
-///    removal (its two intervals merge, the later ones gain a slot each, q starts a new last interval)
-///    gives the least total sum_i T(L_i, c - i) were the run to end at this record, provided that total
-///    is not above keeping the placement (ties: the earlier j, and replacing). Only the last interval
-///    changes between replacements, so a record costs O(1) evaluations of T and a replacement O(c).
-///  * Three-step rule (beta(c, 2) < N <= beta(c, 3), after Stumm & Walther's second online algorithm):
-///    q is taken when the last interval has reached 3 steps, or when q is the next of the final
-///    positions F_k = sum_{i<k} beta(c - i, 2) (the placement revolve has at N = beta(c, 3)) in order;
-///    a checkpoint taken at F_k stays until beta(c, 3). q replaces the latest checkpoint j >= 1 not at a
-///    final position whose two intervals merge into at most beta(s, 2) steps, s = c - j + 1 the slots
-///    of the merged interval (the most an interval of s slots holds at repetition number 2); landing on
-///    F_k before the last interval has 3 steps replaces the latest checkpoint if it is not final. O(c)
-///    per taken candidate, about every third record.
+/// held positions are reversed later by revolve with c + 1 - i slots (T(L_i, c + 1 - i) recomputed steps:
+/// its own slot, those of the later checkpoints and the working state's, free once x_{N-1} is consumed).
+///  * Cost rule (run lengths N <= beta(c + 1, 2) and N > beta(c + 1, 3)): q replaces the checkpoint
+///    j >= 1 whose removal (its two intervals merge, the later ones gain a slot each, q starts a new last
+///    interval) gives the least total sum_i T(L_i, c + 1 - i) were the run to end at this record,
+///    provided that total is not above keeping the placement (ties: the earlier j, and replacing). Only
+///    the last interval changes between replacements, so a record costs O(1) evaluations of T and a
+///    replacement O(c).
+///  * Six-step rule (beta(c + 1, 2) < N <= beta(c + 1, 3), Stumm & Walther's three-step rule moved to
+///    this game): q is taken when the last interval has reached beta(2, 2) = 6 steps (what its two slots
+///    reverse at repetition number 2; Stumm & Walther's 3 = beta(1, 2) is that of their one slot), or
+///    when q is the next of the final positions F_k = sum_{i<k} beta(c + 1 - i, 2) (the placement with
+///    every interval at the most its c + 1 - i slots reverse at repetition number 2) in order; a
+///    checkpoint taken at F_k stays until beta(c + 1, 3). q replaces the latest checkpoint j >= 1 not at
+///    a final position whose two intervals merge into at most beta(s, 2) steps, s = c + 2 - j the slots
+///    of the merged interval; landing on F_k before the last interval has 6 steps replaces the latest
+///    checkpoint if it is not final. O(c) per taken candidate, about every sixth record.
 class CostPlacement {
  public:
   static constexpr std::int64_t kSkipped = -2;   ///< offer(): the candidate is not kept
@@ -50,8 +53,8 @@ class CostPlacement {
     suffix_.reserve(reserve + 1);
     innerBest_ = 0;
     innerIndex_ = -1;
-    second_ = revolve::beta(checkpoints, 2);
-    third_ = revolve::beta(checkpoints, 3);
+    second_ = revolve::beta(checkpoints + 1, 2);
+    third_ = revolve::beta(checkpoints + 1, 3);
     nextFinal_ = second_;
     finalCount_ = 1;
     stale_ = false;
@@ -74,25 +77,25 @@ class CostPlacement {
     }
     if (c == 1) return kSkipped;                               // one interval: nothing to merge
     const auto steps = static_cast<UnsignedInt128>(step) + 1;  // the run's length were it to end now
-    if (steps > second_ && steps <= third_) return offerThreeStep(q);
+    if (steps > second_ && steps <= third_) return offerSixStep(q);
     if (stale_) {
       rebuild();
       stale_ = false;
     }
     const std::int64_t last = q - positions_.back();  // the last interval if q is kept (>= 1)
-    // Keeping the placement: the last interval (1 slot) grows by one, T(l + 1, 1) - T(l, 1) = l. Taking
-    // q: the old last interval ends at q, the new one (one step) costs nothing.
-    const Cost skip = last;
-    const Cost lastOwn = revolveSteps(last, 1);
+    // Keeping the placement: the last interval (2 slots) grows by one step. Taking q: the old last
+    // interval ends at q and moves up (3 slots, or merged), the new one (one step) costs nothing.
+    const Cost lastOwn = revolveSteps(last, 2);
+    const Cost skip = revolveSteps(last + 1, 2) - lastOwn;
     Cost best = 0;
     std::int64_t index = -1;
     if (innerIndex_ >= 1) {
-      best = innerBest_ + (revolveSteps(last, 2) - lastOwn);  // the last interval moves up, to 2 slots
+      best = innerBest_ + (revolveSteps(last, 3) - lastOwn);  // the last interval moves up, to 3 slots
       index = innerIndex_;
     }
     const std::size_t before = static_cast<std::size_t>(c - 2);
     const Cost lastPair =
-        revolveSteps(positions_[before + 1] - positions_[before] + last, 2) - own_[before] - lastOwn;
+        revolveSteps(positions_[before + 1] - positions_[before] + last, 3) - own_[before] - lastOwn;
     if (index < 0 || lastPair < best) {
       best = lastPair;
       index = c - 1;
@@ -125,11 +128,11 @@ class CostPlacement {
     positions_.push_back(q);
     final_.push_back(final);
   }
-  // The three-step rule (class comment). The cost rule's tables are rebuilt once it resumes.
-  std::int64_t offerThreeStep(std::int64_t q) {
+  // The six-step rule (class comment). The cost rule's tables are rebuilt once it resumes.
+  std::int64_t offerSixStep(std::int64_t q) {
     const std::int64_t c = checkpoints_;
     const bool landing = finalCount_ < c && static_cast<UnsignedInt128>(q) == nextFinal_;
-    const bool early = q - positions_.back() < 3;
+    const bool early = q - positions_.back() < 6;
     if (early && !landing) return kSkipped;
     for (std::int64_t j = c - 1; j >= 1; --j) {
       const auto u = static_cast<std::size_t>(j);
@@ -137,11 +140,11 @@ class CostPlacement {
       const std::int64_t end = j + 1 < c ? positions_[u + 1] : q;
       // Landing early on a final position drops the latest checkpoint whatever its merged length.
       if (!(early && j == c - 1) &&
-          static_cast<UnsignedInt128>(end - positions_[u - 1]) > revolve::beta(c - j + 1, 2))
+          static_cast<UnsignedInt128>(end - positions_[u - 1]) > revolve::beta(c - j + 2, 2))
         continue;
       drop(j, q, landing);
       if (landing) {
-        nextFinal_ += revolve::beta(c - finalCount_, 2);
+        nextFinal_ += revolve::beta(c + 1 - finalCount_, 2);
         ++finalCount_;
       }
       stale_ = true;
@@ -155,7 +158,7 @@ class CostPlacement {
     return static_cast<Cost>(revolve::optimalForwardSteps(length, slots));
   }
   // With c checkpoints held: the intervals 0..c-2 (the last one changes every record), their costs
-  // own_[i] = T(L_i, c - i) and grow_[i] = T(L_i, c - i + 1) - own_[i] (one slot more, as when an
+  // own_[i] = T(L_i, c + 1 - i) and grow_[i] = T(L_i, c + 2 - i) - own_[i] (one slot more, as when an
   // earlier checkpoint is dropped), and the best drop among j = 1..c-2 without the last interval's part.
   void rebuild() {
     const std::int64_t c = checkpoints_;
@@ -164,8 +167,8 @@ class CostPlacement {
     for (std::int64_t i = 0; i + 1 < c; ++i) {
       const std::int64_t length =
           positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
-      own_.push_back(revolveSteps(length, c - i));
-      grow_.push_back(revolveSteps(length, c - i + 1) - own_.back());
+      own_.push_back(revolveSteps(length, c + 1 - i));
+      grow_.push_back(revolveSteps(length, c + 2 - i) - own_.back());
     }
     suffix_.assign(static_cast<std::size_t>(c), 0);  // suffix_[k] = sum of grow_[k..c-2]
     for (std::int64_t k = c - 2; k >= 0; --k)
@@ -175,7 +178,7 @@ class CostPlacement {
     for (std::int64_t j = 1; j + 1 < c; ++j) {
       const auto u = static_cast<std::size_t>(j);
       const std::int64_t merged = positions_[u + 1] - positions_[u - 1];
-      const Cost cost = revolveSteps(merged, c - j + 1) - own_[u - 1] - own_[u] + suffix_[u + 1];
+      const Cost cost = revolveSteps(merged, c + 2 - j) - own_[u - 1] - own_[u] + suffix_[u + 1];
       if (innerIndex_ < 0 || cost < innerBest_) {
         innerBest_ = cost;
         innerIndex_ = j;
@@ -185,10 +188,10 @@ class CostPlacement {
 
   std::int64_t checkpoints_ = 1;
   std::vector<std::int64_t> positions_;
-  std::vector<char> final_;  // position i is a final position of the three-step rule (or x_0)
+  std::vector<char> final_;  // position i is a final position of the six-step rule (or x_0)
   UnsignedInt128 second_ = 0, third_ = 0, nextFinal_ = 0;
   std::int64_t finalCount_ = 1;  // final positions held, x_0 included
-  bool stale_ = false;           // own_, grow_, suffix_ not rebuilt since the three-step rule moved
+  bool stale_ = false;           // own_, grow_, suffix_ not rebuilt since the six-step rule moved
   std::vector<Cost> own_, grow_, suffix_;
   Cost innerBest_ = 0;
   std::int64_t innerIndex_ = -1;

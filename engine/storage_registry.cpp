@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <limits>
+#include <ostream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -120,6 +121,24 @@ std::int64_t stageRowDoubles(const PredictionRequest& request, bool stageRows, c
         " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
   }
   return rowDoubles;
+}
+
+void ActionWriter::store(StorageLevel level, std::int64_t slot) {
+  out << "store " << levelName(level) << ' ' << slot << '\n';
+}
+void ActionWriter::load(StorageLevel level, std::int64_t slot) {
+  out << "load " << levelName(level) << ' ' << slot << '\n';
+}
+void ActionWriter::advance(std::int64_t from, std::int64_t to) {
+  out << "advance " << from << ' ' << to << '\n';
+}
+void ActionWriter::loadWorking() { out << "load ram working\n"; }
+
+void writeEveryStateActions(std::int64_t steps, StorageLevel level, std::ostream& out) {
+  for (std::int64_t k = 0; k < steps; ++k)
+    out << "record " << k << "\nstore " << levelName(level) << ' ' << k << '\n';
+  for (std::int64_t e = steps - 1; e >= 0; --e)
+    out << "restore " << e << "\nload " << levelName(level) << ' ' << e << '\n';
 }
 
 }  // namespace prediction

@@ -12,12 +12,15 @@
 // (BinomialSchedule, the online placement, cams::Plan, the two-level plan, the stride) with an executor
 // that counts instead of copying states and stepping; tests/storage/prediction_grid_test.cpp holds every
 // predicting row equal to real runs counter by counter, and a row without a prediction says why.
+// A row's action stream (`hindsight schedule --actions`, storage/checkpoint_actions.h) is the same plan
+// written action by action, so no caller picks a plan by the strategy's name.
 #pragma once
 
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/engine/trajectory_storage.h>
 
 #include <cstdint>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -94,12 +97,19 @@ struct StorageStrategyDoc {
 /// (1:1:0:0 without one), which a row may replace by its spec's own (multilevel's costs=), and rhs
 /// evaluations and costs are completed after it (predictFromRows). nullptr when the strategy's counters
 /// depend on the run; `notPredicted` then says on what.
+/// `actions` writes the action stream of the plan `predict` counts (prediction::ActionWriter's lines,
+/// or cams' own), for a request `predict` has accepted and N <= prediction::kMaxWalkedSteps; it may
+/// refuse a configuration without a fixed plan with std::invalid_argument. nullptr when the strategy has
+/// none at all; `noActions` then says why.
 struct StorageStrategyRow {
   StorageStrategyDoc doc;
   std::unique_ptr<TrajectoryStorage> (*create)(const StorageSpec& spec) = nullptr;
   void (*predict)(const TrajectoryStorage& storage, const StorageSpec& spec, const PredictionRequest& request,
                   SchedulePrediction& p) = nullptr;
   std::string notPredicted;
+  void (*actions)(const TrajectoryStorage& storage, const StorageSpec& spec, const PredictionRequest& request,
+                  std::ostream& out) = nullptr;
+  std::string noActions;
 
   const std::string& name() const { return doc.name; }
   std::vector<std::string> keys() const;
@@ -139,6 +149,25 @@ std::int64_t stageRowDoubles(const PredictionRequest& request, bool stageRows, c
 
 /// The largest N a prediction walks step by step (an online placement, a schedule run without states).
 constexpr std::int64_t kMaxWalkedSteps = std::int64_t{1} << 24;
+
+/// The lines of an action stream, written by the plans' own visitors (BinomialSchedule, TwoLevelPlan):
+///   record k / restore e        the run records x_k / asks for x_e (written by the row's loop);
+///   store LEVEL SLOT            copy the current state into a slot, e.g. "store ram 3", "store disk 0";
+///   load LEVEL SLOT             copy a slot into the current state; "load ram working": the state is
+///                               the working state;
+///   advance a b                 recompute x_a -> x_b.
+struct ActionWriter {
+  std::ostream& out;
+  void store(StorageLevel level, std::int64_t slot);
+  void load(StorageLevel level, std::int64_t slot);
+  void advance(std::int64_t from, std::int64_t to);
+  void loadWorking();
+  void load(std::int64_t slot) { load(StorageLevel::kRam, slot); }
+  void store(std::int64_t slot) { store(StorageLevel::kRam, slot); }
+};
+
+/// The stream of a strategy that keeps every state in its own slot of `level` (full, disk).
+void writeEveryStateActions(std::int64_t steps, StorageLevel level, std::ostream& out);
 
 }  // namespace prediction
 

@@ -205,4 +205,9 @@ void DiskStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
   p.peakDiskBytes = prediction::checkedProduct(p.diskWrites, 8 * rowDoubles, "disk bytes");
 }
 
+void DiskStorage::writeActions(const TrajectoryStorage&, const StorageSpec&, const PredictionRequest& request,
+                               std::ostream& out) {
+  prediction::writeEveryStateActions(request.steps, StorageLevel::kDisk, out);
+}
+
 }  // namespace hindsight

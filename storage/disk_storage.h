@@ -41,6 +41,7 @@
 #include <hindsight/engine/trajectory_storage.h>
 
 #include <functional>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -81,6 +82,9 @@ class DiskStorage final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
+  /// The registry's action stream: every state recorded into its own disk slot and loaded back.
+  static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
+                           const PredictionRequest& request, std::ostream& out);
 
   std::string spec() const override;
   bool isExact() const override { return true; }

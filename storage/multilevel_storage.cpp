@@ -16,6 +16,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <ostream>
 
 namespace hindsight {
 namespace {
@@ -748,6 +749,33 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   }
   p.peakRamBytes = prediction::checkedProduct(plan.ramSlotsUsed(), stateBytes, "peak RAM bytes");
   p.peakDiskBytes = prediction::checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
+}
+
+void MultilevelStorage::writeActions(const TrajectoryStorage& storage, const StorageSpec&,
+                                     const PredictionRequest& request, std::ostream& out) {
+  const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
+  const std::int64_t steps = request.steps;
+  const int stateSize = static_cast<int>(request.stateBytes / 8);
+  // schedule=stride first: plansFor() tells only whether the optimal schedule can plan.
+  if (multilevel.options().stride || !multilevel.plansFor(steps, stateSize)) {
+    throw std::invalid_argument(
+        "--actions prints two-level plans; this multilevel run takes the stride (schedule=stride, or no "
+        "costs= and RAM for fewer than 3 states), whose scratch rounds are not a plan (print its counts "
+        "without --actions)");
+  }
+  // The plan a run executes (doBegin): the spec's costs= first, else the request's cost model.
+  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : request.costs;
+  const Layout layout = multilevel.layoutFor(steps, stateSize);
+  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
+  prediction::ActionWriter writer{out};
+  for (std::int64_t k = 0; k < steps; ++k) {
+    out << "record " << k << '\n';
+    plan.recordForward(k, writer);
+  }
+  for (std::int64_t e = steps - 1; e >= 0; --e) {
+    out << "restore " << e << '\n';
+    plan.restoreStep(e, writer);
+  }
 }
 
 }  // namespace hindsight

@@ -55,6 +55,7 @@
 #include <hindsight/storage/schedule.h>
 
 #include <functional>
+#include <iosfwd>
 #include <optional>
 
 #include <memory>
@@ -94,6 +95,11 @@ class MultilevelStorage final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
+  /// The registry's action stream: the TwoLevelPlan a run executes, written action by action; the stride
+  /// (schedule=stride, or RAM for fewer than 3 states without costs=) is refused, its scratch rounds not
+  /// being a plan of slots.
+  static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
+                           const PredictionRequest& request, std::ostream& out);
 
   /// Slots of each level schedule=optimal has for N steps of stateSize entries.
   struct Layout {

@@ -1,9 +1,7 @@
 #include <hindsight/storage/schedule.h>
 
-#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/storage_spec.h>
-#include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
@@ -576,25 +574,6 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   return predictFromRows(storageStrategies(), specText, PredictionRequest{steps, stateBytes, stages, costs});
 }
 
-namespace {
-
-struct PrintingVisitor {
-  std::ostream& out;
-  void store(StorageLevel level, std::int64_t slot) {
-    out << "store " << levelName(level) << ' ' << slot << '\n';
-  }
-  void load(StorageLevel level, std::int64_t slot) {
-    out << "load " << levelName(level) << ' ' << slot << '\n';
-  }
-  void advance(std::int64_t from, std::int64_t to) { out << "advance " << from << ' ' << to << '\n'; }
-  // BinomialSchedule's own visitor interface (binomial strategy).
-  void loadWorking() { out << "load ram working\n"; }
-  void load(std::int64_t slot) { load(StorageLevel::kRam, slot); }
-  void store(std::int64_t slot) { store(StorageLevel::kRam, slot); }
-};
-
-}  // namespace
-
 void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
                           int stages, const ScheduleCosts* costs, std::ostream& out) {
   predictSchedule(specText, steps, stateBytes, stages, costs);  // validates spec, sizes and budgets
@@ -603,95 +582,14 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
                                 std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
                                 " (2^24); --steps = " + std::to_string(steps));
   }
-  const std::string name = StorageSpec::parse(specText).name();
-  PrintingVisitor visitor{out};
-  if (name == "full" || name == "disk") {
-    const char* level = name == "full" ? "ram" : "disk";
-    for (std::int64_t k = 0; k < steps; ++k) out << "record " << k << "\nstore " << level << ' ' << k << '\n';
-    for (std::int64_t e = steps - 1; e >= 0; --e)
-      out << "restore " << e << "\nload " << level << ' ' << e << '\n';
-    return;
-  }
-  if (name == "binomial") {
-    auto storage = createStorage(specText);
-    const auto& binomial = dynamic_cast<BinomialCheckpointing&>(*storage);
-    const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
-    BinomialSchedule schedule;
-    schedule.reset(steps + 1, slots, true);
-    for (std::int64_t k = 0; k < steps; ++k) {
-      out << "record " << k << '\n';
-      const std::int64_t slot = k == 0 ? 0 : schedule.recordForward(k);
-      if (slot >= 0) visitor.store(slot);
-    }
-    struct Skip {
-      void loadWorking() {}
-      void load(std::int64_t) {}
-      void store(std::int64_t) {}
-      void advance(std::int64_t, std::int64_t) {}
-    } skip;
-    schedule.restoreStep(steps, skip);  // x_N: the schedule's end position, never restored
-    for (std::int64_t e = steps - 1; e >= 0; --e) {
-      out << "restore " << e << '\n';
-      schedule.restoreStep(e, visitor);
-    }
-    return;
-  }
-  if (name == "online") {
-    throw std::invalid_argument(
-        "--actions prints offline plans; online thins its checkpoints during the forward "
-        "sweep (print its counts without --actions)");
-  }
-  if (name == "cams") {
-    // Step records of `stages` state units (the state and S - 1 stage states), as predictSchedule counts
-    // them; none for one stage.
-    auto storage = createStorage(specText);
-    if (dynamic_cast<CamsCheckpointing&>(*storage).onlineRequested()) {
-      throw std::invalid_argument(
-          "--actions prints offline plans; cams with online=1 thins its checkpoints "
-          "during the forward sweep (print its counts without --actions)");
-    }
-    const std::int64_t units = dynamic_cast<CamsCheckpointing&>(*storage).usableUnits(stateBytes, false);
-    std::vector<cams::Action> actions;
-    const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
-    cams::simulate(cams::Plan(steps, units, recordUnits), &actions);
-    for (const cams::Action& a : actions) {
-      switch (a.kind) {
-        case cams::Action::Kind::StoreState:
-          out << "store ram state " << a.from << '\n';
-          break;
-        case cams::Action::Kind::StoreRecord:
-          out << "store ram record " << a.from << '\n';
-          break;
-        case cams::Action::Kind::Advance:
-          out << "advance " << a.from << ' ' << a.to << '\n';
-          break;
-        case cams::Action::Kind::Deliver:
-          out << "restore " << a.from << (a.withStageValues ? " with stages\n" : " recompute stages\n");
-          break;
-      }
-    }
-    return;
-  }
-  // multilevel (predictSchedule has rejected everything else)
-  auto storage = createStorage(specText);
-  auto& multilevel = dynamic_cast<MultilevelStorage&>(*storage);
-  if (!multilevel.plansFor(steps, static_cast<int>(stateBytes / 8))) {
-    throw std::invalid_argument(
-        "--actions prints two-level plans; this multilevel run takes the stride (schedule=stride, or no "
-        "costs= and RAM for fewer than 3 states), whose scratch rounds are not a plan (print its counts "
-        "without --actions)");
-  }
-  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : costs;
-  const MultilevelStorage::Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
-  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
-  for (std::int64_t k = 0; k < steps; ++k) {
-    out << "record " << k << '\n';
-    plan.recordForward(k, visitor);
-  }
-  for (std::int64_t e = steps - 1; e >= 0; --e) {
-    out << "restore " << e << '\n';
-    plan.restoreStep(e, visitor);
-  }
+  // Each strategy's own plan, from its row (engine/storage_registry.h); predictSchedule has refused the
+  // rows without a prediction.
+  const std::vector<StorageStrategyRow>& rows = storageStrategies();
+  const StorageSpec spec = StorageSpec::parse(specText);
+  const StorageStrategyRow& row = *findStorageStrategy(rows, spec.name());
+  if (row.actions == nullptr) throw std::invalid_argument(row.noActions);
+  const std::unique_ptr<TrajectoryStorage> storage = createFromRows(rows, specText);
+  row.actions(*storage, spec, PredictionRequest{steps, stateBytes, stages, costs}, out);
 }
 
 }  // namespace hindsight

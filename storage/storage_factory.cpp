@@ -41,7 +41,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
              &HermiteStorage::create,
              nullptr,
              "it keeps (z, z') at every M-th grid point, but whether a run is accepted depends on the "
-             "interpolation error it measures"},
+             "interpolation error it measures",
+             nullptr,
+             "it keeps no checkpoints to plan: every M-th grid point, interpolated in between"},
             {{"disk",
               "every step's state in an HDF5 file (chunked; lossless prediction along time, or shuffle + "
               "zstd), "
@@ -63,6 +65,8 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                {"stages", "0 | 1: each row holds the state and the step's stage values (default 0)"}}},
              &DiskStorage::create,
              &DiskStorage::predict,
+             {},
+             &DiskStorage::writeActions,
              {}},
             {{"lossy",
               "every step's state in memory, compressed with a bounded error (a gradient error target, or "
@@ -84,7 +88,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                 "4096)"}}},
              &LossyStorage::create,
              nullptr,
-             "its bytes depend on how well the states compress"},
+             "its bytes depend on how well the states compress",
+             nullptr,
+             "it keeps every state, compressed: no checkpoints to plan"},
             {{"multilevel",
               "states in RAM and in a file on disk up to a budget each, reversed by the two-level plan "
               "cheapest under a cost model (fixed steps) or by a uniform stride with recomputation of "
@@ -104,6 +110,8 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                {"schedule", "optimal (default, fixed steps) | stride"}}},
              &MultilevelStorage::create,
              &MultilevelStorage::predict,
+             {},
+             &MultilevelStorage::writeActions,
              {}},
             {{"packed",
               "every step's state in memory, coded losslessly along time in blocks (prediction + "
@@ -119,7 +127,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                 "4096)"}}},
              &LossyStorage::createPacked,
              nullptr,
-             "its bytes depend on how well the states compress"},
+             "its bytes depend on how well the states compress",
+             nullptr,
+             "it keeps every state, coded: no checkpoints to plan"},
         });
     return all;
   }();

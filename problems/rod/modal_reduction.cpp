@@ -43,6 +43,50 @@ inline void twoSum(double a, double b, double& s, double& error) {
   error = (a - (s - bVirtual)) + (b - bVirtual);
 }
 
+// a * b - product exactly for product = fl(a * b), by Veltkamp's split and Dekker's product (Dekker,
+// "A floating-point technique for extending the available precision", Numer. Math. 18, 1971): the
+// value std::fma(a, b, -product) gives, whenever the split cannot overflow and no partial product
+// leaves the normal range, which inDekkerRange() guarantees for both factors. On the baseline x86-64
+// target std::fma is a call into libm; this is plain arithmetic that stays in registers and vectorises.
+inline double productError(double a, double b, double product) {
+  constexpr double kSplitter = 134217729.0;  // 2^27 + 1
+  double t = kSplitter * a;
+  const double aHigh = t - (t - a), aLow = a - aHigh;
+  t = kSplitter * b;
+  const double bHigh = t - (t - b), bLow = b - bHigh;
+  return ((aHigh * bHigh - product) + aHigh * bLow + aLow * bHigh) + aLow * bLow;
+}
+
+// Every entry zero or of magnitude in [2^-480, 2^480]: products of two such numbers then lie in
+// [2^-960, 2^960], where productError is exact (exponent sum >= emin + p - 1 = -970, no overflow).
+template <typename Derived>
+bool inDekkerRange(const Eigen::DenseBase<Derived>& values) {
+  constexpr double kSmallest = 0x1p-480, kLargest = 0x1p480;
+  const auto magnitude = values.derived().array().abs();
+  return ((magnitude >= kSmallest && magnitude <= kLargest) || magnitude == 0.0).all();
+}
+
+// The compensated element products of elementwiseStiffnessForm, one row a of Ke0 X_e: each entry sums
+// over b in increasing order; the columns are the inner loop, so that their independent sums overlap.
+template <bool kDekker>
+void compensatedElementRow(const ElementMatrix& unit, int a, const Matrix& local, Vector& high, Vector& low) {
+  high.setZero();
+  low.setZero();
+  const Eigen::Index columns = local.cols();
+  for (int b = 0; b < 8; ++b) {
+    const double u = unit(a, b);
+    for (Eigen::Index column = 0; column < columns; ++column) {
+      const double x = local(b, column);
+      const double term = u * x;
+      const double termError = kDekker ? productError(u, x, term) : std::fma(u, x, -term);
+      double sum, sumError;
+      twoSum(high(column), term, sum, sumError);
+      high(column) = sum;
+      low(column) += sumError + termError;
+    }
+  }
+}
+
 // The generalized problem K phi = lambda M phi as a standard symmetric one, C y = (1 / lambda) y with
 // C = D^{-1/2} L^{-1} P M P^T L^{-T} D^{-1/2}, from the shared factorisation P K P^T = L D L^T, and
 // phi = P^T L^{-T} D^{-1/2} y. Lanczos on C needs one product with M and two triangular solves per
@@ -174,26 +218,40 @@ void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) co
   block.noalias() = solver_.permutationPinv() * scratch;
 }
 
-Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixRef x) {
-  if (a.rows() != b.rows() || a.cols() != x.rows() || b.cols() != x.cols())
-    throw std::invalid_argument("compensatedResidual: shapes of B, A and X do not match");
-  Matrix high = b;
-  Matrix low = Matrix::Zero(b.rows(), b.cols());
+namespace {
+
+template <bool kDekker>
+void compensatedResidualColumns(const SparseMatrix& a, ConstMatrixRef x, Matrix& high, Matrix& low) {
   for (Eigen::Index column = 0; column < x.cols(); ++column) {
     for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
       const double xk = x(k, column);
       if (xk == 0.0) continue;
       for (SparseMatrix::InnerIterator it(a, k); it; ++it) {
-        // -(A_ik x_k) = product + productError exactly (fma), then added to (high, low) exactly.
+        // -(A_ik x_k) = product + productError exactly, then added to (high, low) exactly.
         const double product = -it.value() * xk;
-        const double productError = std::fma(-it.value(), xk, -product);
+        const double error =
+            kDekker ? productError(-it.value(), xk, product) : std::fma(-it.value(), xk, -product);
         double sum, sumError;
         twoSum(high(it.index(), column), product, sum, sumError);
         high(it.index(), column) = sum;
-        low(it.index(), column) += sumError + productError;
+        low(it.index(), column) += sumError + error;
       }
     }
   }
+}
+
+}  // namespace
+
+Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixRef x) {
+  if (a.rows() != b.rows() || a.cols() != x.rows() || b.cols() != x.cols())
+    throw std::invalid_argument("compensatedResidual: shapes of B, A and X do not match");
+  Matrix high = b;
+  Matrix low = Matrix::Zero(b.rows(), b.cols());
+  const Eigen::Map<const Vector> values(a.valuePtr(), a.nonZeros());
+  if (a.isCompressed() && inDekkerRange(values) && inDekkerRange(x))
+    compensatedResidualColumns<true>(a, x, high, low);
+  else
+    compensatedResidualColumns<false>(a, x, high, low);
   return high + low;
 }
 
@@ -205,23 +263,19 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
   const Eigen::Index columns = xFull.cols();
   Matrix form = Matrix::Zero(columns, columns);
   Matrix local(8, columns), product(8, columns);
+  Vector high(columns), low(columns);
+  const bool dekker = inDekkerRange(unit) && inDekkerRange(xFull);
   for (int e = 0; e < model.elementCount(); ++e) {
     const std::array<int, 8> dofs = model.elementDofs(e);
     for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
     // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double.
-    for (Eigen::Index column = 0; column < columns; ++column) {
-      for (int a = 0; a < 8; ++a) {
-        double high = 0.0, low = 0.0;
-        for (int b = 0; b < 8; ++b) {
-          const double term = unit(a, b) * local(b, column);
-          const double termError = std::fma(unit(a, b), local(b, column), -term);
-          double sum, sumError;
-          twoSum(high, term, sum, sumError);
-          high = sum;
-          low += sumError + termError;
-        }
-        product(a, column) = high + low;
-      }
+    for (int a = 0; a < 8; ++a) {
+      if (dekker)
+        compensatedElementRow<true>(unit, a, local, high, low);
+      else
+        compensatedElementRow<false>(unit, a, local, high, low);
+      for (Eigen::Index column = 0; column < columns; ++column)
+        product(a, column) = high(column) + low(column);
     }
     form.noalias() += model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
   }

@@ -2,11 +2,13 @@
 // strategy on a grid of N and budgets (a host that tracks which step each piece of data belongs to
 // executes it), and it recomputes what the strategy's own prediction says.
 #include <hindsight/storage/checkpoint_actions.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include "support/storage_fixtures.h"
 
 #include <gtest/gtest.h>
 
+#include <sstream>
 #include <stdexcept>
 
 namespace hindsight {
@@ -108,6 +110,27 @@ TEST(CheckpointActions, RefusesWhatHasNoFixedPlanNamingIt) {
   EXPECT_NE(message("binomial:checkpoints=3,stages=1").find("binomial.stages = 1"), std::string::npos);
   EXPECT_NE(message("lossy").find("lossy"), std::string::npos);
   EXPECT_NE(message("binomial:checkpoints=0").find("checkpoints"), std::string::npos);
+  // The stride, with RAM enough for the optimal plan's measured costs (it took the plan's path, without
+  // a cost model, and crashed).
+  EXPECT_NE(message("multilevel:ram=1MiB,disk=1MiB,schedule=stride").find("stride"), std::string::npos);
+}
+
+// Each predicted strategy writes its own plan from its registry row, or its row says why it has none:
+// the stream is not chosen by the strategy's name anywhere.
+TEST(CheckpointActions, EveryPredictedRowWritesItsPlanOrSaysWhyNot) {
+  for (const StorageStrategyRow& row : storageStrategies()) {
+    if (row.predict == nullptr) continue;
+    EXPECT_TRUE(row.actions != nullptr || !row.noActions.empty()) << row.name();
+    if (row.actions == nullptr) {
+      try {
+        std::ostringstream out;
+        writeScheduleActions(row.doc.example, 10, 16, 1, nullptr, out);
+        ADD_FAILURE() << row.name() << ": no error";
+      } catch (const std::invalid_argument& e) {
+        EXPECT_EQ(std::string(e.what()), row.noActions);
+      }
+    }
+  }
 }
 
 }  // namespace
