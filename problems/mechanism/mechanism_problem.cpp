@@ -153,7 +153,9 @@ struct Buffers {
         x(nz),
         sn((nz - n) / 3),
         cs((nz - n) / 3),
-        trigAngle((nz - n) / 3, std::numeric_limits<double>::quiet_NaN()) {}
+        trigAngle((nz - n) / 3, std::numeric_limits<double>::quiet_NaN()),
+        driveTime(m, std::numeric_limits<double>::quiet_NaN()),
+        drive(3 * m) {}
   std::vector<T> z, zd, zdd, F, zeta, phi, phit, quad, rhs, jac, lu;
   std::vector<int> piv;
   std::vector<T> R, r, b, y, v, mq, h, a1, x;
@@ -164,6 +166,9 @@ struct Buffers {
   // angles (a driven crank's is exact after the first, a prismatic slider's never moves), and a sine
   // of the same bits has the same bits.
   std::vector<double> trigAngle;
+  // A driver's s, s', s'' (drive[3 i ...]) for constraint row i at driveTime[i] (NaN: none yet): Newton
+  // evaluates the constraints many times at one time, and the ramp's law costs a sine and a cosine.
+  std::vector<double> driveTime, drive;
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
@@ -367,6 +372,19 @@ struct MechanismProblem::Impl {
     }
   }
 
+  /// s, s', s'' of row i's driver at t, kept in B with the bits of t.
+  template <typename T>
+  static void driverAt(const Row& row, double t, int i, Buffers<T>& B, double& s, double& sd, double& sdd) {
+    double* d = B.drive.data() + 3 * i;
+    if (std::memcmp(&t, &B.driveTime[i], sizeof t) != 0) {
+      row.law.at(t, d[0], d[1], d[2]);
+      B.driveTime[i] = t;
+    }
+    s = d[0];
+    sd = d[1];
+    sdd = d[2];
+  }
+
   /// B.sn, B.cs at B.z.
   template <typename T>
   void updateTrig(Buffers<T>& B) const {
@@ -420,7 +438,7 @@ struct MechanismProblem::Impl {
         case Row::Angle:
         case Row::DriveAngle: {
           double s = 0.0, sd = 0.0, sdd = 0.0;
-          if (row.kind == Row::DriveAngle) row.law.at(t, s, sd, sdd);
+          if (row.kind == Row::DriveAngle) driverAt(row, t, i, B, s, sd, sdd);
           B.phi[i] = angle(row.body2, B.z, zero) - angle(row.body1, B.z, zero) - (row.offset + s);
           if (jacobian) {
             if (row.body2 != kGround) jrow[mm * (bodyOffset(row.body2) + 2)] += 1.0;
@@ -448,7 +466,7 @@ struct MechanismProblem::Impl {
           const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
           const bool drive = row.kind == Row::DriveLine;
           double s = 0.0, sd = 0.0, sdd = 0.0;
-          if (drive) row.law.at(t, s, sd, sdd);
+          if (drive) driverAt(row, t, i, B, s, sd, sdd);
           // Line: n1 . d = 0. DriveLine: e1 . d = offset + s(t).
           const T& u0 = drive ? e0 : n0;
           const T& u1 = drive ? e1 : n1;
