@@ -124,6 +124,24 @@ TEST(ModalReduction, InertiaReliefModesAreMassOrthonormalStaticShapes) {
   EXPECT_LT((shape - projected).norm(), 1e-9 * shape.norm());
 }
 
+// A 30 x 4 rod with 4 modes and a high-contrast random design (30 % void at 0.02, the rest in [0.2, 1]):
+// the compensated kernels' test case.
+RodConfig smallConfig() {
+  RodConfig config;
+  config.elementsAlongLength = 30;
+  config.elementsThroughHeight = 4;
+  config.modeCount = 4;
+  return config;
+}
+
+Vector highContrastDesign(const RodConfig& config, unsigned seed) {
+  std::mt19937 generator(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Vector design(config.designCount());
+  for (auto& x : design) x = unit(generator) < 0.3 ? 0.02 : 0.2 + 0.8 * unit(generator);
+  return design;
+}
+
 // The two accurate kernels of the refinement (modal_reduction.h). compensatedResidual: b - A x with
 // b = fl(A x) leaves only the rounding of b, which a plain double residual cannot resolve; checked against
 // the same residual in long double on a high-contrast random design. elementwiseStiffnessForm equals the
@@ -132,15 +150,8 @@ TEST(ModalReduction, InertiaReliefModesAreMassOrthonormalStaticShapes) {
 TEST(ModalReduction, CompensatedKernelsAgreeWithExtendedPrecision) {
   if (std::numeric_limits<long double>::digits <= std::numeric_limits<double>::digits)
     GTEST_SKIP() << "long double is no wider than double here: no reference";
-  RodConfig config;
-  config.elementsAlongLength = 30;
-  config.elementsThroughHeight = 4;
-  config.modeCount = 4;
-  std::mt19937 generator(7);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = unit(generator) < 0.3 ? 0.02 : 0.2 + 0.8 * unit(generator);
-  const FeModel model(config, design);
+  const RodConfig config = smallConfig();
+  const FeModel model(config, highContrastDesign(config, 7));
   const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
   const SparseMatrix& stiffness = model.stiffness();
   const Matrix x = basis.modesFree;
@@ -170,15 +181,8 @@ TEST(ModalReduction, CompensatedKernelsAgreeWithExtendedPrecision) {
 // the kernels written with std::fma alone, on modes (the split) and on modes with entries of 1e-200 and
 // 1e200 (outside the range: the fma path), both bitwise.
 TEST(ModalReduction, CompensatedKernelsAreBitwiseTheirFmaForm) {
-  RodConfig config;
-  config.elementsAlongLength = 30;
-  config.elementsThroughHeight = 4;
-  config.modeCount = 4;
-  std::mt19937 generator(11);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = unit(generator) < 0.3 ? 0.02 : 0.2 + 0.8 * unit(generator);
-  const FeModel model(config, design);
+  const RodConfig config = smallConfig();
+  const FeModel model(config, highContrastDesign(config, 11));
   const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
   auto twoSum = [](double a, double b, double& s, double& error) {
     s = a + b;
