@@ -9,6 +9,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <type_traits>
@@ -113,6 +114,7 @@ struct Row {
   Vec2 axis = Vec2(1.0, 0.0);
   double offset = 0.0;
   DriverLaw law;
+  std::string name;  ///< the joint's or driver's (constraintBlocks())
 };
 
 struct SpringRef {
@@ -262,7 +264,31 @@ struct MechanismProblem::Impl {
   std::vector<int> independent;  ///< y index -> z index
   std::vector<int> dependent;    ///< u index -> z index
   std::vector<Row> rows;         ///< one entry per joint part (Revolute = 2 equations)
+  std::vector<int> rowFirst;     ///< row -> its first equation
+  std::vector<std::string> equationNames, coordinateNames;  ///< constraintBlocks()
   std::vector<SpringRef> springs;
+
+  /// The block-triangular (BLT) form of Phi_u, the chord system's only (the full-coordinate reference
+  /// keeps the dense solves): equations and unknowns (indices into `dependent`) by position in solve
+  /// order, block b at positions [start[b], start[b + 1]). Each equation's structural entries in the
+  /// unknowns as (index into the m x nz Jacobian, unknown), the earlier blocks' apart (`off`) from all
+  /// (`all`); each block's constraint rows; whether Phi is affine in its block's unknowns.
+  struct Blocks {
+    std::vector<int> eq, unk, start;
+    std::vector<int> allStart, allIndex, allUnk, offStart, offIndex, offUnk;
+    std::vector<int> rowStart, rowList;
+    std::vector<int> luOffset, pivOffset;  ///< a block's LU and pivots in the factor arrays
+    std::vector<char> affine;
+    /// Blocks whose Jacobian is constant (every coefficient +-1 or a ground guide's direction), factorised
+    /// once at construction.
+    std::vector<char> constant;
+    std::vector<double> constantLu;
+    std::vector<int> constantPiv;
+    std::vector<int> touchStart, touchList;  ///< per equation: every z index its Jacobian row touches
+    int luSize = 0, pivSize = 0, maxSize = 0;
+    int count() const { return static_cast<int>(start.size()) - 1; }
+    bool empty() const { return start.empty(); }
+  } blocks;
   Vector zInitial;  ///< assembled at t = 0, q = 0
   Vector yInitial, vInitial;
 
@@ -388,14 +414,19 @@ struct MechanismProblem::Impl {
   /// B.sn, B.cs at B.z.
   template <typename T>
   void updateTrig(Buffers<T>& B) const {
-    for (int k = 0; k <= nr; ++k) {
-      if constexpr (std::is_same_v<T, double>) {
-        const double angle = B.z[bodyOffset(k) + 2];
-        if (std::memcmp(&angle, &B.trigAngle[k], sizeof angle) == 0) continue;  // bitwise (-0 is not 0)
-        B.trigAngle[k] = angle;
-      }
-      sinCos(B.z[bodyOffset(k) + 2], B.sn[k], B.cs[k]);
+    for (int k = 0; k <= nr; ++k) updateTrigOf(B, k);
+  }
+
+  /// B.sn[k], B.cs[k] at B.z (k a body, kGround: nothing).
+  template <typename T>
+  void updateTrigOf(Buffers<T>& B, int k) const {
+    if (k == kGround) return;
+    if constexpr (std::is_same_v<T, double>) {
+      const double angle = B.z[bodyOffset(k) + 2];
+      if (std::memcmp(&angle, &B.trigAngle[k], sizeof angle) == 0) return;  // bitwise (-0 is not 0)
+      B.trigAngle[k] = angle;
     }
+    sinCos(B.z[bodyOffset(k) + 2], B.sn[k], B.cs[k]);
   }
 
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
@@ -408,85 +439,90 @@ struct MechanismProblem::Impl {
     if (jacobian) {
       for (auto& x : B.jac) x = zero;
     }
+    for (int r = 0; r < static_cast<int>(rows.size()); ++r)
+      evaluateRow(t, B, r, jacobian, quadratic, c, cd, zero);
+  }
+
+  /// Constraint row r's equations (from rowFirst[r] on): Phi, with `jacobian` its Jacobian added into
+  /// B.jac (the caller zeroes it) and Phi_t, with `quadratic` gamma. Needs B.sn, B.cs at B.z and c, c'.
+  template <typename T>
+  void evaluateRow(double t, Buffers<T>& B, int r, bool jacobian, bool quadratic, const T& c, const T& cd,
+                   const T& zero) const {
+    const Row& row = rows[r];
+    const int i = rowFirst[r];
+    T* jrow = B.jac.data() + i;  // row i of the column-major m x nz matrix: stride m
+    const int mm = m;
     Pt<T> a, b;
-    int i = 0;
-    for (const Row& row : rows) {
-      T* jrow = B.jac.data() + i;  // row i of the column-major m x nz matrix: stride m
-      const int mm = m;
-      switch (row.kind) {
-        case Row::Revolute: {
-          point(row.p1, B, quadratic, c, cd, zero, a);
-          point(row.p2, B, quadratic, c, cd, zero, b);
-          B.phi[i] = a.P[0] - b.P[0];
-          B.phi[i + 1] = a.P[1] - b.P[1];
-          if (jacobian) {
-            const T one = zero + 1.0;
-            addJT(row.p1, a, one, zero, 1.0, B, jrow, mm);
-            addJT(row.p2, b, one, zero, -1.0, B, jrow, mm);
-            addJT(row.p1, a, zero, one, 1.0, B, jrow + 1, mm);
-            addJT(row.p2, b, zero, one, -1.0, B, jrow + 1, mm);
-            B.phit[i] = zero;
-            B.phit[i + 1] = zero;
-          }
-          if (quadratic) {
-            B.quad[i] = a.Q[0] - b.Q[0];
-            B.quad[i + 1] = a.Q[1] - b.Q[1];
-          }
-          i += 2;
-          break;
+    switch (row.kind) {
+      case Row::Revolute: {
+        point(row.p1, B, quadratic, c, cd, zero, a);
+        point(row.p2, B, quadratic, c, cd, zero, b);
+        B.phi[i] = a.P[0] - b.P[0];
+        B.phi[i + 1] = a.P[1] - b.P[1];
+        if (jacobian) {
+          const T one = zero + 1.0;
+          addJT(row.p1, a, one, zero, 1.0, B, jrow, mm);
+          addJT(row.p2, b, one, zero, -1.0, B, jrow, mm);
+          addJT(row.p1, a, zero, one, 1.0, B, jrow + 1, mm);
+          addJT(row.p2, b, zero, one, -1.0, B, jrow + 1, mm);
+          B.phit[i] = zero;
+          B.phit[i + 1] = zero;
         }
-        case Row::Angle:
-        case Row::DriveAngle: {
-          double s = 0.0, sd = 0.0, sdd = 0.0;
-          if (row.kind == Row::DriveAngle) driverAt(row, t, i, B, s, sd, sdd);
-          B.phi[i] = angle(row.body2, B.z, zero) - angle(row.body1, B.z, zero) - (row.offset + s);
-          if (jacobian) {
-            if (row.body2 != kGround) jrow[mm * (bodyOffset(row.body2) + 2)] += 1.0;
-            if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] -= 1.0;
-            B.phit[i] = zero - sd;
-          }
-          if (quadratic) B.quad[i] = zero - sdd;
-          i += 1;
-          break;
+        if (quadratic) {
+          B.quad[i] = a.Q[0] - b.Q[0];
+          B.quad[i + 1] = a.Q[1] - b.Q[1];
         }
-        case Row::Line:
-        case Row::DriveLine: {
-          point(row.p1, B, quadratic, c, cd, zero, a);
-          point(row.p2, B, quadratic, c, cd, zero, b);
-          T s1 = zero, c1 = zero + 1.0, w1 = zero;
-          if (row.body1 != kGround) {
-            const int o = bodyOffset(row.body1);
-            s1 = B.sn[row.body1];
-            c1 = B.cs[row.body1];
-            if (quadratic) w1 = B.zd[o + 2];
-          }
-          // e1 = A1 axis, n1 = S e1; d = P2 - P1.
-          const T e0 = c1 * row.axis(0) - s1 * row.axis(1), e1 = s1 * row.axis(0) + c1 * row.axis(1);
-          const T n0 = -e1, n1 = e0;
-          const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
-          const bool drive = row.kind == Row::DriveLine;
-          double s = 0.0, sd = 0.0, sdd = 0.0;
-          if (drive) driverAt(row, t, i, B, s, sd, sdd);
-          // Line: n1 . d = 0. DriveLine: e1 . d = offset + s(t).
-          const T& u0 = drive ? e0 : n0;
-          const T& u1 = drive ? e1 : n1;
-          const T du0 = drive ? n0 : T(-e0), du1 = drive ? n1 : T(-e1);  // d(u)/d(theta1)
-          B.phi[i] = u0 * d0 + u1 * d1 - (drive ? row.offset + s : 0.0);
-          if (jacobian) {
-            addJT(row.p2, b, u0, u1, 1.0, B, jrow, mm);
-            addJT(row.p1, a, u0, u1, -1.0, B, jrow, mm);
-            if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] += du0 * d0 + du1 * d1;
-            B.phit[i] = zero - (drive ? sd : 0.0);
-          }
-          if (quadratic) {
-            // d/dt of u is du w1, d^2/dt^2 is -u w1^2 + du w1' (the w1' part is in the Jacobian).
-            const T dd0 = b.Pd[0] - a.Pd[0], dd1 = b.Pd[1] - a.Pd[1];
-            B.quad[i] = u0 * (b.Q[0] - a.Q[0]) + u1 * (b.Q[1] - a.Q[1]) + 2.0 * w1 * (du0 * dd0 + du1 * dd1) -
-                        w1 * w1 * (u0 * d0 + u1 * d1) - (drive ? sdd : 0.0);
-          }
-          i += 1;
-          break;
+        break;
+      }
+      case Row::Angle:
+      case Row::DriveAngle: {
+        double s = 0.0, sd = 0.0, sdd = 0.0;
+        if (row.kind == Row::DriveAngle) driverAt(row, t, i, B, s, sd, sdd);
+        B.phi[i] = angle(row.body2, B.z, zero) - angle(row.body1, B.z, zero) - (row.offset + s);
+        if (jacobian) {
+          if (row.body2 != kGround) jrow[mm * (bodyOffset(row.body2) + 2)] += 1.0;
+          if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] -= 1.0;
+          B.phit[i] = zero - sd;
         }
+        if (quadratic) B.quad[i] = zero - sdd;
+        break;
+      }
+      case Row::Line:
+      case Row::DriveLine: {
+        point(row.p1, B, quadratic, c, cd, zero, a);
+        point(row.p2, B, quadratic, c, cd, zero, b);
+        T s1 = zero, c1 = zero + 1.0, w1 = zero;
+        if (row.body1 != kGround) {
+          const int o = bodyOffset(row.body1);
+          s1 = B.sn[row.body1];
+          c1 = B.cs[row.body1];
+          if (quadratic) w1 = B.zd[o + 2];
+        }
+        // e1 = A1 axis, n1 = S e1; d = P2 - P1.
+        const T e0 = c1 * row.axis(0) - s1 * row.axis(1), e1 = s1 * row.axis(0) + c1 * row.axis(1);
+        const T n0 = -e1, n1 = e0;
+        const T d0 = b.P[0] - a.P[0], d1 = b.P[1] - a.P[1];
+        const bool drive = row.kind == Row::DriveLine;
+        double s = 0.0, sd = 0.0, sdd = 0.0;
+        if (drive) driverAt(row, t, i, B, s, sd, sdd);
+        // Line: n1 . d = 0. DriveLine: e1 . d = offset + s(t).
+        const T& u0 = drive ? e0 : n0;
+        const T& u1 = drive ? e1 : n1;
+        const T du0 = drive ? n0 : T(-e0), du1 = drive ? n1 : T(-e1);  // d(u)/d(theta1)
+        B.phi[i] = u0 * d0 + u1 * d1 - (drive ? row.offset + s : 0.0);
+        if (jacobian) {
+          addJT(row.p2, b, u0, u1, 1.0, B, jrow, mm);
+          addJT(row.p1, a, u0, u1, -1.0, B, jrow, mm);
+          if (row.body1 != kGround) jrow[mm * (bodyOffset(row.body1) + 2)] += du0 * d0 + du1 * d1;
+          B.phit[i] = zero - (drive ? sd : 0.0);
+        }
+        if (quadratic) {
+          // d/dt of u is du w1, d^2/dt^2 is -u w1^2 + du w1' (the w1' part is in the Jacobian).
+          const T dd0 = b.Pd[0] - a.Pd[0], dd1 = b.Pd[1] - a.Pd[1];
+          B.quad[i] = u0 * (b.Q[0] - a.Q[0]) + u1 * (b.Q[1] - a.Q[1]) + 2.0 * w1 * (du0 * dd0 + du1 * dd1) -
+                      w1 * w1 * (u0 * d0 + u1 * d1) - (drive ? sdd : 0.0);
+        }
+        break;
       }
     }
   }
@@ -526,47 +562,395 @@ struct MechanismProblem::Impl {
     return step;
   }
 
-  /// Phi, Phi_z, Phi_t at B.z and Phi_u factorised into (lu, piv).
-  void factorise(double t, Buffers<double>& B, double* lu, int* piv) const {
-    constraints(t, B, true, false, 0.0);
-    for (int j = 0; j < m; ++j) {
-      for (int i = 0; i < m; ++i) lu[i + m * j] = B.jac[i + m * dependent[j]];
-    }
-    if (!luFactor(lu, piv, m)) {
-      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-    }
-  }
-
-  /// One simplified Newton correction of B.z's dependent coordinates with the factorised Phi_u (lu,
-  /// piv) and Phi in B.phi (with `evaluate` first evaluated at B.z); returns the step's size.
-  double correct(double t, Buffers<double>& B, const double* lu, const int* piv, bool evaluate) const {
-    if (evaluate) constraints(t, B, false, false, 0.0);
-    for (int i = 0; i < m; ++i) B.rhs[i] = B.phi[i];
-    luSolve(lu, piv, m, B.rhs.data());
-    double step = 0.0;
-    for (int i = 0; i < m; ++i) {
-      B.z[dependent[i]] -= B.rhs[i];
-      step = std::max(step, std::abs(B.rhs[i]));
-    }
-    return step;
-  }
-
-  /// Simplified Newton's stopping rule: the step is below 1e-15, or the linear rate s_k / s_(k-1)
-  /// predicts the next below 1e-17.
-  static bool settled(double step, double previous, int it) {
-    return step <= 1e-15 || (it >= 1 && step < previous && step * step <= 1e-17 * previous);
-  }
-
   double driverDistance(double t0, double t1) const {
     double d = 0.0;
     for (const Row& r : rows) {
       if (r.kind != Row::DriveAngle && r.kind != Row::DriveLine) continue;
+      // For t >= 0 both laws have |s'| <= |speed|: a short step needs no evaluation of the ramp (its
+      // sine and cosine) to know that it stays below the continuation's 0.25.
+      const double bound = std::abs(r.law.speed) * std::abs(t1 - t0);
+      if (t0 >= 0.0 && t1 >= 0.0 && bound <= 0.25) {
+        d = std::max(d, bound);
+        continue;
+      }
       double s0, s1, x, y;
       r.law.at(t0, s0, x, y);
       r.law.at(t1, s1, x, y);
       d = std::max(d, std::abs(s1 - s0));
     }
     return d;
+  }
+  // ---- The block-triangular form of the position constraints (the chord system). ----
+
+  /// One structural entry of an equation: a coordinate it depends on and the coordinates its
+  /// coefficient (the Jacobian entry) depends on.
+  struct Entry {
+    int z;
+    std::vector<int> coefficient;
+  };
+
+  /// The structural entries of every equation, read off the rows' formulas: a point's position depends
+  /// on its body's x or y (coefficient 1) and, off the body's origin or at the member's B, on its angle
+  /// (and the modal coordinates at B); a line's direction depends on body1's angle, and a component
+  /// that is exactly zero for a line fixed to the ground drops out (a slider on a guide along x does not
+  /// move in x by the guide's equation).
+  std::vector<std::vector<Entry>> structure() const {
+    std::vector<std::vector<Entry>> eqs(m);
+    auto add = [&](int e, int z, std::vector<int> coefficient) {
+      for (Entry& x : eqs[e]) {
+        if (x.z == z) {
+          x.coefficient.insert(x.coefficient.end(), coefficient.begin(), coefficient.end());
+          return;
+        }
+      }
+      eqs[e].push_back(Entry{z, std::move(coefficient)});
+    };
+    // Component k of a point's position; `with` the coordinates that multiply it (a line's direction).
+    auto pointTerms = [&](int e, const PointRef& r, int k, bool translation, const std::vector<int>& with) {
+      if (r.body == kGround) return;
+      const int o = bodyOffset(r.body);
+      if (translation) add(e, o + k, with);
+      std::vector<int> rotating = with;
+      rotating.push_back(o + 2);
+      if (r.atB || r.local != Vec2::Zero()) add(e, o + 2, rotating);
+      if (r.atB) {
+        for (int j = 0; j < n; ++j) add(e, base + 3 + j, rotating);
+      }
+    };
+    for (int r = 0; r < static_cast<int>(rows.size()); ++r) {
+      const Row& row = rows[r];
+      const int i = rowFirst[r];
+      switch (row.kind) {
+        case Row::Revolute:
+          for (int k = 0; k < 2; ++k) {
+            pointTerms(i + k, row.p1, k, true, {});
+            pointTerms(i + k, row.p2, k, true, {});
+          }
+          break;
+        case Row::Angle:
+        case Row::DriveAngle:
+          if (row.body2 != kGround) add(i, bodyOffset(row.body2) + 2, {});
+          if (row.body1 != kGround) add(i, bodyOffset(row.body1) + 2, {});
+          break;
+        case Row::Line:
+        case Row::DriveLine: {
+          const bool drive = row.kind == Row::DriveLine;
+          // The direction u: the axis (drive) or its normal, in body1's frame.
+          const double u[2] = {drive ? row.axis(0) : -row.axis(1), drive ? row.axis(1) : row.axis(0)};
+          std::vector<int> direction, all;
+          for (int body : {row.body1, row.body2}) {
+            if (body == kGround) continue;
+            for (int k = 0; k < 3; ++k) all.push_back(bodyOffset(body) + k);
+          }
+          if (row.body1 != kGround) direction.push_back(bodyOffset(row.body1) + 2);
+          for (int k = 0; k < 2; ++k) {
+            // Constant and exactly zero: the component drops out.
+            const bool present = row.body1 != kGround || u[k] != 0.0;
+            pointTerms(i, row.p2, k, present, direction);
+            pointTerms(i, row.p1, k, present, direction);
+          }
+          // body1's angle turns the direction: its coefficient depends on the whole row.
+          if (row.body1 != kGround) add(i, bodyOffset(row.body1) + 2, all);
+          break;
+        }
+      }
+    }
+    return eqs;
+  }
+
+  /// Matching of equations to unknowns (augmenting paths) on the sparsity pattern of Phi_u, then
+  /// Tarjan's strongly connected components of the graph "equation needs the unknown matched to
+  /// another": the Dulmage-Mendelsohn (BLT) order, blocks in the order they can be solved. Throws
+  /// std::invalid_argument when the pattern has no perfect matching (redundant or missing constraints).
+  void buildBlocks() {
+    const std::vector<std::vector<Entry>> eqs = structure();
+    std::vector<int> unknownOf(nz, -1);
+    for (int j = 0; j < m; ++j) unknownOf[dependent[j]] = j;
+    std::vector<std::vector<int>> adj(m);
+    for (int e = 0; e < m; ++e) {
+      for (const Entry& x : eqs[e]) {
+        if (unknownOf[x.z] >= 0) adj[e].push_back(unknownOf[x.z]);
+      }
+      std::sort(adj[e].begin(), adj[e].end());
+    }
+    std::vector<int> eqOfUnknown(m, -1), unknownOfEq(m, -1);
+    for (int e = 0; e < m; ++e) {
+      std::vector<char> seen(m, 0);
+      // Kuhn's augmenting path from equation e (m is at most a few hundred).
+      std::function<bool(int)> augment = [&](int q) {
+        for (int j : adj[q]) {
+          if (seen[j]) continue;
+          seen[j] = 1;
+          if (eqOfUnknown[j] < 0 || augment(eqOfUnknown[j])) {
+            eqOfUnknown[j] = q;
+            unknownOfEq[q] = j;
+            return true;
+          }
+        }
+        return false;
+      };
+      if (!augment(e)) {
+        throw std::invalid_argument(
+            "mechanism: the constraints are structurally singular (no equation can fix some coordinate; a "
+            "redundant joint or a coordinate no joint constrains)");
+      }
+    }
+    // Tarjan: an equation's component is emitted after every component it needs.
+    std::vector<int> index(m, -1), low(m, 0), stack;
+    std::vector<char> onStack(m, 0);
+    int counter = 0;
+    Blocks& bl = blocks;
+    bl = Blocks();
+    std::function<void(int)> visit = [&](int e) {
+      index[e] = low[e] = counter++;
+      stack.push_back(e);
+      onStack[e] = 1;
+      for (int j : adj[e]) {
+        const int q = eqOfUnknown[j];
+        if (q == e) continue;
+        if (index[q] < 0) {
+          visit(q);
+          low[e] = std::min(low[e], low[q]);
+        } else if (onStack[q]) {
+          low[e] = std::min(low[e], index[q]);
+        }
+      }
+      if (low[e] != index[e]) return;
+      std::vector<int> component;
+      for (;;) {
+        const int q = stack.back();
+        stack.pop_back();
+        onStack[q] = 0;
+        component.push_back(q);
+        if (q == e) break;
+      }
+      std::sort(component.begin(), component.end());
+      bl.start.push_back(static_cast<int>(bl.eq.size()));
+      for (int q : component) {
+        bl.eq.push_back(q);
+        bl.unk.push_back(unknownOfEq[q]);
+      }
+    };
+    for (int e = 0; e < m; ++e) {
+      if (index[e] < 0) visit(e);
+    }
+    bl.start.push_back(m);
+    std::vector<int> blockOf(m);
+    for (int b = 0; b < bl.count(); ++b) {
+      for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) blockOf[bl.unk[p]] = b;
+    }
+    std::vector<int> rowOfEq(m);
+    for (int r = 0; r < static_cast<int>(rows.size()); ++r) {
+      for (int i = rowFirst[r]; i < (r + 1 < static_cast<int>(rows.size()) ? rowFirst[r + 1] : m); ++i)
+        rowOfEq[i] = r;
+    }
+    for (int b = 0; b < bl.count(); ++b) {
+      const int s = bl.start[b + 1] - bl.start[b];
+      bl.luOffset.push_back(bl.luSize);
+      bl.pivOffset.push_back(bl.pivSize);
+      bl.luSize += s * s;
+      bl.pivSize += s;
+      bl.maxSize = std::max(bl.maxSize, s);
+      std::vector<int> blockZ;
+      for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) blockZ.push_back(dependent[bl.unk[p]]);
+      bool affine = true, constant = true;
+      bl.rowStart.push_back(static_cast<int>(bl.rowList.size()));
+      for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) {
+        const int e = bl.eq[p];
+        if (std::find(bl.rowList.begin() + bl.rowStart[b], bl.rowList.end(), rowOfEq[e]) == bl.rowList.end())
+          bl.rowList.push_back(rowOfEq[e]);
+        bl.allStart.push_back(static_cast<int>(bl.allIndex.size()));
+        bl.offStart.push_back(static_cast<int>(bl.offIndex.size()));
+        for (const Entry& x : eqs[e]) {
+          const int j = unknownOf[x.z];
+          if (j < 0) continue;
+          bl.allIndex.push_back(e + m * x.z);
+          bl.allUnk.push_back(j);
+          if (blockOf[j] != b) {
+            assert(blockOf[j] < b);
+            bl.offIndex.push_back(e + m * x.z);
+            bl.offUnk.push_back(j);
+          } else {
+            if (!x.coefficient.empty()) constant = false;
+            for (int z : x.coefficient) {
+              if (std::find(blockZ.begin(), blockZ.end(), z) != blockZ.end()) affine = false;
+            }
+          }
+        }
+      }
+      bl.affine.push_back(affine ? 1 : 0);
+      bl.constant.push_back(constant ? 1 : 0);
+    }
+    bl.rowStart.push_back(static_cast<int>(bl.rowList.size()));
+    bl.allStart.push_back(static_cast<int>(bl.allIndex.size()));
+    bl.offStart.push_back(static_cast<int>(bl.offIndex.size()));
+    for (int e = 0; e < m; ++e) {
+      bl.touchStart.push_back(static_cast<int>(bl.touchList.size()));
+      for (const Entry& x : eqs[e]) bl.touchList.push_back(e + m * x.z);
+    }
+    bl.touchStart.push_back(static_cast<int>(bl.touchList.size()));
+    // The constant blocks' factors, from the Jacobian at the initial positions (any point would do).
+    bl.constantLu.assign(bl.luSize, 0.0);
+    bl.constantPiv.assign(bl.pivSize, 0);
+    Buffers<double> B(nz, m, f, n);
+    for (int i = 0; i < nz; ++i) B.z[i] = zInitial(i);
+    for (int i = 0; i < n; ++i) B.b[i] = 1.0;
+    for (int b = 0; b < bl.count(); ++b) {
+      if (!bl.constant[b]) continue;
+      evaluateBlock(0.0, B, b, true);
+      try {
+        factorBlock(0.0, B.jac.data(), b, bl.constantLu.data() + bl.luOffset[b],
+                    bl.constantPiv.data() + bl.pivOffset[b]);
+      } catch (const NumericalError&) {
+        throw std::invalid_argument(
+            "mechanism: the constraints are singular (a redundant joint or a coordinate no joint "
+            "constrains)");
+      }
+    }
+  }
+
+  /// Phi and (with `jacobian`) the Jacobian rows of block b's equations at B.z (their other equations'
+  /// too, which the block's rows compute alongside). The sines and cosines of the rows' bodies only:
+  /// an angle row needs none.
+  void evaluateBlock(double t, Buffers<double>& B, int b, bool jacobian) const {
+    double c, cd;
+    chord(B, false, c, cd, 0.0);
+    for (int k = blocks.rowStart[b]; k < blocks.rowStart[b + 1]; ++k) {
+      const int r = blocks.rowList[k];
+      const Row& row = rows[r];
+      if (row.kind != Row::Angle && row.kind != Row::DriveAngle) {
+        updateTrigOf(B, row.p1.body);
+        updateTrigOf(B, row.p2.body);
+        updateTrigOf(B, row.body1);
+      }
+      if (jacobian) {
+        const int last = r + 1 < static_cast<int>(rows.size()) ? rowFirst[r + 1] : m;
+        for (int i = rowFirst[r]; i < last; ++i) {
+          for (int x = blocks.touchStart[i]; x < blocks.touchStart[i + 1]; ++x)
+            B.jac[blocks.touchList[x]] = 0.0;
+        }
+      }
+      evaluateRow(t, B, r, jacobian, false, c, cd, 0.0);
+    }
+  }
+
+  /// Block b's Jacobian (its rows of Phi_u in its unknowns, s x s column-major) into lu, factorised
+  /// (piv); from B.jac.
+  void factorBlock(double t, const double* jac, int b, double* lu, int* piv) const {
+    const int p0 = blocks.start[b], s = blocks.start[b + 1] - p0;
+    for (int j = 0; j < s; ++j) {
+      for (int i = 0; i < s; ++i) lu[i + s * j] = jac[blocks.eq[p0 + i] + m * dependent[blocks.unk[p0 + j]]];
+    }
+    if (s == 1 ? lu[0] == 0.0 : !luFactor(lu, piv, s)) {
+      throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
+    }
+  }
+
+  /// One Newton step on block b (the earlier blocks' unknowns and the independent coordinates fixed):
+  /// returns the step's size. lu, piv, x: scratch of the largest block.
+  double blockStep(double t, Buffers<double>& B, int b, double* lu, int* piv, double* x) const {
+    const int p0 = blocks.start[b], s = blocks.start[b + 1] - p0;
+    const double* l = lu;
+    const int* lp = piv;
+    if (blocks.constant[b]) {
+      // The block's Jacobian has the same bits everywhere: factorised once (buildBlocks()).
+      evaluateBlock(t, B, b, false);
+      l = blocks.constantLu.data() + blocks.luOffset[b];
+      lp = blocks.constantPiv.data() + blocks.pivOffset[b];
+    } else {
+      evaluateBlock(t, B, b, true);
+      factorBlock(t, B.jac.data(), b, lu, piv);
+    }
+    for (int i = 0; i < s; ++i) x[i] = B.phi[blocks.eq[p0 + i]];
+    if (s == 1) {
+      x[0] /= l[0];
+    } else {
+      luSolve(l, lp, s, x);
+    }
+    double step = 0.0;
+    for (int i = 0; i < s; ++i) {
+      B.z[dependent[blocks.unk[p0 + i]]] -= x[i];
+      step = std::max(step, std::abs(x[i]));
+    }
+    return step;
+  }
+
+  /// The dependent coordinates of B.z solved block by block at time t (independent ones fixed). A block
+  /// affine in its unknowns is solved by one step from zero, exactly, and its result is a function of
+  /// the earlier blocks and sigma alone. Any other block: Newton from B.z until the step is below 1e-11
+  /// or the quadratic convergence predicts the next below 1e-16; with `polish`, its unknowns are then
+  /// rounded to a grid of 2^-20 and Newton runs again from the grid point (two or three steps reach
+  /// round-off), so that its result is a function of the grid point, the earlier blocks and sigma (see
+  /// the header). lu, piv, x: scratch of the largest block.
+  void solveBlocks(double t, Buffers<double>& B, bool polish, double* lu, int* piv, double* x) const {
+    for (int b = 0; b < blocks.count(); ++b) {
+      const int p0 = blocks.start[b], p1 = blocks.start[b + 1];
+      if (blocks.affine[b]) {
+        for (int p = p0; p < p1; ++p) B.z[dependent[blocks.unk[p]]] = 0.0;
+        if (!std::isfinite(blockStep(t, B, b, lu, piv, x))) {
+          throw NumericalError("the mechanism cannot be assembled (its constraints give no finite position)",
+                               t);
+        }
+        continue;
+      }
+      double step = 0.0, previous = 0.0;
+      bool converged = false;
+      for (int it = 0; it < 50; ++it) {
+        step = blockStep(t, B, b, lu, piv, x);
+        if (!std::isfinite(step)) break;
+        if (step <= 1e-11 || (it >= 1 && step <= 1e-7 && step < previous &&
+                              step * step * step <= 1e-16 * previous * previous)) {
+          converged = true;
+          break;
+        }
+        previous = step;
+      }
+      if (!converged) {
+        throw NumericalError("the mechanism cannot be assembled (Newton on the constraints did not converge)",
+                             t);
+      }
+      if (!polish) continue;
+      for (int p = p0; p < p1; ++p) {
+        double& u = B.z[dependent[blocks.unk[p]]];
+        u = std::ldexp(std::nearbyint(std::ldexp(u, 20)), -20);
+      }
+      previous = 0.0;
+      for (int it = 0; it < 3; ++it) {
+        step = blockStep(t, B, b, lu, piv, x);
+        if (step == 0.0 || (it >= 1 && step < previous && step * step * step <= 1e-16 * previous * previous))
+          break;
+        previous = step;
+      }
+    }
+  }
+
+  /// Every block of Phi_u (from the m x nz jac) factorised into lu, piv (Blocks::luOffset, pivOffset).
+  void factorBlocks(double t, const double* jac, double* lu, int* piv) const {
+    for (int b = 0; b < blocks.count(); ++b)
+      factorBlock(t, jac, b, lu + blocks.luOffset[b], piv + blocks.pivOffset[b]);
+  }
+
+  /// out = Phi_u^{-1} in by block forward substitution (in by equation, out by unknown; Phi_u's entries
+  /// from the m x nz jac, its blocks factorised by factorBlocks()). r: scratch of the largest block.
+  void blockSolve(const double* jac, const double* lu, const int* piv, const double* in, double* out,
+                  double* r) const {
+    for (int b = 0; b < blocks.count(); ++b) {
+      const int p0 = blocks.start[b], s = blocks.start[b + 1] - p0;
+      for (int i = 0; i < s; ++i) {
+        const int p = p0 + i;
+        double v = in[blocks.eq[p]];
+        for (int k = blocks.offStart[p]; k < blocks.offStart[p + 1]; ++k)
+          v -= jac[blocks.offIndex[k]] * out[blocks.offUnk[k]];
+        r[i] = v;
+      }
+      const double* l = lu + blocks.luOffset[b];
+      if (s == 1) {
+        out[blocks.unk[p0]] = r[0] / l[0];
+      } else {
+        luSolve(l, piv + blocks.pivOffset[b], s, r);
+        for (int i = 0; i < s; ++i) out[blocks.unk[p0 + i]] = r[i];
+      }
+    }
   }
 };
 
@@ -586,13 +970,14 @@ struct Work final : ProblemWorkspace {
         zChord(C.nz),
         sigmaLast(C.f),
         zLast(C.nz),
-        tangentT(C.m),
-        tangentS(C.m, C.f),
-        uPredicted(C.m),
-        gridZ(C.m),
-        gridSigma(C.f),
-        gridLu(C.m * C.m),
-        gridPiv(C.m),
+        blockLu(C.blocks.luSize),
+        blockPiv(C.blocks.pivSize),
+        blockIn(C.m),
+        blockOut(C.m),
+        blockScratch(C.blocks.maxSize),
+        stepLu(C.blocks.maxSize * C.blocks.maxSize),
+        stepPiv(C.blocks.maxSize),
+        stepX(C.blocks.maxSize),
         sigmaKinematics(C.f),
         sigmaDotKinematics(C.f),
         sigmaTwo(C.f),
@@ -636,17 +1021,15 @@ struct Work final : ProblemWorkspace {
   bool warm = false;
   double tLast = 0.0;
   Vector sigmaLast, zLast;
-  // The tangent of the solution at the last grid point (the predictor of a short move).
-  bool tangentValid = false;
-  Vector tangentT;
-  Matrix tangentS;
-  std::vector<double> uPredicted;  ///< the predictor's dependent coordinates (restarts)
-  // The last polish (solvePositions()): its time, grid point and rounded sigma, and Phi_u factorised
-  // there.
-  bool gridValid = false;
-  double gridT = 0.0;
-  std::vector<double> gridZ, gridSigma, gridLu;
-  std::vector<int> gridPiv;
+  // The chord system's Phi_u at the solved positions, factorised block by block (the kinematics' solves
+  // and the dual passes'), and scratch of the block solves (by equation, by unknown, one block).
+  std::vector<double> blockLu;
+  std::vector<int> blockPiv;
+  std::vector<double> blockIn, blockOut, blockScratch;
+  // Scratch of one block's Newton step in the position solve.
+  std::vector<double> stepLu;
+  std::vector<int> stepPiv;
+  std::vector<double> stepX;
   // The chord kinematics in cd were computed at (tKinematics, sigmaKinematics, sigmaDotKinematics):
   // the engine asks for the mass matrix, the Jacobians and the force (or the parameter product) at one
   // point.
@@ -711,104 +1094,14 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
                          t);
   }
   const int steps = std::max(1, static_cast<int>(pieces));
-  const int m = C.m;
-  const bool sameTime = w.gridValid && t == w.gridT;
-  if (steps == 1 && w.tangentValid) {
-    // A short move: the first-order predictor along the last point's tangent (error of the order of
-    // the move squared) and Newton with the quadratic test. Only the grid point below depends on it.
-    const double dt = t - tStart;
-    for (int i = 0; i < m; ++i) {
-      double u = zStart(C.dependent[i]) + w.tangentT(i) * dt;
-      for (int j = 0; j < C.f; ++j) u += w.tangentS(i, j) * (sigma(j) - yStart(j));
-      B.z[C.dependent[i]] = u;
-    }
-    for (int i = 0; i < C.f; ++i) B.z[C.independent[i]] = sigma(i);
-    // At the time of the last grid point (the integrator's Newton iterations move sigma by little),
-    // simplified Newton with that point's Phi_u first: its rate is the move, so a few evaluations
-    // without a factorisation; full Newton if it is slow.
-    for (int i = 0; i < m; ++i) w.uPredicted[i] = B.z[C.dependent[i]];
-    auto restart = [&] {
-      for (int i = 0; i < m; ++i) B.z[C.dependent[i]] = w.uPredicted[i];
-    };
-    // Simplified Newton from the correction `first` on (its predecessor's size `previous`); false if
-    // a step grows or is not finite, or after five corrections.
-    auto simplified = [&](const double* lu, const int* piv, double previous, int first) {
-      for (int it = first; it < 5; ++it) {
-        const double step = C.correct(t, B, lu, piv, true);
-        if (!std::isfinite(step) || (it >= 1 && step >= previous)) return false;
-        if (C.settled(step, previous, it)) return true;
-        previous = step;
-      }
-      return false;
-    };
-    bool settledWarm = sameTime && simplified(w.gridLu.data(), w.gridPiv.data(), 0.0, 0);
-    if (!settledWarm) {
-      // One Newton step with Phi_u factorised at the predictor, then simplified steps with that
-      // factorisation, whose rate is the predictor's error (about the move squared): two or three
-      // evaluations of Phi instead of a second factorisation. Full Newton from the predictor if they
-      // are slow.
-      restart();
-      C.factorise(t, B, B.lu.data(), B.piv.data());
-      const double first = C.correct(t, B, B.lu.data(), B.piv.data(), false);
-      settledWarm = std::isfinite(first) && first <= 1e-3 && simplified(B.lu.data(), B.piv.data(), first, 1);
-      if (!settledWarm) {
-        restart();
-        C.newton(t, B, -1, 1e-11, true);
-      }
-    }
-  } else {
-    for (int k = 1; k <= steps; ++k) {
-      const double theta = static_cast<double>(k) / steps;
-      const double tk = k == steps ? t : tStart + (t - tStart) * theta;
-      for (int i = 0; i < C.f; ++i)
-        B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
-      C.newton(tk, B, -1, 1e-11);
-    }
-  }
-  // Round to a grid and polish: the bits are then a function of (t, sigma) only. From the grid's
-  // 5e-7 two or three simplified Newton steps (one factorisation) reach round-off: each multiplies the
-  // error by about 5e-7 times the constraints' curvature. Phi_u is factorised at the grid point with
-  // sigma rounded to the same grid, a function of (t, grid point, rounded sigma): it is kept and serves
-  // the next solve with the same three (the integrator's Newton iterations move sigma and the solution
-  // by far less than the grid), with the same bits. Phi in the corrections is at sigma itself.
-  auto onGrid = [](double x) { return std::ldexp(std::nearbyint(std::ldexp(x, 20)), -20); };
-  bool sameGrid = sameTime;
-  for (int i = 0; i < m; ++i) {
-    double& u = B.z[C.dependent[i]];
-    u = onGrid(u);
-    if (std::memcmp(&u, &w.gridZ[i], sizeof u) != 0) sameGrid = false;
-  }
-  for (int j = 0; j < C.f; ++j) {
-    const double g = onGrid(sigma(j));
-    if (std::memcmp(&g, &w.gridSigma[j], sizeof g) != 0) sameGrid = false;
-  }
-  if (!sameGrid) {
-    for (int j = 0; j < C.f; ++j) {
-      w.gridSigma[j] = onGrid(sigma(j));
-      B.z[C.independent[j]] = w.gridSigma[j];
-    }
-    C.factorise(t, B, w.gridLu.data(), w.gridPiv.data());
-    for (int i = 0; i < m; ++i) w.gridZ[i] = B.z[C.dependent[i]];
-    w.gridT = t;
-    w.gridValid = true;
-    // The tangent of the solution curve for the next call's predictor, with Phi_u of the grid point:
-    // du/dt = -Phi_u^-1 Phi_t, du/dsigma = -Phi_u^-1 Phi_sigma.
-    for (int i = 0; i < m; ++i) B.rhs[i] = -B.phit[i];
-    luSolve(w.gridLu.data(), w.gridPiv.data(), m, B.rhs.data());
-    for (int i = 0; i < m; ++i) w.tangentT(i) = B.rhs[i];
-    for (int j = 0; j < C.f; ++j) {
-      for (int i = 0; i < m; ++i) B.rhs[i] = -B.jac[i + m * C.independent[j]];
-      luSolve(w.gridLu.data(), w.gridPiv.data(), m, B.rhs.data());
-      for (int i = 0; i < m; ++i) w.tangentS(i, j) = B.rhs[i];
-    }
-    w.tangentValid = true;
-    for (int j = 0; j < C.f; ++j) B.z[C.independent[j]] = sigma(j);
-  }
-  double previous = 0.0;
-  for (int it = 0; it < 3; ++it) {
-    const double step = C.correct(t, B, w.gridLu.data(), w.gridPiv.data(), true);
-    if (it >= 1 && C.settled(step, previous, it)) break;
-    previous = step;
+  // Block by block (Impl::solveBlocks()), from the last solution; the last piece is polished, so that
+  // the positions are a function of (t, sigma) alone.
+  for (int k = 1; k <= steps; ++k) {
+    const double theta = static_cast<double>(k) / steps;
+    const double tk = k == steps ? t : tStart + (t - tStart) * theta;
+    for (int i = 0; i < C.f; ++i)
+      B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
+    C.solveBlocks(tk, B, k == steps, w.stepLu.data(), w.stepPiv.data(), w.stepX.data());
   }
   for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
   w.warm = true;
@@ -838,26 +1131,52 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   // Phi_u0^{-1} (b' - Phi_u' x0) is exact: no factorisation in dual numbers.
   // With `known`, x0 is its solution (value, the full vector of nz whose dependent rows are taken) and
   // only the derivatives are solved, one double solve per direction.
+  // The chord system solves by block forward substitution in the block-triangular order
+  // (Impl::Blocks), with its blocks factorised in w.blockLu; its dual passes always have `known`.
+  const bool blocks = !I.blocks.empty();
   auto solve = [&](const double* value) {  // B.rhs = Phi_u^{-1} B.rhs
     if constexpr (std::is_same_v<T, double>) {
-      luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+      if (blocks) {
+        std::copy(B.rhs.begin(), B.rhs.end(), w.blockIn.begin());
+        I.blockSolve(B.jac.data(), w.blockLu.data(), w.blockPiv.data(), w.blockIn.data(), B.rhs.data(),
+                     w.blockScratch.data());
+      } else {
+        luSolve(B.lu.data(), B.piv.data(), m, B.rhs.data());
+      }
     } else {
       double* x0 = w.x0.data();
       if (known != nullptr) {
         for (int i = 0; i < m; ++i) x0[i] = value[I.dependent[i]];
       } else {
+        assert(!blocks);
         for (int i = 0; i < m; ++i) x0[i] = B.rhs[i].value();
         luSolve(w.luStar.data(), w.pivStar.data(), m, x0);
       }
-      for (int j = 0; j < m; ++j) {
-        const T* column = B.jac.data() + m * I.dependent[j];
-        for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
+      if (blocks) {
+        // Phi_u x0 on its structural entries only.
+        const MechanismProblem::Impl::Blocks& bl = I.blocks;
+        for (int p = 0; p < m; ++p) {
+          T& r = B.rhs[bl.eq[p]];
+          for (int k = bl.allStart[p]; k < bl.allStart[p + 1]; ++k)
+            r -= B.jac[bl.allIndex[k]] * x0[bl.allUnk[k]];
+        }
+      } else {
+        for (int j = 0; j < m; ++j) {
+          const T* column = B.jac.data() + m * I.dependent[j];
+          for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
+        }
       }
       if (known != nullptr) {
         double* d = w.x1.data();
         for (int e = 0; e < nd; ++e) {
-          for (int i = 0; i < m; ++i) d[i] = B.rhs[i].derivatives()(e);
-          luSolve(w.luStar.data(), w.pivStar.data(), m, d);
+          if (blocks) {
+            for (int i = 0; i < m; ++i) w.blockIn[i] = B.rhs[i].derivatives()(e);
+            I.blockSolve(known->jac.data(), w.blockLu.data(), w.blockPiv.data(), w.blockIn.data(), d,
+                         w.blockScratch.data());
+          } else {
+            for (int i = 0; i < m; ++i) d[i] = B.rhs[i].derivatives()(e);
+            luSolve(w.luStar.data(), w.pivStar.data(), m, d);
+          }
           for (int i = 0; i < m; ++i) B.rhs[i].derivatives()(e) = d[i];
         }
         for (int i = 0; i < m; ++i) B.rhs[i].value() = x0[i];
@@ -889,14 +1208,19 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
     }
     I.constraints(t, B, true, false, zero);
     if constexpr (std::is_same_v<T, double>) {
-      for (int j = 0; j < m; ++j) {
-        for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
+      if (blocks) {
+        I.factorBlocks(t, B.jac.data(), w.blockLu.data(), w.blockPiv.data());
+      } else {
+        for (int j = 0; j < m; ++j) {
+          for (int i = 0; i < m; ++i) B.lu[i + m * j] = B.jac[i + m * I.dependent[j]];
+        }
+        if (!luFactor(B.lu.data(), B.piv.data(), m)) {
+          throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)",
+                               t);
+        }
+        std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
+        std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
       }
-      if (!luFactor(B.lu.data(), B.piv.data(), m)) {
-        throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)", t);
-      }
-      std::copy(B.lu.begin(), B.lu.end(), w.luStar.begin());
-      std::copy(B.piv.begin(), B.piv.end(), w.pivStar.begin());
     }
     // R: identity on the independent rows, -Phi_u^{-1} Phi_y on the dependent ones (column-major nz x f).
     for (int j = 0; j < f; ++j) {
@@ -1430,6 +1754,7 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
     for (const Driver& d : M.drivers) {
       if (d.joint == j.name) driver = &d;
     }
+    r.name = j.name;
     const double relative = angleOf(j.body2) - angleOf(j.body1);
     if (j.type == JointType::Revolute || j.type == JointType::Fixed) {
       r.kind = Row::Revolute;
@@ -1443,6 +1768,7 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
         r.kind = Row::DriveAngle;
         r.offset = driver->offset;
         r.law = driver->law;
+        r.name = driver->name;
         I.rows.push_back(r);
       }
     } else {
@@ -1455,10 +1781,35 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
         r.kind = Row::DriveLine;
         r.offset = driver->offset;
         r.law = driver->law;
+        r.name = driver->name;
         I.rows.push_back(r);
       }
     }
   }
+  for (int r = 0, i = 0; r < static_cast<int>(I.rows.size()); ++r) {
+    const Row& row = I.rows[r];
+    I.rowFirst.push_back(i);
+    i += row.kind == Row::Revolute ? 2 : 1;
+    switch (row.kind) {
+      case Row::Revolute:
+        I.equationNames.push_back(row.name + ".x");
+        I.equationNames.push_back(row.name + ".y");
+        break;
+      case Row::Angle:
+        I.equationNames.push_back(row.name + ".angle");
+        break;
+      case Row::Line:
+        I.equationNames.push_back(row.name + ".line");
+        break;
+      default:
+        I.equationNames.push_back(row.name);
+    }
+  }
+  for (int k = 0; k <= I.nr; ++k) {
+    const std::string& body = k == I.nr ? M.member.name : M.rigidBodies[k].name;
+    for (const char* c : {".x", ".y", ".angle"}) I.coordinateNames.push_back(body + c);
+  }
+  for (int i = 0; i < I.n; ++i) I.coordinateNames.push_back(M.member.name + ".q" + std::to_string(i));
   for (const Spring& s : M.springs) {
     I.springs.push_back(SpringRef{I.pointRef(M, s.body1, s.point1), I.pointRef(M, s.body2, s.point2),
                                   s.stiffness, s.restLength, s.damping});
@@ -1490,6 +1841,7 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
   C.yInitial = Vector::Zero(C.f);
   C.yInitial.head(I.nFree) = I.yInitial.head(I.nFree);
   C.vInitial = Vector::Zero(C.f);
+  C.buildBlocks();
 }
 
 MechanismProblem::~MechanismProblem() = default;
@@ -2096,6 +2448,65 @@ MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y
   const Vector lam = phiU.transpose().partialPivLu().solve(rhs);
   for (int i = 0; i < I.m; ++i) e.drivePower += lam(i) * B.phit[i];
   return e;
+}
+
+std::vector<MechanismProblem::ConstraintBlock> MechanismProblem::constraintBlocks() const {
+  const Impl& C = *chord_;
+  std::vector<ConstraintBlock> out;
+  for (int b = 0; b < C.blocks.count(); ++b) {
+    ConstraintBlock block;
+    for (int p = C.blocks.start[b]; p < C.blocks.start[b + 1]; ++p) {
+      block.equations.push_back(C.equationNames[C.blocks.eq[p]]);
+      block.unknowns.push_back(C.coordinateNames[C.dependent[C.blocks.unk[p]]]);
+      block.rows.push_back(C.blocks.eq[p]);
+      block.columns.push_back(C.blocks.unk[p]);
+    }
+    block.affine = C.blocks.affine[b] != 0;
+    out.push_back(block);
+  }
+  return out;
+}
+
+Eigen::MatrixXi MechanismProblem::constraintPattern() const {
+  const Impl& C = *chord_;
+  Eigen::MatrixXi pattern = Eigen::MatrixXi::Zero(C.m, C.m);
+  for (int p = 0; p < C.m; ++p) {
+    for (int k = C.blocks.allStart[p]; k < C.blocks.allStart[p + 1]; ++k)
+      pattern(C.blocks.eq[p], C.blocks.allUnk[k]) = 1;
+  }
+  return pattern;
+}
+
+void MechanismProblem::constraintJacobian(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef phiU,
+                                          ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  w.mu.setZero();
+  chordInputs(I, View(I.n, p.data()), y, w.mu, nullptr, w);
+  chordKinematics(C, t, w, true);
+  for (int j = 0; j < C.m; ++j) {
+    for (int i = 0; i < C.m; ++i) phiU(i, j) = w.cd.jac[i + C.m * C.dependent[j]];
+  }
+}
+
+void MechanismProblem::positionsBlockAndDense(double t, ConstVectorRef y, ConstVectorRef p, VectorRef z,
+                                              VectorRef zDense, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  w.mu.setZero();
+  chordInputs(I, View(I.n, p.data()), y, w.mu, nullptr, w);
+  w.kinematicsValid = false;
+  solvePositions(C, t, w.sigma, w);
+  z = w.zChord;
+  Buffers<double> B(C.nz, C.m, C.f, 1);
+  B.b[0] = 1.0;
+  for (int i = 0; i < C.nz; ++i) B.z[i] = w.zChord(i);
+  for (int i = 0; i < C.m; ++i) B.z[C.dependent[i]] += 1e-3;
+  C.newton(t, B, -1, 1e-12);
+  C.newton(t, B, 2, 0.0);
+  for (int i = 0; i < C.nz; ++i) zDense(i) = B.z[i];
 }
 
 }  // namespace hindsight::mechanism

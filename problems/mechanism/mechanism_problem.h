@@ -43,19 +43,29 @@
 // with all of q, R^T (M(z) z'' - Q) by dual numbers in all 2f directions) stays as the tests' reference
 // (the *ByProjection and *ByAutoDiff methods).
 //
-// Determinism and cost. Newton starts from the workspace's previous solution, moved along its tangent
-// (du/dt, du/dsigma) for a short move (continuation from it when the motion is large): one
-// factorisation of Phi_u at this predictor and simplified steps with it, ended by their rate. Its
-// converged bits would depend on the history of calls, so the dependent coordinates are then rounded
-// to a grid of 2^-20 and two or three simplified Newton steps are taken from there with Phi_u
-// factorised at the grid point and sigma rounded to the same grid: the result is a function of
-// (t, sigma) alone (unless two solutions lie within 1e-16 of a grid midpoint), so every storage
-// strategy and thread count gets the same bits. That factorisation is a function of (t, grid point,
-// rounded sigma) and is kept for the next solve with the same three (the integrator's Newton
-// iterations), which then needs no factorisation at all. A workspace keeps the positions and
-// kinematics of its last point, the dual kinematics of its last point, the member's products of q, q'
-// and a (for a fixed p), and each body's sine and cosine with the angle's bits: the engine asks for
-// the mass matrix, Jacobians, force and parameter product at one point.
+// The position solve. The constraints are put once, at construction, into block-triangular form (the
+// Dulmage-Mendelsohn or BLT order of equation-based modelling compilers): a maximum matching of
+// equations to dependent coordinates on the structural pattern of Phi_u (which coordinates each row's
+// formula touches; a ground guide's zero direction component drops out), then Tarjan's strongly
+// connected components of "equation needs the unknown matched to another". The blocks are solved in
+// that order, each with the earlier ones fixed: a block affine in its unknowns (a pin's position, a
+// driven angle, a guide) by one step from zero, exact; any other (a loop's closure) by Newton with a
+// small dense LU from the last solution. The slider-crank's nine equations are nine 1 x 1 blocks with
+// one nonlinear (the member's angle from the wrist pin), the four-bar's loop one 4 x 4 block. Every
+// solve with Phi_u (R, z', zeta and the dual numbers' derivatives) is block forward substitution with
+// the blocks factorised once per point; a block whose Jacobian is constant (coefficients +-1, a ground
+// guide's direction) is factorised once at construction.
+//
+// Determinism and cost. An affine block's result is a function of the earlier blocks' and sigma. A
+// nonlinear block's Newton result would depend on where it started (the history of calls), so its
+// unknowns are then rounded to a grid of 2^-20 and Newton runs again from that grid point (two or three
+// steps reach round-off): the result is a function of (t, sigma) alone, block by block (unless two
+// solutions lie within 1e-16 of a grid midpoint), so every storage strategy and thread count gets the
+// same bits. A motion of more than 0.25 (rad or m) since the last solve is followed in pieces
+// (continuation), so that Newton stays on its branch. A workspace keeps the positions and kinematics of
+// its last point, the dual kinematics of its last point, the member's products of q, q' and a (for a
+// fixed p), and each body's sine and cosine with the angle's bits: the engine asks for the mass matrix,
+// Jacobians, force and parameter product at one point.
 //
 // Parameters p: the member's invariants in the layout of problems/rod/invariants.h (b = the u_x row of
 // the modes at B, which is how the member's B attaches), so problems/rod/design_gradient.h chains
@@ -66,6 +76,8 @@
 #include <hindsight/problems/mechanism/mechanism.h>
 
 #include <memory>
+#include <string>
+#include <vector>
 
 namespace hindsight::mechanism {
 
@@ -142,6 +154,29 @@ class MechanismProblem final : public SecondOrderProblem {
   };
   Energies energies(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
                     ProblemWorkspace* ws) const;
+
+  /// One block of the position constraints' block-triangular order (the header's "position solve").
+  struct ConstraintBlock {
+    /// "joint.x", "joint.y" (revolute and fixed), "joint.angle" (fixed and prismatic), "joint.line"
+    /// (prismatic), or the driver's name.
+    std::vector<std::string> equations;
+    std::vector<std::string> unknowns;  ///< "body.x", "body.y", "body.angle", matched to the equations
+    bool affine = false;                ///< Phi is affine in the unknowns: one step from zero solves it
+    /// The equations' rows and the unknowns' columns in constraintPattern() and constraintJacobian().
+    std::vector<int> rows, columns;
+  };
+  /// The blocks in the order they are solved (structural, fixed at construction).
+  std::vector<ConstraintBlock> constraintBlocks() const;
+  /// The structural pattern of Phi_u (1 where an entry may be nonzero; rows: the equations in the
+  /// description's order, columns: the dependent coordinates) and Phi_u itself at the solved positions of
+  /// (t, y).
+  Eigen::MatrixXi constraintPattern() const;
+  void constraintJacobian(double t, ConstVectorRef y, ConstVectorRef p, MatrixRef phiU,
+                          ProblemWorkspace* ws) const;
+  /// The chord system's coordinates at (t, y) by the block solve (z) and by dense Newton on all the
+  /// constraints at once from z perturbed by 1e-3 (zDense): the reference of the block solve.
+  void positionsBlockAndDense(double t, ConstVectorRef y, ConstVectorRef p, VectorRef z, VectorRef zDense,
+                              ProblemWorkspace* ws) const;
 
   struct Impl;
 

@@ -516,3 +516,129 @@ TEST(MechanismChordPath, RecomputationGivesTheSameBits) {
 
 }  // namespace
 }  // namespace hindsight::mechanism
+
+namespace hindsight::mechanism {
+namespace {
+
+// ---- The block-triangular order of the position constraints (problems/mechanism/mechanism_problem.h). ----
+
+std::string describe(const std::vector<MechanismProblem::ConstraintBlock>& blocks) {
+  std::string s;
+  for (const auto& b : blocks) {
+    s += "[";
+    for (std::size_t i = 0; i < b.equations.size(); ++i)
+      s += (i ? ", " : "") + b.equations[i] + " -> " + b.unknowns[i];
+    s += b.affine ? "] affine\n" : "]\n";
+  }
+  return s;
+}
+
+TEST(MechanismBlocks, TheExamplesSolveOneEquationAtATimeExceptTheFourBarsLoop) {
+  // The slider-crank: the crank's angle from its driver, the crank pin, the member's A, the slider's y
+  // from its guide, the closure (the only equation that is not affine in its unknown: the member's
+  // angle from the wrist pin's y), the slider's x, the slider's angle. The four-bar's loop couples the
+  // coupler's and the rocker's angles and the rocker's position: one 4 x 4 block.
+  const std::string sliderCrank =
+      "[bearing.x -> crank.x] affine\n"
+      "[bearing.y -> crank.y] affine\n"
+      "[motor -> crank.angle] affine\n"
+      "[crankPin.x -> rod.x] affine\n"
+      "[crankPin.y -> rod.y] affine\n"
+      "[guide.line -> slider.y] affine\n"
+      "[wristPin.y -> rod.angle]\n"
+      "[wristPin.x -> slider.x] affine\n"
+      "[guide.angle -> slider.angle] affine\n";
+  EXPECT_EQ(describe(MechanismProblem(fromExample("slider_crank.json"), 3).constraintBlocks()), sliderCrank);
+  EXPECT_EQ(describe(MechanismProblem(fromExample("slider_crank_mass.json"), 3).constraintBlocks()),
+            sliderCrank);
+  EXPECT_EQ(describe(MechanismProblem(fromExample("four_bar.json"), 3).constraintBlocks()),
+            "[crankBearing.x -> crank.x] affine\n"
+            "[crankBearing.y -> crank.y] affine\n"
+            "[motor -> crank.angle] affine\n"
+            "[crankPin.x -> coupler.x] affine\n"
+            "[crankPin.y -> coupler.y] affine\n"
+            "[rockerPin.x -> coupler.angle, rockerPin.y -> rocker.angle, rockerBearing.x -> rocker.x, "
+            "rockerBearing.y -> rocker.y]\n");
+  // A guide that is not along a coordinate axis couples the slider's x and y with the member's angle.
+  Mechanism oblique = fromExample("slider_crank.json");
+  oblique.joints[3].axis = Vec2(1.0, 0.1);
+  const auto blocks = MechanismProblem(oblique, 3).constraintBlocks();
+  ASSERT_EQ(blocks.size(), 7u) << describe(blocks);
+  EXPECT_EQ(blocks[5].unknowns.size(), 3u) << describe(blocks);
+  EXPECT_FALSE(blocks[5].affine);
+}
+
+/// The examples, a free crank with a spring, and the slider-crank on an oblique guide.
+std::vector<Mechanism> blockCases() {
+  Mechanism oblique = fromExample("slider_crank.json");
+  oblique.joints[3].axis = Vec2(1.0, 0.1);
+  // Assemblable on the oblique guide: the slider starts on it.
+  oblique.rigidBodies[1].position = Vec2(1.15, 0.115);
+  return {fromExample("slider_crank.json"), fromExample("slider_crank_mass.json"),
+          fromExample("four_bar.json"), freeSliderCrank(), oblique};
+}
+
+TEST(MechanismBlocks, ThePatternIsTheJacobiansAndBlockTriangular) {
+  // The structural pattern read off the rows' formulas holds every nonzero of Phi_u (a missing entry
+  // would make the block solves wrong) and no entry that is zero at a generic point (a padded pattern
+  // would merge blocks); Phi_u in the block order has nothing above its diagonal blocks.
+  for (const Mechanism& m : blockCases()) {
+    Case c(m, 3, 61);
+    const Eigen::MatrixXi pattern = c.problem.constraintPattern();
+    const int nm = static_cast<int>(pattern.rows());
+    const auto blocks = c.problem.constraintBlocks();
+    for (double t : {0.37, 1.3, 2.6}) {
+      Matrix phiU(nm, nm);
+      c.problem.constraintJacobian(t, c.s.y, c.p, phiU, c.ws.get());
+      for (int i = 0; i < nm; ++i) {
+        for (int j = 0; j < nm; ++j) {
+          EXPECT_EQ(phiU(i, j) != 0.0, pattern(i, j) == 1)
+              << "t = " << t << " (" << i << ", " << j << ") = " << phiU(i, j) << "\n"
+              << describe(blocks);
+        }
+      }
+      std::vector<int> later;
+      for (auto b = blocks.rbegin(); b != blocks.rend(); ++b) {
+        for (int i : b->rows) {
+          for (int j : later) EXPECT_EQ(phiU(i, j), 0.0) << "t = " << t << " (" << i << ", " << j << ")";
+        }
+        later.insert(later.end(), b->columns.begin(), b->columns.end());
+      }
+    }
+  }
+}
+
+TEST(MechanismBlocks, BlockSolveEqualsDenseNewtonOnAllConstraints) {
+  for (const Mechanism& m : blockCases()) {
+    Case c(m, 3, 62);
+    const int nz = c.problem.fullCoordinateCount() - c.problem.modeCount() + 1;
+    for (double t : {0.0, 0.37, 1.3, 2.6, 2.95}) {
+      Vector z(nz), zDense(nz);
+      c.problem.positionsBlockAndDense(t, c.s.y, c.p, z, zDense, c.ws.get());
+      EXPECT_LT((z - zDense).cwiseAbs().maxCoeff(), 4e-16 * z.cwiseAbs().maxCoeff()) << "t = " << t << "\n"
+                                                                                     << z.transpose() << "\n"
+                                                                                     << zDense.transpose();
+    }
+  }
+}
+
+TEST(MechanismBlocks, AnUnconstrainedBodyIsRefusedAsSingular) {
+  // A body that no joint holds, with the count of constraints made up by a redundant fixed joint: no
+  // equation can fix its coordinates.
+  Mechanism m = fromExample("slider_crank.json");
+  RigidBody loose;
+  loose.name = "loose";
+  loose.mass = 1.0;
+  loose.points = {{"c", Vec2::Zero()}};
+  m.addRigidBody(loose);
+  m.addFixed("weld", "crank", "O", "slider", "center");
+  try {
+    const MechanismProblem problem(m, 3);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("singular"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace hindsight::mechanism
