@@ -265,6 +265,7 @@ struct MechanismProblem::Impl {
   std::vector<int> dependent;    ///< u index -> z index
   std::vector<Row> rows;         ///< one entry per joint part (Revolute = 2 equations)
   std::vector<int> rowFirst;     ///< row -> its first equation
+  std::vector<int> rowOf;        ///< equation -> its row
   std::vector<std::string> equationNames, coordinateNames;  ///< constraintBlocks()
   std::vector<SpringRef> springs;
 
@@ -875,6 +876,60 @@ struct MechanismProblem::Impl {
     return step;
   }
 
+  /// Component k of a point's position at B.z (the operations of point()).
+  double pointComponent(const PointRef& r, Buffers<double>& B, double c, int k) const {
+    if (r.body == kGround) return r.local(k);
+    updateTrigOf(B, r.body);
+    const double s = B.sn[r.body], cs = B.cs[r.body];
+    const double sb0 = r.atB ? c + r.local(0) : 0.0 + r.local(0), sb1 = r.local(1);
+    return B.z[bodyOffset(r.body) + k] + (k == 0 ? cs * sb0 - s * sb1 : s * sb0 + cs * sb1);
+  }
+
+  /// d/dz of component k of a point's position at B.z after pointComponent() (which updated its body's
+  /// sine and cosine): the entry addJT() adds, with its bits.
+  double pointDerivative(const PointRef& r, const Buffers<double>& B, double c, int k, int z) const {
+    if (r.body == kGround) return 0.0;
+    const int o = bodyOffset(r.body);
+    if (z == o + k) return 1.0;
+    if (z != o + 2) return 0.0;
+    const double s = B.sn[r.body], cs = B.cs[r.body];
+    const double sb0 = r.atB ? c + r.local(0) : 0.0 + r.local(0), sb1 = r.local(1);
+    return k == 0 ? -(s * sb0 + cs * sb1) : cs * sb0 - s * sb1;
+  }
+
+  /// Equation e's value alone at B.z, with the bits evaluateRow() gives it (c: the chord).
+  double equationValue(double t, Buffers<double>& B, int e, double c) const {
+    const int r = rowOf[e];
+    const Row& row = rows[r];
+    switch (row.kind) {
+      case Row::Revolute: {
+        const int k = e - rowFirst[r];
+        return pointComponent(row.p1, B, c, k) - pointComponent(row.p2, B, c, k);
+      }
+      case Row::Angle:
+      case Row::DriveAngle: {
+        double s = 0.0, sd = 0.0, sdd = 0.0;
+        if (row.kind == Row::DriveAngle) driverAt(row, t, e, B, s, sd, sdd);
+        return angle(row.body2, B.z, 0.0) - angle(row.body1, B.z, 0.0) - (row.offset + s);
+      }
+      default: {
+        double s1 = 0.0, c1 = 1.0;
+        if (row.body1 != kGround) {
+          updateTrigOf(B, row.body1);
+          s1 = B.sn[row.body1];
+          c1 = B.cs[row.body1];
+        }
+        const double e0 = c1 * row.axis(0) - s1 * row.axis(1), e1 = s1 * row.axis(0) + c1 * row.axis(1);
+        const double d0 = pointComponent(row.p2, B, c, 0) - pointComponent(row.p1, B, c, 0);
+        const double d1 = pointComponent(row.p2, B, c, 1) - pointComponent(row.p1, B, c, 1);
+        if (row.kind == Row::Line) return -e1 * d0 + e0 * d1 - 0.0;
+        double s = 0.0, sd = 0.0, sdd = 0.0;
+        driverAt(row, t, e, B, s, sd, sdd);
+        return e0 * d0 + e1 * d1 - (row.offset + s);
+      }
+    }
+  }
+
   /// The dependent coordinates of B.z solved block by block at time t (independent ones fixed). A block
   /// affine in its unknowns is solved by one step from zero, exactly, and its result is a function of
   /// the earlier blocks and sigma alone. Any other block: Newton from B.z until the step is below 1e-11
@@ -883,8 +938,22 @@ struct MechanismProblem::Impl {
   /// round-off), so that its result is a function of the grid point, the earlier blocks and sigma (see
   /// the header). lu, piv, x: scratch of the largest block.
   void solveBlocks(double t, Buffers<double>& B, bool polish, double* lu, int* piv, double* x) const {
+    double c, cd;
+    chord(B, false, c, cd, 0.0);
     for (int b = 0; b < blocks.count(); ++b) {
       const int p0 = blocks.start[b], p1 = blocks.start[b + 1];
+      if (blocks.constant[b] && p1 == p0 + 1) {
+        // One equation with a constant coefficient (a pin's x or y, a driven angle, a ground guide):
+        // its value at zero and the kept coefficient, the operations of blockStep().
+        double& u = B.z[dependent[blocks.unk[p0]]];
+        u = 0.0;
+        u -= equationValue(t, B, blocks.eq[p0], c) / blocks.constantLu[blocks.luOffset[b]];
+        if (!std::isfinite(u)) {
+          throw NumericalError("the mechanism cannot be assembled (its constraints give no finite position)",
+                               t);
+        }
+        continue;
+      }
       if (blocks.affine[b]) {
         for (int p = p0; p < p1; ++p) B.z[dependent[blocks.unk[p]]] = 0.0;
         if (!std::isfinite(blockStep(t, B, b, lu, piv, x))) {
@@ -893,10 +962,28 @@ struct MechanismProblem::Impl {
         }
         continue;
       }
+      // One Newton step; a single revolute equation (a loop's closure through a pin) by its value and
+      // derivative alone, with the operations and bits of blockStep().
+      const int e = blocks.eq[p0];
+      const Row& row = rows[rowOf[e]];
+      const bool scalarRevolute = p1 == p0 + 1 && row.kind == Row::Revolute;
+      auto newtonStep = [&] {
+        if (!scalarRevolute) return blockStep(t, B, b, lu, piv, x);
+        const int k = e - rowFirst[rowOf[e]], zu = dependent[blocks.unk[p0]];
+        const double value = pointComponent(row.p1, B, c, k) - pointComponent(row.p2, B, c, k);
+        const double slope = pointDerivative(row.p1, B, c, k, zu) - pointDerivative(row.p2, B, c, k, zu);
+        if (slope == 0.0) {
+          throw NumericalError("the mechanism's constraints are singular (a lock-up or a redundant joint)",
+                               t);
+        }
+        const double dx = value / slope;
+        B.z[zu] -= dx;
+        return std::abs(dx);
+      };
       double step = 0.0, previous = 0.0;
       bool converged = false;
       for (int it = 0; it < 50; ++it) {
-        step = blockStep(t, B, b, lu, piv, x);
+        step = newtonStep();
         if (!std::isfinite(step)) break;
         if (step <= 1e-11 || (it >= 1 && step <= 1e-7 && step < previous &&
                               step * step * step <= 1e-16 * previous * previous)) {
@@ -916,7 +1003,7 @@ struct MechanismProblem::Impl {
       }
       previous = 0.0;
       for (int it = 0; it < 3; ++it) {
-        step = blockStep(t, B, b, lu, piv, x);
+        step = newtonStep();
         if (step == 0.0 || (it >= 1 && step < previous && step * step * step <= 1e-16 * previous * previous))
           break;
         previous = step;
@@ -1003,6 +1090,7 @@ struct Work final : ProblemWorkspace {
         meeV(I.n),
         along(I.n),
         vel(I.n),
+        uq(I.n),
         qKey(I.n),
         vKey(I.n),
         aKey(I.n) {}
@@ -1053,7 +1141,7 @@ struct Work final : ProblemWorkspace {
   Matrix meeSym;
   // Products of the modal coordinates with the invariant matrices (modalProducts()), the member's
   // moments, and the q, q', a they were formed from (kept only for a fixed p).
-  Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel;
+  Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel, uq;
   double moments[kMoments] = {};
   Vector qKey, vKey, aKey;
   bool qKept = false, vKept = false, aKept = false, aZero = false, vJacobian = false, aJacobian = false;
@@ -1790,6 +1878,7 @@ MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
     const Row& row = I.rows[r];
     I.rowFirst.push_back(i);
     i += row.kind == Row::Revolute ? 2 : 1;
+    I.rowOf.resize(i, r);
     switch (row.kind) {
       case Row::Revolute:
         I.equationNames.push_back(row.name + ".x");
@@ -1988,8 +2077,15 @@ void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl&
       return u[0] * dPhi[4 * e] + u[1] * dPhi[4 * e + 1] + u[2] * dPhi[4 * e + 2] + u[3] * dPhi[4 * e + 3];
     };
     for (int j = 0; j < nf; ++j) mass(nf + l, j) = uphi(j) + bl * dRho[ci + k * j];
-    const double uc = uphi(ci);
-    for (int j = 0; j < n; ++j) mass(nf + l, nf + j) = mee(l, j) + uc * P.b(j) + bl * w.along(j);
+    w.uq(l) = uphi(ci);
+  }
+  // The modal block column by column (contiguous, so that it vectorises); w.uq holds uphi(c) by row.
+  const double* b = P.p + P.bOffset();
+  for (int j = 0; j < n; ++j) {
+    const double bj = b[j], aj = w.along(j);
+    const double* meeColumn = mee.data() + n * j;
+    double* column = &mass(nf, nf + j);
+    for (int l = 0; l < n; ++l) column[l] = meeColumn[l] + w.uq(l) * bj + b[l] * aj;
   }
   const int fc = I.f;
   for (int j = 0; j < fc; ++j) {
