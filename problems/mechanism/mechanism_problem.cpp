@@ -433,8 +433,9 @@ struct MechanismProblem::Impl {
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
   /// also B.sn, B.cs at B.z, which the forces after it use.
   template <typename T>
-  void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero) const {
-    updateTrig(B);
+  void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero,
+                   bool trig = true) const {
+    if (trig) updateTrig(B);
     T c, cd;
     chord(B, quadratic, c, cd, zero);
     if (jacobian) {
@@ -1021,21 +1022,36 @@ struct MechanismProblem::Impl {
   /// from the m x nz jac, its blocks factorised by factorBlocks()). r: scratch of the largest block.
   void blockSolve(const double* jac, const double* lu, const int* piv, const double* in, double* out,
                   double* r) const {
-    for (int b = 0; b < blocks.count(); ++b) {
-      const int p0 = blocks.start[b], s = blocks.start[b + 1] - p0;
+    // Raw pointers in locals: the stores to out cannot then be taken for changes of the index arrays.
+    const int* start = blocks.start.data();
+    const int* eq = blocks.eq.data();
+    const int* unk = blocks.unk.data();
+    const int* offStart = blocks.offStart.data();
+    const int* offIndex = blocks.offIndex.data();
+    const int* offUnk = blocks.offUnk.data();
+    const int* luOffset = blocks.luOffset.data();
+    const int* pivOffset = blocks.pivOffset.data();
+    const int count = blocks.count();
+    for (int b = 0; b < count; ++b) {
+      const int p0 = start[b], s = start[b + 1] - p0;
+      if (s == 1) {  // the common case: one equation, one unknown
+        double v = in[eq[p0]];
+        for (int k = offStart[p0]; k < offStart[p0 + 1]; ++k) v -= jac[offIndex[k]] * out[offUnk[k]];
+        out[unk[p0]] = v / lu[luOffset[b]];
+        continue;
+      }
       for (int i = 0; i < s; ++i) {
         const int p = p0 + i;
-        double v = in[blocks.eq[p]];
-        for (int k = blocks.offStart[p]; k < blocks.offStart[p + 1]; ++k)
-          v -= jac[blocks.offIndex[k]] * out[blocks.offUnk[k]];
+        double v = in[eq[p]];
+        for (int k = offStart[p]; k < offStart[p + 1]; ++k) v -= jac[offIndex[k]] * out[offUnk[k]];
         r[i] = v;
       }
-      const double* l = lu + blocks.luOffset[b];
+      const double* l = lu + luOffset[b];
       if (s == 1) {
-        out[blocks.unk[p0]] = r[0] / l[0];
+        out[unk[p0]] = r[0] / l[0];
       } else {
-        luSolve(l, piv + blocks.pivOffset[b], s, r);
-        for (int i = 0; i < s; ++i) out[blocks.unk[p0 + i]] = r[i];
+        luSolve(l, piv + pivOffset[b], s, r);
+        for (int i = 0; i < s; ++i) out[unk[p0 + i]] = r[i];
       }
     }
   }
@@ -1233,38 +1249,49 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
       }
     } else {
       double* x0 = w.x0.data();
+      double* d = w.x1.data();
+      if (blocks) {
+        // The value is known's, x0; the derivatives are Phi_u^{-1} (b' - Phi_u' x0), direction by
+        // direction, with Phi_u' on its structural entries only.
+        assert(known != nullptr);
+        const MechanismProblem::Impl::Blocks& bl = I.blocks;
+        const int* eq = bl.eq.data();
+        const int* allStart = bl.allStart.data();
+        const int* allIndex = bl.allIndex.data();
+        const int* allUnk = bl.allUnk.data();
+        const T* rhs = B.rhs.data();
+        const T* jac = B.jac.data();
+        double* in = w.blockIn.data();
+        for (int i = 0; i < m; ++i) x0[i] = value[I.dependent[i]];
+        for (int e = 0; e < nd; ++e) {
+          for (int p = 0; p < m; ++p) {
+            const int q = eq[p];
+            double v = rhs[q].derivatives()(e);
+            for (int k = allStart[p]; k < allStart[p + 1]; ++k)
+              v -= jac[allIndex[k]].derivatives()(e) * x0[allUnk[k]];
+            in[q] = v;
+          }
+          I.blockSolve(known->jac.data(), w.blockLu.data(), w.blockPiv.data(), w.blockIn.data(), d,
+                       w.blockScratch.data());
+          for (int i = 0; i < m; ++i) B.rhs[i].derivatives()(e) = d[i];
+        }
+        for (int i = 0; i < m; ++i) B.rhs[i].value() = x0[i];
+        return;
+      }
       if (known != nullptr) {
         for (int i = 0; i < m; ++i) x0[i] = value[I.dependent[i]];
       } else {
-        assert(!blocks);
         for (int i = 0; i < m; ++i) x0[i] = B.rhs[i].value();
         luSolve(w.luStar.data(), w.pivStar.data(), m, x0);
       }
-      if (blocks) {
-        // Phi_u x0 on its structural entries only.
-        const MechanismProblem::Impl::Blocks& bl = I.blocks;
-        for (int p = 0; p < m; ++p) {
-          T& r = B.rhs[bl.eq[p]];
-          for (int k = bl.allStart[p]; k < bl.allStart[p + 1]; ++k)
-            r -= B.jac[bl.allIndex[k]] * x0[bl.allUnk[k]];
-        }
-      } else {
-        for (int j = 0; j < m; ++j) {
-          const T* column = B.jac.data() + m * I.dependent[j];
-          for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
-        }
+      for (int j = 0; j < m; ++j) {
+        const T* column = B.jac.data() + m * I.dependent[j];
+        for (int i = 0; i < m; ++i) B.rhs[i] -= column[i] * x0[j];
       }
       if (known != nullptr) {
-        double* d = w.x1.data();
         for (int e = 0; e < nd; ++e) {
-          if (blocks) {
-            for (int i = 0; i < m; ++i) w.blockIn[i] = B.rhs[i].derivatives()(e);
-            I.blockSolve(known->jac.data(), w.blockLu.data(), w.blockPiv.data(), w.blockIn.data(), d,
-                         w.blockScratch.data());
-          } else {
-            for (int i = 0; i < m; ++i) d[i] = B.rhs[i].derivatives()(e);
-            luSolve(w.luStar.data(), w.pivStar.data(), m, d);
-          }
+          for (int i = 0; i < m; ++i) d[i] = B.rhs[i].derivatives()(e);
+          luSolve(w.luStar.data(), w.pivStar.data(), m, d);
           for (int i = 0; i < m; ++i) B.rhs[i].derivatives()(e) = d[i];
         }
         for (int i = 0; i < m; ++i) B.rhs[i].value() = x0[i];
@@ -1331,7 +1358,8 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   for (int j = 0; j < f; ++j) B.zd[I.independent[j]] = B.v[j];
   for (int i = 0; i < m; ++i) B.zd[I.dependent[i]] = B.rhs[i];
   // zeta = -Phi_u^{-1} gamma on the dependent rows.
-  I.constraints(t, B, false, true, zero);
+  // The position pass of the same call left B.sn, B.cs at this B.z (dual numbers keep no angle's bits).
+  I.constraints(t, B, false, true, zero, part != Part::All);
   for (int i = 0; i < m; ++i) B.rhs[i] = -B.quad[i];
   solve(known != nullptr ? known->zeta.data() : nullptr);
   for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
