@@ -1219,7 +1219,8 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
 enum class Part { All, Positions, Velocities };
 
 /// z, z', zeta, R at (t, y, y') in scalar type T with nd derivative directions: y, y' and b are given in
-/// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar the factorised Phi_u).
+/// B.y, B.v, B.b; zStar holds the solved positions (and for dual passes w.luStar, or for the chord
+/// system w.blockLu, the factorised Phi_u).
 /// known (dual passes whose b is constant): the double kinematics of the same point (all parts, at the
 /// same y'). Its R's dependent rows are the implicit function's derivatives, du = R_u dy, and its R, z'
 /// and zeta are the solves' values; without it one Newton correction in dual numbers gives du (b may
@@ -1529,7 +1530,7 @@ void chordInputs(const MechanismProblem::Impl& I, const View& P, ConstVectorRef 
 void fullPass(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
               ConstVectorRef y, ConstVectorRef v, Work& w) {
   chordInputs(I, P, y, v, nullptr, w);
-  w.kinematicsValid = false;  // cd and luStar are overwritten below
+  w.kinematicsValid = false;  // cd and the factorisations are overwritten below
   solvePositions(C, t, w.sigma, w);
   for (int i = 0; i < I.base + 3; ++i) w.zStar(i) = w.zChord(i);
   for (int i = 0; i < I.n; ++i) w.zStar(I.base + 3 + i) = y(I.nFree + i);
@@ -1711,9 +1712,10 @@ void chordResidual(const MechanismProblem::Impl& C, const View& P, Buffers<T>& B
   }
 }
 
-/// Positions (Newton) and kinematics of the chord system in double at w.sigma, w.sigmaDot; also
-/// factorises Phi_u into w.luStar for the dual passes. Nothing to do when they are those of the last
-/// call; with `anyVelocity` (the mass matrix, which does not depend on the velocities) any sigma' will do.
+/// Positions (block by block) and kinematics of the chord system in double at w.sigma, w.sigmaDot; also
+/// factorises Phi_u's blocks into w.blockLu for the dual passes. Nothing to do when they are those of the
+/// last call; with `anyVelocity` (the mass matrix, which does not depend on the velocities) any sigma' will
+/// do.
 void chordKinematics(const MechanismProblem::Impl& C, double t, Work& w, bool anyVelocity = false) {
   Buffers<double>& B = w.cd;
   if (!(w.kinematicsValid && t == w.tKinematics && w.sigma == w.sigmaKinematics)) {
