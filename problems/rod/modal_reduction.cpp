@@ -385,6 +385,7 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     const Matrix rayleigh =
         elementwiseStiffnessForm(model, model.extendColumnsToFull(basis.modesFree.leftCols(n)));
     basis.eigenvalues.head(n) = rayleigh.diagonal();
+    if (!options.inertiaReliefModes) basis.stiffnessForm = rayleigh;
   }
   basis.firstDiscardedEigenvalue = values(order[n]);
   basis.gapRatio = basis.firstDiscardedEigenvalue / basis.eigenvalues(n - 1);
