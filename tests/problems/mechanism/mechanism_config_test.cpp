@@ -30,8 +30,8 @@ void coarsen(Config& c) {
 }
 
 TEST(MechanismConfig, ExamplesReadAndWriteBack) {
-  for (const char* name :
-       {"slider_crank.json", "slider_crank_mass.json", "four_bar.json", "four_bar_scenarios.json"}) {
+  for (const char* name : {"slider_crank.json", "slider_crank_mass.json", "four_bar.json",
+                           "four_bar_scenarios.json", "flexible_pendulum.json"}) {
     const Config c = readConfigFile(example(name));
     ASSERT_TRUE(c.mechanism.has_value()) << name;
     const Config again = configFromJson(toJson(c));
@@ -134,6 +134,33 @@ TEST(MechanismConfig, FourBarDesignGradientMatchesCentralDifferences) {
   value.psi1Gradient = false;
   const double scale = e.dpsi1.cwiseAbs().maxCoeff();
   for (int d : {0, 9, 30, 47, 71}) {
+    const double h = 1e-5;
+    Vector plus = x, minus = x;
+    plus(d) += h;
+    minus(d) -= h;
+    const double fd = (rod.evaluate(plus, value).psi1 - rod.evaluate(minus, value).psi1) / (2 * h);
+    EXPECT_NEAR(e.dpsi1(d), fd, 1e-5 * scale + 1e-5 * std::abs(fd)) << "design variable " << d;
+  }
+}
+
+TEST(MechanismConfig, OpenChainDesignGradientMatchesCentralDifferences) {
+  Config c = readConfigFile(example("flexible_pendulum.json"));
+  coarsen(c);
+  applySetting(c, "rod.modeCount=3", false);
+  applySetting(c, "rod.endTime=1.5", false);
+  c.validate();
+  const PistonRod rod(c);
+  PistonRod::Request onlyPsi1;
+  onlyPsi1.psi2 = false;
+  onlyPsi1.psi2Gradient = false;
+  Vector x = rod.initialDesign();
+  for (int i = 0; i < x.size(); ++i) x(i) = 0.4 + 0.3 * std::sin(2.3 * i);
+  const PistonRodEvaluation e = rod.evaluate(x, onlyPsi1);
+  ASSERT_GT(e.psi1, 0.0);
+  PistonRod::Request value = onlyPsi1;
+  value.psi1Gradient = false;
+  const double scale = e.dpsi1.cwiseAbs().maxCoeff();
+  for (int d : {2, 17, 40, 63}) {
     const double h = 1e-5;
     Vector plus = x, minus = x;
     plus(d) += h;
