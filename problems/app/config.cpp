@@ -462,6 +462,45 @@ rod::EigenvectorSensitivityMethod parseEigenvectorRoute(const std::string& name)
   return parseName(kEigenvectorRoutes, name, "simulation.eigenvectorRoute");
 }
 
+namespace {
+
+/// The described mechanism of one scenario: its drivers and gravity replaced (problems/rod/scenarios.h).
+/// Throws std::invalid_argument naming the scenario's field (`at` = "scenarios[i]").
+mechanism::Mechanism scenarioMechanism(const mechanism::Mechanism& base, const Scenario& scenario,
+                                       const std::string& at) {
+  const char* builtIn = scenario.crankSpeed    ? "crankSpeed"
+                        : scenario.rampTime    ? "rampTime"
+                        : scenario.crankRadius ? "crankRadius"
+                                               : nullptr;
+  if (builtIn != nullptr)
+    throw std::invalid_argument(
+        at + "." + builtIn +
+        " sets the built-in slider-crank's crank; with a mechanism section a scenario sets "
+        "its drivers (\"drivers\": {\"<driver>\": {\"speed\": ...}}) and gravity");
+  mechanism::Mechanism out = base;
+  for (const auto& [name, change] : scenario.drivers) {
+    auto driver = std::find_if(out.drivers.begin(), out.drivers.end(),
+                               [&](const mechanism::Driver& d) { return d.name == name; });
+    if (driver == out.drivers.end()) {
+      std::string names;
+      for (const mechanism::Driver& d : out.drivers) names += (names.empty() ? "" : ", ") + d.name;
+      throw std::invalid_argument(at + ".drivers." + name + " is not a driver of the mechanism; drivers: " +
+                                  (names.empty() ? "(none)" : names));
+    }
+    if (change.rampTime && driver->law.kind != mechanism::DriverLaw::Kind::CycloidalRamp)
+      throw std::invalid_argument(at + ".drivers." + name + ".rampTime: driver '" + name + "' has law " +
+                                  mechanism::toString(driver->law.kind) +
+                                  "; rampTime is a field of cycloidal-ramp only");
+    if (change.speed) driver->law.speed = *change.speed;
+    if (change.rampTime) driver->law.rampTime = *change.rampTime;
+    if (change.offset) driver->offset = *change.offset;
+  }
+  if (scenario.gravity) out.gravity = mechanism::Vec2((*scenario.gravity)[0], (*scenario.gravity)[1]);
+  return out;
+}
+
+}  // namespace
+
 void Config::validate() const {
   rod.validate();
   validateScenarios(scenarios, rod);
@@ -509,10 +548,26 @@ void Config::validate() const {
           "config field 'simulation.model' = full is the built-in slider-crank's full-order rod; with a "
           "mechanism section it must be reduced");
     }
-    if (!scenarios.empty()) {
-      throw std::invalid_argument(
-          "config section 'scenarios' varies the built-in slider-crank's crank; it cannot be combined with a "
-          "mechanism section (give each operating case its own configuration)");
+    for (std::size_t i = 0; i < scenarios.size(); ++i) {
+      const std::string at = "scenarios[" + std::to_string(i) + "]";
+      mechanism::Mechanism varied = scenarioMechanism(*mechanism, scenarios[i], at);
+      varied.member.length = rod.length;
+      try {
+        varied.validate();
+        const mechanism::MechanismProblem variedAssembly(varied, 1);
+        (void)variedAssembly;
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(at + " ('" + scenarios[i].name + "'): " + e.what());
+      }
+    }
+  } else {
+    for (std::size_t i = 0; i < scenarios.size(); ++i) {
+      const std::string at = "scenarios[" + std::to_string(i) + "]";
+      if (!scenarios[i].drivers.empty() || scenarios[i].gravity)
+        throw std::invalid_argument(
+            at + "." + (scenarios[i].drivers.empty() ? "gravity" : "drivers") +
+            " sets a described mechanism and needs a mechanism section; the built-in "
+            "slider-crank's scenarios set crankSpeed, rampTime, crankRadius and endTime");
     }
   }
 }
@@ -655,6 +710,7 @@ std::vector<Config> scenarioConfigs(const Config& config) {
     Config c = config;
     c.scenarios.clear();
     c.rod = scenarioRod(config.rod, s);
+    if (config.mechanism) c.mechanism = scenarioMechanism(*config.mechanism, s, "scenarios[" + s.name + "]");
     out.push_back(c);
   }
   return out;

@@ -440,6 +440,12 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     operators = std::make_unique<PermutedOperators>(permutedOperators(model, *ordering));
   }
   Matrix contributions(model.designCount(), n);
+  // The SIMP slopes per design variable, once for all modes (two calls of pow each).
+  Vector stiffnessSlopes(model.designCount()), densitySlopes(model.designCount());
+  for (int d = 0; d < model.designCount(); ++d) {
+    stiffnessSlopes(d) = model.simp().stiffnessDerivative(model.design()(d));
+    densitySlopes(d) = model.simp().densityDerivative(model.design()(d));
+  }
   std::vector<int> solves(static_cast<std::size_t>(n), 0);
   parallelFor(n, [&](int i) {
     auto contribution = contributions.col(i);
@@ -459,9 +465,8 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
       const Vector adjointFull = model.extendToFull(adjoint);
       const double adjointMassMode = adjoint.dot(massTimesMode);
       for (int d = 0; d < model.designCount(); ++d) {
-        const double x = model.design()(d);
-        const double stiffnessSlope = model.simp().stiffnessDerivative(x);
-        const double densitySlope = model.simp().densityDerivative(x);
+        const double stiffnessSlope = stiffnessSlopes(d);
+        const double densitySlope = densitySlopes(d);
         const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
         const ElementVector phi = gather(modeFull, dofs);
         const ElementVector z = gather(adjointFull, dofs);
@@ -478,9 +483,8 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     } else {
       const NelsonSystem system(model, eigenvalue, modeFree, *ordering, *operators);
       for (int d = 0; d < model.designCount(); ++d) {
-        const double x = model.design()(d);
-        const double stiffnessSlope = model.simp().stiffnessDerivative(x);
-        const double densitySlope = model.simp().densityDerivative(x);
+        const double stiffnessSlope = stiffnessSlopes(d);
+        const double densitySlope = densitySlopes(d);
         const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
         const ElementVector phi = gather(modeFull, dofs);
         const double phiMassPhi = phi.dot(model.unitMass() * phi);

@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/deterministic_math.h>
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <sstream>
@@ -204,41 +205,106 @@ int FeModel::jointBNode() const {
   return nodeIndex(config_.elementsAlongLength, config_.elementsThroughHeight / 2);
 }
 
+namespace {
+
+// The node-to-node coupling of the structured mesh as a compressed-column pattern over `dofs` DOFs: DOF
+// c = 2 node + component couples with both DOFs of every node that shares an element with its node, the
+// nodes (i + di, j + dj), |di|, |dj| <= 1; rows ascend within each column, as Eigen's setFromTriplets
+// leaves them. `keep` maps a full DOF to its index in the pattern (-1: dropped, the constrained DOFs).
+void couplingPattern(int nx, int ny, const std::vector<int>& keep, int size, std::vector<int>& outer,
+                     std::vector<int>& inner) {
+  outer.assign(static_cast<std::size_t>(size) + 1, 0);
+  inner.clear();
+  auto node = [ny](int i, int j) { return i * (ny + 1) + j; };
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int component = 0; component < 2; ++component) {
+        const int column = keep[static_cast<std::size_t>(2 * node(i, j) + component)];
+        if (column < 0) continue;
+        for (int di = -1; di <= 1; ++di) {
+          if (i + di < 0 || i + di > nx) continue;
+          for (int dj = -1; dj <= 1; ++dj) {
+            if (j + dj < 0 || j + dj > ny) continue;
+            for (int rowComponent = 0; rowComponent < 2; ++rowComponent) {
+              const int row = keep[static_cast<std::size_t>(2 * node(i + di, j + dj) + rowComponent)];
+              if (row >= 0) inner.push_back(row);
+            }
+          }
+        }
+        outer[static_cast<std::size_t>(column) + 1] = static_cast<int>(inner.size());
+      }
+    }
+  }
+}
+
+/// A square sparse matrix with the given pattern and zero values.
+SparseMatrix withPattern(int size, const std::vector<int>& outer, const std::vector<int>& inner) {
+  SparseMatrix matrix(size, size);
+  matrix.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), matrix.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), matrix.innerIndexPtr());
+  std::fill(matrix.valuePtr(), matrix.valuePtr() + inner.size(), 0.0);
+  return matrix;
+}
+
+/// Position of `row` in column `column` of the pattern (present by construction: at most 18 rows).
+int slotOf(const std::vector<int>& outer, const std::vector<int>& inner, int row, int column) {
+  const auto begin = inner.begin() + outer[static_cast<std::size_t>(column)];
+  const auto end = inner.begin() + outer[static_cast<std::size_t>(column) + 1];
+  const auto it = std::lower_bound(begin, end, row);
+  assert(it != end && *it == row);
+  return static_cast<int>(it - inner.begin());
+}
+
+}  // namespace
+
+// Element by element into the mesh's pattern. Each entry takes its first element's contribution and
+// adds the later ones in element order: bit for bit what setFromTriplets made of the element-ordered
+// triplets this replaced (collapseDuplicates stores the first and adds the rest in insertion order),
+// without their four lists of 64 triplets per element and the sort (10 MB at 200 x 12, 630 MB at
+// 1600 x 96).
 void FeModel::assemble() {
-  using Triplet = Eigen::Triplet<double>;
-  std::vector<Triplet> stiffnessFull, massFull, stiffnessFree, massFree;
-  stiffnessFull.reserve(64 * elementCount_);
-  massFull.reserve(64 * elementCount_);
-  stiffnessFree.reserve(64 * elementCount_);
-  massFree.reserve(64 * elementCount_);
+  const int nx = config_.elementsAlongLength, ny = config_.elementsThroughHeight;
+  const int dofs = dofCount(), free = freeDofCount();
+  std::vector<int> all(static_cast<std::size_t>(dofs));
+  for (int d = 0; d < dofs; ++d) all[static_cast<std::size_t>(d)] = d;
+  std::vector<int> fullOuter, fullInner, freeOuter, freeInner;
+  couplingPattern(nx, ny, all, dofs, fullOuter, fullInner);
+  couplingPattern(nx, ny, fullToFree_, free, freeOuter, freeInner);
+  stiffnessFull_ = withPattern(dofs, fullOuter, fullInner);
+  massFull_ = withPattern(dofs, fullOuter, fullInner);
+  stiffness_ = withPattern(free, freeOuter, freeInner);
+  mass_ = withPattern(free, freeOuter, freeInner);
+  std::vector<char> fullSeen(fullInner.size(), 0), freeSeen(freeInner.size(), 0);
+  auto add = [](SparseMatrix& stiffness, SparseMatrix& mass, std::vector<char>& seen, int slot, double k,
+                double m) {
+    if (seen[static_cast<std::size_t>(slot)]) {
+      stiffness.valuePtr()[slot] += k;
+      mass.valuePtr()[slot] += m;
+    } else {
+      stiffness.valuePtr()[slot] = k;
+      mass.valuePtr()[slot] = m;
+      seen[static_cast<std::size_t>(slot)] = 1;
+    }
+  };
   for (int e = 0; e < elementCount_; ++e) {
     const double x = elementDesignValue(e);
     const double elementStiffness = simp_.stiffness(x);
     const double elementDensity = simp_.density(x);
-    const std::array<int, 8> dofs = elementDofs(e);
+    const std::array<int, 8> elementDofs = this->elementDofs(e);
     for (int a = 0; a < 8; ++a) {
       for (int b = 0; b < 8; ++b) {
         const double k = elementStiffness * unitStiffness_(a, b);
         const double m = elementDensity * unitMass_(a, b);
-        stiffnessFull.emplace_back(dofs[a], dofs[b], k);
-        massFull.emplace_back(dofs[a], dofs[b], m);
-        const int fa = fullToFree_[dofs[a]], fb = fullToFree_[dofs[b]];
+        add(stiffnessFull_, massFull_, fullSeen, slotOf(fullOuter, fullInner, elementDofs[a], elementDofs[b]),
+            k, m);
+        const int fa = fullToFree_[elementDofs[a]], fb = fullToFree_[elementDofs[b]];
         if (fa >= 0 && fb >= 0) {
-          stiffnessFree.emplace_back(fa, fb, k);
-          massFree.emplace_back(fa, fb, m);
+          add(stiffness_, mass_, freeSeen, slotOf(freeOuter, freeInner, fa, fb), k, m);
         }
       }
     }
   }
-  const int dofs = dofCount(), free = freeDofCount();
-  stiffnessFull_.resize(dofs, dofs);
-  stiffnessFull_.setFromTriplets(stiffnessFull.begin(), stiffnessFull.end());
-  massFull_.resize(dofs, dofs);
-  massFull_.setFromTriplets(massFull.begin(), massFull.end());
-  stiffness_.resize(free, free);
-  stiffness_.setFromTriplets(stiffnessFree.begin(), stiffnessFree.end());
-  mass_.resize(free, free);
-  mass_.setFromTriplets(massFree.begin(), massFree.end());
 }
 
 Vector FeModel::restrictToFree(ConstVectorRef full) const {

@@ -91,8 +91,9 @@ InertiaInvariants computeInvariants(const FeModel& model, const ModalBasis& basi
   result.mee = modes.transpose() * massModes;
   // Element by element: the plain product with the assembled K carries ~eps lambda_max absolute error,
   // 2e-10 relative in lambda_1 on a high-contrast design, which psi1 would see as noise
-  // (modal_reduction.h, refinementSteps).
-  result.kee = elementwiseStiffnessForm(model, modes);
+  // (modal_reduction.h, refinementSteps). The refinement has summed it already for the eigenvalues.
+  const bool kept = basis.stiffnessForm.rows() == modes.cols() && basis.stiffnessForm.cols() == modes.cols();
+  result.kee = kept ? basis.stiffnessForm : elementwiseStiffnessForm(model, modes);
   result.b = modes.row(model.jointBAxialDof()).transpose();
   return result;
 }

@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/modal_reduction.h>
 
+#include <hindsight/problems/rod/parallel.h>
+
 #include <Spectra/SymEigsSolver.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
@@ -337,15 +339,24 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     // backward error (~eps |K|) would leave eigenvalues off by ~eps lambda_max in absolute terms, an
     // error that changes erratically with the design; one sweep of iterative refinement with a
     // compensated residual makes S accurate to working precision, and S^T K S summed over elements keeps it.
-    StiffnessFactorization::RowBlock block, scratch;
     for (int step = 0; step < options.refinementSteps; ++step) {
       const Matrix load = mass * vectors;
-      block = load;
-      factorization.solveInPlace(block, scratch);
-      Matrix subspace = block;
-      block = compensatedResidual(load, stiffness, subspace);
-      factorization.solveInPlace(block, scratch);
-      subspace += block;
+      // Each column's solve and compensated residual is its own arithmetic, in the same order in any
+      // block: two fixed halves of the columns, in parallel when threads are available
+      // (problems/rod/parallel.h), give the bits of one block for any thread count.
+      Matrix subspace(load.rows(), load.cols());
+      const Eigen::Index half = (load.cols() + 1) / 2;
+      parallelFor(2, [&](int part) {
+        const Eigen::Index first = part == 0 ? 0 : half;
+        const Eigen::Index count = part == 0 ? half : load.cols() - half;
+        if (count == 0) return;
+        StiffnessFactorization::RowBlock block = load.middleCols(first, count), scratch;
+        factorization.solveInPlace(block, scratch);
+        const Matrix solution = block;
+        block = compensatedResidual(load.middleCols(first, count), stiffness, solution);
+        factorization.solveInPlace(block, scratch);
+        subspace.middleCols(first, count) = solution + block;
+      });
       // Columns of K^-1 M V scale like 1/lambda_i (1e-4 ... 1e-7 here): unscaled, S^T M S has condition
       // (lambda_{n+1} / lambda_1)^2 and the dense Ritz solve would lose that factor in accuracy.
       for (Eigen::Index j = 0; j < subspace.cols(); ++j)
@@ -385,6 +396,7 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     const Matrix rayleigh =
         elementwiseStiffnessForm(model, model.extendColumnsToFull(basis.modesFree.leftCols(n)));
     basis.eigenvalues.head(n) = rayleigh.diagonal();
+    if (!options.inertiaReliefModes) basis.stiffnessForm = rayleigh;
   }
   basis.firstDiscardedEigenvalue = values(order[n]);
   basis.gapRatio = basis.firstDiscardedEigenvalue / basis.eigenvalues(n - 1);

@@ -64,6 +64,11 @@ struct ModalBasis {
   double gapRatio = 0.0;
   /// Empty unless gapRatio < gapWarningThreshold; then a message naming the ratio.
   std::string warning;
+  /// Phi^T K Phi of the columns as elementwiseStiffnessForm() sums it, kept from the refinement (its
+  /// diagonal is the eigenvalues) so that computeInvariants() does not sum it a second time; empty when
+  /// the refinement is off or there are inertia-relief modes. Like the eigenvalues it belongs to the modes:
+  /// whoever changes modesFull clears it.
+  Matrix stiffnessForm;
   /// Spectra counters, for the run summary.
   int iterations = 0;
   int operations = 0;

@@ -22,6 +22,49 @@ double readPositive(const json& value, const std::string& who) {
   return x;
 }
 
+double readFinite(const json& value, const std::string& who) {
+  if (!value.is_number() || !std::isfinite(value.get<double>()))
+    throw std::invalid_argument(who + " = " + render(value) + " must be a finite number");
+  return value.get<double>();
+}
+
+std::map<std::string, DriverOverride> readDrivers(const json& value, const std::string& who) {
+  if (!value.is_object() || value.empty())
+    throw std::invalid_argument(
+        who + " = " + render(value) +
+        " must be a non-empty object of drivers by name, e.g. {\"crank\": {\"speed\": "
+        "62.8}}");
+  std::map<std::string, DriverOverride> out;
+  for (const auto& [name, fields] : value.items()) {
+    const std::string at = who + "." + name;
+    if (!fields.is_object() || fields.empty())
+      throw std::invalid_argument(at + " = " + render(fields) +
+                                  " must be a non-empty object with speed, rampTime or offset");
+    DriverOverride d;
+    for (const auto& [field, x] : fields.items()) {
+      if (field == "speed") {
+        d.speed = readFinite(x, at + ".speed");
+      } else if (field == "rampTime") {
+        d.rampTime = readPositive(x, at + ".rampTime");
+      } else if (field == "offset") {
+        d.offset = readFinite(x, at + ".offset");
+      } else {
+        throw std::invalid_argument(at + "." + field +
+                                    " is unknown; fields of a driver in a scenario: speed, "
+                                    "rampTime, offset");
+      }
+    }
+    out[name] = d;
+  }
+  return out;
+}
+
+std::array<double, 2> readGravity(const json& value, const std::string& who) {
+  if (!value.is_array() || value.size() != 2)
+    throw std::invalid_argument(who + " = " + render(value) + " must be an array [gx, gy] of two numbers");
+  return {readFinite(value[0], who + "[0]"), readFinite(value[1], who + "[1]")};
+}
+
 }  // namespace
 
 std::string toString(Aggregate aggregate) { return aggregate == Aggregate::Max ? "max" : "sum"; }
@@ -59,10 +102,15 @@ std::vector<Scenario> scenariosFromJson(const json& in) {
         s.crankRadius = readPositive(value, who);
       } else if (field == "weight") {
         s.weight = readPositive(value, who);
+      } else if (field == "drivers") {
+        s.drivers = readDrivers(value, who);
+      } else if (field == "gravity") {
+        s.gravity = readGravity(value, who);
       } else {
         throw std::invalid_argument(who +
                                     " is unknown; fields of a scenario: name, crankSpeed, rampTime, "
-                                    "endTime, crankRadius, weight");
+                                    "endTime, crankRadius, weight (built-in slider-crank), drivers, gravity "
+                                    "(described mechanism)");
       }
     }
     if (s.name.empty()) throw std::invalid_argument(at + ".name is missing (every scenario needs a name)");
@@ -81,6 +129,18 @@ json toJson(const std::vector<Scenario>& scenarios) {
     if (s.endTime) entry["endTime"] = *s.endTime;
     if (s.crankRadius) entry["crankRadius"] = *s.crankRadius;
     entry["weight"] = s.weight;
+    if (!s.drivers.empty()) {
+      json drivers = json::object();
+      for (const auto& [name, d] : s.drivers) {
+        json fields = json::object();
+        if (d.speed) fields["speed"] = *d.speed;
+        if (d.rampTime) fields["rampTime"] = *d.rampTime;
+        if (d.offset) fields["offset"] = *d.offset;
+        drivers[name] = fields;
+      }
+      entry["drivers"] = drivers;
+    }
+    if (s.gravity) entry["gravity"] = json::array({(*s.gravity)[0], (*s.gravity)[1]});
     out.push_back(entry);
   }
   return out;

@@ -4,8 +4,16 @@
 // mechanism fields replaced. No list means one scenario, the rod itself (and the optimizer then runs
 // exactly the single-scenario code path of before, bit for bit).
 //
+// With a described mechanism (the configuration's `mechanism` section) a scenario sets the drivers
+// and gravity of the description instead of the built-in crank: `drivers` maps a driver's name to its
+// speed, rampTime and offset (omitted ones keep the description's), `gravity` replaces
+// mechanism.gravity; endTime is the horizon as before. crankSpeed, rampTime and crankRadius name the
+// built-in crank and are refused there, as drivers and gravity are without a mechanism section
+// (problems/app/config.h applies and checks them against the description).
+//
 // JSON form (top-level key of the configuration):
 //   "scenarios": [{"name": "slow", "crankSpeed": 15.7, "weight": 1.0}, {"name": "fast", ...}]
+//   "scenarios": [{"name": "fast", "drivers": {"crank": {"speed": 62.8}}, "gravity": [0, -9.81]}]
 // Every field is checked where it is read; messages name the entry: "scenarios[1].crankSpeed = -3
 // is outside the allowed range (0, inf)". Names are unique and non-empty.
 //
@@ -21,11 +29,20 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace hindsight {
+
+/// A described mechanism's driver as one scenario sets it; omitted fields keep the description's.
+struct DriverOverride {
+  std::optional<double> speed;     ///< [rad/s] or [m/s], finite
+  std::optional<double> rampTime;  ///< [s], > 0 (cycloidal-ramp drivers only)
+  std::optional<double> offset;    ///< [rad] or [m], finite
+};
 
 struct Scenario {
   std::string name;
@@ -34,6 +51,9 @@ struct Scenario {
   std::optional<double> endTime;      ///< [s], >= the scenario's rampTime
   std::optional<double> crankRadius;  ///< [m], in (0, rod.length)
   double weight = 1.0;                ///< w_s > 0
+  /// Described mechanisms only: drivers by name, and gravity [m/s^2].
+  std::map<std::string, DriverOverride> drivers;
+  std::optional<std::array<double, 2>> gravity;
 };
 
 /// optimization.aggregate.

@@ -35,3 +35,21 @@ def test_bad_joint_is_named():
     description["joints"][2]["point1"] = "C"
     with pytest.raises(ValueError, match=r"mechanism.joints\[rockerPin\].point1 = 'C'"):
         hindsight.Mechanism(description, **COARSE)
+
+
+def test_scenarios_of_a_described_mechanism_optimize_from_python(tmp_path):
+    # examples/mechanisms/four_bar_scenarios.json: the drivers' speeds, a ramp and gravity per scenario
+    # (docs/guides/mpi_and_threads.md); one update, every scenario's history in the results file.
+    with open(os.path.join(os.path.dirname(FOUR_BAR), "four_bar_scenarios.json")) as f:
+        config = json.load(f)
+    config["rod"] = {"elementsAlongLength": 20, "elementsThroughHeight": 4, "modeCount": 3, "endTime": 2.5}
+    config["optimization"]["iterations"] = 1
+    hindsight.optimize(config, out=str(tmp_path / "run"))
+    results = hindsight.read_results(str(tmp_path / "run" / "results.h5"))
+    assert results["scenarios"].shape == (2, 4)
+    psi1 = results["scenarios"][0]
+    assert len(set(psi1.tolist())) == 4  # four different operating cases
+    config["scenarios"][0]["drivers"] = {"motr": {"speed": 3.0}}
+    with pytest.raises(ValueError, match=r"scenarios\[0\]\.drivers\.motr is not a driver of the mechanism"):
+        hindsight.optimize(config, out=str(tmp_path / "bad"))
+    assert not (tmp_path / "bad").exists()

@@ -1,6 +1,8 @@
 // The `mechanism` section of the configuration: the examples read and write back, bad descriptions are
 // named, the described slider-crank gives the built-in model's psi1, psi2 and design gradients, and the
-// four-bar's design gradient matches central differences of psi1.
+// four-bar's design gradient matches central differences of psi1. Scenarios of a described mechanism set
+// its drivers and gravity (problems/rod/scenarios.h): read and written back, bad ones named, and the
+// described slider-crank's scenario gives the built-in slider-crank's scenario of the same crank.
 #include <hindsight/problems/app/config.h>
 #include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/mechanism/mechanism_json.h>
@@ -10,7 +12,9 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <initializer_list>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 namespace {
@@ -27,7 +31,8 @@ void coarsen(Config& c) {
 }
 
 TEST(MechanismConfig, ExamplesReadAndWriteBack) {
-  for (const char* name : {"slider_crank.json", "slider_crank_mass.json", "four_bar.json"}) {
+  for (const char* name : {"slider_crank.json", "slider_crank_mass.json", "four_bar.json",
+                           "four_bar_scenarios.json", "flexible_pendulum.json"}) {
     const Config c = readConfigFile(example(name));
     ASSERT_TRUE(c.mechanism.has_value()) << name;
     const Config again = configFromJson(toJson(c));
@@ -111,25 +116,22 @@ TEST(MechanismConfig, DescribedSliderCrankGradientHasTheSameBitsFromCheckpoints)
   EXPECT_TRUE(ea.dpsi1 == eb.dpsi1) << "largest difference " << (ea.dpsi1 - eb.dpsi1).cwiseAbs().maxCoeff();
 }
 
-TEST(MechanismConfig, FourBarDesignGradientMatchesCentralDifferences) {
-  Config c = readConfigFile(example("four_bar.json"));
-  coarsen(c);
-  applySetting(c, "rod.rampTime=0.5", false);
-  applySetting(c, "rod.endTime=0.8", false);
-  applySetting(c, "rod.modeCount=3", false);
-  c.validate();
+/// dpsi1/dx of a described mechanism's configuration against central differences of psi1 at a few design
+/// variables of the design x_i = 0.4 + 0.3 sin(frequency i).
+void expectDesignGradientMatchesCentralDifferences(const Config& c, double frequency,
+                                                   std::initializer_list<int> variables) {
   const PistonRod rod(c);
   PistonRod::Request onlyPsi1;
   onlyPsi1.psi2 = false;
   onlyPsi1.psi2Gradient = false;
   Vector x = rod.initialDesign();
-  for (int i = 0; i < x.size(); ++i) x(i) = 0.4 + 0.3 * std::sin(1.7 * i);
+  for (int i = 0; i < x.size(); ++i) x(i) = 0.4 + 0.3 * std::sin(frequency * i);
   const PistonRodEvaluation e = rod.evaluate(x, onlyPsi1);
   ASSERT_GT(e.psi1, 0.0);
   PistonRod::Request value = onlyPsi1;
   value.psi1Gradient = false;
   const double scale = e.dpsi1.cwiseAbs().maxCoeff();
-  for (int d : {0, 9, 30, 47, 71}) {
+  for (int d : variables) {
     const double h = 1e-5;
     Vector plus = x, minus = x;
     plus(d) += h;
@@ -137,6 +139,126 @@ TEST(MechanismConfig, FourBarDesignGradientMatchesCentralDifferences) {
     const double fd = (rod.evaluate(plus, value).psi1 - rod.evaluate(minus, value).psi1) / (2 * h);
     EXPECT_NEAR(e.dpsi1(d), fd, 1e-5 * scale + 1e-5 * std::abs(fd)) << "design variable " << d;
   }
+}
+
+TEST(MechanismConfig, FourBarDesignGradientMatchesCentralDifferences) {
+  Config c = readConfigFile(example("four_bar.json"));
+  coarsen(c);
+  applySetting(c, "rod.rampTime=0.5", false);
+  applySetting(c, "rod.endTime=0.8", false);
+  applySetting(c, "rod.modeCount=3", false);
+  c.validate();
+  expectDesignGradientMatchesCentralDifferences(c, 1.7, {0, 9, 30, 47, 71});
+}
+
+TEST(MechanismConfig, OpenChainDesignGradientMatchesCentralDifferences) {
+  Config c = readConfigFile(example("flexible_pendulum.json"));
+  coarsen(c);
+  applySetting(c, "rod.modeCount=3", false);
+  applySetting(c, "rod.endTime=1.5", false);
+  c.validate();
+  expectDesignGradientMatchesCentralDifferences(c, 2.3, {2, 17, 40, 63});
+}
+
+nlohmann::json withScenarios(const std::string& name, const nlohmann::json& scenarios) {
+  std::ifstream in(example(name));
+  nlohmann::json j = nlohmann::json::parse(in);
+  j["scenarios"] = scenarios;
+  return j;
+}
+
+TEST(MechanismConfig, ScenariosSetDriversAndGravityAndWriteBack) {
+  const Config c = configFromJson(withScenarios("four_bar.json", nlohmann::json::parse(R"([
+      {"name": "nominal"},
+      {"name": "fast", "drivers": {"motor": {"speed": 20.0, "rampTime": 1.5}}, "endTime": 2.5, "weight": 2},
+      {"name": "upright", "gravity": [0.0, -9.81], "drivers": {"motor": {"offset": 0.25}}}])")));
+  EXPECT_EQ(toJson(configFromJson(toJson(c))).dump(), toJson(c).dump());
+  const std::vector<Config> cases = scenarioConfigs(c);
+  ASSERT_EQ(cases.size(), 3u);
+  const mechanism::Driver& base = c.mechanism->drivers[0];
+  EXPECT_EQ(cases[0].mechanism->drivers[0].law.speed, base.law.speed);
+  EXPECT_EQ(cases[0].mechanism->gravity, c.mechanism->gravity);
+  EXPECT_EQ(cases[1].mechanism->drivers[0].law.speed, 20.0);
+  EXPECT_EQ(cases[1].mechanism->drivers[0].law.rampTime, 1.5);
+  EXPECT_EQ(cases[1].mechanism->drivers[0].offset, base.offset);
+  EXPECT_EQ(cases[1].rod.endTime, 2.5);
+  EXPECT_EQ(cases[2].mechanism->gravity, mechanism::Vec2(0.0, -9.81));
+  EXPECT_EQ(cases[2].mechanism->drivers[0].offset, 0.25);
+  EXPECT_EQ(cases[2].mechanism->drivers[0].law.speed, base.law.speed);
+  for (const Config& one : cases) EXPECT_TRUE(one.scenarios.empty());
+}
+
+TEST(MechanismConfig, BadScenariosAreNamed) {
+  auto errorOf = [](const nlohmann::json& j) -> std::string {
+    try {
+      configFromJson(j);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  auto expectError = [&](const std::string& file, const std::string& scenarios, const std::string& expected) {
+    const std::string message = errorOf(withScenarios(file, nlohmann::json::parse(scenarios)));
+    EXPECT_NE(message.find(expected), std::string::npos) << message;
+  };
+  expectError("four_bar.json", R"([{"name": "a", "drivers": {"motr": {"speed": 3}}}])",
+              "scenarios[0].drivers.motr is not a driver of the mechanism; drivers: motor");
+  expectError("four_bar.json", R"([{"name": "a"}, {"name": "b", "crankSpeed": 30}])",
+              "scenarios[1].crankSpeed sets the built-in slider-crank's crank; with a mechanism section");
+  expectError(
+      "four_bar.json", R"([{"name": "a", "drivers": {"motor": {"torque": 3}}}])",
+      "scenarios[0].drivers.motor.torque is unknown; fields of a driver in a scenario: speed, rampTime, "
+      "offset");
+  expectError("four_bar.json", R"([{"name": "a", "drivers": {"motor": {"rampTime": 0}}}])",
+              "scenarios[0].drivers.motor.rampTime = 0 is outside the allowed range (0, inf)");
+  expectError("four_bar.json", R"([{"name": "a", "drivers": {}}])",
+              "scenarios[0].drivers = {} must be a non-empty object of drivers by name");
+  expectError("four_bar.json", R"([{"name": "a", "gravity": [0, -9.81, 0]}])",
+              "scenarios[0].gravity = [0,-9.81,0] must be an array [gx, gy] of two numbers");
+  expectError("four_bar.json", R"([{"name": "a", "drivers": {"motor": {"speed": "fast"}}}])",
+              "scenarios[0].drivers.motor.speed = \"fast\" must be a finite number");
+  // rampTime belongs to cycloidal-ramp drivers only.
+  nlohmann::json constant = withScenarios(
+      "four_bar.json", nlohmann::json::parse(R"([{"name": "a", "drivers": {"motor": {"rampTime": 1}}}])"));
+  constant["mechanism"]["drivers"][0]["law"] = "constant-speed";
+  constant["mechanism"]["drivers"][0].erase("rampTime");
+  EXPECT_NE(
+      errorOf(constant).find("scenarios[0].drivers.motor.rampTime: driver 'motor' has law constant-speed; "
+                             "rampTime is a field of cycloidal-ramp only"),
+      std::string::npos)
+      << errorOf(constant);
+  // Without a mechanism section, drivers and gravity have nothing to set.
+  Config builtIn;
+  nlohmann::json plain = toJson(builtIn);
+  plain["scenarios"] = nlohmann::json::parse(R"([{"name": "a", "gravity": [0, -9.81]}])");
+  EXPECT_NE(
+      errorOf(plain).find("scenarios[0].gravity sets a described mechanism and needs a mechanism section"),
+      std::string::npos)
+      << errorOf(plain);
+}
+
+TEST(MechanismConfig, DescribedSliderCrankScenarioGivesTheBuiltInScenario) {
+  // The same operating case by both routes: the built-in crank's crankSpeed and rampTime, and the
+  // described slider-crank's driver. psi1, psi2 and the design gradients agree as the models do.
+  Config builtIn;
+  coarsen(builtIn);
+  nlohmann::json a = toJson(builtIn);
+  a["scenarios"] = nlohmann::json::parse(
+      R"([{"name": "fast", "crankSpeed": 47.12388980384690, "rampTime": 1.0, "endTime": 1.5}])");
+  nlohmann::json b = withScenarios("slider_crank.json", nlohmann::json::parse(R"([{"name": "fast",
+      "drivers": {"motor": {"speed": 47.12388980384690, "rampTime": 1.0}}, "endTime": 1.5}])"));
+  b["rod"] = a["rod"];
+  b["rod"]["rampTime"] = 1.0;  // validated for every configuration (endTime >= rod.rampTime)
+  const Config builtInCase = scenarioConfigs(configFromJson(a))[0];
+  const Config describedCase = scenarioConfigs(configFromJson(b))[0];
+  const PistonRod ra(builtInCase), rb(describedCase);
+  const PistonRodEvaluation ea = ra.evaluate(ra.initialDesign()), eb = rb.evaluate(rb.initialDesign());
+  const PistonRodEvaluation nominal = PistonRod(builtIn).evaluate(ra.initialDesign());
+  EXPECT_GT(ea.psi1, 1.5 * nominal.psi1);  // the scenario really is another operating case
+  EXPECT_NEAR(eb.psi1, ea.psi1, 1e-10 * ea.psi1);
+  EXPECT_NEAR(eb.psi2, ea.psi2, 1e-10 * ea.psi2);
+  EXPECT_LT((eb.dpsi1 - ea.dpsi1).norm(), 1e-10 * ea.dpsi1.norm());
+  EXPECT_LT((eb.dpsi2 - ea.dpsi2).norm(), 1e-10 * ea.dpsi2.norm());
 }
 
 }  // namespace

@@ -316,6 +316,43 @@ TEST(MechanismFourBar, RigidLimitFollowsTheClosedFormKinematics) {
   }
 }
 
+// The open chain (examples/mechanisms/flexible_pendulum.json): a driven crank, the member pinned to its
+// pin at A, a bob fixed to the member at B; the bob's angle is the free coordinate. In the rigid limit
+// (q = 0) the member's chord is the bob's angle and B = A + L (cos theta, sin theta), A on the crank.
+TEST(MechanismOpenChain, RigidLimitFollowsTheClosedFormKinematics) {
+  Case c(fromExample("flexible_pendulum.json"), 3, 51);
+  ASSERT_EQ(c.problem.freeCount(), 1);
+  const int nz = c.problem.fullCoordinateCount(), o = c.problem.memberOffset(),
+            f = c.problem.coordinateCount();
+  const double r = 0.15, L = 1.0;
+  const DriverLaw law = c.problem.mechanism().drivers[0].law;
+  for (double t : {0.0, 0.4, 1.3, 2.7}) {
+    const double theta = -1.2 + 0.9 * t, thetaDot = 0.7 - 0.3 * t;
+    Vector y = Vector::Zero(f), v = Vector::Zero(f);
+    y(0) = theta;
+    v(0) = thetaDot;
+    Vector z(nz), zd(nz);
+    c.problem.coordinates(t, y, v, c.p, z, zd, c.ws.get());
+    double phi, phiDot, phiDdot;
+    law.at(t, phi, phiDot, phiDdot);
+    const Eigen::Vector2d A(r * std::cos(phi), r * std::sin(phi)),
+        Ad(-r * std::sin(phi) * phiDot, r * std::cos(phi) * phiDot);
+    const Eigen::Vector2d B = A + L * Eigen::Vector2d(std::cos(theta), std::sin(theta));
+    const Eigen::Vector2d Bd = Ad + L * thetaDot * Eigen::Vector2d(-std::sin(theta), std::cos(theta));
+    EXPECT_NEAR(std::remainder(z(o + 2) - theta, 2 * M_PI), 0.0, 1e-12) << "t = " << t;
+    EXPECT_LT((z.segment<2>(o) - A).norm(), 1e-12) << "t = " << t;
+    EXPECT_LT((z.segment<2>(3) - B).norm(), 1e-12) << "t = " << t;  // the bob, the second rigid body
+    EXPECT_NEAR(zd(o + 2), thetaDot, 1e-12) << "t = " << t;
+    EXPECT_LT((zd.segment<2>(o) - Ad).norm(), 1e-12 * (1.0 + Ad.norm())) << "t = " << t;
+    EXPECT_LT((zd.segment<2>(3) - Bd).norm(), 1e-12 * (1.0 + Bd.norm())) << "t = " << t;
+  }
+}
+
+TEST(MechanismOpenChain, DerivativesMatchFiniteDifferences) {
+  Case c(fromExample("flexible_pendulum.json"), 3, 52);
+  checkDerivatives(c, {0.5, 2.2});
+}
+
 TEST(MechanismFourBar, DerivativesMatchFiniteDifferences) {
   Case c(fromExample("four_bar.json"), 3, 12);
   checkDerivatives(c, {0.6, 2.4});
@@ -343,6 +380,15 @@ TEST(MechanismFreeSliderCrank, ResidualSatisfiesLagrangesEquationsOfTheNodalEner
   for (double t : {0.4, 1.9}) {
     const double relative = lagrangeResidual(c, t);
     std::cout << "[ Lagrange free slider-crank ] t = " << t << ": relative residual " << relative << "\n";
+    EXPECT_LT(relative, 1e-5) << "t = " << t;
+  }
+}
+
+TEST(MechanismOpenChain, ResidualSatisfiesLagrangesEquationsOfTheNodalEnergies) {
+  Case c(fromExample("flexible_pendulum.json"), 3, 53);
+  for (double t : {0.6, 2.1}) {
+    const double relative = lagrangeResidual(c, t);
+    std::cout << "[ Lagrange open chain ] t = " << t << ": relative residual " << relative << "\n";
     EXPECT_LT(relative, 1e-5) << "t = " << t;
   }
 }
@@ -392,6 +438,11 @@ TEST(MechanismFourBar, DriverWorkEqualsTheEnergyChange) {
 TEST(MechanismSliderCrankMass, DriverWorkEqualsTheEnergyChange) {
   Case c(fromExample("slider_crank_mass.json"), 3, 17);
   checkEnergyBalance(c, 1.0, 1e-5);
+}
+
+TEST(MechanismOpenChain, DriverWorkEqualsTheEnergyChange) {
+  Case c(fromExample("flexible_pendulum.json"), 3, 54);
+  checkEnergyBalance(c, 1.5, 1e-5);
 }
 
 TEST(MechanismFreeSliderCrank, EnergyIsConservedUpToTheDamping) {
@@ -456,11 +507,17 @@ TEST(MechanismChordPath, SliderCrankMassEqualsTheFullCoordinateReference) {
   checkAgainstReference(c, {0.5, 2.5});
 }
 
+TEST(MechanismChordPath, OpenChainEqualsTheFullCoordinateReference) {
+  Case c(fromExample("flexible_pendulum.json"), 4, 24);
+  checkAgainstReference(c, {0.4, 1.7});
+}
+
 TEST(MechanismChordPath, StepsAndAdjointStepsAllocateNothing) {
   // Newton's buffers, the dual numbers (fixed capacity) and the kept kinematics live in the workspace.
   if (!testing::AllocationCounter::available())
     GTEST_SKIP() << "malloc is not replaced under AddressSanitizer";
-  for (const Mechanism& m : {fromExample("four_bar.json"), freeSliderCrank()}) {
+  for (const Mechanism& m :
+       {fromExample("four_bar.json"), freeSliderCrank(), fromExample("flexible_pendulum.json")}) {
     const SyntheticRod body(4, 1.0, 31);
     const MechanismProblem problem(m, 4);
     const Vector p = body.invariants();
@@ -495,7 +552,8 @@ TEST(MechanismChordPath, RecomputationGivesTheSameBits) {
   // kinematics of its last point only when the point is bitwise the same: a gradient whose forward
   // states are recomputed from checkpoints (other warm starts, other call orders) has the same bits as
   // one that stored them all.
-  for (const Mechanism& m : {fromExample("four_bar.json"), freeSliderCrank()}) {
+  for (const Mechanism& m :
+       {fromExample("four_bar.json"), freeSliderCrank(), fromExample("flexible_pendulum.json")}) {
     const SyntheticRod body(3, 1.0, 41);
     const MechanismProblem problem(m, 3);
     const Vector p = body.invariants();

@@ -4,8 +4,10 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
+#include <vector>
 
 namespace hindsight {
 namespace rod {
@@ -116,6 +118,59 @@ TEST(FeModel, AssembledMatricesAreSymmetricWithRigidModesOnlyWhenUnconstrained) 
   const Matrix restricted =
       model.restrictColumnsToFree(Matrix(model.restrictColumnsToFree(stiffnessFull).transpose()));
   EXPECT_EQ(restricted, Matrix(model.stiffness()));
+}
+
+// The assembly scatters into the mesh's pattern. Reference: Eigen's setFromTriplets over the element-ordered
+// triplets, which sums an entry's contributions in element order; both must give the same pattern and
+// the same bits, for the full and the constrained matrices, on two mesh heights.
+SparseMatrix tripletAssembly(const FeModel& model, const ElementMatrix& unit, bool stiffness, bool free) {
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int e = 0; e < model.elementCount(); ++e) {
+    const double x = model.elementDesignValue(e);
+    const double scale = stiffness ? model.simp().stiffness(x) : model.simp().density(x);
+    const std::array<int, 8> dofs = model.elementDofs(e);
+    for (int a = 0; a < 8; ++a) {
+      for (int b = 0; b < 8; ++b) {
+        const int row = free ? model.fullToFree()[dofs[a]] : dofs[a];
+        const int column = free ? model.fullToFree()[dofs[b]] : dofs[b];
+        if (row >= 0 && column >= 0) triplets.emplace_back(row, column, scale * unit(a, b));
+      }
+    }
+  }
+  const int size = free ? model.freeDofCount() : model.dofCount();
+  SparseMatrix matrix(size, size);
+  matrix.setFromTriplets(triplets.begin(), triplets.end());
+  return matrix;
+}
+
+void expectSameBits(const SparseMatrix& actual, const SparseMatrix& expected, const char* name) {
+  ASSERT_TRUE(actual.isCompressed()) << name;
+  ASSERT_EQ(actual.nonZeros(), expected.nonZeros()) << name;
+  ASSERT_EQ(actual.outerSize(), expected.outerSize()) << name;
+  for (Eigen::Index k = 0; k <= actual.outerSize(); ++k)
+    ASSERT_EQ(actual.outerIndexPtr()[k], expected.outerIndexPtr()[k]) << name << " column " << k;
+  for (Eigen::Index k = 0; k < actual.nonZeros(); ++k) {
+    ASSERT_EQ(actual.innerIndexPtr()[k], expected.innerIndexPtr()[k]) << name << " entry " << k;
+    ASSERT_EQ(std::memcmp(actual.valuePtr() + k, expected.valuePtr() + k, sizeof(double)), 0)
+        << name << " entry " << k << ": " << actual.valuePtr()[k] << " vs " << expected.valuePtr()[k];
+  }
+}
+
+TEST(FeModel, AssemblyHasTheBitsOfSetFromTripletsInElementOrder) {
+  for (const int height : {2, 6}) {
+    RodConfig config = coarseConfig();
+    config.elementsThroughHeight = height;
+    std::mt19937 generator(11);
+    std::uniform_real_distribution<double> uniform(config.designLowerBound, 1.0);
+    Vector design(config.designCount());
+    for (auto& x : design) x = uniform(generator);
+    const FeModel model(config, design);
+    expectSameBits(model.stiffnessFull(), tripletAssembly(model, model.unitStiffness(), true, false),
+                   "K full");
+    expectSameBits(model.massFull(), tripletAssembly(model, model.unitMass(), false, false), "M full");
+    expectSameBits(model.stiffness(), tripletAssembly(model, model.unitStiffness(), true, true), "K");
+    expectSameBits(model.mass(), tripletAssembly(model, model.unitMass(), false, true), "M");
+  }
 }
 
 TEST(FeModel, TotalMassAndVolumeFraction) {

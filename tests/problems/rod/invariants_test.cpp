@@ -70,6 +70,32 @@ TEST(Invariants, ModalBlocksAtARandomDesign) {
   }
 }
 
+// K_ee is the refinement's element-by-element form of the same modes (ModalBasis::stiffnessForm), kept
+// rather than summed again: the same bits as summing it here, and the form of a basis without it (the
+// refinement off, or modes changed and the form cleared) is summed afresh.
+TEST(Invariants, KeptStiffnessFormIsTheFormOfTheModes) {
+  const RodConfig config = coarseConfig();
+  std::mt19937 generator(9);
+  std::uniform_real_distribution<double> uniform(0.02, 1.0);
+  Vector design(config.designCount());
+  for (auto& x : design) x = uniform(generator);
+  const FeModel model(config, design);
+  ModalReductionOptions options;
+  options.modeCount = 5;
+  ModalBasis basis = computeModalBasis(model, options);
+  ASSERT_EQ(basis.stiffnessForm.rows(), 5);
+  const Matrix summed = elementwiseStiffnessForm(model, basis.modesFull);
+  EXPECT_EQ(computeInvariants(model, basis).kee, summed);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(basis.stiffnessForm(i, i), basis.eigenvalues(i)) << i;
+  basis.modesFull.col(0) *= 2.0;
+  basis.stiffnessForm.resize(0, 0);
+  const Matrix scaled = computeInvariants(model, basis).kee;
+  EXPECT_EQ(scaled(0, 0), 4.0 * summed(0, 0));
+  EXPECT_EQ(scaled(1, 2), summed(1, 2));
+  options.inertiaReliefModes = true;
+  EXPECT_EQ(computeModalBasis(model, options).stiffnessForm.rows(), 0);
+}
+
 TEST(Invariants, PackUnpackRoundTripAndLayout) {
   EXPECT_EQ(InertiaInvariants::packedSize(10), 354);  // 4 + 5 n + 3 n^2
   const RodConfig config = coarseConfig();
