@@ -617,6 +617,17 @@ TEST(MechanismBlocks, TheExamplesSolveOneEquationAtATimeExceptTheFourBarsLoop) {
             "[crankPin.y -> coupler.y] affine\n"
             "[rockerPin.x -> coupler.angle, rockerPin.y -> rocker.angle, rockerBearing.x -> rocker.x, "
             "rockerBearing.y -> rocker.y]\n");
+  // The open chain needs no Newton at all: the member's angle follows from the bob's (the free
+  // coordinate) through the fixed joint, the bob's position from the member's B.
+  EXPECT_EQ(describe(MechanismProblem(fromExample("flexible_pendulum.json"), 3).constraintBlocks()),
+            "[bearing.x -> crank.x] affine\n"
+            "[bearing.y -> crank.y] affine\n"
+            "[motor -> crank.angle] affine\n"
+            "[crankPin.x -> rod.x] affine\n"
+            "[crankPin.y -> rod.y] affine\n"
+            "[bobMount.angle -> rod.angle] affine\n"
+            "[bobMount.x -> bob.x] affine\n"
+            "[bobMount.y -> bob.y] affine\n");
   // A guide that is not along a coordinate axis couples the slider's x and y with the member's angle.
   Mechanism oblique = fromExample("slider_crank.json");
   oblique.joints[3].axis = Vec2(1.0, 0.1);
@@ -632,8 +643,12 @@ std::vector<Mechanism> blockCases() {
   oblique.joints[3].axis = Vec2(1.0, 0.1);
   // Assemblable on the oblique guide: the slider starts on it.
   oblique.rigidBodies[1].position = Vec2(1.15, 0.115);
-  return {fromExample("slider_crank.json"), fromExample("slider_crank_mass.json"),
-          fromExample("four_bar.json"), freeSliderCrank(), oblique};
+  return {fromExample("slider_crank.json"),
+          fromExample("slider_crank_mass.json"),
+          fromExample("four_bar.json"),
+          fromExample("flexible_pendulum.json"),
+          freeSliderCrank(),
+          oblique};
 }
 
 TEST(MechanismBlocks, ThePatternIsTheJacobiansAndBlockTriangular) {
