@@ -16,6 +16,15 @@ RodConfig coarseConfig() {
   return config;
 }
 
+/// Densities uniform in [0.02, 1) from the seed.
+Vector randomDesign(const RodConfig& config, unsigned seed) {
+  std::mt19937 generator(seed);
+  std::uniform_real_distribution<double> uniform(0.02, 1.0);
+  Vector design(config.designCount());
+  for (auto& x : design) x = uniform(generator);
+  return design;
+}
+
 // Bilinear shape functions reproduce x and y exactly and 2x2 Gauss integrates the biquadratic products
 // exactly, so X^T M X = int rho (x^2 + y^2) dV with no discretisation error; likewise m and m c.
 TEST(Invariants, RigidBodyQuantitiesOfTheSolidRodAreExact) {
@@ -35,11 +44,7 @@ TEST(Invariants, RigidBodyQuantitiesOfTheSolidRodAreExact) {
 
 TEST(Invariants, ModalBlocksAtARandomDesign) {
   const RodConfig config = coarseConfig();
-  std::mt19937 generator(5);
-  std::uniform_real_distribution<double> uniform(0.02, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = uniform(generator);
-  const FeModel model(config, design);
+  const FeModel model(config, randomDesign(config, 5));
   ModalReductionOptions options;
   options.modeCount = 5;
   const ModalBasis basis = computeModalBasis(model, options);
@@ -75,11 +80,7 @@ TEST(Invariants, ModalBlocksAtARandomDesign) {
 // refinement off, or modes changed and the form cleared) is summed afresh.
 TEST(Invariants, KeptStiffnessFormIsTheFormOfTheModes) {
   const RodConfig config = coarseConfig();
-  std::mt19937 generator(9);
-  std::uniform_real_distribution<double> uniform(0.02, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = uniform(generator);
-  const FeModel model(config, design);
+  const FeModel model(config, randomDesign(config, 9));
   ModalReductionOptions options;
   options.modeCount = 5;
   ModalBasis basis = computeModalBasis(model, options);
