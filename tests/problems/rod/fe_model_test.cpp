@@ -1,7 +1,9 @@
 #include <hindsight/problems/rod/fe_model.h>
 
 #include <gtest/gtest.h>
+
 #include <Eigen/Eigenvalues>
+#include "support/random_design.h"
 
 #include <cmath>
 #include <cstring>
@@ -160,11 +162,7 @@ TEST(FeModel, AssemblyHasTheBitsOfSetFromTripletsInElementOrder) {
   for (const int height : {2, 6}) {
     RodConfig config = coarseConfig();
     config.elementsThroughHeight = height;
-    std::mt19937 generator(11);
-    std::uniform_real_distribution<double> uniform(config.designLowerBound, 1.0);
-    Vector design(config.designCount());
-    for (auto& x : design) x = uniform(generator);
-    const FeModel model(config, design);
+    const FeModel model(config, testing::randomRodDesign(config, 11));
     expectSameBits(model.stiffnessFull(), tripletAssembly(model, model.unitStiffness(), true, false),
                    "K full");
     expectSameBits(model.massFull(), tripletAssembly(model, model.unitMass(), false, false), "M full");

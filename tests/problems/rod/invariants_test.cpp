@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/random_design.h"
+
 #include <cmath>
 #include <random>
 
@@ -14,15 +16,6 @@ RodConfig coarseConfig() {
   config.elementsAlongLength = 20;
   config.elementsThroughHeight = 4;
   return config;
-}
-
-/// Densities uniform in [0.02, 1) from the seed.
-Vector randomDesign(const RodConfig& config, unsigned seed) {
-  std::mt19937 generator(seed);
-  std::uniform_real_distribution<double> uniform(0.02, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = uniform(generator);
-  return design;
 }
 
 // Bilinear shape functions reproduce x and y exactly and 2x2 Gauss integrates the biquadratic products
@@ -44,7 +37,7 @@ TEST(Invariants, RigidBodyQuantitiesOfTheSolidRodAreExact) {
 
 TEST(Invariants, ModalBlocksAtARandomDesign) {
   const RodConfig config = coarseConfig();
-  const FeModel model(config, randomDesign(config, 5));
+  const FeModel model(config, testing::randomRodDesign(config, 5));
   ModalReductionOptions options;
   options.modeCount = 5;
   const ModalBasis basis = computeModalBasis(model, options);
@@ -80,7 +73,7 @@ TEST(Invariants, ModalBlocksAtARandomDesign) {
 // refinement off, or modes changed and the form cleared) is summed afresh.
 TEST(Invariants, KeptStiffnessFormIsTheFormOfTheModes) {
   const RodConfig config = coarseConfig();
-  const FeModel model(config, randomDesign(config, 9));
+  const FeModel model(config, testing::randomRodDesign(config, 9));
   ModalReductionOptions options;
   options.modeCount = 5;
   ModalBasis basis = computeModalBasis(model, options);
