@@ -80,8 +80,9 @@ void FullStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                           const PredictionRequest& request, SchedulePrediction& p) {
   const auto& full = dynamic_cast<const FullStorage&>(storage);
   const std::int64_t steps = request.steps;
-  // stages=1: every row the state and its step's S - 1 stage states (an explicit Runge-Kutta method's
-  // Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
+  // stages=1: every row the state and its step record (an explicit Runge-Kutta method's
+  // Integrator::stepDataSize(): S - 1 stage states and S rhs data; none for S = 1), every adjoint step
+  // served.
   const bool stageRows = full.stages_ && prediction::hasStageValues(request.stages);
   const std::int64_t rowDoubles = prediction::stageRowDoubles(request, stageRows, "full");
   if (stageRows) p.stepDataStored = p.stepDataRestored = steps;
