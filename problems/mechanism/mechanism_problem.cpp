@@ -171,7 +171,7 @@ struct Buffers {
   // A driver's s, s', s'' (drive[3 i ...]) for constraint row i at driveTime[i] (NaN: none yet): Newton
   // evaluates the constraints many times at one time, and the ramp's law costs a sine and a cosine.
   std::vector<double> driveTime, drive;
-  /// jac, phi, phit, quad were set to zero once (Impl::constraints() with a row mask).
+  /// jac, phi, phit, quad of dual numbers were set to zero once (Impl::constraints() with a row mask).
   bool cleared = false;
 };
 
@@ -465,11 +465,14 @@ struct MechanismProblem::Impl {
     if (trig) updateTrig(B);
     T c, cd;
     chord(B, quadratic, c, cd, zero);
-    if (rowMask != nullptr && !B.cleared) {
-      for (auto* v : {&B.jac, &B.phi, &B.phit, &B.quad}) {
-        for (auto& x : *v) x = zero;
+    if constexpr (!std::is_same_v<T, double>) {
+      // Dual numbers start uninitialised (double buffers start at zero and keep their other rows).
+      if (rowMask != nullptr && !B.cleared) {
+        for (auto* v : {&B.jac, &B.phi, &B.phit, &B.quad}) {
+          for (auto& x : *v) x = zero;
+        }
+        B.cleared = true;
       }
-      B.cleared = true;
     }
     const int rowCount = static_cast<int>(rows.size());
     if (jacobian) {

@@ -23,6 +23,7 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <string>
 #include <tuple>
 
 namespace hindsight::mechanism {
@@ -558,18 +559,22 @@ TEST(MechanismChordPath, RecomputationGivesTheSameBits) {
     const SyntheticRod body(3, 1.0, 41);
     const MechanismProblem problem(m, 3);
     const Vector p = body.invariants();
-    IntegratorOptions options;
-    options.method = "generalized-alpha";
-    options.t1 = 0.4;
-    options.step = 2e-3;
-    FullStorage full;
-    BinomialCheckpointing binomial(6);
-    const GradientResult a = computeGradient(problem, p, options, full);
-    const GradientResult b = computeGradient(problem, p, options, binomial);
-    EXPECT_GT(b.summary.recomputedSteps, 0);
-    EXPECT_EQ(a.objective, b.objective);
-    EXPECT_TRUE(a.gradient == b.gradient)
-        << "largest difference " << (a.gradient - b.gradient).cwiseAbs().maxCoeff();
+    // Generalized-alpha asks for the mass matrix and the Jacobians together; RK4 for the force at its
+    // stages and, in the backward sweep, for the Jacobians at stored and recomputed stage states.
+    for (const char* method : {"generalized-alpha", "rk4"}) {
+      IntegratorOptions options;
+      options.method = method;
+      options.t1 = std::string(method) == "rk4" ? 0.05 : 0.4;
+      options.step = std::string(method) == "rk4" ? 2e-4 : 2e-3;
+      FullStorage full;
+      BinomialCheckpointing binomial(6);
+      const GradientResult a = computeGradient(problem, p, options, full);
+      const GradientResult b = computeGradient(problem, p, options, binomial);
+      EXPECT_GT(b.summary.recomputedSteps, 0);
+      EXPECT_EQ(a.objective, b.objective) << method;
+      EXPECT_TRUE(a.gradient == b.gradient)
+          << method << ": largest difference " << (a.gradient - b.gradient).cwiseAbs().maxCoeff();
+    }
   }
 }
 
@@ -737,17 +742,25 @@ TEST(MechanismChordPath, WhatDependsOnTimeAloneIsKeptWithTheSameBits) {
       return std::make_tuple(mass, ry, rv, force, gradient);
     };
     const auto fresh = answers(c.problem.createModelWorkspace().get());
-    const auto seen = c.problem.createModelWorkspace();
-    Matrix mass(f, f);
-    Vector force(f);
-    c.problem.massMatrixAndForce(t0, c.s.y, c.s.v, c.p, mass, force, seen.get());
-    c.problem.massMatrixAndForce(t1, c.s.y, c.s.v, c.p, mass, force, seen.get());
-    const auto kept = answers(seen.get());
-    EXPECT_TRUE(std::get<0>(kept) == std::get<0>(fresh)) << "mass matrix";
-    EXPECT_TRUE(std::get<1>(kept) == std::get<1>(fresh)) << "r_y";
-    EXPECT_TRUE(std::get<2>(kept) == std::get<2>(fresh)) << "r_y'";
-    EXPECT_TRUE(std::get<3>(kept) == std::get<3>(fresh)) << "force";
-    EXPECT_TRUE(std::get<4>(kept) == std::get<4>(fresh)) << "parameter product";
+    // Histories: other positions at both times; and new velocities at the same positions first (the
+    // velocity level alone taken from the kept rows).
+    for (int history = 0; history < 2; ++history) {
+      const auto seen = c.problem.createModelWorkspace();
+      Matrix mass(f, f);
+      Vector force(f);
+      if (history == 0) {
+        c.problem.massMatrixAndForce(t0, c.s.y, c.s.v, c.p, mass, force, seen.get());
+        c.problem.massMatrixAndForce(t1, c.s.y, c.s.v, c.p, mass, force, seen.get());
+      } else {
+        c.problem.massMatrixAndForce(t1, y2, c.s.v, c.p, mass, force, seen.get());
+      }
+      const auto kept = answers(seen.get());
+      EXPECT_TRUE(std::get<0>(kept) == std::get<0>(fresh)) << "mass matrix, history " << history;
+      EXPECT_TRUE(std::get<1>(kept) == std::get<1>(fresh)) << "r_y, history " << history;
+      EXPECT_TRUE(std::get<2>(kept) == std::get<2>(fresh)) << "r_y', history " << history;
+      EXPECT_TRUE(std::get<3>(kept) == std::get<3>(fresh)) << "force, history " << history;
+      EXPECT_TRUE(std::get<4>(kept) == std::get<4>(fresh)) << "parameter product, history " << history;
+    }
   }
 }
 
