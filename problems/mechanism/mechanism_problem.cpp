@@ -457,8 +457,9 @@ struct MechanismProblem::Impl {
 
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
   /// also B.sn, B.cs at B.z, which the forces after it use.
-  /// With rowMask (the chord system's dual passes: rowActive), only the rows it marks; the Jacobian's
-  /// entries of the others keep the zeros of the first such call (their values are never read).
+  /// With rowMask (rowActive), only the rows it marks; the other rows' entries are left as they are: a
+  /// dual pass never reads them (they stay at the zeros of its first call), and constraintsCached()
+  /// restores them in double.
   template <typename T>
   void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero, bool trig = true,
                    const char* rowMask = nullptr) const {
