@@ -313,6 +313,14 @@ struct MechanismProblem::Impl {
     std::vector<int> inactiveUnknowns;  ///< the other blocks' unknowns
     int luSize = 0, pivSize = 0, maxSize = 0;
     int count() const { return static_cast<int>(start.size()) - 1; }
+    /// The index arrays as raw pointers, for the solves' loops: in locals, the stores to a solve's output
+    /// cannot be taken for changes of the index arrays.
+    struct Raw {
+      const int *start, *eq, *unk, *offStart, *offIndex, *offUnk;
+    };
+    Raw raw() const {
+      return {start.data(), eq.data(), unk.data(), offStart.data(), offIndex.data(), offUnk.data()};
+    }
     bool empty() const { return start.empty(); }
   } blocks;
   Vector zInitial;  ///< assembled at t = 0, q = 0
@@ -1153,13 +1161,7 @@ struct MechanismProblem::Impl {
   /// from the m x nz jac, its blocks factorised by factorBlocks()). r: scratch of the largest block.
   void blockSolve(const double* jac, const double* lu, const int* piv, const double* in, double* out,
                   double* r) const {
-    // Raw pointers in locals: the stores to out cannot then be taken for changes of the index arrays.
-    const int* start = blocks.start.data();
-    const int* eq = blocks.eq.data();
-    const int* unk = blocks.unk.data();
-    const int* offStart = blocks.offStart.data();
-    const int* offIndex = blocks.offIndex.data();
-    const int* offUnk = blocks.offUnk.data();
+    const auto [start, eq, unk, offStart, offIndex, offUnk] = blocks.raw();
     const int* luOffset = blocks.luOffset.data();
     const int* pivOffset = blocks.pivOffset.data();
     const int count = blocks.count();
@@ -1186,17 +1188,13 @@ struct MechanismProblem::Impl {
       }
     }
   }
+
   /// blockSolve() in nd directions at once (in[nd q + e] by equation, out[nd u + e] by unknown), over the
   /// active blocks only (Blocks::active): the others' unknowns are zero, as a dual pass's derivatives are.
   /// Each direction takes blockSolve()'s operations. r: scratch of nd times the largest block.
   void blockSolveActive(const double* jac, const double* lu, const int* piv, const double* in, double* out,
                         double* r, int nd) const {
-    const int* start = blocks.start.data();
-    const int* eq = blocks.eq.data();
-    const int* unk = blocks.unk.data();
-    const int* offStart = blocks.offStart.data();
-    const int* offIndex = blocks.offIndex.data();
-    const int* offUnk = blocks.offUnk.data();
+    const auto [start, eq, unk, offStart, offIndex, offUnk] = blocks.raw();
     for (int u : blocks.inactiveUnknowns) {
       for (int e = 0; e < nd; ++e) out[nd * u + e] = 0.0;
     }
