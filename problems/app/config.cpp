@@ -301,11 +301,11 @@ const std::vector<ConfigField>& configFields() {
       boolean("rod.inertiaReliefModes", MEMBER(rod.inertiaReliefModes),
               "append the three static inertia-relief modes K^-1 M [e_x, e_y, S X]"),
       real("rod.crankRadius", MEMBER(rod.crankRadius), 0.0, open, inf, "m",
-           "r, crank radius of the built-in slider-crank; below length"),
+           "r, crank radius of the default slider-crank (no mechanism section); below length"),
       real("rod.crankSpeed", MEMBER(rod.crankSpeed), 0.0, open, inf, "rad/s",
-           "Omega, crank speed after the ramp (built-in slider-crank)"),
+           "Omega, crank speed after the ramp (default slider-crank)"),
       real("rod.rampTime", MEMBER(rod.rampTime), 0.0, open, inf, "s",
-           "T, duration of the cycloidal speed ramp (built-in slider-crank)"),
+           "T, duration of the cycloidal speed ramp (default slider-crank)"),
       real("rod.endTime", MEMBER(rod.endTime), 0.0, open, inf, "s", "t1, end of the simulation; >= rampTime"),
       integer("rod.eslSamples", MEMBER(rod.eslSamples), 1, 100000, "1",
               "time points of the equivalent static loads (psi2)"),
@@ -475,7 +475,7 @@ mechanism::Mechanism scenarioMechanism(const mechanism::Mechanism& base, const S
   if (builtIn != nullptr)
     throw std::invalid_argument(
         at + "." + builtIn +
-        " sets the built-in slider-crank's crank; with a mechanism section a scenario sets "
+        " sets the default slider-crank's crank; with a mechanism section a scenario sets "
         "its drivers (\"drivers\": {\"<driver>\": {\"speed\": ...}}) and gravity");
   mechanism::Mechanism out = base;
   for (const auto& [name, change] : scenario.drivers) {
@@ -545,7 +545,7 @@ void Config::validate() const {
     (void)assembled;
     if (simulation.model != RodModel::Reduced) {
       throw std::invalid_argument(
-          "config field 'simulation.model' = full is the built-in slider-crank's full-order rod; with a "
+          "config field 'simulation.model' = full is the default slider-crank's full-order rod; with a "
           "mechanism section it must be reduced");
     }
     for (std::size_t i = 0; i < scenarios.size(); ++i) {
@@ -566,7 +566,7 @@ void Config::validate() const {
       if (!scenarios[i].drivers.empty() || scenarios[i].gravity)
         throw std::invalid_argument(
             at + "." + (scenarios[i].drivers.empty() ? "gravity" : "drivers") +
-            " sets a described mechanism and needs a mechanism section; the built-in "
+            " sets a described mechanism and needs a mechanism section; the default "
             "slider-crank's scenarios set crankSpeed, rampTime, crankRadius and endTime");
     }
   }

@@ -8,7 +8,6 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>
@@ -76,23 +75,17 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   out.dvolume = model.volumeFractionGradient();
   out.modelSeconds = phase.seconds();
 
-  rod::CrankMotion crank;
-  crank.radius = rc.crankRadius;
-  crank.omega = rc.crankSpeed;
-  crank.rampTime = rc.rampTime;
-  // The built-in slider-crank, or the described mechanism whose flexible member the rod is (the same
-  // invariants p, so the chain to the design below is the same).
-  std::unique_ptr<SecondOrderProblem> problemPointer;
-  int modalOffset = 0;  // q within the minimal coordinates
-  if (config_.mechanism) {
-    mechanism::Mechanism described = *config_.mechanism;
-    described.member.length = rc.length;
-    auto m = std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount());
-    modalOffset = m->freeCount();
-    problemPointer = std::move(m);
-  } else {
-    problemPointer = std::make_unique<rod::SliderCrankProblem>(basis.columnCount(), rc.length, crank);
-  }
+  // The mechanism whose flexible member the rod is: the configuration's description, or without one
+  // the paper's slider-crank described by the same builder (mechanism::sliderCrank), so that every
+  // mechanism takes one path (problems/mechanism/mechanism_problem.h). The closed form of the
+  // slider-crank (problems/rod/slider_crank.h) is the tests' independent reference for it.
+  mechanism::Mechanism described =
+      config_.mechanism ? *config_.mechanism
+                        : mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
+  described.member.length = rc.length;
+  auto mechanismProblem = std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount());
+  const int modalOffset = mechanismProblem->freeCount();  // q within the minimal coordinates
+  const std::unique_ptr<SecondOrderProblem> problemPointer = std::move(mechanismProblem);
   const SecondOrderProblem& problem = *problemPointer;
   const IntegratorOptions options = integratorOptions();
 

@@ -171,6 +171,8 @@ struct Buffers {
   // A driver's s, s', s'' (drive[3 i ...]) for constraint row i at driveTime[i] (NaN: none yet): Newton
   // evaluates the constraints many times at one time, and the ramp's law costs a sine and a cosine.
   std::vector<double> driveTime, drive;
+  /// jac, phi, phit, quad of dual numbers were set to zero once (Impl::constraints() with a row mask).
+  bool cleared = false;
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
@@ -268,6 +270,24 @@ struct MechanismProblem::Impl {
   std::vector<int> rowOf;        ///< equation -> its row
   std::vector<std::string> equationNames, coordinateNames;  ///< constraintBlocks()
   std::vector<SpringRef> springs;
+  /// The chord system's coordinates and constraint rows that depend on sigma (Blocks::active): a dual
+  /// pass in sigma, sigma' evaluates only these rows, since the others' derivatives are exactly zero.
+  std::vector<char> zActive, rowActive;
+  std::vector<int> inactiveEquations;  ///< the equations of the rows rowActive leaves out
+  std::vector<int> inactiveJacIndex;   ///< their structural entries in the m x nz Jacobian
+
+  /// What depends on time alone (the inactive blocks and rows), kept in a workspace with the bits of the
+  /// time it was computed at: the engine evaluates several points at one time (a step's predictor and
+  /// its Newton iterates), and these parts are the same at all of them.
+  struct TimeCache {
+    double tPositions = std::numeric_limits<double>::quiet_NaN();
+    double tJacobian = std::numeric_limits<double>::quiet_NaN();
+    double tQuadratic = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> positions;        ///< by unknown (the inactive blocks' polished solution)
+    std::vector<double> jac;              ///< by inactiveJacIndex
+    std::vector<double> phi, phit, quad;  ///< by equation
+  };
+  static bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
   /// The block-triangular (BLT) form of Phi_u, the chord system's only (the full-coordinate reference
   /// keeps the dense solves): equations and unknowns (indices into `dependent`) by position in solve
@@ -286,8 +306,21 @@ struct MechanismProblem::Impl {
     std::vector<double> constantLu;
     std::vector<int> constantPiv;
     std::vector<int> touchStart, touchList;  ///< per equation: every z index its Jacobian row touches
+    /// Blocks whose unknowns depend on the independent coordinates (sigma); the others are functions of
+    /// time alone (a driven crank and what it carries), and the dual passes skip them.
+    std::vector<char> active;
+    std::vector<int> activeList;        ///< the active blocks in solve order
+    std::vector<int> inactiveUnknowns;  ///< the other blocks' unknowns
     int luSize = 0, pivSize = 0, maxSize = 0;
     int count() const { return static_cast<int>(start.size()) - 1; }
+    /// The index arrays as raw pointers, for the solves' loops: in locals, the stores to a solve's output
+    /// cannot be taken for changes of the index arrays.
+    struct Raw {
+      const int *start, *eq, *unk, *offStart, *offIndex, *offUnk;
+    };
+    Raw raw() const {
+      return {start.data(), eq.data(), unk.data(), offStart.data(), offIndex.data(), offUnk.data()};
+    }
     bool empty() const { return start.empty(); }
   } blocks;
   Vector zInitial;  ///< assembled at t = 0, q = 0
@@ -432,17 +465,71 @@ struct MechanismProblem::Impl {
 
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
   /// also B.sn, B.cs at B.z, which the forces after it use.
+  /// With rowMask (rowActive), only the rows it marks; the other rows' entries are left as they are: a
+  /// dual pass never reads them (they stay at the zeros of its first call), and constraintsCached()
+  /// restores them in double.
   template <typename T>
-  void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero,
-                   bool trig = true) const {
+  void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero, bool trig = true,
+                   const char* rowMask = nullptr) const {
     if (trig) updateTrig(B);
     T c, cd;
     chord(B, quadratic, c, cd, zero);
-    if (jacobian) {
-      for (auto& x : B.jac) x = zero;
+    if constexpr (!std::is_same_v<T, double>) {
+      // Dual numbers start uninitialised (double buffers start at zero and keep their other rows).
+      if (rowMask != nullptr && !B.cleared) {
+        for (auto* v : {&B.jac, &B.phi, &B.phit, &B.quad}) {
+          for (auto& x : *v) x = zero;
+        }
+        B.cleared = true;
+      }
     }
-    for (int r = 0; r < static_cast<int>(rows.size()); ++r)
-      evaluateRow(t, B, r, jacobian, quadratic, c, cd, zero);
+    const int rowCount = static_cast<int>(rows.size());
+    if (jacobian) {
+      if (rowMask == nullptr) {
+        for (auto& x : B.jac) x = zero;
+      } else {
+        // The touched entries of the marked rows (evaluateRow() adds exact zeros elsewhere).
+        for (int r = 0; r < rowCount; ++r) {
+          if (!rowMask[r]) continue;
+          const int last = r + 1 < rowCount ? rowFirst[r + 1] : m;
+          for (int i = rowFirst[r]; i < last; ++i) {
+            for (int x = blocks.touchStart[i]; x < blocks.touchStart[i + 1]; ++x)
+              B.jac[blocks.touchList[x]] = zero;
+          }
+        }
+      }
+    }
+    for (int r = 0; r < rowCount; ++r) {
+      if (rowMask == nullptr || rowMask[r]) evaluateRow(t, B, r, jacobian, quadratic, c, cd, zero);
+    }
+  }
+
+  /// constraints() in double for the chord system's kinematics (one of jacobian, quadratic), with the
+  /// rows that depend on time alone taken from `cache` when it holds them at the bits of t (they are a
+  /// function of t, so the bits are those a new evaluation would give).
+  void constraintsCached(double t, Buffers<double>& B, bool jacobian, bool quadratic, bool trig,
+                         TimeCache& cache) const {
+    double& key = jacobian ? cache.tJacobian : cache.tQuadratic;
+    if (!sameBits(t, key)) {
+      constraints(t, B, jacobian, quadratic, 0.0, trig);
+      for (std::size_t k = 0; k < inactiveJacIndex.size() && jacobian; ++k)
+        cache.jac[k] = B.jac[inactiveJacIndex[k]];
+      for (int e : inactiveEquations) {
+        cache.phi[e] = B.phi[e];
+        if (jacobian) cache.phit[e] = B.phit[e];
+        if (quadratic) cache.quad[e] = B.quad[e];
+      }
+      key = t;
+      return;
+    }
+    constraints(t, B, jacobian, quadratic, 0.0, trig, rowActive.data());
+    for (std::size_t k = 0; k < inactiveJacIndex.size() && jacobian; ++k)
+      B.jac[inactiveJacIndex[k]] = cache.jac[k];
+    for (int e : inactiveEquations) {
+      B.phi[e] = cache.phi[e];
+      if (jacobian) B.phit[e] = cache.phit[e];
+      if (quadratic) B.quad[e] = cache.quad[e];
+    }
   }
 
   /// Constraint row r's equations (from rowFirst[r] on): Phi, with `jacobian` its Jacobian added into
@@ -791,6 +878,45 @@ struct MechanismProblem::Impl {
       for (const Entry& x : eqs[e]) bl.touchList.push_back(e + m * x.z);
     }
     bl.touchStart.push_back(static_cast<int>(bl.touchList.size()));
+    // Activity: a block is a function of time alone when its equations (their values and their
+    // Jacobian coefficients) touch only its own unknowns and those of earlier blocks that are; the
+    // block-triangular order lets one pass decide it. The independent coordinates start it.
+    zActive.assign(nz, 0);
+    for (int i : independent) zActive[i] = 1;
+    bl.active.assign(bl.count(), 0);
+    std::vector<char> eqActive(m, 0);
+    for (int b = 0; b < bl.count(); ++b) {
+      bool active = false;
+      for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) {
+        for (const Entry& x : eqs[bl.eq[p]]) {
+          active = active || zActive[x.z];
+          for (int z : x.coefficient) active = active || zActive[z];
+        }
+      }
+      if (!active) continue;
+      bl.active[b] = 1;
+      for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) {
+        zActive[dependent[bl.unk[p]]] = 1;
+        eqActive[bl.eq[p]] = 1;
+      }
+    }
+    for (int b = 0; b < bl.count(); ++b) {
+      if (bl.active[b]) {
+        bl.activeList.push_back(b);
+      } else {
+        for (int p = bl.start[b]; p < bl.start[b + 1]; ++p) bl.inactiveUnknowns.push_back(bl.unk[p]);
+      }
+    }
+    rowActive.assign(rows.size(), 0);
+    for (int e = 0; e < m; ++e) {
+      if (eqActive[e]) rowActive[rowOf[e]] = 1;
+    }
+    for (int e = 0; e < m; ++e) {
+      if (rowActive[rowOf[e]]) continue;
+      inactiveEquations.push_back(e);
+      for (int x = bl.touchStart[e]; x < bl.touchStart[e + 1]; ++x)
+        inactiveJacIndex.push_back(bl.touchList[x]);
+    }
     // The constant blocks' factors, from the Jacobian at the initial positions (any point would do).
     bl.constantLu.assign(bl.luSize, 0.0);
     bl.constantPiv.assign(bl.pivSize, 0);
@@ -938,11 +1064,20 @@ struct MechanismProblem::Impl {
   /// rounded to a grid of 2^-20 and Newton runs again from the grid point (two or three steps reach
   /// round-off), so that its result is a function of the grid point, the earlier blocks and sigma (see
   /// the header). lu, piv, x: scratch of the largest block.
-  void solveBlocks(double t, Buffers<double>& B, bool polish, double* lu, int* piv, double* x) const {
+  /// With `cache` (polished solves), the blocks that depend on time alone are taken from it when it holds
+  /// them at the bits of t, and kept in it otherwise.
+  void solveBlocks(double t, Buffers<double>& B, bool polish, double* lu, int* piv, double* x,
+                   TimeCache* cache = nullptr) const {
     double c, cd;
     chord(B, false, c, cd, 0.0);
+    if (!polish) cache = nullptr;
+    const bool cached = cache != nullptr && sameBits(t, cache->tPositions);
     for (int b = 0; b < blocks.count(); ++b) {
       const int p0 = blocks.start[b], p1 = blocks.start[b + 1];
+      if (cached && !blocks.active[b]) {
+        for (int p = p0; p < p1; ++p) B.z[dependent[blocks.unk[p]]] = cache->positions[blocks.unk[p]];
+        continue;
+      }
       if (blocks.constant[b] && p1 == p0 + 1) {
         // One equation with a constant coefficient (a pin's x or y, a driven angle, a ground guide):
         // its value at zero and the kept coefficient, the operations of blockStep().
@@ -1010,6 +1145,10 @@ struct MechanismProblem::Impl {
         previous = step;
       }
     }
+    if (cache != nullptr && !cached) {
+      for (int u : blocks.inactiveUnknowns) cache->positions[u] = B.z[dependent[u]];
+      cache->tPositions = t;
+    }
   }
 
   /// Every block of Phi_u (from the m x nz jac) factorised into lu, piv (Blocks::luOffset, pivOffset).
@@ -1022,13 +1161,7 @@ struct MechanismProblem::Impl {
   /// from the m x nz jac, its blocks factorised by factorBlocks()). r: scratch of the largest block.
   void blockSolve(const double* jac, const double* lu, const int* piv, const double* in, double* out,
                   double* r) const {
-    // Raw pointers in locals: the stores to out cannot then be taken for changes of the index arrays.
-    const int* start = blocks.start.data();
-    const int* eq = blocks.eq.data();
-    const int* unk = blocks.unk.data();
-    const int* offStart = blocks.offStart.data();
-    const int* offIndex = blocks.offIndex.data();
-    const int* offUnk = blocks.offUnk.data();
+    const auto [start, eq, unk, offStart, offIndex, offUnk] = blocks.raw();
     const int* luOffset = blocks.luOffset.data();
     const int* pivOffset = blocks.pivOffset.data();
     const int count = blocks.count();
@@ -1052,6 +1185,38 @@ struct MechanismProblem::Impl {
       } else {
         luSolve(l, piv + pivOffset[b], s, r);
         for (int i = 0; i < s; ++i) out[unk[p0 + i]] = r[i];
+      }
+    }
+  }
+
+  /// blockSolve() in nd directions at once (in[nd q + e] by equation, out[nd u + e] by unknown), over the
+  /// active blocks only (Blocks::active): the others' unknowns are zero, as a dual pass's derivatives are.
+  /// Each direction takes blockSolve()'s operations. r: scratch of nd times the largest block.
+  void blockSolveActive(const double* jac, const double* lu, const int* piv, const double* in, double* out,
+                        double* r, int nd) const {
+    const auto [start, eq, unk, offStart, offIndex, offUnk] = blocks.raw();
+    for (int u : blocks.inactiveUnknowns) {
+      for (int e = 0; e < nd; ++e) out[nd * u + e] = 0.0;
+    }
+    for (int b : blocks.activeList) {
+      const int p0 = start[b], s = start[b + 1] - p0;
+      const double* l = lu + blocks.luOffset[b];
+      for (int i = 0; i < s; ++i) {
+        const int p = p0 + i;
+        for (int e = 0; e < nd; ++e) {
+          double v = in[nd * eq[p] + e];
+          for (int k = offStart[p]; k < offStart[p + 1]; ++k) v -= jac[offIndex[k]] * out[nd * offUnk[k] + e];
+          r[i + s * e] = v;
+        }
+      }
+      for (int e = 0; e < nd; ++e) {
+        double* x = r + s * e;
+        if (s == 1) {
+          x[0] = x[0] / l[0];
+        } else {
+          luSolve(l, piv + blocks.pivOffset[b], s, x);
+        }
+        for (int i = 0; i < s; ++i) out[nd * unk[p0 + i] + e] = x[i];
       }
     }
   }
@@ -1092,6 +1257,9 @@ struct Work final : ProblemWorkspace {
         pivStar(I.m),
         x0(I.m),
         x1(I.m),
+        dualIn(C.m * 2 * (MechanismProblem::kMaxFree + 1)),
+        dualSolve(C.m * 2 * (MechanismProblem::kMaxFree + 1)),
+        dualScratch(C.blocks.maxSize * 2 * (MechanismProblem::kMaxFree + 1)),
         mu(I.f),
         nu(I.nz),
         fScratch(I.f),
@@ -1109,7 +1277,13 @@ struct Work final : ProblemWorkspace {
         uq(I.n),
         qKey(I.n),
         vKey(I.n),
-        aKey(I.n) {}
+        aKey(I.n) {
+    timeCache.positions.assign(C.m, 0.0);
+    timeCache.jac.assign(C.inactiveJacIndex.size(), 0.0);
+    timeCache.phi.assign(C.m, 0.0);
+    timeCache.phit.assign(C.m, 0.0);
+    timeCache.quad.assign(C.m, 0.0);
+  }
   Buffers<double> d;
   Buffers<ADS> s;
   Buffers<ADL> l;
@@ -1151,6 +1325,9 @@ struct Work final : ProblemWorkspace {
   std::vector<double> luStar;
   std::vector<int> pivStar;
   std::vector<double> x0, x1;  ///< scratch of the dual solves (kinematics())
+  // The chord system's dual solves in all directions at once (Impl::blockSolveActive()).
+  std::vector<double> dualIn, dualSolve, dualScratch;
+  MechanismProblem::Impl::TimeCache timeCache;  ///< the chord system's parts that depend on time alone
   Vector mu, nu, fScratch;
   // The symmetric part of M_ee: once per solve for a workspace made for a fixed p.
   bool parametersFixed = false;
@@ -1205,7 +1382,7 @@ void solvePositions(const MechanismProblem::Impl& C, double t, const Vector& sig
     const double tk = k == steps ? t : tStart + (t - tStart) * theta;
     for (int i = 0; i < C.f; ++i)
       B.z[C.independent[i]] = k == steps ? sigma(i) : yStart(i) + (sigma(i) - yStart(i)) * theta;
-    C.solveBlocks(tk, B, k == steps, w.stepLu.data(), w.stepPiv.data(), w.stepX.data());
+    C.solveBlocks(tk, B, k == steps, w.stepLu.data(), w.stepPiv.data(), w.stepX.data(), &w.timeCache);
   }
   for (int i = 0; i < C.nz; ++i) w.zChord(i) = B.z[i];
   w.warm = true;
@@ -1239,6 +1416,11 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   // The chord system solves by block forward substitution in the block-triangular order
   // (Impl::Blocks), with its blocks factorised in w.blockLu; its dual passes always have `known`.
   const bool blocks = !I.blocks.empty();
+  // The chord system's dual passes evaluate only the rows that depend on sigma (Impl::rowActive).
+  const char* rowMask = nullptr;
+  if constexpr (!std::is_same_v<T, double>) {
+    if (blocks) rowMask = I.rowActive.data();
+  }
   auto solve = [&](const double* value) {  // B.rhs = Phi_u^{-1} B.rhs
     if constexpr (std::is_same_v<T, double>) {
       if (blocks) {
@@ -1252,8 +1434,8 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
       double* x0 = w.x0.data();
       double* d = w.x1.data();
       if (blocks) {
-        // The value is known's, x0; the derivatives are Phi_u^{-1} (b' - Phi_u' x0), direction by
-        // direction, with Phi_u' on its structural entries only.
+        // The value is known's, x0; the derivatives are Phi_u^{-1} (b' - Phi_u' x0), in all directions
+        // at once, with Phi_u' on its structural entries only.
         assert(known != nullptr);
         const MechanismProblem::Impl::Blocks& bl = I.blocks;
         const int* eq = bl.eq.data();
@@ -1262,21 +1444,28 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
         const int* allUnk = bl.allUnk.data();
         const T* rhs = B.rhs.data();
         const T* jac = B.jac.data();
-        double* in = w.blockIn.data();
+        // Only the blocks that depend on sigma (Blocks::active): the others' derivatives are zero.
+        const int* start = bl.start.data();
+        double* in = w.dualIn.data();
+        double* dd = w.dualSolve.data();
         for (int i = 0; i < m; ++i) x0[i] = value[I.dependent[i]];
-        for (int e = 0; e < nd; ++e) {
-          for (int p = 0; p < m; ++p) {
+        for (int b : bl.activeList) {
+          for (int p = start[b]; p < start[b + 1]; ++p) {
             const int q = eq[p];
-            double v = rhs[q].derivatives()(e);
-            for (int k = allStart[p]; k < allStart[p + 1]; ++k)
-              v -= jac[allIndex[k]].derivatives()(e) * x0[allUnk[k]];
-            in[q] = v;
+            for (int e = 0; e < nd; ++e) {
+              double v = rhs[q].derivatives()(e);
+              for (int k = allStart[p]; k < allStart[p + 1]; ++k)
+                v -= jac[allIndex[k]].derivatives()(e) * x0[allUnk[k]];
+              in[nd * q + e] = v;
+            }
           }
-          I.blockSolve(known->jac.data(), w.blockLu.data(), w.blockPiv.data(), w.blockIn.data(), d,
-                       w.blockScratch.data());
-          for (int i = 0; i < m; ++i) B.rhs[i].derivatives()(e) = d[i];
         }
-        for (int i = 0; i < m; ++i) B.rhs[i].value() = x0[i];
+        I.blockSolveActive(known->jac.data(), w.blockLu.data(), w.blockPiv.data(), in, dd,
+                           w.dualScratch.data(), nd);
+        for (int i = 0; i < m; ++i) {
+          B.rhs[i] = Make<T>::constant(x0[i], nd);
+          for (int e = 0; e < nd; ++e) B.rhs[i].derivatives()(e) = dd[nd * i + e];
+        }
         return;
       }
       if (known != nullptr) {
@@ -1302,6 +1491,7 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
       }
     }
   };
+  assert(rowMask == nullptr || part == Part::All);  // the sines and cosines come from the position part
   if (part != Part::Velocities) {
     for (int i = 0; i < nz; ++i) B.z[i] = Make<T>::constant(zStar(i), nd);
     for (int i = 0; i < f; ++i) B.z[I.independent[i]] = B.y[i];
@@ -1322,7 +1512,29 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
           B.z[I.dependent[i]] = Make<T>::withDerivatives(zStar(I.dependent[i]), -B.rhs[i]);
       }
     }
-    I.constraints(t, B, true, false, zero);
+    if constexpr (!std::is_same_v<T, double>) {
+      if (rowMask != nullptr) {
+        // The bodies' sines and cosines: the double kinematics' (of the same angles' bits) and their
+        // derivatives, instead of one more sincos per body.
+        for (int k = 0; k <= I.nr; ++k) {
+          const T& angle = B.z[I.bodyOffset(k) + 2];
+          B.sn[k] = Make<T>::constant(known->sn[k], nd);
+          B.cs[k] = Make<T>::constant(known->cs[k], nd);
+          if (!I.zActive[I.bodyOffset(k) + 2]) continue;
+          B.sn[k].derivatives() = known->cs[k] * angle.derivatives();
+          B.cs[k].derivatives() = -known->sn[k] * angle.derivatives();
+        }
+      }
+    }
+    if constexpr (std::is_same_v<T, double>) {
+      if (blocks) {
+        I.constraintsCached(t, B, true, false, true, w.timeCache);
+      } else {
+        I.constraints(t, B, true, false, zero);
+      }
+    } else {
+      I.constraints(t, B, true, false, zero, rowMask == nullptr, rowMask);
+    }
     if constexpr (std::is_same_v<T, double>) {
       if (blocks) {
         I.factorBlocks(t, B.jac.data(), w.blockLu.data(), w.blockPiv.data());
@@ -1360,7 +1572,15 @@ void kinematics(const MechanismProblem::Impl& I, double t, Buffers<T>& B, Work& 
   for (int i = 0; i < m; ++i) B.zd[I.dependent[i]] = B.rhs[i];
   // zeta = -Phi_u^{-1} gamma on the dependent rows.
   // The position pass of the same call left B.sn, B.cs at this B.z (dual numbers keep no angle's bits).
-  I.constraints(t, B, false, true, zero, part != Part::All);
+  if constexpr (std::is_same_v<T, double>) {
+    if (blocks) {
+      I.constraintsCached(t, B, false, true, part != Part::All, w.timeCache);
+    } else {
+      I.constraints(t, B, false, true, zero, part != Part::All);
+    }
+  } else {
+    I.constraints(t, B, false, true, zero, rowMask == nullptr && part != Part::All, rowMask);
+  }
   for (int i = 0; i < m; ++i) B.rhs[i] = -B.quad[i];
   solve(known != nullptr ? known->zeta.data() : nullptr);
   for (int j = 0; j < f; ++j) B.zeta[I.independent[j]] = zero;
@@ -2588,6 +2808,7 @@ std::vector<MechanismProblem::ConstraintBlock> MechanismProblem::constraintBlock
       block.columns.push_back(C.blocks.unk[p]);
     }
     block.affine = C.blocks.affine[b] != 0;
+    block.timeOnly = C.blocks.active[b] == 0;
     out.push_back(block);
   }
   return out;

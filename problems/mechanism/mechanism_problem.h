@@ -56,6 +56,14 @@
 // the blocks factorised once per point; a block whose Jacobian is constant (coefficients +-1, a ground
 // guide's direction) is factorised once at construction.
 //
+// What depends on time alone. A block whose equations touch only its own unknowns and earlier such
+// blocks' (the driven crank, the member's A on it, a guided slider's y and angle) does not depend on the
+// minimal coordinates: it is found once, at construction, in the block order. The dual passes skip its
+// rows and solves (their derivatives are exactly zero), and a workspace keeps its polished positions and
+// its rows' Jacobian entries and gamma with the bits of the time they were computed at, since the engine
+// evaluates a step's predictor and Newton iterates at one time; the kept values are the bits a new
+// evaluation would give, so nothing depends on the call history.
+//
 // Determinism and cost. An affine block's result is a function of the earlier blocks' and sigma. A
 // nonlinear block's Newton result would depend on where it started (the history of calls), so its
 // unknowns are then rounded to a grid of 2^-20 and Newton runs again from that grid point (two or three
@@ -162,6 +170,9 @@ class MechanismProblem final : public SecondOrderProblem {
     std::vector<std::string> equations;
     std::vector<std::string> unknowns;  ///< "body.x", "body.y", "body.angle", matched to the equations
     bool affine = false;                ///< Phi is affine in the unknowns: one step from zero solves it
+    /// The unknowns depend on time alone (not on the minimal coordinates): a driven crank and what it
+    /// carries. Such blocks are solved and evaluated once per time, and the dual passes skip them.
+    bool timeOnly = false;
     /// The equations' rows and the unknowns' columns in constraintPattern() and constraintJacobian().
     std::vector<int> rows, columns;
   };

@@ -11,6 +11,11 @@
 // This is d'Alembert's principle projected with delta beta = beta_q delta q; tests compare it with
 // Lagrange's equations built from the nodal kinetic energy.
 //
+// Its role: the closed-form reference. The piston rod runs the same slider-crank through the general
+// mechanism path (mechanism::sliderCrank and problems/mechanism/mechanism_problem.h), so that every
+// mechanism takes one path; this class is the independent route the tests hold that path to (term by
+// term, over a simulation and its adjoint) and the benchmarks compare its cost with.
+//
 // The parameters p are the inertia invariants of the rod (SliderCrankLayout), so the engine's dpsi/dp
 // is what the design chain (problems/rod/design_gradient.h) turns into dpsi/dx. The objective is
 // psi1 = int q^T K_ee q dt. Initial state: at rest, undeformed.

@@ -23,6 +23,8 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <string>
+#include <tuple>
 
 namespace hindsight::mechanism {
 namespace {
@@ -552,23 +554,27 @@ TEST(MechanismChordPath, RecomputationGivesTheSameBits) {
   // kinematics of its last point only when the point is bitwise the same: a gradient whose forward
   // states are recomputed from checkpoints (other warm starts, other call orders) has the same bits as
   // one that stored them all.
-  for (const Mechanism& m :
-       {fromExample("four_bar.json"), freeSliderCrank(), fromExample("flexible_pendulum.json")}) {
+  for (const Mechanism& m : {fromExample("slider_crank.json"), fromExample("four_bar.json"),
+                             freeSliderCrank(), fromExample("flexible_pendulum.json")}) {
     const SyntheticRod body(3, 1.0, 41);
     const MechanismProblem problem(m, 3);
     const Vector p = body.invariants();
-    IntegratorOptions options;
-    options.method = "generalized-alpha";
-    options.t1 = 0.4;
-    options.step = 2e-3;
-    FullStorage full;
-    BinomialCheckpointing binomial(6);
-    const GradientResult a = computeGradient(problem, p, options, full);
-    const GradientResult b = computeGradient(problem, p, options, binomial);
-    EXPECT_GT(b.summary.recomputedSteps, 0);
-    EXPECT_EQ(a.objective, b.objective);
-    EXPECT_TRUE(a.gradient == b.gradient)
-        << "largest difference " << (a.gradient - b.gradient).cwiseAbs().maxCoeff();
+    // Generalized-alpha asks for the mass matrix and the Jacobians together; RK4 for the force at its
+    // stages and, in the backward sweep, for the Jacobians at stored and recomputed stage states.
+    for (const char* method : {"generalized-alpha", "rk4"}) {
+      IntegratorOptions options;
+      options.method = method;
+      options.t1 = std::string(method) == "rk4" ? 0.05 : 0.4;
+      options.step = std::string(method) == "rk4" ? 2e-4 : 2e-3;
+      FullStorage full;
+      BinomialCheckpointing binomial(6);
+      const GradientResult a = computeGradient(problem, p, options, full);
+      const GradientResult b = computeGradient(problem, p, options, binomial);
+      EXPECT_GT(b.summary.recomputedSteps, 0);
+      EXPECT_EQ(a.objective, b.objective) << method;
+      EXPECT_TRUE(a.gradient == b.gradient)
+          << method << ": largest difference " << (a.gradient - b.gradient).cwiseAbs().maxCoeff();
+    }
   }
 }
 
@@ -586,7 +592,8 @@ std::string describe(const std::vector<MechanismProblem::ConstraintBlock>& block
     s += "[";
     for (std::size_t i = 0; i < b.equations.size(); ++i)
       s += (i ? ", " : "") + b.equations[i] + " -> " + b.unknowns[i];
-    s += b.affine ? "] affine\n" : "]\n";
+    s += b.affine ? "] affine" : "]";
+    s += b.timeOnly ? " time\n" : "\n";
   }
   return s;
 }
@@ -595,36 +602,38 @@ TEST(MechanismBlocks, TheExamplesSolveOneEquationAtATimeExceptTheFourBarsLoop) {
   // The slider-crank: the crank's angle from its driver, the crank pin, the member's A, the slider's y
   // from its guide, the closure (the only equation that is not affine in its unknown: the member's
   // angle from the wrist pin's y), the slider's x, the slider's angle. The four-bar's loop couples the
-  // coupler's and the rocker's angles and the rocker's position: one 4 x 4 block.
+  // coupler's and the rocker's angles and the rocker's position: one 4 x 4 block. "time": the block's
+  // unknowns depend on time alone (the driven crank, the member's A, the guided slider's y and angle);
+  // only the member's angle and what follows from it move with the modal coordinates (through c).
   const std::string sliderCrank =
-      "[bearing.x -> crank.x] affine\n"
-      "[bearing.y -> crank.y] affine\n"
-      "[motor -> crank.angle] affine\n"
-      "[crankPin.x -> rod.x] affine\n"
-      "[crankPin.y -> rod.y] affine\n"
-      "[guide.line -> slider.y] affine\n"
+      "[bearing.x -> crank.x] affine time\n"
+      "[bearing.y -> crank.y] affine time\n"
+      "[motor -> crank.angle] affine time\n"
+      "[crankPin.x -> rod.x] affine time\n"
+      "[crankPin.y -> rod.y] affine time\n"
+      "[guide.line -> slider.y] affine time\n"
       "[wristPin.y -> rod.angle]\n"
       "[wristPin.x -> slider.x] affine\n"
-      "[guide.angle -> slider.angle] affine\n";
+      "[guide.angle -> slider.angle] affine time\n";
   EXPECT_EQ(describe(MechanismProblem(fromExample("slider_crank.json"), 3).constraintBlocks()), sliderCrank);
   EXPECT_EQ(describe(MechanismProblem(fromExample("slider_crank_mass.json"), 3).constraintBlocks()),
             sliderCrank);
   EXPECT_EQ(describe(MechanismProblem(fromExample("four_bar.json"), 3).constraintBlocks()),
-            "[crankBearing.x -> crank.x] affine\n"
-            "[crankBearing.y -> crank.y] affine\n"
-            "[motor -> crank.angle] affine\n"
-            "[crankPin.x -> coupler.x] affine\n"
-            "[crankPin.y -> coupler.y] affine\n"
+            "[crankBearing.x -> crank.x] affine time\n"
+            "[crankBearing.y -> crank.y] affine time\n"
+            "[motor -> crank.angle] affine time\n"
+            "[crankPin.x -> coupler.x] affine time\n"
+            "[crankPin.y -> coupler.y] affine time\n"
             "[rockerPin.x -> coupler.angle, rockerPin.y -> rocker.angle, rockerBearing.x -> rocker.x, "
             "rockerBearing.y -> rocker.y]\n");
   // The open chain needs no Newton at all: the member's angle follows from the bob's (the free
   // coordinate) through the fixed joint, the bob's position from the member's B.
   EXPECT_EQ(describe(MechanismProblem(fromExample("flexible_pendulum.json"), 3).constraintBlocks()),
-            "[bearing.x -> crank.x] affine\n"
-            "[bearing.y -> crank.y] affine\n"
-            "[motor -> crank.angle] affine\n"
-            "[crankPin.x -> rod.x] affine\n"
-            "[crankPin.y -> rod.y] affine\n"
+            "[bearing.x -> crank.x] affine time\n"
+            "[bearing.y -> crank.y] affine time\n"
+            "[motor -> crank.angle] affine time\n"
+            "[crankPin.x -> rod.x] affine time\n"
+            "[crankPin.y -> rod.y] affine time\n"
             "[bobMount.angle -> rod.angle] affine\n"
             "[bobMount.x -> bob.x] affine\n"
             "[bobMount.y -> bob.y] affine\n");
@@ -710,6 +719,48 @@ TEST(MechanismBlocks, AnUnconstrainedBodyIsRefusedAsSingular) {
     FAIL() << "accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("singular"), std::string::npos) << e.what();
+  }
+}
+
+TEST(MechanismChordPath, WhatDependsOnTimeAloneIsKeptWithTheSameBits) {
+  // A workspace keeps the blocks and rows that depend on time alone for the last time it evaluated
+  // (a step's predictor and Newton iterates share it). Taken from there or computed anew, they give the
+  // same bits: a workspace that has seen other points at this time and at another one answers as a
+  // fresh one does, for every quantity the integrators ask for.
+  for (const Mechanism& m : blockCases()) {
+    Case c(m, 3, 73);
+    const int f = c.problem.coordinateCount();
+    const double t0 = 0.21, t1 = 0.37;
+    const Vector y2 = c.s.y + 0.003 * Vector::Ones(f), v2 = c.s.v - 0.2 * Vector::Ones(f);
+    auto answers = [&](ProblemWorkspace* ws) {
+      Matrix mass(f, f), ry(f, f), rv(f, f);
+      Vector force(f), gradient = Vector::Zero(c.p.size());
+      c.problem.massMatrix(t1, y2, c.p, mass, ws);
+      c.problem.residualJacobians(t1, y2, v2, c.s.a, c.p, ry, rv, ws);
+      c.problem.force(t1, y2, v2, c.p, force, ws);
+      c.problem.addResidualParameterVjp(t1, y2, v2, c.s.a, c.p, c.s.mu, gradient, ws);
+      return std::make_tuple(mass, ry, rv, force, gradient);
+    };
+    const auto fresh = answers(c.problem.createModelWorkspace().get());
+    // Histories: other positions at both times; and new velocities at the same positions first (the
+    // velocity level alone taken from the kept rows).
+    for (int history = 0; history < 2; ++history) {
+      const auto seen = c.problem.createModelWorkspace();
+      Matrix mass(f, f);
+      Vector force(f);
+      if (history == 0) {
+        c.problem.massMatrixAndForce(t0, c.s.y, c.s.v, c.p, mass, force, seen.get());
+        c.problem.massMatrixAndForce(t1, c.s.y, c.s.v, c.p, mass, force, seen.get());
+      } else {
+        c.problem.massMatrixAndForce(t1, y2, c.s.v, c.p, mass, force, seen.get());
+      }
+      const auto kept = answers(seen.get());
+      EXPECT_TRUE(std::get<0>(kept) == std::get<0>(fresh)) << "mass matrix, history " << history;
+      EXPECT_TRUE(std::get<1>(kept) == std::get<1>(fresh)) << "r_y, history " << history;
+      EXPECT_TRUE(std::get<2>(kept) == std::get<2>(fresh)) << "r_y', history " << history;
+      EXPECT_TRUE(std::get<3>(kept) == std::get<3>(fresh)) << "force, history " << history;
+      EXPECT_TRUE(std::get<4>(kept) == std::get<4>(fresh)) << "parameter product, history " << history;
+    }
   }
 }
 
