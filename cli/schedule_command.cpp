@@ -1,7 +1,7 @@
-// `hindsight schedule --storage SPEC --steps N --state-bytes B [--stages S] [--costs uf:ub:wd:rd]
-// [--json] [--actions]`: what a storage strategy will do for N fixed steps, without running a model
-// (storage/schedule.h: the same plan code the strategies execute). Prints forward and recomputed
-// steps, right-hand-side evaluations, reads and writes per level, peak bytes per level and the
+// `hindsight schedule --storage SPEC --steps N --state-bytes B [--stages S] [--stage-bytes D]
+// [--costs uf:ub:wd:rd] [--json] [--actions]`: what a storage strategy will do for N fixed steps, without
+// running a model (storage/schedule.h: the same plan code the strategies execute). Prints forward and
+// recomputed steps, right-hand-side evaluations, reads and writes per level, peak bytes per level and the
 // predicted cost; --actions prints the action stream instead (one action per line). Exit 2 for bad
 // input, naming the flag and its allowed range.
 #include <hindsight/problems/app/config.h>
@@ -23,6 +23,7 @@ struct ScheduleArgs {
   std::string steps;
   std::string stateBytes;
   std::string stages = "4";
+  std::string stageBytes = "0";
   std::string costs;
   bool json = false;
   bool actions = false;
@@ -36,14 +37,18 @@ int runSchedule(const ScheduleArgs& args) {
   const std::int64_t steps = parseScheduleInteger(args.steps, "--steps", 1, kMaxScheduleSteps);
   const std::int64_t stateBytes = parseBytes(args.stateBytes, "--state-bytes");
   const int stages = static_cast<int>(parseScheduleInteger(args.stages, "--stages", 1, kMaxScheduleStages));
+  const std::int64_t stageBytes =
+      parseScheduleInteger(args.stageBytes, "--stage-bytes", 0, kMaxScheduleStateBytes);  // a multiple of 8
   std::unique_ptr<ScheduleCosts> costs;
   if (!args.costs.empty())
     costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
   if (args.actions) {
-    writeScheduleActions(args.storage, steps, stateBytes, stages, costs.get(), std::cout);  // validates first
+    writeScheduleActions(args.storage, steps, stateBytes, stages, costs.get(), std::cout,
+                         stageBytes);  // validates first
     return 0;
   }
-  const SchedulePrediction p = predictSchedule(args.storage, steps, stateBytes, stages, costs.get());
+  const SchedulePrediction p =
+      predictSchedule(args.storage, steps, stateBytes, stages, costs.get(), stageBytes);
   if (args.json) {
     const nlohmann::json out = scheduleToJson(p, stateBytes);
     std::cout << out.dump(2) << '\n';
@@ -94,6 +99,12 @@ void registerSchedule(CLI::App& app) {
   command
       ->add_option("--stages", args->stages,
                    "right-hand sides per step of the integrator, an integer in [1, 64] (rk4: 4)")
+      ->capture_default_str();
+  command
+      ->add_option("--stage-bytes", args->stageBytes,
+                   "bytes of rhs data the problem keeps per stage with the stage values (storages with "
+                   "stages=1, cams), a multiple of 8 in [0, 16 GiB - 8]; a SecondOrderProblem of f "
+                   "coordinates: 8 (f + f (f + 1) / 2), the rod's 10 modes: 520; cams keeps none")
       ->capture_default_str();
   command->add_option(
       "--costs", args->costs,

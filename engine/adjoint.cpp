@@ -92,8 +92,11 @@ struct ForwardSweep {
       info.stateSize = integrator->stateSize();
       info.t0 = options.t0;
       info.t1 = options.t1;
-      if (storage->keepsStepData()) info.stepDataSize = integrator->stepDataSize();
+      const bool withRhsData = storage->keepsStepData() && storage->keepsRhsData();
+      if (storage->keepsStepData())
+        info.stepDataSize = integrator->stepDataSize() + (withRhsData ? integrator->stepRhsDataSize() : 0);
       stepData.resize(info.stepDataSize);
+      integrator->setSavesStepData(info.stepDataSize > 0, withRhsData);
       if (!options.adaptive) {
         info.stepCount = options.replayTimes.empty()
                              ? static_cast<std::int64_t>(fixedGrid(options).size()) - 1

@@ -438,10 +438,12 @@ void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const Stor
   const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
   const std::int64_t states = slots;
   // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
-  // stage states each (Integrator::stepDataSize(); none for S = 1), charged like the states.
+  // stage states and S rhs data each (Integrator::stepDataSize(); none for S = 1), charged like the states.
   const bool keepStages = binomial.stages_ && prediction::hasStageValues(stages);
   const std::int64_t recordBytes =
-      keepStages ? prediction::checkedProduct(2 * (stages - 1), stateBytes, "--state-bytes") : 0;
+      keepStages
+          ? prediction::checkedProduct(2, prediction::stepRecordBytes(request, "binomial"), "--state-bytes")
+          : 0;
   if (recordBytes > binomial.budgetBytes() || states > (binomial.budgetBytes() - recordBytes) / stateBytes) {
     throw std::invalid_argument(
         "binomial.checkpoints = " + std::to_string(binomial.checkpoints()) + " needs " +

@@ -300,6 +300,8 @@ class CamsCheckpointing final : public TrajectoryStorage {
   std::string spec() const override;
   bool isExact() const override { return true; }
   bool keepsStepData() const override { return true; }
+  /// Records of stage values only: its plans count records in state units (S for an S-stage method).
+  bool keepsRhsData() const override { return false; }
   /// Memory units (states) the strategy has for states of stateBytes: C + 1, or the budget's states.
   std::int64_t memoryUnits(std::int64_t stateBytes) const {
     return checkpoints_ > 0 ? checkpoints_ + 1 : budgetBytes() / stateBytes;

@@ -1,7 +1,13 @@
 #include <hindsight/engine/full_storage.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <new>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 namespace hindsight {
 
@@ -22,6 +28,8 @@ std::string FullStorage::spec() const {
 
 void FullStorage::doBegin() { blocks_.clear(); }
 
+void FullStorage::FreeBlock::operator()(double* p) const { std::free(p); }
+
 double* FullStorage::row(std::int64_t step) {
   Block& block = blocks_.back();
   assert(step >= block.firstStep && step < block.firstStep + block.capacity);
@@ -33,13 +41,32 @@ void FullStorage::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVec
   const std::int64_t rowBytes = rowSize() * 8;
   if (blocks_.empty() || step >= blocks_.back().firstStep + blocks_.back().capacity) {
     std::int64_t capacity = kStatesPerBlock;
+    // Large rows: as many as fill whole huge pages.
+    if (capacity * rowBytes >= kHugePageBytes)
+      capacity = (capacity * rowBytes + kHugePageBytes - 1) / kHugePageBytes * kHugePageBytes / rowBytes;
     if (info().stepCount > 0) capacity = std::min(capacity, info().stepCount - step);
     capacity =
         std::max<std::int64_t>(1, std::min(capacity, (budgetBytes() - counters().bytesInMemory) / rowBytes));
     holdBytes(capacity * rowBytes);
+    const std::int64_t bytes = capacity * rowBytes;
+    void* memory = nullptr;
+    if (bytes >= kHugePageBytes) {
+      const std::int64_t pages = (bytes + kHugePageBytes - 1) / kHugePageBytes;
+      memory = std::aligned_alloc(static_cast<std::size_t>(kHugePageBytes),
+                                  static_cast<std::size_t>(pages * kHugePageBytes));
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+      // Advice only: without transparent huge pages the block is ordinary memory.
+      if (memory != nullptr) madvise(memory, static_cast<std::size_t>(pages * kHugePageBytes), MADV_HUGEPAGE);
+#endif
+    } else {
+      memory = std::malloc(static_cast<std::size_t>(bytes));
+    }
+    if (memory == nullptr) {
+      releaseBytes(bytes);
+      throw std::bad_alloc();
+    }
     blocks_.push_back(
-        Block{step, capacity,
-              std::unique_ptr<double[]>(new double[static_cast<std::size_t>(capacity * rowSize())])});
+        Block{step, capacity, std::unique_ptr<double[], FreeBlock>(static_cast<double*>(memory))});
   }
   std::memcpy(row(step), z.data(), static_cast<std::size_t>(n) * 8);
   ++mutableCounters().statesStored;
@@ -80,8 +107,9 @@ void FullStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                           const PredictionRequest& request, SchedulePrediction& p) {
   const auto& full = dynamic_cast<const FullStorage&>(storage);
   const std::int64_t steps = request.steps;
-  // stages=1: every row the state and its step's S - 1 stage states (an explicit Runge-Kutta method's
-  // Integrator::stepDataSize(); none for S = 1), and every adjoint step served.
+  // stages=1: every row the state and its step record (an explicit Runge-Kutta method's
+  // Integrator::stepDataSize(): S - 1 stage states and S rhs data; none for S = 1), every adjoint step
+  // served.
   const bool stageRows = full.stages_ && prediction::hasStageValues(request.stages);
   const std::int64_t rowDoubles = prediction::stageRowDoubles(request, stageRows, "full");
   if (stageRows) p.stepDataStored = p.stepDataRestored = steps;

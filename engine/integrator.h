@@ -145,13 +145,26 @@ class Integrator {
   /// Step data: the doubles per step that let adjointStepFromData() run without evaluating
   /// the right-hand side (a Runge-Kutta method's stage values); 0 when the method offers none.
   virtual std::int64_t stepDataSize() const { return 0; }
-  /// The step data of the last step() (stepDataSize() doubles), the same bits that step computed.
+  /// Doubles a step record may hold after the stepDataSize() ones: what the step's rhs evaluations computed
+  /// besides F (an explicit Runge-Kutta method: Problem::rhsDataSize() per stage), so that
+  /// adjointStepFromData() evaluates none of it again either; 0 when the method offers none.
+  virtual std::int64_t stepRhsDataSize() const { return 0; }
+  /// Called before a sweep: whether saveStepData() will follow the steps (the storage keeps step data) and
+  /// whether its records hold the rhs data too (TrajectoryStorage::keepsRhsData()). A method copies the rhs
+  /// data during step() only when asked to.
+  virtual void setSavesStepData(bool saves, bool withRhsData) {
+    (void)saves;
+    (void)withRhsData;
+  }
+  /// The step data of the last step(), the same bits that step computed: stepDataSize() doubles, followed by
+  /// the stepRhsDataSize() of the rhs data after setSavesStepData(true, true).
   virtual void saveStepData(VectorRef data) const {
     (void)data;
     throw std::logic_error("method '" + name() + "' has no step data");
   }
-  /// adjointStep() with the step data saveStepData() gave after the step from x: the same arithmetic on
-  /// the same bits, so the result is bitwise that of adjointStep(), without recomputing the stages.
+  /// adjointStep() with the step data saveStepData() gave after the step from x (with or without the rhs
+  /// data, told by data.size()): the same arithmetic on the same bits, so the result is bitwise that of
+  /// adjointStep(), without recomputing the stages.
   virtual void adjointStepFromData(double t, double h, ConstVectorRef x, ConstVectorRef data,
                                    VectorRef lambda, VectorRef gradient) {
     (void)data;

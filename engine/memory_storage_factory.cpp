@@ -26,8 +26,9 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
         "full",
         {{"budget", kBudget},
          {"stages",
-          "0 | 1: keep each step's stage values too, so no adjoint step evaluates the right-hand side "
-          "(default 0)"}}},
+          "0 | 1: keep each step's stage values too, with each stage's rhs data (a SecondOrderProblem: the "
+          "acceleration and the Cholesky factor of M), so no adjoint step evaluates the right-hand side or "
+          "factorises M (default 0)"}}},
        &FullStorage::create,
        &FullStorage::predict,
        {},

@@ -201,10 +201,11 @@ void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const Storag
         " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
   }
   const bool keepStages = online.keepsStages() && stages > 1;
+  // Two step records (engine/recomputed_stages.h): S - 1 stage states and S rhs data each.
   const std::int64_t recordBytes =
-      keepStages
-          ? prediction::checkedProduct(2 * (stages - 1), stateBytes, "online: bytes of two step records")
-          : 0;
+      keepStages ? prediction::checkedProduct(2, prediction::stepRecordBytes(request, "online"),
+                                              "online: bytes of two step records")
+                 : 0;
   const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
   std::int64_t forwardStores = 0;
   const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, &forwardStores);

@@ -25,6 +25,15 @@ void Problem::rhsStateVjp(double, ConstVectorRef, ConstVectorRef, ConstVectorRef
                          "' has no dense Jacobian but does not implement rhsStateVjp()");
 }
 
+void Problem::saveRhsData(ProblemWorkspace*, VectorRef) const {
+  throw std::logic_error("Problem '" + name() + "' keeps no rhs data (rhsDataSize() = 0)");
+}
+
+void Problem::restoreRhsData(double, ConstVectorRef, ConstVectorRef, ConstVectorRef,
+                             ProblemWorkspace*) const {
+  throw std::logic_error("Problem '" + name() + "' keeps no rhs data (rhsDataSize() = 0)");
+}
+
 double Problem::terminal(ConstVectorRef, ConstVectorRef) const { return 0.0; }
 
 void Problem::addTerminalGradient(ConstVectorRef, ConstVectorRef, VectorRef, VectorRef) const {}

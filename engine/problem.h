@@ -80,6 +80,17 @@ class Problem {
   /// overrides this; the default calls rhsStateVjp() and addRhsParameterVjp().
   virtual void rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef outState,
                        VectorRef gradient, ProblemWorkspace* ws) const;
+  /// Doubles of what rhs() computes at a point besides F and the products at that point reuse (a
+  /// SecondOrderProblem: the acceleration and the Cholesky factor of M); 0 (the default): none. An explicit
+  /// Runge-Kutta method keeps them per stage with its stage values (Integrator::stepDataSize()), so that
+  /// its adjoint stage evaluates nothing of the rhs again.
+  virtual int rhsDataSize() const { return 0; }
+  /// data <- what the last rhs() with `ws` computed (rhsDataSize() doubles, the bits it computed).
+  virtual void saveRhsData(ProblemWorkspace* ws, VectorRef data) const;
+  /// Leaves `ws` as rhs(t, z, p) leaves it, from the data saveRhsData() gave after that call: the products at
+  /// (t, z) then give the bits they give after rhs(t, z, p). Called only with rhsDataSize() > 0.
+  virtual void restoreRhsData(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef data,
+                              ProblemWorkspace* ws) const;
   /// A solver for I - alpha F_z; nullptr means the engine's dense LU of rhsJacobian().
   virtual std::unique_ptr<NewtonSolver> createNewtonSolver() const { return nullptr; }
   /// True when F is affine in z (F = A(t, p) z + b(t, p)) and the Newton solve (createNewtonSolver() or

@@ -112,6 +112,8 @@ RungeKuttaIntegrator::RungeKuttaIntegrator(const Problem& problem, ConstVectorRe
   stageSlopes_.resize(n_, stages_);
   stageStates_.resize(n_, stages_);
   stageAdjoints_.resize(n_, stages_);
+  if (tableau_.isExplicit()) rhsDataSize_ = problem.rhsDataSize();
+  stageRhsData_.resize(rhsDataSize_, stages_);
   base_.resize(n_);
   residual_.resize(n_);
   delta_.resize(n_);
@@ -224,6 +226,7 @@ void RungeKuttaIntegrator::computeStages(double t, double h, ConstVectorRef z) {
       stageStates_.col(i) = base_;
       problem_.rhs(t + tableau_.c(i) * h, base_, p_, stageSlopes_.col(i), workspace_.get());
       ++counters_.rhsEvaluations;
+      if (savesRhsData_) problem_.saveRhsData(workspace_.get(), stageRhsData_.col(i));
     } else {
       solveImplicitStage(i, t, h);
     }
@@ -282,25 +285,33 @@ std::int64_t RungeKuttaIntegrator::stepDataSize() const {
 }
 
 void RungeKuttaIntegrator::saveStepData(VectorRef data) const {
-  assert(data.size() == stepDataSize());
+  assert(data.size() == stepDataSize() + (savesRhsData_ ? stepRhsDataSize() : 0));
   const int first = firstDataStage();
+  const Eigen::Index states = static_cast<Eigen::Index>(stages_ - first) * n_;
   for (int i = first; i < stages_; ++i)
     data.segment(static_cast<Eigen::Index>(i - first) * n_, n_) = stageStates_.col(i);
+  if (savesRhsData_) {
+    data.segment(states, static_cast<Eigen::Index>(rhsDataSize_) * stages_) =
+        Eigen::Map<const Vector>(stageRhsData_.data(), stageRhsData_.size());
+  }
 }
 
 void RungeKuttaIntegrator::adjointStepFromData(double t, double h, ConstVectorRef z, ConstVectorRef data,
                                                VectorRef lambda, VectorRef gradient) {
-  assert(z.size() == n_ && data.size() == stepDataSize() && lambda.size() == n_ &&
+  const bool withRhsData = rhsDataSize_ > 0 && data.size() == stepDataSize() + stepRhsDataSize();
+  assert(z.size() == n_ && (withRhsData || data.size() == stepDataSize()) && lambda.size() == n_ &&
          gradient.size() == p_.size());
   const int first = firstDataStage();
   // With a_11 = 0 the first stage state is z_n: computeStages() copies it bit for bit, and so does this.
   if (first == 1) stageStates_.col(0) = z;
   for (int i = first; i < stages_; ++i)
     stageStates_.col(i) = data.segment(static_cast<Eigen::Index>(i - first) * n_, n_);
-  adjointFromStages(t, h, lambda, gradient);
+  adjointFromStages(t, h, lambda, gradient,
+                    withRhsData ? data.data() + static_cast<Eigen::Index>(stages_ - first) * n_ : nullptr);
 }
 
-void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient) {
+void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient,
+                                             const double* rhsData) {
   for (int i = stages_ - 1; i >= 0; --i) {
     const double ti = t + tableau_.c(i) * h;
     const double alpha = h * tableau_.a(i, i);
@@ -311,6 +322,13 @@ void RungeKuttaIntegrator::adjointFromStages(double t, double h, VectorRef lambd
     }
     auto Zbar = stageAdjoints_.col(i);
     auto Zi = stageStates_.col(i);
+    // What the forward rhs computed at Z_i (explicit stages only): the products below reuse it.
+    if (rhsData != nullptr) {
+      problem_.restoreRhsData(
+          ti, Zi, p_,
+          Eigen::Map<const Vector>(rhsData + static_cast<std::ptrdiff_t>(i) * rhsDataSize_, rhsDataSize_),
+          workspace_.get());
+    }
     // An explicit stage takes both products at one point with one w (shared work, rhsVjps); an
     // implicit stage factorises I - alpha F_z below, so it needs the dense Jacobian anyway.
     const bool sharedProducts = alpha == 0.0 && !newtonSolver_ && problem_.hasStateVjp();

@@ -83,6 +83,13 @@ class RungeKuttaIntegrator final : public Integrator {
   /// The stage states Z_i of the step, column by column; Z_1 is left out when it is z_n itself (a_11 = 0),
   /// so rk4 keeps 3 n doubles per step. The adjoint needs only the Z_i (K_i, x_{n+1} are not used).
   std::int64_t stepDataSize() const override;
+  /// An explicit method of a problem with rhs data (Problem::rhsDataSize() = d > 0): each stage's, s d
+  /// doubles (rk4 of a SecondOrderProblem with f coordinates: 4 (f + f (f + 1) / 2)). Restored, the adjoint
+  /// stage evaluates nothing the rhs computed (for a SecondOrderProblem: M, f and the factorisation of M).
+  std::int64_t stepRhsDataSize() const override { return static_cast<std::int64_t>(rhsDataSize_) * stages_; }
+  void setSavesStepData(bool saves, bool withRhsData) override {
+    savesRhsData_ = saves && withRhsData && rhsDataSize_ > 0;
+  }
   void saveStepData(VectorRef data) const override;
   void adjointStepFromData(double t, double h, ConstVectorRef z, ConstVectorRef data, VectorRef lambda,
                            VectorRef gradient) override;
@@ -101,7 +108,9 @@ class RungeKuttaIntegrator final : public Integrator {
   void computeStages(double t, double h, ConstVectorRef z);
   void solveImplicitStage(int i, double t, double h);
   /// The transposed stages, given stageStates_ of the step from (t, h).
-  void adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient);
+  /// rhsData: the stages' rhs data (rhsDataSize_ doubles each, stage by stage) or nullptr.
+  void adjointFromStages(double t, double h, VectorRef lambda, VectorRef gradient,
+                         const double* rhsData = nullptr);
   /// Columns of stageStates_ kept as step data: 1..s-1 when Z_1 = z_n (a_11 = 0), else 0..s-1.
   int firstDataStage() const { return tableau_.a(0, 0) == 0.0 ? 1 : 0; }
   void jacobianTransposeProduct(double t, ConstVectorRef z, ConstVectorRef w, VectorRef out,
@@ -120,6 +129,11 @@ class RungeKuttaIntegrator final : public Integrator {
   Matrix stageSlopes_;    // K, n x s
   Matrix stageStates_;    // Z, n x s
   Matrix stageAdjoints_;  // Zbar, n x s
+  // Problem::rhsDataSize() of an explicit method (else 0), and each stage's rhs data of the last step,
+  // rhsDataSize_ x s, filled only while savesRhsData_ (setSavesStepData).
+  int rhsDataSize_ = 0;
+  bool savesRhsData_ = false;
+  Matrix stageRhsData_;
   Vector base_, residual_, delta_, work_, rhsWork_, zStart_;
   Matrix jacobian_, newtonMatrix_;
   Eigen::PartialPivLU<Matrix> lu_;

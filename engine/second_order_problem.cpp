@@ -2,15 +2,29 @@
 
 #include <Eigen/Cholesky>
 
+#include <cstring>
+
 namespace hindsight {
 namespace {
 
 struct SecondOrderWorkspace final : ProblemWorkspace {
   explicit SecondOrderWorkspace(int f)
-      : mass(f, f), cholesky(f), force(f), acceleration(f), mu(f), ry(f, f), rv(f, f), cachedState(2 * f) {}
+      : mass(f, f),
+        cholesky(f),
+        restoredFactor(f, f),
+        force(f),
+        acceleration(f),
+        mu(f),
+        ry(f, f),
+        rv(f, f),
+        cachedState(2 * f) {}
   std::unique_ptr<ProblemWorkspace> model;
   Matrix mass;
   Eigen::LLT<Matrix> cholesky;
+  // The Cholesky factor of the cached point when it came from restoreRhsData() (lower triangle; the
+  // upper one is not read), in place of `cholesky`'s.
+  Matrix restoredFactor;
+  bool factorRestored = false;
   Vector force, acceleration, mu;
   Matrix ry, rv;
   // The acceleration of the last (t, y, v, p): rhs, Jacobian and parameter products at one stage
@@ -27,6 +41,19 @@ SecondOrderWorkspace& workspaceOf(ProblemWorkspace* ws) {
   return static_cast<SecondOrderWorkspace&>(*ws);
 }
 
+// x <- M^{-1} x at the cached point: LLT::solveInPlace, or for a restored factor the same two triangular
+// solves (Eigen's LLT<Matrix, Lower>::solveInPlace: L, then L^T) on a matrix of the same type and layout,
+// so both give the same bits.
+template <typename Derived>
+void solveMass(const SecondOrderWorkspace& w, const Eigen::MatrixBase<Derived>& x) {
+  if (!w.factorRestored) {
+    w.cholesky.solveInPlace(x);
+    return;
+  }
+  w.restoredFactor.triangularView<Eigen::Lower>().solveInPlace(x);
+  w.restoredFactor.adjoint().triangularView<Eigen::Upper>().solveInPlace(x);
+}
+
 // a = M^{-1} f at (t, y, v); leaves the factorisation of M in the workspace.
 void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorRef y, ConstVectorRef v,
                        ConstVectorRef p, SecondOrderWorkspace& w) {
@@ -37,6 +64,7 @@ void solveAcceleration(const SecondOrderProblem& problem, double t, ConstVectorR
     return;
   }
   w.cacheValid = false;
+  w.factorRestored = false;
   problem.massMatrixAndForce(t, y, v, p, w.mass, w.force, w.model.get());
   w.cholesky.compute(w.mass);
   if (w.cholesky.info() != Eigen::Success) {
@@ -115,12 +143,54 @@ void SecondOrderProblem::rhsJacobian(double t, ConstVectorRef z, ConstVectorRef 
   auto& w = workspaceOf(ws);
   solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
   residualJacobians(t, z.head(f), z.tail(f), w.acceleration, p, w.ry, w.rv, w.model.get());
-  w.cholesky.solveInPlace(w.ry);
-  w.cholesky.solveInPlace(w.rv);
+  solveMass(w, w.ry);
+  solveMass(w, w.rv);
   jacobian.topLeftCorner(f, f).setZero();
   jacobian.topRightCorner(f, f).setIdentity();
   jacobian.bottomLeftCorner(f, f) = -w.ry;
   jacobian.bottomRightCorner(f, f) = -w.rv;
+}
+
+int SecondOrderProblem::rhsDataSize() const {
+  const int f = coordinateCount();
+  return f + f * (f + 1) / 2;
+}
+
+void SecondOrderProblem::saveRhsData(ProblemWorkspace* ws, VectorRef data) const {
+  const int f = coordinateCount();
+  const auto& w = workspaceOf(ws);
+  assert(w.cacheValid && data.size() == rhsDataSize());
+  const Matrix& factor = w.factorRestored ? w.restoredFactor : w.cholesky.matrixLLT();
+  double* out = data.data();
+  std::memcpy(out, w.acceleration.data(), sizeof(double) * static_cast<std::size_t>(f));
+  out += f;
+  // Column j of the lower triangle: rows j..f-1.
+  for (int j = 0; j < f; ++j) {
+    std::memcpy(out, factor.data() + static_cast<std::ptrdiff_t>(j) * f + j,
+                sizeof(double) * static_cast<std::size_t>(f - j));
+    out += f - j;
+  }
+}
+
+void SecondOrderProblem::restoreRhsData(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef data,
+                                        ProblemWorkspace* ws) const {
+  const int f = coordinateCount();
+  auto& w = workspaceOf(ws);
+  assert(data.size() == rhsDataSize() && z.size() == 2 * f);
+  assert(!w.parametersFixed || w.cachedParameters == p);
+  const double* in = data.data();
+  std::memcpy(w.acceleration.data(), in, sizeof(double) * static_cast<std::size_t>(f));
+  in += f;
+  for (int j = 0; j < f; ++j) {
+    std::memcpy(w.restoredFactor.data() + static_cast<std::ptrdiff_t>(j) * f + j, in,
+                sizeof(double) * static_cast<std::size_t>(f - j));
+    in += f - j;
+  }
+  w.factorRestored = true;
+  w.cachedTime = t;
+  std::memcpy(w.cachedState.data(), z.data(), sizeof(double) * static_cast<std::size_t>(2 * f));
+  if (!w.parametersFixed) w.cachedParameters = p;
+  w.cacheValid = true;
 }
 
 void SecondOrderProblem::addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef wIn,
@@ -130,7 +200,7 @@ void SecondOrderProblem::addRhsParameterVjp(double t, ConstVectorRef z, ConstVec
   solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
   // M is symmetric, so M^{-T} = M^{-1}; the minus sign goes into mu.
   w.mu = -wIn.tail(f);
-  w.cholesky.solveInPlace(w.mu);
+  solveMass(w, w.mu);
   addResidualParameterVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out, w.model.get());
 }
 
@@ -147,7 +217,7 @@ void SecondOrderProblem::rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef 
   solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
   // a = M^{-1} f with r(y, v, a) = 0: da/dy = -M^{-1} r_y, da/dv = -M^{-1} r_v (M symmetric).
   w.mu = -wIn.tail(f);
-  w.cholesky.solveInPlace(w.mu);
+  solveMass(w, w.mu);
   residualStateVjp(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, out.head(f), out.tail(f), w.model.get());
   out.tail(f) += wIn.head(f);
 }
@@ -158,7 +228,7 @@ void SecondOrderProblem::rhsVjps(double t, ConstVectorRef z, ConstVectorRef p, C
   auto& w = workspaceOf(ws);
   solveAcceleration(*this, t, z.head(f), z.tail(f), p, w);
   w.mu = -wIn.tail(f);
-  w.cholesky.solveInPlace(w.mu);
+  solveMass(w, w.mu);
   residualVjps(t, z.head(f), z.tail(f), w.acceleration, p, w.mu, outState.head(f), outState.tail(f), gradient,
                w.model.get());
   outState.tail(f) += wIn.head(f);

@@ -83,6 +83,14 @@ class SecondOrderProblem : public Problem {
                    ProblemWorkspace* ws) const final;
   void addRhsParameterVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,
                           ProblemWorkspace* ws) const final;
+  /// The acceleration a and the lower triangle of M's Cholesky factor, f + f (f + 1) / 2 doubles: restored,
+  /// the products at the point solve with M without forming or factorising it again. The model's own
+  /// products (residualVjps() and the others) must therefore not read what massMatrixAndForce() left in
+  /// the model workspace.
+  int rhsDataSize() const override;
+  void saveRhsData(ProblemWorkspace* ws, VectorRef data) const final;
+  void restoreRhsData(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef data,
+                      ProblemWorkspace* ws) const final;
   bool hasStateVjp() const final { return hasResidualStateVjp(); }
   /// F_z^T w = (-r_y^T mu, w_y - r_v^T mu) with mu = M^{-1} w_v.
   void rhsStateVjp(double t, ConstVectorRef z, ConstVectorRef p, ConstVectorRef w, VectorRef out,

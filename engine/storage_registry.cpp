@@ -111,14 +111,28 @@ std::int64_t checkedProduct(std::int64_t a, std::int64_t b, const std::string& w
   return checkedCount(static_cast<UnsignedInt128>(a) * static_cast<UnsignedInt128>(b), what);
 }
 
+std::int64_t stepRecordBytes(const PredictionRequest& request, const std::string& name) {
+  const UnsignedInt128 doubles =
+      static_cast<UnsignedInt128>(request.stages - 1) * static_cast<UnsignedInt128>(request.stateBytes / 8) +
+      static_cast<UnsignedInt128>(request.stages) * static_cast<UnsignedInt128>(request.stageDataBytes / 8);
+  if (doubles > static_cast<UnsignedInt128>(std::numeric_limits<int>::max())) {
+    throw std::invalid_argument(name + ".stages = 1: a step record of " + std::to_string(request.stages - 1) +
+                                " stage states and " + std::to_string(request.stages) +
+                                " rhs data exceeds the 2^31 - 1 doubles a run allows; lower --state-bytes, "
+                                "--stage-bytes or --stages");
+  }
+  return static_cast<std::int64_t>(doubles) * 8;
+}
+
 std::int64_t stageRowDoubles(const PredictionRequest& request, bool stageRows, const std::string& name) {
   const std::int64_t n = request.stateBytes / 8;
-  const std::int64_t rowDoubles = stageRows ? n * request.stages : n;
+  const std::int64_t rowDoubles = stageRows ? n + stepRecordBytes(request, name) / 8 : n;
   if (rowDoubles > std::numeric_limits<int>::max()) {
     throw std::invalid_argument(
-        name + ".stages = 1: a row of the state and its " + std::to_string(request.stages - 1) +
-        " stage states has " + std::to_string(rowDoubles) +
-        " doubles, more than a run allows (2^31 - 1); lower --state-bytes or --stages");
+        name + ".stages = 1: a row of the state and its step record (" + std::to_string(request.stages - 1) +
+        " stage states and " + std::to_string(request.stages) + " rhs data) has " +
+        std::to_string(rowDoubles) +
+        " doubles, more than a run allows (2^31 - 1); lower --state-bytes, --stage-bytes or --stages");
   }
   return rowDoubles;
 }

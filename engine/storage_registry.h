@@ -70,13 +70,16 @@ struct SchedulePrediction {
 };
 
 /// What a prediction is asked: N fixed steps of an integrator with `stages` right-hand sides per step
-/// (an explicit Runge-Kutta method; its step data are stages - 1 states), states of `stateBytes` bytes
-/// (a multiple of 8), and the cost model given on the command line (nullptr: none given).
+/// (an explicit Runge-Kutta method; its step data are stages - 1 states and, when the problem keeps rhs
+/// data, `stages` records of `stageDataBytes` bytes), states of `stateBytes` bytes (a multiple of 8), and
+/// the cost model given on the command line (nullptr: none given).
 struct PredictionRequest {
   std::int64_t steps = 0;
   std::int64_t stateBytes = 0;
   int stages = 1;
   const ScheduleCosts* costs = nullptr;
+  /// Problem::rhsDataSize() * 8 (a SecondOrderProblem with f coordinates: 8 (f + f (f + 1) / 2)); 0: none.
+  std::int64_t stageDataBytes = 0;
 };
 
 struct StorageKeyDoc {
@@ -143,8 +146,14 @@ std::int64_t checkedProduct(std::int64_t a, std::int64_t b, const std::string& w
 /// Step records of an explicit Runge-Kutta method of `stages` stages: stages - 1 states of stage values.
 inline bool hasStageValues(int stages) { return stages > 1; }
 
-/// Doubles of one stored row of full and disk: the state, and with `stageRows` its step's S - 1 stage
-/// states too. Throws std::invalid_argument naming `name`.stages = 1 when that exceeds a run's 2^31 - 1.
+/// Bytes of one step record of an explicit Runge-Kutta method (Integrator::stepDataSize() * 8): its S - 1
+/// stage states and S rhs data of request.stageDataBytes. Throws std::invalid_argument naming `name`.stages
+/// = 1 when the record exceeds a run's 2^31 - 1 doubles.
+std::int64_t stepRecordBytes(const PredictionRequest& request, const std::string& name);
+
+/// Doubles of one stored row of full and disk: the state, and with `stageRows` its step record
+/// (stepRecordBytes) too. Throws std::invalid_argument naming `name`.stages = 1 when that exceeds a run's
+/// 2^31 - 1.
 std::int64_t stageRowDoubles(const PredictionRequest& request, bool stageRows, const std::string& name);
 
 /// The largest N a prediction walks step by step (an online placement, a schedule run without states).

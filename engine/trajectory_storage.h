@@ -112,6 +112,11 @@ class TrajectoryStorage {
   void restore(std::int64_t step, VectorRef z);
   /// True when the strategy keeps step data (stage values) when the integrator offers it (stages=1, cams).
   virtual bool keepsStepData() const { return false; }
+  /// True when its step records also hold the rhs data the integrator offers (Integrator::stepRhsDataSize(),
+  /// Problem::rhsDataSize() per stage), so that the adjoint step re-forms nothing the rhs computed. Default:
+  /// every strategy that keeps step data; cams does not (its plans count records in state units of the
+  /// stage values alone).
+  virtual bool keepsRhsData() const { return keepsStepData(); }
   void recordStepData(std::int64_t step, ConstVectorRef data);
   bool restoreStepData(std::int64_t step, VectorRef data);
 

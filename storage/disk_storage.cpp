@@ -186,7 +186,8 @@ void DiskStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                           const PredictionRequest& request, SchedulePrediction& p) {
   const auto& disk = dynamic_cast<const DiskStorage&>(storage);
   const std::int64_t steps = request.steps;
-  // stages=1: every row the state and its step's S - 1 stage states, every adjoint step served.
+  // stages=1: every row the state and its step record (S - 1 stage states and S rhs data), every adjoint
+  // step served.
   const bool stageRows = disk.options_.stages && prediction::hasStageValues(request.stages);
   const std::int64_t rowDoubles = prediction::stageRowDoubles(request, stageRows, "disk");
   if (stageRows) p.stepDataStored = p.stepDataRestored = steps;

@@ -556,7 +556,7 @@ void TwoLevelPlan::rewind() {
 // ---- predictions ----
 
 SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
-                                   int stages, const ScheduleCosts* costs) {
+                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes) {
   if (steps < 1 || steps > kMaxScheduleSteps) {
     throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer in [1, " +
                                 std::to_string(kMaxScheduleSteps) + "]");
@@ -570,13 +570,21 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
     throw std::invalid_argument("--stages = " + std::to_string(stages) + " must be an integer in [1, " +
                                 std::to_string(kMaxScheduleStages) + "]");
   }
+  if (stageBytes < 0 || stageBytes % 8 != 0 || stageBytes > kMaxScheduleStateBytes) {
+    throw std::invalid_argument("--stage-bytes = " + std::to_string(stageBytes) +
+                                " must be a multiple of 8 in [0, " + std::to_string(kMaxScheduleStateBytes) +
+                                "] (8 bytes per double of rhs data a stage keeps)");
+  }
   // Each strategy's own prediction, from its row (engine/storage_registry.h).
-  return predictFromRows(storageStrategies(), specText, PredictionRequest{steps, stateBytes, stages, costs});
+  return predictFromRows(storageStrategies(), specText,
+                         PredictionRequest{steps, stateBytes, stages, costs, stageBytes});
 }
 
 void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
-                          int stages, const ScheduleCosts* costs, std::ostream& out) {
-  predictSchedule(specText, steps, stateBytes, stages, costs);  // validates spec, sizes and budgets
+                          int stages, const ScheduleCosts* costs, std::ostream& out,
+                          std::int64_t stageBytes) {
+  predictSchedule(specText, steps, stateBytes, stages, costs,
+                  stageBytes);  // validates spec, sizes and budgets
   if (steps > TwoLevelPlan::kMaxSimulatedSteps) {
     throw std::invalid_argument("--actions lists every action, for --steps up to " +
                                 std::to_string(TwoLevelPlan::kMaxSimulatedSteps) +
@@ -589,7 +597,7 @@ void writeScheduleActions(const std::string& specText, std::int64_t steps, std::
   const StorageStrategyRow& row = *findStorageStrategy(rows, spec.name());
   if (row.actions == nullptr) throw std::invalid_argument(row.noActions);
   const std::unique_ptr<TrajectoryStorage> storage = createFromRows(rows, specText);
-  row.actions(*storage, spec, PredictionRequest{steps, stateBytes, stages, costs}, out);
+  row.actions(*storage, spec, PredictionRequest{steps, stateBytes, stages, costs, stageBytes}, out);
 }
 
 }  // namespace hindsight

@@ -359,13 +359,15 @@ void TwoLevelPlan::replayLast(std::int64_t start, std::int64_t e, Visitor& visit
 /// multilevel's plan without costs= in its spec. Throws std::invalid_argument naming the flag or field
 /// for bad input, and for strategies whose counters depend on the run (lossy, packed, hermite: "is not
 /// predicted" and the row's reason).
+/// `stageBytes`: the rhs data a problem keeps per stage with the stage values (PredictionRequest::
+/// stageDataBytes; `hindsight schedule --stage-bytes`), a multiple of 8 in [0, kMaxScheduleStateBytes].
 SchedulePrediction predictSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                   int stages, const ScheduleCosts* costs);
+                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes = 0);
 
 /// Writes the plan's action stream of `spec` (one action per line) for fixed steps, N <= 2^24; cams'
 /// step records are those of an explicit Runge-Kutta method of `stages` stages, as predictSchedule
 /// counts them. Everything is validated (as predictSchedule does) before the first line is written.
 void writeScheduleActions(const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
-                          const ScheduleCosts* costs, std::ostream& out);
+                          const ScheduleCosts* costs, std::ostream& out, std::int64_t stageBytes = 0);
 
 }  // namespace hindsight

@@ -62,7 +62,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                 "time (default): prediction along time, lossless residual coding | zstd: byte shuffle + zstd "
                 "per "
                 "chunk"},
-               {"stages", "0 | 1: each row holds the state and the step's stage values (default 0)"}}},
+               {"stages",
+                "0 | 1: each row holds the state, the step's stage values and each stage's rhs data "
+                "(default 0)"}}},
              &DiskStorage::create,
              &DiskStorage::predict,
              {},

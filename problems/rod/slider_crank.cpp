@@ -166,7 +166,9 @@ struct RodWorkspace final : ProblemWorkspace {
         alpha(n),
         meeQ(n),
         ctMu(n),
-        ctA(n) {}
+        ctA(n),
+        meeMu(n),
+        meeV(n) {}
   AdBuffers<kSmallCapacity> small;  // Jacobians up to 12 modes; the parameter product (3 directions)
   AdBuffers<kLargeCapacity> large;  // Jacobians beyond 12 modes
   std::vector<double> dq, dqd, dr, da1, dh;
@@ -182,7 +184,7 @@ struct RodWorkspace final : ProblemWorkspace {
   bool crankValid[2] = {false, false};
   int crankNext = 0;
   // Scratch of the kernels.
-  Vector a1, h, keeQ, ctV, gb, eta, alpha, meeQ, ctMu, ctA;
+  Vector a1, h, keeQ, ctV, gb, eta, alpha, meeQ, ctMu, ctA, meeMu, meeV;
 };
 
 RodWorkspace& workspaceOf(ProblemWorkspace* ws) {
@@ -478,23 +480,33 @@ ChannelScalars channelScalars(const View& P, const Matrix& mee, const CrankState
     k.sw0 += P.c1(0, i) * q(i);
     k.sw1 += P.c1(1, i) * q(i);
   }
-  // Ct q' column by column (axpy form).
-  w.ctV.setZero();
-  for (int j = 0; j < n; ++j) {
-    const double* ct = P.p + P.layout.cTilde() + n * j;
-    for (int i = 0; i < n; ++i) w.ctV(i) += ct[i] * v(j);
+  // Ct q' and M_ee q column by column (axpy form, vectorised through __restrict pointers); M_ee q so uses
+  // that the symmetric M_ee is symmetric bit for bit, and sums each entry over i = 0..n-1 from 0, as the
+  // dot product of column j does.
+  {
+    const double* __restrict qp = q.data();
+    const double* __restrict vp = v.data();
+    double* __restrict ctV = w.ctV.data();
+    double* __restrict meeQ = w.meeQ.data();
+    for (int i = 0; i < n; ++i) ctV[i] = meeQ[i] = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const double* __restrict ct = P.p + P.layout.cTilde() + n * j;
+      const double* __restrict m = mee.data() + static_cast<std::ptrdiff_t>(n) * j;
+      const double vj = vp[j], qj = qp[j];
+      for (int i = 0; i < n; ++i) {
+        ctV[i] += ct[i] * vj;
+        meeQ[i] += m[i] * qj;
+      }
+    }
   }
   double a1a = 0.0;
   k.hQd = 0.0;
   for (int j = 0; j < n; ++j) {
-    double a1 = P.a0(j), mq = 0.0;
-    for (int i = 0; i < n; ++i) {
-      a1 += P.ct(i, j) * q(i);
-      mq += mee(i, j) * q(i);
-    }
+    double a1 = P.a0(j);
+    for (int i = 0; i < n; ++i) a1 += P.ct(i, j) * q(i);
+    const double mq = w.meeQ(j);
     const double h = P.c2(j) + mq;
     w.h(j) = h;
-    w.meeQ(j) = mq;
     w.a1(j) = a1;
     k.jw += q(j) * mq;
     a1a += a1 * a(j);
@@ -574,9 +586,21 @@ void channelJacobians(const View& P, const Matrix& mee, const CrankState& crank,
 }
 
 /// out += (r_p)^T mu from the product scalars (h, A1 in the workspace).
-void parameterProduct(const SliderCrankLayout& L, const ProductScalars& k, ConstVectorRef q, ConstVectorRef v,
-                      ConstVectorRef a, ConstVectorRef mu, VectorRef out, RodWorkspace& w) {
+///
+/// The loops read q, v, a, mu and the workspace through __restrict pointers and write each block of `out`
+/// in a loop of its own: the outputs overlap no input, and so the compiler vectorises the rank-one updates.
+/// Every entry is the same expression evaluated in the same order as an entry-by-entry loop, so the bits
+/// are those of one.
+void parameterProduct(const SliderCrankLayout& L, const ProductScalars& k, ConstVectorRef qIn,
+                      ConstVectorRef vIn, ConstVectorRef aIn, ConstVectorRef muIn, VectorRef out,
+                      RodWorkspace& w) {
   const int n = L.modes;
+  const double* __restrict q = qIn.data();
+  const double* __restrict v = vIn.data();
+  const double* __restrict a = aIn.data();
+  const double* __restrict mu = muIn.data();
+  double* __restrict etaOf = w.eta.data();
+  double* __restrict alphaOf = w.alpha.data();
   const double gKappa = k.g * k.kappa;
   // Terms linear in the invariants (see the header for r and kappa).
   const double g = k.g, betaDot = k.bd, betaC = k.bc, rho0 = k.r0, rho1 = k.r1;
@@ -588,62 +612,84 @@ void parameterProduct(const SliderCrankLayout& L, const ProductScalars& k, Const
   out(L.massMoment()) += sigma0;
   out(L.massMoment() + 1) += sigma1;
   for (int j = 0; j < n; ++j) {
-    w.eta(j) = -betaDot * betaDot * mu(j) + 2.0 * gmb * betaDot * v(j);  // dF/dh_j
-    w.alpha(j) = mu(j) * (betaA + betaC) + gmb * a(j);                   // dF/dA1_j
+    etaOf[j] = -betaDot * betaDot * mu[j] + 2.0 * gmb * betaDot * v[j];  // dF/dh_j
+    alphaOf[j] = mu[j] * (betaA + betaC) + gmb * a[j];                   // dF/dA1_j
   }
-  double* ct = out.data() + L.cTilde();
-  double* mee = out.data() + L.mee();
-  double* kee = out.data() + L.kee();
   for (int j = 0; j < n; ++j) {
-    const double eta = w.eta(j), alpha = w.alpha(j), qj = q(j), aj = a(j), muj = mu(j);
-    const double vj2 = -2.0 * betaDot * v(j), zq = zeta * qj;
-    out(L.c2() + j) += eta + 2.0 * zeta * qj;
-    out(L.a0() + j) += alpha;
+    const double qj = q[j], aj = a[j], muj = mu[j];
+    out(L.c2() + j) += etaOf[j] + 2.0 * zeta * qj;
+    out(L.a0() + j) += alphaOf[j];
     out(L.c1() + 2 * j) += sigma0 * qj + rho0 * muj;
     out(L.c1() + 1 + 2 * j) += sigma1 * qj + rho1 * muj;
-    // M_ee enters through its symmetric part (View::mee), so its gradient is the symmetric part of
-    // mu a^T + eta q^T, plus zeta q q^T (symmetric already).
-    for (int i = 0; i < n; ++i) {
-      ct[i + n * j] += q(i) * alpha + mu(i) * vj2;
-      mee[i + n * j] += 0.5 * (mu(i) * aj + w.eta(i) * qj + muj * a(i) + eta * q(i)) + zq * q(i);
-      kee[i + n * j] += mu(i) * qj;
-    }
     // b: through the channels and the explicit g kappa b term.
-    out(L.b() + j) += k.alongQ * qj + k.alongV * v(j) + k.alongA * aj + gKappa * muj;
+    out(L.b() + j) += k.alongQ * qj + k.alongV * v[j] + k.alongA * aj + gKappa * muj;
+  }
+  double* __restrict ct = out.data() + L.cTilde();
+  for (int j = 0; j < n; ++j) {
+    const double alpha = alphaOf[j], vj2 = -2.0 * betaDot * v[j];
+    double* __restrict column = ct + n * j;
+    for (int i = 0; i < n; ++i) column[i] += q[i] * alpha + mu[i] * vj2;
+  }
+  // M_ee enters through its symmetric part (View::mee), so its gradient is the symmetric part of
+  // mu a^T + eta q^T, plus zeta q q^T (symmetric already).
+  double* __restrict mee = out.data() + L.mee();
+  for (int j = 0; j < n; ++j) {
+    const double eta = etaOf[j], qj = q[j], aj = a[j], muj = mu[j], zq = zeta * qj;
+    double* __restrict column = mee + n * j;
+    for (int i = 0; i < n; ++i)
+      column[i] += 0.5 * (mu[i] * aj + etaOf[i] * qj + muj * a[i] + eta * q[i]) + zq * q[i];
+  }
+  double* __restrict kee = out.data() + L.kee();
+  for (int j = 0; j < n; ++j) {
+    const double qj = q[j];
+    double* __restrict column = kee + n * j;
+    for (int i = 0; i < n; ++i) column[i] += mu[i] * qj;
   }
 }
 
 /// outQ = (r_q)^T mu, outV = (r_q')^T mu from the product scalars (h, M_ee q in the workspace).
-void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, ConstVectorRef v,
-                  ConstVectorRef a, ConstVectorRef mu, VectorRef outQ, VectorRef outV, RodWorkspace& w) {
+///
+/// Ct mu, Ct a, M_ee mu and M_ee q' column by column (axpy form, through __restrict pointers, so the compiler
+/// vectorises them); K_ee^T mu and Ct^T mu as dot products. Each entry is summed over j = 0..n-1 from 0 in
+/// either form, so the bits are those of dot products. M_ee mu by columns uses that the symmetric part of
+/// M_ee (symmetricMee: 0.5 (p_ij + p_ji)) is symmetric bit for bit.
+void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, ConstVectorRef vIn,
+                  ConstVectorRef aIn, ConstVectorRef muIn, VectorRef outQ, VectorRef outV, RodWorkspace& w) {
   const int n = P.n;
   const double g = k.g, bd = k.bd, r0 = k.r0, r1 = k.r1, s = k.s, alongQ = k.alongQ, alongV = k.alongV;
   const double gmb = g * k.mb;
-  // Ct mu and Ct a column by column (axpy form).
-  w.ctMu.setZero();
-  w.ctA.setZero();
+  const double* __restrict v = vIn.data();
+  const double* __restrict a = aIn.data();
+  const double* __restrict mu = muIn.data();
+  double* __restrict ctMu = w.ctMu.data();
+  double* __restrict ctA = w.ctA.data();
+  double* __restrict meeMu = w.meeMu.data();
+  double* __restrict meeV = w.meeV.data();
+  for (int i = 0; i < n; ++i) ctMu[i] = ctA[i] = meeMu[i] = meeV[i] = 0.0;
   for (int j = 0; j < n; ++j) {
-    const double* ct = P.p + P.layout.cTilde() + n * j;
+    const double* __restrict ct = P.p + P.layout.cTilde() + n * j;
+    const double* __restrict m = mee.data() + static_cast<std::ptrdiff_t>(n) * j;
+    const double muj = mu[j], aj = a[j], vj = v[j];
     for (int i = 0; i < n; ++i) {
-      w.ctMu(i) += ct[i] * mu(j);
-      w.ctA(i) += ct[i] * a(j);
+      ctMu[i] += ct[i] * muj;
+      ctA[i] += ct[i] * aj;
+      meeMu[i] += m[i] * muj;
+      meeV[i] += m[i] * vj;
     }
   }
   for (int i = 0; i < n; ++i) {
-    // Column i of K_ee, Ct (for Ct^T mu) and the symmetric M_ee.
-    const double* kee = P.p + P.layout.kee() + n * i;
-    const double* ct = P.p + P.layout.cTilde() + n * i;
-    double keeMu = 0.0, ctTMu = 0.0, meeMu = 0.0, meeQd = 0.0;
+    // Column i of K_ee and Ct (for K_ee^T mu and Ct^T mu).
+    const double* __restrict kee = P.p + P.layout.kee() + n * i;
+    const double* __restrict ct = P.p + P.layout.cTilde() + n * i;
+    double keeMu = 0.0, ctTMu = 0.0;
     for (int j = 0; j < n; ++j) {
-      keeMu += kee[j] * mu(j);
-      ctTMu += ct[j] * mu(j);
-      meeMu += mee(j, i) * mu(j);
-      meeQd += mee(j, i) * v(j);
+      keeMu += kee[j] * mu[j];
+      ctTMu += ct[j] * mu[j];
     }
     const double jwQ = 2.0 * P.c2(i) + 2.0 * w.meeQ(i);  // M_ee is used symmetric
     const double xQ = P.c1(0, i) * r1 - P.c1(1, i) * r0;
-    const double kappaQ = w.ctA(i) + s * jwQ + xQ + 2.0 * bd * meeQd;
-    outQ(i) = keeMu + s * w.ctMu(i) + gmb * kappaQ - bd * bd * meeMu + P.b(i) * alongQ;
+    const double kappaQ = ctA[i] + s * jwQ + xQ + 2.0 * bd * meeV[i];
+    outQ(i) = keeMu + s * ctMu[i] + gmb * kappaQ - bd * bd * meeMu[i] + P.b(i) * alongQ;
     outV(i) = gmb * 2.0 * bd * w.h(i) - 2.0 * bd * ctTMu + P.b(i) * alongV;
   }
 }
@@ -707,8 +753,11 @@ void SliderCrankProblem::addIntegrandStateGradient(double, ConstVectorRef q, Con
                                                    double scale, VectorRef gq, VectorRef,
                                                    ProblemWorkspace*) const {
   const View P(layout_, p);
+  // Entry i summed in a register over j = 0..n-1 from gq(i): the order of a sum into gq(i) itself.
   for (int i = 0; i < layout_.modes; ++i) {
-    for (int j = 0; j < layout_.modes; ++j) gq(i) += scale * (P.kee(i, j) + P.kee(j, i)) * q(j);
+    double sum = gq(i);
+    for (int j = 0; j < layout_.modes; ++j) sum += scale * (P.kee(i, j) + P.kee(j, i)) * q(j);
+    gq(i) = sum;
   }
 }
 
@@ -716,8 +765,12 @@ void SliderCrankProblem::addIntegrandParameterGradient(double, ConstVectorRef q,
                                                        ConstVectorRef, double scale, VectorRef gp,
                                                        ProblemWorkspace*) const {
   const int n = layout_.modes;
+  // Through __restrict pointers (gp does not overlap q), so the compiler vectorises the columns.
+  const double* __restrict qp = q.data();
   for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) gp(layout_.kee() + i + n * j) += scale * q(i) * q(j);
+    double* __restrict column = gp.data() + layout_.kee() + static_cast<std::ptrdiff_t>(n) * j;
+    const double qj = qp[j];
+    for (int i = 0; i < n; ++i) column[i] += scale * qp[i] * qj;
   }
 }
 

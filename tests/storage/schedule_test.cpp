@@ -446,9 +446,10 @@ TEST(SchedulePrediction, BadInputNamesTheFlagOrField) {
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:2"), std::invalid_argument);
 }
 
-// Runs `spec` on the pendulum (rk4, fixed steps, 16-byte states), checks its gradient against `reference`
-// bit for bit and every counter a prediction shares with a run against the run's; returns the prediction
-// and the storage for the checks of one strategy.
+// Runs `spec` on the pendulum (rk4, fixed steps, 16-byte states, 16 bytes of rhs data per stage: the
+// acceleration and the 1 x 1 Cholesky factor of a SecondOrderProblem), checks its gradient against
+// `reference` bit for bit and every counter a prediction shares with a run against the run's; returns the
+// prediction and the storage for the checks of one strategy.
 struct PredictedRun {
   SchedulePrediction prediction;
   std::unique_ptr<TrajectoryStorage> storage;
@@ -460,7 +461,8 @@ PredictedRun expectPredictionEqualsRun(const std::string& spec, const Integrator
   storage->setVerifyRestores(true);  // states and restored stage values hash-verified
   const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
   EXPECT_TRUE(bitwiseEqual(result, reference));
-  const SchedulePrediction p = predictSchedule(spec, reference.summary.steps, 16, 4, &costs);
+  const SchedulePrediction p =
+      predictSchedule(spec, reference.summary.steps, 16, 4, &costs, 8 * problem.rhsDataSize());
   EXPECT_EQ(p.recomputedSteps, result.summary.recomputedSteps) << p.plan;
   EXPECT_EQ(p.statesStored, storage->counters().statesStored) << p.plan;
   EXPECT_EQ(p.peakRamBytes, storage->counters().peakBytesInMemory) << p.plan;
@@ -715,15 +717,20 @@ TEST(SchedulePrediction, BinomialStagesRefuseABudgetWithoutRoomForTheRecords) {
     EXPECT_NE(std::string(e.what()).find("binomial.budget"), std::string::npos) << e.what();
   }
   EXPECT_NO_THROW(predictSchedule("binomial:checkpoints=10,budget=272,stages=1", 100, 16, 4, nullptr));
+  // The pendulum's records also hold 4 stages' rhs data of 16 bytes: 2 x (48 + 64) bytes.
+  EXPECT_THROW(predictSchedule("binomial:checkpoints=10,budget=399,stages=1", 100, 16, 4, nullptr, 16),
+               std::invalid_argument);
+  EXPECT_NO_THROW(predictSchedule("binomial:checkpoints=10,budget=400,stages=1", 100, 16, 4, nullptr, 16));
   // A real run refuses the same budget.
   Pendulum problem;
+  ASSERT_EQ(8 * problem.rhsDataSize(), 16);
   IntegratorOptions options = fixedStepRk4();
   options.t1 = 0.2;  // 100 steps
-  auto tight = createStorage("binomial:checkpoints=10,budget=271,stages=1");
+  auto tight = createStorage("binomial:checkpoints=10,budget=399,stages=1");
   EXPECT_THROW(computeGradient(problem, pendulumParameters(), options, *tight), std::invalid_argument);
-  auto fits = createStorage("binomial:checkpoints=10,budget=272,stages=1");
+  auto fits = createStorage("binomial:checkpoints=10,budget=400,stages=1");
   EXPECT_NO_THROW(computeGradient(problem, pendulumParameters(), options, *fits));
-  EXPECT_EQ(fits->counters().peakBytesInMemory, 272);
+  EXPECT_EQ(fits->counters().peakBytesInMemory, 400);
 }
 
 TEST(SchedulePrediction, ActionStreamsListEveryRecordAndRestore) {

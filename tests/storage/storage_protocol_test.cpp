@@ -3,6 +3,7 @@
 // compared with the recorded one, and heap allocations during the backward sweep are counted
 // (docs/design.md P 3: restores allocate nothing) with tests/support/allocation_counting.h.
 #include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/online_checkpointing.h>
 #include "support/allocation_counting.h"
 
@@ -101,6 +102,43 @@ TEST(StorageProtocol, BinomialRefusesAnUnknownStepCount) {
   info.stateSize = 2;
   info.t1 = 1.0;
   EXPECT_THROW(storage.begin(info, map), std::invalid_argument);
+}
+
+// full with rows of 2400 bytes: its blocks are sized to whole huge pages (1747 rows in 4 MiB, the last one
+// what is left) and every state comes back exact, with the announced and with an unknown step count; the
+// bytes charged are the rows', as `hindsight schedule` predicts them.
+TEST(StorageProtocol, FullWithLargeRowsRestoresExactStates) {
+  const int size = 300;
+  for (const std::int64_t steps : {std::int64_t{3000}, std::int64_t{1747}, std::int64_t{5}}) {
+    const std::vector<Vector> states = trajectory(steps, size);
+    for (const bool announced : {true, false}) {
+      SCOPED_TRACE(std::to_string(steps) + (announced ? " announced" : " unknown"));
+      FullStorage storage;
+      CosineMap map;
+      TrajectoryInfo info;
+      info.problemName = "cosine-map";
+      info.stateSize = size;
+      info.t1 = 1.0;
+      info.stepCount = announced ? steps : -1;
+      storage.setVerifyRestores(true);
+      storage.begin(info, map);
+      const Vector unused = Vector::Zero(size);
+      for (std::int64_t n = 0; n < steps; ++n)
+        storage.record(n, 0.0, states[static_cast<std::size_t>(n)], unused);
+      storage.finish(steps, 1.0, states.back(), unused);
+      // Announced: blocks capped by the steps left, so exactly the rows; unknown: whole blocks of 1747 rows.
+      const std::int64_t rows = announced ? steps : (steps + 1746) / 1747 * 1747;
+      EXPECT_EQ(storage.counters().peakBytesInMemory, rows * size * 8);
+      Vector z(size);
+      bool allEqual = true;
+      for (std::int64_t n = steps - 1; n >= 0; --n) {
+        storage.restore(n, z);
+        allEqual = allEqual && z == states[static_cast<std::size_t>(n)];
+      }
+      EXPECT_TRUE(allEqual);
+      EXPECT_EQ(storage.counters().bytesInMemory, 0);
+    }
+  }
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // `hindsight schedule` against `hindsight evaluate` on the rod (reduced model, rk4, 30000 fixed steps,
-// 64-byte states): the counters a real gradient run reports equal the schedule's prediction.
+// 64-byte states, 112 bytes of rhs data per stage: 4 modes, the acceleration and the 4 x 4 Cholesky factor's
+// lower triangle): the counters a real gradient run reports equal the schedule's prediction.
 #include "support/run_cli.h"
 
 #include <gtest/gtest.h>
@@ -25,9 +26,11 @@ TEST(ScheduleCommand, PredictsTheCountersOfARealRodRun) {
   const std::string dir = ::testing::TempDir() + "/schedule_command";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
-  for (const std::string storage : {std::string("binomial:checkpoints=20"), std::string("full"),
-                                    "multilevel:ram=2KiB,disk=64KiB,costs=1:1:0.2:0.2,dir=" + dir,
-                                    "multilevel:ram=2KiB,disk=1KiB,costs=1:1:0:0,dir=" + dir}) {
+  for (const std::string storage :
+       {std::string("binomial:checkpoints=20"), std::string("full"), std::string("full:stages=1"),
+        std::string("binomial:checkpoints=20,stages=1"), std::string("online:checkpoints=20,stages=1"),
+        std::string("cams:checkpoints=20"), "multilevel:ram=2KiB,disk=64KiB,costs=1:1:0.2:0.2,dir=" + dir,
+        "multilevel:ram=2KiB,disk=1KiB,costs=1:1:0:0,dir=" + dir}) {
     SCOPED_TRACE(storage);
     const std::string gradient = dir + "/g.h5";
     std::filesystem::remove(gradient);
@@ -39,12 +42,13 @@ TEST(ScheduleCommand, PredictsTheCountersOfARealRodRun) {
     const nlohmann::json summary = lastJson(run.output)["summary"];
     const std::int64_t steps = summary["steps"].get<std::int64_t>();
     const auto predicted = runCli("schedule --storage " + storage + " --steps " + std::to_string(steps) +
-                                  " --state-bytes 64 --stages 4 --json");
+                                  " --state-bytes 64 --stages 4 --stage-bytes 112 --json");
     ASSERT_EQ(predicted.exitCode, 0) << predicted.output;
     const nlohmann::json p = lastJson(predicted.output);
     EXPECT_EQ(p["recomputed_steps"], summary["recomputed_steps"]);
     EXPECT_EQ(p["rhs_evaluations"], summary["rhs_evaluations"]);
     EXPECT_EQ(p["states_stored"], summary["states_stored"]);
+    if (storage == "full:stages=1") EXPECT_EQ(p["rhs_evaluations"], 4 * steps);  // no adjoint step evaluates
     // The run's peak also holds the time grid, N + 1 doubles.
     EXPECT_EQ(p["peak_ram_bytes"].get<std::int64_t>() + (steps + 1) * 8,
               summary["peak_bytes_in_memory"].get<std::int64_t>());
