@@ -34,12 +34,12 @@ std::vector<Vector> trajectory(std::int64_t steps, int size) {
   return states;
 }
 
-/// Runs the protocol with the given stepCount in TrajectoryInfo (-1: unknown) and returns the number
-/// of heap allocations made during the backward sweep; every restored state is compared exactly.
-long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t announcedSteps) {
-  const int size = 5;
-  const std::vector<Vector> states = trajectory(steps, size);
-  CosineMap map;
+/// The forward sweep of the protocol over `states` (all but the last recorded, the last the end state),
+/// with the given stepCount in TrajectoryInfo (-1: unknown) and restores verified; `map` recomputes.
+void recordForward(TrajectoryStorage& storage, CosineMap& map, const std::vector<Vector>& states,
+                   std::int64_t announcedSteps) {
+  const int size = static_cast<int>(states.front().size());
+  const auto steps = static_cast<std::int64_t>(states.size()) - 1;
   TrajectoryInfo info;
   info.problemName = "cosine-map";
   info.stateSize = size;
@@ -52,6 +52,15 @@ long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t an
   for (std::int64_t n = 0; n < steps; ++n)
     storage.record(n, 0.0, states[static_cast<std::size_t>(n)], unused);
   storage.finish(steps, 1.0, states.back(), unused);
+}
+
+/// Runs the protocol with the given stepCount in TrajectoryInfo (-1: unknown) and returns the number
+/// of heap allocations made during the backward sweep; every restored state is compared exactly.
+long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t announcedSteps) {
+  const int size = 5;
+  const std::vector<Vector> states = trajectory(steps, size);
+  CosineMap map;
+  recordForward(storage, map, states, announcedSteps);
   Vector z(size);
   testing::AllocationCounter counter;
   bool allEqual = true;
@@ -115,17 +124,7 @@ TEST(StorageProtocol, FullWithLargeRowsRestoresExactStates) {
       SCOPED_TRACE(std::to_string(steps) + (announced ? " announced" : " unknown"));
       FullStorage storage;
       CosineMap map;
-      TrajectoryInfo info;
-      info.problemName = "cosine-map";
-      info.stateSize = size;
-      info.t1 = 1.0;
-      info.stepCount = announced ? steps : -1;
-      storage.setVerifyRestores(true);
-      storage.begin(info, map);
-      const Vector unused = Vector::Zero(size);
-      for (std::int64_t n = 0; n < steps; ++n)
-        storage.record(n, 0.0, states[static_cast<std::size_t>(n)], unused);
-      storage.finish(steps, 1.0, states.back(), unused);
+      recordForward(storage, map, states, announced ? steps : -1);
       // Announced: blocks capped by the steps left, so exactly the rows; unknown: whole blocks of 1747 rows.
       const std::int64_t rows = announced ? steps : (steps + 1746) / 1747 * 1747;
       EXPECT_EQ(storage.counters().peakBytesInMemory, rows * size * 8);
