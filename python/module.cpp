@@ -1002,7 +1002,7 @@ PYBIND11_MODULE(_hindsight, m) {
   });
   m.def("_storage_specs", &storageSpecs);
   m.def("_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
-                        const std::string& costs, bool actions) {
+                        const std::string& costs, bool actions, std::int64_t stageBytes) {
     // The model-free prediction of `hindsight schedule` (storage/schedule.h): the same code and checks.
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
@@ -1010,10 +1010,10 @@ PYBIND11_MODULE(_hindsight, m) {
     std::string stream;
     {
       py::gil_scoped_release release;
-      p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
+      p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, stageBytes);
       if (actions) {
         std::ostringstream out;
-        writeScheduleActions(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, out);
+        writeScheduleActions(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, out, stageBytes);
         stream = out.str();
       }
     }

@@ -118,7 +118,8 @@ _CLI_WORDS = [("use --resume to continue it or --force to overwrite it",
                "pass resume=True to continue it or force=True to overwrite it"),
               ("--resume and --force exclude each other", "resume=True and force=True exclude each other"),
               ("--resume:", "resume=True:"), ("--resume", "resume=True"), ("--force", "force=True"),
-              ("--out", "out"), ("--state-bytes", "state_bytes"), ("--steps", "steps"), ("--stages", "stages"),
+              ("--out", "out"), ("--state-bytes", "state_bytes"), ("--stage-bytes", "stage_bytes"),
+              ("--steps", "steps"), ("--stages", "stages"),
               ("--costs", "costs"), ("--storage", "spec")]
 
 
@@ -401,24 +402,27 @@ def storage_specs():
     return [Result(entry) for entry in _hindsight._storage_specs()]
 
 
-def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False):
+def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stage_bytes=0):
     """What storage strategy `spec` will do for `steps` fixed steps of states of `state_bytes` bytes,
     without running a model (the C++ of `hindsight schedule`; full, disk, binomial, online, multilevel, cams incl. online=1):
     forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
     peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
-    actions=True the dict also holds the action stream as text. ValueError names a bad argument."""
+    actions=True the dict also holds the action stream as text. `stage_bytes`: the rhs data a problem
+    keeps per stage with the stage values (`--stage-bytes`; a SecondOrderProblem of f coordinates
+    8 (f + f (f + 1) / 2), the rod's 10 modes 520). ValueError names a bad argument."""
     if not isinstance(spec, str):
         raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
                         f"{type(spec).__name__} {spec!r}")
     steps = _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
     state_bytes = _schedule_integer("state_bytes", state_bytes, 8, 8 * 2147483647)
     stages = _schedule_integer("stages", stages, 1, 64)
+    stage_bytes = _schedule_integer("stage_bytes", stage_bytes, 0, 8 * 2147483647)
     if costs is not None and not isinstance(costs, str):
         raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
     if not isinstance(actions, bool):
         raise TypeError(f"actions must be True or False, not {type(actions).__name__}")
     try:
-        return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions))
+        return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions, stage_bytes))
     except ValueError as error:
         raise _in_python_words(error) from None
 

@@ -31,6 +31,30 @@ def test_cams_needs_fewer_rhs_than_binomial_at_equal_bytes():
     assert cams.rhs_evaluations < online.rhs_evaluations
 
 
+def test_stage_bytes_enlarge_the_step_records():
+    # The rhs data a problem keeps per stage (the rod's 10 modes: 520 bytes) enlarges every step record of
+    # full:stages=1 by its stages' data; cams keeps none.
+    plain = hindsight.schedule("full:stages=1", 1000, state_bytes=160, stages=4)
+    with_data = hindsight.schedule("full:stages=1", 1000, state_bytes=160, stages=4, stage_bytes=520)
+    assert with_data.peak_ram_bytes == plain.peak_ram_bytes + 1000 * 4 * 520
+    cams = hindsight.schedule("cams:checkpoints=10", 1000, state_bytes=160, stage_bytes=520)
+    assert cams.peak_ram_bytes == hindsight.schedule("cams:checkpoints=10", 1000, state_bytes=160).peak_ram_bytes
+    with pytest.raises(ValueError, match="stage_bytes = 12 must be a multiple of 8"):
+        hindsight.schedule("full:stages=1", 10, state_bytes=16, stage_bytes=12)
+    with pytest.raises(TypeError, match="stage_bytes"):
+        hindsight.schedule("full:stages=1", 10, state_bytes=16, stage_bytes=8.0)
+
+
+def test_stage_bytes_give_the_clis_prediction(cli):
+    import json
+    import subprocess
+    out = subprocess.run([cli, "schedule", "--storage", "binomial:checkpoints=10,stages=1", "--steps", "1000",
+                          "--state-bytes", "160", "--stage-bytes", "520", "--json"],
+                         capture_output=True, text=True, check=True)
+    p = hindsight.schedule("binomial:checkpoints=10,stages=1", 1000, state_bytes=160, stage_bytes=520)
+    assert json.loads(out.stdout)["peak_ram_bytes"] == p.peak_ram_bytes
+
+
 def test_actions_and_errors():
     p = hindsight.schedule("binomial:checkpoints=2", 6, state_bytes=16, actions=True)
     assert p.actions.count("restore ") == 6
