@@ -124,8 +124,9 @@ struct Config {
   /// Operating scenarios (problems/rod/scenarios.h); empty: the one scenario of `rod`.
   std::vector<Scenario> scenarios;
   /// The `mechanism` section (problems/mechanism/mechanism.h): the mechanism the rod is the flexible
-  /// member of. Absent: the built-in slider-crank of docs/design.md §2 (rod.crankRadius, crankSpeed,
-  /// rampTime); present, those three fields are not used. The member's length is rod.length.
+  /// member of. Absent: the default slider-crank of docs/design.md §2, described by mechanism::sliderCrank
+  /// from rod.crankRadius, crankSpeed and rampTime; present, those three fields are not used. The member's
+  /// length is rod.length.
   std::optional<mechanism::Mechanism> mechanism;
 
   /// Checks every field; throws std::invalid_argument naming the field, value and range.
