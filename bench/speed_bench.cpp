@@ -61,9 +61,8 @@ rod::SliderCrankProblem closedFormOf(const rod::RodConfig& rc, int columns) {
 /// The problem the piston rod runs without a mechanism section: the slider-crank described by
 /// mechanism::sliderCrank through the general path.
 std::unique_ptr<mechanism::MechanismProblem> problemOf(const rod::RodConfig& rc, int columns) {
-  mechanism::Mechanism m = mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
-  m.member.length = rc.length;
-  return std::make_unique<mechanism::MechanismProblem>(m, columns);
+  return std::make_unique<mechanism::MechanismProblem>(
+      mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime), columns);
 }
 
 void phaseTable(int largest) {

@@ -283,9 +283,9 @@ struct MechanismProblem::Impl {
     double tPositions = std::numeric_limits<double>::quiet_NaN();
     double tJacobian = std::numeric_limits<double>::quiet_NaN();
     double tQuadratic = std::numeric_limits<double>::quiet_NaN();
-    std::vector<double> positions;        ///< by unknown (the inactive blocks' polished solution)
-    std::vector<double> jac;              ///< by inactiveJacIndex
-    std::vector<double> phi, phit, quad;  ///< by equation
+    std::vector<double> positions;   ///< by unknown (the inactive blocks' polished solution)
+    std::vector<double> jac;         ///< by inactiveJacIndex
+    std::vector<double> phit, quad;  ///< by equation
   };
   static bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
@@ -506,7 +506,8 @@ struct MechanismProblem::Impl {
 
   /// constraints() in double for the chord system's kinematics (one of jacobian, quadratic), with the
   /// rows that depend on time alone taken from `cache` when it holds them at the bits of t (they are a
-  /// function of t, so the bits are those a new evaluation would give).
+  /// function of t, so the bits are those a new evaluation would give). Their Phi is left as it was: the
+  /// kinematics read only the Jacobian, Phi_t and gamma (Newton evaluates its own rows).
   void constraintsCached(double t, Buffers<double>& B, bool jacobian, bool quadratic, bool trig,
                          TimeCache& cache) const {
     double& key = jacobian ? cache.tJacobian : cache.tQuadratic;
@@ -515,7 +516,6 @@ struct MechanismProblem::Impl {
       for (std::size_t k = 0; k < inactiveJacIndex.size() && jacobian; ++k)
         cache.jac[k] = B.jac[inactiveJacIndex[k]];
       for (int e : inactiveEquations) {
-        cache.phi[e] = B.phi[e];
         if (jacobian) cache.phit[e] = B.phit[e];
         if (quadratic) cache.quad[e] = B.quad[e];
       }
@@ -526,7 +526,6 @@ struct MechanismProblem::Impl {
     for (std::size_t k = 0; k < inactiveJacIndex.size() && jacobian; ++k)
       B.jac[inactiveJacIndex[k]] = cache.jac[k];
     for (int e : inactiveEquations) {
-      B.phi[e] = cache.phi[e];
       if (jacobian) B.phit[e] = cache.phit[e];
       if (quadratic) B.quad[e] = cache.quad[e];
     }
@@ -1280,7 +1279,6 @@ struct Work final : ProblemWorkspace {
         aKey(I.n) {
     timeCache.positions.assign(C.m, 0.0);
     timeCache.jac.assign(C.inactiveJacIndex.size(), 0.0);
-    timeCache.phi.assign(C.m, 0.0);
     timeCache.phit.assign(C.m, 0.0);
     timeCache.quad.assign(C.m, 0.0);
   }
