@@ -171,8 +171,12 @@ struct Buffers {
   // A driver's s, s', s'' (drive[3 i ...]) for constraint row i at driveTime[i] (NaN: none yet): Newton
   // evaluates the constraints many times at one time, and the ramp's law costs a sine and a cosine.
   std::vector<double> driveTime, drive;
-  /// jac, phi, phit, quad of dual numbers were set to zero once (Impl::constraints() with a row mask).
-  bool cleared = false;
+  /// jac, phi, phit, quad at zero with nd derivative directions: a dual pass with a row mask
+  /// (Impl::constraints()) writes only its rows, and dual numbers start uninitialised.
+  void clear(int nd) {
+    const T zero = Make<T>::constant(0.0, nd);
+    for (auto* v : {&jac, &phi, &phit, &quad}) std::fill(v->begin(), v->end(), zero);
+  }
 };
 
 inline void sinCos(double x, double& s, double& c) { dmath::sincos(x, &s, &c); }
@@ -466,7 +470,7 @@ struct MechanismProblem::Impl {
   /// Phi (and with `jacobian` Phi_z, Phi_t; with `quadratic` gamma, which needs B.zd) at B.z, time t;
   /// also B.sn, B.cs at B.z, which the forces after it use.
   /// With rowMask (rowActive), only the rows it marks; the other rows' entries are left as they are: a
-  /// dual pass never reads them (they stay at the zeros of its first call), and constraintsCached()
+  /// dual pass never reads them (they stay at the zeros of Buffers::clear()), and constraintsCached()
   /// restores them in double.
   template <typename T>
   void constraints(double t, Buffers<T>& B, bool jacobian, bool quadratic, const T& zero, bool trig = true,
@@ -474,15 +478,6 @@ struct MechanismProblem::Impl {
     if (trig) updateTrig(B);
     T c, cd;
     chord(B, quadratic, c, cd, zero);
-    if constexpr (!std::is_same_v<T, double>) {
-      // Dual numbers start uninitialised (double buffers start at zero and keep their other rows).
-      if (rowMask != nullptr && !B.cleared) {
-        for (auto* v : {&B.jac, &B.phi, &B.phit, &B.quad}) {
-          for (auto& x : *v) x = zero;
-        }
-        B.cleared = true;
-      }
-    }
     const int rowCount = static_cast<int>(rows.size());
     if (jacobian) {
       if (rowMask == nullptr) {
@@ -1277,6 +1272,11 @@ struct Work final : ProblemWorkspace {
         qKey(I.n),
         vKey(I.n),
         aKey(I.n) {
+    // The chord system's dual buffers, whose rows a masked pass leaves alone (Impl::constraints()).
+    cs.clear(2 * C.f);
+    c2.clear(2);
+    c3.clear(3);
+    c9.clear(9);
     timeCache.positions.assign(C.m, 0.0);
     timeCache.jac.assign(C.inactiveJacIndex.size(), 0.0);
     timeCache.phit.assign(C.m, 0.0);
