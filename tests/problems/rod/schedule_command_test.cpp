@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #ifdef HINDSIGHT_CLI_PATH
@@ -70,6 +71,16 @@ TEST(ScheduleCommand, BadFlagsNameTheFlagAndTheRange) {
   const auto stages = runCli("schedule --storage full --steps 10 --state-bytes 64 --stages 0");
   EXPECT_EQ(stages.exitCode, 2);
   EXPECT_NE(stages.output.find("--stages"), std::string::npos) << stages.output;
+  for (const char* stageBytes : {"12", "-8", "x"}) {
+    const auto rhsData =
+        runCli(std::string("schedule --storage full:stages=1 --steps 10 --state-bytes 64 --stage-bytes ") +
+               stageBytes);
+    EXPECT_EQ(rhsData.exitCode, 2) << stageBytes;
+    EXPECT_NE(rhsData.output.find("--stage-bytes"), std::string::npos) << rhsData.output;
+  }
+  const auto notMultiple =
+      runCli("schedule --storage full:stages=1 --steps 10 --state-bytes 64 --stage-bytes 12 --json");
+  EXPECT_NE(notMultiple.output.find("must be a multiple of 8"), std::string::npos) << notMultiple.output;
   const auto costs = runCli("schedule --storage full --steps 10 --state-bytes 64 --costs 1:2:3");
   EXPECT_EQ(costs.exitCode, 2);
   EXPECT_NE(costs.output.find("--costs"), std::string::npos) << costs.output;
