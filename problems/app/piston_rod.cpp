@@ -18,7 +18,10 @@
 
 namespace hindsight {
 
-PistonRod::PistonRod(const Config& config) : config_(config) { config_.validate(); }
+PistonRod::PistonRod(const Config& config)
+    : config_(config), stiffness_(std::make_shared<rod::StiffnessFactorizationPool>()) {
+  config_.validate();
+}
 
 Vector PistonRod::initialDesign() const { return Vector::Constant(designCount(), config_.rod.initialDesign); }
 
@@ -53,10 +56,17 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
   // simulation: as NumericalError the optimizer's divergence guard and GCMMA's trials step back from it
   // instead of ending the run. One factorisation of K serves the eigen-solve, its refinement, ESL and the
   // chain's adjoint solves.
-  std::unique_ptr<rod::StiffnessFactorization> stiffnessPointer;
+  // The factorisation goes back to the pool when the evaluation ends (also by an exception: a later
+  // design refactorises it from scratch).
+  struct Kept {
+    rod::StiffnessFactorizationPool& pool;
+    std::unique_ptr<rod::StiffnessFactorization> factorization;
+    ~Kept() { pool.give(std::move(factorization)); }
+  } kept{*stiffness_, nullptr};
+  std::unique_ptr<rod::StiffnessFactorization>& stiffnessPointer = kept.factorization;
   const rod::ModalBasis basis = [&] {
     try {
-      stiffnessPointer = std::make_unique<rod::StiffnessFactorization>(model.stiffness());
+      stiffnessPointer = stiffness_->take(model.stiffness());
       return rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), *stiffnessPointer);
     } catch (const NumericalError&) {
       throw;

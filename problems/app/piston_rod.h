@@ -8,10 +8,14 @@
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/problems/app/config.h>
 
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace hindsight {
+namespace rod {
+class StiffnessFactorizationPool;
+}
 
 struct PistonRodEvaluation {
   double psi1 = 0.0;
@@ -58,6 +62,9 @@ class PistonRod {
 
  private:
   Config config_;
+  // The factorisation of K kept from one design to the next (the symbolic analysis depends on the mesh
+  // alone); shared by copies of this object, which evaluate the same mesh.
+  std::shared_ptr<rod::StiffnessFactorizationPool> stiffness_;
 };
 
 }  // namespace hindsight

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
 #include <numeric>
 #include <sstream>
@@ -129,10 +130,59 @@ class TransformedPencil {
 }  // namespace
 
 StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness)
-    : solver_(stiffness), size_(stiffness.rows()) {
+    : solver_(stiffness),
+      size_(stiffness.rows()),
+      outer_(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + stiffness.outerSize() + 1),
+      inner_(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + stiffness.nonZeros()) {
+  assert(stiffness.isCompressed());
+  checkPositiveDefinite();
+}
+
+void StiffnessFactorization::checkPositiveDefinite() const {
   // LDL^T succeeds for indefinite matrices too: positive definiteness is a positive D.
   if (solver_.info() != Eigen::Success || !(solver_.vectorD().minCoeff() > 0.0))
     throw std::runtime_error("the constrained stiffness matrix is not positive definite");
+}
+
+bool StiffnessFactorization::samePattern(const SparseMatrix& stiffness) const {
+  return stiffness.isCompressed() && stiffness.rows() == size_ && stiffness.cols() == size_ &&
+         static_cast<std::size_t>(stiffness.nonZeros()) == inner_.size() &&
+         std::equal(outer_.begin(), outer_.end(), stiffness.outerIndexPtr()) &&
+         std::equal(inner_.begin(), inner_.end(), stiffness.innerIndexPtr());
+}
+
+void StiffnessFactorization::refactorize(const SparseMatrix& stiffness) {
+  if (!samePattern(stiffness))
+    throw std::invalid_argument("refactorize: the stiffness matrix has another sparsity pattern");
+  solver_.factorize(stiffness);
+  checkPositiveDefinite();
+}
+
+std::unique_ptr<StiffnessFactorization> StiffnessFactorizationPool::take(const SparseMatrix& stiffness) {
+  std::unique_ptr<StiffnessFactorization> kept;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (!kept_.empty()) {
+      kept = std::move(kept_.back());
+      kept_.pop_back();
+    }
+  }
+  if (kept && kept->samePattern(stiffness)) {
+    kept->refactorize(stiffness);
+    return kept;
+  }
+  return std::make_unique<StiffnessFactorization>(stiffness);
+}
+
+void StiffnessFactorizationPool::give(std::unique_ptr<StiffnessFactorization> factorization) {
+  if (!factorization) return;
+  const std::lock_guard<std::mutex> lock(mutex_);
+  kept_.push_back(std::move(factorization));
+}
+
+std::size_t StiffnessFactorizationPool::size() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return kept_.size();
 }
 
 namespace {

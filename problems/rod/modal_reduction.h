@@ -22,8 +22,10 @@
 #include <hindsight/problems/rod/fe_model.h>
 
 #include <Eigen/SparseCholesky>
-
+#include <memory>
+#include <mutex>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 namespace rod {
@@ -102,6 +104,14 @@ class StiffnessFactorization {
   explicit StiffnessFactorization(const SparseMatrix& stiffness);
   StiffnessFactorization(const StiffnessFactorization&) = delete;
   StiffnessFactorization& operator=(const StiffnessFactorization&) = delete;
+  /// Whether `stiffness` has the sparsity pattern this factorisation was analysed for (the same mesh and
+  /// supports: the FE assembly scatters every design into the mesh's pattern).
+  bool samePattern(const SparseMatrix& stiffness) const;
+  /// Factorises another K of the same pattern with the symbolic analysis of the construction (the AMD
+  /// ordering, the elimination tree and the column counts depend on the pattern alone): the factor is
+  /// bitwise the one a new object computes, without the analysis (0.6 s of 4.3 s at 1600 x 96).
+  /// Throws std::invalid_argument for another pattern and std::runtime_error as the constructor.
+  void refactorize(const SparseMatrix& stiffness);
   const Eigen::SimplicialLDLT<SparseMatrix>& solver() const { return solver_; }
   Eigen::Index size() const { return size_; }
   /// K^-1 B.
@@ -115,8 +125,28 @@ class StiffnessFactorization {
   void solveInPlace(RowBlock& block, RowBlock& scratch) const;
 
  private:
+  void checkPositiveDefinite() const;
+
   Eigen::SimplicialLDLT<SparseMatrix> solver_;
   Eigen::Index size_ = 0;
+  // The pattern the symbolic analysis is for (outer starts and row indices of K).
+  std::vector<int> outer_, inner_;
+};
+
+/// Factorisations of K kept between the designs of one mesh, so that each design repeats only the numeric
+/// factorisation (StiffnessFactorization::refactorize). take() hands out a kept one refactorised for the
+/// given K, or a new one; give() keeps it for the next design. Thread-safe: concurrent evaluations each
+/// get their own object. What a design computes does not depend on whether its factorisation was kept.
+class StiffnessFactorizationPool {
+ public:
+  std::unique_ptr<StiffnessFactorization> take(const SparseMatrix& stiffness);
+  void give(std::unique_ptr<StiffnessFactorization> factorization);
+  /// Kept objects (tests).
+  std::size_t size() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<std::unique_ptr<StiffnessFactorization>> kept_;
 };
 
 /// Computes the modal basis of `model`.

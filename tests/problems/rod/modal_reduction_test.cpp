@@ -295,6 +295,52 @@ TEST(ModalReduction, BlockSolveIsBitwiseTheColumnSolve) {
   EXPECT_THROW(factorization.solveInPlace(wrong, scratch), std::invalid_argument);
 }
 
+TEST(ModalReduction, RefactorizationIsBitwiseANewFactorization) {
+  // A design's factorisation with the symbolic analysis kept from another design of the mesh: the same
+  // factor, so the same solves, bit for bit; another mesh is refused, and the pool then analyses anew.
+  RodConfig config;
+  config.elementsAlongLength = 40;
+  config.elementsThroughHeight = 6;
+  std::mt19937 generator(7);
+  std::uniform_real_distribution<double> uniform(0.05, 1.0);
+  Vector first(config.designCount()), second(config.designCount());
+  for (auto& x : first) x = uniform(generator);
+  for (auto& x : second) x = uniform(generator);
+  const FeModel firstModel(config, first), secondModel(config, second);
+  StiffnessFactorization kept(firstModel.stiffness());
+  ASSERT_TRUE(kept.samePattern(secondModel.stiffness()));
+  kept.refactorize(secondModel.stiffness());
+  const StiffnessFactorization fresh(secondModel.stiffness());
+  EXPECT_TRUE(kept.solver().vectorD() == fresh.solver().vectorD());
+  const Matrix rhs = Matrix::Random(secondModel.freeDofCount(), 3);
+  const Matrix a = kept.solve(rhs), b = fresh.solve(rhs);
+  EXPECT_TRUE(a == b) << "max difference " << (a - b).cwiseAbs().maxCoeff();
+  // The solves are those of the second design, not the first.
+  EXPECT_LT((secondModel.stiffness() * a - rhs).norm(), 1e-8 * rhs.norm());
+
+  RodConfig other = config;
+  other.elementsThroughHeight = 4;
+  const FeModel otherModel(other, Vector::Constant(other.designCount(), 0.5));
+  EXPECT_FALSE(kept.samePattern(otherModel.stiffness()));
+  EXPECT_THROW(kept.refactorize(otherModel.stiffness()), std::invalid_argument);
+
+  StiffnessFactorizationPool pool;
+  auto one = pool.take(firstModel.stiffness());
+  const StiffnessFactorization* address = one.get();
+  pool.give(std::move(one));
+  EXPECT_EQ(pool.size(), 1u);
+  auto again = pool.take(secondModel.stiffness());
+  EXPECT_EQ(again.get(), address);  // kept and refactorised
+  EXPECT_TRUE(again->solve(rhs) == b);
+  pool.give(std::move(again));
+  auto otherMesh = pool.take(otherModel.stiffness());  // another pattern: a new analysis
+  EXPECT_EQ(pool.size(), 0u);
+  EXPECT_LT((otherModel.stiffness() * otherMesh->solve(Matrix::Ones(otherModel.freeDofCount(), 1)) -
+             Matrix::Ones(otherModel.freeDofCount(), 1))
+                .norm(),
+            1e-8 * std::sqrt(static_cast<double>(otherModel.freeDofCount())));
+}
+
 }  // namespace
 }  // namespace rod
 }  // namespace hindsight

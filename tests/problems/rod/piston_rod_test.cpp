@@ -72,6 +72,25 @@ TEST(PistonRod, Psi1GradientAtARandomDesignOnBothSidesOfTheMassLawKink) {
   checkEveryElement(rod, x, 1.5e-4);
 }
 
+TEST(PistonRod, AKeptFactorizationGivesTheBitsOfAFreshEvaluation) {
+  // evaluate() keeps K's factorisation from one design to the next and only refactorises it: design b
+  // after design a gives the bits of b evaluated by a new object.
+  const PistonRod rod{coarseConfig()};
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(0.2, 1.0);
+  Vector a(rod.designCount()), b(rod.designCount());
+  for (Eigen::Index i = 0; i < a.size(); ++i) a(i) = u(rng);
+  for (Eigen::Index i = 0; i < b.size(); ++i) b(i) = u(rng);
+  rod.evaluate(a);
+  const PistonRodEvaluation kept = rod.evaluate(b);
+  const PistonRodEvaluation fresh = PistonRod{coarseConfig()}.evaluate(b);
+  EXPECT_EQ(kept.psi1, fresh.psi1);
+  EXPECT_EQ(kept.psi2, fresh.psi2);
+  EXPECT_TRUE(kept.dpsi1 == fresh.dpsi1);
+  EXPECT_TRUE(kept.dpsi2 == fresh.dpsi2);
+  EXPECT_TRUE(kept.modes == fresh.modes);
+}
+
 TEST(PistonRod, BothEigenvectorRoutesGiveTheSameGradient) {
   Config config = coarseConfig();
   const PistonRod adjointNelson{config};
