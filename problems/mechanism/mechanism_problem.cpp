@@ -1269,6 +1269,10 @@ struct Work final : ProblemWorkspace {
         along(I.n),
         vel(I.n),
         uq(I.n),
+        muCt(I.n),
+        muCtT(I.n),
+        muKee(I.n),
+        muMee(I.n),
         qKey(I.n),
         vKey(I.n),
         aKey(I.n) {
@@ -1333,6 +1337,8 @@ struct Work final : ProblemWorkspace {
   // Products of the modal coordinates with the invariant matrices (modalProducts()), the member's
   // moments, and the q, q', a they were formed from (kept only for a fixed p).
   Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel, uq;
+  // Products of mu's modal part with the invariant matrices (chordStateVjp()).
+  Vector muCt, muCtT, muKee, muMee;
   double moments[kMoments] = {};
   Vector qKey, vKey, aKey;
   bool qKept = false, vKept = false, aKept = false, aZero = false, vJacobian = false, aJacobian = false;
@@ -2003,13 +2009,16 @@ void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, cons
   double* ct = out.data() + P.ctOffset();
   double* mee = out.data() + P.meeOffset();
   double* kee = out.data() + P.keeOffset();
+  // eta once per entry, not once per (i, j): the same expression, so the same bits.
+  double eta[MechanismProblem::kMaxModes];
+  for (int i = 0; i < n; ++i) eta[i] = 2.0 * thd * nth * qd[i] - thd * thd * nq(i);
   for (int j = 0; j < n; ++j) {
-    const double etaJ = 2.0 * thd * nth * qd[j] - thd * thd * nq(j);
+    const double etaJ = eta[j];
     const double alphaJ = nth * qdd[j] + thdd * nq(j);
     out(P.c2Offset() + j) += etaJ + 2.0 * zeta * q[j];
     out(P.a0Offset() + j) += alphaJ;
     for (int i = 0; i < n; ++i) {
-      const double etaI = 2.0 * thd * nth * qd[i] - thd * thd * nq(i);
+      const double etaI = eta[i];
       // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
       ct[i + n * j] += q[i] * alphaJ - 2.0 * thd * nq(i) * qd[j];
       // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
@@ -2434,18 +2443,31 @@ void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, Co
 
 namespace {
 
-/// The chord path's r_y, r_y' after chordKinematics() and modalProducts() (mom) at the point, with dual
-/// numbers of type ADT (AD9 without free coordinates, ADS with them).
+/// The directions of the chord path's dual pass (dualChordResidual()): sigma (k), sigma' (k), then the
+/// seven moments that depend on q or q', whatever the number of modes.
+struct ChordDirections {
+  int k, nd, dSw0, dSw1, dJw, dA1a, dC1v0, dC1v1, dHv;
+  explicit ChordDirections(int chordCount)
+      : k(chordCount),
+        nd(2 * chordCount + 7),
+        dSw0(2 * chordCount),
+        dSw1(dSw0 + 1),
+        dJw(dSw0 + 2),
+        dA1a(dSw0 + 3),
+        dC1v0(dSw0 + 4),
+        dC1v1(dSw0 + 5),
+        dHv(dSw0 + 6) {}
+};
+
+/// The chord residual B.r and the frame scalars phi in the 2k + 7 directions of ChordDirections, after
+/// chordKinematics() and modalProducts() (mom) at the point, with dual numbers of type ADT (AD9 without
+/// free coordinates, ADS with them). Both r_y, r_y' (chordJacobians()) and their products with a mu
+/// (chordStateVjp()) chain these few directions to q, q' through the moments' gradients.
 template <typename ADT>
-void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
-                    const double* mom, const Matrix& mee, MatrixRef ry, MatrixRef rv, Work& w,
-                    Buffers<ADT>& B) {
-  const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
-  // Dual numbers in sigma (k), sigma' (k) and the seven moments that depend on q or q' (the chain to
-  // q, q' below): the chord system's Jacobians in 2k + 7 directions, whatever the number of modes.
-  const int nd = 2 * k + 7;
-  const int dSw0 = 2 * k, dSw1 = dSw0 + 1, dJw = dSw0 + 2, dA1a = dSw0 + 3, dC1v0 = dSw0 + 4,
-            dC1v1 = dSw0 + 5, dHv = dSw0 + 6;
+void dualChordResidual(const MechanismProblem::Impl& C, const View& P, double t, const double* mom, Work& w,
+                       Buffers<ADT>& B, ADT* phi) {
+  const ChordDirections D(C.f);
+  const int k = D.k, nd = D.nd;
   if constexpr (std::is_same_v<ADT, ADS>) {
     for (int i = 0; i < k; ++i) {
       B.y[i] = Make<ADS>::variable(w.sigma(i), 2 * k, i);
@@ -2461,16 +2483,29 @@ void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Imp
   }
   ADT seedDdot[MechanismProblem::kMaxFree + 1];
   for (int j = 0; j < k; ++j) seedDdot[j] = Make<ADT>::constant(w.sigmaDdot(j), nd);
-  ADT m[kMoments], phi[4];
+  ADT m[kMoments];
   constants(mom, kMoments, nd, m);
-  m[kSw0] = Make<ADT>::variable(mom[kSw0], nd, dSw0);
-  m[kSw1] = Make<ADT>::variable(mom[kSw1], nd, dSw1);
-  m[kJw] = Make<ADT>::variable(mom[kJw], nd, dJw);
-  m[kA1a] = Make<ADT>::variable(mom[kA1a], nd, dA1a);
-  m[kC1v0] = Make<ADT>::variable(mom[kC1v0], nd, dC1v0);
-  m[kC1v1] = Make<ADT>::variable(mom[kC1v1], nd, dC1v1);
-  m[kHv] = Make<ADT>::variable(mom[kHv], nd, dHv);
+  m[kSw0] = Make<ADT>::variable(mom[kSw0], nd, D.dSw0);
+  m[kSw1] = Make<ADT>::variable(mom[kSw1], nd, D.dSw1);
+  m[kJw] = Make<ADT>::variable(mom[kJw], nd, D.dJw);
+  m[kA1a] = Make<ADT>::variable(mom[kA1a], nd, D.dA1a);
+  m[kC1v0] = Make<ADT>::variable(mom[kC1v0], nd, D.dC1v0);
+  m[kC1v1] = Make<ADT>::variable(mom[kC1v1], nd, D.dC1v1);
+  m[kHv] = Make<ADT>::variable(mom[kHv], nd, D.dHv);
   chordResidual<ADT>(C, P, B, seedDdot, m, phi, Make<ADT>::constant(0.0, nd));
+}
+
+/// The chord path's r_y, r_y' after chordKinematics() and modalProducts() (mom) at the point.
+template <typename ADT>
+void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
+                    const double* mom, const Matrix& mee, MatrixRef ry, MatrixRef rv, Work& w,
+                    Buffers<ADT>& B) {
+  const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
+  const ChordDirections D(k);
+  const int dSw0 = D.dSw0, dSw1 = D.dSw1, dJw = D.dJw, dA1a = D.dA1a, dC1v0 = D.dC1v0, dC1v1 = D.dC1v1,
+            dHv = D.dHv;
+  ADT phi[4];
+  dualChordResidual(C, P, t, mom, w, B, phi);
   const double thdd = phi[2].value(), thd = phi[3].value();
   // d/dq_j and d/dq'_j of a chord scalar: through c = b q, c' = b q' and the moments' gradients
   // (s_w: C1, J_w: 2 h, A1 . a: Ct a, h . q': M_ee q' and h, C1 q': C1).
@@ -2523,6 +2558,63 @@ void chordJacobians(const MechanismProblem::Impl& I, const MechanismProblem::Imp
   }
 }
 
+/// outY = r_y^T mu, outV = r_y'^T mu after chordKinematics() and modalProducts() (mom, with the
+/// Jacobian products) at the point: the transposed form of chordJacobians(), term by term, without
+/// forming r_y or r_y'. The chord scalars' derivatives are combined with mu first (S = sum_i mu_i r_i over
+/// the free rows, plus (b . mu_q) r_c, plus the modal rows' phi terms), so the chain to q, q' runs once
+/// instead of once per row, and the direct terms of the modal rows are four products of mu_q with the
+/// invariant matrices: O(n^2) instead of the Jacobians' 2 (f^2 + f^3) (forming, then M^{-1} r_y, M^{-1}
+/// r_y' in the adapter).
+template <typename ADT>
+void chordStateVjp(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
+                   const double* mom, const Matrix& mee, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                   Work& w, Buffers<ADT>& B) {
+  const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
+  const ChordDirections D(k);
+  ADT phi[4];
+  dualChordResidual(C, P, t, mom, w, B, phi);
+  const double thdd = phi[2].value(), thd = phi[3].value();
+  // mb = b . mu_q (the modal rows' b rho_c) and muU = sum_l mu_l dF_q,l/dphi.
+  double mb = 0.0, muU[4] = {0.0, 0.0, 0.0, 0.0};
+  for (int l = 0; l < n; ++l) {
+    double u[4];
+    modalRowPhi(P, w, thd, l, u);
+    const double ml = mu(nf + l);
+    mb += P.b(l) * ml;
+    for (int e = 0; e < 4; ++e) muU[e] += ml * u[e];
+  }
+  constexpr int kMaxDirections = 2 * (MechanismProblem::kMaxFree + 1) + 7;
+  double S[kMaxDirections], U[kMaxDirections];
+  for (int d = 0; d < D.nd; ++d) {
+    double s = mb * B.r[ci].derivatives()(d);
+    for (int i = 0; i < nf; ++i) s += mu(i) * B.r[i].derivatives()(d);
+    S[d] = s;
+    U[d] = muU[0] * phi[0].derivatives()(d) + muU[1] * phi[1].derivatives()(d) +
+           muU[2] * phi[2].derivatives()(d) + muU[3] * phi[3].derivatives()(d);
+  }
+  for (int j = 0; j < nf; ++j) {
+    outY(j) = S[j] + U[j];
+    outV(j) = S[k + j] + U[k + j];
+  }
+  const Eigen::Map<const Matrix> ct(P.p + P.ctOffset(), n, n), kee(P.p + P.keeOffset(), n, n);
+  const auto muQ = mu.segment(nf, n);
+  w.muCt.noalias() = ct * muQ;
+  w.muCtT.noalias() = ct.transpose() * muQ;
+  w.muKee.noalias() = kee.transpose() * muQ;
+  w.muMee.noalias() = mee.transpose() * muQ;
+  // d/dq_j, d/dq'_j of S as chordJacobians()'s dq, dv; phi enters the modal rows' Jacobians through c
+  // and c' only (uq b_j, uv b_j there).
+  const double uq = U[ci], uv = U[k + ci];
+  for (int j = 0; j < n; ++j) {
+    const double bj = P.b(j);
+    outY(nf + j) = S[ci] * bj + S[D.dSw0] * P.c1(0, j) + S[D.dSw1] * P.c1(1, j) + S[D.dJw] * 2.0 * w.h(j) +
+                   S[D.dA1a] * w.ctA(j) + S[D.dHv] * w.meeV(j) + uq * bj + thdd * w.muCt(j) + w.muKee(j) -
+                   thd * thd * w.muMee(j);
+    outV(nf + j) = S[k + ci] * bj + S[D.dC1v0] * P.c1(0, j) + S[D.dC1v1] * P.c1(1, j) + S[D.dHv] * w.h(j) +
+                   uv * bj - 2.0 * thd * w.muCtT(j);
+  }
+}
+
 }  // namespace
 
 void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
@@ -2545,18 +2637,14 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
   }
 }
 
-void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
-                                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
-                                               ProblemWorkspace* ws) const {
-  const Impl& I = *impl_;
-  const Impl& C = *chord_;
-  Work& w = workOf(ws);
-  const View P(I.n, p.data());
+namespace {
+
+/// out += (r_p)^T mu after chordKinematics() and modalProducts() (mom) at the point.
+void parameterProduct(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P,
+                      double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef mu,
+                      const double* mom, Work& w, VectorRef out) {
+  constexpr int kMaxFree = MechanismProblem::kMaxFree;
   const int n = I.n, nf = I.nFree, k = C.f, ci = nf, o = I.base;
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
-  double mom[kMoments];
-  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
   // The invariants other than b at fixed kinematics: nu = R mu on the member (frame rows from the chord
   // system's R with mu_c = b . mu_q, modal rows mu_q).
   double mb = 0.0;
@@ -2607,6 +2695,65 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   for (int j = 0; j < n; ++j) {
     out(P.bOffset() + j) += g[0] * y(nf + j) + g[1] * v(nf + j) + g[2] * a(nf + j) + mu(nf + j) * rc;
   }
+}
+
+}  // namespace
+
+void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                               ConstVectorRef p, ConstVectorRef mu, VectorRef out,
+                                               ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int nf = I.nFree;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  double mom[kMoments];
+  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
+  parameterProduct(I, C, P, t, y, v, a, mu, mom, w, out);
+}
+
+void MechanismProblem::residualStateVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                        ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                                        ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int nf = I.nFree;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  const Matrix& mee = meeOf(P, w);
+  double mom[kMoments];
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
+  if (C.f == 1) {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.c9);
+  } else {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.cs);
+  }
+}
+
+void MechanismProblem::residualVjps(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
+                                    ConstVectorRef p, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                                    VectorRef gradient, ProblemWorkspace* ws) const {
+  const Impl& I = *impl_;
+  const Impl& C = *chord_;
+  Work& w = workOf(ws);
+  const View P(I.n, p.data());
+  const int nf = I.nFree;
+  // One set of positions, kinematics and modal products for both products.
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  const Matrix& mee = meeOf(P, w);
+  double mom[kMoments];
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
+  if (C.f == 1) {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.c9);
+  } else {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.cs);
+  }
+  parameterProduct(I, C, P, t, y, v, a, mu, mom, w, gradient);
 }
 
 // ---- The reference path in full coordinates (tests). ----

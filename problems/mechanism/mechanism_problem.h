@@ -30,7 +30,10 @@
 // rank-few corrections: dual numbers run only through the chord system, in sigma and sigma' (the
 // kinematics, 2k directions) and the moments (seven more), and the chain to q, q' uses the moments'
 // gradients (C1, 2 h, Ct a, M_ee q', h). The mass matrix is the same in sigma'' and the moments of a;
-// the product with b goes through c, c', c'' (three directions) and the explicit b rho_c.
+// the product with b goes through c, c', c'' (three directions) and the explicit b rho_c. An explicit
+// adjoint stage (RK4) needs only r_y^T mu and r_y'^T mu: the same dual pass, its derivatives combined with
+// mu before the chain to q, q', and the direct terms as four products of mu_q with the invariant matrices
+// (residualStateVjp(); no Jacobian, no M^{-1} r_y).
 //
 // Derivatives are exact. The dependent coordinates' derivatives come from the implicit-function
 // theorem, du = R_u dy with R of the double kinematics at the same point (in the reference path, whose
@@ -125,6 +128,16 @@ class MechanismProblem final : public SecondOrderProblem {
   void addResidualParameterVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
                                ConstVectorRef p, ConstVectorRef mu, VectorRef out,
                                ProblemWorkspace* ws) const override;
+  /// r_y^T mu and r_y'^T mu without forming the Jacobians (the transposed chord path): an explicit
+  /// adjoint stage (RK4) then needs neither the Jacobians nor M^{-1} times them.
+  bool hasResidualStateVjp() const override { return true; }
+  void residualStateVjp(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                        ConstVectorRef mu, VectorRef outY, VectorRef outV,
+                        ProblemWorkspace* ws) const override;
+  /// Both products with one set of kinematics and modal products.
+  void residualVjps(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                    ConstVectorRef mu, VectorRef outY, VectorRef outV, VectorRef gradient,
+                    ProblemWorkspace* ws) const override;
   double integrand(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p,
                    ProblemWorkspace* ws) const override;
   void addIntegrandStateGradient(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, double scale,

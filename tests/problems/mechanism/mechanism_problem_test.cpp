@@ -491,6 +491,25 @@ void checkAgainstReference(Case& c, const std::vector<double>& times) {
     c.problem.addResidualParameterVjpByAutoDiff(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, gReference,
                                                 reference.get());
     EXPECT_LT((g - gReference).norm(), 1e-13 * gReference.norm()) << "t = " << t;
+    // The state products without the Jacobians (the transposed chord path) against the reference's
+    // Jacobians transposed, entry by entry: a missing or wrong term of a row shows in its column.
+    ASSERT_TRUE(c.problem.hasResidualStateVjp());
+    Vector outY(f), outV(f);
+    c.problem.residualStateVjp(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, outY, outV, c.ws.get());
+    const Vector outYReference = ryReference.transpose() * c.s.mu;
+    const Vector outVReference = rvReference.transpose() * c.s.mu;
+    // Each entry's scale: the sum of the magnitudes of its terms.
+    const Vector yScale = ryReference.cwiseAbs().transpose() * c.s.mu.cwiseAbs();
+    const Vector vScale = rvReference.cwiseAbs().transpose() * c.s.mu.cwiseAbs();
+    for (int j = 0; j < f; ++j) {
+      EXPECT_LE(std::abs(outY(j) - outYReference(j)), 1e-12 * yScale(j)) << "t = " << t << " column " << j;
+      EXPECT_LE(std::abs(outV(j) - outVReference(j)), 1e-12 * vScale(j)) << "t = " << t << " column " << j;
+    }
+    // Both products at once (an explicit adjoint stage) equal the two taken one by one, bit for bit.
+    Vector bothY(f), bothV(f), bothG = Vector::Zero(c.p.size());
+    c.problem.residualVjps(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, bothY, bothV, bothG, c.ws.get());
+    EXPECT_TRUE(bothY == outY && bothV == outV) << "t = " << t;
+    EXPECT_TRUE(bothG == g) << "t = " << t;
   }
 }
 
