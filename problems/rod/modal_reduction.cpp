@@ -113,11 +113,12 @@ class TransformedPencil {
     ldlt.matrixL().solveInPlace(work_);
     y = scale_.cwiseProduct(work_);
   }
-  /// phi = P^T L^{-T} D^{-1/2} y, column by column.
+  /// phi = P^T L^{-T} D^{-1/2} y: one back-substitution sweep over the factor for all columns (bitwise
+  /// the column-by-column solve).
   Matrix modes(const Matrix& y) const {
-    Matrix t = scale_.asDiagonal() * y;
-    k_.solver().matrixU().solveInPlace(t);
-    return k_.solver().permutationPinv() * t;
+    StiffnessFactorization::RowBlock t = scale_.asDiagonal() * y, scratch;
+    k_.backSubstituteInPlace(t, scratch);
+    return t;
   }
 
  private:
@@ -187,27 +188,32 @@ std::size_t StiffnessFactorizationPool::size() const {
 
 namespace {
 
+// Which sweeps of the factor: the whole solve (L, D, L^T) or the back-substitution with L^T alone.
+enum class Sweeps { Solve, Back };
+
 // The two triangular sweeps and the diagonal of SimplicialLDLT::solve on a row-major block of `columns`
-// right-hand sides (x holds P b). Columns is a template parameter where it is small, so that the loop over
-// the columns is unrolled: with a run-time count of 2-10 the loop's set-up cost more than its arithmetic.
-// Rows never overlap (r != i), hence __restrict.
+// right-hand sides (x holds P b), or only the last sweep. Columns is a template parameter where it is
+// small, so that the loop over the columns is unrolled: with a run-time count of 2-10 the loop's set-up
+// cost more than its arithmetic. Rows never overlap (r != i), hence __restrict.
 template <int Columns>
-void ldltSweeps(const int* outer, const int* rows, const double* values, const Vector& d, Eigen::Index size,
-                Eigen::Index runtimeColumns, double* x) {
+void factorSweeps(Sweeps which, const int* outer, const int* rows, const double* values, const Vector& d,
+                  Eigen::Index size, Eigen::Index runtimeColumns, double* x) {
   const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
-  for (Eigen::Index i = 0; i < size; ++i) {
-    const double* __restrict xi = x + i * columns;
-    for (int p = outer[i]; p < outer[i + 1]; ++p) {
-      if (rows[p] <= i) continue;
-      double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
-      const double l = values[p];
-      for (Eigen::Index c = 0; c < columns; ++c) xr[c] -= xi[c] * l;
+  if (which == Sweeps::Solve) {
+    for (Eigen::Index i = 0; i < size; ++i) {
+      const double* __restrict xi = x + i * columns;
+      for (int p = outer[i]; p < outer[i + 1]; ++p) {
+        if (rows[p] <= i) continue;
+        double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
+        const double l = values[p];
+        for (Eigen::Index c = 0; c < columns; ++c) xr[c] -= xi[c] * l;
+      }
     }
-  }
-  for (Eigen::Index i = 0; i < size; ++i) {
-    const double inverse = 1.0 / d(i);
-    double* xi = x + i * columns;
-    for (Eigen::Index c = 0; c < columns; ++c) xi[c] = inverse * xi[c];
+    for (Eigen::Index i = 0; i < size; ++i) {
+      const double inverse = 1.0 / d(i);
+      double* xi = x + i * columns;
+      for (Eigen::Index c = 0; c < columns; ++c) xi[c] = inverse * xi[c];
+    }
   }
   for (Eigen::Index i = size - 1; i >= 0; --i) {
     double* __restrict xi = x + i * columns;
@@ -217,6 +223,44 @@ void ldltSweeps(const int* outer, const int* rows, const double* values, const V
       const double l = values[p];
       for (Eigen::Index c = 0; c < columns; ++c) xi[c] -= l * xr[c];
     }
+  }
+}
+
+void runSweeps(Sweeps which, const Eigen::SimplicialLDLT<SparseMatrix>& solver, Eigen::Index size,
+               Eigen::Index columns, double* x) {
+  const auto& factor = solver.matrixL().nestedExpression();
+  const int* outer = factor.outerIndexPtr();
+  const int* rows = factor.innerIndexPtr();
+  const double* values = factor.valuePtr();
+  const Vector& d = solver.vectorD();
+  switch (columns) {
+    case 1:
+      factorSweeps<1>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 2:
+      factorSweeps<2>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 3:
+      factorSweeps<3>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 4:
+      factorSweeps<4>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 5:
+      factorSweeps<5>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 6:
+      factorSweeps<6>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 7:
+      factorSweeps<7>(which, outer, rows, values, d, size, columns, x);
+      break;
+    case 8:
+      factorSweeps<8>(which, outer, rows, values, d, size, columns, x);
+      break;
+    default:
+      factorSweeps<0>(which, outer, rows, values, d, size, columns, x);
+      break;
   }
 }
 
@@ -232,42 +276,21 @@ void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) co
   // x = D^-1 x as (1 / d_i) x_i; L^T x = x (row-oriented dot products in storage order); P^-1 x. L is
   // stored without its unit diagonal, rows increasing within a column.
   scratch.noalias() = solver_.permutationP() * block;
-  const auto& factor = solver_.matrixL().nestedExpression();
-  const int* outer = factor.outerIndexPtr();
-  const int* rows = factor.innerIndexPtr();
-  const double* values = factor.valuePtr();
-  const Vector& d = solver_.vectorD();
-  double* x = scratch.data();
-  switch (columns) {
-    case 1:
-      ldltSweeps<1>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 2:
-      ldltSweeps<2>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 3:
-      ldltSweeps<3>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 4:
-      ldltSweeps<4>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 5:
-      ldltSweeps<5>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 6:
-      ldltSweeps<6>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 7:
-      ldltSweeps<7>(outer, rows, values, d, size_, columns, x);
-      break;
-    case 8:
-      ldltSweeps<8>(outer, rows, values, d, size_, columns, x);
-      break;
-    default:
-      ldltSweeps<0>(outer, rows, values, d, size_, columns, x);
-      break;
-  }
+  runSweeps(Sweeps::Solve, solver_, size_, columns, scratch.data());
   block.noalias() = solver_.permutationPinv() * scratch;
+}
+
+void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const {
+  if (block.rows() != size_)
+    throw std::invalid_argument("StiffnessFactorization::backSubstituteInPlace: the block has " +
+                                std::to_string(block.rows()) + " rows, expected " + std::to_string(size_));
+  const Eigen::Index columns = block.cols();
+  if (scratch.rows() != size_ || scratch.cols() != columns) scratch.resize(size_, columns);
+  // solver().matrixU().solveInPlace() column by column (row i of L^T: tmp -= l x_r in storage order),
+  // then P^-1.
+  runSweeps(Sweeps::Back, solver_, size_, columns, block.data());
+  scratch.noalias() = solver_.permutationPinv() * block;
+  block.swap(scratch);
 }
 
 namespace {
@@ -313,23 +336,39 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
                                 " rows, expected dofCount() = " + std::to_string(model.dofCount()));
   const ElementMatrix& unit = model.unitStiffness();
   const Eigen::Index columns = xFull.cols();
-  Matrix form = Matrix::Zero(columns, columns);
-  Matrix local(8, columns), product(8, columns);
-  Vector high(columns), low(columns);
   const bool dekker = inDekkerRange(unit) && inDekkerRange(xFull);
-  for (int e = 0; e < model.elementCount(); ++e) {
-    const std::array<int, 8> dofs = model.elementDofs(e);
-    for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
-    // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double.
-    for (int a = 0; a < 8; ++a) {
-      if (dekker)
-        compensatedElementRow<true>(unit, a, local, high, low);
-      else
-        compensatedElementRow<false>(unit, a, local, high, low);
-      for (Eigen::Index column = 0; column < columns; ++column)
-        product(a, column) = high(column) + low(column);
-    }
-    form.noalias() += model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
+  // Each element's term E(x_e) X_e^T (Ke0 X_e) is its own arithmetic: the terms of a chunk of elements
+  // are formed in fixed blocks in parallel (problems/rod/parallel.h), then added to the form in element
+  // order, so the sum has the bits of the serial loop for any thread count. T = s (A^T B) and then
+  // F += T round as F += s (A^T B) does (Eigen's product kernel scales the finished dot products by s
+  // and adds them; a test holds the two equal bit for bit).
+  constexpr int kChunk = 2048, kBlock = 256;
+  const int elements = model.elementCount();
+  Matrix form = Matrix::Zero(columns, columns);
+  Matrix terms(columns * columns, std::min(kChunk, std::max(elements, 1)));
+  for (int start = 0; start < elements; start += kChunk) {
+    const int count = std::min(kChunk, elements - start);
+    parallelFor((count + kBlock - 1) / kBlock, [&](int block) {
+      Matrix local(8, columns), product(8, columns);
+      Vector high(columns), low(columns);
+      for (int i = block * kBlock; i < std::min(count, (block + 1) * kBlock); ++i) {
+        const int e = start + i;
+        const std::array<int, 8> dofs = model.elementDofs(e);
+        for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
+        // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double.
+        for (int a = 0; a < 8; ++a) {
+          if (dekker)
+            compensatedElementRow<true>(unit, a, local, high, low);
+          else
+            compensatedElementRow<false>(unit, a, local, high, low);
+          for (Eigen::Index column = 0; column < columns; ++column)
+            product(a, column) = high(column) + low(column);
+        }
+        Eigen::Map<Matrix> term(terms.col(i).data(), columns, columns);
+        term.noalias() = model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
+      }
+    });
+    for (int i = 0; i < count; ++i) form += Eigen::Map<const Matrix>(terms.col(i).data(), columns, columns);
   }
   return 0.5 * (form + form.transpose());
 }

@@ -123,6 +123,9 @@ class StiffnessFactorization {
   /// all columns, where a column-by-column solve streams the whole factor (60 MB at 800 x 48) once per
   /// column and is bound by memory bandwidth. `scratch` is resized on first use only.
   void solveInPlace(RowBlock& block, RowBlock& scratch) const;
+  /// P^T L^{-T} B in place, the back-substitution alone (solver().matrixU().solveInPlace() and then
+  /// permutationPinv() column by column, bitwise), in one sweep over the factor for all columns.
+  void backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const;
 
  private:
   void checkPositiveDefinite() const;

@@ -181,70 +181,77 @@ TEST(ModalReduction, CompensatedKernelsAgreeWithExtendedPrecision) {
 // the kernels written with std::fma alone, on modes (the split) and on modes with entries of 1e-200 and
 // 1e200 (outside the range: the fma path), both bitwise.
 TEST(ModalReduction, CompensatedKernelsAreBitwiseTheirFmaForm) {
-  const RodConfig config = smallConfig();
-  const FeModel model(config, highContrastDesign(config, 11));
-  const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
-  auto twoSum = [](double a, double b, double& s, double& error) {
-    s = a + b;
-    const double bVirtual = s - a;
-    error = (a - (s - bVirtual)) + (b - bVirtual);
-  };
-  auto residualByFma = [&](const Matrix& b, const SparseMatrix& a, const Matrix& x) {
-    Matrix high = b, low = Matrix::Zero(b.rows(), b.cols());
-    for (Eigen::Index column = 0; column < x.cols(); ++column)
-      for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
-        const double xk = x(k, column);
-        if (xk == 0.0) continue;
-        for (SparseMatrix::InnerIterator it(a, k); it; ++it) {
-          const double product = -it.value() * xk;
-          const double error = std::fma(-it.value(), xk, -product);
-          double sum, sumError;
-          twoSum(high(it.index(), column), product, sum, sumError);
-          high(it.index(), column) = sum;
-          low(it.index(), column) += sumError + error;
-        }
-      }
-    return Matrix(high + low);
-  };
-  auto formByFma = [&](const Matrix& xFull) {
-    const ElementMatrix& unitStiffness = model.unitStiffness();
-    Matrix form = Matrix::Zero(xFull.cols(), xFull.cols());
-    Matrix local(8, xFull.cols()), product(8, xFull.cols());
-    for (int e = 0; e < model.elementCount(); ++e) {
-      const std::array<int, 8> dofs = model.elementDofs(e);
-      for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
-      for (Eigen::Index column = 0; column < xFull.cols(); ++column)
-        for (int a = 0; a < 8; ++a) {
-          double high = 0.0, low = 0.0;
-          for (int b = 0; b < 8; ++b) {
-            const double term = unitStiffness(a, b) * local(b, column);
-            const double error = std::fma(unitStiffness(a, b), local(b, column), -term);
+  // The second mesh has more elements than one chunk of elementwiseStiffnessForm's parallel terms (2048)
+  // and several blocks per chunk: the serial sum below holds its element order.
+  RodConfig chunked = smallConfig();
+  chunked.elementsAlongLength = 150;
+  chunked.elementsThroughHeight = 18;
+  for (const RodConfig& config : {smallConfig(), chunked}) {
+    const FeModel model(config, highContrastDesign(config, 11));
+    const ModalBasis basis = computeModalBasis(model, ModalReductionOptions::fromConfig(config));
+    auto twoSum = [](double a, double b, double& s, double& error) {
+      s = a + b;
+      const double bVirtual = s - a;
+      error = (a - (s - bVirtual)) + (b - bVirtual);
+    };
+    auto residualByFma = [&](const Matrix& b, const SparseMatrix& a, const Matrix& x) {
+      Matrix high = b, low = Matrix::Zero(b.rows(), b.cols());
+      for (Eigen::Index column = 0; column < x.cols(); ++column)
+        for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
+          const double xk = x(k, column);
+          if (xk == 0.0) continue;
+          for (SparseMatrix::InnerIterator it(a, k); it; ++it) {
+            const double product = -it.value() * xk;
+            const double error = std::fma(-it.value(), xk, -product);
             double sum, sumError;
-            twoSum(high, term, sum, sumError);
-            high = sum;
-            low += sumError + error;
+            twoSum(high(it.index(), column), product, sum, sumError);
+            high(it.index(), column) = sum;
+            low(it.index(), column) += sumError + error;
           }
-          product(a, column) = high + low;
         }
-      form.noalias() += model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
+      return Matrix(high + low);
+    };
+    auto formByFma = [&](const Matrix& xFull) {
+      const ElementMatrix& unitStiffness = model.unitStiffness();
+      Matrix form = Matrix::Zero(xFull.cols(), xFull.cols());
+      Matrix local(8, xFull.cols()), product(8, xFull.cols());
+      for (int e = 0; e < model.elementCount(); ++e) {
+        const std::array<int, 8> dofs = model.elementDofs(e);
+        for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
+        for (Eigen::Index column = 0; column < xFull.cols(); ++column)
+          for (int a = 0; a < 8; ++a) {
+            double high = 0.0, low = 0.0;
+            for (int b = 0; b < 8; ++b) {
+              const double term = unitStiffness(a, b) * local(b, column);
+              const double error = std::fma(unitStiffness(a, b), local(b, column), -term);
+              double sum, sumError;
+              twoSum(high, term, sum, sumError);
+              high = sum;
+              low += sumError + error;
+            }
+            product(a, column) = high + low;
+          }
+        form.noalias() += model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
+      }
+      return Matrix(0.5 * (form + form.transpose()));
+    };
+    auto bitwise = [](const Matrix& a, const Matrix& b) {
+      return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
+    };
+    Matrix x = basis.modesFree;
+    Matrix xFull = basis.modesFull;
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass == 1) {  // outside the split's range: the fma path
+        x(3, 0) = 1e-200;
+        x(5, 1) = -1e200;
+        xFull(7, 0) = 1e-200;
+      }
+      const Matrix b = model.stiffness() * x;
+      EXPECT_TRUE(
+          bitwise(compensatedResidual(b, model.stiffness(), x), residualByFma(b, model.stiffness(), x)))
+          << "pass " << pass;
+      EXPECT_TRUE(bitwise(elementwiseStiffnessForm(model, xFull), formByFma(xFull))) << "pass " << pass;
     }
-    return Matrix(0.5 * (form + form.transpose()));
-  };
-  auto bitwise = [](const Matrix& a, const Matrix& b) {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
-  };
-  Matrix x = basis.modesFree;
-  Matrix xFull = basis.modesFull;
-  for (int pass = 0; pass < 2; ++pass) {
-    if (pass == 1) {  // outside the split's range: the fma path
-      x(3, 0) = 1e-200;
-      x(5, 1) = -1e200;
-      xFull(7, 0) = 1e-200;
-    }
-    const Matrix b = model.stiffness() * x;
-    EXPECT_TRUE(bitwise(compensatedResidual(b, model.stiffness(), x), residualByFma(b, model.stiffness(), x)))
-        << "pass " << pass;
-    EXPECT_TRUE(bitwise(elementwiseStiffnessForm(model, xFull), formByFma(xFull))) << "pass " << pass;
   }
 }
 
@@ -290,9 +297,21 @@ TEST(ModalReduction, BlockSolveIsBitwiseTheColumnSolve) {
     }
     // And it solves: K X = B to round-off.
     EXPECT_LT((model.stiffness() * Matrix(block) - rhs).norm(), 1e-8 * rhs.norm());
+    // The back-substitution alone (the eigen-solve's modes): Eigen's unit upper solve with L^T, then P^-1.
+    StiffnessFactorization::RowBlock back = rhs;
+    factorization.backSubstituteInPlace(back, scratch);
+    for (int c = 0; c < columns; ++c) {
+      Vector column = rhs.col(c);
+      factorization.solver().matrixU().solveInPlace(column);
+      const Vector expected = factorization.solver().permutationPinv() * column;
+      const Vector got = back.col(c);
+      EXPECT_TRUE(expected == got) << "back-substitution, column " << c << " of " << columns
+                                   << ": max difference " << (expected - got).cwiseAbs().maxCoeff();
+    }
   }
   StiffnessFactorization::RowBlock wrong(model.freeDofCount() + 1, 2), scratch;
   EXPECT_THROW(factorization.solveInPlace(wrong, scratch), std::invalid_argument);
+  EXPECT_THROW(factorization.backSubstituteInPlace(wrong, scratch), std::invalid_argument);
 }
 
 TEST(ModalReduction, RefactorizationIsBitwiseANewFactorization) {
