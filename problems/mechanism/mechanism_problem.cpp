@@ -2615,6 +2615,31 @@ void chordStateVjp(const MechanismProblem::Impl& I, const MechanismProblem::Impl
   }
 }
 
+/// The point (t, y, y', a) of the chord path's products: positions and kinematics (kept when they are
+/// the last call's), the modal products (with the Jacobians' when `jacobian`) and the moments into mom;
+/// returns the symmetric part of M_ee.
+const Matrix& productPoint(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P,
+                           double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, bool jacobian,
+                           Work& w, double* mom) {
+  const int nf = I.nFree;
+  chordInputs(I, P, y, v, a.data(), w);
+  chordKinematics(C, t, w);
+  const Matrix& mee = meeOf(P, w);
+  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, jacobian, w, mom);
+  return mee;
+}
+
+/// chordStateVjp() with the dual numbers of the chord system's size.
+void stateVjp(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P, double t,
+              const double* mom, const Matrix& mee, ConstVectorRef mu, VectorRef outY, VectorRef outV,
+              Work& w) {
+  if (C.f == 1) {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.c9);
+  } else {
+    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.cs);
+  }
+}
+
 }  // namespace
 
 void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
@@ -2624,12 +2649,8 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  const int nf = I.nFree;
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
-  const Matrix& mee = meeOf(P, w);
   double mom[kMoments];
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
+  const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
   if (C.f == 1) {
     chordJacobians(I, C, P, t, mom, mee, ry, rv, w, w.c9);
   } else {
@@ -2706,11 +2727,8 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  const int nf = I.nFree;
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
   double mom[kMoments];
-  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
+  productPoint(I, C, P, t, y, v, a, false, w, mom);
   parameterProduct(I, C, P, t, y, v, a, mu, mom, w, out);
 }
 
@@ -2721,17 +2739,9 @@ void MechanismProblem::residualStateVjp(double t, ConstVectorRef y, ConstVectorR
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  const int nf = I.nFree;
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
-  const Matrix& mee = meeOf(P, w);
   double mom[kMoments];
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
-  if (C.f == 1) {
-    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.c9);
-  } else {
-    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.cs);
-  }
+  const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
+  stateVjp(I, C, P, t, mom, mee, mu, outY, outV, w);
 }
 
 void MechanismProblem::residualVjps(double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a,
@@ -2741,18 +2751,10 @@ void MechanismProblem::residualVjps(double t, ConstVectorRef y, ConstVectorRef v
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   const View P(I.n, p.data());
-  const int nf = I.nFree;
   // One set of positions, kinematics and modal products for both products.
-  chordInputs(I, P, y, v, a.data(), w);
-  chordKinematics(C, t, w);
-  const Matrix& mee = meeOf(P, w);
   double mom[kMoments];
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, true, w, mom);
-  if (C.f == 1) {
-    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.c9);
-  } else {
-    chordStateVjp(I, C, P, t, mom, mee, mu, outY, outV, w, w.cs);
-  }
+  const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
+  stateVjp(I, C, P, t, mom, mee, mu, outY, outV, w);
   parameterProduct(I, C, P, t, y, v, a, mu, mom, w, gradient);
 }
 
