@@ -14,7 +14,8 @@
 //     difference of dpsi1/dp, and the CPU of the default configuration's whole evaluation (PistonRod:
 //     model, dpsi1/dx, psi2 and its gradient).
 // Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1,
-//        the mechanism table only: 2]
+//        the mechanism table only: 2, one rk4 forward sweep and one rk4 gradient for callgrind: 3 (the
+//        default path) or 4 (the closed form)]
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/mechanism/mechanism_problem.h>
@@ -223,11 +224,40 @@ void mechanismTable() {
 
 }  // namespace
 
+/// One forward sweep (simulate) and one gradient (computeGradient) with rk4 h = 1e-4 and full:stages=1 on
+/// the default path (closedForm: the closed-form slider-crank), nothing else timed: run under callgrind,
+/// the two functions' inclusive instruction counts give (forward + backward) / forward without this
+/// machine's ±30 % in CPU time (bench/RESULTS.md has the command).
+void rk4SweepsForCallgrind(bool closedForm) {
+  Config config;
+  const PistonRod piston(config);
+  const rod::RodConfig& rc = config.rod;
+  const rod::FeModel model(rc, piston.initialDesign());
+  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  const Vector p = rod::computeInvariants(model, basis).pack();
+  const auto described = problemOf(rc, basis.columnCount());
+  const rod::SliderCrankProblem closed = closedFormOf(rc, basis.columnCount());
+  const SecondOrderProblem& problem =
+      closedForm ? static_cast<const SecondOrderProblem&>(closed) : *described;
+  IntegratorOptions options = piston.integratorOptions();
+  options.method = "rk4";
+  options.step = 1e-4;
+  const ForwardResult forward = simulate(problem, p, options);
+  const auto storage = createStorage("full:stages=1");
+  const GradientResult gradient = computeGradient(problem, p, options, *storage);
+  std::printf("%s: psi1 %.17g (forward) %.17g (gradient)\n", closedForm ? "closed form" : "default path",
+              forward.objective, gradient.objective);
+}
+
 int main(int argc, char** argv) {
   const int largest = argc > 1 ? std::atoi(argv[1]) : 3;
   const int only = argc > 2 ? std::atoi(argv[2]) : 0;
   if (only == 2) {
     mechanismTable();
+    return 0;
+  }
+  if (only == 3 || only == 4) {
+    rk4SweepsForCallgrind(only == 4);
     return 0;
   }
   if (only != 1) phaseTable(largest);
