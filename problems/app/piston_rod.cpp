@@ -19,7 +19,11 @@
 namespace hindsight {
 
 PistonRod::PistonRod(const Config& config)
-    : config_(config), stiffness_(std::make_shared<rod::StiffnessFactorizationPool>()) {
+    : PistonRod(config, std::make_shared<rod::StiffnessFactorizationPool>()) {}
+
+PistonRod::PistonRod(const Config& config, std::shared_ptr<rod::StiffnessFactorizationPool> factorizations)
+    : config_(config), stiffness_(std::move(factorizations)) {
+  if (!stiffness_) throw std::invalid_argument("PistonRod: the factorisation pool is null");
   config_.validate();
 }
 

@@ -40,6 +40,9 @@ class PistonRod {
  public:
   /// Validates the configuration (std::invalid_argument naming the field).
   explicit PistonRod(const Config& config);
+  /// The same, keeping K's factorisation between designs in `factorizations`, which other rods of the same
+  /// mesh may share (the scenarios of one run: at most one kept factorisation per concurrent evaluation).
+  PistonRod(const Config& config, std::shared_ptr<rod::StiffnessFactorizationPool> factorizations);
 
   const Config& config() const { return config_; }
   int designCount() const { return config_.rod.designCount(); }

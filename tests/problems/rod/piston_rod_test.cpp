@@ -91,6 +91,25 @@ TEST(PistonRod, AKeptFactorizationGivesTheBitsOfAFreshEvaluation) {
   EXPECT_TRUE(kept.modes == fresh.modes);
 }
 
+TEST(PistonRod, RodsOfOneMeshShareTheKeptFactorization) {
+  // Two rods (two scenarios of a run) with one pool: one factorisation kept between evaluations, and
+  // each rod's results are those of a rod of its own.
+  const auto pool = std::make_shared<rod::StiffnessFactorizationPool>();
+  Config fast = coarseConfig();
+  fast.rod.crankSpeed *= 1.5;
+  const PistonRod a{coarseConfig(), pool}, b{fast, pool};
+  const Vector x = a.initialDesign();
+  const PistonRodEvaluation first = a.evaluate(x);
+  EXPECT_EQ(pool->size(), 1u);
+  const PistonRodEvaluation second = b.evaluate(x);
+  EXPECT_EQ(pool->size(), 1u);
+  EXPECT_EQ(first.psi1, PistonRod{coarseConfig()}.evaluate(x).psi1);
+  const PistonRodEvaluation alone = PistonRod{fast}.evaluate(x);
+  EXPECT_EQ(second.psi1, alone.psi1);
+  EXPECT_TRUE(second.dpsi1 == alone.dpsi1);
+  EXPECT_THROW(PistonRod(coarseConfig(), nullptr), std::invalid_argument);
+}
+
 TEST(PistonRod, BothEigenvectorRoutesGiveTheSameGradient) {
   Config config = coarseConfig();
   const PistonRod adjointNelson{config};
