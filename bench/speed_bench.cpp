@@ -127,14 +127,25 @@ void phaseTable(int largest) {
   }
 }
 
+/// The invariants p of the default configuration's initial design and the number of modal columns.
+struct DefaultInvariants {
+  Vector p;
+  int columns = 0;
+};
+
+DefaultInvariants defaultInvariants(const PistonRod& piston) {
+  const rod::RodConfig& rc = piston.config().rod;
+  const rod::FeModel model(rc, piston.initialDesign());
+  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
+  return {rod::computeInvariants(model, basis).pack(), basis.columnCount()};
+}
+
 void integratorTable() {
   Config config;
   const PistonRod piston(config);
   const rod::RodConfig& rc = config.rod;
-  const rod::FeModel model(rc, piston.initialDesign());
-  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
-  const Vector p = rod::computeInvariants(model, basis).pack();
-  const auto problemPointer = problemOf(rc, basis.columnCount());
+  const auto [p, columns] = defaultInvariants(piston);
+  const auto problemPointer = problemOf(rc, columns);
   const SecondOrderProblem& problem = *problemPointer;
   struct Case {
     const char* method;
@@ -180,11 +191,9 @@ void mechanismTable() {
   const rod::RodConfig& rc = config.rod;
   const PistonRod piston(config);
   const Vector x = piston.initialDesign();
-  const rod::FeModel model(rc, x);
-  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
-  const Vector p = rod::computeInvariants(model, basis).pack();
-  const rod::SliderCrankProblem closedForm = closedFormOf(rc, basis.columnCount());
-  const auto general = problemOf(rc, basis.columnCount());
+  const auto [p, columns] = defaultInvariants(piston);
+  const rod::SliderCrankProblem closedForm = closedFormOf(rc, columns);
+  const auto general = problemOf(rc, columns);
   const IntegratorOptions options = piston.integratorOptions();
   std::printf(
       "\n| slider-crank | simulation + adjoint CPU s | psi1 |\n"
@@ -232,11 +241,9 @@ void rk4SweepsForCallgrind(bool closedForm) {
   Config config;
   const PistonRod piston(config);
   const rod::RodConfig& rc = config.rod;
-  const rod::FeModel model(rc, piston.initialDesign());
-  const rod::ModalBasis basis = rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc));
-  const Vector p = rod::computeInvariants(model, basis).pack();
-  const auto described = problemOf(rc, basis.columnCount());
-  const rod::SliderCrankProblem closed = closedFormOf(rc, basis.columnCount());
+  const auto [p, columns] = defaultInvariants(piston);
+  const auto described = problemOf(rc, columns);
+  const rod::SliderCrankProblem closed = closedFormOf(rc, columns);
   const SecondOrderProblem& problem =
       closedForm ? static_cast<const SecondOrderProblem&>(closed) : *described;
   IntegratorOptions options = piston.integratorOptions();
