@@ -13,9 +13,11 @@
 //     configuration: CPU of the discrete adjoint (forward + backward), median of 3, the largest
 //     difference of dpsi1/dp, and the CPU of the default configuration's whole evaluation (PistonRod:
 //     model, dpsi1/dx, psi2 and its gradient).
+//  4. (mode 5 only) the one-vector sweeps of K's factor per mesh: Eigen's serial back-substitution
+//     against rod::SubtreeParallelLdlt's on the subtrees, wall seconds.
 // Usage: speed_bench [largest mesh index 0..4 (100x6 ... 1600x96), default 3] [integrators only: 1,
 //        the mechanism table only: 2, one rk4 forward sweep and one rk4 gradient for callgrind: 3 (the
-//        default path) or 4 (the closed form)]
+//        default path) or 4 (the closed form), the one-vector sweeps of K's factor per mesh: 5]
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/mechanism/mechanism_problem.h>
@@ -30,6 +32,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <memory>
 #include <string>
@@ -256,9 +259,62 @@ void rk4SweepsForCallgrind(bool closedForm) {
               forward.objective, gradient.objective);
 }
 
+double wallSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+/// The one-vector sweeps of K's factor that the eigen-solve's Lanczos iteration runs (one of each per
+/// step), on the initial design of each mesh up to `largest`: Eigen's serial sweeps against the
+/// back-substitution on the subtrees (rod::SubtreeParallelLdlt, the same bits), wall seconds, best of
+/// 5 (the second core is what it gains, so CPU time would not show it).
+void sweepTable(int largest) {
+  const int meshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
+  std::printf(
+      "| mesh | order | share on the subtrees | L^-1 (serial) | L^-T, Eigen | L^-T, subtrees | same bits |\n"
+      "|---|---:|---:|---:|---:|---:|---|\n");
+  for (int m = 0; m <= largest && m < 5; ++m) {
+    Config config;
+    config.rod.elementsAlongLength = meshes[m][0];
+    config.rod.elementsThroughHeight = meshes[m][1];
+    const PistonRod piston(config);
+    const rod::FeModel model(config.rod, piston.initialDesign());
+    const rod::StiffnessFactorization k(model.stiffness());
+    const rod::SubtreeParallelLdlt& ldlt = k.solver();
+    const Vector b = Vector::LinSpaced(k.size(), 1.0, 2.0);
+    double forward = 1e30, eigen = 1e30, subtrees = 1e30;
+    Vector x, y, z;
+    for (int run = 0; run < 5; ++run) {
+      x = b;
+      double start = wallSeconds();
+      ldlt.forwardSweep(x.data(), 1);
+      forward = std::min(forward, wallSeconds() - start);
+      y = b;
+      start = wallSeconds();
+      ldlt.matrixU().solveInPlace(y);
+      eigen = std::min(eigen, wallSeconds() - start);
+      z = b;
+      start = wallSeconds();
+      ldlt.backwardSweep(z.data(), 1, true);
+      subtrees = std::min(subtrees, wallSeconds() - start);
+    }
+    std::printf("| %dx%d | %ld | %.2f | %.4f | %.4f | %.4f | %s |\n", meshes[m][0], meshes[m][1],
+                static_cast<long>(k.size()), ldlt.parallelShare(), forward, eigen, subtrees,
+                std::memcmp(y.data(), z.data(), sizeof(double) * static_cast<std::size_t>(y.size())) == 0
+                    ? "yes"
+                    : "NO");
+    std::fflush(stdout);
+  }
+}
+
 int main(int argc, char** argv) {
   const int largest = argc > 1 ? std::atoi(argv[1]) : 3;
   const int only = argc > 2 ? std::atoi(argv[2]) : 0;
+  if (only == 5) {
+    sweepTable(largest);
+    return 0;
+  }
   if (only == 2) {
     mechanismTable();
     return 0;

@@ -106,8 +106,10 @@ class TransformedPencil {
   void perform_op(const Scalar* in, Scalar* out) const {
     const auto& ldlt = k_.solver();
     Eigen::Map<Vector> y(out, k_.size());
+    // The back-substitution is Eigen's matrixU().solveInPlace() on the subtrees in parallel (the same
+    // bits); the forward sweep is Eigen's own.
     work_ = scale_.cwiseProduct(Eigen::Map<const Vector>(in, k_.size()));
-    ldlt.matrixU().solveInPlace(work_);
+    ldlt.backwardSweep(work_.data(), 1, true);
     y.noalias() = mass_ * (ldlt.permutationPinv() * work_);
     work_ = ldlt.permutationP() * y;
     ldlt.matrixL().solveInPlace(work_);
@@ -186,86 +188,6 @@ std::size_t StiffnessFactorizationPool::size() const {
   return kept_.size();
 }
 
-namespace {
-
-// Which sweeps of the factor: the whole solve (L, D, L^T) or the back-substitution with L^T alone.
-enum class Sweeps { Solve, Back };
-
-// The two triangular sweeps and the diagonal of SimplicialLDLT::solve on a row-major block of `columns`
-// right-hand sides (x holds P b), or only the last sweep. Columns is a template parameter where it is
-// small, so that the loop over the columns is unrolled: with a run-time count of 2-10 the loop's set-up
-// cost more than its arithmetic. Rows never overlap (r != i), hence __restrict.
-template <int Columns>
-void factorSweeps(Sweeps which, const int* outer, const int* rows, const double* values, const Vector& d,
-                  Eigen::Index size, Eigen::Index runtimeColumns, double* x) {
-  const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
-  if (which == Sweeps::Solve) {
-    for (Eigen::Index i = 0; i < size; ++i) {
-      const double* __restrict xi = x + i * columns;
-      for (int p = outer[i]; p < outer[i + 1]; ++p) {
-        if (rows[p] <= i) continue;
-        double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
-        const double l = values[p];
-        for (Eigen::Index c = 0; c < columns; ++c) xr[c] -= xi[c] * l;
-      }
-    }
-    for (Eigen::Index i = 0; i < size; ++i) {
-      const double inverse = 1.0 / d(i);
-      double* xi = x + i * columns;
-      for (Eigen::Index c = 0; c < columns; ++c) xi[c] = inverse * xi[c];
-    }
-  }
-  for (Eigen::Index i = size - 1; i >= 0; --i) {
-    double* __restrict xi = x + i * columns;
-    for (int p = outer[i]; p < outer[i + 1]; ++p) {
-      if (rows[p] <= i) continue;
-      const double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
-      const double l = values[p];
-      for (Eigen::Index c = 0; c < columns; ++c) xi[c] -= l * xr[c];
-    }
-  }
-}
-
-void runSweeps(Sweeps which, const Eigen::SimplicialLDLT<SparseMatrix>& solver, Eigen::Index size,
-               Eigen::Index columns, double* x) {
-  const auto& factor = solver.matrixL().nestedExpression();
-  const int* outer = factor.outerIndexPtr();
-  const int* rows = factor.innerIndexPtr();
-  const double* values = factor.valuePtr();
-  const Vector& d = solver.vectorD();
-  switch (columns) {
-    case 1:
-      factorSweeps<1>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 2:
-      factorSweeps<2>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 3:
-      factorSweeps<3>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 4:
-      factorSweeps<4>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 5:
-      factorSweeps<5>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 6:
-      factorSweeps<6>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 7:
-      factorSweeps<7>(which, outer, rows, values, d, size, columns, x);
-      break;
-    case 8:
-      factorSweeps<8>(which, outer, rows, values, d, size, columns, x);
-      break;
-    default:
-      factorSweeps<0>(which, outer, rows, values, d, size, columns, x);
-      break;
-  }
-}
-
-}  // namespace
-
 void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) const {
   if (block.rows() != size_)
     throw std::invalid_argument("StiffnessFactorization::solveInPlace: the block has " +
@@ -276,7 +198,10 @@ void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) co
   // x = D^-1 x as (1 / d_i) x_i; L^T x = x (row-oriented dot products in storage order); P^-1 x. L is
   // stored without its unit diagonal, rows increasing within a column.
   scratch.noalias() = solver_.permutationP() * block;
-  runSweeps(Sweeps::Solve, solver_, size_, columns, scratch.data());
+  solver_.forwardSweep(scratch.data(), columns);
+  const Vector& d = solver_.vectorD();
+  for (Eigen::Index i = 0; i < size_; ++i) scratch.row(i) *= 1.0 / d(i);
+  solver_.backwardSweep(scratch.data(), columns, false);
   block.noalias() = solver_.permutationPinv() * scratch;
 }
 
@@ -288,7 +213,7 @@ void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& sc
   if (scratch.rows() != size_ || scratch.cols() != columns) scratch.resize(size_, columns);
   // solver().matrixU().solveInPlace() column by column (row i of L^T: tmp -= l x_r in storage order),
   // then P^-1.
-  runSweeps(Sweeps::Back, solver_, size_, columns, block.data());
+  solver_.backwardSweep(block.data(), columns, true);
   scratch.noalias() = solver_.permutationPinv() * block;
   block.swap(scratch);
 }

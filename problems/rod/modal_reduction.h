@@ -20,6 +20,7 @@
 
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/subtree_ldlt.h>
 
 #include <Eigen/SparseCholesky>
 #include <memory>
@@ -97,7 +98,9 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull);
 /// One sparse LDL^T factorisation of the constrained stiffness K of a design (AMD ordering), shared by
 /// everything that solves with K: the eigen-solve (Lanczos on its transformed pencil), the refinement, the
 /// inertia-relief modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run
-/// time by the system (Debian alternatives), which would make the bits depend on the machine.
+/// time by the system (Debian alternatives), which would make the bits depend on the machine. Its
+/// back-substitutions run on the subtrees of the elimination tree in parallel with Eigen's bits
+/// (SubtreeParallelLdlt, subtree_ldlt.h).
 class StiffnessFactorization {
  public:
   /// Throws std::runtime_error when K is not positive definite (a zero or negative pivot).
@@ -112,7 +115,7 @@ class StiffnessFactorization {
   /// bitwise the one a new object computes, without the analysis (0.6 s of 4.3 s at 1600 x 96).
   /// Throws std::invalid_argument for another pattern and std::runtime_error as the constructor.
   void refactorize(const SparseMatrix& stiffness);
-  const Eigen::SimplicialLDLT<SparseMatrix>& solver() const { return solver_; }
+  const SubtreeParallelLdlt& solver() const { return solver_; }
   Eigen::Index size() const { return size_; }
   /// K^-1 B.
   Matrix solve(ConstMatrixRef b) const { return solver_.solve(b); }
@@ -130,7 +133,7 @@ class StiffnessFactorization {
  private:
   void checkPositiveDefinite() const;
 
-  Eigen::SimplicialLDLT<SparseMatrix> solver_;
+  SubtreeParallelLdlt solver_;
   Eigen::Index size_ = 0;
   // The pattern the symbolic analysis is for (outer starts and row indices of K).
   std::vector<int> outer_, inner_;

@@ -1,5 +1,6 @@
 #include <hindsight/problems/rod/parallel.h>
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -9,6 +10,7 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #endif
 
 namespace hindsight {
@@ -32,6 +34,16 @@ void parallelFor(int count, const std::function<void(int)>& body) {
 int availableThreads() {
 #ifdef HINDSIGHT_HAVE_TBB
   return tbb::info::default_concurrency();
+#else
+  return 1;
+#endif
+}
+
+int parallelConcurrency() {
+#ifdef HINDSIGHT_HAVE_TBB
+  const auto limit = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  return static_cast<int>(
+      std::min<std::size_t>(limit, static_cast<std::size_t>(tbb::this_task_arena::max_concurrency())));
 #else
   return 1;
 #endif

@@ -19,6 +19,9 @@ void parallelFor(int count, const std::function<void(int)>& body);
 /// The threads a process may use by default: the cores available to it (its affinity mask).
 int availableThreads();
 
+/// The threads parallelFor may use now: availableThreads() or less under a ThreadLimit (1 without TBB).
+int parallelConcurrency();
+
 /// True when built with TBB (otherwise everything runs on one thread).
 bool threadsSupported();
 

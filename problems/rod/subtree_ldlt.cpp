@@ -1,0 +1,165 @@
+#include <hindsight/problems/rod/parallel.h>
+#include <hindsight/problems/rod/subtree_ldlt.h>
+
+#include <algorithm>
+#include <queue>
+#include <type_traits>
+#include <utility>
+
+namespace hindsight {
+namespace rod {
+
+SubtreeParallelLdlt::SubtreeParallelLdlt(const SparseMatrix& a, SubtreeSchedule options) : options_(options) {
+  compute(a);
+}
+
+void SubtreeParallelLdlt::analyzePattern(const SparseMatrix& a) {
+  Eigen::SimplicialLDLT<SparseMatrix>::analyzePattern(a);
+  groups_.clear();
+  top_.clear();
+  parallelShare_ = 0.0;
+  const int n = static_cast<int>(m_parent.size());
+  const int threads = options_.groups > 0 ? options_.groups : parallelConcurrency();
+  if (threads < 2 || n < options_.smallest) {
+    top_.resize(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) top_[static_cast<std::size_t>(k)] = k;
+    return;
+  }
+  // Work per row: the entries of its column of L (the analysis's counts) and one.
+  const int* lp = m_matrix.outerIndexPtr();
+  std::vector<double> subtree(static_cast<std::size_t>(n), 0.0);
+  for (int i = 0; i < n; ++i) {
+    subtree[i] += lp[i + 1] - lp[i] + 1.0;
+    if (m_parent[i] >= 0) subtree[m_parent[i]] += subtree[i];
+  }
+  std::vector<int> childStart(static_cast<std::size_t>(n) + 1, 0), children(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i)
+    if (m_parent[i] >= 0) ++childStart[m_parent[i] + 1];
+  for (int i = 0; i < n; ++i) childStart[i + 1] += childStart[i];
+  {
+    std::vector<int> fill(childStart.begin(), childStart.end() - 1);
+    for (int i = 0; i < n; ++i)
+      if (m_parent[i] >= 0) children[fill[m_parent[i]]++] = i;
+  }
+  // Split the heaviest subtree (its root joins the top) until every subtree holds at most 1/(8 T) of
+  // the work, so that T groups can be balanced. Ties go by index: the schedule is a function of the
+  // pattern and T alone.
+  using Entry = std::pair<double, int>;
+  std::priority_queue<Entry> heap;
+  double total = 0.0;
+  for (int i = 0; i < n; ++i)
+    if (m_parent[i] < 0) {
+      heap.push({subtree[i], i});
+      total += subtree[i];
+    }
+  const double largest = total / (8.0 * threads);
+  std::vector<char> isTop(static_cast<std::size_t>(n), 0);
+  while (!heap.empty() && heap.top().first > largest) {
+    const int r = heap.top().second;
+    heap.pop();
+    isTop[r] = 1;
+    for (int c = childStart[r]; c < childStart[r + 1]; ++c) heap.push({subtree[children[c]], children[c]});
+  }
+  // Longest processing time first onto T groups.
+  std::vector<double> load(static_cast<std::size_t>(threads), 0.0);
+  std::vector<int> owner(static_cast<std::size_t>(n), -1);
+  double parallel = 0.0;
+  for (; !heap.empty(); heap.pop()) {
+    const auto [work, r] = heap.top();
+    const auto g = std::min_element(load.begin(), load.end()) - load.begin();
+    load[g] += work;
+    owner[r] = static_cast<int>(g);
+    parallel += work;
+  }
+  // The other nodes of a subtree follow its root (parents have larger indices).
+  for (int i = n - 1; i >= 0; --i)
+    if (!isTop[i] && owner[i] < 0) owner[i] = owner[m_parent[i]];
+  groups_.assign(static_cast<std::size_t>(threads), {});
+  for (int i = 0; i < n; ++i) {
+    if (isTop[i])
+      top_.push_back(i);
+    else
+      groups_[owner[i]].push_back(i);
+  }
+  groups_.erase(std::remove_if(groups_.begin(), groups_.end(), [](const auto& g) { return g.empty(); }),
+                groups_.end());
+  parallelShare_ = total > 0.0 ? parallel / total : 0.0;
+}
+
+template <int Columns>
+void SubtreeParallelLdlt::forward(double* x, Eigen::Index runtimeColumns) const {
+  const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
+  const int* outer = m_matrix.outerIndexPtr();
+  const int* rows = m_matrix.innerIndexPtr();
+  const double* values = m_matrix.valuePtr();
+  // Eigen's column-oriented unit lower solve: x_r -= x_j L(r, j) for the entries of column j (L is
+  // stored without its unit diagonal; rows never equal j, hence __restrict).
+  const Eigen::Index n = m_matrix.outerSize();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const double* __restrict xj = x + j * columns;
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
+      const double l = values[p];
+      for (Eigen::Index c = 0; c < columns; ++c) xr[c] -= xj[c] * l;
+    }
+  }
+}
+
+template <int Columns>
+void SubtreeParallelLdlt::backward(double* x, Eigen::Index runtimeColumns, bool parallel) const {
+  const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
+  const int* outer = m_matrix.outerIndexPtr();
+  const int* rows = m_matrix.innerIndexPtr();
+  const double* values = m_matrix.valuePtr();
+  // Eigen's row-oriented unit upper solve with U = L^T: x_i -= L(r, i) x_r in storage order.
+  const auto row = [&](int i) {
+    double* __restrict xi = x + static_cast<Eigen::Index>(i) * columns;
+    for (int p = outer[i]; p < outer[i + 1]; ++p) {
+      const double* __restrict xr = x + static_cast<Eigen::Index>(rows[p]) * columns;
+      const double l = values[p];
+      for (Eigen::Index c = 0; c < columns; ++c) xi[c] -= l * xr[c];
+    }
+  };
+  if (!parallel || groups_.empty()) {
+    for (int i = static_cast<int>(m_matrix.outerSize()) - 1; i >= 0; --i) row(i);
+    return;
+  }
+  for (auto i = top_.rbegin(); i != top_.rend(); ++i) row(*i);
+  parallelFor(static_cast<int>(groups_.size()), [&](int g) {
+    for (auto i = groups_[g].rbegin(); i != groups_[g].rend(); ++i) row(*i);
+  });
+}
+
+namespace {
+
+// Columns as a template parameter where it is small, so that the loop over the columns is unrolled:
+// with a run-time count of 2-10 the loop's set-up costs more than its arithmetic.
+template <class Call>
+void byColumns(Eigen::Index columns, Call&& call) {
+  switch (columns) {
+    case 1: return call(std::integral_constant<int, 1>());
+    case 2: return call(std::integral_constant<int, 2>());
+    case 3: return call(std::integral_constant<int, 3>());
+    case 4: return call(std::integral_constant<int, 4>());
+    case 5: return call(std::integral_constant<int, 5>());
+    case 6: return call(std::integral_constant<int, 6>());
+    case 7: return call(std::integral_constant<int, 7>());
+    case 8: return call(std::integral_constant<int, 8>());
+    default: return call(std::integral_constant<int, 0>());
+  }
+}
+
+}  // namespace
+
+void SubtreeParallelLdlt::forwardSweep(double* x, Eigen::Index columns) const {
+  eigen_assert(m_factorizationIsOk && m_info == Eigen::Success);
+  byColumns(columns, [&](auto c) { forward<decltype(c)::value>(x, columns); });
+}
+
+void SubtreeParallelLdlt::backwardSweep(double* x, Eigen::Index columns, bool parallel) const {
+  eigen_assert(m_factorizationIsOk && m_info == Eigen::Success);
+  byColumns(columns, [&](auto c) { backward<decltype(c)::value>(x, columns, parallel); });
+}
+
+}  // namespace rod
+}  // namespace hindsight

@@ -1,0 +1,79 @@
+// Eigen's SimplicialLDLT (AMD ordering, lower triangle) with its triangular sweeps on row-major blocks
+// of right-hand sides, and the back-substitution L^-T run on independent subtrees of the elimination
+// tree in parallel, bitwise equal to Eigen's serial sweep for any number of threads.
+//
+// Why by hand: the eigen-solve's Lanczos iteration solves with K's factor one vector at a time, and at
+// production meshes (1600 x 96: a 300 MB factor) those sweeps are a serial step of every design. The
+// back-substitution is a chain of dot products, each a sequence of dependent additions, so one core
+// waits on the adder; no Debian package runs it on several cores with bits independent of the machine
+// (CHOLMOD's supernodal solves call the run-time-selected BLAS, docs/guides/performance.md; PETSc's
+// and SuperLU's threads change the order of the sums).
+//
+// Why the bits cannot change: in the elimination tree parent(i) is the first row below the diagonal of
+// column i of L, so parent(i) > i and the rows of column i are ancestors of i. Eigen's L^T x = y runs
+// row by row, x_i -= L(r, i) x_r over column i in storage order, so row i reads its ancestors only: the
+// rows above a set of disjoint subtrees (the top) run first, in decreasing index, then each subtree on
+// its own, in decreasing index. Every row computes the same sum of the same operands in the same order.
+//
+// The factorisation and the forward sweep stay serial: measured at 1600 x 96, the up-looking
+// factorisation leaves 42 % of its work above the subtrees (AMD's elimination tree of a long strip
+// ends in a long chain), and the forward sweep, column-oriented scatters, is bound by memory bandwidth
+// that a second core shares; neither ran faster on two cores (bench/RESULTS.md).
+#pragma once
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include <vector>
+
+namespace hindsight {
+namespace rod {
+
+/// How the elimination tree is shared out for the parallel back-substitution. The partition decides
+/// only which rows run at the same time, never a bit of the result.
+struct SubtreeSchedule {
+  /// Groups of subtrees run in parallel; 0: the threads hindsight::parallelFor may use at analysis time.
+  int groups = 0;
+  /// Below this order a sweep takes well under a millisecond and runs serially.
+  int smallest = 16384;
+};
+
+class SubtreeParallelLdlt : public Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> {
+ public:
+  using SparseMatrix = Eigen::SparseMatrix<double>;
+  explicit SubtreeParallelLdlt(SubtreeSchedule options = {}) : options_(options) {}
+  /// analyzePattern(a) and factorize(a) (Eigen's).
+  explicit SubtreeParallelLdlt(const SparseMatrix& a, SubtreeSchedule options = {});
+  /// Eigen's ordering and symbolic analysis, then the schedule of the subtrees.
+  void analyzePattern(const SparseMatrix& a);
+  void compute(const SparseMatrix& a) {
+    analyzePattern(a);
+    factorize(a);
+  }
+  /// L^-1 (unit lower) in place on `columns` right-hand sides stored by rows (x[i * columns + c]):
+  /// bitwise Eigen's matrixL().solveInPlace() on each column. Serial.
+  void forwardSweep(double* x, Eigen::Index columns) const;
+  /// L^-T (unit upper) in place, the same layout: bitwise Eigen's matrixU().solveInPlace() on each
+  /// column. On the subtrees in parallel when `parallel` (callers already inside a parallel loop pass
+  /// false).
+  void backwardSweep(double* x, Eigen::Index columns, bool parallel) const;
+  /// Share of the sweep's entries in the parallel subtrees (0 when the tree was not split: a small
+  /// matrix or one thread): for the benchmarks and tests.
+  double parallelShare() const { return parallelShare_; }
+
+ private:
+  template <int Columns>
+  void forward(double* x, Eigen::Index columns) const;
+  template <int Columns>
+  void backward(double* x, Eigen::Index columns, bool parallel) const;
+
+  SubtreeSchedule options_;
+  // Rows of each group in increasing index (the groups run in parallel, each in decreasing index) and
+  // the rows above them (run first, in decreasing index).
+  std::vector<std::vector<int>> groups_;
+  std::vector<int> top_;
+  double parallelShare_ = 0.0;
+};
+
+}  // namespace rod
+}  // namespace hindsight
