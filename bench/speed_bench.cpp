@@ -69,15 +69,22 @@ std::unique_ptr<mechanism::MechanismProblem> problemOf(const rod::RodConfig& rc,
       mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime), columns);
 }
 
+/// The benchmark meshes, 100 x 6 ... 1600 x 96 (index 0 ... 4), as the default configuration on them.
+constexpr int kMeshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
+
+Config meshConfig(int m) {
+  Config config;
+  config.rod.elementsAlongLength = kMeshes[m][0];
+  config.rod.elementsThroughHeight = kMeshes[m][1];
+  return config;
+}
+
 void phaseTable(int largest) {
-  const int meshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
   std::printf(
       "| mesh | designs | model | simulation (fwd+bwd) | forward alone | chain | esl | sum | integrator |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---|\n");
   for (int m = 0; m <= largest && m < 5; ++m) {
-    Config config;
-    config.rod.elementsAlongLength = meshes[m][0];
-    config.rod.elementsThroughHeight = meshes[m][1];
+    const Config config = meshConfig(m);
     const PistonRod piston(config);
     const rod::RodConfig& rc = config.rod;
     const Vector x = piston.initialDesign();
@@ -123,8 +130,8 @@ void phaseTable(int largest) {
       std::fprintf(stderr, "inconsistent evaluation at mesh %d\n", m);
       std::exit(1);
     }
-    std::printf("| %dx%d | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %s h = %g |\n", meshes[m][0],
-                meshes[m][1], model.designCount(), modelCpu, simulationCpu, forwardCpu, chainCpu, eslCpu,
+    std::printf("| %dx%d | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %s h = %g |\n", kMeshes[m][0],
+                kMeshes[m][1], model.designCount(), modelCpu, simulationCpu, forwardCpu, chainCpu, eslCpu,
                 modelCpu + simulationCpu + chainCpu + eslCpu, options.method.c_str(), options.step);
     std::fflush(stdout);
   }
@@ -270,14 +277,11 @@ double wallSeconds() {
 /// back-substitution on the subtrees (rod::SubtreeParallelLdlt, the same bits), wall seconds, best of
 /// 5 (the second core is what it gains, so CPU time would not show it).
 void sweepTable(int largest) {
-  const int meshes[5][2] = {{100, 6}, {200, 12}, {400, 24}, {800, 48}, {1600, 96}};
   std::printf(
       "| mesh | order | share on the subtrees | L^-1 (serial) | L^-T, Eigen | L^-T, subtrees | same bits |\n"
       "|---|---:|---:|---:|---:|---:|---|\n");
   for (int m = 0; m <= largest && m < 5; ++m) {
-    Config config;
-    config.rod.elementsAlongLength = meshes[m][0];
-    config.rod.elementsThroughHeight = meshes[m][1];
+    const Config config = meshConfig(m);
     const PistonRod piston(config);
     const rod::FeModel model(config.rod, piston.initialDesign());
     const rod::StiffnessFactorization k(model.stiffness());
@@ -299,7 +303,7 @@ void sweepTable(int largest) {
       ldlt.backwardSweep(z.data(), 1, true);
       subtrees = std::min(subtrees, wallSeconds() - start);
     }
-    std::printf("| %dx%d | %ld | %.2f | %.4f | %.4f | %.4f | %s |\n", meshes[m][0], meshes[m][1],
+    std::printf("| %dx%d | %ld | %.2f | %.4f | %.4f | %.4f | %s |\n", kMeshes[m][0], kMeshes[m][1],
                 static_cast<long>(k.size()), ldlt.parallelShare(), forward, eigen, subtrees,
                 std::memcmp(y.data(), z.data(), sizeof(double) * static_cast<std::size_t>(y.size())) == 0
                     ? "yes"

@@ -137,15 +137,24 @@ namespace {
 template <class Call>
 void byColumns(Eigen::Index columns, Call&& call) {
   switch (columns) {
-    case 1: return call(std::integral_constant<int, 1>());
-    case 2: return call(std::integral_constant<int, 2>());
-    case 3: return call(std::integral_constant<int, 3>());
-    case 4: return call(std::integral_constant<int, 4>());
-    case 5: return call(std::integral_constant<int, 5>());
-    case 6: return call(std::integral_constant<int, 6>());
-    case 7: return call(std::integral_constant<int, 7>());
-    case 8: return call(std::integral_constant<int, 8>());
-    default: return call(std::integral_constant<int, 0>());
+    case 1:
+      return call(std::integral_constant<int, 1>());
+    case 2:
+      return call(std::integral_constant<int, 2>());
+    case 3:
+      return call(std::integral_constant<int, 3>());
+    case 4:
+      return call(std::integral_constant<int, 4>());
+    case 5:
+      return call(std::integral_constant<int, 5>());
+    case 6:
+      return call(std::integral_constant<int, 6>());
+    case 7:
+      return call(std::integral_constant<int, 7>());
+    case 8:
+      return call(std::integral_constant<int, 8>());
+    default:
+      return call(std::integral_constant<int, 0>());
   }
 }
 
