@@ -1,9 +1,9 @@
 // Threads inside one process, on oneTBB (Debian libtbb-dev) when it was found at build
 // time, else serial. The one pattern used: the independent work items 0..count-1 of one evaluation
-// (the adjoint-Nelson chain of each mode, the scenarios of one rank) run in parallel, each writing
-// only its own output slot; the caller then combines the slots in index order. So no result depends
-// on the thread count or on scheduling: bitwise equal for every K (no atomics, no reductions whose
-// order follows the threads).
+// (the adjoint-Nelson chain of each mode, the scenarios of one rank, the subtrees of a triangular
+// sweep) run in parallel, each writing only its own output slot; the caller then combines the slots
+// in index order. So no result depends on the thread count or on scheduling: bitwise equal for every
+// K (no atomics, no reductions whose order follows the threads).
 #pragma once
 
 #include <functional>

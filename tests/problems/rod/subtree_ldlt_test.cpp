@@ -1,4 +1,5 @@
 #include <hindsight/problems/rod/fe_model.h>
+#include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/subtree_ldlt.h>
 
 #include <gtest/gtest.h>
@@ -94,6 +95,21 @@ TEST(SubtreeParallelLdlt, SmallMatricesStaySerial) {
   options.groups = 2;
   const SubtreeParallelLdlt subtree(model.stiffness(), options);
   EXPECT_EQ(subtree.parallelShare(), 0.0);
+}
+
+TEST(SubtreeParallelLdlt, TheDefaultScheduleFollowsTheThreadLimit) {
+  // groups = 0 takes the threads parallelFor may use when the pattern is analysed: --threads 1 runs the
+  // sweep serially, more threads split the tree (the bits are the same either way, tested above).
+  const FeModel model = randomModel(400, 24, 13);
+  {
+    const ThreadLimit limit(1);
+    EXPECT_EQ(parallelConcurrency(), 1);
+    EXPECT_EQ(SubtreeParallelLdlt(model.stiffness()).parallelShare(), 0.0);
+  }
+  if (!threadsSupported() || availableThreads() < 2) GTEST_SKIP() << "one thread only on this machine";
+  const ThreadLimit limit(2);
+  EXPECT_EQ(parallelConcurrency(), 2);
+  EXPECT_GT(SubtreeParallelLdlt(model.stiffness()).parallelShare(), 0.5);
 }
 
 }  // namespace
