@@ -20,11 +20,7 @@ void SubtreeParallelLdlt::analyzePattern(const SparseMatrix& a) {
   parallelShare_ = 0.0;
   const int n = static_cast<int>(m_parent.size());
   const int threads = options_.groups > 0 ? options_.groups : parallelConcurrency();
-  if (threads < 2 || n < options_.smallest) {
-    top_.resize(static_cast<std::size_t>(n));
-    for (int k = 0; k < n; ++k) top_[static_cast<std::size_t>(k)] = k;
-    return;
-  }
+  if (threads < 2 || n < options_.smallest) return;  // no groups: the sweeps run serially
   // Work per row: the entries of its column of L (the analysis's counts) and one.
   const int* lp = m_matrix.outerIndexPtr();
   std::vector<double> subtree(static_cast<std::size_t>(n), 0.0);
