@@ -188,12 +188,17 @@ std::size_t StiffnessFactorizationPool::size() const {
   return kept_.size();
 }
 
-void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) const {
+void StiffnessFactorization::prepareBlock(const char* method, const RowBlock& block,
+                                          RowBlock& scratch) const {
   if (block.rows() != size_)
-    throw std::invalid_argument("StiffnessFactorization::solveInPlace: the block has " +
+    throw std::invalid_argument(std::string("StiffnessFactorization::") + method + ": the block has " +
                                 std::to_string(block.rows()) + " rows, expected " + std::to_string(size_));
+  if (scratch.rows() != size_ || scratch.cols() != block.cols()) scratch.resize(size_, block.cols());
+}
+
+void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) const {
+  prepareBlock("solveInPlace", block, scratch);
   const Eigen::Index columns = block.cols();
-  if (scratch.rows() != size_ || scratch.cols() != columns) scratch.resize(size_, columns);
   // Eigen's SimplicialLDLT::solve, column by column: x = P b; L x = x (unit lower, column-oriented);
   // x = D^-1 x as (1 / d_i) x_i; L^T x = x (row-oriented dot products in storage order); P^-1 x. L is
   // stored without its unit diagonal, rows increasing within a column.
@@ -206,11 +211,8 @@ void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) co
 }
 
 void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const {
-  if (block.rows() != size_)
-    throw std::invalid_argument("StiffnessFactorization::backSubstituteInPlace: the block has " +
-                                std::to_string(block.rows()) + " rows, expected " + std::to_string(size_));
+  prepareBlock("backSubstituteInPlace", block, scratch);
   const Eigen::Index columns = block.cols();
-  if (scratch.rows() != size_ || scratch.cols() != columns) scratch.resize(size_, columns);
   // solver().matrixU().solveInPlace() column by column (row i of L^T: tmp -= l x_r in storage order),
   // then P^-1.
   solver_.backwardSweep(block.data(), columns, true);

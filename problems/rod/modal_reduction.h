@@ -132,6 +132,8 @@ class StiffnessFactorization {
 
  private:
   void checkPositiveDefinite() const;
+  /// Refuses a block without size() rows (std::invalid_argument naming `method`); sizes scratch to it.
+  void prepareBlock(const char* method, const RowBlock& block, RowBlock& scratch) const;
 
   SubtreeParallelLdlt solver_;
   Eigen::Index size_ = 0;
