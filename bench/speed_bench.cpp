@@ -273,12 +273,14 @@ double wallSeconds() {
 }
 
 /// The one-vector sweeps of K's factor that the eigen-solve's Lanczos iteration runs (one of each per
-/// step), on the initial design of each mesh up to `largest`: Eigen's serial sweeps against the
-/// back-substitution on the subtrees (rod::SubtreeParallelLdlt, the same bits), wall seconds, best of
-/// 5 (the second core is what it gains, so CPU time would not show it).
+/// step), on the initial design of each mesh up to `largest`: the forward sweep L^-1 (the class's serial
+/// block sweep with one column), for scale, and Eigen's back-substitution against the one on the
+/// subtrees (rod::SubtreeParallelLdlt, the same bits), wall seconds, best of 5 (the second core is what
+/// it gains, so CPU time would not show it).
 void sweepTable(int largest) {
   std::printf(
-      "| mesh | order | share on the subtrees | L^-1 (serial) | L^-T, Eigen | L^-T, subtrees | same bits |\n"
+      "| mesh | order | share on the subtrees | L^-1 (forwardSweep, serial) | L^-T, Eigen | L^-T, subtrees | "
+      "same bits |\n"
       "|---|---:|---:|---:|---:|---:|---|\n");
   for (int m = 0; m <= largest && m < 5; ++m) {
     const Config config = meshConfig(m);
