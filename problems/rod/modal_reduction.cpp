@@ -1,5 +1,6 @@
 #include <hindsight/problems/rod/modal_reduction.h>
 
+#include <hindsight/problems/rod/compensated_kernels.h>
 #include <hindsight/problems/rod/parallel.h>
 
 #include <Spectra/SymEigsSolver.h>
@@ -39,55 +40,14 @@ void applySignConvention(Eigen::Ref<Eigen::VectorXd> mode) {
   }
 }
 
-// Knuth's two-sum: s + error == a + b exactly.
-inline void twoSum(double a, double b, double& s, double& error) {
-  s = a + b;
-  const double bVirtual = s - a;
-  error = (a - (s - bVirtual)) + (b - bVirtual);
-}
-
-// a * b - product exactly for product = fl(a * b), by Veltkamp's split and Dekker's product (Dekker,
-// "A floating-point technique for extending the available precision", Numer. Math. 18, 1971): the
-// value std::fma(a, b, -product) gives, whenever the split cannot overflow and no partial product
-// leaves the normal range, which inDekkerRange() guarantees for both factors. On the baseline x86-64
-// target std::fma is a call into libm; this is plain arithmetic that stays in registers and vectorises.
-inline double productError(double a, double b, double product) {
-  constexpr double kSplitter = 134217729.0;  // 2^27 + 1
-  double t = kSplitter * a;
-  const double aHigh = t - (t - a), aLow = a - aHigh;
-  t = kSplitter * b;
-  const double bHigh = t - (t - b), bLow = b - bHigh;
-  return ((aHigh * bHigh - product) + aHigh * bLow + aLow * bHigh) + aLow * bLow;
-}
-
 // Every entry zero or of magnitude in [2^-480, 2^480]: products of two such numbers then lie in
-// [2^-960, 2^960], where productError is exact (exponent sum >= emin + p - 1 = -970, no overflow).
+// [2^-960, 2^960], where Dekker's product error is exact (exponent sum >= emin + p - 1 = -970, no
+// overflow; compensated_kernels.h).
 template <typename Derived>
 bool inDekkerRange(const Eigen::DenseBase<Derived>& values) {
   constexpr double kSmallest = 0x1p-480, kLargest = 0x1p480;
   const auto magnitude = values.derived().array().abs();
   return ((magnitude >= kSmallest && magnitude <= kLargest) || magnitude == 0.0).all();
-}
-
-// The compensated element products of elementwiseStiffnessForm, one row a of Ke0 X_e: each entry sums
-// over b in increasing order; the columns are the inner loop, so that their independent sums overlap.
-template <bool kDekker>
-void compensatedElementRow(const ElementMatrix& unit, int a, const Matrix& local, Vector& high, Vector& low) {
-  high.setZero();
-  low.setZero();
-  const Eigen::Index columns = local.cols();
-  for (int b = 0; b < 8; ++b) {
-    const double u = unit(a, b);
-    for (Eigen::Index column = 0; column < columns; ++column) {
-      const double x = local(b, column);
-      const double term = u * x;
-      const double termError = kDekker ? productError(u, x, term) : std::fma(u, x, -term);
-      double sum, sumError;
-      twoSum(high(column), term, sum, sumError);
-      high(column) = sum;
-      low(column) += sumError + termError;
-    }
-  }
 }
 
 // The generalized problem K phi = lambda M phi as a standard symmetric one, C y = (1 / lambda) y with
@@ -220,41 +180,27 @@ void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& sc
   block.swap(scratch);
 }
 
-namespace {
-
-template <bool kDekker>
-void compensatedResidualColumns(const SparseMatrix& a, ConstMatrixRef x, Matrix& high, Matrix& low) {
-  for (Eigen::Index column = 0; column < x.cols(); ++column) {
-    for (Eigen::Index k = 0; k < a.outerSize(); ++k) {
-      const double xk = x(k, column);
-      if (xk == 0.0) continue;
-      for (SparseMatrix::InnerIterator it(a, k); it; ++it) {
-        // -(A_ik x_k) = product + productError exactly, then added to (high, low) exactly.
-        const double product = -it.value() * xk;
-        const double error =
-            kDekker ? productError(-it.value(), xk, product) : std::fma(-it.value(), xk, -product);
-        double sum, sumError;
-        twoSum(high(it.index(), column), product, sum, sumError);
-        high(it.index(), column) = sum;
-        low(it.index(), column) += sumError + error;
-      }
-    }
-  }
-}
-
-}  // namespace
-
 Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixRef x) {
   if (a.rows() != b.rows() || a.cols() != x.rows() || b.cols() != x.cols())
     throw std::invalid_argument("compensatedResidual: shapes of B, A and X do not match");
-  Matrix high = b;
-  Matrix low = Matrix::Zero(b.rows(), b.cols());
-  const Eigen::Map<const Vector> values(a.valuePtr(), a.nonZeros());
-  if (a.isCompressed() && inDekkerRange(values) && inDekkerRange(x))
-    compensatedResidualColumns<true>(a, x, high, low);
-  else
-    compensatedResidualColumns<false>(a, x, high, low);
-  return high + low;
+  // Row-major blocks, so that the kernel's innermost loop runs over the columns of X (contiguous).
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  SparseMatrix compressed;
+  const SparseMatrix* stored = &a;
+  if (!a.isCompressed()) {
+    compressed = a;
+    compressed.makeCompressed();
+    stored = &compressed;
+  }
+  RowMajor high = b;
+  RowMajor low = RowMajor::Zero(b.rows(), b.cols());
+  const RowMajor xRows = x;
+  const Eigen::Map<const Vector> values(stored->valuePtr(), stored->nonZeros());
+  compensatedSparseUpdate(static_cast<int>(stored->outerSize()), stored->outerIndexPtr(),
+                          stored->innerIndexPtr(), stored->valuePtr(), xRows.data(),
+                          static_cast<int>(x.cols()), inDekkerRange(values) && inDekkerRange(x), high.data(),
+                          low.data(), defaultKernelIsa());
+  return Matrix(high + low);
 }
 
 Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
@@ -264,6 +210,7 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
   const ElementMatrix& unit = model.unitStiffness();
   const Eigen::Index columns = xFull.cols();
   const bool dekker = inDekkerRange(unit) && inDekkerRange(xFull);
+  const KernelIsa isa = defaultKernelIsa();
   // Each element's term E(x_e) X_e^T (Ke0 X_e) is its own arithmetic: the terms of a chunk of elements
   // are formed in fixed blocks in parallel (problems/rod/parallel.h), then added to the form in element
   // order, so the sum has the bits of the serial loop for any thread count. T = s (A^T B) and then
@@ -277,20 +224,17 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
     const int count = std::min(kChunk, elements - start);
     parallelFor((count + kBlock - 1) / kBlock, [&](int block) {
       Matrix local(8, columns), product(8, columns);
+      Eigen::Matrix<double, 8, Eigen::Dynamic, Eigen::RowMajor> localRows(8, columns);
       Vector high(columns), low(columns);
       for (int i = block * kBlock; i < std::min(count, (block + 1) * kBlock); ++i) {
         const int e = start + i;
         const std::array<int, 8> dofs = model.elementDofs(e);
         for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
-        // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double.
-        for (int a = 0; a < 8; ++a) {
-          if (dekker)
-            compensatedElementRow<true>(unit, a, local, high, low);
-          else
-            compensatedElementRow<false>(unit, a, local, high, low);
-          for (Eigen::Index column = 0; column < columns; ++column)
-            product(a, column) = high(column) + low(column);
-        }
+        // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double
+        // (compensated_kernels.h), on a row-major copy of X_e.
+        localRows = local;
+        compensatedElementProducts(unit.data(), localRows.data(), static_cast<int>(columns), dekker,
+                                   product.data(), high.data(), low.data(), isa);
         Eigen::Map<Matrix> term(terms.col(i).data(), columns, columns);
         term.noalias() = model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
       }
