@@ -115,11 +115,13 @@ Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double
   const int designs = model.designCount();
   const int designBlocks = (designs + 255) / 256;
   parallelFor(designBlocks, [&](int b) {
-    Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, displacementsFull.cols());
+    // Both blocks sized once per thread: the loop over the elements allocates nothing.
+    Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, displacementsFull.cols()), product(8, local.cols());
     for (int d = b * 256; d < std::min(designs, (b + 1) * 256); ++d) {
       const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
       for (int a = 0; a < 8; ++a) local.row(a) = displacementsFull.row(dofs[a]);
-      const double energy = local.cwiseProduct(model.unitStiffness() * local).sum();
+      product.noalias() = model.unitStiffness() * local;
+      const double energy = local.cwiseProduct(product).sum();
       gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
     }
   });
