@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/app/config_schema.h>
+#include <hindsight/problems/rod/compensated_kernels.h>
 
 #include <iostream>
 #include <stdexcept>
@@ -58,6 +59,13 @@ bool ConfigFlags::given(const std::string& flag) const {
 }
 
 int runSelected(CLI::App& app) {
+  // HINDSIGHT_KERNELS is read once per process: a wrong value stops the command before it starts (exit
+  // 2, naming the variable), not in the middle of a run that has begun writing its results.
+  if (const int status = guarded([] {
+        rod::defaultKernelIsa();
+        return 0;
+      }))
+    return status;
   for (const Command& command : commands()) {
     if (command.app->parsed()) return command.run();
   }

@@ -2,8 +2,8 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <stdexcept>
+#include <string>
 
 namespace hindsight {
 namespace rod {
@@ -63,12 +63,24 @@ bool kernelIsaAvailable(KernelIsa isa) {
   return isa == KernelIsa::Baseline || fma;
 }
 
-KernelIsa defaultKernelIsa() {
-  static const KernelIsa isa = [] {
-    const char* requested = std::getenv("HINDSIGHT_KERNELS");
-    if (requested != nullptr && std::strcmp(requested, "baseline") == 0) return KernelIsa::Baseline;
+KernelIsa kernelIsaFromSetting(const char* setting) {
+  const std::string value = setting == nullptr ? "" : setting;
+  if (value.empty() || value == "auto")
     return kernelIsaAvailable(KernelIsa::Fma) ? KernelIsa::Fma : KernelIsa::Baseline;
-  }();
+  if (value == "baseline") return KernelIsa::Baseline;
+  if (value == "fma") {
+    if (!kernelIsaAvailable(KernelIsa::Fma))
+      throw std::invalid_argument(
+          "HINDSIGHT_KERNELS = fma: this build or this CPU has no AVX2 and FMA kernels; allowed here: auto, "
+          "baseline");
+    return KernelIsa::Fma;
+  }
+  throw std::invalid_argument("HINDSIGHT_KERNELS = '" + value +
+                              "' is not one of the allowed values auto, baseline, fma");
+}
+
+KernelIsa defaultKernelIsa() {
+  static const KernelIsa isa = kernelIsaFromSetting(std::getenv("HINDSIGHT_KERNELS"));
   return isa;
 }
 

@@ -18,9 +18,14 @@ enum class KernelIsa { Baseline, Fma };
 /// an x86-64 build with GCC or Clang on a CPU with AVX2 and FMA).
 bool kernelIsaAvailable(KernelIsa isa);
 
-/// The kernels used by default: Fma where available, unless the environment variable
-/// HINDSIGHT_KERNELS=baseline asks for the baseline (to check on one machine that both give the same
-/// bits); read once per process.
+/// The kernels a setting of the environment variable HINDSIGHT_KERNELS asks for: unset, empty or "auto":
+/// Fma where available, else Baseline; "baseline": Baseline (to check on one machine that both give the
+/// same bits); "fma": Fma. Throws std::invalid_argument naming the variable for any other value, and for
+/// "fma" where kernelIsaAvailable(KernelIsa::Fma) is false.
+KernelIsa kernelIsaFromSetting(const char* setting);
+
+/// kernelIsaFromSetting(getenv("HINDSIGHT_KERNELS")), read once per process (the first call that
+/// succeeds).
 KernelIsa defaultKernelIsa();
 
 /// product[a + 8 c] = sum_{b = 0..7} unit[a + 8 b] x[b * columns + c] (unit: an 8 x 8 element matrix,

@@ -1,13 +1,18 @@
 #include <hindsight/problems/rod/compensated_kernels.h>
 
+#include "support/run_cli.h"
+
 #include <gtest/gtest.h>
 #include <Eigen/Sparse>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace hindsight {
@@ -134,6 +139,30 @@ TEST(CompensatedKernels, SparseUpdateIsBitwiseEqualForEveryIsaAndSkipsZeros) {
   }
 }
 
+// HINDSIGHT_KERNELS: auto (or unset, or empty) picks the faster available build, baseline and fma ask
+// for one; anything else, and fma where it is missing, is an error that names the variable.
+TEST(CompensatedKernels, TheSettingNamesTheVariableAndTheAllowedValues) {
+  const KernelIsa best = kernelIsaAvailable(KernelIsa::Fma) ? KernelIsa::Fma : KernelIsa::Baseline;
+  EXPECT_EQ(kernelIsaFromSetting(nullptr), best);
+  EXPECT_EQ(kernelIsaFromSetting(""), best);
+  EXPECT_EQ(kernelIsaFromSetting("auto"), best);
+  EXPECT_EQ(kernelIsaFromSetting("baseline"), KernelIsa::Baseline);
+  if (kernelIsaAvailable(KernelIsa::Fma))
+    EXPECT_EQ(kernelIsaFromSetting("fma"), KernelIsa::Fma);
+  else
+    EXPECT_THROW(kernelIsaFromSetting("fma"), std::invalid_argument);
+  for (const char* wrong : {"avx2", "Baseline", "fma ", "1"}) {
+    try {
+      kernelIsaFromSetting(wrong);
+      ADD_FAILURE() << wrong << " was accepted";
+    } catch (const std::invalid_argument& error) {
+      const std::string message = error.what();
+      EXPECT_NE(message.find("HINDSIGHT_KERNELS"), std::string::npos) << message;
+      EXPECT_NE(message.find("auto, baseline, fma"), std::string::npos) << message;
+    }
+  }
+}
+
 TEST(CompensatedKernels, TheBaselineIsAlwaysAvailableAndTheDefaultIsAvailable) {
   EXPECT_TRUE(kernelIsaAvailable(KernelIsa::Baseline));
   EXPECT_TRUE(kernelIsaAvailable(defaultKernelIsa()));
@@ -143,6 +172,32 @@ TEST(CompensatedKernels, TheBaselineIsAlwaysAvailableAndTheDefaultIsAvailable) {
                  std::invalid_argument);
   }
 }
+
+#ifdef HINDSIGHT_CLI_PATH
+// The tool checks HINDSIGHT_KERNELS before any command starts: exit 2 with the variable's name and the
+// allowed values, and an optimisation leaves no output directory behind.
+TEST(CompensatedKernels, TheToolRefusesAWrongSettingBeforeItStarts) {
+  const std::string out = ::testing::TempDir() + "hindsight_kernels_refused";
+  std::filesystem::remove_all(out);
+  ::setenv("HINDSIGHT_KERNELS", "avx512", 1);
+  const hindsight::testing::CliResult optimize =
+      hindsight::testing::runCli("optimize --iterations 1 --out " + out);
+  const hindsight::testing::CliResult evaluate = hindsight::testing::runCli("evaluate");
+  ::setenv("HINDSIGHT_KERNELS", "baseline", 1);
+  const hindsight::testing::CliResult baseline = hindsight::testing::runCli(
+      "evaluate --set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4");
+  ::unsetenv("HINDSIGHT_KERNELS");
+  for (const auto& run : {optimize, evaluate}) {
+    EXPECT_EQ(run.exitCode, 2) << run.output;
+    EXPECT_NE(
+        run.output.find("HINDSIGHT_KERNELS = 'avx512' is not one of the allowed values auto, baseline, fma"),
+        std::string::npos)
+        << run.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out));
+  EXPECT_EQ(baseline.exitCode, 0) << baseline.output;
+}
+#endif
 
 }  // namespace
 }  // namespace rod
