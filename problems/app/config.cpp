@@ -355,6 +355,9 @@ const std::vector<ConfigField>& configFields() {
            "stopping rule: the largest move of a variable; 0 turns the rule off"),
       real("optimization.objectiveTolerance", MEMBER(optimization.objectiveTolerance), 0.0, closed, 1.0, "1",
            "stopping rule: relative range of the objective over the last five designs; 0 = off"),
+      boolean("optimization.endGame", MEMBER(optimization.endGame),
+              "mma-adaptive: a run still going when only the end game's updates remain refines its best "
+              "design in a shrinking trust region and ends by the stopping rule"),
       real("optimization.minAsymptoteDistance", MEMBER(optimization.minAsymptoteDistance), 0.0, open, 0.5,
            "1", "smallest distance of MMA's asymptotes from x, in units of the variable's range"),
       text("optimization.method", MEMBER(optimization.method), {"mma-adaptive", "mma", "gcmma"},

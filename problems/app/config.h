@@ -87,6 +87,13 @@ struct OptimizationSettings {
   /// update would still move variables the objective barely depends on (void elements swinging with
   /// no effect on psi keep the change test from holding). 0 turns this test off.
   double objectiveTolerance = 1e-3;
+  /// The end game of mma-adaptive (problems/topopt/topology_optimizer.h, "End game"): a run the rule has
+  /// not ended when only the updates the end game needs remain before `iterations` (17 with the
+  /// defaults) refines its best feasible design in a trust region that halves at every update, returning
+  /// to the best design after an update that did not improve on it, until the move limit reaches
+  /// changeTolerance and the trust-region test ends the run there, by the rule. false: such runs go on to
+  /// `iterations` (the behaviour before the end game).
+  bool endGame = true;
   /// Smallest distance of MMA's asymptotes from x, in units of the variable's range (MmaOptions::
   /// min_asymptote_distance; 0.01 in Svanberg's 2007 code). Where psi is stationary inside the box with
   /// no active constraint to balance it, MMA's step cannot be shorter than about 0.9 times this, so

@@ -212,6 +212,9 @@ void writeContents(hid_t file, const ResultsData& data) {
                                    data.state.bestObjective};
     endGame.insert(endGame.end(), data.state.recentObjectives.begin(), data.state.recentObjectives.end());
     writer.doubles(group.get(), "/state", "end_game", {static_cast<hsize_t>(endGame.size())}, endGame.data());
+    // The end game's phase (OptimizerState::refining): 1 once the refinement has begun, else 0.
+    const double refining = data.state.refining ? 1.0 : 0.0;
+    writer.doubles(group.get(), "/state", "end_game_refining", {1}, &refining);
     if (data.state.bestDesign.size() > 0) {  // the best feasible design so far, once there is one
       writer.doubles(group.get(), "/state", "best_design",
                      {static_cast<hsize_t>(data.state.bestDesign.size())}, data.state.bestDesign.data());
@@ -622,6 +625,18 @@ ResultsData readContents(hid_t file, ResultsVerification& verification) {
         }
         if (!(endGame[0] >= 0.0 && endGame[0] <= 1.0))
           reader.problem("/state/end_game", "move limit " + describe(endGame[0]) + " is outside [0, 1]");
+      }
+    }
+    if (hdf5::exists(group.get(), "end_game_refining")) {  // absent in files written before the end game
+      const std::vector<hsize_t> dims = reader.shapeOf(group.get(), "end_game_refining", 1);
+      if (dims[0] != 1) {
+        reader.problem("/state/end_game_refining", "has " + std::to_string(dims[0]) + " entries, expected 1");
+      } else {
+        double refining = 0.0;
+        reader.read(group.get(), "/state", "end_game_refining", H5T_NATIVE_DOUBLE, dims, &refining);
+        if (refining != 0.0 && refining != 1.0)
+          reader.problem("/state/end_game_refining", "is " + describe(refining) + ", expected 0 or 1");
+        data.state.refining = refining == 1.0;
       }
     }
     if (hdf5::exists(group.get(), "best_design")) {  // absent before the first feasible design

@@ -18,6 +18,8 @@
 //   /state/mma_xold1, mma_xold2, mma_low, mma_upp   n each; attribute mma_iteration: the MMA state
 //   /state/end_game        2: MMA's move limit and the objective at mma_xold1 (NaN when that design
 //                          was infeasible); absent in older files (read as 0 and NaN)
+//   /state/end_game_refining  1: 1 once the optimizer's end game refines (OptimizerState::refining), else
+//                          0; absent in files written before the end game (read as 0)
 //   /final/modes           modeCount x dofCount, row k = mode k on all DOFs (fe_model.h DOF order), and
 //   /final/frequencies_hz  modeCount; both of the final design, empty (0 rows) until finished = 1
 //   /scenarios/psi1, psi2  K x S: every scenario's psi per iteration (only in runs with scenarios,

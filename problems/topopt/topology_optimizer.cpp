@@ -338,6 +338,27 @@ bool TopologyOptimizer::stoppingRuleOn() const {
   return config().optimization.kktTolerance > 0.0 && config().optimization.changeTolerance > 0.0;
 }
 
+bool TopologyOptimizer::stagnated(const std::vector<double>& recent) const {
+  const double tolerance = config().optimization.objectiveTolerance;
+  if (!(tolerance > 0.0) || recent.size() != OptimizerState::kObjectiveWindow) return false;
+  const auto [smallest, largest] = std::minmax_element(recent.begin(), recent.end());
+  return *largest - *smallest <= tolerance * *smallest;
+}
+
+bool TopologyOptimizer::endGameOn() const {
+  // The refinement ends when the move limit reaches changeTolerance, which it can only do above MMA's
+  // smallest limit.
+  return config().optimization.endGame && stoppingRuleOn() && !bound_ && !gcmma_ &&
+         mma_.options().adaptive_move_limit &&
+         config().optimization.changeTolerance >= mma_.options().min_move_limit;
+}
+
+int TopologyOptimizer::endGameReserve() const {
+  const OptimizationSettings& settings = config().optimization;
+  const double halvings = std::ceil(std::log2(settings.moveLimit / settings.changeTolerance));
+  return 2 * static_cast<int>(std::max(halvings, 0.0)) + 1;
+}
+
 double TopologyOptimizer::scenarioScale(const OptimizerState& state, int s) const {
   return multiple_ ? state.scenarioScales(s) : state.objectiveScale;
 }
@@ -410,6 +431,7 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   const Eigen::Index owned = own.size();
   // NaN (no feasible design yet) is no better than this one.
   const bool bestSoFar = !(next.bestObjective < aggregate);
+  bool returnToBest = false;
   if (feasible(own) && bestSoFar) {
     next.bestObjective = aggregate;
     next.bestDesign = design;
@@ -425,6 +447,25 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
     const Gcmma::Evaluate trials = gcmma_ ? scenarioTrials(next) : Gcmma::Evaluate();
     updateDesign(state_.mma, aggregate, gradient, constraint, jacobian, lower, upper,
                  gcmma_ ? &trials : nullptr, next.recentObjectives, bestSoFar, x, record);
+    // The end game (the header comment): after an update the rule did not end the run with.
+    if (endGameOn() && !settled_ &&
+        (next.refining || (state_.iteration >= endGameReserve() &&
+                           state_.iteration + endGameReserve() >= settings.iterations))) {
+      next.refining = true;
+      if ((feasible(constraint) && bestSoFar) || next.bestDesign.size() == 0) {
+        // Refine from x_k (the best design, or no design has been feasible yet): the same update in a
+        // trust region that only contracts (MMA halves its limit after an update it is told raised the
+        // objective).
+        MmaState contracting = state_.mma;
+        contracting.objective = -std::numeric_limits<double>::max();
+        x = design;
+        updateDesign(contracting, aggregate, gradient, constraint, jacobian, lower, upper, nullptr,
+                     next.recentObjectives, bestSoFar, x, record);
+      } else {
+        returnToBest = true;
+        x = next.bestDesign;
+      }
+    }
   } else {
     // minimize z subject to V/V0 / vf - 1 <= 0 and f_s(x) - z <= 0: z is variable n, started at the
     // current worst value (the tightest feasible bound), within [0, maxObjectiveGrowth max_s w_s]
@@ -460,6 +501,18 @@ void TopologyOptimizer::updateFromScenarios(const ScenarioResults& evaluation, O
   next.design = x.head(n);
   const MmaState& full = gcmma_ ? gcmma_->state() : mma_.state();
   next.mma = full;
+  if (returnToBest) {
+    // MMA restarted at the best design: no history there (xold1 = xold2 = x, so the next update keeps
+    // the asymptotes where they are set here, at the first iterations' distance), the move limit of the
+    // update that was not taken, halved by the next update.
+    const double distance = mma_.options().initial_asymptote_distance * (1.0 - config().rod.designLowerBound);
+    next.mma = state_.mma;
+    next.mma.iteration = full.iteration;
+    next.mma.xold1 = next.mma.xold2 = next.design;
+    next.mma.low = next.design.array() - distance;
+    next.mma.upp = next.design.array() + distance;
+    next.mma.objective = -std::numeric_limits<double>::max();
+  }
   if (bound_) {
     next.bound = Vector(4);
     const Vector* parts[] = {&full.xold1, &full.xold2, &full.low, &full.upp};
@@ -502,14 +555,9 @@ MmaState TopologyOptimizer::updateDesign(const MmaState& from, double objective,
   const OptimizationSettings& settings = config().optimization;
   const Eigen::Index n = designCount();
   const bool feasible = TopologyOptimizer::feasible(constraints);
-  bool stagnated = false;
-  if (settings.objectiveTolerance > 0.0 && recent.size() == OptimizerState::kObjectiveWindow) {
-    const auto [smallest, largest] = std::minmax_element(recent.begin(), recent.end());
-    stagnated = *largest - *smallest <= settings.objectiveTolerance * *smallest;
-  }
   const bool stationary =
       record.kktResidual <= settings.kktTolerance &&
-      ((x.head(n) - current.head(n)).cwiseAbs().maxCoeff() <= settings.changeTolerance || stagnated);
+      ((x.head(n) - current.head(n)).cwiseAbs().maxCoeff() <= settings.changeTolerance || stagnated(recent));
   // With the adaptive move limit (a trust region, problems/topopt/mma.h), a limit that had to shrink
   // below changeTolerance says that no step of that size lowers the objective any more: the trust-region
   // methods' stopping test. On an objective with narrow resonance peaks this is the test that ends the

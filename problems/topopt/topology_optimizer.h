@@ -34,6 +34,20 @@
 // kktTolerance and changeTolerance 0 turns the rule off. The decision uses only what step k computes and the
 // stored state, so a resumed run stops at the same iteration.
 //
+// End game (optimization.endGame, mma-adaptive with the stopping rule on, one objective or the sum of the
+// scenarios', changeTolerance at least MMA's smallest move limit; a declared addition to MMA): on the
+// undamped rod the residual stalls above kktTolerance and the objective can leave its best design for a
+// resonance peak and creep back for a hundred updates, so some starts never meet the rule. When no more
+// than endGameReserve() updates remain before optimization.iterations (in runs long enough for that: not
+// within the first endGameReserve() updates, so a short run's budget goes to descent) and the rule has
+// not ended the run, it refines: MMA's move limit no longer grows but halves at every update (a trust
+// region that only contracts), and an update that finds x_k infeasible or worse than the best feasible
+// design so far is not taken: x_{k+1} is that best design, evaluated again (the same bits) with MMA
+// restarted there. The limit thus reaches changeTolerance within endGameReserve() updates, at the best
+// design, and the trust-region test ends the run by the rule before the cap. A run that meets the rule
+// on its own is not touched. Deterministic and part of the stored state (refining), so a resumed run
+// refines the same way (docs/guides/optimizer.md has the measurements on the rod).
+//
 // Divergence guard (a declared addition to plain MMA): the inertia-loaded rod is strongly nonlinear in
 // x, and MMA's large early steps can reach a soft, near-mechanism design (first frequency below 1 Hz)
 // whose simulation diverges (the floating-frame equations have no geometric stiffening). When the
@@ -141,6 +155,8 @@ struct OptimizerState {
   /// The design variables of that design (empty before the first): what the final evaluation of a run
   /// that reaches optimization.iterations evaluates (see the class comment).
   Vector bestDesign;
+  /// The end game's refinement has begun (optimization.endGame; the class comment, "End game").
+  bool refining = false;
 };
 
 class TopologyOptimizer final {
@@ -251,6 +267,13 @@ class TopologyOptimizer final {
                            IterationRecord& record);
   // kktTolerance and changeTolerance both > 0: the stopping rule, and with it the end at the best design.
   bool stoppingRuleOn() const;
+  // The end game applies (see the header comment): endGame, mma-adaptive, the rule on, no bound variable.
+  bool endGameOn() const;
+  // The objective of the last kObjectiveWindow designs varies by at most objectiveTolerance (relative).
+  bool stagnated(const std::vector<double>& recent) const;
+  // The most updates the end game needs: two per halving of moveLimit down to changeTolerance (an update
+  // and a return to the best design), plus one.
+  int endGameReserve() const;
   // psi_s(x0), the scale of scenario s: the state's objectiveScale without a scenarios list.
   double scenarioScale(const OptimizerState& state, int s) const;
 

@@ -36,6 +36,7 @@ inline const std::vector<std::string>& resultsDatasets() {
                                                  "state/mma_low",
                                                  "state/mma_upp",
                                                  "state/end_game",
+                                                 "state/end_game_refining",
                                                  "state/best_design",
                                                  "final/modes",
                                                  "final/frequencies_hz"};

@@ -100,6 +100,7 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
   EXPECT_TRUE(sameBits(a.state.bestObjective, b.state.bestObjective));
   EXPECT_EQ(a.state.recentObjectives, b.state.recentObjectives);
   EXPECT_TRUE(sameBits(a.state.bestDesign, b.state.bestDesign));
+  EXPECT_EQ(a.state.refining, b.state.refining);
   EXPECT_EQ(a.finalModes.rows(), b.finalModes.rows());
   EXPECT_EQ(a.finalModes.cols(), b.finalModes.cols());
   EXPECT_TRUE(a.finalModes.size() == b.finalModes.size() &&
@@ -562,6 +563,45 @@ TEST(OptimizationRun, StagnationEndsTheRunAndAResumeStopsThere) {
   off.optimization.objectiveTolerance = 0.0;
   off.optimization.iterations = static_cast<int>(h.size()) + 2;
   const ResultsData& longer = referenceResults(off, "psi1_stagnation_off");
+  EXPECT_FALSE(longer.history[h.size() - 1].converged);
+}
+
+// The end game: a run whose residual never meets kktTolerance (here 1e-12) would go on to the cap; when
+// only the end game's updates remain it returns to its best feasible design, refines it with a move limit
+// that halves at every update, and ends there by the rule's trust-region test, before the cap, at the
+// lowest objective of its history. The refinement is part of
+// the stored state: a run interrupted inside it and resumed ends with the same bits. With the end game
+// off the same run does not stop there.
+TEST(OptimizationRun, EndGameRefinesTheBestDesignAndEndsByTheRuleBeforeTheCap) {
+  Config config = coarseConfig("psi1", 60);
+  config.optimization.kktTolerance = 1e-12;
+  const ResultsData& reference = referenceResults(config, "psi1_end_game");
+  ASSERT_TRUE(reference.finished);
+  const std::vector<IterationRecord>& h = reference.history;
+  ASSERT_LT(h.size(), 61u) << "the end game did not end the run before the cap";
+  EXPECT_TRUE(h.back().converged);
+  EXPECT_TRUE(reference.state.refining);
+  // The stored limit is that of the update that led to the final design: one halving above the limit
+  // the rule found at or below changeTolerance.
+  EXPECT_LE(reference.state.mma.moveLimit, 2.0 * config.optimization.changeTolerance);
+  for (std::size_t k = 0; k + 1 < h.size(); ++k) {
+    EXPECT_FALSE(h[k].converged) << k;
+    if (h[k].volumeFraction <= config.optimization.volumeFraction * (1.0 + 1e-6))
+      EXPECT_LE(h.back().psi1, h[k].psi1) << k;
+  }
+
+  const std::string dir = freshDirectory("end_game_exit");
+  EXPECT_FALSE(runInChild(config, dir, static_cast<int>(h.size()) - 3));  // inside the refinement
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  options.resume = true;
+  runQuietly(config, options);
+  expectSameResults(readResultsFile(dir + "/results.h5"), reference);
+
+  Config off = config;
+  off.optimization.endGame = false;
+  off.optimization.iterations = static_cast<int>(h.size()) + 2;
+  const ResultsData& longer = referenceResults(off, "psi1_end_game_off");
   EXPECT_FALSE(longer.history[h.size() - 1].converged);
 }
 
