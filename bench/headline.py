@@ -15,8 +15,12 @@ CPU seconds (user + system of the child) and wall seconds of every run; the mach
 the features glibc could dispatch on, glibc version, cores, load average before and after).
 
 Which figures are bitwise: psi1(x0), psi2(x0), every final psi and V/V0 are the same bits on every
-x86-64 machine (docs/guides/reproducibility.md; the `reproducibility` ctest label checks it under
-emulated CPUs); the seconds are this machine's. Writes OUT/headline.json and prints a Markdown table.
+x86-64 machine (docs/guides/reproducibility.md); the seconds are this machine's. Before it runs, the script
+reads the record kept in the repository (bench/results-headline/headline.json, made on the machine it
+names) and every row of the table says whether this machine's run gave the record's bits: "yes", "no"
+(with the record's value) or "not in the record"; nothing is claimed that was not compared. The first
+line names this machine, its caches (the kernel's view, sysfs) and the record's machine. Writes
+OUT/headline.json and prints a Markdown table.
 """
 import argparse
 import json
@@ -32,8 +36,41 @@ import h5py
 import numpy as np
 
 
+RECORD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results-headline", "headline.json")
+
+
+def cache_sizes():
+    """The data and unified caches of cpu0 as the kernel reports them (sysfs), e.g. {'L1d': '48K'}."""
+    sizes = {}
+    base = "/sys/devices/system/cpu/cpu0/cache"
+    for entry in sorted(os.listdir(base)) if os.path.isdir(base) else []:
+        def read(name):
+            try:
+                with open(os.path.join(base, entry, name)) as f:
+                    return f.read().strip()
+            except OSError:
+                return ""
+        kind = read("type")
+        if kind in ("Data", "Unified"):
+            sizes[f"L{read('level')}{'d' if kind == 'Data' else ''}"] = read("size")
+    return sizes
+
+
+def same(recorded, *path_and_value):
+    """'yes' when the record holds the value at path with the same bits, 'no (record: ...)' when it holds
+    another, 'not in the record' when it holds none."""
+    *path, value = path_and_value
+    node = recorded
+    for key in path:
+        if not isinstance(node, dict) or key not in node:
+            return "not in the record"
+        node = node[key]
+    return "yes" if json.dumps(node) == json.dumps(value) else f"no (record: {node!r})"
+
+
 def machine():
-    info = {"platform": platform.platform(), "cores": os.cpu_count(), "glibc": " ".join(platform.libc_ver())}
+    info = {"platform": platform.platform(), "cores": os.cpu_count(), "glibc": " ".join(platform.libc_ver()),
+            "caches": cache_sizes()}
     try:
         with open("/proc/cpuinfo") as f:
             text = f.read()
@@ -105,6 +142,11 @@ def main():
     parser.add_argument("--ensemble", type=int, default=0, help="extra psi1 runs from perturbed starts")
     parser.add_argument("--skip-esl", action="store_true", help="leave out the psi2 (ESL) route")
     args = parser.parse_args()
+    # The record is read before anything runs: the default --out writes over that very file.
+    recorded = {}
+    if os.path.isfile(RECORD):
+        with open(RECORD) as f:
+            recorded = json.load(f)
     hindsight = os.path.abspath(os.path.join(args.build, "hindsight"))
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
@@ -131,6 +173,8 @@ def main():
 
     if args.ensemble > 0:
         finals = [report["psi1_route"]["final_psi1"]]
+        stops = [report["psi1_route"]["stop"]]
+        iterations = [report["psi1_route"]["iterations"]]
         starts = []
         for k in range(-(args.ensemble // 2), args.ensemble - args.ensemble // 2 + 1):
             if k == 0:
@@ -145,8 +189,12 @@ def main():
             directory = os.path.join(out, f"ensemble{i}")
             timed([hindsight, "optimize", "--force", "--out", directory, "--set", f"rod.initialDesign={x!r}"],
                   directory + ".log")
-            finals.append(summarize(history(os.path.join(directory, "results.h5")))["final_psi1"])
-        report["ensemble"] = {"starts": [0.5] + starts, "final_psi1": finals,
+            member = summarize(history(os.path.join(directory, "results.h5")))
+            finals.append(member["final_psi1"])
+            stops.append(member["stop"])
+            iterations.append(member["iterations"])
+        report["ensemble"] = {"starts": [0.5] + starts, "final_psi1": finals, "stops": stops,
+                              "iterations": iterations,
                               "relative_spread": (max(finals) - min(finals)) / min(finals)}
 
     report["machine"]["load_average_end"] = os.getloadavg()
@@ -154,28 +202,44 @@ def main():
         json.dump(report, f, indent=2)
 
     m = report["machine"]
-    print(f"machine: {m.get('cpu', '?')} ({m.get('features', '')}), {m['cores']} cores, {m['glibc']}, "
-          f"load {m['load_average_start'][0]:.1f} -> {m['load_average_end'][0]:.1f}; {report['version']}")
-    print("| figure | value | bitwise on every x86-64 machine |")
+    rm = recorded.get("machine", {})
+    print(f"machine: {m.get('cpu', '?')} ({m.get('features', '')}), caches {m.get('caches')}, {m['cores']} cores, "
+          f"{m['glibc']}, load {m['load_average_start'][0]:.1f} -> {m['load_average_end'][0]:.1f}; {report['version']}")
+    print(f"record: {RECORD} made on {rm.get('cpu', '?')} ({rm.get('features', '')}), caches {rm.get('caches', '?')}"
+          if recorded else f"record: none at {RECORD}; nothing compared")
+    print("| figure | value | same bits as the record |")
     print("|---|---|---|")
-    print(f"| psi1(x0), psi2(x0) | {x0['psi1']!r}, {x0['psi2']!r} | yes |")
+    x0r = report["x0"]
+    print(f"| psi1(x0), psi2(x0), f1(x0) | {x0r['psi1']!r}, {x0r['psi2']!r}, {x0r['first_frequency_hz']!r} Hz | "
+          f"{same(recorded, 'x0', 'psi1', x0r['psi1'])}, {same(recorded, 'x0', 'psi2', x0r['psi2'])}, "
+          f"{same(recorded, 'x0', 'first_frequency_hz', x0r['first_frequency_hz'])} |")
     r = report["psi1_route"]
-    print(f"| psi1 route: final psi1, V/V0 | {r['final_psi1']:.6g}, {r['final_volume_fraction']:.6g} "
+    print(f"| psi1 route: final psi1, V/V0 | {r['final_psi1']!r}, {r['final_volume_fraction']!r} "
           f"({r['stop']} after {r['iterations']} iterations; best feasible psi1 {r['best_feasible_psi']:.6g} "
-          f"at {r['best_feasible_iteration']}) | yes |")
-    print(f"| psi1 route: change over the last five iterations | {r['last_five_relative_change']:.2e} (relative) | yes |")
-    print(f"| psi1 route: time | {r['cpu_seconds']:.1f} s CPU, {r['wall_seconds']:.1f} s wall | no (this machine) |")
+          f"at {r['best_feasible_iteration']}) | {same(recorded, 'psi1_route', 'final_psi1', r['final_psi1'])}, "
+          f"{same(recorded, 'psi1_route', 'final_volume_fraction', r['final_volume_fraction'])}, iterations "
+          f"{same(recorded, 'psi1_route', 'iterations', r['iterations'])} |")
+    print(f"| psi1 route: change over the last five iterations | {r['last_five_relative_change']:.2e} (relative) | "
+          f"{same(recorded, 'psi1_route', 'last_five_relative_change', r['last_five_relative_change'])} |")
+    print(f"| psi1 route: time | {r['cpu_seconds']:.1f} s CPU, {r['wall_seconds']:.1f} s wall | "
+          f"not compared (this machine's) |")
     if "esl_route" in report:
         e = report["esl_route"]
-        print(f"| ESL route: psi1 of its final design, V/V0 | {e['final_psi1']:.6g}, {e['final_volume_fraction']:.6g} "
-              f"({e['stop']} after {e['iterations']} iterations) | yes |")
-        print(f"| ratio ESL / exact | {report['esl_over_exact']:.3g} | yes |")
-        print(f"| ESL route: time | {e['cpu_seconds']:.1f} s CPU, {e['wall_seconds']:.1f} s wall | no (this machine) |")
+        print(f"| ESL route: psi1 of its final design, V/V0 | {e['final_psi1']!r}, {e['final_volume_fraction']!r} "
+              f"({e['stop']} after {e['iterations']} iterations) | "
+              f"{same(recorded, 'esl_route', 'final_psi1', e['final_psi1'])}, "
+              f"{same(recorded, 'esl_route', 'final_volume_fraction', e['final_volume_fraction'])} |")
+        print(f"| ratio ESL / exact | {report['esl_over_exact']:.3g} | "
+              f"{same(recorded, 'esl_over_exact', report['esl_over_exact'])} |")
+        print(f"| ESL route: time | {e['cpu_seconds']:.1f} s CPU, {e['wall_seconds']:.1f} s wall | "
+              f"not compared (this machine's) |")
     if "ensemble" in report:
         en = report["ensemble"]
+        stops = en["stops"]
         print(f"| final psi1 over {len(en['final_psi1'])} starts 0.5 +- ulps | "
               f"{min(en['final_psi1']):.6g} ... {max(en['final_psi1']):.6g} "
-              f"(spread {100 * en['relative_spread']:.3g} %) | yes |")
+              f"(spread {100 * en['relative_spread']:.3g} %; {stops.count('convergence rule')} of {len(stops)} "
+              f"stopped by the rule) | {same(recorded, 'ensemble', 'final_psi1', en['final_psi1'])} |")
     return 0
 
 

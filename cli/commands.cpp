@@ -1,9 +1,11 @@
 #include "commands.h"
 
+#include <hindsight/engine/dense_blocking.h>
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/app/config_schema.h>
 #include <hindsight/problems/rod/compensated_kernels.h>
 
+#include <cstdlib>
 #include <iostream>
 #include <stdexcept>
 
@@ -61,8 +63,11 @@ bool ConfigFlags::given(const std::string& flag) const {
 int runSelected(CLI::App& app) {
   // HINDSIGHT_KERNELS is read once per process: a wrong value stops the command before it starts (exit
   // 2, naming the variable), not in the middle of a run that has begun writing its results.
+  // HINDSIGHT_EMULATE_CPU_CACHES likewise (engine/dense_blocking.h): the loader has already applied a
+  // well-formed value; a malformed one is refused here rather than silently ignored.
   if (const int status = guarded([] {
         rod::defaultKernelIsa();
+        emulatedCacheSizesFromSetting(std::getenv("HINDSIGHT_EMULATE_CPU_CACHES"));
         return 0;
       }))
     return status;

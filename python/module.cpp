@@ -14,6 +14,7 @@
 // PyErr_CheckSignals, so Ctrl-C raises KeyboardInterrupt out of a long evaluation. A problem written
 // in Python keeps the GIL (its callbacks are Python code, which sees Ctrl-C itself).
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/dense_blocking.h>
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/engine/problem.h>
 #include <hindsight/problems/app/config.h>
@@ -40,6 +41,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <mutex>
 #include <optional>
@@ -918,6 +920,17 @@ PYBIND11_MODULE(_hindsight, m) {
   using namespace hindsight::python;
   m.doc() = "C++ side of the hindsight Python module; use the package `hindsight`.";
   mainThread = std::this_thread::get_id();
+  // A malformed HINDSIGHT_EMULATE_CPU_CACHES fails the import (ImportError naming it), as it stops the tool.
+  emulatedCacheSizesFromSetting(std::getenv("HINDSIGHT_EMULATE_CPU_CACHES"));
+  // This module keeps its own copy of Eigen's cache sizes (hidden symbols): what it plans with, and
+  // what the CPU reported, for the reproducibility test (engine/dense_blocking.h).
+  m.def("_dense_blocking", [] {
+    const CacheSizes used = denseBlockingCacheSizes(), reported = cpuReportedCacheSizes();
+    py::dict out;
+    out["used"] = py::make_tuple(used.l1, used.l2, used.l3);
+    out["cpu"] = py::make_tuple(reported.l1, reported.l2, reported.l3);
+    return out;
+  });
 
   // RuntimeError subclasses; registered after pybind11's own translators, so they win for these types.
   py::register_exception<NumericalError>(m, "NumericalError", PyExc_RuntimeError).attr("__doc__") =
