@@ -290,9 +290,18 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
                                   "stream does not express; use " +
                                   name + " without stages=1, or cams (whose step records it expresses)");
     }
-    predictSchedule(specText, steps, stateBytes, stages, costs);  // every check of the plan, O(C) here
-    if (name == "binomial")
-      return std::make_unique<BinomialStream>(steps, spec.integer("checkpoints", 1, 1, 1000000000));
+    if (name != "binomial") {
+      predictSchedule(specText, steps, stateBytes, stages, costs);  // every check of the plan, O(1) here
+    } else {
+      // Every check of the plan: the spec first (a missing checkpoints= is named), then the budget at
+      // the min(C + 1, N) slots the stream uses. The prediction at N itself walks the plan up to 2^24
+      // steps (100 ms at N = 10^6), which a stream that walks it as the host goes does not need.
+      predictSchedule(specText, 1, stateBytes, stages, costs);
+      const std::int64_t checkpoints =
+          spec.integer("checkpoints", 1, 1, BinomialCheckpointing::kMaxCheckpoints);
+      predictSchedule(specText, std::min(steps, checkpoints + 1), stateBytes, stages, costs);
+      return std::make_unique<BinomialStream>(steps, checkpoints);
+    }
     return std::make_unique<EveryStateStream>(
         steps, name == "disk" ? CheckpointStorage::kDisk : CheckpointStorage::kRam);
   }

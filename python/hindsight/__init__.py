@@ -431,6 +431,10 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stag
 def _schedule_integer(name, value, low, high):
     """An integer argument of schedule(): ints and NumPy integers; bools, floats (2.9 would be read as 2)
     and strings are a TypeError, values outside [low, high] a ValueError naming the argument."""
+    if type(value) is int:  # the common case, without importing NumPy (a stream's first action waits for it)
+        if not low <= value <= high:
+            raise ValueError(f"{name} = {value} must be an integer in [{low}, {high}]")
+        return value
     import numpy as np
     # NumPy's bool_ still has a (deprecated) __index__: True would be read as 1 step, like bool.
     if isinstance(value, (bool, np.bool_)) or not hasattr(value, "__index__"):
