@@ -114,6 +114,9 @@ class BinomialSchedule {
   template <typename Visitor>
   void restoreStep(std::int64_t e, Visitor& visitor);
 
+  /// The position the first sweep keeps next (recordForward() returns a slot there and -1 before it),
+  /// -1 when it keeps no more: lets a caller skip the positions in between.
+  std::int64_t nextForward() const { return nextForward_; }
   std::int64_t length() const { return length_; }
   std::int64_t slots() const { return slots_; }
   /// Checkpoints held now (stack depth).

@@ -59,43 +59,56 @@ class ReactionDiffusion:
 
 # %% The host loop: one function per action, as checkpoint_schedules' users write it.
 class Host:
-    """Runs a schedule's actions. Restart states (ICs) and adjoint data live per storage type; DISK in
-    .npy files. Counts the steps it advances."""
+    """Runs a schedule's actions under checkpoint_schedules' contract: a checkpoint (RAM, or DISK in .npz
+    files) holds what one Forward wrote -- the state it started from (restart data) and/or the states its
+    steps' adjoints need -- and WORK holds the state being advanced and the adjoint data of the steps
+    reversed next. Counts the steps it advances."""
 
     def __init__(self, model, kappa, directory):
         self.model, self.kappa, self.directory = model, kappa, directory
-        self.ics = {StorageType.RAM: {}, StorageType.DISK: {}}
-        self.adj_deps = {StorageType.RAM: {}, StorageType.DISK: {}, StorageType.WORK: {}}
+        self.stored = {StorageType.RAM: {}, StorageType.DISK: {}}
+        self.work_deps = {}  # step -> u_k, for the Reverse that follows
         self.n, self.u = 0, model.u0.copy()  # WORK: the state at the start of step n
         self.objective, self.gradient, self.lam = 0.0, 0.0, None
         self.forward_done, self.advanced = False, 0
 
-    def put(self, storage, n, u):
+    def put(self, storage, n, ics, deps):
         if storage == StorageType.DISK:
-            path = os.path.join(self.directory, f"ics_{n}.npy")
-            np.save(path, u)
-            self.ics[storage][n] = path
+            path = os.path.join(self.directory, f"checkpoint_{n}.npz")
+            arrays = {f"deps_{k}": u for k, u in deps.items()}
+            if ics is not None:
+                arrays["ics"] = ics
+            np.savez(path, **arrays)
+            self.stored[storage][n] = path
         else:
-            self.ics[storage][n] = u.copy()
+            self.stored[storage][n] = (ics, deps)
 
     def get(self, storage, n, release):
-        data = self.ics[storage].pop(n) if release else self.ics[storage][n]
-        u = np.load(data) if storage == StorageType.DISK else data.copy()
-        if release and storage == StorageType.DISK:
+        data = self.stored[storage].pop(n) if release else self.stored[storage][n]
+        if storage != StorageType.DISK:
+            return data[0], dict(data[1])
+        with np.load(data) as f:
+            ics = f["ics"] if "ics" in f.files else None
+            deps = {int(name[5:]): f[name] for name in f.files if name.startswith("deps_")}
+        if release:
             os.remove(data)
-        return u
+        return ics, deps
 
     def forward(self, a):
         assert self.n == a.n0, f"{a}: WORK holds the start of step {self.n}"
-        if a.write_ics:
-            self.put(a.storage, a.n0, self.u)
+        start, deps = self.u.copy(), {}
         for k in range(a.n0, a.n1):
             if a.write_adj_deps:
-                self.adj_deps[a.storage][k] = self.u.copy()  # this adjoint needs u_k only
+                deps[k] = self.u.copy()  # this adjoint needs u_k only
             self.u = self.model.step(self.u, self.kappa)
             self.advanced += 1
             if not self.forward_done:
                 self.objective += self.model.objective_increment(self.u)
+        if a.storage in (StorageType.RAM, StorageType.DISK):
+            self.put(a.storage, a.n0, start if a.write_ics else None, deps)
+            self.work_deps = {}
+        else:
+            self.work_deps = deps
         self.n = a.n1
 
     def end_forward(self, a):
@@ -104,29 +117,28 @@ class Host:
 
     def reverse(self, a):
         for k in range(a.n1 - 1, a.n0 - 1, -1):
-            storage = next(s for s, held in self.adj_deps.items() if k in held)
-            u_k = self.adj_deps[storage].pop(k) if a.clear_adj_deps else self.adj_deps[storage][k]
+            u_k = self.work_deps[k]
             self.lam, dkappa = self.model.adjoint_step(u_k, self.lam, self.kappa)
             self.gradient += dkappa
             if k >= 1:
                 self.lam = self.lam + self.model.dt * self.model.h * u_k  # J's term in u_k
+        if a.clear_adj_deps:
+            self.work_deps = {}
 
-    def copy(self, a):
-        if a.from_storage == StorageType.WORK:
-            assert self.n == a.n
-            self.put(a.to_storage, a.n, self.u)
+    def copy(self, a, release=False):
+        ics, deps = self.get(a.from_storage, a.n, release)
+        if a.to_storage == StorageType.WORK:
+            self.work_deps = deps
+            if ics is not None:
+                self.n, self.u = a.n, ics
         else:
-            u = self.get(a.from_storage, a.n, release=isinstance(a, Move))
-            if a.to_storage == StorageType.WORK:
-                self.n, self.u = a.n, u
-            elif a.to_storage != StorageType.NONE:
-                self.put(a.to_storage, a.n, u)
+            self.put(a.to_storage, a.n, ics, deps)
 
     def run(self, actions):
-        handlers = {Forward: self.forward, Reverse: self.reverse, Copy: self.copy, Move: self.copy,
-                    EndForward: self.end_forward}
+        handlers = {Forward: self.forward, Reverse: self.reverse, Copy: self.copy,
+                    Move: lambda a: self.copy(a, release=True), EndForward: self.end_forward}
         for action in actions:
-            if isinstance(action, EndReverse):
+            if type(action) is EndReverse:
                 return self
             handlers[type(action)](action)
         raise RuntimeError("the schedule ended without EndReverse")
@@ -137,7 +149,7 @@ def gradient(spec, model, kappa, stages=1):
         actions = hindsight.checkpoint_schedule(spec, steps=args.steps, state_bytes=8 * model.n, stages=stages,
                                                 costs="1:1:0.5:0.5")
         host = Host(model, kappa, directory).run(actions)
-        leftover = sum(len(v) for v in host.ics.values()) + sum(len(v) for v in host.adj_deps.values())
+        leftover = sum(len(v) for v in host.stored.values()) + len(host.work_deps)
         return host.objective, host.gradient, host.advanced - args.steps, leftover
 
 

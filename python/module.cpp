@@ -28,6 +28,7 @@
 #include <hindsight/problems/topopt/optimization_run.h>
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/checkpoint_actions.h>
+#include <hindsight/storage/checkpoint_stream.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
@@ -1034,23 +1035,28 @@ PYBIND11_MODULE(_hindsight, m) {
     if (actions) d["actions"] = stream;
     return d;
   });
-  m.def("_checkpoint_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                   int stages, const std::string& costs) {
-    // storage/checkpoint_actions.h; python/hindsight/checkpoint_schedule.py makes the action objects.
+  // storage/checkpoint_stream.h: the stream handed out one action at a time (per action a tuple: kind, n0,
+  // n1, write_ics, write_adj_deps, storage, clear_adj_deps, from, to; None after EndReverse), with
+  // checkpoint_schedules' schedule state.
+  py::class_<CheckpointStream>(m, "_CheckpointStream")
+      .def("next",
+           [](CheckpointStream& stream) -> py::object {
+             CheckpointAction a;
+             if (!stream.next(&a)) return py::none();
+             return py::make_tuple(static_cast<int>(a.kind), a.n0, a.n1, a.writeIcs, a.writeAdjDeps,
+                                   checkpointStorageName(a.storage), a.clearAdjDeps,
+                                   checkpointStorageName(a.from), checkpointStorageName(a.to));
+           })
+      .def_property_readonly("n", &CheckpointStream::n)
+      .def_property_readonly("r", &CheckpointStream::r)
+      .def_property_readonly("max_n", &CheckpointStream::maxN)
+      .def_property_readonly("is_exhausted", &CheckpointStream::isExhausted);
+  m.def("_open_checkpoint_stream", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
+                                      int stages, const std::string& costs) {
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
-    std::vector<CheckpointAction> actions;
-    {
-      py::gil_scoped_release release;
-      actions = checkpointSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
-    }
-    py::list out;
-    for (const CheckpointAction& a : actions) {
-      out.append(py::make_tuple(static_cast<int>(a.kind), a.n0, a.n1, a.writeIcs, a.writeAdjDeps,
-                                checkpointStorageName(a.storage), a.clearAdjDeps,
-                                checkpointStorageName(a.from), checkpointStorageName(a.to)));
-    }
-    return out;
+    py::gil_scoped_release release;
+    return openCheckpointStream(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
   });
   m.def("storage_strategy_names", &storageStrategyNames,
         "Names of the storage strategies (the C++ factory's).");

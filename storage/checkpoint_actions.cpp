@@ -1,12 +1,15 @@
 #include <hindsight/storage/checkpoint_actions.h>
 
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/checkpoint_stream.h>
 
 #include <algorithm>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace hindsight {
 
@@ -169,6 +172,7 @@ class Translator {
     std::int64_t expected = steps_ - 1;
     if (!replays) {
       i = lastDelivery + 1;
+      if (heldAdjDeps_.count(steps_ - 1) != 0) fetchHeldAdjDeps(steps_ - 1);
       reverse(steps_ - 1);
       expected = steps_ - 2;
     }
@@ -225,18 +229,32 @@ class Translator {
     return !emit_ || (it != usage_.loads.end() && it->second > 0);
   }
 
-  // Checkpoint writes of the state at hand wait for the Forward that leaves it (writeIcs) or, when the
-  // state is not advanced, become a Copy from WORK.
+  // The contract (docs/guides/checkpoint_schedule.md, "The contract"): restart data is written only by
+  // the Forward that leaves the state, and it covers the steps that Forward runs; WORK must be empty for
+  // a Copy/Move, and is emptied by every Forward and by a Reverse that clears; WORK is no checkpoint
+  // storage (no Copy from it); a Reverse reads adjoint data only from WORK.
+  //
+  // A checkpoint write of the state at hand waits for the Forward that leaves it (writeIcs). When that
+  // state was loaded and not yet advanced, the write is a Copy/Move between the two storages instead,
+  // before the state enters WORK: loads into WORK are therefore held back (pendingLoad_) until the
+  // state is advanced or reversed.
   void store(const PlanEvent& ev) {
     const std::int64_t position = ev.key.rfind("at ", 0) == 0 ? ev.a : current_;
     if (position != current_) throw std::logic_error("checkpointSchedule: a store of a state not at hand");
     const Content c{nextVersion_++, position, ev.level};
     slots_[key(ev.level, ev.key)] = c;
-    if (used(c.version)) pendingIcs_.push_back(ev.level);
+    if (!used(c.version)) return;
+    if (pendingLoad_.version >= 0 && pendingLoad_.position == position) {
+      copyBetween(pendingLoad_, ev.level);
+      pendingLoad_ = c;  // the state at hand now comes from the new checkpoint
+    } else {
+      pendingIcs_.push_back(ev.level);
+    }
   }
   void storeRecord(const PlanEvent& ev) {
-    // A record of step k: its state (a restart point) and the stage values captured by the next Forward
-    // over step k (at once in the forward sweep; after an upgrade, when its interval is entered).
+    // A record of step k: the stage values of step k, written to RAM by the next Forward over step k (at
+    // once in the forward sweep; after an upgrade, when its interval is entered) and moved to WORK for
+    // the Reverse of step k. A record also holds x_k: as a restart point it is a state checkpoint at k.
     const std::string k = key(CheckpointStorage::kRam, "at " + std::to_string(ev.a));
     const auto existing = slots_.find(k);
     if (existing == slots_.end() || existing->second.position != ev.a) {
@@ -256,31 +274,34 @@ class Translator {
     return it->second;
   }
 
-  void flushIcs() {
-    for (CheckpointStorage level : pendingIcs_) {
-      CheckpointAction a;
-      a.kind = Kind::kCopy;
-      a.n0 = a.n1 = current_;
-      a.from = CheckpointStorage::kWork;
-      a.to = level;
-      actions_.push_back(a);
-    }
-    pendingIcs_.clear();
-  }
-
-  void load(const Content& c) {
-    flushIcs();
-    CheckpointAction a;
+  // One use of checkpoint c: true when it is its last (the data is then released: a Move).
+  bool use(const Content& c) {
     std::int64_t& seen = usage_.seen[c.version];
     ++seen;
     if (!emit_) ++usage_.loads[c.version];
-    const bool last = emit_ && seen == usage_.loads[c.version];
-    a.kind = last ? Kind::kMove : Kind::kCopy;
+    return emit_ && seen == usage_.loads[c.version];
+  }
+
+  void copyBetween(const Content& c, CheckpointStorage to) {
+    CheckpointAction a;
+    a.kind = use(c) ? Kind::kMove : Kind::kCopy;
     a.n0 = a.n1 = c.position;
     a.from = c.level;
-    a.to = CheckpointStorage::kWork;
+    a.to = to;
     actions_.push_back(a);
+  }
+
+  void load(const Content& c) {
+    if (!pendingIcs_.empty() && emit_)
+      throw std::logic_error("checkpointSchedule: a stored state is left unadvanced");
+    pendingIcs_.clear();
+    pendingLoad_ = c;
     current_ = c.position;
+  }
+  void flushLoad() {
+    if (pendingLoad_.version < 0) return;
+    copyBetween(pendingLoad_, CheckpointStorage::kWork);
+    pendingLoad_ = Content{};
   }
 
   // x_n in WORK: as it is, or loaded from a checkpoint holding it (cams names no loads).
@@ -297,10 +318,12 @@ class Translator {
     load(*best);
   }
 
-  // Advance the WORK state to x_to in Forwards that write the pending checkpoints (first) and the adjoint
-  // data of the record steps on the way, each in a Forward of its own step. last: the forward run's final
-  // step, whose adjoint data goes to WORK unless it is a record's.
+  // Advance the WORK state to x_to in Forwards that write the pending checkpoints (the first storage as
+  // writeIcs, further storages as copies from it afterwards) and the adjoint data of the record steps on
+  // the way, each in a Forward of its own step. last: the forward run's final step, whose adjoint data
+  // goes to WORK unless it is a record's.
   void forwardTo(std::int64_t to, bool last = false) {
+    flushLoad();
     while (current_ < to) {
       std::int64_t end = to;
       bool adj = false;
@@ -321,23 +344,37 @@ class Translator {
       a.n1 = end;
       a.writeAdjDeps = adj || tape;
       a.storage = adj ? CheckpointStorage::kRam : CheckpointStorage::kWork;
+      std::vector<CheckpointStorage> copies;
       if (!pendingIcs_.empty()) {
-        // writeIcs goes with the Forward's own storage when it writes adjoint data; else to the
-        // checkpoint's level; further levels are copies from WORK first.
-        auto it = std::find(pendingIcs_.begin(), pendingIcs_.end(),
-                            a.writeAdjDeps ? a.storage : pendingIcs_.front());
-        if (it != pendingIcs_.end()) {
+        // (The first pass counts every store as used.)
+        if (tape && emit_) throw std::logic_error("checkpointSchedule: x_{N-1} stored and loaded later");
+        if (tape) {
+        } else if (adj) {
+          // A record's step: its restart data goes with it (a record is a restart point too); a state
+          // checkpoint elsewhere is a copy of that.
           a.writeIcs = true;
-          a.storage = *it;
-          pendingIcs_.erase(it);
+          for (CheckpointStorage level : pendingIcs_)
+            if (level != CheckpointStorage::kRam) copies.push_back(level);
+        } else {
+          a.writeIcs = true;
+          a.storage = pendingIcs_.front();
+          copies.assign(pendingIcs_.begin() + 1, pendingIcs_.end());
         }
-        flushIcs();
+        pendingIcs_.clear();
       }
       if (adj) {
         wantAdjDeps_.erase(current_);
         heldAdjDeps_.insert(current_);
       }
       actions_.push_back(a);
+      for (CheckpointStorage level : copies) {
+        CheckpointAction c;
+        c.kind = Kind::kCopy;
+        c.n0 = c.n1 = a.n0;
+        c.from = a.storage;
+        c.to = level;
+        actions_.push_back(c);
+      }
       current_ = end;
     }
   }
@@ -351,15 +388,29 @@ class Translator {
     actions_.push_back(a);
   }
 
+  // Adjoint data of a record step held in RAM: moved to WORK for its Reverse.
+  void fetchHeldAdjDeps(std::int64_t e) {
+    heldAdjDeps_.erase(e);
+    CheckpointAction a;
+    a.kind = Kind::kMove;
+    a.n0 = a.n1 = e;
+    a.from = CheckpointStorage::kRam;
+    a.to = CheckpointStorage::kWork;
+    actions_.push_back(a);
+  }
+
   void deliver(std::int64_t e, bool withStages) {
+    if (!pendingIcs_.empty() && emit_)
+      throw std::logic_error("checkpointSchedule: a stored state is left unadvanced");
+    pendingIcs_.clear();
     if (withStages || heldAdjDeps_.count(e) != 0) {
       if (heldAdjDeps_.count(e) == 0)
         throw std::logic_error("checkpointSchedule: a record delivered before it was filled");
-      heldAdjDeps_.erase(e);
-      flushIcs();
+      pendingLoad_ = Content{};
+      fetchHeldAdjDeps(e);
     } else {
       need(e);
-      flushIcs();
+      flushLoad();
       CheckpointAction a;
       a.kind = Kind::kForward;
       a.n0 = e;
@@ -379,15 +430,18 @@ class Translator {
   std::vector<CheckpointAction> actions_;
   std::map<std::string, Content> slots_;
   std::vector<CheckpointStorage> pendingIcs_;
+  Content pendingLoad_;  // version -1: none
   std::set<std::int64_t> wantAdjDeps_, heldAdjDeps_;
   std::int64_t current_ = 0, nextVersion_ = 0;
 };
 
 }  // namespace
 
-std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
-                                                 std::int64_t stateBytes, int stages,
-                                                 const ScheduleCosts* costs) {
+// The whole plan of a strategy without a lazy stream (cams, multilevel), translated
+// (storage/checkpoint_stream.cpp hands it out).
+std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
+                                                      std::int64_t stateBytes, int stages,
+                                                      const ScheduleCosts* costs) {
   const StorageSpec parsed = StorageSpec::parse(spec);
   if (parsed.has("stages") && parsed.integer("stages", 0, 0, 1) == 1 && stages > 1) {
     throw std::invalid_argument(parsed.name() +
@@ -406,93 +460,125 @@ std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::i
   return Translator(steps, usage, true).run(events);
 }
 
+std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
+                                                 std::int64_t stateBytes, int stages,
+                                                 const ScheduleCosts* costs) {
+  const std::unique_ptr<CheckpointStream> stream =
+      openCheckpointStream(spec, steps, stateBytes, stages, costs);
+  std::vector<CheckpointAction> actions;
+  CheckpointAction action;
+  while (stream->next(&action)) actions.push_back(action);
+  return actions;
+}
+
 CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
                                              std::int64_t steps) {
+  // The contract of docs/guides/checkpoint_schedule.md ("The contract"), as python/tests/
+  // stream_contract.py states it rule by rule: checkpoints are keyed by their step per storage and hold
+  // the step ranges of their restart data and adjoint data; WORK holds the same two sets.
+  using Range = std::pair<std::int64_t, std::int64_t>;  // [first, end), empty when first == end
+  struct Snapshot {
+    Range ics{0, 0}, adjDeps{0, 0};
+  };
   CheckpointStreamCounts counts;
-  std::int64_t work = 0;                                        // the step of the WORK state, -1 none
-  std::map<CheckpointStorage, std::set<std::int64_t>> ics;      // restart states held per storage
-  std::map<CheckpointStorage, std::set<std::int64_t>> adjDeps;  // steps whose adjoint data is held
+  std::int64_t at = 0, reversed = 0;  // at: the step of the WORK state, -1 none
+  Range workIcs{0, 0}, workAdjDeps{0, 0};
+  std::map<CheckpointStorage, std::map<std::int64_t, Snapshot>> held;
   bool forwardDone = false, reverseDone = false;
-  std::int64_t nextReverse = steps - 1;
+  const auto empty = [](const Range& r) { return r.first >= r.second; };
   for (const CheckpointAction& a : actions) {
     const auto fail = [&](const std::string& why) { throw std::logic_error(a.text() + ": " + why); };
+    const auto checkpointStorage = [](CheckpointStorage s) {
+      return s == CheckpointStorage::kRam || s == CheckpointStorage::kDisk;
+    };
     if (reverseDone) fail("after EndReverse");
     switch (a.kind) {
       case CheckpointAction::Kind::kForward: {
-        if (work != a.n0) fail("WORK holds x_" + std::to_string(work));
-        if (a.n1 <= a.n0 || a.n1 > steps) fail("not a forward range within N = " + std::to_string(steps));
-        if (a.writeIcs) {
-          if (a.storage == CheckpointStorage::kWork || a.storage == CheckpointStorage::kNone)
-            fail("ics to WORK");
-          ics[a.storage].insert(a.n0);
-          (a.storage == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
-        }
-        if (a.writeAdjDeps) {
-          for (std::int64_t n = a.n0; n < a.n1; ++n) adjDeps[a.storage].insert(n);
+        if (at != a.n0) fail("WORK holds x_" + std::to_string(at));
+        if (a.n1 <= a.n0) fail("advances no step");
+        if (a.n1 > steps - reversed)
+          fail("advances past the adjoint at step " + std::to_string(steps - reversed));
+        workIcs = workAdjDeps = Range{0, 0};
+        const Range ics = a.writeIcs ? Range{a.n0, a.n1} : Range{0, 0};
+        const Range adjDeps = a.writeAdjDeps ? Range{a.n0, a.n1} : Range{0, 0};
+        if (checkpointStorage(a.storage)) {
+          if (empty(ics) && empty(adjDeps)) fail("writes nothing to a checkpoint storage");
+          if (!held[a.storage].emplace(a.n0, Snapshot{ics, adjDeps}).second)
+            fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
+          if (a.writeIcs)
+            (a.storage == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
+        } else if (a.storage == CheckpointStorage::kWork) {
+          workIcs = ics;
+          workAdjDeps = adjDeps;
         }
         const std::int64_t length = a.n1 - a.n0;
+        const bool rerun = a.writeAdjDeps && a.storage == CheckpointStorage::kWork && length == 1;
         if (!forwardDone) {
           counts.forwardSteps += length;
-          if (a.writeAdjDeps && a.storage == CheckpointStorage::kWork && a.n1 == steps && length == 1)
-            ++counts.adjointReruns;
-        } else if (a.writeAdjDeps && a.storage == CheckpointStorage::kWork && length == 1) {
+          if (rerun && a.n1 == steps) ++counts.adjointReruns;
+        } else if (rerun) {
           ++counts.adjointReruns;
         } else {
           counts.recomputedSteps += length;
         }
-        work = a.n1;
+        at = a.n1;
         break;
       }
       case CheckpointAction::Kind::kCopy:
-      case CheckpointAction::Kind::kMove:
-        if (a.from == CheckpointStorage::kWork) {
-          if (work != a.n0) fail("WORK holds x_" + std::to_string(work));
-          if (a.kind == CheckpointAction::Kind::kMove) work = -1;
+      case CheckpointAction::Kind::kMove: {
+        if (!checkpointStorage(a.from)) fail("copies from a storage that holds no checkpoints");
+        if (!checkpointStorage(a.to) && a.to != CheckpointStorage::kWork) fail("copies to no storage");
+        if (!empty(workIcs) || !empty(workAdjDeps)) fail("WORK still holds data");
+        const auto it = held[a.from].find(a.n0);
+        if (it == held[a.from].end()) fail("no checkpoint at " + std::to_string(a.n0) + " there");
+        const Snapshot snapshot = it->second;
+        if (a.kind == CheckpointAction::Kind::kMove) held[a.from].erase(it);
+        if (a.n0 >= steps - reversed) fail("the checkpoint is not before the adjoint");
+        if (checkpointStorage(a.to)) {
+          if (!held[a.to].emplace(a.n0, snapshot).second)
+            fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
+          if (!empty(snapshot.ics))
+            (a.to == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
         } else {
-          if (ics[a.from].count(a.n0) == 0) fail("x_" + std::to_string(a.n0) + " is not held there");
-          if (a.kind == CheckpointAction::Kind::kMove) ics[a.from].erase(a.n0);
+          const bool restart = snapshot.ics.first <= a.n0 && a.n0 < snapshot.ics.second;
+          at = restart ? a.n0 : -1;
+          if (restart && snapshot.ics.second < steps - reversed)
+            fail("its restart data does not reach the adjoint at step " + std::to_string(steps - reversed));
+          workIcs = snapshot.ics;
+          workAdjDeps = snapshot.adjDeps;
+          if (std::min<std::int64_t>(1, workIcs.second - workIcs.first) +
+                  std::max<std::int64_t>(0, workAdjDeps.second - workAdjDeps.first) >
+              1)
+            fail("WORK would hold more than one unit");
         }
-        if (a.to == CheckpointStorage::kWork) {
-          work = a.n0;
-        } else if (a.to != CheckpointStorage::kNone) {
-          ics[a.to].insert(a.n0);
-          (a.to == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
-        }
-        break;
-      case CheckpointAction::Kind::kReverse: {
-        if (!forwardDone) fail("before EndForward");
-        if (a.n1 != nextReverse + 1 || a.n0 >= a.n1)
-          fail("the adjoint is at step " + std::to_string(nextReverse));
-        for (std::int64_t n = a.n1 - 1; n >= a.n0; --n) {
-          bool found = false;
-          for (auto& [storage, held] : adjDeps) {
-            if (held.count(n) != 0) {
-              found = true;
-              if (a.clearAdjDeps) held.erase(n);
-              break;
-            }
-          }
-          if (!found) fail("no adjoint data of step " + std::to_string(n));
-        }
-        nextReverse = a.n0 - 1;
-        if (a.n0 <= work) work = -1;
         break;
       }
+      case CheckpointAction::Kind::kReverse:
+        if (!forwardDone) fail("before EndForward");
+        if (a.n1 != steps - reversed || a.n0 >= a.n1)
+          fail("the adjoint is at step " + std::to_string(steps - reversed));
+        if (workAdjDeps.first > a.n0 || workAdjDeps.second < a.n1) fail("its adjoint data is not in WORK");
+        reversed += a.n1 - a.n0;
+        if (a.clearAdjDeps) workAdjDeps = Range{0, 0};
+        break;
       case CheckpointAction::Kind::kEndForward:
-        if (forwardDone || work != steps) fail("the forward run is not at x_N");
+        if (forwardDone || at != steps) fail("the forward run is not at x_N");
         forwardDone = true;
         break;
       case CheckpointAction::Kind::kEndReverse:
-        if (nextReverse != -1) fail("step " + std::to_string(nextReverse) + " is not reversed");
+        if (reversed != steps) fail(std::to_string(reversed) + " steps reversed");
         reverseDone = true;
         break;
     }
-    counts.peakRamCheckpoints = std::max<std::int64_t>(
-        counts.peakRamCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kRam].size()));
-    counts.peakDiskCheckpoints = std::max<std::int64_t>(
-        counts.peakDiskCheckpoints, static_cast<std::int64_t>(ics[CheckpointStorage::kDisk].size()));
+    std::int64_t restartRam = 0, restartDisk = 0;
+    for (const auto& [step, snapshot] : held[CheckpointStorage::kRam]) restartRam += !empty(snapshot.ics);
+    for (const auto& [step, snapshot] : held[CheckpointStorage::kDisk]) restartDisk += !empty(snapshot.ics);
+    counts.peakRamCheckpoints = std::max(counts.peakRamCheckpoints, restartRam);
+    counts.peakDiskCheckpoints = std::max(counts.peakDiskCheckpoints, restartDisk);
   }
   if (!reverseDone) throw std::logic_error("the stream ends without EndReverse");
+  if (!held[CheckpointStorage::kRam].empty() || !held[CheckpointStorage::kDisk].empty())
+    throw std::logic_error("checkpoints are left when the stream ends");
   return counts;
 }
 

@@ -13,18 +13,21 @@
 //       advanced next); Move releases it in `from`.
 //   EndForward  the forward run has reached x_N;   EndReverse  the adjoint has reached step 0.
 //
-// The stream is a translation of the plan the strategy itself executes (its action stream, the one
-// `hindsight schedule --actions` prints, from the same plan code as a run), read in that vocabulary:
-//   a checkpoint store is writeIcs; a load is Copy (Move at the checkpoint's last use); a recomputation
-//   is a Forward without adjoint data; a cams step record (state and stage values) is a Forward over
-//   that step with writeIcs and writeAdjDeps to RAM, reversed later without recomputation; every other
-//   adjoint step first re-runs its step with writeAdjDeps to WORK -- what hindsight's adjoint step does
-//   itself when it recomputes the step's stages. When the plan holds x_{N-1} (binomial's and cams'
-//   working state), the forward run's last step writes its adjoint data instead (to WORK, or RAM for a
-//   record) and the first Reverse follows EndForward, as in checkpoint_schedules; when the plan replays
-//   x_{N-1} from a checkpoint, the replay is in the stream. So the stream recomputes exactly the steps
-//   the strategy recomputes.
-// Checkpoint stores whose state is never loaded again (binomial's working state x_{N-1}) are left out.
+// Every stream keeps checkpoint_schedules' contract (docs/guides/checkpoint_schedule.md, "The
+// contract"): restart data is written by the Forward that leaves a state and covers the steps it runs;
+// Copy/Move need an empty WORK and never copy from WORK; a Reverse reads its adjoint data from WORK only;
+// Move is not a kind of Copy. binomial, full and disk streams are generated as they are consumed
+// (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself executes
+// (its action stream, the one `hindsight schedule --actions` prints, from the same plan code as a run):
+//   a checkpoint store is writeIcs on the Forward that leaves the state, or a Copy/Move between storages
+//   when the state was just loaded; a load is Copy (Move at the checkpoint's last use); a recomputation
+//   is a Forward without adjoint data; a cams step record is a one-step Forward writing its adjoint data
+//   to RAM, moved to WORK for its Reverse; every other adjoint step first re-runs its step with
+//   writeAdjDeps to WORK -- what hindsight's adjoint step does itself when it recomputes the step's
+//   stages. When the plan holds x_{N-1}, the forward run's last step writes its adjoint data instead and
+//   the first Reverse follows EndForward, as in checkpoint_schedules; when the plan replays x_{N-1} from
+//   a checkpoint, the replay is in the stream. So the stream recomputes exactly the steps the strategy
+//   recomputes. Checkpoint stores whose state is never loaded again are left out.
 #pragma once
 
 #include <hindsight/storage/schedule.h>
@@ -53,9 +56,10 @@ struct CheckpointAction {
   std::string text() const;
 };
 
-/// The action stream of `spec` for N = `steps` fixed steps (N <= 2^24), with the arguments and checks of
-/// predictSchedule/writeScheduleActions (storage/schedule.h): full, disk, binomial, multilevel, cams
-/// (offline). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
+/// The action stream of `spec` for N = `steps` fixed steps, collected (openCheckpointStream() in
+/// storage/checkpoint_stream.h hands it out one action at a time), with the arguments and checks of
+/// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel and cams (offline; N <= 2^24 for
+/// the last two). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
 /// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
 /// by a rule of its own (stages=1; cams' step records are expressed).
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
@@ -72,10 +76,10 @@ struct CheckpointStreamCounts {
   std::int64_t peakRamCheckpoints = 0, peakDiskCheckpoints = 0;  ///< restart states held at once
 };
 
-/// Executes `actions` on a host that tracks only which step each piece of data belongs to, and throws
-/// std::logic_error naming the action when the stream is not valid for N steps: a Forward not starting
-/// at the WORK state, a Copy/Move of data not held, a Reverse out of order or without its adjoint data,
-/// EndForward before x_N, EndReverse before step 0 is reversed, anything after EndReverse.
+/// Executes `actions` on a host that tracks only which steps each piece of data belongs to, and throws
+/// std::logic_error naming the action when the stream breaks the contract for N steps (the rules of
+/// docs/guides/checkpoint_schedule.md, "The contract"; python/tests/stream_contract.py states the same
+/// rules in Python), or leaves checkpoints behind at EndReverse.
 CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
                                              std::int64_t steps);
 

@@ -21,14 +21,15 @@ import os as _os
 
 from . import _hindsight
 from ._hindsight import NumericalError, StorageError, storage_strategy_names
-from .checkpoint_schedule import (Copy, EndForward, EndReverse, Forward, Move, Reverse, StorageType,
-                                  checkpoint_schedule)
+from .checkpoint_schedule import (CheckpointSchedule, Copy, EndForward, EndReverse, Forward, Move, Reverse,
+                                  StorageType, checkpoint_schedule)
+from . import checkpoint_schedules  # noqa: F401  (the adapter: checkpoint_schedules' own classes)
 
 __version__ = _hindsight.__version__
 __all__ = ["PistonRod", "Mechanism", "Result", "NumericalError", "StorageError", "gradient", "classic_gradient",
            "simulate", "optimize", "read_results", "history_columns", "plot_comparison", "storage_specs",
            "storage_strategy_names", "schedule", "check_storage_spec", "config", "checkpoint_schedule", "StorageType",
-           "Forward", "Reverse", "Copy", "Move", "EndForward", "EndReverse"]
+           "Forward", "Reverse", "Copy", "Move", "EndForward", "EndReverse", "CheckpointSchedule"]
 
 
 class Result(dict):
@@ -119,7 +120,7 @@ _CLI_WORDS = [("use --resume to continue it or --force to overwrite it",
               ("--resume and --force exclude each other", "resume=True and force=True exclude each other"),
               ("--resume:", "resume=True:"), ("--resume", "resume=True"), ("--force", "force=True"),
               ("--out", "out"), ("--state-bytes", "state_bytes"), ("--stage-bytes", "stage_bytes"),
-              ("--steps", "steps"), ("--stages", "stages"),
+              ("--actions", "actions=True"), ("--steps", "steps"), ("--stages", "stages"),
               ("--costs", "costs"), ("--storage", "spec")]
 
 
@@ -430,6 +431,10 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stag
 def _schedule_integer(name, value, low, high):
     """An integer argument of schedule(): ints and NumPy integers; bools, floats (2.9 would be read as 2)
     and strings are a TypeError, values outside [low, high] a ValueError naming the argument."""
+    if type(value) is int:  # the common case, without importing NumPy (a stream's first action waits for it)
+        if not low <= value <= high:
+            raise ValueError(f"{name} = {value} must be an integer in [{low}, {high}]")
+        return value
     import numpy as np
     # NumPy's bool_ still has a (deprecated) __index__: True would be read as 1 step, like bool.
     if isinstance(value, (bool, np.bool_)) or not hasattr(value, "__index__"):

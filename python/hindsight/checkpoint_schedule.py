@@ -1,10 +1,14 @@
 """A storage strategy's plan as a stream of checkpointing actions for any time-stepper, in the vocabulary
-of the checkpoint_schedules package (Forward, Reverse, Copy, Move, EndForward, EndReverse; StorageType
-RAM, DISK, WORK): docs/guides/checkpoint_schedule.md. The actions are made by the C++ library
-(storage/checkpoint_actions.h) from the plan the strategy itself executes.
+and under the contract of the checkpoint_schedules package (Forward, Reverse, Copy, Move, EndForward,
+EndReverse; StorageType RAM, DISK, WORK): docs/guides/checkpoint_schedule.md. The actions are made by the
+C++ library (storage/checkpoint_stream.h) as the host asks for them, from the plan the strategy itself
+executes.
 
     for action in hindsight.checkpoint_schedule("binomial:checkpoints=10", steps=1000):
         ...   # dispatch on type(action): Forward(n0, n1, write_ics, write_adj_deps, storage), ...
+
+hindsight.checkpoint_schedules.Schedule makes the same stream of checkpoint_schedules' own classes when
+that package is installed.
 """
 import enum
 
@@ -90,8 +94,16 @@ class Copy(CheckpointAction):
     to_storage = property(lambda self: self.args[2])
 
 
-class Move(Copy):
-    """As Copy, and the state is released in from_storage."""
+class Move(CheckpointAction):
+    """As Copy, and the data is released in from_storage. Not a kind of Copy (as in checkpoint_schedules),
+    so that isinstance and functools.singledispatch tell them apart."""
+
+    def __init__(self, n, from_storage, to_storage):
+        super().__init__(n, from_storage, to_storage)
+
+    n = property(lambda self: self.args[0])
+    from_storage = property(lambda self: self.args[1])
+    to_storage = property(lambda self: self.args[2])
 
 
 class EndForward(CheckpointAction):
@@ -111,34 +123,119 @@ class EndReverse(CheckpointAction):
 _KINDS = (Forward, Reverse, Copy, Move, EndForward, EndReverse)  # the C++ CheckpointAction::Kind order
 
 
-def checkpoint_schedule(spec, steps, state_bytes=8, stages=1, costs=None):
+class CheckpointSchedule:
+    """The action stream of a storage strategy for a host's time-stepper: an iterator of actions, generated
+    as they are asked for, with checkpoint_schedules' schedule state (n, r, max_n, is_exhausted,
+    is_running, finalize, uses_storage_type). `classes` is the namespace whose action classes and
+    StorageType it yields (hindsight's own, or checkpoint_schedules')."""
+
+    def __init__(self, spec, steps, state_bytes, stages, costs, classes):
+        from . import _in_python_words
+        self.spec = spec
+        self._classes = classes
+        try:
+            self._stream = _hindsight._open_checkpoint_stream(spec, steps, state_bytes, stages, costs or "")
+        except ValueError as error:
+            raise _in_python_words(error) from None
+        self._storage = {name: getattr(classes.StorageType, name) for name in ("RAM", "DISK", "WORK", "NONE")}
+        self._kinds = tuple(getattr(classes, kind.__name__) for kind in _KINDS)
+        self._running = False
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        raw = self._stream.next()
+        if raw is None:
+            raise StopIteration
+        self._running = True
+        kind, n0, n1, write_ics, write_adj_deps, storage, clear, source, target = raw
+        cls = self._kinds[kind]
+        where = self._storage
+        if kind == 0:
+            return cls(n0, n1, write_ics, write_adj_deps, where[storage])
+        if kind == 1:
+            return cls(n1, n0, clear)
+        if kind in (2, 3):
+            return cls(n0, where[source], where[target])
+        return cls()
+
+    @property
+    def n(self):
+        """The step the forward is at."""
+        return self._stream.n
+
+    @property
+    def r(self):
+        """The number of adjoint steps taken."""
+        return self._stream.r
+
+    @property
+    def max_n(self):
+        """N, the steps of the forward run."""
+        return self._stream.max_n
+
+    @property
+    def is_exhausted(self):
+        """EndReverse has been yielded: one adjoint run per schedule."""
+        return self._stream.is_exhausted
+
+    @property
+    def is_running(self):
+        """At least one action has been yielded."""
+        return self._running
+
+    def finalize(self, n):
+        """Confirms the number of forward steps (checkpoint_schedules' finalize): N is known here, so n
+        must be N and the forward must be there; RuntimeError otherwise, as there."""
+        if n < 1:
+            raise ValueError(f"n must be positive, not {n}")
+        if n != self.max_n or self.n != n:
+            raise RuntimeError(f"finalize({n}): the schedule is for N = {self.max_n} and the forward is at "
+                               f"step {self.n}")
+
+    def uses_storage_type(self, storage_type):
+        """Whether the stream may keep checkpoints in `storage_type` (RAM or DISK)."""
+        name = self.spec.split(":", 1)[0].strip()
+        if storage_type == self._storage["DISK"]:
+            return name in ("disk", "multilevel")
+        if storage_type == self._storage["RAM"]:
+            return name != "disk"
+        return False
+
+    def __repr__(self):
+        return f"CheckpointSchedule({self.spec!r}, max_n={self.max_n}, n={self.n}, r={self.r})"
+
+
+def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """The actions that reverse `steps` fixed steps with storage strategy `spec` (full, disk, binomial,
-    multilevel, cams; the same plan a run of the strategy executes), as a generator of Forward, Reverse,
-    Copy, Move, EndForward and EndReverse. `state_bytes` sizes the budgets (a strategy given in bytes:
-    cams:budget=, multilevel:ram=); `stages` > 1 lets cams keep step records of that many state units;
-    `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec. ValueError names a bad argument;
-    the whole stream is computed (and validated) before the first action is yielded."""
-    from . import _in_python_words, _schedule_integer
-    steps = _schedule_integer("steps", steps, 1, 1 << 24)
+    multilevel, cams; the same plan a run of the strategy executes), as a CheckpointSchedule: an iterator
+    of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
+    Arguments and defaults are hindsight.schedule's: `state_bytes` sizes the budgets (a strategy given
+    in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
+    cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.
+    ValueError names a bad argument. binomial, full and disk streams are made as they are consumed (any
+    N); cams and multilevel translate their plan first (steps up to 2^24)."""
+    return _open(spec, steps, state_bytes, stages, costs, _OWN)
+
+
+def _open(spec, steps, state_bytes, stages, costs, classes):
+    from . import _schedule_integer
+    if not isinstance(spec, str):
+        raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
+                        f"{type(spec).__name__} {spec!r}")
+    steps = _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
     state_bytes = _schedule_integer("state_bytes", state_bytes, 8, 8 * 2147483647)
     stages = _schedule_integer("stages", stages, 1, 64)
     if costs is not None and not isinstance(costs, str):
         raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
-    try:
-        raw = _hindsight._checkpoint_schedule(spec, steps, state_bytes, stages, costs or "")
-    except ValueError as error:
-        raise _in_python_words(error) from None
-    return _actions(raw)
+    return CheckpointSchedule(spec, steps, state_bytes, stages, costs, classes)
 
 
-def _actions(raw):
-    for kind, n0, n1, write_ics, write_adj_deps, storage, clear, source, target in raw:
-        cls = _KINDS[kind]
-        if cls is Forward:
-            yield Forward(n0, n1, write_ics, write_adj_deps, StorageType[storage])
-        elif cls is Reverse:
-            yield Reverse(n1, n0, clear)
-        elif cls in (Copy, Move):
-            yield cls(n0, StorageType[source], StorageType[target])
-        else:
-            yield cls()
+class _Classes:
+    """hindsight's own action classes, as a namespace like the checkpoint_schedules module."""
+    Forward, Reverse, Copy, Move, EndForward, EndReverse = Forward, Reverse, Copy, Move, EndForward, EndReverse
+    StorageType = StorageType
+
+
+_OWN = _Classes

@@ -1,73 +1,198 @@
 """hindsight.checkpoint_schedule: checkpoint_schedules' actions from hindsight's plans drive a stepper that is
-not hindsight's to the gradient of full storage, recomputing what hindsight.schedule predicts."""
+not hindsight's to the gradient of full storage, recomputing what hindsight.schedule predicts, and every
+stream keeps checkpoint_schedules' contract (stream_contract.py states its rules)."""
+import functools
+import importlib.util
+import os
+import pathlib
+import random
+import types
+
 import pytest
 
 import hindsight
 from hindsight import Copy, EndForward, EndReverse, Forward, Move, Reverse, StorageType
+from stream_contract import ContractError, check_stream
+
+OWN = types.SimpleNamespace(Forward=Forward, Reverse=Reverse, Copy=Copy, Move=Move, EndForward=EndForward,
+                            EndReverse=EndReverse, StorageType=StorageType)
 
 
 def run(actions, steps, a=0.3):
-    """z_{k+1} = z_k + h (a z_k - z_k^2), J = sum_k h z_{k+1}^2, dJ/da by the discrete adjoint."""
+    """z_{k+1} = z_k + h (a z_k - z_k^2), J = sum_k h z_{k+1}^2, dJ/da by the discrete adjoint. WORK holds
+    the state and the adjoint data of the steps reversed next, as the contract has it."""
     h = 0.01
-    ics, adj_deps = {}, {}
+    stored = {}  # (storage, n) -> (state or None, {step: state} adjoint data)
     n, z, lam, dj, advanced, forward_done, objective = 0, 1.0, None, 0.0, 0, False, 0.0
+    work_deps = {}
     for action in actions:
-        if isinstance(action, Forward):
+        if type(action) is Forward:
             assert n == action.n0, action
-            if action.write_ics:
-                ics[(action.storage, action.n0)] = z
+            start, deps = z, {}
             for k in action:
                 if action.write_adj_deps:
-                    adj_deps[k] = z
+                    deps[k] = z
                 z = z + h * (a * z - z * z)
                 advanced += 1
                 if not forward_done:
                     objective += h * z * z
+            if action.storage == StorageType.WORK:
+                work_deps = deps
+            else:
+                stored[(action.storage, action.n0)] = (start if action.write_ics else None, deps)
             n = action.n1
-        elif isinstance(action, EndForward):
+        elif type(action) is EndForward:
             forward_done, lam = True, 2 * h * z
-        elif isinstance(action, Reverse):
+        elif type(action) is Reverse:
             for k in action:
-                zk = adj_deps.pop(k)
+                zk = work_deps.pop(k)
                 dj += lam * h * zk
                 lam = lam * (1 + h * (a - 2 * zk)) + (2 * h * zk if k >= 1 else 0.0)
-        elif isinstance(action, (Copy, Move)):
-            if action.from_storage == StorageType.WORK:  # a checkpoint of the state at hand
-                assert n == action.n, action
-                ics[(action.to_storage, action.n)] = z
-                continue
-            assert action.to_storage == StorageType.WORK, action
-            z = ics.pop((action.from_storage, action.n)) if isinstance(action, Move) else ics[(action.from_storage, action.n)]
-            n = action.n
+        elif type(action) in (Copy, Move):
+            key = (action.from_storage, action.n)
+            data = stored.pop(key) if type(action) is Move else stored[key]
+            if action.to_storage == StorageType.WORK:
+                state, work_deps = data[0], dict(data[1])
+                if state is not None:
+                    z, n = state, action.n
+            else:
+                stored[(action.to_storage, action.n)] = data
         else:
-            assert isinstance(action, EndReverse)
-            return objective, dj, advanced - steps, len(ics) + len(adj_deps)
+            assert type(action) is EndReverse
+            return objective, dj, advanced - steps, len(stored) + len(work_deps)
     raise AssertionError("no EndReverse")
 
 
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
-                                         ("full", 1)])
+                                         ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
     steps = 60
     reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
-    actions = list(hindsight.checkpoint_schedule(spec, steps=steps, stages=stages))
+    actions = list(hindsight.checkpoint_schedule(spec, steps=steps, state_bytes=16, stages=stages))
     objective, gradient, extra, leftover = run(actions, steps)
     assert (objective, gradient) == reference[:2]
     assert leftover == 0  # Move and clear_adj_deps release everything by the end
-    p = hindsight.schedule(spec, steps, state_bytes=8, stages=stages)
+    p = hindsight.schedule(spec, steps, state_bytes=16, stages=stages)
     # The host re-runs a step for each adjoint step without held data (hindsight's adjoint steps that
     # recompute their stages), except the forward run's last step, which writes its data to WORK itself.
     reruns = p.adjoint_stage_recomputations if spec.startswith("cams") else steps
-    last = [a for a in actions[:actions.index(EndForward())] if isinstance(a, Forward)][-1]
+    last = [a for a in actions[:actions.index(EndForward())] if type(a) is Forward][-1]
     taped_in_forward = last.write_adj_deps and last.storage == StorageType.WORK
     assert extra == p.recomputed_steps + reruns - taped_in_forward
+
+
+def _families(rng):
+    """Every family with a random budget: (spec, stages, RAM limit, DISK limit) for the checker."""
+    c = rng.randint(1, 12)
+    ram, disk = rng.randint(2, 8), rng.randint(1, 12)
+    return [("full", 1, None, 0), ("disk:dir=unused", 4, 0, None),
+            (f"binomial:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),
+            (f"cams:checkpoints={c}", rng.choice([1, 4]), None, 0),
+            (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
+             ram, disk)]
+
+
+def _sweep(ns, seed):
+    rng = random.Random(seed)
+    checked = 0
+    for n in ns:
+        for spec, stages, ram, disk in _families(rng):
+            try:
+                schedule = hindsight.checkpoint_schedule(spec, steps=n, state_bytes=16, stages=stages)
+            except ValueError as error:
+                assert spec.startswith("multilevel"), error  # only too few slots for N steps
+                continue
+            try:
+                counts = check_stream(schedule, n, OWN, ram_limit=ram, disk_limit=disk)
+            except ContractError as error:
+                raise AssertionError(f"{spec}, N = {n}, stages = {stages}: {error}") from None
+            p = hindsight.schedule(spec, n, state_bytes=16, stages=stages)
+            assert counts["recomputed"] == p.recomputed_steps, (spec, n, stages)
+            if spec.startswith("multilevel"):
+                assert counts["disk_writes"] == p.disk_writes, (spec, n, stages)
+            checked += 1
+    return checked
+
+
+def test_every_family_keeps_the_contract_for_small_n_and_random_budgets():
+    assert _sweep(range(1, 41), seed=1) > 150
+
+
+def test_every_family_keeps_the_contract_up_to_ten_thousand_steps():
+    assert _sweep([97, 256, 1000, 3001, 10_000], seed=2) >= 20
+
+
+@pytest.mark.skipif(not os.environ.get("HINDSIGHT_LONG"), reason="the long sweep (ctest -L long)")
+def test_every_family_keeps_the_contract_long_sweep():
+    rng = random.Random(3)
+    assert _sweep(sorted(rng.sample(range(41, 10_001), 120)), seed=4) > 400
+
+
+def _bad(*actions):
+    return check_stream(list(actions), 2, OWN)
+
+
+def test_the_checker_rejects_what_checkpoint_schedules_hosts_cannot_run():
+    ok = [Forward(0, 1, True, False, StorageType.RAM), Forward(1, 2, False, True, StorageType.WORK), EndForward(),
+          Reverse(2, 1, True), Move(0, StorageType.RAM, StorageType.WORK), Forward(0, 1, False, True, StorageType.WORK),
+          Reverse(1, 0, True), EndReverse()]
+    assert _bad(*ok)["recomputed"] == 0
+    with pytest.raises(ContractError, match="holds no checkpoints"):  # a copy out of WORK
+        _bad(Forward(0, 1, False, False, StorageType.WORK), Copy(1, StorageType.WORK, StorageType.RAM))
+    with pytest.raises(ContractError, match="in WORK"):  # adjoint data read from RAM
+        _bad(Forward(0, 1, False, False, StorageType.WORK), Forward(1, 2, False, True, StorageType.RAM), EndForward(),
+             Reverse(2, 1, True))
+    with pytest.raises(ContractError, match="reach the adjoint"):  # restart data of one step, reused for two
+        _bad(Forward(0, 1, True, False, StorageType.RAM), Forward(1, 2, False, False, StorageType.WORK), EndForward(),
+             Copy(0, StorageType.RAM, StorageType.WORK))
+    with pytest.raises(ContractError, match="left"):
+        _bad(*ok[:4], Copy(0, StorageType.RAM, StorageType.WORK), *ok[5:])
+    assert not issubclass(Move, Copy)  # a host's isinstance(action, Copy) branch must not take a Move
+
+    @functools.singledispatch
+    def kind(action):
+        raise TypeError(action)
+    kind.register(Copy, lambda action: "copy")
+    kind.register(Move, lambda action: "move")
+    assert [kind(a) for a in (Copy(0, StorageType.RAM, StorageType.WORK), Move(0, StorageType.RAM, StorageType.WORK))] \
+        == ["copy", "move"]
+
+
+def test_schedule_state_follows_the_host():
+    schedule = hindsight.checkpoint_schedule("binomial:checkpoints=2", steps=10)
+    assert (schedule.n, schedule.r, schedule.max_n, schedule.is_running, schedule.is_exhausted) == (0, 0, 10, False, False)
+    check_stream(schedule, 10, OWN)  # checks n and r after every action
+    assert schedule.is_exhausted and schedule.r == 10 and next(schedule, None) is None
+    with pytest.raises(RuntimeError, match="N = 10"):
+        schedule.finalize(9)
+    assert schedule.uses_storage_type(StorageType.RAM) and not schedule.uses_storage_type(StorageType.DISK)
+
+
+def test_streams_are_made_as_they_are_consumed():
+    # 2^40 steps: a stream built before its first action would not fit in any memory.
+    schedule = hindsight.checkpoint_schedule("binomial:checkpoints=30", steps=1 << 40)
+    first = [next(schedule) for _ in range(3)]
+    assert first[0] == Forward(0, first[0].n1, True, False, StorageType.RAM) and first[1].n0 == first[0].n1
+    full = hindsight.checkpoint_schedule("full", steps=100_000_000)  # 800 MB of states, within full's budget
+    assert next(full) == Forward(0, 1, True, False, StorageType.RAM)
+    with pytest.raises(ValueError, match=r"steps up to 16777216.*steps = 16777217"):
+        hindsight.checkpoint_schedule("cams:checkpoints=3", steps=(1 << 24) + 1)
+
+
+def test_defaults_are_schedules():
+    # One set of defaults: the stream recomputes what hindsight.schedule predicts with the same arguments.
+    spec, steps = "cams:checkpoints=20", 500
+    counts = check_stream(hindsight.checkpoint_schedule(spec, steps), steps, OWN)
+    p = hindsight.schedule(spec, steps, state_bytes=8)
+    assert counts["recomputed"] == p.recomputed_steps
+    assert counts["adjoint_reruns"] == p.adjoint_stage_recomputations
 
 
 def test_actions_read_as_checkpoint_schedules():
     actions = list(hindsight.checkpoint_schedule("binomial:checkpoints=1", steps=3))
     assert repr(actions[0]) == "Forward(0, 2, True, False, StorageType.RAM)"
     assert actions[2] == EndForward() and actions[-1] == EndReverse()
-    assert [list(a) for a in actions if isinstance(a, Reverse)] == [[2], [1], [0]]
+    assert [list(a) for a in actions if type(a) is Reverse] == [[2], [1], [0]]
 
 
 def test_bad_arguments_name_themselves():
@@ -79,3 +204,70 @@ def test_bad_arguments_name_themselves():
         hindsight.checkpoint_schedule("full", steps=2.5)
     with pytest.raises(ValueError, match="stages = 1"):
         hindsight.checkpoint_schedule("binomial:checkpoints=3,stages=1", steps=10, stages=4)
+    with pytest.raises(ValueError) as error:
+        hindsight.schedule("binomial:checkpoints=3", (1 << 24) + 1, state_bytes=8, actions=True)
+    assert "actions=True" in str(error.value) and "--" not in str(error.value)
+
+
+def test_the_adapter_without_checkpoint_schedules_keeps_the_semantics():
+    from hindsight import checkpoint_schedules as adapter
+    schedule = adapter.Schedule("cams:checkpoints=4", 50)
+    names = adapter.classes()
+    check_stream(schedule, 50, names)
+    if not adapter.uses_checkpoint_schedules():
+        assert names.Move is Move and names.StorageType is StorageType
+
+
+def _their_validity_test():
+    """checkpoint_schedules' own test host: the test_validity.py of its test folder, beside the package in
+    a source checkout, or where HINDSIGHT_CHECKPOINT_SCHEDULES_TESTS points."""
+    cs = pytest.importorskip("checkpoint_schedules")
+    root = os.environ.get("HINDSIGHT_CHECKPOINT_SCHEDULES_TESTS") or \
+        str(pathlib.Path(cs.__file__).resolve().parent.parent / "tests")
+    path = pathlib.Path(root) / "test_validity.py"
+    if not path.exists():
+        pytest.skip(f"checkpoint_schedules is installed without its tests ({path})")
+    spec = importlib.util.spec_from_file_location("checkpoint_schedules_test_validity", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return cs, module.test_validity
+
+
+@pytest.mark.parametrize("family", ["full", "binomial", "cams", "multilevel"])
+def test_checkpoint_schedules_own_host_runs_every_family(family):
+    cs, test_validity = _their_validity_test()
+    from hindsight.checkpoint_schedules import Schedule
+
+    def factory(n, s):
+        # Their host passes (N, checkpoint units); it checks storage limits and the schedule's n and r.
+        s = max(s, 1)
+        if family == "full":
+            return Schedule("full", n), {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1
+        if family == "binomial":
+            return Schedule(f"binomial:checkpoints={s}", n), {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: 0}, 1
+        if family == "cams":
+            return Schedule(f"cams:checkpoints={s}", n, stages=4), {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1
+        return (Schedule(f"multilevel:ram={16 * (s + 1)},disk={16 * n},costs=1:1:0.5:0.5", n, state_bytes=16),
+                {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: n}, 1)
+
+    for n, budgets in [(1, (0,)), (2, (1,)), (3, (1, 2)), (5, (2,)), (10, tuple(range(2, 10))),
+                       (100, (1, 5, 30, 99)), (250, (25, 100, 225))]:
+        test_validity(factory, n, budgets)
+
+
+def test_the_checker_accepts_checkpoint_schedules_own_schedules():
+    # The checker is not stricter than the contract where it matters: checkpoint_schedules' own schedules
+    # pass it (they leave disk checkpoints behind, which hindsight's streams may not).
+    cs = pytest.importorskip("checkpoint_schedules")
+    checked = 0
+    for n in (1, 2, 3, 10, 37, 100):
+        for s in (1, 2, 5, 30):
+            schedules = [(cs.Revolve(n, s), 1), (cs.MultistageCheckpointSchedule(n, 0, s), 1),
+                         (cs.DiskRevolve(n, s), 1), (cs.SingleMemoryStorageSchedule(), n),
+                         (cs.SingleDiskStorageSchedule(move_data=True), 1)]
+            if 3 <= s < n:  # its own test's split of the units between RAM and disk, where it runs
+                schedules.append((cs.HRevolve(n, s // 3, s - s // 3), 1))
+            for schedule, work in schedules:
+                check_stream(schedule, n, cs, work_limit=work, online=True, allow_leftovers=True)
+                checked += 1
+    assert checked == 6 * 4 * 5 + 5

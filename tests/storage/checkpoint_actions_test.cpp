@@ -2,12 +2,14 @@
 // strategy on a grid of N and budgets (a host that tracks which step each piece of data belongs to
 // executes it), and it recomputes what the strategy's own prediction says.
 #include <hindsight/storage/checkpoint_actions.h>
+#include <hindsight/storage/checkpoint_stream.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include "support/storage_fixtures.h"
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -86,6 +88,46 @@ TEST(CheckpointActions, TextIsCheckpointSchedulesRepr) {
             "EndReverse()\n");
 }
 
+// binomial's stream drives the run's own BinomialSchedule as the host consumes it: at N = 2^40 its first
+// actions come without the plan being laid out, and it never holds more than the C + 1 slots.
+TEST(CheckpointActions, BinomialStreamIsMadeAsItIsConsumed) {
+  const std::int64_t steps = std::int64_t{1} << 40;
+  const std::unique_ptr<CheckpointStream> stream =
+      openCheckpointStream("binomial:checkpoints=20", steps, 16, 4, nullptr);
+  EXPECT_EQ(stream->maxN(), steps);
+  CheckpointAction a;
+  std::int64_t at = 0;
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(stream->next(&a));
+    ASSERT_EQ(a.kind, CheckpointAction::Kind::kForward) << a.text();
+    EXPECT_EQ(a.n0, at);
+    EXPECT_TRUE(a.writeIcs && a.storage == CheckpointStorage::kRam) << a.text();
+    at = a.n1;
+    EXPECT_EQ(stream->n(), at);
+    EXPECT_LE(stream->heldCheckpoints(), 21);
+  }
+  EXPECT_LT(at, steps);
+  EXPECT_EQ(stream->r(), 0);
+  EXPECT_FALSE(stream->isExhausted());
+}
+
+// The stream's state is checkpoint_schedules' n (where the forward is) and r (adjoint steps taken).
+TEST(CheckpointActions, StreamStateFollowsTheActions) {
+  for (const std::string spec : {"binomial:checkpoints=3", "cams:checkpoints=3", "full"}) {
+    const std::unique_ptr<CheckpointStream> stream = openCheckpointStream(spec, 40, 16, 4, nullptr);
+    CheckpointAction a;
+    std::int64_t reversed = 0;
+    while (stream->next(&a)) {
+      if (a.kind == CheckpointAction::Kind::kForward) EXPECT_EQ(stream->n(), a.n1) << spec;
+      if (a.kind == CheckpointAction::Kind::kReverse) reversed += a.n1 - a.n0;
+      EXPECT_EQ(stream->r(), reversed) << spec;
+    }
+    EXPECT_TRUE(stream->isExhausted());
+    EXPECT_EQ(stream->r(), 40);
+    EXPECT_FALSE(stream->next(&a));
+  }
+}
+
 TEST(CheckpointActions, TheCheckerRejectsAnInvalidStream) {
   std::vector<CheckpointAction> actions = checkpointSchedule("binomial:checkpoints=2", 10, 16, 1, nullptr);
   ASSERT_NO_THROW(checkCheckpointStream(actions, 10));
@@ -94,6 +136,47 @@ TEST(CheckpointActions, TheCheckerRejectsAnInvalidStream) {
     broken.erase(broken.begin() + static_cast<std::ptrdiff_t>(drop));
     EXPECT_THROW(checkCheckpointStream(broken, 10), std::logic_error) << "without " << actions[drop].text();
   }
+}
+
+// What a checkpoint_schedules host cannot run: a copy out of WORK, adjoint data read from RAM, restart
+// data reused beyond the steps its Forward ran.
+TEST(CheckpointActions, TheCheckerHoldsCheckpointSchedulesContract) {
+  const auto forward = [](std::int64_t n0, std::int64_t n1, bool ics, bool adj, CheckpointStorage s) {
+    CheckpointAction a;
+    a.kind = CheckpointAction::Kind::kForward;
+    a.n0 = n0;
+    a.n1 = n1;
+    a.writeIcs = ics;
+    a.writeAdjDeps = adj;
+    a.storage = s;
+    return a;
+  };
+  const auto copy = [](std::int64_t n, CheckpointStorage from, CheckpointStorage to) {
+    CheckpointAction a;
+    a.kind = CheckpointAction::Kind::kCopy;
+    a.n0 = a.n1 = n;
+    a.from = from;
+    a.to = to;
+    return a;
+  };
+  CheckpointAction endForward, reverse;
+  endForward.kind = CheckpointAction::Kind::kEndForward;
+  reverse.kind = CheckpointAction::Kind::kReverse;
+  reverse.n1 = 2;
+  reverse.n0 = 1;
+  reverse.clearAdjDeps = true;
+  using S = CheckpointStorage;
+  EXPECT_THROW(checkCheckpointStream({forward(0, 1, false, false, S::kWork), copy(1, S::kWork, S::kRam)}, 2),
+               std::logic_error);
+  EXPECT_THROW(checkCheckpointStream({forward(0, 1, false, false, S::kWork),
+                                      forward(1, 2, false, true, S::kRam), endForward, reverse},
+                                     2),
+               std::logic_error);
+  EXPECT_THROW(
+      checkCheckpointStream({forward(0, 1, true, false, S::kRam), forward(1, 2, false, false, S::kWork),
+                             endForward, copy(0, S::kRam, S::kWork)},
+                            2),
+      std::logic_error);
 }
 
 TEST(CheckpointActions, RefusesWhatHasNoFixedPlanNamingIt) {

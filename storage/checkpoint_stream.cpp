@@ -1,0 +1,318 @@
+#include <hindsight/storage/checkpoint_stream.h>
+
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/schedule.h>
+
+#include <algorithm>
+#include <cassert>
+#include <deque>
+#include <stdexcept>
+#include <vector>
+
+namespace hindsight {
+
+bool CheckpointStream::next(CheckpointAction* action) {
+  if (exhausted_) return false;
+  if (!doNext(action)) {
+    exhausted_ = true;
+    return false;
+  }
+  const auto key = [](CheckpointStorage s, std::int64_t n) { return std::make_pair(static_cast<int>(s), n); };
+  switch (action->kind) {
+    case CheckpointAction::Kind::kForward:
+      if (action->writeIcs && action->storage != CheckpointStorage::kWork)
+        restart_.insert(key(action->storage, action->n0));
+      n_ = action->n1;
+      break;
+    case CheckpointAction::Kind::kReverse:
+      r_ += action->n1 - action->n0;
+      break;
+    case CheckpointAction::Kind::kCopy:
+    case CheckpointAction::Kind::kMove: {
+      const bool restart = restart_.count(key(action->from, action->n0)) != 0;
+      if (action->kind == CheckpointAction::Kind::kMove) restart_.erase(key(action->from, action->n0));
+      if (action->to == CheckpointStorage::kWork) {
+        // Adjoint data alone puts the forward nowhere; checkpoint_schedules' own schedules then report
+        // the step after it, which is where the forward would stand.
+        n_ = restart ? action->n0 : action->n0 + 1;
+      } else if (restart) {
+        restart_.insert(key(action->to, action->n0));
+      }
+      break;
+    }
+    case CheckpointAction::Kind::kEndForward:
+      break;
+    case CheckpointAction::Kind::kEndReverse:
+      exhausted_ = true;
+      break;
+  }
+  return true;
+}
+
+namespace {
+
+using Kind = CheckpointAction::Kind;
+
+CheckpointAction forward(std::int64_t n0, std::int64_t n1, bool ics, bool adjDeps,
+                         CheckpointStorage storage) {
+  CheckpointAction a;
+  a.kind = Kind::kForward;
+  a.n0 = n0;
+  a.n1 = n1;
+  a.writeIcs = ics;
+  a.writeAdjDeps = adjDeps;
+  a.storage = storage;
+  return a;
+}
+CheckpointAction reverseStep(std::int64_t e) {
+  CheckpointAction a;
+  a.kind = Kind::kReverse;
+  a.n1 = e + 1;
+  a.n0 = e;
+  a.clearAdjDeps = true;
+  return a;
+}
+CheckpointAction toWork(std::int64_t n, CheckpointStorage from, bool move) {
+  CheckpointAction a;
+  a.kind = move ? Kind::kMove : Kind::kCopy;
+  a.n0 = a.n1 = n;
+  a.from = from;
+  a.to = CheckpointStorage::kWork;
+  return a;
+}
+CheckpointAction marker(Kind kind) {
+  CheckpointAction a;
+  a.kind = kind;
+  return a;
+}
+
+// Streams whose actions come in small batches: doNext hands out the queue, refilling it by refill().
+class BatchedStream : public CheckpointStream {
+ protected:
+  explicit BatchedStream(std::int64_t steps) : CheckpointStream(steps) {}
+  /// Appends the next actions to queue_; false when there are none left.
+  virtual bool refill() = 0;
+  bool doNext(CheckpointAction* action) final {
+    while (queue_.empty()) {
+      if (!refill()) return false;
+    }
+    *action = queue_.front();
+    queue_.pop_front();
+    return true;
+  }
+  std::deque<CheckpointAction> queue_;
+};
+
+// full and disk keep every state x_0..x_{N-2} (x_{N-1} is the working state when the forward run ends): the
+// forward run writes each as restart data of its own step, and the adjoint of step e re-runs it from x_e
+// (the stage values hindsight's own adjoint step recomputes). No step is recomputed otherwise.
+class EveryStateStream final : public BatchedStream {
+ public:
+  EveryStateStream(std::int64_t steps, CheckpointStorage level) : BatchedStream(steps), level_(level) {}
+
+ private:
+  bool refill() override {
+    const std::int64_t steps = maxN_;
+    if (forward_ < steps - 1) {
+      queue_.push_back(forward(forward_, forward_ + 1, true, false, level_));
+      ++forward_;
+    } else if (forward_ == steps - 1) {
+      queue_.push_back(forward(steps - 1, steps, false, true, CheckpointStorage::kWork));
+      queue_.push_back(marker(Kind::kEndForward));
+      queue_.push_back(reverseStep(steps - 1));
+      ++forward_;
+      reverse_ = steps - 2;
+    } else if (reverse_ >= 0) {
+      queue_.push_back(toWork(reverse_, level_, true));
+      queue_.push_back(forward(reverse_, reverse_ + 1, false, true, CheckpointStorage::kWork));
+      queue_.push_back(reverseStep(reverse_));
+      --reverse_;
+    } else if (!done_) {
+      queue_.push_back(marker(Kind::kEndReverse));
+      done_ = true;
+    } else {
+      return false;
+    }
+    return true;
+  }
+  CheckpointStorage level_;
+  std::int64_t forward_ = 0, reverse_ = -1;
+  bool done_ = false;
+};
+
+// binomial: the BinomialSchedule a run executes (engine/binomial_checkpointing.cpp: revolve over the
+// positions 0..N with min(C + 1, N) slots, its first sweep the forward sweep), translated as it goes.
+// A checkpoint's restart data is written by the Forward that leaves it, which runs to the next checkpoint
+// of the same sweep (or to x_{N-1} or the step re-run for the adjoint): every later load of it then finds
+// the adjoint at or below that end, as the contract asks. The load of a checkpoint at the position being
+// reversed is its last (the schedule pops it): a Move; every other load a Copy. When the first sweep
+// keeps x_{N-1} itself, the forward run's last step writes its adjoint data and the store is left out;
+// otherwise the replay of x_{N-1} from the topmost checkpoint is in the stream, as in a run.
+class BinomialStream final : public BatchedStream {
+ public:
+  BinomialStream(std::int64_t steps, std::int64_t checkpoints) : BatchedStream(steps) {
+    schedule_.reset(steps + 1, std::min(checkpoints + 1, steps), true);
+    stack_.push_back(0);
+  }
+
+ private:
+  struct Visitor {
+    BinomialStream& s;
+    void loadWorking() {}  // x_N, the schedule's end position: never restored
+    void load(std::int64_t slot) {
+      const std::int64_t position = s.stack_[static_cast<std::size_t>(slot)];
+      const bool last = position == s.restoring_;
+      s.queue_.push_back(toWork(position, CheckpointStorage::kRam, last));
+      if (last) s.stack_.pop_back();
+      s.at_ = position;
+      s.pendingStore_ = false;
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      assert(from == s.at_);
+      s.queue_.push_back(forward(from, to, s.pendingStore_, false,
+                                 s.pendingStore_ ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+      s.pendingStore_ = false;
+      s.at_ = to;
+    }
+    void store(std::int64_t slot) {
+      static_cast<void>(slot);  // the schedule's stack depth, which stack_ mirrors
+      assert(static_cast<std::size_t>(slot) == s.stack_.size());
+      s.stack_.push_back(s.at_);
+      s.pendingStore_ = true;
+    }
+  };
+
+  bool refill() override {
+    const std::int64_t steps = maxN_;
+    if (phase_ == Phase::kForward) {
+      // The forward run, cut where the first sweep keeps a state: each piece writes the restart data of
+      // the checkpoint it leaves (x_0 first). x_{N-1} kept by the sweep is the working state.
+      const std::int64_t target = schedule_.nextForward();
+      if (target > 0 && target < steps - 1) {
+        queue_.push_back(forward(at_, target, true, false, CheckpointStorage::kRam));
+        schedule_.recordForward(target);
+        stack_.push_back(target);
+        at_ = target;
+        return true;
+      }
+      if (target == steps - 1) {
+        schedule_.recordForward(target);
+        stack_.push_back(target);
+      }
+      NullVisitor none;
+      schedule_.restoreStep(steps, none);  // x_N, the schedule's end position: the working state
+      if (stack_.back() == steps - 1) {
+        // x_{N-1} is held (for N = 1 it is x_0): the last step writes its adjoint data, and the
+        // schedule's load and pop of that slot is the forward run itself.
+        if (at_ < steps - 1) queue_.push_back(forward(at_, steps - 1, true, false, CheckpointStorage::kRam));
+        queue_.push_back(forward(steps - 1, steps, false, true, CheckpointStorage::kWork));
+        queue_.push_back(marker(Kind::kEndForward));
+        queue_.push_back(reverseStep(steps - 1));
+        schedule_.restoreStep(steps - 1, none);
+        stack_.pop_back();
+        restoring_ = steps - 2;
+      } else {
+        queue_.push_back(forward(at_, steps, true, false, CheckpointStorage::kRam));
+        queue_.push_back(marker(Kind::kEndForward));
+        restoring_ = steps - 1;
+      }
+      at_ = -1;
+      phase_ = Phase::kReverse;
+      return true;
+    }
+    if (restoring_ >= 0) {
+      Visitor visitor{*this};
+      schedule_.restoreStep(restoring_, visitor);
+      assert(at_ == restoring_);
+      queue_.push_back(forward(restoring_, restoring_ + 1, false, true, CheckpointStorage::kWork));
+      queue_.push_back(reverseStep(restoring_));
+      at_ = -1;
+      --restoring_;
+      return true;
+    }
+    if (phase_ == Phase::kReverse) {
+      queue_.push_back(marker(Kind::kEndReverse));
+      phase_ = Phase::kDone;
+      return true;
+    }
+    return false;
+  }
+
+  struct NullVisitor {
+    void loadWorking() {}
+    void load(std::int64_t) {}
+    void advance(std::int64_t, std::int64_t) {}
+    void store(std::int64_t) {}
+  };
+
+  enum class Phase { kForward, kReverse, kDone };
+  Phase phase_ = Phase::kForward;
+  BinomialSchedule schedule_;
+  std::vector<std::int64_t> stack_;  // positions of the slots, as the schedule's stack
+  std::int64_t at_ = 0, restoring_ = -1;
+  bool pendingStore_ = false;
+};
+
+// cams and multilevel: the whole translated plan, handed out in order.
+class StoredStream final : public CheckpointStream {
+ public:
+  StoredStream(std::int64_t steps, std::vector<CheckpointAction> actions)
+      : CheckpointStream(steps), actions_(std::move(actions)) {}
+
+ private:
+  bool doNext(CheckpointAction* action) override {
+    if (next_ == actions_.size()) return false;
+    *action = actions_[next_++];
+    return true;
+  }
+  std::vector<CheckpointAction> actions_;
+  std::size_t next_ = 0;
+};
+
+constexpr std::int64_t kMaxTranslatedSteps = std::int64_t{1} << 24;  // writeScheduleActions' limit
+
+}  // namespace
+
+std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
+                                                      std::int64_t stateBytes, int stages,
+                                                      const ScheduleCosts* costs);
+
+std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specText, std::int64_t steps,
+                                                       std::int64_t stateBytes, int stages,
+                                                       const ScheduleCosts* costs) {
+  const StorageSpec spec = StorageSpec::parse(specText);
+  const std::string& name = spec.name();
+  if (name == "binomial" || name == "full" || name == "disk") {
+    if (spec.has("stages") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1) {
+      throw std::invalid_argument(name +
+                                  ".stages = 1 keeps stage values by a rule of its own, which the action "
+                                  "stream does not express; use " +
+                                  name + " without stages=1, or cams (whose step records it expresses)");
+    }
+    if (name != "binomial") {
+      predictSchedule(specText, steps, stateBytes, stages, costs);  // every check of the plan, O(1) here
+    } else {
+      // Every check of the plan: the spec first (a missing checkpoints= is named), then the budget at
+      // the min(C + 1, N) slots the stream uses. The prediction at N itself walks the plan up to 2^24
+      // steps (100 ms at N = 10^6), which a stream that walks it as the host goes does not need.
+      predictSchedule(specText, 1, stateBytes, stages, costs);
+      const std::int64_t checkpoints =
+          spec.integer("checkpoints", 1, 1, BinomialCheckpointing::kMaxCheckpoints);
+      predictSchedule(specText, std::min(steps, checkpoints + 1), stateBytes, stages, costs);
+      return std::make_unique<BinomialStream>(steps, checkpoints);
+    }
+    return std::make_unique<EveryStateStream>(
+        steps, name == "disk" ? CheckpointStorage::kDisk : CheckpointStorage::kRam);
+  }
+  if (steps > kMaxTranslatedSteps) {
+    throw std::invalid_argument(
+        "the " + name + " action stream translates the whole plan first, for steps up to " +
+        std::to_string(kMaxTranslatedSteps) + " (2^24); steps = " + std::to_string(steps) +
+        " (binomial, full and disk streams have no such limit)");
+  }
+  return std::make_unique<StoredStream>(steps,
+                                        translateCheckpointPlan(specText, steps, stateBytes, stages, costs));
+}
+
+}  // namespace hindsight

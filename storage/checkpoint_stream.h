@@ -1,0 +1,62 @@
+// A strategy's checkpoint_schedules action stream (storage/checkpoint_actions.h), produced one action at a
+// time as the host asks for it, with the schedule state checkpoint_schedules' CheckpointSchedule exposes
+// (n, r, max_n, is_exhausted, finalize). docs/guides/checkpoint_schedule.md states the contract every
+// stream keeps; python/tests/stream_contract.py checks it.
+//
+// binomial, full and disk are generated lazily: memory O(checkpoints) whatever N, the first action after
+// O(checkpoints) work (binomial drives engine/binomial_checkpointing.h's BinomialSchedule, the state
+// machine its runs use, so the stream recomputes exactly what a run recomputes). cams and multilevel
+// translate their whole plan (storage/schedule.h, N <= 2^24) when the stream is opened and then hand it
+// out action by action: their plans are dynamic programmes over N.
+#pragma once
+
+#include <hindsight/storage/checkpoint_actions.h>
+
+#include <cstdint>
+#include <memory>
+#include <set>
+#include <string>
+#include <utility>
+
+namespace hindsight {
+
+class CheckpointStream {
+ public:
+  virtual ~CheckpointStream() = default;
+
+  /// The next action in `*action`; false once EndReverse has been handed out (and ever after).
+  bool next(CheckpointAction* action);
+
+  /// The step the forward is at (checkpoint_schedules' `n`): after a Forward its n1, after a Copy/Move
+  /// of restart data to WORK that step.
+  std::int64_t n() const { return n_; }
+  /// Adjoint steps taken (`r`).
+  std::int64_t r() const { return r_; }
+  /// N, or -1 while it is unknown (an online stream before finalize()).
+  std::int64_t maxN() const { return maxN_; }
+  /// EndReverse has been handed out.
+  bool isExhausted() const { return exhausted_; }
+  /// Restart checkpoints (RAM and DISK) the host holds now, and the most it held at once.
+  std::int64_t heldCheckpoints() const { return static_cast<std::int64_t>(restart_.size()); }
+
+ protected:
+  explicit CheckpointStream(std::int64_t maxN) : maxN_(maxN) {}
+  /// The next action of the strategy; false after EndReverse.
+  virtual bool doNext(CheckpointAction* action) = 0;
+  std::int64_t maxN_;
+
+ private:
+  std::int64_t n_ = 0, r_ = 0;
+  bool exhausted_ = false;
+  // Checkpoints holding restart data (storage, step): a Copy/Move of one to WORK moves n.
+  std::set<std::pair<int, std::int64_t>> restart_;
+};
+
+/// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
+/// (storage/schedule.h): full, disk, binomial (any N up to 2^62), cams and multilevel (N <= 2^24).
+/// Throws std::invalid_argument as checkpointSchedule() does.
+std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, std::int64_t steps,
+                                                       std::int64_t stateBytes, int stages,
+                                                       const ScheduleCosts* costs);
+
+}  // namespace hindsight
