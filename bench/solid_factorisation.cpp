@@ -1,0 +1,153 @@
+// The solid member's linear algebra at production size (bench/RESULTS.md, "The solid member"): assembly
+// of K and M, the sparse factorisation of K on the pinned-roller support (joint axes A and B, u_z held on
+// the symmetry plane), Eigen's SimplicialLDLT (AMD ordering) against CHOLMOD's supernodal LL^T (its
+// default ordering choice: AMD, then METIS when AMD's fill is large), and Spectra's shift-and-invert
+// Lanczos for the lowest modes with the faster factorisation. A measurement, not a timing benchmark
+// fixture: each phase runs once (the factorisations take seconds) and prints CPU and wall seconds, the
+// factor's nonzeros and the process's peak resident memory.
+//
+// Usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS(simplicial,cholmod) MODES
+#include <hindsight/problems/rod/solid_model.h>
+
+#include <Spectra/MatOp/SparseSymMatProd.h>
+#include <Spectra/SymGEigsShiftSolver.h>
+#include <Eigen/SparseCholesky>
+#ifdef HINDSIGHT_WITH_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <iostream>
+#include <string>
+#include <vector>
+
+namespace {
+
+using hindsight::Vector;
+using hindsight::rod::SparseMatrix;
+
+struct Clock {
+  std::clock_t cpu = std::clock();
+  std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
+  void report(const char* phase) const {
+    const double cpuSeconds = double(std::clock() - cpu) / CLOCKS_PER_SEC;
+    const double wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    std::printf("%-34s cpu %8.2f s  wall %8.2f s  peak RSS %7.0f MB\n", phase, cpuSeconds, wallSeconds,
+                usage.ru_maxrss / 1024.0);
+    std::fflush(stdout);
+  }
+};
+
+template <typename Factor>
+class ShiftInvert {
+ public:
+  using Scalar = double;
+  ShiftInvert(const SparseMatrix& stiffness, const SparseMatrix& mass, Factor& factor)
+      : stiffness_(stiffness), mass_(mass), factor_(factor) {}
+  Eigen::Index rows() const { return stiffness_.rows(); }
+  Eigen::Index cols() const { return stiffness_.cols(); }
+  void set_shift(double sigma) {
+    factor_.compute(SparseMatrix(stiffness_ - sigma * mass_));
+    if (factor_.info() != Eigen::Success) throw std::runtime_error("factorisation of K - sigma M failed");
+  }
+  void perform_op(const double* in, double* out) const {
+    Eigen::Map<Vector>(out, rows()) = factor_.solve(Eigen::Map<const Vector>(in, rows()));
+    ++solves;
+  }
+  mutable int solves = 0;
+
+ private:
+  const SparseMatrix& stiffness_;
+  const SparseMatrix& mass_;
+  Factor& factor_;
+};
+
+template <typename Factor>
+void eigenSolve(const SparseMatrix& stiffness, const SparseMatrix& mass, int modes, Factor& factor,
+                const char* name) {
+  const Clock clock;
+  ShiftInvert<Factor> op(stiffness, mass, factor);
+  Spectra::SparseSymMatProd<double> massProduct(mass);
+  Spectra::SymGEigsShiftSolver<ShiftInvert<Factor>, Spectra::SparseSymMatProd<double>,
+                               Spectra::GEigsMode::ShiftInvert>
+      solver(op, massProduct, modes, 2 * modes + 1, -1.0);
+  solver.init();
+  const Eigen::Index converged = solver.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
+  const std::string label = std::string("eigen-solve (") + name + ")";
+  clock.report(label.c_str());
+  Vector values = solver.eigenvalues();
+  std::printf("  %ld of %d modes converged, %d solves; lowest frequencies [Hz]:", long(converged), modes,
+              op.solves);
+  for (Eigen::Index i = values.size() - 1; i >= 0; --i)
+    std::printf(" %.3f", std::sqrt(std::max(values(i), 0.0)) / (2.0 * 3.14159265358979323846));
+  std::printf("\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 7) {
+    std::cerr << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS(simplicial,cholmod) MODES\n";
+    return 2;
+  }
+  hindsight::rod::RodConfig config;
+  config.elementsAlongLength = std::stoi(argv[1]);
+  config.elementsThroughHeight = std::stoi(argv[2]);
+  hindsight::rod::SolidMeshOptions options;
+  options.elementsThroughThickness = std::stoi(argv[3]);
+  options.midPlaneSymmetry = std::string(argv[4]) == "1";
+  const std::string solvers = argv[5];
+  const int modes = std::stoi(argv[6]);
+  const int designs = hindsight::rod::SolidModel::designCountOf(config, options);
+
+  Clock clock;
+  const hindsight::rod::SolidModel model(config, options, Vector::Constant(designs, config.initialDesign));
+  clock.report("assemble K, M");
+  std::vector<int> fixed = model.symmetryConstrainedDofs();
+  for (int node : model.jointANodes()) {
+    fixed.push_back(3 * node);
+    fixed.push_back(3 * node + 1);
+  }
+  for (int node : model.jointBNodes()) fixed.push_back(3 * node + 1);
+  // The pin's axis runs through the thickness: holding u_x, u_y along it also holds the tilts about x and
+  // y; the translation along z is still free, so the pin holds u_z too (its axial restraint).
+  for (int node : model.jointANodes()) fixed.push_back(3 * node + 2);
+  clock = Clock();
+  const SparseMatrix stiffness = hindsight::rod::removeDofs(model.stiffness(), fixed);
+  const SparseMatrix mass = hindsight::rod::removeDofs(model.mass(), fixed);
+  clock.report("remove supported DOFs");
+  std::printf("elements %d (designs %d), free DOFs %ld, nonzeros of K %ld\n", model.elementCount(), designs,
+              long(stiffness.rows()), long(stiffness.nonZeros()));
+
+  if (solvers.find("simplicial") != std::string::npos) {
+    Eigen::SimplicialLDLT<SparseMatrix> factor;
+    clock = Clock();
+    factor.compute(stiffness);
+    clock.report("SimplicialLDLT (AMD) of K");
+    std::printf("  info %d, L nonzeros %ld\n", int(factor.info()),
+                long(factor.matrixL().nestedExpression().nonZeros()));
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT");
+  }
+#ifdef HINDSIGHT_WITH_CHOLMOD
+  if (solvers.find("cholmod") != std::string::npos) {
+    Eigen::CholmodSupernodalLLT<SparseMatrix> factor;
+    clock = Clock();
+    factor.compute(stiffness);
+    clock.report("CHOLMOD supernodal LL^T of K");
+    const cholmod_common& common = factor.cholmod();
+    std::printf("  info %d, ordering %d (0 natural, 1 given, 2 AMD, 3 METIS, 4 NESDIS), L nonzeros %.0f\n",
+                int(factor.info()), int(common.method[common.selected].ordering), common.lnz);
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "CHOLMOD supernodal");
+  }
+#else
+  if (solvers.find("cholmod") != std::string::npos)
+    std::printf("built without CHOLMOD (libsuitesparse-dev)\n");
+#endif
+  return 0;
+}
