@@ -16,6 +16,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <ostream>
 #include <sstream>
 
@@ -713,7 +714,13 @@ void MultilevelStorage::warnAgainstStride(const Layout& layout, const Prediction
   const double stride = static_cast<double>(p.recomputedSteps) * p.costs.forwardStep +
                         static_cast<double>(p.diskWrites) * p.costs.diskWrite +
                         static_cast<double>(p.diskReads) * p.costs.diskRead;
-  const TwoLevelPlan plan = TwoLevelPlan::choose(request.steps, layout.ramSlots, layout.diskSlots, p.costs);
+  std::optional<TwoLevelPlan> chosen;
+  try {
+    chosen = TwoLevelPlan::choose(request.steps, layout.ramSlots, layout.diskSlots, p.costs);
+  } catch (const std::invalid_argument&) {
+    return;  // no plan counted for these levels: no alternative to name
+  }
+  const TwoLevelPlan& plan = *chosen;
   const double optimal = plan.counts().cost(p.costs);
   if (stride > kTrapFactor * optimal) {
     std::ostringstream text;
@@ -781,8 +788,9 @@ void MultilevelStorage::writeActions(const TrajectoryStorage& storage, const Sto
   const int stateSize = static_cast<int>(request.stateBytes / 8);
   if (multilevel.options().stride) {
     throw std::invalid_argument(
-        "--actions prints two-level plans; schedule=stride's scratch rounds are not a plan (print its counts "
-        "without --actions)");
+        "--actions prints two-level plans; multilevel.schedule = stride's scratch rounds are not a plan "
+        "(print "
+        "its counts without --actions)");
   }
   // The plan a run executes (doBegin), chosen by the costs predict() counts it with.
   const Layout layout = multilevel.layoutFor(steps, stateSize);
