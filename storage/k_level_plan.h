@@ -49,6 +49,24 @@ class KLevelPlan {
   static KLevelPlan optimal(std::int64_t steps, std::int64_t ramSlots,
                             const std::vector<StorageLevelCosts>& levels, double forwardStep);
 
+  /// The optimal schedule of the hierarchical family (H-Revolve's structure, Herrmann & Pallez 2020): held
+  /// checkpoints sit on slower or equal levels below faster ones, so while a checkpoint at level k is the top
+  /// one, every faster level is empty and the slower ones are frozen. Its programme has the state (length,
+  /// level, free slots of that level) instead of every level's free slots:
+  ///   E_k(1, m) = 0,
+  ///   E_k(l, m) = min( (l - 1) uf + r_k + E_k(l - 1, m),
+  ///                    min_j j uf + r_k + E_k(j, m) + min( w_k + E_k(l - j, m - 1)           (m >= 1),
+  ///                                                        min_{i<k} w_i + E_i(l - j, s_i - 1) ),
+  ///                    min_{i<k} w_i + E_i(l, s_i - 1) )           (move x_p to a faster level),
+  ///   W_k(l, m) = min( w_k + min( r_k + E_k(l, m - 1), min_j W_k(l - j, m - 1) + r_k + E_k(j, m - 1) ),
+  ///                    W_{k-1}(l, s_{k-1}) ),
+  /// the game's cost W_{K-1}(N, s_{K-1}); O(N^2 sum_k (s_k + 1)) time and O(N sum_k (s_k + 1)) memory,
+  /// refused beyond kMaxHierarchicalWork. Never cheaper than optimal() (a subset of its schedules); with RAM
+  /// alone it is revolve. Same arguments and errors as optimal().
+  static constexpr std::int64_t kMaxHierarchicalWork = std::int64_t{1} << 33;
+  static KLevelPlan hierarchical(std::int64_t steps, std::int64_t ramSlots,
+                                 const std::vector<StorageLevelCosts>& levels, double forwardStep);
+
   struct Counts {
     std::int64_t recomputedSteps = 0;
     std::vector<std::int64_t> writes, reads;  ///< per level, RAM (level 0) included
@@ -93,7 +111,16 @@ class KLevelPlan {
   void releaseSlot(const Held& held);
   Counts walk();
 
+  struct HierarchicalTables;
   std::shared_ptr<const Tables> tables_;
+  std::shared_ptr<const HierarchicalTables> hierarchical_;
+  /// Checks the arguments of optimal() and hierarchical(); fills capacity (RAM first, each at most N),
+  /// write and read (RAM: 0).
+  static void checkArguments(std::int64_t steps, std::int64_t ramSlots,
+                             const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                             std::vector<std::int64_t>& capacity, std::vector<double>& write,
+                             std::vector<double>& read);
+  void finish(double uf, const std::vector<double>& write, const std::vector<double>& read);
   std::int64_t steps_ = 0;
   std::vector<std::int64_t> capacity_;
   double optimum_ = 0.0;
