@@ -68,6 +68,7 @@ int runSchedule(const ScheduleArgs& args) {
             << p.diskReads << ", peak " << formatBytes(p.peakDiskBytes)
             << " (uncompressed)\npredicted cost:    " << std::setprecision(6) << p.totalCost << " (schedule "
             << p.scheduleCost << " = recomputation + disk I/O)\n";
+  if (!p.warning.empty()) std::cout << "warning:           " << p.warning << '\n';
   return 0;
 }
 
@@ -109,7 +110,8 @@ void registerSchedule(CLI::App& app) {
   command->add_option(
       "--costs", args->costs,
       "cost model uf:ub:wd:rd: seconds of a forward step, an adjoint step, a disk write and a "
-      "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=)");
+      "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=, as a "
+      "run plans by costs= or, without it, by the costs it measures)");
   command->add_flag("--json", args->json, "machine-readable output");
   command->add_flag("--actions", args->actions,
                     "print the action stream (record/restore/store/load/advance)");

@@ -67,6 +67,9 @@ struct SchedulePrediction {
   double scheduleCost = 0.0;       ///< (R + adjoint recomputations) uf + W wd + Q rd
   double totalCost = 0.0;          ///< N uf + N ub + scheduleCost
   ScheduleCosts costs;             ///< the cost model of the two costs (a spec's own costs= first)
+  /// Empty, or why this plan is a trap: its schedule cost exceeds a simple alternative's (named here, with
+  /// its cost) by more than twice (docs/theory/storage.md, "No silent trap").
+  std::string warning;
 };
 
 /// What a prediction is asked: N fixed steps of an integrator with `stages` right-hand sides per step

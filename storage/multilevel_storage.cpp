@@ -16,7 +16,9 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <ostream>
+#include <sstream>
 
 namespace hindsight {
 namespace {
@@ -417,20 +419,11 @@ void MultilevelStorage::doBegin() {
   slotIoSeconds_ = 0.0;
   diskWrites_ = 0;
   diskReads_ = 0;
-  if (options_.stride || info().stepCount < 0 || !canPlan()) {
+  if (options_.stride || info().stepCount < 0) {
     beginStride();
     return;
   }
   beginPlan();
-}
-
-bool MultilevelStorage::canPlan() const { return plansFor(info().stepCount, info().stateSize); }
-
-bool MultilevelStorage::plansFor(std::int64_t steps, int stateSize) const {
-  // Measured costs need RAM for the states recorded while forward steps are timed (see beginPlan).
-  const Layout layout = layoutFor(steps, stateSize);
-  return options_.costs || steps <= 1 || layout.diskSlots == 0 ||
-         std::min<std::int64_t>({kProbeSteps, steps - 1, (layout.ramSlots - 1) / 2}) >= 1;
 }
 
 void MultilevelStorage::beginPlan() {
@@ -460,7 +453,12 @@ void MultilevelStorage::beginPlan() {
   ScheduleCosts measured;
   measureDiskCosts(measured);
   costsInUse_ = measured;
-  probeSteps_ = std::min<std::int64_t>({kProbeSteps, steps - 1, (planRamSlots_ - 1) / 2});  // >= 1: canPlan()
+  // The probe states wait in the top RAM slots while the plan's first stores use the bottom ones, so at
+  // most half the slots beside the first. One state always fits: with one or two RAM slots the single probe
+  // state is copied out (below) before the plan stores anything, so even then the run plans by measured
+  // costs -- the stride it used to fall back to here recomputed up to a thousand times more.
+  probeSteps_ =
+      std::min<std::int64_t>({kProbeSteps, steps - 1, std::max<std::int64_t>(1, (planRamSlots_ - 1) / 2)});
   poolSlots_ = planRamSlots_;
   holdBytes(poolSlots_ * stateBytes());
   ramPool_.reset(new double[static_cast<std::size_t>(poolSlots_ * info().stateSize)]);
@@ -694,6 +692,46 @@ void MultilevelStorage::predictStride(const Options& options, const PredictionRe
   p.peakDiskBytes = c.uncompressedBytes;
 }
 
+ScheduleCosts MultilevelStorage::planningCosts(const Options& options, const PredictionRequest& request,
+                                               const Layout& layout) {
+  // As beginPlan: the spec's own costs first; without them a run measures its costs (--costs stands for
+  // them), except when there is nothing to choose (one step, or no disk slot: every plan is revolve in
+  // RAM), where it plans by 1:1:0:0.
+  if (options.costs) return *options.costs;
+  if (request.steps == 1 || layout.diskSlots == 0) return ScheduleCosts{};
+  if (request.costs == nullptr)
+    throw std::invalid_argument(
+        "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
+  return *request.costs;
+}
+
+void MultilevelStorage::warnAgainstStride(const Layout& layout, const PredictionRequest& request,
+                                          SchedulePrediction& p) {
+  // The trap rule (docs/theory/storage.md, "No silent trap"): a prediction more than twice as dear as a
+  // simple alternative names it. For the stride that alternative is the plan schedule=optimal would run
+  // with the same levels, under the same cost model (the spec's costs=, else --costs, else 1:1:0:0).
+  if (layout.ramSlots < 1 || (request.steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) return;
+  const double stride = static_cast<double>(p.recomputedSteps) * p.costs.forwardStep +
+                        static_cast<double>(p.diskWrites) * p.costs.diskWrite +
+                        static_cast<double>(p.diskReads) * p.costs.diskRead;
+  std::optional<TwoLevelPlan> chosen;
+  try {
+    chosen = TwoLevelPlan::choose(request.steps, layout.ramSlots, layout.diskSlots, p.costs);
+  } catch (const std::invalid_argument&) {
+    return;  // no plan counted for these levels: no alternative to name
+  }
+  const TwoLevelPlan& plan = *chosen;
+  const double optimal = plan.counts().cost(p.costs);
+  if (stride > kTrapFactor * optimal) {
+    std::ostringstream text;
+    text << "schedule=stride costs " << stride << " (recomputation + disk I/O, costs " << p.costs.text()
+         << "), more than " << kTrapFactor << " times schedule=optimal's " << optimal << " ("
+         << plan.counts().recomputedSteps << " recomputed steps: " << plan.describe()
+         << "); drop schedule=stride";
+    p.warning = text.str();
+  }
+}
+
 void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                 const PredictionRequest& request, SchedulePrediction& p) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
@@ -704,16 +742,17 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   // For a prediction the sizes are the input: a level that cannot hold the states is named as flags.
   const std::string levels = "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
                              " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes);
-  if (multilevel.options().stride || !multilevel.plansFor(steps, n)) {
+  const Layout layout = multilevel.layoutFor(steps, n);
+  if (multilevel.options().stride) {
     try {
       predictStride(multilevel.options(), request, p);
     } catch (const StorageError& e) {  // a run would fail at its start
       throw std::invalid_argument(levels + " with --state-bytes = " + formatBytes(stateBytes) + ": " +
                                   e.what());
     }
+    warnAgainstStride(layout, request, p);
     return;
   }
-  const Layout layout = multilevel.layoutFor(steps, n);
   // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
   // name neither the levels nor the state size.
   if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
@@ -722,17 +761,8 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
         " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
         "; RAM must hold one state and both levels two: raise ram or disk");
   }
-  // As beginPlan: the spec's own costs first; without them a run measures its costs, except when there is
-  // nothing to choose (one step, or no disk slot: every plan is revolve in RAM), where it plans by 1:1:0:0.
-  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : request.costs;
-  const ScheduleCosts unit;
-  const bool nothingToChoose = steps == 1 || layout.diskSlots == 0;
-  if (planCosts == nullptr && !nothingToChoose)
-    throw std::invalid_argument(
-        "multilevel plans by its costs: give --costs uf:ub:wd:rd or costs= in the spec");
-  TwoLevelPlan plan =
-      TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
-                           multilevel.options().costs || !nothingToChoose ? *planCosts : unit);
+  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
+                                           planningCosts(multilevel.options(), request, layout));
   p.plan = plan.describe();
   const TwoLevelPlan::Counts& c = plan.counts();
   p.recomputedSteps = c.recomputedSteps;
@@ -756,17 +786,16 @@ void MultilevelStorage::writeActions(const TrajectoryStorage& storage, const Sto
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
   const std::int64_t steps = request.steps;
   const int stateSize = static_cast<int>(request.stateBytes / 8);
-  // schedule=stride first: plansFor() tells only whether the optimal schedule can plan.
-  if (multilevel.options().stride || !multilevel.plansFor(steps, stateSize)) {
+  if (multilevel.options().stride) {
     throw std::invalid_argument(
-        "--actions prints two-level plans; this multilevel run takes the stride (schedule=stride, or no "
-        "costs= and RAM for fewer than 3 states), whose scratch rounds are not a plan (print its counts "
-        "without --actions)");
+        "--actions prints two-level plans; multilevel.schedule = stride's scratch rounds are not a plan "
+        "(print "
+        "its counts without --actions)");
   }
-  // The plan a run executes (doBegin): the spec's costs= first, else the request's cost model.
-  const ScheduleCosts* planCosts = multilevel.options().costs ? &*multilevel.options().costs : request.costs;
+  // The plan a run executes (doBegin), chosen by the costs predict() counts it with.
   const Layout layout = multilevel.layoutFor(steps, stateSize);
-  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots, *planCosts);
+  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
+                                           planningCosts(multilevel.options(), request, layout));
   prediction::ActionWriter writer{out};
   for (std::int64_t k = 0; k < steps; ++k) {
     out << "record " << k << '\n';

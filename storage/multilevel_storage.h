@@ -14,9 +14,11 @@
 //             cheapest under the cost model (the two-level optimum over stack schedules by dynamic
 //             programming, which reuses disk slots, where its work limit allows; else Disk-Revolve's
 //             leaves, or revolve over all slots with the long-lived checkpoints on disk); adaptive
-//             steps (N unknown) fall back to the stride, and
-//             so does a RAM of fewer than 3 states without costs= (no room to time forward steps).
-//             stride: the uniform stride of hindsight <= 0.13 (below), kept for comparison.
+//             steps (N unknown) fall back to the stride. A RAM of one or two states plans too: the
+//             forward step is then timed from the first two records (one interval).
+//             stride: the uniform stride of hindsight <= 0.13 (below), kept for comparison; its
+//             prediction warns (SchedulePrediction::warning) when it costs more than kTrapFactor times
+//             the plan schedule=optimal runs with the same levels and costs.
 //   dir       directory of the file (default: the system temp directory); level, keep as for "disk"
 //             (level only matters for schedule=stride, whose file is compressed).
 // schedule=optimal keeps its disk level in a file of fixed-size slots of raw states
@@ -70,6 +72,9 @@ class ChunkedStateFile;
 
 class MultilevelStorage final : public TrajectoryStorage {
  public:
+  /// A prediction whose cost exceeds a simple alternative's by more than this factor says so
+  /// (SchedulePrediction::warning; docs/theory/storage.md, "No silent trap").
+  static constexpr double kTrapFactor = 2.0;
   struct Options {
     std::int64_t ramBytes = 0;
     std::int64_t diskBytes = 0;
@@ -95,9 +100,8 @@ class MultilevelStorage final : public TrajectoryStorage {
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
-  /// The registry's action stream: the TwoLevelPlan a run executes, written action by action; the stride
-  /// (schedule=stride, or RAM for fewer than 3 states without costs=) is refused, its scratch rounds not
-  /// being a plan of slots.
+  /// The registry's action stream: the TwoLevelPlan a run executes, written action by action;
+  /// schedule=stride is refused, its scratch rounds not being a plan of slots.
   static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
                            const PredictionRequest& request, std::ostream& out);
 
@@ -108,9 +112,6 @@ class MultilevelStorage final : public TrajectoryStorage {
   };
   Layout layoutFor(std::int64_t steps, int stateSize) const;
   const Options& options() const { return options_; }
-  /// Whether a run of `steps` fixed steps of `stateSize` entries follows the two-level plan; else it takes
-  /// the stride (schedule=stride, or no costs= and RAM too small to time forward steps).
-  bool plansFor(std::int64_t steps, int stateSize) const;
   /// schedule=optimal with fixed steps in the current or last run: its plan, the costs it was chosen
   /// by (given or measured), and the schedule's predicted and measured seconds (recomputation + disk).
   bool usesPlan() const { return usesPlan_; }
@@ -143,8 +144,14 @@ class MultilevelStorage final : public TrajectoryStorage {
   void recordStride(std::int64_t step, double t, ConstVectorRef z);
   void finishStride();
   void restoreStride(std::int64_t step, VectorRef z);
-  bool canPlan() const;
   static void predictStride(const Options& options, const PredictionRequest& request, SchedulePrediction& p);
+  /// The costs a run plans by, for a prediction: costs=, else --costs (standing for the measured ones),
+  /// else 1:1:0:0 when there is nothing to choose; throws std::invalid_argument when --costs is needed.
+  static ScheduleCosts planningCosts(const Options& options, const PredictionRequest& request,
+                                     const Layout& layout);
+  /// Sets p.warning when the stride's predicted schedule cost exceeds kTrapFactor times the optimal plan's.
+  static void warnAgainstStride(const Layout& layout, const PredictionRequest& request,
+                                SchedulePrediction& p);
   void beginPlan();
   void choosePlan(const ScheduleCosts& costs);
   void recordPlanned(std::int64_t step, const double* z);

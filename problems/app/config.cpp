@@ -646,26 +646,28 @@ void applyFlag(Config& config, const std::string& flag, const std::string& key, 
 }
 
 nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateBytes) {
-  return {{"storage", p.strategy},
-          {"plan", p.plan},
-          {"steps", p.steps},
-          {"stages", p.stages},
-          {"state_bytes", stateBytes},
-          {"forward_steps", p.forwardSteps},
-          {"recomputed_steps", p.recomputedSteps},
-          {"rhs_evaluations", p.rhsEvaluations},
-          {"adjoint_stage_recomputations", p.adjointRecomputations},
-          {"step_data_stored", p.stepDataStored},
-          {"step_data_restored", p.stepDataRestored},
-          {"states_stored", p.statesStored},
-          {"ram_writes", p.ramWrites},
-          {"ram_reads", p.ramReads},
-          {"disk_writes", p.diskWrites},
-          {"disk_reads", p.diskReads},
-          {"peak_ram_bytes", p.peakRamBytes},
-          {"peak_disk_bytes", p.peakDiskBytes},
-          {"schedule_cost", p.scheduleCost},
-          {"total_cost", p.totalCost}};
+  nlohmann::json json = {{"storage", p.strategy},
+                         {"plan", p.plan},
+                         {"steps", p.steps},
+                         {"stages", p.stages},
+                         {"state_bytes", stateBytes},
+                         {"forward_steps", p.forwardSteps},
+                         {"recomputed_steps", p.recomputedSteps},
+                         {"rhs_evaluations", p.rhsEvaluations},
+                         {"adjoint_stage_recomputations", p.adjointRecomputations},
+                         {"step_data_stored", p.stepDataStored},
+                         {"step_data_restored", p.stepDataRestored},
+                         {"states_stored", p.statesStored},
+                         {"ram_writes", p.ramWrites},
+                         {"ram_reads", p.ramReads},
+                         {"disk_writes", p.diskWrites},
+                         {"disk_reads", p.diskReads},
+                         {"peak_ram_bytes", p.peakRamBytes},
+                         {"peak_disk_bytes", p.peakDiskBytes},
+                         {"schedule_cost", p.scheduleCost},
+                         {"total_cost", p.totalCost}};
+  if (!p.warning.empty()) json["warning"] = p.warning;
+  return json;
 }
 
 nlohmann::json summaryToJson(const RunSummary& s) {

@@ -106,3 +106,16 @@ def test_extreme_arguments_give_sound_counts_or_a_value_error(spec):
                 assert p.disk_writes >= 0 and p.disk_reads >= 0 and p.peak_ram_bytes >= 0
                 assert p.rhs_evaluations < 2**63 and p.rhs_evaluations >= stages * steps
     assert sound > 0
+
+
+def test_costs_argument_means_costs_in_the_spec_and_a_stride_trap_is_named():
+    # Two 320-byte states of RAM (the 40 x 4 rod's): costs= plans exactly as the spec's costs= does, and the
+    # stride, more than twice as dear, carries a warning naming the plan (docs/theory/storage.md).
+    given = hindsight.schedule("multilevel:ram=640,disk=64KiB", 6000, state_bytes=320, costs="1:1:2:2")
+    spec = hindsight.schedule("multilevel:ram=640,disk=64KiB,costs=1:1:2:2", 6000, state_bytes=320)
+    assert given.recomputed_steps == spec.recomputed_steps == 24_752
+    assert "warning" not in given
+    stride = hindsight.schedule("multilevel:ram=640,disk=64KiB,schedule=stride", 6000, state_bytes=320,
+                                costs="1:1:2:2")
+    assert stride.recomputed_steps == 6_748_500
+    assert "schedule=optimal" in stride["warning"] and "24752 recomputed steps" in stride["warning"]

@@ -333,11 +333,23 @@ TEST(MultilevelPlan, KeptSlotFileAndFaultsAreStorageErrors) {
   {
     MultilevelStorage storage(planned(10, 10, "/tmp", cheap));  // not a single 16-byte state fits
     EXPECT_THROW(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), StorageError);
-    // Two states of RAM cannot time forward steps: without costs= it keeps the stride, exactly.
-    MultilevelStorage tiny(planned(32, 1 << 20, "/tmp", std::nullopt));
+  }
+  for (const std::int64_t ram : {16, 32}) {
+    // One or two states of RAM and no costs=: the run still plans, timing the forward step from the first
+    // two records (it took the stride before, a thousand times more recomputation on the rod), and its
+    // plan is the one its measured costs choose.
+    SCOPED_TRACE(ram);
+    ScratchDirectory dir;
+    MultilevelStorage tiny(planned(ram, 1 << 20, dir.path(), std::nullopt));
+    tiny.setVerifyRestores(true);
     const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), tiny);
-    EXPECT_FALSE(tiny.usesPlan());
+    ASSERT_TRUE(tiny.usesPlan());
+    EXPECT_GT(tiny.costs().forwardStep, 0.0);
     EXPECT_TRUE(bitwiseEqual(result, fullReference(problem, pendulumParameters(), fixedStepRk4())));
+    EXPECT_LE(tiny.counters().peakBytesInMemory, ram);
+    const TwoLevelPlan same = TwoLevelPlan::choose(2000, ram / 16, (1 << 20) / 16, tiny.costs());
+    EXPECT_EQ(result.summary.recomputedSteps, same.counts().recomputedSteps) << tiny.plan().describe();
+    EXPECT_EQ(dir.entryCount(), 0u);
   }
 }
 

@@ -56,11 +56,11 @@ const std::map<std::string, SpecList>& predictedStrategies() {
              "multilevel:ram=" + states(3) + ",disk=" + states(40) + ",costs=1:1:0.5:0.5,dir=" + dir,
              "multilevel:ram=" + states(2) + ",disk=" + states(3) + ",costs=1:1:0:0,dir=" + dir,
              "multilevel:ram=" + states(4) + ",disk=" + states(40) + ",costs=1:1:100:100,dir=" + dir,
-             // the stride: kept states in RAM and on disk, RAM alone (the I/O buffers do not fit), and the
-             // stride a run without costs= takes when RAM cannot time forward steps
+             // the stride: kept states in RAM and on disk, RAM alone (the I/O buffers do not fit)
              "multilevel:ram=" + states(20) + ",disk=" + states(10) + ",schedule=stride,dir=" + dir,
              "multilevel:ram=" + states(4) + ",disk=" + states(40) + ",schedule=stride,dir=" + dir,
-             "multilevel:ram=" + states(2) + ",disk=" + states(5) + ",dir=" + dir};
+             // one RAM state: every plan lives on the disk level
+             "multilevel:ram=" + states(1) + ",disk=" + states(5) + ",costs=1:1:0.5:0.5,dir=" + dir};
        }},
   };
   return grid;

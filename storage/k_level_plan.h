@@ -1,0 +1,180 @@
+// The optimal stack schedule on K storage levels: RAM (level 0, copies free) and any number of slower
+// levels, each with its slots, write and read costs -- the model of H-Revolve (Herrmann & Pallez 2020,
+// "H-Revolve: a framework for adjoint computation on synchronous hierarchical platforms", ACM TOMS 46(2))
+// with bounded levels, in the game of storage/schedule.h. K = 2 is TwoLevelPlan::dynamic's programme
+// (the tests compare the two); this class is its generalisation to K levels and the exact reference the
+// planners for large N are checked against.
+//
+// Recurrences (storage/schedule.cpp writes them for two levels). A segment of l states x_p..x_e whose first
+// state is held at level L, with the free slots f = (f_0, ..., f_{K-1}) besides it:
+//   F_L(l, f) = r_L + G_L(l, f)                       (load x_p; r_0 = 0)
+//   G_L(1, f) = 0
+//   G_L(l, f) = min of                                 (x_p at hand, l >= 2)
+//     (l - 1) uf + F_L(l - 1, f)                        advance to x_e, consume it;
+//     j uf + w_k + G_k(l - j, f - e_k) + F_L(j, f)      store x_{p+j} at level k (f_k >= 1), 1 <= j <= l-2;
+//     w_k + G'_k(l, f - e_k + e_L)                      move x_p to level k != L (G' without moves: a chain
+//                                                       of moves is never cheaper than its last one).
+//   H(l, f) = min over L (f_L >= 1) of w_L + min(F_L(l, f'), min_{1<=j<=l-1} H(l - j, f') + F_L(j, f')),
+//   f' = f - e_L: the forward sweep at x_p, storing it at L. The game's cost is H(N, slots).
+// Time O(N^2 K^2 prod(s_k + 1)), memory O(N K prod(s_k + 1)): an exact reference for small sizes, refused
+// beyond kMaxWork.
+#pragma once
+
+#include <hindsight/engine/storage_registry.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hindsight {
+
+/// One level below RAM: how many states it holds and what writing and reading one costs (seconds, or any
+/// unit shared with the forward step).
+struct StorageLevelCosts {
+  std::int64_t slots = 0;
+  double write = 0.0;
+  double read = 0.0;
+};
+
+class KLevelPlan {
+ public:
+  /// N^2 K^2 prod(s_k + 1) at most (a few seconds).
+  static constexpr std::int64_t kMaxWork = std::int64_t{1} << 30;
+
+  /// The optimal stack schedule for N >= 1 steps with `ramSlots` RAM states (free copies) and the slower
+  /// `levels`, a forward step costing `forwardStep` > 0. Throws std::invalid_argument naming the
+  /// argument when the sizes exceed kMaxWork, a count or cost is negative, or the slots cannot reverse N
+  /// steps (N >= 2 needs one RAM slot and two slots in all). Polls pollInterrupt() once per length.
+  static KLevelPlan optimal(std::int64_t steps, std::int64_t ramSlots,
+                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
+
+  /// The optimal schedule of the hierarchical family (H-Revolve's structure, Herrmann & Pallez 2020): held
+  /// checkpoints sit on slower or equal levels below faster ones, so while a checkpoint at level k is the top
+  /// one, every faster level is empty and the slower ones are frozen. Its programme has the state (length,
+  /// level, free slots of that level) instead of every level's free slots:
+  ///   E_k(1, m) = 0,
+  ///   E_k(l, m) = min( (l - 1) uf + r_k + E_k(l - 1, m),
+  ///                    min_j j uf + r_k + E_k(j, m) + min( w_k + E_k(l - j, m - 1)           (m >= 1),
+  ///                                                        min_{i<k} w_i + E_i(l - j, s_i - 1) ),
+  ///                    min_{i<k} w_i + E_i(l, s_i - 1) )           (move x_p to a faster level),
+  ///   W_k(l, m) = min( w_k + min( r_k + E_k(l, m - 1), min_j W_k(l - j, m - 1) + r_k + E_k(j, m - 1) ),
+  ///                    W_{k-1}(l, s_{k-1}) ),
+  /// the game's cost W_{K-1}(N, s_{K-1}); O(N^2 sum_k (s_k + 1)) time and O(N sum_k (s_k + 1)) memory,
+  /// refused beyond kMaxHierarchicalWork. Never cheaper than optimal() (a subset of its schedules); with RAM
+  /// alone it is revolve. Same arguments and errors as optimal().
+  static constexpr std::int64_t kMaxHierarchicalWork = std::int64_t{1} << 33;
+  static KLevelPlan hierarchical(std::int64_t steps, std::int64_t ramSlots,
+                                 const std::vector<StorageLevelCosts>& levels, double forwardStep);
+
+  struct Counts {
+    std::int64_t recomputedSteps = 0;
+    std::vector<std::int64_t> writes, reads;  ///< per level, RAM (level 0) included
+    /// recomputed steps * uf + sum over the levels below RAM of writes * w + reads * r.
+    double cost = 0.0;
+  };
+  const Counts& counts() const { return counts_; }
+  /// The programme's optimum H(N, slots); counts().cost equals it (the executor follows its decisions).
+  double optimum() const { return optimum_; }
+  int levelCount() const { return static_cast<int>(capacity_.size()); }
+  /// Slots of each level in use at the most during one pass.
+  const std::vector<std::int64_t>& slotsUsed() const { return peak_; }
+  std::int64_t steps() const { return steps_; }
+
+  /// The forward sweep at step n (0..N-1 in order) and the backward sweep at e (N-1..0 in order), as
+  /// TwoLevelPlan's: the visitor gets store(level, slot), load(level, slot), advance(from, to), levels as
+  /// ints (0 = RAM). rewind() starts a new pass.
+  template <typename Visitor>
+  void recordForward(std::int64_t n, Visitor& visitor);
+  template <typename Visitor>
+  void restoreStep(std::int64_t e, Visitor& visitor);
+  void rewind();
+
+ private:
+  struct Tables;
+  struct Held {
+    std::int64_t position;
+    int level;
+    std::int64_t slot;
+  };
+  struct Decision {
+    int action;  // forward: the level of the store; backward: kDone, kNone, kStore, kMove
+    int level;   // backward: the level stored at or moved to
+    std::int64_t distance;
+  };
+  enum : int { kDone = 0, kNone = 1, kStore = 2, kMove = 3 };
+  Decision forwardDecision(std::int64_t length) const;
+  /// `moved`: the held state has just moved levels, so the decision without moves (the value the move was
+  /// priced with).
+  Decision backwardDecision(int level, std::int64_t length, bool moved) const;
+  std::int64_t takeSlot(int level);
+  void releaseSlot(const Held& held);
+  Counts walk();
+
+  struct HierarchicalTables;
+  std::shared_ptr<const Tables> tables_;
+  std::shared_ptr<const HierarchicalTables> hierarchical_;
+  /// Checks the arguments of optimal() and hierarchical(); fills capacity (RAM first, each at most N),
+  /// write and read (RAM: 0).
+  static void checkArguments(std::int64_t steps, std::int64_t ramSlots,
+                             const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                             std::vector<std::int64_t>& capacity, std::vector<double>& write,
+                             std::vector<double>& read);
+  void finish(double uf, const std::vector<double>& write, const std::vector<double>& read);
+  std::int64_t steps_ = 0;
+  std::vector<std::int64_t> capacity_;
+  double optimum_ = 0.0;
+  Counts counts_;
+  // The executor's state.
+  std::vector<Held> held_;
+  std::vector<std::vector<char>> busy_;
+  std::vector<std::int64_t> free_, peak_;
+  std::int64_t nextStore_ = -1;
+};
+
+template <typename Visitor>
+void KLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
+  if (n != nextStore_) return;
+  const Decision decision = forwardDecision(steps_ - n);
+  const std::int64_t slot = takeSlot(decision.action);
+  visitor.store(decision.action, slot);
+  held_.push_back(Held{n, decision.action, slot});
+  nextStore_ = decision.distance > 0 ? n + decision.distance : -1;
+}
+
+template <typename Visitor>
+void KLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
+  bool atHand = false;  // whether the state at hand is the top checkpoint's
+  bool moved = false;
+  for (;;) {
+    const Held top = held_.back();
+    const std::int64_t length = e - top.position + 1;
+    if (!atHand) visitor.load(top.level, top.slot);
+    atHand = true;
+    if (length == 1) {
+      releaseSlot(top);
+      held_.pop_back();
+      return;
+    }
+    const Decision decision = backwardDecision(top.level, length, moved);
+    moved = false;
+    if (decision.action == kNone) {
+      visitor.advance(top.position, e);
+      return;
+    }
+    if (decision.action == kMove) {
+      const std::int64_t slot = takeSlot(decision.level);
+      visitor.store(decision.level, slot);
+      releaseSlot(top);
+      held_.back() = Held{top.position, decision.level, slot};
+      moved = true;
+      continue;
+    }
+    visitor.advance(top.position, top.position + decision.distance);
+    const std::int64_t slot = takeSlot(decision.level);
+    visitor.store(decision.level, slot);
+    held_.push_back(Held{top.position + decision.distance, decision.level, slot});
+  }
+}
+
+}  // namespace hindsight

@@ -1,0 +1,291 @@
+// The K-level stack-schedule programme (storage/k_level_plan.h): K = 2 equals TwoLevelPlan's programme
+// (itself equal to a brute-force search over every schedule for N <= 7, tests/storage/schedule_test.cpp)
+// on random cases; K = 3 reduces exactly to K = 2 where a level is empty, free, or a copy of another; its
+// action stream produces every state in turn within each level's slots and costs what the programme says.
+#include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/storage/k_level_plan.h>
+#include <hindsight/storage/schedule.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <functional>
+#include <queue>
+#include <random>
+#include <unordered_map>
+
+namespace hindsight {
+namespace {
+
+// Runs the plan's actions on symbolic states (grid positions) and checks the game's rules.
+void expectValidStream(KLevelPlan& plan, const std::vector<std::int64_t>& capacity) {
+  struct Player {
+    std::vector<std::vector<std::int64_t>> slots;
+    std::int64_t atHand = -1;
+    std::int64_t recorded = -1;
+    double cost = 0;
+    void store(int level, std::int64_t slot) {
+      ASSERT_LT(static_cast<std::size_t>(level), slots.size());
+      ASSERT_LT(slot, static_cast<std::int64_t>(slots[static_cast<std::size_t>(level)].size()))
+          << "level " << level;
+      ASSERT_GE(atHand, 0);
+      slots[static_cast<std::size_t>(level)][static_cast<std::size_t>(slot)] = atHand;
+    }
+    void load(int level, std::int64_t slot) {
+      atHand = slots[static_cast<std::size_t>(level)][static_cast<std::size_t>(slot)];
+      ASSERT_GE(atHand, 0) << "an empty slot was loaded";
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      ASSERT_EQ(atHand, from);
+      atHand = to;
+    }
+  } player;
+  for (std::int64_t c : capacity) player.slots.emplace_back(static_cast<std::size_t>(c), -1);
+  plan.rewind();
+  for (std::int64_t n = 0; n < plan.steps(); ++n) {
+    player.atHand = n;  // the forward sweep passes every state once
+    plan.recordForward(n, player);
+  }
+  for (std::int64_t e = plan.steps() - 1; e >= 0; --e) {
+    player.atHand = -1;  // the adjoint step consumed the state at hand
+    plan.restoreStep(e, player);
+    ASSERT_EQ(player.atHand, e);
+  }
+  plan.rewind();
+}
+
+// The least cost over ALL schedules of the game (storage/schedule.h) on K levels, not only stack schedules:
+// Dijkstra over each position's level (a base K + 1 digit, 0: not held), the next state to produce and the
+// state at hand -- tests/storage/schedule_test.cpp's search for two levels, written for K.
+double bruteForceOptimum(int steps, const std::vector<int>& capacity, const std::vector<double>& write,
+                         const std::vector<double>& read, double uf) {
+  const int base = static_cast<int>(capacity.size()) + 1;
+  std::vector<std::uint64_t> power(static_cast<std::size_t>(steps) + 1, 1);
+  for (int i = 1; i <= steps; ++i)
+    power[static_cast<std::size_t>(i)] = power[static_cast<std::size_t>(i) - 1] * base;
+  const auto digit = [&](std::uint64_t levels, int p) {
+    return static_cast<int>((levels / power[static_cast<std::size_t>(p)]) % base);
+  };
+  struct State {
+    std::uint64_t levels;
+    int next, at;
+  };
+  const auto key = [&](const State& s) {
+    return (s.levels * static_cast<std::uint64_t>(steps + 2) + static_cast<std::uint64_t>(s.next + 1)) *
+               static_cast<std::uint64_t>(steps + 2) +
+           static_cast<std::uint64_t>(s.at + 1);
+  };
+  using Entry = std::pair<double, std::uint64_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
+  std::unordered_map<std::uint64_t, double> best;
+  std::unordered_map<std::uint64_t, State> states;
+  const auto push = [&](const State& s, double cost) {
+    const std::uint64_t k = key(s);
+    const auto it = best.find(k);
+    if (it != best.end() && it->second <= cost) return;
+    best[k] = cost;
+    states[k] = s;
+    queue.push({cost, k});
+  };
+  push(State{0, steps, 0}, 0.0);
+  while (!queue.empty()) {
+    const auto [cost, k] = queue.top();
+    queue.pop();
+    if (best[k] < cost) continue;
+    const State s = states[k];
+    const bool forward = s.next == steps;
+    if (!forward && s.next < 0) return cost;
+    std::vector<int> used(capacity.size(), 0);
+    for (int p = 0; p < steps; ++p)
+      if (digit(s.levels, p) > 0) ++used[static_cast<std::size_t>(digit(s.levels, p) - 1)];
+    if (s.at >= 0 && digit(s.levels, s.at) == 0) {  // store the state at hand
+      for (std::size_t l = 0; l < capacity.size(); ++l) {
+        if (used[l] < capacity[l])
+          push(State{s.levels + (l + 1) * power[static_cast<std::size_t>(s.at)], s.next, s.at},
+               cost + write[l]);
+      }
+    }
+    for (int p = 0; p < steps; ++p) {  // discard a checkpoint
+      const int d = digit(s.levels, p);
+      if (d != 0)
+        push(State{s.levels - static_cast<std::uint64_t>(d) * power[static_cast<std::size_t>(p)], s.next,
+                   s.at},
+             cost);
+    }
+    if (forward) {
+      push(s.at < steps - 1 ? State{s.levels, steps, s.at + 1} : State{s.levels, steps - 1, -1}, cost);
+      continue;
+    }
+    if (s.at == s.next) {  // produce x_next; later checkpoints are of no further use
+      std::uint64_t levels = s.levels;
+      for (int p = s.next; p < steps; ++p)
+        levels -= static_cast<std::uint64_t>(digit(levels, p)) * power[static_cast<std::size_t>(p)];
+      push(State{levels, s.next - 1, -1}, cost);
+      continue;
+    }
+    if (s.at >= 0 && s.at < s.next) push(State{s.levels, s.next, s.at + 1}, cost + uf);
+    for (int p = 0; p <= s.next; ++p) {
+      const int d = digit(s.levels, p);
+      if (d != 0 && p != s.at) push(State{s.levels, s.next, p}, cost + read[static_cast<std::size_t>(d - 1)]);
+    }
+  }
+  return -1.0;
+}
+
+TEST(KLevelPlan, ThreeLevelsEqualTheBruteForceOptimumOverAllSchedules) {
+  // Small N: the stack programme is the optimum of the whole game on three levels in every case below.
+  const std::vector<std::vector<double>> costs = {
+      {0.5, 0.5, 1, 1}, {0.2, 3, 2, 0.5}, {1, 1, 0.25, 4}, {0, 0, 3, 3}};
+  for (const auto& c : costs) {
+    for (int steps = 1; steps <= 6; ++steps) {
+      for (int ram = 1; ram <= 2; ++ram) {
+        for (int a = 0; a <= 2; ++a) {
+          for (int b = 0; b <= 2; ++b) {
+            if (steps >= 2 && ram + a + b < 2) continue;
+            SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " levels " +
+                         std::to_string(a) + "+" + std::to_string(b) + " costs " + std::to_string(c[0]) +
+                         ":" + std::to_string(c[1]) + ":" + std::to_string(c[2]) + ":" +
+                         std::to_string(c[3]));
+            KLevelPlan plan = KLevelPlan::optimal(steps, ram, {{a, c[0], c[1]}, {b, c[2], c[3]}}, 1.0);
+            EXPECT_NEAR(plan.optimum(),
+                        bruteForceOptimum(steps, {ram, a, b}, {0, c[0], c[2]}, {0, c[1], c[3]}, 1.0), 1e-9);
+            EXPECT_NEAR(plan.counts().cost, plan.optimum(), 1e-9);
+            expectValidStream(plan, {ram, a, b});
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(KLevelPlan, TwoLevelsEqualTheTwoLevelProgrammeOnRandomCases) {
+  std::mt19937 rng(20261129);
+  for (int trial = 0; trial < 60; ++trial) {
+    const std::int64_t steps = std::uniform_int_distribution<std::int64_t>(1, 70)(rng);
+    const std::int64_t ram = std::uniform_int_distribution<std::int64_t>(1, 5)(rng);
+    const std::int64_t disk = std::uniform_int_distribution<std::int64_t>(ram == 1 ? 1 : 0, 6)(rng);
+    const double write = std::uniform_int_distribution<int>(0, 12)(rng) / 4.0;
+    const double read = std::uniform_int_distribution<int>(0, 12)(rng) / 4.0;
+    SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
+                 std::to_string(disk) + " wd " + std::to_string(write) + " rd " + std::to_string(read));
+    const ScheduleCosts costs{1, 1, write, read};
+    const TwoLevelPlan two = TwoLevelPlan::dynamic(steps, ram, disk, costs);
+    KLevelPlan plan = KLevelPlan::optimal(steps, ram, {StorageLevelCosts{disk, write, read}}, 1.0);
+    EXPECT_NEAR(plan.optimum(), two.counts().cost(costs), 1e-9);
+    EXPECT_NEAR(plan.counts().cost, plan.optimum(), 1e-9);
+    EXPECT_LE(plan.slotsUsed()[0], ram);
+    EXPECT_LE(plan.slotsUsed()[1], disk);
+    expectValidStream(plan, {ram, disk});
+  }
+}
+
+TEST(KLevelPlan, ThreeLevelsReduceToTwoWhereALevelIsEmptyFreeOrACopy) {
+  std::mt19937 rng(1129);
+  for (int trial = 0; trial < 40; ++trial) {
+    const std::int64_t steps = std::uniform_int_distribution<std::int64_t>(2, 40)(rng);
+    const std::int64_t ram = std::uniform_int_distribution<std::int64_t>(1, 3)(rng);
+    const std::int64_t a = std::uniform_int_distribution<std::int64_t>(1, 3)(rng);
+    const std::int64_t b = std::uniform_int_distribution<std::int64_t>(1, 3)(rng);
+    const double write = std::uniform_int_distribution<int>(1, 8)(rng) / 4.0;
+    const double read = std::uniform_int_distribution<int>(1, 8)(rng) / 4.0;
+    SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " slots " +
+                 std::to_string(a) + "+" + std::to_string(b) + " wd " + std::to_string(write) + " rd " +
+                 std::to_string(read));
+    const double two = KLevelPlan::optimal(steps, ram, {{a, write, read}}, 1.0).optimum();
+    // An empty third level changes nothing.
+    EXPECT_NEAR(KLevelPlan::optimal(steps, ram, {{a, write, read}, {0, 0.5, 0.5}}, 1.0).optimum(), two, 1e-9);
+    // Two levels of the same costs are one level of both their slots.
+    EXPECT_NEAR(KLevelPlan::optimal(steps, ram, {{a, write, read}, {b, write, read}}, 1.0).optimum(),
+                KLevelPlan::optimal(steps, ram, {{a + b, write, read}}, 1.0).optimum(), 1e-9);
+    // A level that costs nothing to write and read is more RAM.
+    KLevelPlan free = KLevelPlan::optimal(steps, ram, {{a, write, read}, {b, 0, 0}}, 1.0);
+    EXPECT_NEAR(free.optimum(), KLevelPlan::optimal(steps, ram + b, {{a, write, read}}, 1.0).optimum(), 1e-9);
+    // A third, dearer level never costs more than going without it, and its stream is valid.
+    KLevelPlan three = KLevelPlan::optimal(steps, ram, {{a, write, read}, {b, 2 * write, 2 * read}}, 1.0);
+    EXPECT_LE(three.optimum(), two + 1e-9);
+    EXPECT_NEAR(three.counts().cost, three.optimum(), 1e-9);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_LE(three.slotsUsed()[static_cast<std::size_t>(k)],
+                (std::vector<std::int64_t>{ram, a, b})[static_cast<std::size_t>(k)]);
+    expectValidStream(three, {ram, a, b});
+    expectValidStream(free, {ram, a, b});
+  }
+}
+
+TEST(KLevelPlan, HierarchicalIsRevolveInRamAndTheOptimumOfOrderedLevels) {
+  for (std::int64_t steps : {1, 2, 10, 57, 300}) {
+    for (std::int64_t ram : {2, 3, 7}) {
+      KLevelPlan plan = KLevelPlan::hierarchical(steps, ram, {}, 1.0);
+      EXPECT_EQ(revolve::toString(revolve::optimalRecomputedSteps(steps, ram)),
+                std::to_string(plan.counts().recomputedSteps))
+          << "N " << steps << " ram " << ram;
+      EXPECT_NEAR(plan.counts().cost, plan.optimum(), 1e-9);
+    }
+  }
+  // Random two- and three-level cases with the slower level dearer to write and to read (a hierarchy): the
+  // family with moves equals the exact optimum over stack schedules in every case, and its stream is valid.
+  std::mt19937 rng(20261129);
+  for (int trial = 0; trial < 80; ++trial) {
+    const std::int64_t steps = std::uniform_int_distribution<std::int64_t>(2, 60)(rng);
+    const std::int64_t ram = std::uniform_int_distribution<std::int64_t>(1, 4)(rng);
+    const std::int64_t a = std::uniform_int_distribution<std::int64_t>(1, 4)(rng);
+    const std::int64_t b = trial % 2 ? std::uniform_int_distribution<std::int64_t>(0, 4)(rng) : 0;
+    const double w1 = std::uniform_int_distribution<int>(0, 8)(rng) / 4.0;
+    const double r1 = std::uniform_int_distribution<int>(0, 8)(rng) / 4.0;
+    const std::vector<StorageLevelCosts> levels = {{a, w1, r1}, {b, 2 * w1 + 0.5, 2 * r1 + 0.5}};
+    SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " slots " +
+                 std::to_string(a) + "+" + std::to_string(b) + " w " + std::to_string(w1) + " r " +
+                 std::to_string(r1));
+    KLevelPlan plan = KLevelPlan::hierarchical(steps, ram, levels, 1.0);
+    EXPECT_NEAR(plan.optimum(), KLevelPlan::optimal(steps, ram, levels, 1.0).optimum(), 1e-9);
+    EXPECT_NEAR(plan.counts().cost, plan.optimum(), 1e-9);
+    expectValidStream(plan, {ram, a, b});
+    for (int k = 0; k < 3; ++k)
+      EXPECT_LE(plan.slotsUsed()[static_cast<std::size_t>(k)],
+                (std::vector<std::int64_t>{ram, a, b})[static_cast<std::size_t>(k)]);
+  }
+  // Out of order (the second level cheaper to read than the first) the family loses: 166.5 against 151.5.
+  const std::vector<StorageLevelCosts> unordered = {{4, 0.25, 3.25}, {2, 1.5, 0.5}};
+  EXPECT_NEAR(KLevelPlan::optimal(65, 1, unordered, 1.0).optimum(), 151.5, 1e-9);
+  EXPECT_NEAR(KLevelPlan::hierarchical(65, 1, unordered, 1.0).optimum(), 166.5, 1e-9);
+}
+
+TEST(KLevelPlan, BadInputNamesTheArgument) {
+  const auto message = [](auto&& make) {
+    try {
+      make();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message([] { KLevelPlan::optimal(0, 2, {}, 1.0); }).find("N = 0"), std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::optimal(10, 1, {{0, 1, 1}}, 1.0);
+            }).find("cannot reverse"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::optimal(10, 2, {{-1, 1, 1}}, 1.0);
+            }).find("level 1 slots = -1"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::optimal(10, 2, {{1, -1, 1}}, 1.0);
+            }).find("level 1"),
+            std::string::npos);
+  EXPECT_NE(message([] { KLevelPlan::optimal(10, 2, {}, 0.0); }).find("forward step"), std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::optimal(100000, 50, {{50, 1, 1}, {50, 2, 2}}, 1.0);
+            }).find("work limit"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::hierarchical(100000, 50, {{50, 1, 1}, {50, 2, 2}}, 1.0);
+            }).find("work limit"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::hierarchical(10, 2, {{1, 1, -1}}, 1.0);
+            }).find("level 1"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace hindsight
