@@ -35,25 +35,12 @@ import time
 import h5py
 import numpy as np
 
+# The machine's caches as the reproducibility record describes them (one description for both records).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "tests", "reproducibility"))
+from record import cache_sizes  # noqa: E402  (tests/reproducibility/record.py)
+
 
 RECORD = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results-headline", "headline.json")
-
-
-def cache_sizes():
-    """The data and unified caches of cpu0 as the kernel reports them (sysfs), e.g. {'L1d': '48K'}."""
-    sizes = {}
-    base = "/sys/devices/system/cpu/cpu0/cache"
-    for entry in sorted(os.listdir(base)) if os.path.isdir(base) else []:
-        def read(name):
-            try:
-                with open(os.path.join(base, entry, name)) as f:
-                    return f.read().strip()
-            except OSError:
-                return ""
-        kind = read("type")
-        if kind in ("Data", "Unified"):
-            sizes[f"L{read('level')}{'d' if kind == 'Data' else ''}"] = read("size")
-    return sizes
 
 
 def same(recorded, *path_and_value):
