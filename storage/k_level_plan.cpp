@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/interrupt.h>
 
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
@@ -187,7 +188,8 @@ struct KLevelPlan::HierarchicalTables {
 };
 
 KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
-                                    const std::vector<StorageLevelCosts>& levels, double forwardStep) {
+                                    const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                    std::int64_t window) {
   std::vector<std::int64_t> capacity;
   std::vector<double> write, read;
   checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
@@ -199,11 +201,14 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
     t.offset.push_back(t.columns);
     t.columns += c + 1;
   }
-  const double work =
-      static_cast<double>(steps) * static_cast<double>(steps) * static_cast<double>(t.columns);
+  const double splits = window > 0
+                            ? std::min(static_cast<double>(steps), 2.0 * static_cast<double>(window) + 1)
+                            : static_cast<double>(steps);
+  const double work = static_cast<double>(steps) * splits * static_cast<double>(t.columns);
   if (work > static_cast<double>(kMaxHierarchicalWork)) {
-    throw std::invalid_argument("K-level plan (hierarchical): N = " + std::to_string(steps) +
-                                " with these slots exceeds its work limit N^2 sum(s_k + 1) <= 2^33");
+    throw std::invalid_argument(
+        "K-level plan (hierarchical): N = " + std::to_string(steps) +
+        " with these slots exceeds its work limit N min(N, 2 window + 1) sum(s_k + 1) <= 2^33");
   }
   const int levelCount = static_cast<int>(capacity.size());
   constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -211,6 +216,12 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
   t.backward.assign(size, HierarchicalTables::Entry{kInfinity, 0, kDone, 0});
   t.forward.assign(size, HierarchicalTables::Entry{kInfinity, 0, 0, 0});
   const double uf = forwardStep;
+  // The splits searched for length l: all of 1..top, or a window around the best split of length l - 1.
+  const auto range = [window](std::int64_t previous, std::int64_t top) {
+    if (window <= 0 || previous <= 0) return std::pair<std::int64_t, std::int64_t>{1, top};
+    return std::pair<std::int64_t, std::int64_t>{std::max<std::int64_t>(1, previous - window),
+                                                 std::min(top, previous + window)};
+  };
   // below[k][l]: the cheapest store of a state that starts a segment of l states at a level under k,
   // min_{i<k} w_i + E_i(l, s_i - 1), and that level.
   std::vector<std::vector<std::pair<double, int>>> below(
@@ -226,7 +237,8 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
         if (l >= 2) {
           best.cost = static_cast<double>(l - 1) * uf + read[static_cast<std::size_t>(k)] +
                       t.backward[t.at(l - 1, k, m)].cost;
-          for (std::int64_t j = 1; j <= l - 2; ++j) {
+          const auto [first, last] = range(t.backward[t.at(l - 1, k, m)].distance, l - 2);
+          for (std::int64_t j = first; j <= last; ++j) {
             const double left = static_cast<double>(j) * uf + read[static_cast<std::size_t>(k)] +
                                 t.backward[t.at(j, k, m)].cost;
             if (m >= 1) {
@@ -262,7 +274,8 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
         if (m >= 1) {
           best = {write[kk] + read[kk] + t.backward[t.at(l, k, m - 1)].cost, 0, 0,
                   static_cast<std::int8_t>(k)};
-          for (std::int64_t j = 1; j <= l - 1; ++j) {
+          const auto [first, last] = range(t.forward[t.at(l - 1, k, m)].distance, l - 1);
+          for (std::int64_t j = first; j <= last; ++j) {
             const double cost = write[kk] + t.forward[t.at(l - j, k, m - 1)].cost + read[kk] +
                                 t.backward[t.at(j, k, m - 1)].cost;
             if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), 0, static_cast<std::int8_t>(k)};

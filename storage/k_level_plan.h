@@ -64,8 +64,11 @@ class KLevelPlan {
   /// refused beyond kMaxHierarchicalWork. Never cheaper than optimal() (a subset of its schedules); with RAM
   /// alone it is revolve. Same arguments and errors as optimal().
   static constexpr std::int64_t kMaxHierarchicalWork = std::int64_t{1} << 33;
+  /// `window` > 0: for each length, only splits within `window` of the previous length's best are searched
+  /// (O(N window sum_k (s_k + 1)); a heuristic, measured against window = 0, the full search).
   static KLevelPlan hierarchical(std::int64_t steps, std::int64_t ramSlots,
-                                 const std::vector<StorageLevelCosts>& levels, double forwardStep);
+                                 const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                 std::int64_t window = 0);
 
   struct Counts {
     std::int64_t recomputedSteps = 0;

@@ -432,7 +432,26 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
   // The dynamic programme is the optimum over stack schedules, which include both families; it is
   // compared with them anyway (ties keep the family, whose counts are also in closed form).
   std::optional<TwoLevelPlan> optimal;
-  if (dynamicAffordable(steps, ramSlots, diskSlots)) optimal = dynamic(steps, ramSlots, diskSlots, costs);
+  if (dynamicAffordable(steps, ramSlots, diskSlots)) {
+    optimal = dynamic(steps, ramSlots, diskSlots, costs);
+  } else {
+    const UnsignedInt128 cells =
+        static_cast<UnsignedInt128>(steps) *
+        static_cast<UnsignedInt128>(std::min(ramSlots, steps) + std::min(diskSlots, steps) + 2);
+    if (ramSlots >= 1 && cells <= static_cast<UnsignedInt128>(kMaxHierarchicalCells)) {
+      TwoLevelPlan plan;
+      plan.kind_ = Kind::kHierarchical;
+      plan.steps_ = steps;
+      plan.ramSlots_ = std::min(ramSlots, steps);
+      plan.hierarchical_ = KLevelPlan::hierarchical(
+          steps, ramSlots, {StorageLevelCosts{diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep,
+          kHierarchicalWindow);
+      plan.ramSlotsUsed_ = plan.hierarchical_->slotsUsed()[0];
+      plan.diskSlotsUsed_ = plan.hierarchical_->slotsUsed()[1];
+      plan.counts_ = plan.walk();
+      optimal = std::move(plan);
+    }
+  }
   const auto better = [&](TwoLevelPlan plan) {
     if (optimal && optimal->counts().cost(costs) < plan.counts().cost(costs)) return std::move(*optimal);
     return plan;
@@ -454,6 +473,11 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
 }
 
 std::string TwoLevelPlan::describe() const {
+  if (kind_ == Kind::kHierarchical) {
+    return "hierarchical two-level stack schedule (H-Revolve's structure with moves): up to " +
+           std::to_string(ramSlotsUsed_) + " RAM and " + std::to_string(diskSlotsUsed_) +
+           " disk states, slots reused";
+  }
   if (kind_ == Kind::kDynamic) {
     return "optimal two-level stack schedule (dynamic programme): up to " + std::to_string(ramSlotsUsed_) +
            " RAM and " + std::to_string(diskSlotsUsed_) + " disk states, slots reused";
@@ -542,6 +566,7 @@ TwoLevelPlan::Counts TwoLevelPlan::walk() {
 
 void TwoLevelPlan::rewind() {
   currentLeaf_ = -1;
+  if (kind_ == Kind::kHierarchical) hierarchical_->rewind();
   if (kind_ == Kind::kDynamic) {
     held_.clear();
     held_.reserve(static_cast<std::size_t>(dynamic_->ram + dynamic_->disk + 1));

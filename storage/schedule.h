@@ -43,6 +43,11 @@
 //               sweep, and a checkpoint at hand may move between the levels. Computed when
 //               N^2 (R + 1)(D + 1) <= kMaxDynamicWork (R, D the slots, at most N each); beyond, only the
 //               two families above are considered.
+//   hierarchical  beyond the dynamic programme's limit: KLevelPlan::hierarchical (storage/k_level_plan.h)
+//               with RAM and disk, H-Revolve's structure with moves, its splits searched within
+//               kHierarchicalWindow of the previous length's best; computed while N (R + D + 2) <=
+//               kMaxHierarchicalCells (its tables' memory), equal to the dynamic programme on every ordered
+//               case tested.
 // choose() returns the cheapest plan it evaluated. The tests compare it with a brute-force search over
 // every schedule of the game (N <= 7: equal in every case tried) and, for larger N, the dynamic
 // programme with an independent memoised recursion of the same recurrences -- see docs/theory/storage.md,
@@ -51,9 +56,11 @@
 
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/storage_registry.h>
+#include <hindsight/storage/k_level_plan.h>
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -84,10 +91,13 @@ std::int64_t parseScheduleInteger(const std::string& text, const std::string& fi
 /// The two-level plan for N >= 1 steps, ramSlots >= 1 and diskSlots >= 0 (see the file comment).
 class TwoLevelPlan {
  public:
-  enum class Kind { kLeaves, kAllSlots, kDynamic };
+  enum class Kind { kLeaves, kAllSlots, kDynamic, kHierarchical };
   static constexpr std::int64_t kMaxSimulatedSteps = std::int64_t{1} << 24;
   /// The dynamic programme is solved when N^2 (R + 1)(D + 1) is at most this (about a second).
   static constexpr std::int64_t kMaxDynamicWork = std::int64_t{1} << 28;
+  /// kHierarchical: table cells N (R + D + 2) at most (32 bytes each: 32 MiB) and the split window.
+  static constexpr std::int64_t kMaxHierarchicalCells = std::int64_t{1} << 20;
+  static constexpr std::int64_t kHierarchicalWindow = 16;
 
   /// The cheapest plan under `costs`. Throws std::invalid_argument when the slots cannot reverse N
   /// steps (N >= 2 needs ramSlots >= 2, or ramSlots == 1 and a disk slot).
@@ -157,6 +167,16 @@ class TwoLevelPlan {
     std::int64_t slot;
   };
   std::shared_ptr<const DynamicTables> dynamic_;
+  // kHierarchical: KLevelPlan::hierarchical with two levels (storage/k_level_plan.h) and its executor.
+  std::optional<KLevelPlan> hierarchical_;  // by value: each copy of the plan executes on its own
+  template <typename Visitor>
+  struct LevelAdapter {
+    Visitor& visitor;
+    static StorageLevel level(int index) { return index == 0 ? StorageLevel::kRam : StorageLevel::kDisk; }
+    void store(int index, std::int64_t slot) { visitor.store(level(index), slot); }
+    void load(int index, std::int64_t slot) { visitor.load(level(index), slot); }
+    void advance(std::int64_t from, std::int64_t to) { visitor.advance(from, to); }
+  };
   std::vector<Held> held_;
   std::vector<char> ramBusy_, diskBusy_;
   std::int64_t freeRam_ = 0, freeDisk_ = 0, nextStore_ = -1;
@@ -275,6 +295,11 @@ void TwoLevelPlan::dynamicRestore(std::int64_t e, Visitor& visitor) {
 
 template <typename Visitor>
 void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
+  if (kind_ == Kind::kHierarchical) {
+    LevelAdapter<Visitor> adapter{visitor};
+    hierarchical_->recordForward(n, adapter);
+    return;
+  }
   if (kind_ == Kind::kDynamic) {
     dynamicRecord(n, visitor);
     return;
@@ -313,6 +338,11 @@ void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
 
 template <typename Visitor>
 void TwoLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
+  if (kind_ == Kind::kHierarchical) {
+    LevelAdapter<Visitor> adapter{visitor};
+    hierarchical_->restoreStep(e, adapter);
+    return;
+  }
   if (kind_ == Kind::kDynamic) {
     dynamicRestore(e, visitor);
     return;

@@ -545,6 +545,35 @@ TEST(SchedulePrediction, MultilevelStrideAgreesExactlyWithRealRuns) {
   EXPECT_TRUE(rounds);
 }
 
+// Beyond the dynamic programme's limit (N^2 (R + 1)(D + 1) > 2^28) the hierarchical programme plans: the
+// issue-size case of 4 RAM and 40 disk states at N = 3000 and costs 1:1:0.5:0.5 costs 5 762 (the closed-form
+// families 7 351; H-Revolve 5 806), and on the pendulum (N = 2000) its prediction equals the run counter by
+// counter with a bitwise gradient.
+TEST(SchedulePrediction, HierarchicalPlanBeyondTheDynamicProgrammeEqualsItsRun) {
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  ASSERT_FALSE(TwoLevelPlan::dynamicAffordable(3000, 4, 40));
+  const TwoLevelPlan large = TwoLevelPlan::choose(3000, 4, 40, half);
+  EXPECT_EQ(large.kind(), TwoLevelPlan::Kind::kHierarchical);
+  EXPECT_DOUBLE_EQ(large.counts().cost(half), 5762.0);
+  const TwoLevelPlan families = TwoLevelPlan::allSlots(3000, 4, 40, true);
+  EXPECT_DOUBLE_EQ(families.counts().cost(half), 7351.0);
+  Pendulum problem;
+  const IntegratorOptions options = fixedStepRk4();
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  ASSERT_FALSE(TwoLevelPlan::dynamicAffordable(reference.summary.steps, 4, 40));
+  ScratchDirectory dir;
+  const auto [p, storage] = expectPredictionEqualsRun(
+      "multilevel:ram=64,disk=640,costs=1:1:0.5:0.5,dir=" + dir.path(), options, reference, half);
+  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+  ASSERT_NE(multilevel, nullptr);
+  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
+  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
+  EXPECT_EQ(p.diskReads, multilevel->diskReads());
+  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+  EXPECT_LE(multilevel->plan().diskSlotsUsed(), 40);
+  EXPECT_EQ(dir.entryCount(), 0u);
+}
+
 // The trap that was: a RAM of fewer than 3 states without costs= used to take the stride, and the
 // prediction with --costs counted that stride while costs= in the spec counted the plan (187 250 against
 // 3 897 recomputed steps for the numbers of docs/theory/storage.md, "No silent trap"). Now --costs stands
