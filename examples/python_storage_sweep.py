@@ -14,6 +14,7 @@
 
 # %%
 import argparse
+import shutil
 import tempfile
 
 import numpy as np
@@ -54,6 +55,7 @@ for spec in strategies:
     rows.append(dict(spec=spec, seconds=s["forward_seconds"] + s["backward_seconds"], memory=s["peak_bytes_in_memory"],
                      disk=s["bytes_on_disk"], recomputed=s["recomputed_steps"], error=error, bitwise=bitwise,
                      exact=next(d.exact for d in hindsight.storage_specs() if d.name == spec.split(":")[0])))
+shutil.rmtree(scratch)  # the disk strategies' folder (they remove their files, not the folder)
 print(f"\n{'storage':52s} {'seconds':>8s} {'memory':>10s} {'disk':>10s} {'recomputed':>10s}  max rel. error")
 for row in rows:
     print(f"{row['spec'][:52]:52s} {row['seconds']:8.3f} {row['memory']:10d} {row['disk']:10d} "

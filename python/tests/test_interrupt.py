@@ -55,13 +55,14 @@ SCENARIO_CHILD = textwrap.dedent("""
     config = {"rod": dict(COARSE["rod"]),
               "scenarios": [{"name": "slow", "endTime": 1000.0}, {"name": "slower", "endTime": 1000.0}]}
     print("start", flush=True)
-    try:
-        hindsight.optimize(config, out=tempfile.mkdtemp(), optimization={"iterations": 2})
-        print("finished without interruption", flush=True)
-    except KeyboardInterrupt:
-        print("KeyboardInterrupt", flush=True)
-    except BaseException as e:
-        print("other", type(e).__name__, e, flush=True)
+    with tempfile.TemporaryDirectory() as out:
+        try:
+            hindsight.optimize(config, out=out, optimization={"iterations": 2})
+            print("finished without interruption", flush=True)
+        except KeyboardInterrupt:
+            print("KeyboardInterrupt", flush=True)
+        except BaseException as e:
+            print("other", type(e).__name__, e, flush=True)
 """)
 
 
@@ -88,13 +89,14 @@ WORKER_CHILD = textwrap.dedent("""
                             {"name": "slow", "endTime": 1000.0}]}
     print("start", flush=True)
     begin = time.monotonic()
-    try:
-        hindsight.optimize(config, out=tempfile.mkdtemp(), optimization={"iterations": 2})
-        print("finished without interruption", flush=True)
-    except KeyboardInterrupt:
-        print("KeyboardInterrupt after", round(time.monotonic() - begin, 1), flush=True)
-    except BaseException as e:
-        print("other", type(e).__name__, e, flush=True)
+    with tempfile.TemporaryDirectory() as out:
+        try:
+            hindsight.optimize(config, out=out, optimization={"iterations": 2})
+            print("finished without interruption", flush=True)
+        except KeyboardInterrupt:
+            print("KeyboardInterrupt after", round(time.monotonic() - begin, 1), flush=True)
+        except BaseException as e:
+            print("other", type(e).__name__, e, flush=True)
     print("after", hindsight.PistonRod(COARSE, rod={"endTime": 0.05, "rampTime": 0.01}).evaluate().psi1 > 0,
           flush=True)
 """)
