@@ -395,6 +395,18 @@ bool runInChild(const Config& config, const std::string& directory, int exitAfte
   return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
 }
 
+// `config` run into the fresh directory `name` in a child that stops right after iteration `exitAfter`,
+// then resumed here to its end: the resumed run's results file.
+ResultsData interruptedAndResumed(const Config& config, const std::string& name, int exitAfter) {
+  const std::string dir = freshDirectory(name);
+  EXPECT_FALSE(runInChild(config, dir, exitAfter));
+  OptimizationRunOptions options;
+  options.outputDirectory = dir;
+  options.resume = true;
+  runQuietly(config, options);
+  return readResultsFile(dir + "/results.h5");
+}
+
 TEST(OptimizationRun, ExitAfterAnIterationThenResumeIsBitIdentical) {
   for (const std::string objective : {"psi1", "psi2"}) {
     SCOPED_TRACE(objective);
@@ -551,13 +563,9 @@ TEST(OptimizationRun, StagnationEndsTheRunAndAResumeStopsThere) {
   EXPECT_LE(largest - smallest, 1e-3 * smallest * (1.0 + 1e-12));
   for (std::size_t k = 0; k + 1 < h.size(); ++k) EXPECT_FALSE(h[k].converged) << k;
 
-  const std::string dir = freshDirectory("stagnating_exit");
-  EXPECT_FALSE(runInChild(config, dir, static_cast<int>(h.size()) - 3));  // inside the final window
-  OptimizationRunOptions options;
-  options.outputDirectory = dir;
-  options.resume = true;
-  runQuietly(config, options);
-  expectSameResults(readResultsFile(dir + "/results.h5"), reference);
+  // Interrupted inside the final window.
+  expectSameResults(interruptedAndResumed(config, "stagnating_exit", static_cast<int>(h.size()) - 3),
+                    reference);
 
   Config off = config;
   off.optimization.objectiveTolerance = 0.0;
@@ -590,13 +598,9 @@ TEST(OptimizationRun, EndGameRefinesTheBestDesignAndEndsByTheRuleBeforeTheCap) {
       EXPECT_LE(h.back().psi1, h[k].psi1) << k;
   }
 
-  const std::string dir = freshDirectory("end_game_exit");
-  EXPECT_FALSE(runInChild(config, dir, static_cast<int>(h.size()) - 3));  // inside the refinement
-  OptimizationRunOptions options;
-  options.outputDirectory = dir;
-  options.resume = true;
-  runQuietly(config, options);
-  expectSameResults(readResultsFile(dir + "/results.h5"), reference);
+  // Interrupted inside the refinement.
+  expectSameResults(interruptedAndResumed(config, "end_game_exit", static_cast<int>(h.size()) - 3),
+                    reference);
 
   Config off = config;
   off.optimization.endGame = false;
