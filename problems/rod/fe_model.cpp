@@ -11,6 +11,19 @@
 namespace hindsight {
 namespace rod {
 
+void requireDesignInRange(const char* who, ConstVectorRef design, double designLowerBound) {
+  for (Eigen::Index d = 0; d < design.size(); ++d) {
+    const double x = design(d);
+    if (!std::isfinite(x) || x < designLowerBound || x > 1.0) {
+      std::ostringstream message;
+      message.precision(17);
+      message << who << ": design[" << d << "] = " << x << " is outside the allowed range ["
+              << designLowerBound << ", 1]";
+      throw std::invalid_argument(message.str());
+    }
+  }
+}
+
 SimpLaw::SimpLaw(const RodConfig& config)
     : youngsModulus_(config.youngsModulus),
       density_(config.density),
@@ -128,16 +141,7 @@ FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(confi
             << " entries, expected designCount() = " << config_.designCount() << " ((nx - 2) * ny)";
     throw std::invalid_argument(message.str());
   }
-  for (Eigen::Index d = 0; d < design.size(); ++d) {
-    const double x = design(d);
-    if (!std::isfinite(x) || x < config_.designLowerBound || x > 1.0) {
-      std::ostringstream message;
-      message.precision(17);
-      message << "FeModel: design[" << d << "] = " << x << " is outside the allowed range ["
-              << config_.designLowerBound << ", 1]";
-      throw std::invalid_argument(message.str());
-    }
-  }
+  requireDesignInRange("FeModel", design, config_.designLowerBound);
   design_ = design;
   nodeCount_ = (nx + 1) * (ny + 1);
   elementCount_ = nx * ny;

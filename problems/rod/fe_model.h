@@ -63,6 +63,10 @@ Vector rotateNodewiseTransposed(ConstVectorRef full);
 Matrix rotateNodewiseColumns(ConstMatrixRef full);
 Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full);
 
+/// Throws std::invalid_argument naming `who`, the entry and the range when a design variable is not in
+/// [designLowerBound, 1] or not finite: the one check of every member model's design (plate and solid).
+void requireDesignInRange(const char* who, ConstVectorRef design, double designLowerBound);
+
 class FeModel {
  public:
   /// Builds mesh, element matrices and the assembled sparse K, M (full and constrained) for `design`.

@@ -166,16 +166,7 @@ SolidModel::SolidModel(const RodConfig& config, const SolidMeshOptions& options,
             << " entries, expected (nx - 2) * ny * nz = " << expected;
     throw std::invalid_argument(message.str());
   }
-  for (Eigen::Index d = 0; d < design.size(); ++d) {
-    const double x = design(d);
-    if (!std::isfinite(x) || x < config_.designLowerBound || x > 1.0) {
-      std::ostringstream message;
-      message.precision(17);
-      message << "SolidModel: design[" << d << "] = " << x << " is outside the allowed range ["
-              << config_.designLowerBound << ", 1]";
-      throw std::invalid_argument(message.str());
-    }
-  }
+  requireDesignInRange("SolidModel", design, config_.designLowerBound);
   design_ = design;
   nodeCount_ = (nx + 1) * (ny + 1) * (nz + 1);
   elementCount_ = nx * ny * nz;
