@@ -4,6 +4,7 @@
 #include <hindsight/storage/checkpoint_stream.h>
 
 #include <algorithm>
+#include <deque>
 #include <map>
 #include <memory>
 #include <set>
@@ -122,98 +123,128 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
   return events;
 }
 
-// The translation, run twice: the first pass learns which stored states are loaded later (and which
-// load is a state's last), the second emits the stream with that knowledge.
+// The translation of a plan's events, fed one at a time (feed(), then finish()); the actions come out in
+// actions(). It must know, when a state is stored, whether it is loaded later (its restart data is written
+// only then) and, at each load, whether it is the state's last (a Move then, else a Copy). Two ways:
+//  * counted (cams): the translation runs twice over the whole plan; the first pass counts the loads of
+//    every stored state (Usage), the second emits with that knowledge;
+//  * stack (multilevel, made as consumed): the plan keeps its checkpoints as a stack, each until its own
+//    state is restored (revolve, the leaves, the dynamic programme and the hierarchical plan all do,
+//    storage/schedule.h): every stored state is loaded later except x_{N-1} kept by the forward sweep
+//    (the forward run's last step writes its adjoint data instead), a load is the state's last when it
+//    restores that state or when the state goes on to another storage at once (a move between levels).
+//    A load of a state the stream has already released throws std::logic_error, so a plan that broke
+//    the rule could not go unnoticed (the tests run every plan family through the contract checker).
 class Translator {
  public:
   struct Usage {
     std::map<std::int64_t, std::int64_t> loads;  // version -> number of loads
     std::map<std::int64_t, std::int64_t> seen;   // version -> loads emitted so far (second pass)
-    std::set<std::int64_t> adjDepsUsed;          // steps whose record's adjoint data a Reverse uses
   };
 
-  Translator(std::int64_t steps, Usage& usage, bool emit) : steps_(steps), usage_(usage), emit_(emit) {}
+  /// usage: the counted way (emit: the second pass); null: the stack way.
+  Translator(std::int64_t steps, Usage* usage, bool emit) : steps_(steps), usage_(usage), emit_(emit) {}
 
-  std::vector<CheckpointAction> run(const std::vector<PlanEvent>& events) {
-    std::size_t i = 0;
-    std::int64_t recorded = 0;
-    // Forward sweep: records and stores, up to the first restore, load or advance. The forward run goes
-    // on uninterrupted; it is cut into Forwards only where it writes something. (cams names the position
-    // of each store and prints no records.)
-    for (; i < events.size(); ++i) {
-      const PlanEvent& ev = events[i];
+  void feed(const PlanEvent& ev) {
+    if (phase_ == Phase::kForward) {
+      // Forward sweep: records and stores, up to the first restore, load or advance. The forward run goes
+      // on uninterrupted; it is cut into Forwards only where it writes something. (cams names the position
+      // of each store and prints no records.)
       if (ev.kind == PlanEvent::Kind::kRecord) {
-        recorded = ev.a;
-      } else if (ev.kind == PlanEvent::Kind::kStore || ev.kind == PlanEvent::Kind::kStoreRecord) {
-        forwardTo(ev.a >= 0 ? ev.a : recorded);
+        recorded_ = ev.a;
+        return;
+      }
+      if (ev.kind == PlanEvent::Kind::kStore || ev.kind == PlanEvent::Kind::kStoreRecord) {
+        forwardTo(ev.a >= 0 ? ev.a : recorded_);
         if (ev.kind == PlanEvent::Kind::kStore)
           store(ev);
         else
           storeRecord(ev);
-      } else {
-        break;
+        return;
       }
+      phase_ = Phase::kFirstRestore;
     }
-    // x_{N-1}: when the plan holds it (a working state, loaded without recomputation), the forward run's
-    // last step writes its adjoint data (to RAM for a record, else WORK) and that delivery is skipped;
-    // when the plan replays it from a checkpoint, the replay is translated like every other restore.
-    std::size_t lastDelivery = i;
-    bool replays = false;  // anything but loads
-    for (; lastDelivery < events.size() && events[lastDelivery].kind != PlanEvent::Kind::kDeliver;
-         ++lastDelivery) {
-      const PlanEvent::Kind kind = events[lastDelivery].kind;
-      replays = replays || (kind != PlanEvent::Kind::kLoad && kind != PlanEvent::Kind::kBeginRestore);
-    }
-    if (lastDelivery == events.size() || events[lastDelivery].a != steps_ - 1) {
-      throw std::logic_error("checkpointSchedule: the first restore is not x_{N-1}");
-    }
-    forwardTo(steps_, /*last=*/!replays);
-    out(Kind::kEndForward);
-    std::int64_t expected = steps_ - 1;
-    if (!replays) {
-      i = lastDelivery + 1;
-      if (heldAdjDeps_.count(steps_ - 1) != 0) fetchHeldAdjDeps(steps_ - 1);
-      reverse(steps_ - 1);
-      expected = steps_ - 2;
-    }
-    current_ = -1;
-    for (; i < events.size(); ++i) {
-      const PlanEvent& ev = events[i];
-      switch (ev.kind) {
-        case PlanEvent::Kind::kStore:
-          store(ev);
-          break;
-        case PlanEvent::Kind::kStoreRecord:
-          storeRecord(ev);
-          break;
-        case PlanEvent::Kind::kLoad:
-          load(slotContent(ev.level, ev.key));
-          break;
-        case PlanEvent::Kind::kAdvance:
-          need(ev.a);
-          forwardTo(ev.b);
-          break;
-        case PlanEvent::Kind::kDeliver:
-          if (ev.a != expected) throw std::logic_error("checkpointSchedule: restores out of order");
-          deliver(ev.a, ev.withStages);
-          --expected;
-          break;
-        case PlanEvent::Kind::kBeginRestore:
-          break;
-        case PlanEvent::Kind::kRecord:
-          throw std::logic_error("checkpointSchedule: a forward record in the backward sweep");
+    if (phase_ == Phase::kFirstRestore) {
+      // Up to the delivery of x_{N-1} (a few events). When the plan holds it (a working state, loaded
+      // without recomputation), the forward run's last step writes its adjoint data (to RAM for a record,
+      // else WORK) and that delivery is skipped; when the plan replays it from a checkpoint, the replay is
+      // translated like every other restore.
+      if (ev.kind != PlanEvent::Kind::kDeliver) {
+        replays_ =
+            replays_ || (ev.kind != PlanEvent::Kind::kLoad && ev.kind != PlanEvent::Kind::kBeginRestore);
+        firstRestore_.push_back(ev);
+        return;
       }
+      if (ev.a != steps_ - 1) throw std::logic_error("checkpointSchedule: the first restore is not x_{N-1}");
+      if (usage_ == nullptr && !replays_) {
+        // The stack way: x_{N-1} kept by the forward sweep is never loaded (its delivery is skipped).
+        if (!pendingIcs_.empty() && current_ != steps_ - 1)
+          throw std::logic_error("checkpointSchedule: a stored state is left unadvanced");
+        pendingIcs_.clear();
+      }
+      forwardTo(steps_, /*last=*/!replays_);
+      out(Kind::kEndForward);
+      expected_ = steps_ - 1;
+      current_ = -1;
+      phase_ = Phase::kBackward;
+      if (!replays_) {
+        if (heldAdjDeps_.count(steps_ - 1) != 0) fetchHeldAdjDeps(steps_ - 1);
+        reverse(steps_ - 1);
+        expected_ = steps_ - 2;
+        firstRestore_.clear();
+        return;
+      }
+      std::vector<PlanEvent> replay;
+      replay.swap(firstRestore_);
+      for (const PlanEvent& e : replay) backward(e);
     }
-    if (expected != -1) throw std::logic_error("checkpointSchedule: the plan does not restore every state");
-    out(Kind::kEndReverse);
-    return std::move(actions_);
+    backward(ev);
   }
+
+  void finish() {
+    if (phase_ != Phase::kBackward || expected_ != -1)
+      throw std::logic_error("checkpointSchedule: the plan does not restore every state");
+    out(Kind::kEndReverse);
+  }
+
+  /// The actions made so far (the caller takes them out).
+  std::deque<CheckpointAction>& actions() { return actions_; }
 
  private:
   using Kind = CheckpointAction::Kind;
+  enum class Phase { kForward, kFirstRestore, kBackward };
+
+  void backward(const PlanEvent& ev) {
+    switch (ev.kind) {
+      case PlanEvent::Kind::kStore:
+        store(ev);
+        break;
+      case PlanEvent::Kind::kStoreRecord:
+        storeRecord(ev);
+        break;
+      case PlanEvent::Kind::kLoad:
+        load(slotContent(ev.level, ev.key));
+        break;
+      case PlanEvent::Kind::kAdvance:
+        need(ev.a);
+        forwardTo(ev.b);
+        break;
+      case PlanEvent::Kind::kDeliver:
+        if (ev.a != expected_) throw std::logic_error("checkpointSchedule: restores out of order");
+        deliver(ev.a, ev.withStages);
+        --expected_;
+        break;
+      case PlanEvent::Kind::kBeginRestore:
+        break;
+      case PlanEvent::Kind::kRecord:
+        throw std::logic_error("checkpointSchedule: a forward record in the backward sweep");
+    }
+  }
+
   struct Content {
     std::int64_t version = -1, position = -1;
     CheckpointStorage level = CheckpointStorage::kRam;
+    std::string key;  // its slot
   };
 
   void out(Kind kind, std::int64_t n0 = 0, std::int64_t n1 = 0) {
@@ -225,8 +256,9 @@ class Translator {
   }
 
   bool used(std::int64_t version) const {
-    const auto it = usage_.loads.find(version);
-    return !emit_ || (it != usage_.loads.end() && it->second > 0);
+    if (usage_ == nullptr) return true;  // the stack way (x_{N-1} of the forward sweep: feed())
+    const auto it = usage_->loads.find(version);
+    return !emit_ || (it != usage_->loads.end() && it->second > 0);
   }
 
   // The contract (docs/guides/checkpoint_schedule.md, "The contract"): restart data is written only by
@@ -241,14 +273,21 @@ class Translator {
   void store(const PlanEvent& ev) {
     const std::int64_t position = ev.key.rfind("at ", 0) == 0 ? ev.a : current_;
     if (position != current_) throw std::logic_error("checkpointSchedule: a store of a state not at hand");
-    const Content c{nextVersion_++, position, ev.level};
-    slots_[key(ev.level, ev.key)] = c;
+    const Content c{nextVersion_++, position, ev.level, key(ev.level, ev.key)};
+    setSlot(c);
     if (!used(c.version)) return;
     if (pendingLoad_.version >= 0 && pendingLoad_.position == position) {
       copyBetween(pendingLoad_, ev.level);
       pendingLoad_ = c;  // the state at hand now comes from the new checkpoint
     } else {
+      if (usage_ == nullptr && !pendingIcs_.empty()) {
+        // The stack way: a second store of the state at hand moves the checkpoint to the other storage
+        // before it was written (one checkpoint per state on the stack).
+        eraseSlot(pendingStore_);
+        pendingIcs_.clear();
+      }
       pendingIcs_.push_back(ev.level);
+      pendingStore_ = c;
     }
   }
   void storeRecord(const PlanEvent& ev) {
@@ -259,8 +298,8 @@ class Translator {
     const auto existing = slots_.find(k);
     if (existing == slots_.end() || existing->second.position != ev.a) {
       if (ev.a != current_) throw std::logic_error("checkpointSchedule: a record of a state not at hand");
-      const Content c{nextVersion_++, ev.a, CheckpointStorage::kRam};
-      slots_[k] = c;
+      const Content c{nextVersion_++, ev.a, CheckpointStorage::kRam, k};
+      setSlot(c);
       if (used(c.version)) pendingIcs_.push_back(CheckpointStorage::kRam);
     }
     wantAdjDeps_.insert(ev.a);
@@ -274,17 +313,42 @@ class Translator {
     return it->second;
   }
 
-  // One use of checkpoint c: true when it is its last (the data is then released: a Move).
-  bool use(const Content& c) {
-    std::int64_t& seen = usage_.seen[c.version];
+  // Slots by name, and by position for need(); a slot stored again drops its old content.
+  void setSlot(const Content& c) {
+    const auto it = slots_.find(c.key);
+    if (it != slots_.end()) eraseSlot(it->second);
+    slots_[c.key] = c;
+    byPosition_.emplace(c.position, c.key);
+  }
+  void eraseSlot(Content c) {
+    const auto range = byPosition_.equal_range(c.position);
+    for (auto it = range.first; it != range.second; ++it) {
+      if (it->second == c.key) {
+        byPosition_.erase(it);
+        break;
+      }
+    }
+    slots_.erase(c.key);
+  }
+
+  // One use of checkpoint c: true when it is its last (the data is then released: a Move). toWork: the
+  // state enters WORK (else it goes on to another storage).
+  bool use(const Content& c, bool toWork) {
+    if (usage_ == nullptr) return !toWork || c.position == expected_;  // the stack way (class comment)
+    std::int64_t& seen = usage_->seen[c.version];
     ++seen;
-    if (!emit_) ++usage_.loads[c.version];
-    return emit_ && seen == usage_.loads[c.version];
+    if (!emit_) ++usage_->loads[c.version];
+    return emit_ && seen == usage_->loads[c.version];
   }
 
   void copyBetween(const Content& c, CheckpointStorage to) {
     CheckpointAction a;
-    a.kind = use(c) ? Kind::kMove : Kind::kCopy;
+    a.kind = use(c, to == CheckpointStorage::kWork) ? Kind::kMove : Kind::kCopy;
+    if (a.kind == Kind::kMove && usage_ == nullptr) {
+      // Released: a later load of it would find its slot empty (and throw).
+      const auto it = slots_.find(c.key);
+      if (it != slots_.end() && it->second.version == c.version) eraseSlot(c);
+    }
     a.n0 = a.n1 = c.position;
     a.from = c.level;
     a.to = to;
@@ -308,10 +372,10 @@ class Translator {
   void need(std::int64_t n) {
     if (current_ == n) return;
     const Content* best = nullptr;
-    for (const auto& [name, c] : slots_) {
-      if (c.position == n &&
-          (best == nullptr || (c.level == CheckpointStorage::kRam && best->level != c.level)))
-        best = &c;
+    const auto range = byPosition_.equal_range(n);
+    for (auto it = range.first; it != range.second; ++it) {
+      const Content& c = slots_.at(it->second);
+      if ((best == nullptr || (c.level == CheckpointStorage::kRam && best->level != c.level))) best = &c;
     }
     if (best == nullptr)
       throw std::logic_error("checkpointSchedule: x_" + std::to_string(n) + " is neither at hand nor stored");
@@ -425,20 +489,25 @@ class Translator {
   }
 
   std::int64_t steps_;
-  Usage& usage_;
+  Usage* usage_;
   bool emit_;
-  std::vector<CheckpointAction> actions_;
+  std::deque<CheckpointAction> actions_;
+  Phase phase_ = Phase::kForward;
+  std::int64_t recorded_ = 0, expected_ = 0;
+  bool replays_ = false;  // the restore of x_{N-1} does more than load it
+  std::vector<PlanEvent> firstRestore_;
   std::map<std::string, Content> slots_;
+  std::multimap<std::int64_t, std::string> byPosition_;
   std::vector<CheckpointStorage> pendingIcs_;
-  Content pendingLoad_;  // version -1: none
+  Content pendingLoad_;   // version -1: none
+  Content pendingStore_;  // the stack way: the store pendingIcs_ holds
   std::set<std::int64_t> wantAdjDeps_, heldAdjDeps_;
   std::int64_t current_ = 0, nextVersion_ = 0;
 };
 
 }  // namespace
 
-// The whole plan of a strategy without a lazy stream (cams, multilevel), translated
-// (storage/checkpoint_stream.cpp hands it out).
+// cams' whole plan, translated the counted way (storage/checkpoint_stream.cpp hands it out).
 std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
                                                       std::int64_t stateBytes, int stages,
                                                       const ScheduleCosts* costs) {
@@ -455,9 +524,94 @@ std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, s
   writeScheduleActions(spec, steps, stateBytes, stages, costs, plan);  // validates everything first
   const std::vector<PlanEvent> events = parsePlan(plan.str());
   Translator::Usage usage;
-  Translator(steps, usage, false).run(events);
-  usage.seen.clear();
-  return Translator(steps, usage, true).run(events);
+  for (bool emit : {false, true}) {
+    usage.seen.clear();
+    Translator translator(steps, &usage, emit);
+    for (const PlanEvent& ev : events) translator.feed(ev);
+    translator.finish();
+    if (emit) {
+      std::deque<CheckpointAction>& actions = translator.actions();
+      return std::vector<CheckpointAction>(actions.begin(), actions.end());
+    }
+  }
+  return {};
+}
+
+namespace {
+
+// multilevel's stream: its TwoLevelPlan (MultilevelStorage::fixedStepPlan, the plan a run executes) is
+// driven as the host consumes the actions -- the forward sweep record by record, then the backward sweep
+// restore by restore -- and translated the stack way. Memory: the plan and the slots' contents.
+class TwoLevelPlanStream final : public CheckpointStream {
+ public:
+  TwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan)
+      : CheckpointStream(steps), plan_(std::move(plan)), translator_(steps, nullptr, true) {
+    plan_.rewind();
+  }
+
+ private:
+  struct Visitor {
+    TwoLevelPlanStream& s;
+    PlanEvent event(PlanEvent::Kind kind, StorageLevel level, std::int64_t slot) const {
+      const bool disk = level == StorageLevel::kDisk;
+      return PlanEvent{kind,
+                       disk ? CheckpointStorage::kDisk : CheckpointStorage::kRam,
+                       (disk ? "disk " : "ram ") + std::to_string(slot),
+                       -1,
+                       0,
+                       false};
+    }
+    void store(StorageLevel level, std::int64_t slot) {
+      if (s.record_ >= 0) {
+        s.translator_.feed(
+            PlanEvent{PlanEvent::Kind::kRecord, CheckpointStorage::kWork, "", s.record_, 0, false});
+        s.record_ = -1;
+      }
+      s.translator_.feed(event(PlanEvent::Kind::kStore, level, slot));
+    }
+    void load(StorageLevel level, std::int64_t slot) {
+      s.translator_.feed(event(PlanEvent::Kind::kLoad, level, slot));
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      s.translator_.feed(PlanEvent{PlanEvent::Kind::kAdvance, CheckpointStorage::kWork, "", from, to, false});
+    }
+  };
+
+  bool doNext(CheckpointAction* action) override {
+    std::deque<CheckpointAction>& out = translator_.actions();
+    while (out.empty()) {
+      Visitor visitor{*this};
+      if (forward_ < maxN_) {
+        record_ = forward_;  // fed before the record's first store, if any
+        plan_.recordForward(forward_++, visitor);
+        record_ = -1;
+      } else if (restore_ >= 0) {
+        plan_.restoreStep(restore_, visitor);
+        translator_.feed(
+            PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", restore_, restore_, false});
+        --restore_;
+      } else if (!finished_) {
+        translator_.finish();
+        finished_ = true;
+      } else {
+        return false;
+      }
+    }
+    *action = out.front();
+    out.pop_front();
+    return true;
+  }
+
+  TwoLevelPlan plan_;
+  Translator translator_;
+  std::int64_t forward_ = 0, restore_ = maxN_ - 1, record_ = -1;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan) {
+  return std::make_unique<TwoLevelPlanStream>(steps, std::move(plan));
 }
 
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,

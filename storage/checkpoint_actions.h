@@ -16,9 +16,9 @@
 // Every stream keeps checkpoint_schedules' contract (docs/guides/checkpoint_schedule.md, "The
 // contract"): restart data is written by the Forward that leaves a state and covers the steps it runs;
 // Copy/Move need an empty WORK and never copy from WORK; a Reverse reads its adjoint data from WORK only;
-// Move is not a kind of Copy. binomial, full and disk streams are generated as they are consumed
-// (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself executes
-// (its action stream, the one `hindsight schedule --actions` prints, from the same plan code as a run):
+// Move is not a kind of Copy. binomial, full, disk and multilevel streams are generated as they are
+// consumed (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself
+// executes (the actions `hindsight schedule --actions` prints, from the same plan code as a run):
 //   a checkpoint store is writeIcs on the Forward that leaves the state, or a Copy/Move between storages
 //   when the state was just loaded; a load is Copy (Move at the checkpoint's last use); a recomputation
 //   is a Forward without adjoint data; a cams step record is a one-step Forward writing its adjoint data
@@ -59,7 +59,7 @@ struct CheckpointAction {
 /// The action stream of `spec` for N = `steps` fixed steps, collected (openCheckpointStream() in
 /// storage/checkpoint_stream.h hands it out one action at a time), with the arguments and checks of
 /// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel and cams (offline; N <= 2^24 for
-/// the last two). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
+/// cams). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
 /// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
 /// by a rule of its own (stages=1; cams' step records are expressed).
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,

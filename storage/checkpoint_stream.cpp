@@ -2,7 +2,9 @@
 
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/schedule.h>
+#include <hindsight/storage/storage_factory.h>
 
 #include <algorithm>
 #include <cassert>
@@ -274,6 +276,7 @@ constexpr std::int64_t kMaxTranslatedSteps = std::int64_t{1} << 24;  // writeSch
 
 }  // namespace
 
+std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
 std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
                                                       std::int64_t stateBytes, int stages,
                                                       const ScheduleCosts* costs);
@@ -304,6 +307,21 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
     }
     return std::make_unique<EveryStateStream>(
         steps, name == "disk" ? CheckpointStorage::kDisk : CheckpointStorage::kRam);
+  }
+  if (name == "multilevel") {
+    // Every check of the plan: the spec and the sizes (at one step: the prediction at N would choose the
+    // plan a second time), the levels and the plan at N (fixedStepPlan).
+    if (steps < 1 || steps > kMaxScheduleSteps) predictSchedule(specText, steps, stateBytes, stages, costs);
+    predictSchedule(specText, 1, stateBytes, stages, costs);
+    const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
+    if (dynamic_cast<const MultilevelStorage&>(*storage).options().stride) {
+      throw std::invalid_argument(
+          "multilevel.schedule = stride has no action stream: its scratch rounds are not a plan of slots "
+          "(drop schedule=stride: the default plan has one)");
+    }
+    return openTwoLevelPlanStream(
+        steps,
+        MultilevelStorage::fixedStepPlan(*storage, PredictionRequest{steps, stateBytes, stages, costs, 0}));
   }
   if (steps > kMaxTranslatedSteps) {
     throw std::invalid_argument(

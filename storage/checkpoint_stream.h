@@ -3,11 +3,13 @@
 // (n, r, max_n, is_exhausted, finalize). docs/guides/checkpoint_schedule.md states the contract every
 // stream keeps; python/tests/stream_contract.py checks it.
 //
-// binomial, full and disk are generated lazily: memory O(checkpoints) whatever N, the first action after
-// O(checkpoints) work (binomial drives engine/binomial_checkpointing.h's BinomialSchedule, the state
-// machine its runs use, so the stream recomputes exactly what a run recomputes). cams and multilevel
-// translate their whole plan (storage/schedule.h, N <= 2^24) when the stream is opened and then hand it
-// out action by action: their plans are dynamic programmes over N.
+// binomial, full, disk and multilevel are generated lazily: memory O(checkpoints) whatever N (binomial
+// drives engine/binomial_checkpointing.h's BinomialSchedule, multilevel its TwoLevelPlan
+// (MultilevelStorage::fixedStepPlan), the state machines their runs use, so the stream recomputes exactly
+// what a run recomputes); the first action comes after the plan is chosen (binomial: O(checkpoints);
+// multilevel: TwoLevelPlan::choose, 0.13 s at N = 10^6, bench/checkpoint_stream_bench.py). cams
+// translates its whole plan (N <= 2^24) when the stream is opened and then hands it out action by action:
+// its plan is a dynamic programme over N whose tables are O(N M) anyway.
 #pragma once
 
 #include <hindsight/storage/checkpoint_actions.h>
@@ -53,7 +55,7 @@ class CheckpointStream {
 };
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
-/// (storage/schedule.h): full, disk, binomial (any N up to 2^62), cams and multilevel (N <= 2^24).
+/// (storage/schedule.h): full, disk, binomial, multilevel (any N its plan supports) and cams (N <= 2^24).
 /// Throws std::invalid_argument as checkpointSchedule() does.
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,

@@ -732,6 +732,26 @@ void MultilevelStorage::warnAgainstStride(const Layout& layout, const Prediction
   }
 }
 
+TwoLevelPlan MultilevelStorage::fixedStepPlan(const TrajectoryStorage& storage,
+                                              const PredictionRequest& request) {
+  const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
+  const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
+  const Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
+  // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
+  // name neither the levels nor the state size.
+  if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
+    throw std::invalid_argument(
+        "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) +
+        " and multilevel.disk = " + formatBytes(multilevel.options().diskBytes) + " hold " +
+        std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
+        " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
+        "; RAM must hold one state and both levels two: raise ram or disk");
+  }
+  // The plan a run executes (doBegin), chosen by the costs predict() counts it with.
+  return TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
+                              planningCosts(multilevel.options(), request, layout));
+}
+
 void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                 const PredictionRequest& request, SchedulePrediction& p) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
@@ -753,16 +773,7 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
     warnAgainstStride(layout, request, p);
     return;
   }
-  // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
-  // name neither the levels nor the state size.
-  if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + layout.diskSlots < 2)) {
-    throw std::invalid_argument(
-        levels + " hold " + std::to_string(layout.ramSlots) + " and " + std::to_string(layout.diskSlots) +
-        " states of --state-bytes = " + formatBytes(stateBytes) + " for --steps = " + std::to_string(steps) +
-        "; RAM must hold one state and both levels two: raise ram or disk");
-  }
-  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
-                                           planningCosts(multilevel.options(), request, layout));
+  TwoLevelPlan plan = fixedStepPlan(storage, request);
   p.plan = plan.describe();
   const TwoLevelPlan::Counts& c = plan.counts();
   p.recomputedSteps = c.recomputedSteps;
@@ -785,17 +796,13 @@ void MultilevelStorage::writeActions(const TrajectoryStorage& storage, const Sto
                                      const PredictionRequest& request, std::ostream& out) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
   const std::int64_t steps = request.steps;
-  const int stateSize = static_cast<int>(request.stateBytes / 8);
   if (multilevel.options().stride) {
     throw std::invalid_argument(
         "--actions prints two-level plans; multilevel.schedule = stride's scratch rounds are not a plan "
         "(print "
         "its counts without --actions)");
   }
-  // The plan a run executes (doBegin), chosen by the costs predict() counts it with.
-  const Layout layout = multilevel.layoutFor(steps, stateSize);
-  TwoLevelPlan plan = TwoLevelPlan::choose(steps, layout.ramSlots, layout.diskSlots,
-                                           planningCosts(multilevel.options(), request, layout));
+  TwoLevelPlan plan = fixedStepPlan(storage, request);
   prediction::ActionWriter writer{out};
   for (std::int64_t k = 0; k < steps; ++k) {
     out << "record " << k << '\n';

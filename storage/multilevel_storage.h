@@ -104,6 +104,10 @@ class MultilevelStorage final : public TrajectoryStorage {
   /// schedule=stride is refused, its scratch rounds not being a plan of slots.
   static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
                            const PredictionRequest& request, std::ostream& out);
+  /// The TwoLevelPlan of schedule=optimal for the request's N fixed steps, as predict counts it, a run
+  /// executes it and writeActions and the checkpoint action stream (storage/checkpoint_stream.h) walk it.
+  /// Throws std::invalid_argument naming the levels when they cannot hold the slots N steps need.
+  static TwoLevelPlan fixedStepPlan(const TrajectoryStorage& storage, const PredictionRequest& request);
 
   /// Slots of each level schedule=optimal has for N steps of stateSize entries.
   struct Layout {

@@ -177,6 +177,10 @@ def test_streams_are_made_as_they_are_consumed():
     assert next(full) == Forward(0, 1, True, False, StorageType.RAM)
     with pytest.raises(ValueError, match=r"steps up to 16777216.*steps = 16777217"):
         hindsight.checkpoint_schedule("cams:checkpoints=3", steps=(1 << 24) + 1)
+    # multilevel drives its plan as the host goes: beyond 2^24 steps, its leaves on disk first.
+    multilevel = hindsight.checkpoint_schedule("multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5",
+                                               steps=100_000_000, state_bytes=16)
+    assert next(multilevel) == Forward(0, 1526, True, False, StorageType.DISK)
 
 
 def test_defaults_are_schedules():

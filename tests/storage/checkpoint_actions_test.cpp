@@ -111,6 +111,30 @@ TEST(CheckpointActions, BinomialStreamIsMadeAsItIsConsumed) {
   EXPECT_FALSE(stream->isExhausted());
 }
 
+// multilevel's stream drives its TwoLevelPlan as the host consumes it: at N = 10^8 (beyond the 2^24 a
+// whole translation allowed) the leaves plan's first actions come without the plan being laid out, and the
+// host never holds more than the plan's slots.
+TEST(CheckpointActions, MultilevelStreamIsMadeAsItIsConsumed) {
+  ScratchDirectory dir;
+  const std::int64_t steps = 100'000'000;
+  const std::string spec = "multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path();
+  const std::unique_ptr<CheckpointStream> stream = openCheckpointStream(spec, steps, 16, 4, nullptr);
+  EXPECT_EQ(stream->maxN(), steps);
+  CheckpointAction a;
+  std::int64_t at = 0;
+  for (int i = 0; i < 1000; ++i) {
+    ASSERT_TRUE(stream->next(&a));
+    ASSERT_EQ(a.kind, CheckpointAction::Kind::kForward) << a.text();
+    EXPECT_EQ(a.n0, at);
+    EXPECT_TRUE(a.writeIcs && a.storage == CheckpointStorage::kDisk) << a.text();  // the leaves' starts
+    at = a.n1;
+  }
+  EXPECT_LE(stream->heldCheckpoints(), 1000);
+  EXPECT_LT(at, steps);
+  // schedule=stride has no plan of slots to stream.
+  EXPECT_THROW(openCheckpointStream(spec + ",schedule=stride", 100, 16, 4, nullptr), std::invalid_argument);
+}
+
 // The stream's state is checkpoint_schedules' n (where the forward is) and r (adjoint steps taken).
 TEST(CheckpointActions, StreamStateFollowsTheActions) {
   for (const std::string spec : {"binomial:checkpoints=3", "cams:checkpoints=3", "full"}) {
