@@ -294,14 +294,31 @@ void Executor::reserve(std::int64_t checkpoints) {
   // At most one checkpoint per unit or step above the anchor, two tasks per checkpoint.
   checkpoints_.reserve(static_cast<std::size_t>(checkpoints + 2));
   tasks_.reserve(static_cast<std::size_t>(2 * checkpoints + 2));
+  revolve_.reserve(checkpoints + 1);
+  revolvePositions_.reserve(static_cast<std::size_t>(checkpoints + 1));
 }
 
 void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
                              std::int64_t units) {
-  assert(length >= 1 && length <= plan->steps() && units >= 0);
+  assert(length >= 1 && units >= 0);
   plan_ = plan;
   checkpoints_.clear();
   tasks_.clear();
+  revolveInterval_ = length > plan->steps();
+  if (revolveInterval_) {
+    // Revolve over the anchor's unit and the free ones above it (onlineIntervalPlan).
+    const std::int64_t slots = std::min(units, length - 1) + 1;
+    revolve_.reserve(slots);
+    revolve_.reset(length, slots, false);
+    revolvePositions_.assign(static_cast<std::size_t>(slots), position);
+    revolveStart_ = position;
+    revolveRef_ = ref;
+    revolveAt_ = position;
+    top_ = ref + slots;
+    limit_ = top_;
+    nextForward_ = -1;
+    return;
+  }
   units = std::min(units, plan->memoryUnits());  // more cannot help
   reserve(std::min(units, length));
   checkpoints_.push_back(Checkpoint{position, ref, false, false});
@@ -415,8 +432,23 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits) {
-  const std::int64_t length = std::max<std::int64_t>(longest, 1);
   const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
+  // The longest interval whose plan is within kMaxIntervalTableEntries (the plan uses min(units, (l + 1) w)
+  // units); longer ones are reversed by revolve.
+  const auto entries = [&](std::int64_t l) {
+    const UnsignedInt128 used = std::min<UnsignedInt128>(static_cast<UnsignedInt128>(units),
+                                                         static_cast<UnsignedInt128>(l + 1) * recordUnits);
+    return static_cast<UnsignedInt128>(l + 1) * (used + 1);
+  };
+  std::int64_t lo = 1, hi = std::max<std::int64_t>(longest, 1);
+  while (lo < hi) {
+    const std::int64_t mid = lo + (hi - lo + 1) / 2;
+    if (entries(mid) <= static_cast<UnsignedInt128>(kMaxIntervalTableEntries))
+      lo = mid;
+    else
+      hi = mid - 1;
+  }
+  const std::int64_t length = lo;
   if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
       cached->memoryUnits() < std::min(units, (length + 1) * recordUnits)) {
     cached = std::make_unique<Plan>(length, units, recordUnits);

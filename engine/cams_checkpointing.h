@@ -49,7 +49,8 @@
 //
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
 // the online mode below (checkpoints placed as `online` places them, each interval reversed by the
-// optimal plan for its length and the units left; M >= 2 units needed). Without online=1, fixed steps whose
+// optimal plan for its length and the units left, or by revolve when the plan's tables for it would exceed
+// cams::kMaxIntervalTableEntries; M >= 2 units needed). Without online=1, fixed steps whose
 // table exceeds kMaxTableEntries are refused with a message pointing to online=1. With an integrator that
 // offers no step data (generalized-alpha) records are impossible and the plan is revolve's.
 #pragma once
@@ -133,8 +134,15 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 /// by the plan's replay tables with the M - j - 1 units not held by checkpoints 0..j. One plan serves all
 /// intervals: its rows hold every length up to the longest interval and every unit count up to M - 1.
 ///
-/// The plan for intervals up to `longest` steps with M - 1 units, reusing `cached` when it covers them
-/// (the rows of a plan do not depend on its N).
+/// Intervals longer than the plan's tables afford (kMaxIntervalTableEntries entries, about a second of
+/// planning) are reversed by revolve (engine/binomial_checkpointing.h's BinomialSchedule) with the same
+/// units, without records: the plan's cost grows with the interval times its units, and the longest
+/// interval grows with N (about 2N/c), so an optimal plan for it would take minutes at N = 10^6 and be
+/// refused beyond. Revolve is that plan without records (the file comment); the longer intervals give up
+/// only what records would save.
+constexpr std::int64_t kMaxIntervalTableEntries = std::int64_t{1} << 18;
+/// The plan for intervals up to `longest` steps (at most what kMaxIntervalTableEntries allows) with M - 1
+/// units, reusing `cached` when it covers them (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits);
 /// Counts of the online mode for N fixed steps (as a run with cams:...,online=1 reports them); the plan is
@@ -162,7 +170,8 @@ class Executor {
   void reset(const Plan* plan);
   /// Online mode: reverse only the interval [position, position + length) from the state checkpoint at
   /// `position` (unit ref, held by the caller below ref + 1), with `units` free units above it, by the
-  /// plan's replay tables (decisions for any length <= plan->steps() and units <= plan->memoryUnits()).
+  /// plan's replay tables (decisions for any length <= plan->steps() and units <= plan->memoryUnits());
+  /// a longer interval by revolve over units ref..ref + units (onlineIntervalPlan).
   void beginInterval(const Plan* plan, std::int64_t position, std::int64_t ref, std::int64_t length,
                      std::int64_t units);
   /// Capacity for intervals of up to `checkpoints` checkpoints above their anchor (no allocation later).
@@ -193,6 +202,29 @@ class Executor {
   void pop();
   template <typename Visitor>
   void advanceFrom(std::int64_t index, std::int64_t to, Visitor& visitor);
+  // An interval longer than the plan: revolve's slot s is unit revolveRef_ + s.
+  template <typename Visitor>
+  struct RevolveAdapter {
+    Executor& executor;
+    Visitor& visitor;
+    void loadWorking() { assert(false); }  // reset without a working state
+    void load(std::int64_t slot) {
+      visitor.load(executor.revolveRef_ + slot);
+      executor.revolveAt_ = executor.revolvePositions_[static_cast<std::size_t>(slot)];
+    }
+    void store(std::int64_t slot) {
+      executor.revolvePositions_[static_cast<std::size_t>(slot)] = executor.revolveAt_;
+      visitor.store(executor.revolveRef_ + slot, executor.revolveAt_, false);
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      visitor.advance(executor.revolveStart_ + from, executor.revolveStart_ + to);
+      executor.revolveAt_ = executor.revolveStart_ + to;
+    }
+  };
+  BinomialSchedule revolve_;
+  bool revolveInterval_ = false;
+  std::int64_t revolveStart_ = 0, revolveRef_ = 0, revolveAt_ = 0;
+  std::vector<std::int64_t> revolvePositions_;  // per slot, the position it holds
 
   const Plan* plan_ = nullptr;
   std::vector<Checkpoint> checkpoints_;
@@ -219,7 +251,12 @@ void Executor::advanceFrom(std::int64_t index, std::int64_t to, Visitor& visitor
 
 template <typename Visitor>
 void Executor::restoreStep(std::int64_t e, Visitor& visitor) {
-  static_cast<void>(e);  // read by the asserts only
+  if (revolveInterval_) {
+    RevolveAdapter<Visitor> adapter{*this, visitor};
+    revolve_.restoreStep(e - revolveStart_, adapter);
+    visitor.deliver(e, -1, false);
+    return;
+  }
   for (;;) {
     Task& task = tasks_.back();
     const Checkpoint anchor = checkpoints_[static_cast<std::size_t>(task.anchor)];

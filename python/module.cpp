@@ -1023,7 +1023,7 @@ PYBIND11_MODULE(_hindsight, m) {
     SchedulePrediction p;
     std::string stream;
     {
-      py::gil_scoped_release release;
+      const Simulating computing;  // a plan may take minutes: Ctrl-C interrupts it (engine/interrupt.h)
       p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, stageBytes);
       if (actions) {
         std::ostringstream out;
@@ -1041,6 +1041,8 @@ PYBIND11_MODULE(_hindsight, m) {
   py::class_<CheckpointStream>(m, "_CheckpointStream")
       .def("next",
            [](CheckpointStream& stream) -> py::object {
+             // Each action is O(1) amortized (the plans are made when the stream is opened): no poll
+             // installation per action, which would double the cost of draining a stream.
              CheckpointAction a;
              if (!stream.next(&a)) return py::none();
              return py::make_tuple(static_cast<int>(a.kind), a.n0, a.n1, a.writeIcs, a.writeAdjDeps,
@@ -1055,7 +1057,7 @@ PYBIND11_MODULE(_hindsight, m) {
                                       int stages, const std::string& costs) {
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
-    py::gil_scoped_release release;
+    const Simulating computing;  // the plan is chosen here (cams: all of it)
     return openCheckpointStream(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
   });
   m.def("storage_strategy_names", &storageStrategyNames,

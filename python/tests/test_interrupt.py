@@ -7,6 +7,8 @@ import sys
 import textwrap
 import time
 
+import pytest
+
 CHILD = textwrap.dedent("""
     import sys, threading, time
     import hindsight
@@ -130,3 +132,39 @@ def test_resume_of_a_missing_run_is_refused(tmp_path):
     with pytest.raises(ValueError, match="resume: there is no .*results.h5 to continue"):
         hindsight.optimize(TINY, out=missing, resume=True, optimization={"iterations": 1})
     assert not missing.exists()
+
+
+PLAN_CHILD = textwrap.dedent("""
+    import sys, time
+    import hindsight
+    # Each call plans for minutes if nothing interrupts it: cams' optimal plan over 10^6 steps (the
+    # prediction and the action stream, which plans when it is opened).
+    calls = {"schedule": lambda: hindsight.schedule("cams:checkpoints=10", 10**6, state_bytes=160),
+             "stream": lambda: hindsight.checkpoint_schedule("cams:checkpoints=10", steps=10**6)}
+    print("start", flush=True)
+    try:
+        calls[sys.argv[1]]()
+        print("finished without interruption", flush=True)
+    except KeyboardInterrupt:
+        print("KeyboardInterrupt", flush=True)
+    print("after", hindsight.schedule("cams:checkpoints=10", 100, state_bytes=160).recomputed_steps > 0, flush=True)
+""")
+
+
+@pytest.mark.parametrize("call", ["schedule", "stream"])
+def test_ctrl_c_interrupts_planning(call):
+    # A plan polls the interrupt (engine/interrupt.h) while it is made; the Python call installs the poll.
+    child = subprocess.Popen([sys.executable, "-c", PLAN_CHILD, call], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, cwd=os.path.dirname(__file__))
+    assert child.stdout.readline().strip() == "start"
+    time.sleep(1.0)
+    sent = time.monotonic()
+    child.send_signal(signal.SIGINT)
+    line = child.stdout.readline().strip()
+    seen = time.monotonic() - sent
+    out, err = child.communicate(timeout=120)
+    assert line == "KeyboardInterrupt", (line, out, err)
+    assert out.strip() == "after True", (out, err)
+    # Generous for a loaded machine: the plan polls every 256 interval lengths (milliseconds of work);
+    # before, the call ignored Ctrl-C until the plan was done (minutes).
+    assert seen < 5.0, seen

@@ -300,6 +300,32 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
   EXPECT_GT(storage->counters().recomputedSteps, 0);
 }
 
+// Intervals longer than the plan's tables afford (cams::kMaxIntervalTableEntries) are reversed by revolve
+// with the same units: 150 000 steps with C = 50 give intervals of about 6 000 steps, beyond the 5 139 a
+// plan over 50 units affords. The run is still exact, matches the model-free counts, stays within its
+// units, and records still pay in the shorter intervals.
+TEST(CamsOnline, IntervalsBeyondThePlansTablesAreReversedByRevolveExactly) {
+  Pendulum problem;
+  const Vector p = runParameters();
+  IntegratorOptions options = thousandRk4Steps();
+  options.t1 = 600.0;  // 150 000 steps
+  const std::int64_t steps = 150'000, c = 50;
+  const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(steps, c, nullptr, nullptr);
+  std::unique_ptr<cams::Plan> plan;
+  const cams::PlanCounts counts = cams::simulateOnline(steps, c + 1, 4, &plan);
+  ASSERT_GT(internal::OnlinePlacement::longestInterval(positions, steps), plan->steps());
+  FullStorage full;
+  const GradientResult reference = computeGradient(problem, p, options, full);
+  auto storage = createStorage("cams:checkpoints=50,online=1");
+  const GradientResult r = computeGradient(problem, p, options, *storage);
+  EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps);
+  EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
+  EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
+  EXPECT_LE(counts.peakUnits, c + 1);
+  EXPECT_LT(counts.adjointRecomputations, steps);  // records in the intervals the plan covers
+}
+
 TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
   Pendulum problem;
   const Vector p = runParameters();
