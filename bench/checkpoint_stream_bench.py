@@ -41,8 +41,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1_000_000)
     args = parser.parse_args()
+    multilevel = "multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5"  # 20 RAM states of 8 bytes, a large disk
     cases = [("binomial:checkpoints=100", args.steps, True), ("binomial:checkpoints=10", args.steps, True),
-             ("full", args.steps, True), ("binomial:checkpoints=100", 1 << 40, False),
+             ("full", args.steps, True), ("disk:dir=unused", args.steps, True), (multilevel, args.steps, True),
+             ("binomial:checkpoints=100", 1 << 40, False), (multilevel, 100_000_000, False),
              ("cams:checkpoints=100", 10_000, True)]
     print(f"# {platform.node()}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; python {platform.python_version()}")
     print("| spec | N | first action | whole stream | actions | RSS before / after first / peak |")

@@ -433,17 +433,17 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits) {
   const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
-  // The longest interval whose plan is within kMaxIntervalTableEntries (the plan uses min(units, (l + 1) w)
-  // units); longer ones are reversed by revolve.
+  // The longest interval, up to kMaxIntervalPlanSteps, whose plan is within Plan::kMaxTableEntries (it uses
+  // min(units, (l + 1) w) units); longer ones are reversed by revolve.
   const auto entries = [&](std::int64_t l) {
     const UnsignedInt128 used = std::min<UnsignedInt128>(static_cast<UnsignedInt128>(units),
                                                          static_cast<UnsignedInt128>(l + 1) * recordUnits);
     return static_cast<UnsignedInt128>(l + 1) * (used + 1);
   };
-  std::int64_t lo = 1, hi = std::max<std::int64_t>(longest, 1);
+  std::int64_t lo = 1, hi = std::max<std::int64_t>(std::min(longest, kMaxIntervalPlanSteps), 1);
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo + 1) / 2;
-    if (entries(mid) <= static_cast<UnsignedInt128>(kMaxIntervalTableEntries))
+    if (entries(mid) <= static_cast<UnsignedInt128>(Plan::kMaxTableEntries))
       lo = mid;
     else
       hi = mid - 1;

@@ -50,7 +50,7 @@
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
 // the online mode below (checkpoints placed as `online` places them, each interval reversed by the
 // optimal plan for its length and the units left, or by revolve when the plan's tables for it would exceed
-// cams::kMaxIntervalTableEntries; M >= 2 units needed). Without online=1, fixed steps whose
+// cams::kMaxIntervalPlanSteps; M >= 2 units needed). Without online=1, fixed steps whose
 // table exceeds kMaxTableEntries are refused with a message pointing to online=1. With an integrator that
 // offers no step data (generalized-alpha) records are impossible and the plan is revolve's.
 #pragma once
@@ -134,14 +134,15 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 /// by the plan's replay tables with the M - j - 1 units not held by checkpoints 0..j. One plan serves all
 /// intervals: its rows hold every length up to the longest interval and every unit count up to M - 1.
 ///
-/// Intervals longer than the plan's tables afford (kMaxIntervalTableEntries entries, about a second of
-/// planning) are reversed by revolve (engine/binomial_checkpointing.h's BinomialSchedule) with the same
-/// units, without records: the plan's cost grows with the interval times its units, and the longest
-/// interval grows with N (about 2N/c), so an optimal plan for it would take minutes at N = 10^6 and be
-/// refused beyond. Revolve is that plan without records (the file comment); the longer intervals give up
-/// only what records would save.
-constexpr std::int64_t kMaxIntervalTableEntries = std::int64_t{1} << 18;
-/// The plan for intervals up to `longest` steps (at most what kMaxIntervalTableEntries allows) with M - 1
+/// Intervals longer than kMaxIntervalPlanSteps, or whose plan would exceed Plan::kMaxTableEntries, are
+/// reversed by revolve (engine/binomial_checkpointing.h's BinomialSchedule) with the same units, without
+/// records: the plan's time grows faster than the interval times its units (a search per entry over a
+/// range that grows with the interval), and the longest interval grows with N (about 2N/c), so an optimal
+/// plan for it took 157 s at N = 10^6, C = 10 and was refused at 2^24 steps. 2^15 steps plan in about
+/// 3 s with 11 units (bench/RESULTS.md, "Stage-aware storage"). Revolve is that plan without records (the
+/// file comment); the longer intervals give up only what records would save.
+constexpr std::int64_t kMaxIntervalPlanSteps = std::int64_t{1} << 15;
+/// The plan for intervals up to `longest` steps (at most what kMaxIntervalPlanSteps allows) with M - 1
 /// units, reusing `cached` when it covers them (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits);

@@ -300,30 +300,34 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
   EXPECT_GT(storage->counters().recomputedSteps, 0);
 }
 
-// Intervals longer than the plan's tables afford (cams::kMaxIntervalTableEntries) are reversed by revolve
-// with the same units: 150 000 steps with C = 50 give intervals of about 6 000 steps, beyond the 5 139 a
-// plan over 50 units affords. The run is still exact, matches the model-free counts, stays within its
-// units, and records still pay in the shorter intervals.
+// Intervals longer than cams::kMaxIntervalPlanSteps are reversed by revolve with the same units: 300 000
+// steps with C = 10 give intervals of 65 536 steps. The run is still exact, matches the model-free counts
+// and stays within its units.
 TEST(CamsOnline, IntervalsBeyondThePlansTablesAreReversedByRevolveExactly) {
   Pendulum problem;
   const Vector p = runParameters();
   IntegratorOptions options = thousandRk4Steps();
-  options.t1 = 600.0;  // 150 000 steps
-  const std::int64_t steps = 150'000, c = 50;
+  options.t1 = 1200.0;  // 300 000 steps
+  const std::int64_t steps = 300'000, c = 10;
   const std::vector<std::int64_t> positions = internal::OnlinePlacement::simulate(steps, c, nullptr, nullptr);
   std::unique_ptr<cams::Plan> plan;
   const cams::PlanCounts counts = cams::simulateOnline(steps, c + 1, 4, &plan);
   ASSERT_GT(internal::OnlinePlacement::longestInterval(positions, steps), plan->steps());
   FullStorage full;
   const GradientResult reference = computeGradient(problem, p, options, full);
-  auto storage = createStorage("cams:checkpoints=50,online=1");
+  auto storage = createStorage("cams:checkpoints=10,online=1");
   const GradientResult r = computeGradient(problem, p, options, *storage);
   EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
   EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps);
   EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
   EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
   EXPECT_LE(counts.peakUnits, c + 1);
-  EXPECT_LT(counts.adjointRecomputations, steps);  // records in the intervals the plan covers
+  // Every interval is revolve's with the slots `online` gives interval j (c + 1 - j): the same count as
+  // online's own reversal of this placement, in closed form, and no records.
+  EXPECT_EQ(counts.adjointRecomputations, steps);
+  EXPECT_EQ(
+      counts.recomputedSteps,
+      static_cast<std::int64_t>(OnlineCheckpointing::forwardStepsOf(positions, steps, c)) - (steps - 1));
 }
 
 TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
