@@ -424,7 +424,10 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
     }
   }
   CountingVisitor visitor{counts, executor, actions};
-  for (std::int64_t e = plan.steps() - 1; e >= 0; --e) executor.restoreStep(e, visitor);
+  for (std::int64_t e = plan.steps() - 1; e >= 0; --e) {
+    if ((e & 0xffff) == 0) pollInterrupt();  // up to 2^24 steps (engine/interrupt.h)
+    executor.restoreStep(e, visitor);
+  }
   return counts;
 }
 
@@ -480,6 +483,7 @@ PlanCounts simulateOnline(std::int64_t steps, std::int64_t memoryUnits, std::int
   CountingVisitor visitor{counts, executor, nullptr};
   internal::OnlinePlacement::Interval interval{static_cast<std::int64_t>(positions.size()), steps, 0};
   for (std::int64_t e = steps - 2; e >= 0; --e) {
+    if ((e & 0xffff) == 0) pollInterrupt();  // up to 2^24 steps (engine/interrupt.h)
     if (e < interval.start) {
       // Interval j: its checkpoint in unit j, the units above it free.
       interval = internal::OnlinePlacement::intervalOf(positions, steps, e, interval.index);

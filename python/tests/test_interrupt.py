@@ -137,10 +137,13 @@ def test_resume_of_a_missing_run_is_refused(tmp_path):
 PLAN_CHILD = textwrap.dedent("""
     import sys, time
     import hindsight
-    # Each call plans for minutes if nothing interrupts it: cams' optimal plan over 10^6 steps (the
-    # prediction and the action stream, which plans when it is opened).
+    # Each call plans for a while if nothing interrupts it: cams' optimal plan over 10^6 steps (the
+    # prediction and the action stream, which plans when it is opened: minutes), its online mode at 2^24.
     calls = {"schedule": lambda: hindsight.schedule("cams:checkpoints=10", 10**6, state_bytes=160),
-             "stream": lambda: hindsight.checkpoint_schedule("cams:checkpoints=10", steps=10**6)}
+             "stream": lambda: hindsight.checkpoint_schedule("cams:checkpoints=10", steps=10**6),
+             # Seconds rather than minutes, spent in the placement's walk, the interval plan and the
+             # backward walk: each is polled.
+             "online": lambda: hindsight.schedule("cams:checkpoints=10,online=1", 2**24, state_bytes=160)}
     print("start", flush=True)
     try:
         calls[sys.argv[1]]()
@@ -151,7 +154,7 @@ PLAN_CHILD = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("call", ["schedule", "stream"])
+@pytest.mark.parametrize("call", ["schedule", "stream", "online"])
 def test_ctrl_c_interrupts_planning(call):
     # A plan polls the interrupt (engine/interrupt.h) while it is made; the Python call installs the poll.
     child = subprocess.Popen([sys.executable, "-c", PLAN_CHILD, call], stdout=subprocess.PIPE,
