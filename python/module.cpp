@@ -1052,7 +1052,8 @@ PYBIND11_MODULE(_hindsight, m) {
       .def_property_readonly("n", &CheckpointStream::n)
       .def_property_readonly("r", &CheckpointStream::r)
       .def_property_readonly("max_n", &CheckpointStream::maxN)
-      .def_property_readonly("is_exhausted", &CheckpointStream::isExhausted);
+      .def_property_readonly("is_exhausted", &CheckpointStream::isExhausted)
+      .def("finalize", &CheckpointStream::finalize);
   m.def("_open_checkpoint_stream", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
                                       int stages, const std::string& costs) {
     std::optional<ScheduleCosts> parsed;

@@ -52,6 +52,16 @@ bool CheckpointStream::next(CheckpointAction* action) {
   return true;
 }
 
+void CheckpointStream::finalize(std::int64_t n) {
+  if (n < 1) throw std::logic_error("finalize(" + std::to_string(n) + "): n must be >= 1");
+  if (maxN_ < 0 ? n_ != n : (n != maxN_ || n_ != n)) {
+    throw std::logic_error(
+        "finalize(" + std::to_string(n) + "): the forward is at step " + std::to_string(n_) +
+        (maxN_ < 0 ? std::string() : " and the stream is for N = " + std::to_string(maxN_)));
+  }
+  maxN_ = n;
+}
+
 namespace {
 
 using Kind = CheckpointAction::Kind;
@@ -108,18 +118,28 @@ class BatchedStream : public CheckpointStream {
 
 // full and disk keep every state x_0..x_{N-2} (x_{N-1} is the working state when the forward run ends): the
 // forward run writes each as restart data of its own step, and the adjoint of step e re-runs it from x_e
-// (the stage values hindsight's own adjoint step recomputes). No step is recomputed otherwise.
+// (the stage values hindsight's own adjoint step recomputes). No step is recomputed otherwise. With N
+// unknown (kUnknownSteps), the forward run writes x_{N-1} too, one step at a time until finalize(); its
+// reverse then starts, like every other, from that checkpoint.
 class EveryStateStream final : public BatchedStream {
  public:
-  EveryStateStream(std::int64_t steps, CheckpointStorage level) : BatchedStream(steps), level_(level) {}
+  EveryStateStream(std::int64_t steps, CheckpointStorage level)
+      : BatchedStream(steps), level_(level), unknown_(steps < 0) {}
 
  private:
   bool refill() override {
     const std::int64_t steps = maxN_;
-    if (forward_ < steps - 1) {
+    // With N unknown the forward run goes on until finalize(); then every state x_0..x_{N-1} is a
+    // checkpoint, and the reverse starts from x_{N-1}'s.
+    const std::int64_t lastWritten = unknown_ ? (steps < 0 ? forward_ + 1 : steps) : steps - 1;
+    if (forward_ < lastWritten) {
       queue_.push_back(forward(forward_, forward_ + 1, true, false, level_));
       ++forward_;
-    } else if (forward_ == steps - 1) {
+    } else if (unknown_ && forward_ == steps) {
+      queue_.push_back(marker(Kind::kEndForward));
+      ++forward_;
+      reverse_ = steps - 1;
+    } else if (!unknown_ && forward_ == steps - 1) {
       queue_.push_back(forward(steps - 1, steps, false, true, CheckpointStorage::kWork));
       queue_.push_back(marker(Kind::kEndForward));
       queue_.push_back(reverseStep(steps - 1));
@@ -139,6 +159,7 @@ class EveryStateStream final : public BatchedStream {
     return true;
   }
   CheckpointStorage level_;
+  bool unknown_;
   std::int64_t forward_ = 0, reverse_ = -1;
   bool done_ = false;
 };
@@ -286,6 +307,16 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
                                                        const ScheduleCosts* costs) {
   const StorageSpec spec = StorageSpec::parse(specText);
   const std::string& name = spec.name();
+  if (steps == kUnknownSteps) {
+    if (name != "full" && name != "disk") {
+      throw std::invalid_argument(
+          "steps unknown: only full and disk streams are made without N (they discard no checkpoint); " +
+          name +
+          " needs N (online and cams online=1 discard checkpoints during the forward run, which "
+          "checkpoint_schedules' contract cannot express: "
+          "docs/guides/switching_from_checkpoint_schedules.md)");
+    }
+  }
   if (name == "binomial" || name == "full" || name == "disk") {
     if (spec.has("stages") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1) {
       throw std::invalid_argument(name +
@@ -294,7 +325,8 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
                                   name + " without stages=1, or cams (whose step records it expresses)");
     }
     if (name != "binomial") {
-      predictSchedule(specText, steps, stateBytes, stages, costs);  // every check of the plan, O(1) here
+      // Every check of the plan, O(1) here (with N unknown: the spec and the sizes).
+      predictSchedule(specText, steps == kUnknownSteps ? 1 : steps, stateBytes, stages, costs);
     } else {
       // Every check of the plan: the spec first (a missing checkpoints= is named), then the budget at
       // the min(C + 1, N) slots the stream uses. The prediction at N itself walks the plan up to 2^24

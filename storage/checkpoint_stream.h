@@ -34,8 +34,12 @@ class CheckpointStream {
   std::int64_t n() const { return n_; }
   /// Adjoint steps taken (`r`).
   std::int64_t r() const { return r_; }
-  /// N, or -1 while it is unknown (an online stream before finalize()).
+  /// N, or -1 while it is unknown (a stream opened without N, before finalize()).
   std::int64_t maxN() const { return maxN_; }
+  /// The forward run ends at step n (checkpoint_schedules' finalize): for a stream opened without N, n
+  /// becomes N, which needs the forward there (n() == n); for one with N, n must be N and the forward
+  /// there. Throws std::logic_error otherwise (checkpoint_schedules raises "Invalid checkpointing state").
+  void finalize(std::int64_t n);
   /// EndReverse has been handed out.
   bool isExhausted() const { return exhausted_; }
   /// Restart checkpoints (RAM and DISK) the host holds now, and the most it held at once.
@@ -56,7 +60,11 @@ class CheckpointStream {
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
 /// (storage/schedule.h): full, disk, binomial, multilevel (any N its plan supports) and cams (N <= 2^24).
-/// Throws std::invalid_argument as checkpointSchedule() does.
+/// steps = kUnknownSteps: N is unknown until the host calls finalize() (full and disk, which keep every
+/// state and so discard nothing: the forward run writes each step's restart data, as checkpoint_schedules'
+/// SingleMemoryStorageSchedule/SingleDiskStorageSchedule do for an unknown N).
+/// Throws std::invalid_argument as checkpointSchedule() does, and for an unknown N with other strategies.
+constexpr std::int64_t kUnknownSteps = -1;
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
                                                        const ScheduleCosts* costs);

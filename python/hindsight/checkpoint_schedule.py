@@ -172,8 +172,9 @@ class CheckpointSchedule:
 
     @property
     def max_n(self):
-        """N, the steps of the forward run."""
-        return self._stream.max_n
+        """N, the steps of the forward run; None while it is unknown (steps=None, before finalize)."""
+        n = self._stream.max_n
+        return None if n < 0 else n
 
     @property
     def is_exhausted(self):
@@ -186,13 +187,12 @@ class CheckpointSchedule:
         return self._running
 
     def finalize(self, n):
-        """Confirms the number of forward steps (checkpoint_schedules' finalize): N is known here, so n
-        must be N and the forward must be there; RuntimeError otherwise, as there."""
+        """The forward run ends at step n (checkpoint_schedules' finalize): for a stream opened with
+        steps=None, n becomes N (the forward must be at step n); otherwise n must be N and the forward
+        there. RuntimeError otherwise, as there."""
         if n < 1:
             raise ValueError(f"n must be positive, not {n}")
-        if n != self.max_n or self.n != n:
-            raise RuntimeError(f"finalize({n}): the schedule is for N = {self.max_n} and the forward is at "
-                               f"step {self.n}")
+        self._stream.finalize(n)
 
     def uses_storage_type(self, storage_type):
         """Whether the stream may keep checkpoints in `storage_type` (RAM or DISK)."""
@@ -211,11 +211,13 @@ def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """The actions that reverse `steps` fixed steps with storage strategy `spec` (full, disk, binomial,
     multilevel, cams; the same plan a run of the strategy executes), as a CheckpointSchedule: an iterator
     of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
+    steps=None (full and disk): N is unknown; the forward run goes on step by step until the host calls
+    finalize(n) at step n, as with checkpoint_schedules' schedules of unknown length.
     Arguments and defaults are hindsight.schedule's: `state_bytes` sizes the budgets (a strategy given
     in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
     cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.
     ValueError names a bad argument. binomial, full and disk streams are made as they are consumed (any
-    N); cams and multilevel translate their plan first (steps up to 2^24)."""
+    N), multilevel once its plan is chosen; cams translates its plan first (steps up to 2^24)."""
     return _open(spec, steps, state_bytes, stages, costs, _OWN)
 
 
@@ -224,7 +226,7 @@ def _open(spec, steps, state_bytes, stages, costs, classes):
     if not isinstance(spec, str):
         raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
                         f"{type(spec).__name__} {spec!r}")
-    steps = _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
+    steps = -1 if steps is None else _schedule_integer("steps", steps, 1, 4_000_000_000_000_000_000)
     state_bytes = _schedule_integer("state_bytes", state_bytes, 8, 8 * 2147483647)
     stages = _schedule_integer("stages", stages, 1, 64)
     if costs is not None and not isinstance(costs, str):

@@ -18,9 +18,10 @@ OWN = types.SimpleNamespace(Forward=Forward, Reverse=Reverse, Copy=Copy, Move=Mo
                             EndReverse=EndReverse, StorageType=StorageType)
 
 
-def run(actions, steps, a=0.3):
+def run(actions, steps, a=0.3, schedule=None):
     """z_{k+1} = z_k + h (a z_k - z_k^2), J = sum_k h z_{k+1}^2, dJ/da by the discrete adjoint. WORK holds
-    the state and the adjoint data of the steps reversed next, as the contract has it."""
+    the state and the adjoint data of the steps reversed next, as the contract has it. schedule: a stream
+    opened without N; the host stops its forward run at `steps` and calls schedule.finalize(steps)."""
     h = 0.01
     stored = {}  # (storage, n) -> (state or None, {step: state} adjoint data)
     n, z, lam, dj, advanced, forward_done, objective = 0, 1.0, None, 0.0, 0, False, 0.0
@@ -41,6 +42,8 @@ def run(actions, steps, a=0.3):
             else:
                 stored[(action.storage, action.n0)] = (start if action.write_ics else None, deps)
             n = action.n1
+            if schedule is not None and n == steps and schedule.max_n is None:
+                schedule.finalize(steps)  # the host's forward run ends here
         elif type(action) is EndForward:
             forward_done, lam = True, 2 * h * z
         elif type(action) is Reverse:
@@ -79,6 +82,30 @@ def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stag
     last = [a for a in actions[:actions.index(EndForward())] if type(a) is Forward][-1]
     taped_in_forward = last.write_adj_deps and last.storage == StorageType.WORK
     assert extra == p.recomputed_steps + reruns - taped_in_forward
+
+
+@pytest.mark.parametrize("spec", ["full", "disk:dir=unused"])
+def test_streams_without_n_end_where_the_host_finalizes(spec):
+    # A host whose forward run decides N itself (adaptive steps): the stream advances step by step until
+    # finalize(n), then reverses; the gradient is full storage's, and the contract holds at every n.
+    for steps in (1, 2, 7, 60):
+        reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
+        schedule = hindsight.checkpoint_schedule(spec, steps=None)
+        assert schedule.max_n is None and schedule.n == 0
+        objective, gradient, extra, leftover = run(schedule, steps, schedule=schedule)
+        assert (objective, gradient) == reference[:2] and leftover == 0
+        assert schedule.max_n == steps and schedule.is_exhausted
+        assert extra == steps  # one re-run per adjoint step, nothing else recomputed
+        disk = spec.startswith("disk")
+        counts = check_stream(hindsight.checkpoint_schedule(spec, steps=None), steps, OWN, online=True,
+                              ram_limit=0 if disk else steps, disk_limit=steps if disk else 0)
+        assert counts["recomputed"] == 0
+    schedule = hindsight.checkpoint_schedule("full", steps=None)
+    next(schedule), next(schedule)
+    with pytest.raises(RuntimeError, match="forward is at step 2"):
+        schedule.finalize(3)
+    with pytest.raises(ValueError, match="only full and disk"):
+        hindsight.checkpoint_schedule("online:checkpoints=3", steps=None)
 
 
 def _families(rng):
@@ -237,7 +264,7 @@ def _their_validity_test():
     return cs, module.test_validity
 
 
-@pytest.mark.parametrize("family", ["full", "binomial", "cams", "multilevel"])
+@pytest.mark.parametrize("family", ["full", "binomial", "cams", "multilevel", "full without N", "disk without N"])
 def test_checkpoint_schedules_own_host_runs_every_family(family):
     cs, test_validity = _their_validity_test()
     from hindsight.checkpoint_schedules import Schedule
@@ -247,6 +274,10 @@ def test_checkpoint_schedules_own_host_runs_every_family(family):
         s = max(s, 1)
         if family == "full":
             return Schedule("full", n), {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1
+        if family.endswith("without N"):  # their host calls finalize(n) when its forward reaches n
+            disk = family.startswith("disk")
+            return (Schedule("disk:dir=unused" if disk else "full", None),
+                    {cs.StorageType.RAM: 0 if disk else n, cs.StorageType.DISK: n if disk else 0}, 1)
         if family == "binomial":
             return Schedule(f"binomial:checkpoints={s}", n), {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: 0}, 1
         if family == "cams":

@@ -135,6 +135,34 @@ TEST(CheckpointActions, MultilevelStreamIsMadeAsItIsConsumed) {
   EXPECT_THROW(openCheckpointStream(spec + ",schedule=stride", 100, 16, 4, nullptr), std::invalid_argument);
 }
 
+// full and disk without N: the forward run goes on step by step until the host calls finalize(n); the
+// stream is then the contract's for N = n. Other strategies need N.
+TEST(CheckpointActions, FullAndDiskStreamsWithoutNEndWhereTheHostFinalizes) {
+  for (const std::string spec : {"full", "disk:dir=unused"}) {
+    for (std::int64_t steps : {1, 2, 9}) {
+      const std::unique_ptr<CheckpointStream> stream =
+          openCheckpointStream(spec, kUnknownSteps, 16, 4, nullptr);
+      EXPECT_EQ(stream->maxN(), -1);
+      std::vector<CheckpointAction> actions;
+      CheckpointAction a;
+      while (stream->next(&a)) {
+        actions.push_back(a);
+        if (a.kind == CheckpointAction::Kind::kForward && stream->maxN() < 0 && a.n1 == steps)
+          stream->finalize(steps);
+      }
+      EXPECT_EQ(stream->maxN(), steps);
+      const CheckpointStreamCounts c = checkCheckpointStream(actions, steps);
+      EXPECT_EQ(c.recomputedSteps, 0) << spec;
+      EXPECT_EQ(c.adjointReruns, steps) << spec;
+      if (steps >= 2) EXPECT_THROW(stream->finalize(steps), std::logic_error);  // the forward is at 1
+    }
+  }
+  const std::unique_ptr<CheckpointStream> full = openCheckpointStream("full", kUnknownSteps, 16, 4, nullptr);
+  EXPECT_THROW(full->finalize(1), std::logic_error);  // the forward is at step 0
+  EXPECT_THROW(openCheckpointStream("binomial:checkpoints=3", kUnknownSteps, 16, 4, nullptr),
+               std::invalid_argument);
+}
+
 // The stream's state is checkpoint_schedules' n (where the forward is) and r (adjoint steps taken).
 TEST(CheckpointActions, StreamStateFollowsTheActions) {
   for (const std::string spec : {"binomial:checkpoints=3", "cams:checkpoints=3", "full"}) {
