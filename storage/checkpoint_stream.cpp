@@ -23,8 +23,12 @@ bool CheckpointStream::next(CheckpointAction* action) {
   const auto key = [](CheckpointStorage s, std::int64_t n) { return std::make_pair(static_cast<int>(s), n); };
   switch (action->kind) {
     case CheckpointAction::Kind::kForward:
-      if (action->writeIcs && action->storage != CheckpointStorage::kWork)
-        restart_.insert(key(action->storage, action->n0));
+      if (action->storage != CheckpointStorage::kWork && action->storage != CheckpointStorage::kNone) {
+        if (action->writeIcs)
+          ++restart_;
+        else
+          adjointOnly_.insert(key(action->storage, action->n0));
+      }
       n_ = action->n1;
       break;
     case CheckpointAction::Kind::kReverse:
@@ -32,14 +36,21 @@ bool CheckpointStream::next(CheckpointAction* action) {
       break;
     case CheckpointAction::Kind::kCopy:
     case CheckpointAction::Kind::kMove: {
-      const bool restart = restart_.count(key(action->from, action->n0)) != 0;
-      if (action->kind == CheckpointAction::Kind::kMove) restart_.erase(key(action->from, action->n0));
+      const bool restart = adjointOnly_.count(key(action->from, action->n0)) == 0;
+      if (action->kind == CheckpointAction::Kind::kMove) {
+        if (restart)
+          --restart_;
+        else
+          adjointOnly_.erase(key(action->from, action->n0));
+      }
       if (action->to == CheckpointStorage::kWork) {
         // Adjoint data alone puts the forward nowhere; checkpoint_schedules' own schedules then report
         // the step after it, which is where the forward would stand.
         n_ = restart ? action->n0 : action->n0 + 1;
       } else if (restart) {
-        restart_.insert(key(action->to, action->n0));
+        ++restart_;
+      } else {
+        adjointOnly_.insert(key(action->to, action->n0));
       }
       break;
     }

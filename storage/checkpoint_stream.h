@@ -43,7 +43,7 @@ class CheckpointStream {
   /// EndReverse has been handed out.
   bool isExhausted() const { return exhausted_; }
   /// Restart checkpoints (RAM and DISK) the host holds now, and the most it held at once.
-  std::int64_t heldCheckpoints() const { return static_cast<std::int64_t>(restart_.size()); }
+  std::int64_t heldCheckpoints() const { return restart_; }
 
  protected:
   explicit CheckpointStream(std::int64_t maxN) : maxN_(maxN) {}
@@ -54,8 +54,11 @@ class CheckpointStream {
  private:
   std::int64_t n_ = 0, r_ = 0;
   bool exhausted_ = false;
-  // Checkpoints holding restart data (storage, step): a Copy/Move of one to WORK moves n.
-  std::set<std::pair<int, std::int64_t>> restart_;
+  // Checkpoints holding restart data, counted; those holding adjoint data only (cams' records without
+  // restart data), by (storage, step): a Copy/Move of any other to WORK moves n. O(1) memory for full and
+  // disk, which hold N - 1 checkpoints.
+  std::int64_t restart_ = 0;
+  std::set<std::pair<int, std::int64_t>> adjointOnly_;
 };
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
