@@ -81,6 +81,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                 "the relative gradient error T accepted; chooses codec=time and its tolerance (give target "
                 "or "
                 "codec + tolerance)"},
+               {"sensitivity",
+                "with target: the problem's calibrated ratio S of relative gradient error to relative state "
+                "error, in [0.001, 1000] (default 10, or the application's calibration); tolerance T / S"},
                {"codec",
                 "zfp (absolute error bound) | round | time (relative error bounds, tolerance in (0, 0.5])"},
                {"tolerance", "the error bound T > 0, with codec"},
