@@ -112,7 +112,10 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                {"costs",
                 "uf:ub:wd:rd, seconds of a forward step, an adjoint step, a disk write and a read (default: "
                 "measured at the start of the run; storage/schedule.h)"},
-               {"schedule", "optimal (default, fixed steps) | stride"}}},
+               {"schedule", "optimal (default, fixed steps) | stride"},
+               {"overlap",
+                "1 (default) | 0: schedule=optimal's disk writes behind and reads ahead on a second thread "
+                "(the same bits; the prediction subtracts the hidden I/O)"}}},
              &MultilevelStorage::create,
              &MultilevelStorage::predict,
              {},
