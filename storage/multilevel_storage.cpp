@@ -69,6 +69,7 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   options.stride = spec.text("schedule", "optimal", {"optimal", "stride"}) == "stride";
   if (spec.has("costs")) options.costs = ScheduleCosts::parse(spec.text("costs", ""), "multilevel.costs");
   options.overlap = spec.integer("overlap", 1, 0, 1) == 1;
+  options.syncWrites = spec.integer("sync", 0, 0, 1) == 1;
   return std::make_unique<MultilevelStorage>(std::move(options));
 }
 
@@ -81,6 +82,7 @@ std::string MultilevelStorage::spec() const {
   if (options_.costs) text += ",costs=" + options_.costs->text();
   if (options_.stride) text += ",schedule=stride";
   if (!options_.overlap) text += ",overlap=0";
+  if (options_.syncWrites) text += ",sync=1";
   return text;
 }
 
@@ -325,7 +327,8 @@ struct MultilevelStorage::SlotFile {
   bool keep = false;
   std::vector<char> record;  // one slot, allocated once: reads and writes allocate nothing
 
-  SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter)
+  SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter,
+           bool syncWrites)
       : stateBytes(bytes),
         recordBytes(bytes + kTrailerBytes),
         failAfter(failWritesAfter),
@@ -337,7 +340,7 @@ struct MultilevelStorage::SlotFile {
     path = (std::filesystem::path(directory) /
             internal::scratchFileName("hindsight-multilevel", ".slots", keepFile))
                .string();
-    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC | (syncWrites ? O_DSYNC : 0), 0600);
     if (fd < 0)
       throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)),
                          path);
@@ -476,7 +479,7 @@ void MultilevelStorage::beginPlan() {
 void MultilevelStorage::measureDiskCosts(ScheduleCosts& costs) {
   const std::string directory =
       options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-  SlotFile probe(directory, stateBytes(), false, -1);
+  SlotFile probe(directory, stateBytes(), false, -1, options_.syncWrites);
   std::vector<double> state(static_cast<std::size_t>(info().stateSize), 0.0);
   std::vector<double> writes, reads;
   for (int i = 0; i < 5; ++i) {
@@ -505,8 +508,8 @@ void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
   if (plan_.diskSlotsUsed() > 0) {
     const std::string directory =
         options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-    slotFile_ =
-        std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile, options_.failWriteAfterChunks);
+    slotFile_ = std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile,
+                                           options_.failWriteAfterChunks, options_.syncWrites);
     filePath_ = slotFile_->path;
     if (options_.overlap) {
       SlotFile& file = *slotFile_;

@@ -2,7 +2,7 @@
 // (gradients bitwise identical to "full", recomputation included; docs/design.md §6).
 //
 // Spec: multilevel:ram=BYTES,disk=BYTES[,costs=uf:ub:wd:rd][,schedule=optimal|stride][,dir=PATH]
-//                  [,level=1..22][,keep=true|false][,overlap=0|1]
+//                  [,level=1..22][,keep=true|false][,overlap=0|1][,sync=0|1]
 //   ram       bytes held in memory (the strategy's budget)
 //   disk      bytes of states on disk (raw states for schedule=optimal; rows with their times,
 //             counted uncompressed, for schedule=stride)
@@ -26,6 +26,8 @@
 //             each, beside ram= as the slot file's own record buffer is); 0: every write and read waits
 //             for the disk. The same bits either way; the predicted seconds subtract what the overlap
 //             hides (internal::hiddenDiskSeconds), and the measured ones count the waits only.
+//   sync      1: schedule=optimal's slot file is opened O_DSYNC, so each write has reached the device when
+//             it returns (a disk without a write cache; bench/disk_bench's disk-bound case); default 0.
 // schedule=optimal keeps its disk level in a file of fixed-size slots of raw states
 // ("hindsight-multilevel-*.slots", written and read with pwrite/pread: the plan rewrites and rereads
 // slots in any order, which the append-only compressed file cannot), RAM slots allocated once at
@@ -99,6 +101,8 @@ class MultilevelStorage final : public TrajectoryStorage {
     std::optional<ScheduleCosts> costs;
     /// schedule=optimal: write behind and read ahead on a second thread (spec overlap=1, the default).
     bool overlap = true;
+    /// schedule=optimal: slot writes reach the device before they return (O_DSYNC; spec sync=1).
+    bool syncWrites = false;
     bool IsValid(std::string* error) const;
   };
 

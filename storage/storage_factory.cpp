@@ -115,7 +115,10 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                {"schedule", "optimal (default, fixed steps) | stride"},
                {"overlap",
                 "1 (default) | 0: schedule=optimal's disk writes behind and reads ahead on a second thread "
-                "(the same bits; the prediction subtracts the hidden I/O)"}}},
+                "(the same bits; the prediction subtracts the hidden I/O)"},
+               {"sync",
+                "0 (default) | 1: schedule=optimal's disk writes reach the device before they return "
+                "(O_DSYNC)"}}},
              &MultilevelStorage::create,
              &MultilevelStorage::predict,
              {},

@@ -228,6 +228,8 @@ TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,overlap=1")->spec(),
             "multilevel:ram=65536,disk=1048576");
   EXPECT_THROW(createStorage("multilevel:ram=64KiB,disk=1MiB,overlap=2"), std::invalid_argument);
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,sync=1,overlap=0")->spec(),
+            "multilevel:ram=65536,disk=1048576,overlap=0,sync=1");
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:1:1"), std::invalid_argument);
   // disk=0: refused with a pointer to the strategies for RAM alone.
   for (const std::string zero : {"0", "0B", "0KiB", "0.0GiB"}) {

@@ -154,6 +154,27 @@ TEST(OverlapModel, ARunPredictsWhatHindsightSchedulePredicts) {
   EXPECT_EQ(storage.counters().predictedSeconds, storage.predictedSeconds());
 }
 
+TEST(OverlapModel, WritesThatReachTheDeviceKeepTheBitsWithAndWithoutOverlap) {
+  // sync=1 (O_DSYNC), the disk-bound case of bench/disk_bench: milliseconds per write, the same bits.
+  Pendulum problem;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
+  for (const bool overlap : {false, true}) {
+    ScratchDirectory dir;
+    MultilevelStorage::Options options;
+    options.ramBytes = 800;
+    options.diskBytes = 1 << 20;
+    options.directory = dir.path();
+    options.costs = ScheduleCosts{1, 1, 2, 2};
+    options.overlap = overlap;
+    options.syncWrites = true;
+    MultilevelStorage storage(options);
+    EXPECT_TRUE(
+        bitwiseEqual(computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage), reference));
+    EXPECT_GT(storage.diskWrites(), 0);
+    EXPECT_EQ(storage.prefetchedReads(), overlap ? storage.diskReads() : 0);
+  }
+}
+
 int polls = 0;
 int throwAfter = -1;
 struct Stop {};
