@@ -154,11 +154,13 @@ int main(int argc, char** argv) {
       "disk:dir=" + dir + ",level=1",
       "disk:dir=" + dir,
       "multilevel:ram=32MiB,disk=64MiB,dir=" + dir,
-      // A disk-bound plan (2 RAM slots of 80 KB: 665 disk writes and reads, 1333 recomputed steps;
-      // docs/theory/storage.md, "Overlapped disk I/O"): the same plan and bits with the disk level's I/O
-      // waited for, and overlapped.
+      // The disk level's I/O waited for (overlap=0) and overlapped, same plans and bits
+      // (docs/theory/storage.md, "Overlapped disk I/O"): writes that reach the device (sync=1; 13 RAM
+      // slots of 80 KB, 136 disk writes and reads), and the page cache with 2 RAM slots (665 each).
       "multilevel:ram=1MiB,disk=64MiB,costs=1:1:4:1,sync=1,overlap=0,dir=" + dir,
       "multilevel:ram=1MiB,disk=64MiB,costs=1:1:4:1,sync=1,dir=" + dir,
+      "multilevel:ram=200KiB,disk=64MiB,costs=1:1:1:1,overlap=0,dir=" + dir,
+      "multilevel:ram=200KiB,disk=64MiB,costs=1:1:1:1,dir=" + dir,
       "lossy:codec=zfp,tolerance=1e-4",
       "lossy:codec=zfp,tolerance=1e-6",
       "lossy:codec=zfp,tolerance=1e-8",

@@ -27,7 +27,7 @@
 //             for the disk. The same bits either way; the predicted seconds subtract what the overlap
 //             hides (internal::hiddenDiskSeconds), and the measured ones count the waits only.
 //   sync      1: schedule=optimal's slot file is opened O_DSYNC, so each write has reached the device when
-//             it returns (a disk without a write cache; bench/disk_bench's disk-bound case); default 0.
+//             it returns (a disk without a write cache; bench/disk_bench.cpp's disk-bound case); default 0.
 // schedule=optimal keeps its disk level in a file of fixed-size slots of raw states
 // ("hindsight-multilevel-*.slots", written and read with pwrite/pread: the plan rewrites and rereads
 // slots in any order, which the append-only compressed file cannot), RAM slots allocated once at

@@ -155,7 +155,7 @@ TEST(OverlapModel, ARunPredictsWhatHindsightSchedulePredicts) {
 }
 
 TEST(OverlapModel, WritesThatReachTheDeviceKeepTheBitsWithAndWithoutOverlap) {
-  // sync=1 (O_DSYNC), the disk-bound case of bench/disk_bench: milliseconds per write, the same bits.
+  // sync=1 (O_DSYNC), the disk-bound case of bench/disk_bench.cpp: milliseconds per write, the same bits.
   Pendulum problem;
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
   for (const bool overlap : {false, true}) {
