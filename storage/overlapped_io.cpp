@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <deque>
 #include <stdexcept>
 #include <string>
 
@@ -18,6 +19,7 @@ OverlappedSlotIo::OverlappedSlotIo(std::int64_t values, int queueDepth, Writer w
     freeBuffers_.push_back(queueDepth - 1 - i);
   }
   readBuffer_.assign(static_cast<std::size_t>(values), 0.0);
+  ring_.resize(static_cast<std::size_t>(queueDepth) + 1);
   worker_ = std::thread([this] { run(); });
 }
 
@@ -25,7 +27,7 @@ OverlappedSlotIo::~OverlappedSlotIo() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
-    jobs_.clear();
+    queued_ = 0;
   }
   changed_.notify_all();
   worker_.join();
@@ -34,10 +36,11 @@ OverlappedSlotIo::~OverlappedSlotIo() {
 void OverlappedSlotIo::run() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
-    changed_.wait(lock, [this] { return stop_ || (!jobs_.empty() && !failure_); });
+    changed_.wait(lock, [this] { return stop_ || (queued_ > 0 && !failure_); });
     if (stop_) return;
-    const Job job = jobs_.front();
-    jobs_.pop_front();
+    const Job job = ring_[head_];
+    head_ = (head_ + 1) % ring_.size();
+    --queued_;
     busy_ = true;
     lock.unlock();
     std::exception_ptr error;
@@ -58,6 +61,12 @@ void OverlappedSlotIo::run() {
       freeBuffers_.push_back(job.buffer);
     changed_.notify_all();
   }
+}
+
+void OverlappedSlotIo::push(const Job& job) {
+  // At most one job per write buffer and one for the read-ahead buffer are queued: the ring never fills.
+  ring_[(head_ + queued_) % ring_.size()] = job;
+  ++queued_;
 }
 
 void OverlappedSlotIo::rethrowLocked() {
@@ -83,7 +92,7 @@ void OverlappedSlotIo::write(std::int64_t slot, const double* z) {
   std::memcpy(writeBuffers_[static_cast<std::size_t>(buffer)].data(), z,
               static_cast<std::size_t>(values_) * 8);
   lock.lock();
-  jobs_.push_back(Job{false, slot, buffer});
+  push(Job{false, slot, buffer});
   changed_.notify_all();
 }
 
@@ -97,7 +106,7 @@ void OverlappedSlotIo::prefetch(std::int64_t slot) {
   }
   prefetchSlot_ = slot;
   prefetchDone_ = false;
-  jobs_.push_back(Job{true, slot, -1});
+  push(Job{true, slot, -1});
   changed_.notify_all();
 }
 
@@ -120,7 +129,7 @@ void OverlappedSlotIo::read(std::int64_t slot, double* z) {
 
 void OverlappedSlotIo::drain() {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [this] { return (jobs_.empty() && !busy_) || failure_; });
+  changed_.wait(lock, [this] { return (queued_ == 0 && !busy_) || failure_; });
   rethrowLocked();
 }
 
@@ -128,7 +137,7 @@ namespace {
 
 // Collects a plan's disk events (the RAM ones are free and not events).
 struct EventCollector {
-  std::deque<DiskEvent>& events;
+  std::vector<DiskEvent>& events;
   void store(StorageLevel level, std::int64_t slot) {
     if (level == StorageLevel::kDisk) events.push_back(DiskEvent{false, slot});
   }
@@ -148,6 +157,10 @@ DiskEventLookahead::DiskEventLookahead(const TwoLevelPlan& plan) : plan_(plan) {
 const DiskEvent* DiskEventLookahead::peek() {
   EventCollector collector{events_};
   std::int64_t walked = 0;
+  if (head_ == events_.size()) {  // all popped: start over, keeping the capacity
+    events_.clear();
+    head_ = 0;
+  }
   while (events_.empty()) {
     if ((++walked & 0xffff) == 0) pollInterrupt();
     if (nextRecord_ < plan_.steps())
@@ -157,7 +170,7 @@ const DiskEvent* DiskEventLookahead::peek() {
     else
       return nullptr;
   }
-  return &events_.front();
+  return &events_[head_];
 }
 
 void DiskEventLookahead::pop(const DiskEvent& expected) {
@@ -167,7 +180,7 @@ void DiskEventLookahead::pop(const DiskEvent& expected) {
                            std::string(expected.read ? "read" : "write") + " of slot " +
                            std::to_string(expected.slot));
   }
-  events_.pop_front();
+  ++head_;
 }
 
 namespace {

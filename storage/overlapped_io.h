@@ -32,7 +32,6 @@
 
 #include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <exception>
 #include <functional>
 #include <mutex>
@@ -74,7 +73,8 @@ class OverlappedSlotIo {
     int buffer;  // write buffer index; -1 for the read-ahead buffer
   };
   void run();
-  void rethrowLocked();  // with mutex_ held
+  void push(const Job& job);  // with mutex_ held
+  void rethrowLocked();       // with mutex_ held
   void waitIdleLocked(std::unique_lock<std::mutex>& lock);
 
   std::int64_t values_;
@@ -85,7 +85,9 @@ class OverlappedSlotIo {
   std::vector<double> readBuffer_;
   std::mutex mutex_;
   std::condition_variable changed_;
-  std::deque<Job> jobs_;
+  // The queue: a ring of queueDepth + 1 jobs (every write buffer and the read-ahead), allocated once.
+  std::vector<Job> ring_;
+  std::size_t head_ = 0, queued_ = 0;
   bool busy_ = false;  // the thread runs a job
   bool stop_ = false;
   std::exception_ptr failure_;
@@ -112,7 +114,9 @@ class DiskEventLookahead {
  private:
   TwoLevelPlan plan_;
   std::int64_t nextRecord_ = 0, nextRestore_ = 0;
-  std::deque<DiskEvent> events_;
+  // Events found and not yet popped: events_[head_..]; cleared (capacity kept) once all are popped.
+  std::vector<DiskEvent> events_;
+  std::size_t head_ = 0;
 };
 
 /// Seconds of disk I/O that write-behind with `queueDepth` buffers and the read-ahead hide in one run of
