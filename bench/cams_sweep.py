@@ -3,8 +3,9 @@
 `hindsight schedule` (no model run; its counts equal a real run's, tests/storage/cams_checkpointing_test.cpp).
 
 For every N and budget C (the bytes of binomial:checkpoints=C, i.e. C + 1 states):
-  binomial        revolve over all C + 1 slots, T(N + 1, C + 1) - N recomputed steps: the optimum without step
-                  records (every adjoint step recomputes its stages)
+  binomial        revolve with all C + 1 slots as snapshots, x_{N-1} the engine's working state,
+                  T(N, C + 1) - (N - 1) recomputed steps: the optimum without step records (every adjoint
+                  step recomputes its stages)
   cams            the exact stage-aware optimum (only where its N x (C + 2) table fits, <= 1.25e7 entries)
   cams online=1   online placement + the optimal plan per interval (any N)
 Ratios: each count over binomial's, and cams online over the exact cams optimum where that exists.

@@ -4,7 +4,9 @@
 // Every iteration makes a fresh storage and computes psi and dpsi/dp; full storage is the baseline
 // in the same run. Counters: compression ratio, MB on disk, peak MB in memory, effective write and
 // read throughput (uncompressed MB over the forward and backward sweep's wall time, I/O overlapped
-// with computation), seconds of the I/O thread, relative gradient error against full storage.
+// with computation), seconds of the I/O thread, relative gradient error against full storage;
+// multilevel also: its schedule's seconds (recomputation and the disk I/O waited for) and the sweeps' wall
+// seconds, with overlap=0 and 1 (docs/theory/storage.md, "Overlapped disk I/O").
 //
 //   ./build/bench/disk_bench --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 #include <hindsight/engine/adjoint.h>
@@ -122,6 +124,9 @@ void runStorage(benchmark::State& state, const std::string& spec) {
   state.counters["read_MBps"] = megabytes / result.summary.backwardSeconds;
   state.counters["io_s"] = counters.ioSeconds;
   state.counters["recomputed"] = static_cast<double>(counters.recomputedSteps);
+  // multilevel: the schedule's seconds (recomputation + the disk I/O the main thread waited for).
+  state.counters["schedule_s"] = counters.scheduleSeconds;
+  state.counters["sweeps_s"] = result.summary.forwardSeconds + result.summary.backwardSeconds;
   state.counters["grad_err"] = (result.gradient - s.referenceGradient).norm() / s.referenceGradient.norm();
 }
 
@@ -149,6 +154,13 @@ int main(int argc, char** argv) {
       "disk:dir=" + dir + ",level=1",
       "disk:dir=" + dir,
       "multilevel:ram=32MiB,disk=64MiB,dir=" + dir,
+      // The disk level's I/O waited for (overlap=0) and overlapped, same plans and bits
+      // (docs/theory/storage.md, "Overlapped disk I/O"): writes that reach the device (sync=1; 13 RAM
+      // slots of 80 KB, 136 disk writes and reads), and the page cache with 2 RAM slots (665 each).
+      "multilevel:ram=1MiB,disk=64MiB,costs=1:1:4:1,sync=1,overlap=0,dir=" + dir,
+      "multilevel:ram=1MiB,disk=64MiB,costs=1:1:4:1,sync=1,dir=" + dir,
+      "multilevel:ram=200KiB,disk=64MiB,costs=1:1:1:1,overlap=0,dir=" + dir,
+      "multilevel:ram=200KiB,disk=64MiB,costs=1:1:1:1,dir=" + dir,
       "lossy:codec=zfp,tolerance=1e-4",
       "lossy:codec=zfp,tolerance=1e-6",
       "lossy:codec=zfp,tolerance=1e-8",

@@ -13,10 +13,17 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 
 namespace hindsight::cli {
 namespace {
+
+std::string formatCost(double value) {
+  std::ostringstream text;
+  text << std::setprecision(6) << value;
+  return text.str();
+}
 
 struct ScheduleArgs {
   std::string storage;
@@ -67,7 +74,10 @@ int runSchedule(const ScheduleArgs& args) {
             << formatBytes(p.peakRamBytes) << "\ndisk:              writes " << p.diskWrites << ", reads "
             << p.diskReads << ", peak " << formatBytes(p.peakDiskBytes)
             << " (uncompressed)\npredicted cost:    " << std::setprecision(6) << p.totalCost << " (schedule "
-            << p.scheduleCost << " = recomputation + disk I/O)\n";
+            << p.scheduleCost << " = recomputation + disk I/O"
+            << (p.hiddenIoCost > 0.0 ? " - " + formatCost(p.hiddenIoCost) + " hidden by overlapped disk I/O"
+                                     : std::string())
+            << ")\n";
   if (!p.warning.empty()) std::cout << "warning:           " << p.warning << '\n';
   return 0;
 }

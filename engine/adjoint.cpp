@@ -102,6 +102,9 @@ struct ForwardSweep {
                              ? static_cast<std::int64_t>(fixedGrid(options).size()) - 1
                              : static_cast<std::int64_t>(options.replayTimes.size()) - 1;
       }
+      // The backward sweep restores into zPrevious, which holds x_{N-1} when the forward sweep ends (every
+      // step starts from a copy there): the working state the strategy need not keep.
+      info.workingStateHoldsLast = true;
       storage->begin(info, *recomputer);
     }
     times.clear();

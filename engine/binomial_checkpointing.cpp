@@ -66,6 +66,12 @@ UnsignedInt128 optimalRecomputedSteps(std::int64_t steps, std::int64_t slots) {
   return optimalForwardSteps(steps + 1, slots) - static_cast<UnsignedInt128>(steps);
 }
 
+UnsignedInt128 workingStateRecomputedSteps(std::int64_t steps, std::int64_t slots) {
+  assert(steps >= 1 && slots >= 1);
+  // T(N, S) >= N - 1 (the first sweep), so the difference is a count.
+  return optimalForwardSteps(steps, slots) - static_cast<UnsignedInt128>(steps - 1);
+}
+
 std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots) {
   assert(steps >= 2 && slots >= 2);
   const std::int64_t r = repetitionNumber(steps, slots);
@@ -237,6 +243,14 @@ BinomialCheckpointing::BinomialCheckpointing(std::int64_t checkpoints, std::int6
   }
 }
 
+std::int64_t BinomialCheckpointing::slotsFor(std::int64_t steps, std::int64_t checkpoints,
+                                             bool workingStateHoldsLast) {
+  // One slot per position that can be a checkpoint: 0..N-1, or 0..N-2 when the caller's working state
+  // holds x_{N-1} (N = 1 keeps x_0 in its slot all the same).
+  const std::int64_t positions = workingStateHoldsLast ? std::max<std::int64_t>(steps - 1, 1) : steps;
+  return std::min(checkpoints + 1, positions);
+}
+
 std::unique_ptr<TrajectoryStorage> BinomialCheckpointing::create(const StorageSpec& spec) {
   if (!spec.has("checkpoints")) {
     throw std::invalid_argument("binomial.checkpoints is required: an integer in [1, " +
@@ -273,9 +287,11 @@ void BinomialCheckpointing::doBegin() {
         std::to_string(steps) +
         ", adaptive steps); use 'online:budget=BYTES' or 'online:checkpoints=C' for adaptive steps");
   }
-  // C + 1 slots (the checkpoints and what revolve calls the working state), at most one per position
-  // 0..N-1: revolve over N + 1 positions whose first sweep is the forward sweep (see the header).
-  slotCount_ = std::min(checkpoints_ + 1, steps);
+  // C + 1 slots (the checkpoints and what revolve calls the working state), at most one per position that
+  // can be a checkpoint. With the caller's working state holding x_{N-1}: revolve over the positions
+  // 0..N-1 with C + 1 slots; without it, revolve over N + 1 positions (see the header).
+  working_ = info().workingStateHoldsLast;
+  slotCount_ = slotsFor(steps, checkpoints_, working_);
   const std::int64_t states = slotCount_;
   const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
   if (recordBytes > budgetBytes() || states > (budgetBytes() - recordBytes) / stateBytes()) {
@@ -289,20 +305,31 @@ void BinomialCheckpointing::doBegin() {
   heldBytes_ = states * stateBytes() + recordBytes;
   recomputedStages_.reset(info().stepDataSize);
   slots_.reset(new double[static_cast<std::size_t>(slotCount_) * n]);
-  schedule_.reset(steps + 1, slotCount_, true);
+  schedule_.reset(planLength(steps, working_), slotCount_, true);
 }
 
 namespace {
 
-// binomial's plan, one code for the run (doRecord, doRestore) and the prediction's counting run
-// (countPlan): revolve over the positions 0..N with the slots, its first sweep the forward sweep; the
-// restore of x_{N-1} first passes x_N, the schedule's end position, which is never restored.
+// binomial's plan, one code for the run (doRecord, doRestore), the prediction's counting run (countPlan)
+// and the action stream (writeActions): revolve with the slots, its first sweep the forward sweep, over
+// the positions 0..N-1 when the caller's working state holds x_{N-1} (the schedule's loadWorking() is
+// then the first restore itself), else over 0..N, where the restore of x_{N-1} first passes x_N, the
+// schedule's end position, which is never restored.
 std::int64_t planRecordSlot(BinomialSchedule& schedule, std::int64_t step) {
   return step == 0 ? 0 : schedule.recordForward(step);
 }
 template <typename Visitor>
-void planRestore(BinomialSchedule& schedule, std::int64_t steps, std::int64_t step, Visitor& visitor) {
-  if (step == steps - 1) schedule.restoreStep(step + 1, visitor);
+void planRestore(BinomialSchedule& schedule, std::int64_t steps, bool working, std::int64_t step,
+                 Visitor& visitor) {
+  if (!working && step == steps - 1) {
+    struct Skip {
+      void loadWorking() {}
+      void load(std::int64_t) {}
+      void store(std::int64_t) {}
+      void advance(std::int64_t, std::int64_t) {}
+    } skip;
+    schedule.restoreStep(step + 1, skip);  // x_N: loads the working state, nothing else
+  }
   schedule.restoreStep(step, visitor);
 }
 
@@ -338,7 +365,7 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     BinomialCheckpointing& self;
     VectorRef z;
     std::size_t n;
-    void loadWorking() {}  // x_N: the schedule's end position, never restored
+    void loadWorking() {}  // x_{N-1}, which z holds already (TrajectoryInfo.workingStateHoldsLast)
     void load(std::int64_t slot) {
       std::memcpy(z.data(), self.slots_.get() + static_cast<std::size_t>(slot) * n, n * sizeof(double));
     }
@@ -354,12 +381,12 @@ void BinomialCheckpointing::doRestore(std::int64_t step, VectorRef z) {
     }
   } visitor{*this, z, static_cast<std::size_t>(info().stateSize)};
   recomputedStages_.beginRestore(step);
-  planRestore(schedule_, info().stepCount, step, visitor);
+  planRestore(schedule_, info().stepCount, working_, step, visitor);
   if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
 }
 
 BinomialCheckpointing::PlanCounts BinomialCheckpointing::countPlan(std::int64_t steps, std::int64_t slots,
-                                                                   bool keepStages) {
+                                                                   bool keepStages, bool working) {
   // The strategy's own plan (planRecordSlot, planRestore) with a visitor that counts instead of copying
   // states and stepping, and RecomputedStages' rule for stages=1 on one-double "stage values" (only which
   // step they belong to matters), in the order of a run: records 0..N-1 (the stages of the last step
@@ -384,7 +411,7 @@ BinomialCheckpointing::PlanCounts BinomialCheckpointing::countPlan(std::int64_t 
   counting.stages.reset(keepStages ? 1 : 0);
   Vector data = Vector::Zero(1);
   BinomialSchedule schedule;
-  schedule.reset(steps + 1, slots, true);
+  schedule.reset(planLength(steps, working), slots, true);
   PlanCounts counts;
   for (std::int64_t step = 0; step < steps; ++step) {
     if (planRecordSlot(schedule, step) >= 0) ++counts.statesStored;
@@ -395,7 +422,7 @@ BinomialCheckpointing::PlanCounts BinomialCheckpointing::countPlan(std::int64_t 
   }
   for (std::int64_t e = steps - 1; e >= 0; --e) {
     if (keepStages) counting.stages.beginRestore(e);
-    planRestore(schedule, steps, e, counting);
+    planRestore(schedule, steps, working, e, counting);
     if (keepStages && counting.stages.restore(e, data)) ++counts.stepDataRestored;
   }
   counts.recomputedSteps = counting.recomputed;
@@ -405,37 +432,43 @@ BinomialCheckpointing::PlanCounts BinomialCheckpointing::countPlan(std::int64_t 
 }
 
 BinomialCheckpointing::PlanCounts BinomialCheckpointing::closedFormCounts(std::int64_t steps,
-                                                                          std::int64_t slots,
-                                                                          bool keepStages) {
-  // revolve's formulas (the header): R(N, S) = T(N + 1, S) - N, the first sweep's pushes and the
-  // checkpoint writes of the whole schedule. With stages=1 (RecomputedStages' rule): the adjoint step
-  // of e has its stages when e = N - 1 (the forward sweep's last step, never recomputed) or when the
-  // restore of e + 1 recomputed (its last step is e -> e + 1). The restores that recompute nothing are
-  // those of the checkpoint positions, each stored once and loaded once directly: `writes` - 1 of them
-  // among x_1 .. x_{N-1}. A restore that recomputes stores stage values after every advance (one more
-  // than its checkpoint stores); summed over the backward sweep with the forward sweep's one record
-  // that is N minus the first sweep's pushes.
+                                                                          std::int64_t slots, bool keepStages,
+                                                                          bool working) {
+  // revolve's formulas (the header) over L = planLength positions: T(L, S) - (L - 1) recomputed steps
+  // (T(N, S) - (N - 1) with the working state, R(N, S) = T(N + 1, S) - N without), the first sweep's
+  // pushes and the checkpoint writes of the whole schedule. With stages=1 (RecomputedStages' rule): the
+  // adjoint step of e has its stages when e = N - 1 (the forward sweep's last step, never recomputed)
+  // or when the restore of e + 1 recomputed (its last step is e -> e + 1). The restores that recompute
+  // nothing are those of the checkpoint positions, each stored once and loaded once directly (`writes`
+  // of them, x_0 included), and with the working state the restore of x_{N-1}. A restore that
+  // recomputes stores stage values after every advance (one more than its checkpoint stores); summed
+  // over the backward sweep, with the forward sweep's one record.
   PlanCounts counts;
-  counts.recomputedSteps = revolve::optimalRecomputedSteps(steps, slots);
-  const std::int64_t firstPushes = revolve::firstSweep(steps + 1, slots).pushes;
-  const std::int64_t writes = revolve::checkpointWrites(steps + 1, slots);
+  const std::int64_t length = planLength(steps, working);
+  counts.recomputedSteps =
+      revolve::optimalForwardSteps(length, slots) - static_cast<UnsignedInt128>(length - 1);
+  const std::int64_t firstPushes = revolve::firstSweep(length, slots).pushes;
+  const std::int64_t writes = revolve::checkpointWrites(length, slots);
   counts.statesStored = 1 + firstPushes;
   counts.ramWrites = writes;
   if (keepStages) {
-    counts.stepDataRestored = steps - writes + 1;
-    counts.stepDataStored = steps - firstPushes;
+    // Restores that advance: all N but the direct ones (x_0's among them, so each advancing restore is
+    // of some e + 1 >= 1 and gives the stages of step e).
+    const std::int64_t advancing = steps - writes - (working && steps >= 2 ? 1 : 0);
+    counts.stepDataRestored = 1 + advancing;
+    counts.stepDataStored = 1 + advancing + (writes - 1 - firstPushes);
   }
   return counts;
 }
 
 void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                     const PredictionRequest& request, SchedulePrediction& p) {
-  // BinomialCheckpointing: revolve with S = min(C + 1, N) slots over the N + 1 positions 0..N, its first
-  // sweep the forward sweep (engine/binomial_checkpointing.h).
+  // A run of computeGradient, whose working state holds x_{N-1}: revolve with S = slotsFor(N, C, true)
+  // slots over the positions 0..N-1, its first sweep the forward sweep (engine/binomial_checkpointing.h).
   const auto& binomial = dynamic_cast<const BinomialCheckpointing&>(storage);
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
   const int stages = request.stages;
-  const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
+  const std::int64_t slots = slotsFor(steps, binomial.checkpoints(), true);
   const std::int64_t states = slots;
   // stages=1 (engine/recomputed_stages.h): two step records of an explicit Runge-Kutta method, S - 1
   // stage states and S rhs data each (Integrator::stepDataSize(); none for S = 1), charged like the states.
@@ -452,13 +485,14 @@ void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const Stor
         ", more than binomial.budget = " + formatBytes(binomial.budgetBytes()));
   }
   // The count first: beyond 2^63 it is refused before the plan is run or walked.
-  prediction::checkedCount(revolve::optimalRecomputedSteps(steps, slots), "recomputed steps");
+  prediction::checkedCount(revolve::workingStateRecomputedSteps(steps, slots), "recomputed steps");
   // The strategy's own plan run with a counting visitor up to 2^24 steps; beyond, revolve's closed forms,
   // equal to it (tests/storage/binomial_checkpointing_test.cpp compares the two).
-  const PlanCounts counts = steps <= prediction::kMaxWalkedSteps ? countPlan(steps, slots, keepStages)
-                                                                 : closedFormCounts(steps, slots, keepStages);
+  const PlanCounts counts = steps <= prediction::kMaxWalkedSteps
+                                ? countPlan(steps, slots, keepStages, true)
+                                : closedFormCounts(steps, slots, keepStages, true);
   p.recomputedSteps = prediction::checkedCount(counts.recomputedSteps, "recomputed steps");
-  p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N, x_N never restored)" +
+  p.plan = "revolve over " + std::to_string(slots) + " slots (positions 0..N-1, x_{N-1} the working state)" +
            (keepStages ? ", stages of the last recomputed step kept" : "");
   p.statesStored = counts.statesStored;
   p.ramReads = steps;
@@ -472,28 +506,21 @@ void BinomialCheckpointing::predict(const TrajectoryStorage& storage, const Stor
 
 void BinomialCheckpointing::writeActions(const TrajectoryStorage& storage, const StorageSpec&,
                                          const PredictionRequest& request, std::ostream& out) {
-  // The schedule doBegin, doRecord and doRestore run: revolve over positions 0..N with S slots.
+  // The schedule doBegin, doRecord and doRestore run in computeGradient (the working state holds x_{N-1}).
   const auto& binomial = dynamic_cast<const BinomialCheckpointing&>(storage);
   const std::int64_t steps = request.steps;
-  const std::int64_t slots = std::min(binomial.checkpoints() + 1, steps);
+  const std::int64_t slots = slotsFor(steps, binomial.checkpoints(), true);
   prediction::ActionWriter writer{out};
   BinomialSchedule schedule;
-  schedule.reset(steps + 1, slots, true);
+  schedule.reset(planLength(steps, true), slots, true);
   for (std::int64_t k = 0; k < steps; ++k) {
     out << "record " << k << '\n';
-    const std::int64_t slot = k == 0 ? 0 : schedule.recordForward(k);
+    const std::int64_t slot = planRecordSlot(schedule, k);
     if (slot >= 0) writer.store(slot);
   }
-  struct Skip {
-    void loadWorking() {}
-    void load(std::int64_t) {}
-    void store(std::int64_t) {}
-    void advance(std::int64_t, std::int64_t) {}
-  } skip;
-  schedule.restoreStep(steps, skip);  // x_N: the schedule's end position, never restored
   for (std::int64_t e = steps - 1; e >= 0; --e) {
     out << "restore " << e << '\n';
-    schedule.restoreStep(e, writer);
+    planRestore(schedule, steps, true, e, writer);
   }
 }
 

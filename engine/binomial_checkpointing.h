@@ -20,25 +20,30 @@
 //
 // What is counted, and the slots. Revolve's setting charges c checkpoints but not its "current" state,
 // which reaches x_{N-1} at the end of the first sweep and is consumed at once by the first adjoint step.
-// Here the forward sweep goes on to x_N and every state the storage keeps is charged: the states x_e are
-// asked for in the order N-1, ..., 0, each from a slot plus advances (docs/design.md §6, "the game").
-// With S slots the least number of recomputed steps of that game is
+// computeGradient has that state too: its backward sweep restores into the buffer its forward sweep's
+// last step started from, which holds x_{N-1} (TrajectoryInfo.workingStateHoldsLast, the caller's
+// working state; checkpoint_schedules' WORK). So a run of the engine is revolve's game exactly: with
+// S = slotsFor(N, C, true) = min(C + 1, N - 1) slots (1 for N = 1) over the positions 0..N-1,
+//     counters().recomputedSteps == T(N, S) - (N - 1)      exactly, for every N >= 1, C >= 1,
+// revolve's own count with C + 1 snapshots (N = 1000, C = 2: 11 156), and peakBytesInMemory == S states,
+// all charged with holdBytes(); begin() throws std::invalid_argument naming binomial.checkpoints and
+// binomial.budget when they do not fit.
+//
+// A caller without a working state (workingStateHoldsLast false: the storage protocol driven directly,
+// the PETSc adapter) plays the game where every kept state is charged and the forward sweep ends at x_N:
+// the states x_e are asked for in the order N-1, ..., 0, each from a slot plus advances (docs/design.md
+// §6, "the game"). With S slots its least number of recomputed steps is
 //     R(N, S) = T(N + 1, S) - N,
 // revolve with S checkpoints over N + 1 positions (0..N) whose first sweep 0 -> N is the forward sweep
-// itself: x_N plays revolve's current state and is never asked for. The tests confirm R by exhaustive
-// search over every schedule of the game (small N and S) and by a dynamic programme over first splits.
-// R(N, S) = T(N, S) - (N - 1) + (r(N + 1, S) - 1): one recomputed step per repetition more than revolve
-// counts with its uncharged current state, and far fewer than T(N, S - 1) - (N - 1), what revolve over
-// S - 1 slots reaches when the S-th parks x_{N-1} (a "working state") for the whole forward sweep.
-// `binomial:checkpoints=C` holds S = C + 1 states (min(C + 1, N) when N is small): the C checkpoints
-// and the state that revolve would call the working state are all slots of the schedule above. So
-//     counters().recomputedSteps == T(N + 1, min(C + 1, N)) - N      exactly, for every N >= 1, C >= 1,
-// and peakBytesInMemory == min(C + 1, N) states, all charged with holdBytes(); begin() throws
-// std::invalid_argument naming binomial.checkpoints and binomial.budget when they do not fit.
+// itself: x_N plays revolve's current state and is never asked for; the strategy then runs that plan
+// with S = slotsFor(N, C, false) = min(C + 1, N) slots. The tests confirm R by exhaustive search over
+// every schedule of that game (small N and S) and by a dynamic programme over first splits.
+// R(N, S) = T(N, S) - (N - 1) + (r(N + 1, S) - 1): one recomputed step per repetition more than with the
+// working state (N = 1000, C = 2: 11 172).
 //
 // Preconditions: TrajectoryInfo.stepCount >= 1 (fixed step or replayed grid); begin() throws
 // std::invalid_argument telling to use `online` when it is -1 (adaptive steps).
-// Complexity: T(N + 1, C + 1) - N recomputed steps in total; restores and records allocate nothing (all
+// Complexity: the recomputed steps above in total; restores and records allocate nothing (all
 // slots are allocated in begin(), a test counts heap allocations); each schedule decision costs
 // O(min(c, r) log r) products of 128-bit saturating binomials, so N up to 2^62 and c up to 10^9 do not
 // overflow.
@@ -71,6 +76,10 @@ UnsignedInt128 optimalForwardSteps(std::int64_t steps, std::int64_t checkpoints)
 /// R(N, S) = T(N + 1, S) - N: least number of recomputed steps when every kept state is charged and
 /// the forward sweep ends at x_N (see above). Preconditions: steps >= 1, slots >= 1.
 UnsignedInt128 optimalRecomputedSteps(std::int64_t steps, std::int64_t slots);
+/// T(N, S) - (N - 1): revolve's own count of recomputed steps with S snapshots, reached when the caller's
+/// working state holds x_{N-1} (TrajectoryInfo.workingStateHoldsLast; see above).
+/// Preconditions: steps >= 1, slots >= 1.
+UnsignedInt128 workingStateRecomputedSteps(std::int64_t steps, std::int64_t slots);
 /// The first checkpoint's offset m (1 <= m < l) for reversing l >= 2 steps with s >= 2 slots, one of
 /// them holding the interval's first state; optimal in the sense of T(l, s) = m + T(l-m, s-1) + T(m, s).
 std::int64_t binomialSplit(std::int64_t steps, std::int64_t slots);
@@ -203,19 +212,27 @@ class BinomialCheckpointing final : public TrajectoryStorage {
   bool isExact() const override { return true; }
   bool keepsStepData() const override { return stages_; }
   std::int64_t checkpoints() const { return checkpoints_; }
+  /// The slots a run of N >= 1 steps uses with C checkpoints: min(C + 1, N - 1) (1 for N = 1) when the
+  /// caller's working state holds x_{N-1}, else min(C + 1, N): one per position that can be a checkpoint.
+  static std::int64_t slotsFor(std::int64_t steps, std::int64_t checkpoints, bool workingStateHoldsLast);
+  /// The positions the plan's BinomialSchedule spans: 0..N-1 with the working state, else 0..N.
+  static std::int64_t planLength(std::int64_t steps, bool workingStateHoldsLast) {
+    return workingStateHoldsLast ? steps : steps + 1;
+  }
 
-  /// The counters of a run of N >= 1 fixed steps with S >= 1 slots (S = min(C + 1, N)) and, with
-  /// keepStages, stages=1 for an integrator with stage values: recomputed steps, statesStored, RAM
-  /// writes (slot copies), stepDataStored and stepDataRestored.
+  /// The counters of a run of N >= 1 fixed steps with S >= 1 slots (S = slotsFor(N, C, working)), the
+  /// caller's working state holding x_{N-1} or not, and, with keepStages, stages=1 for an integrator with
+  /// stage values: recomputed steps, statesStored, RAM writes (slot copies), stepDataStored and
+  /// stepDataRestored.
   struct PlanCounts {
     UnsignedInt128 recomputedSteps = 0;
     std::int64_t statesStored = 0, ramWrites = 0, stepDataStored = 0, stepDataRestored = 0;
   };
   /// By running the strategy's own plan (the code doRecord and doRestore run) with a counting visitor:
   /// O(N + actions) time, O(S) memory.
-  static PlanCounts countPlan(std::int64_t steps, std::int64_t slots, bool keepStages);
+  static PlanCounts countPlan(std::int64_t steps, std::int64_t slots, bool keepStages, bool working);
   /// By revolve's closed forms, O(S + r): what the prediction uses beyond prediction::kMaxWalkedSteps.
-  static PlanCounts closedFormCounts(std::int64_t steps, std::int64_t slots, bool keepStages);
+  static PlanCounts closedFormCounts(std::int64_t steps, std::int64_t slots, bool keepStages, bool working);
 
  private:
   void doBegin() override;
@@ -228,6 +245,7 @@ class BinomialCheckpointing final : public TrajectoryStorage {
 
   std::int64_t checkpoints_;
   bool stages_;
+  bool working_ = false;                         // this run's TrajectoryInfo.workingStateHoldsLast
   internal::RecomputedStages recomputedStages_;  // stages=1
   BinomialSchedule schedule_;
   std::unique_ptr<double[]> slots_;  // slotCount_ states, slot i at slots_ + i * n

@@ -41,7 +41,8 @@ const std::vector<StorageStrategyRow>& memoryStorageStrategies() {
         "binomial:checkpoints=50",
         {{"checkpoints",
           "number of checkpoints C in [1, 1e9] (default 1); the strategy holds C + 1 states and "
-          "reverses by revolve over all of them (T(N + 1, C + 1) - N recomputed steps)"},
+          "reverses by revolve with all of them as snapshots, x_{N-1} being the engine's working state "
+          "(T(N, C + 1) - (N - 1) recomputed steps)"},
          {"budget", kBudget},
          {"stages",
           "0 | 1: keep the stage values of the last recomputed step, so the adjoint step after a "

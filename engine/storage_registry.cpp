@@ -190,7 +190,7 @@ SchedulePrediction predictFromRows(const std::vector<StorageStrategyRow>& rows, 
   const ScheduleCosts& model = p.costs;
   p.scheduleCost = static_cast<double>(p.recomputedSteps + p.adjointRecomputations) * model.forwardStep +
                    static_cast<double>(p.diskWrites) * model.diskWrite +
-                   static_cast<double>(p.diskReads) * model.diskRead;
+                   static_cast<double>(p.diskReads) * model.diskRead - p.hiddenIoCost;
   p.totalCost = static_cast<double>(request.steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
   return p;
 }

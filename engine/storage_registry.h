@@ -64,9 +64,12 @@ struct SchedulePrediction {
   std::int64_t ramWrites = 0, ramReads = 0, diskWrites = 0, diskReads = 0;
   std::int64_t peakRamBytes = 0;   ///< the strategy's peakBytesInMemory
   std::int64_t peakDiskBytes = 0;  ///< uncompressed bytes of states on disk at the most
-  double scheduleCost = 0.0;       ///< (R + adjoint recomputations) uf + W wd + Q rd
-  double totalCost = 0.0;          ///< N uf + N ub + scheduleCost
-  ScheduleCosts costs;             ///< the cost model of the two costs (a spec's own costs= first)
+  /// Disk seconds the strategy hides behind computation (multilevel's write-behind and read-ahead,
+  /// storage/overlapped_io.h); scheduleCost is net of them. 0: none.
+  double hiddenIoCost = 0.0;
+  double scheduleCost = 0.0;  ///< (R + adjoint recomputations) uf + W wd + Q rd - hiddenIoCost
+  double totalCost = 0.0;     ///< N uf + N ub + scheduleCost
+  ScheduleCosts costs;        ///< the cost model of the two costs (a spec's own costs= first)
   /// Empty, or why this plan is a trap: its schedule cost exceeds a simple alternative's (named here, with
   /// its cost) by more than twice (docs/theory/storage.md, "No silent trap").
   std::string warning;

@@ -104,6 +104,12 @@ void TrajectoryStorage::restore(std::int64_t step, VectorRef z) {
     throw std::logic_error("TrajectoryStorage::restore: expected step " + std::to_string(nextRestore_) +
                            ", got " + std::to_string(step));
   }
+  if (verifyRestores_ && info_.workingStateHoldsLast && step == stepCount_ - 1 &&
+      hashState(z) != hashes_[static_cast<std::size_t>(step)]) {
+    throw std::logic_error(
+        "TrajectoryStorage::restore(" + std::to_string(step) +
+        "): TrajectoryInfo.workingStateHoldsLast is set, but z is not the state recorded last");
+  }
   doRestore(step, z);
   if (verifyRestores_ && isExact() && hashState(z) != hashes_[static_cast<std::size_t>(step)]) {
     throw std::logic_error("storage '" + spec() + "' restored different bits for step " +

@@ -5,7 +5,9 @@
 //   begin(info, recomputer)                 once, before the forward sweep;
 //   record(n, t_n, z_n, zdot_n)             for n = 0, 1, ..., N-1, the state at the start of step n;
 //   finish(N, t_N, z_N, zdot_N)             once, with the final state; N is known from here on;
-//   restore(n, z)                           for n = N-1, N-2, ..., 0 during the backward sweep.
+//   restore(n, z)                           for n = N-1, N-2, ..., 0 during the backward sweep
+//                                           (with TrajectoryInfo.workingStateHoldsLast, z already holds
+//                                           x_{N-1} at the first restore: the caller's working state).
 // A strategy may recompute states from a checkpoint by calling recompute(n, z), which advances z
 // from grid point n to n+1 with exactly the step the forward sweep took, so the bits are the same.
 //
@@ -48,6 +50,12 @@ struct TrajectoryInfo {
   /// Doubles of step data (stage values) per step the engine passes to recordStepData(); 0: none (the
   /// strategy keeps no step data, or the integrator offers none, e.g. generalized-alpha).
   std::int64_t stepDataSize = 0;
+  /// True when the z of the first restore(N-1, z) already holds x_{N-1}, the state of the last record():
+  /// the caller's working state, revolve's "current state" (Griewank & Walther 2000) and
+  /// checkpoint_schedules' WORK, which the storage need not keep. computeGradient sets it (its backward sweep
+  /// restores into the buffer the forward sweep's last step started from); other callers leave it false. With
+  /// verifyRestores on, restore(N-1) checks the promise and throws std::logic_error when z differs.
+  bool workingStateHoldsLast = false;
 };
 
 /// The callback through which a strategy recomputes forward steps.

@@ -175,25 +175,26 @@ class EveryStateStream final : public BatchedStream {
   bool done_ = false;
 };
 
-// binomial: the BinomialSchedule a run executes (engine/binomial_checkpointing.cpp: revolve over the
-// positions 0..N with min(C + 1, N) slots, its first sweep the forward sweep), translated as it goes.
+// binomial: the BinomialSchedule a run of computeGradient executes (engine/binomial_checkpointing.cpp:
+// revolve over the positions 0..N-1 with BinomialCheckpointing::slotsFor(N, C, true) slots, its first sweep
+// the forward sweep, x_{N-1} the working state), translated as it goes.
 // A checkpoint's restart data is written by the Forward that leaves it, which runs to the next checkpoint
 // of the same sweep (or to x_{N-1} or the step re-run for the adjoint): every later load of it then finds
 // the adjoint at or below that end, as the contract asks. The load of a checkpoint at the position being
-// reversed is its last (the schedule pops it): a Move; every other load a Copy. When the first sweep
-// keeps x_{N-1} itself, the forward run's last step writes its adjoint data and the store is left out;
-// otherwise the replay of x_{N-1} from the topmost checkpoint is in the stream, as in a run.
+// reversed is its last (the schedule pops it): a Move; every other load a Copy. x_{N-1} is WORK: the
+// forward run's last step writes its adjoint data there, as in checkpoint_schedules.
 class BinomialStream final : public BatchedStream {
  public:
   BinomialStream(std::int64_t steps, std::int64_t checkpoints) : BatchedStream(steps) {
-    schedule_.reset(steps + 1, std::min(checkpoints + 1, steps), true);
+    schedule_.reset(BinomialCheckpointing::planLength(steps, true),
+                    BinomialCheckpointing::slotsFor(steps, checkpoints, true), true);
     stack_.push_back(0);
   }
 
  private:
   struct Visitor {
     BinomialStream& s;
-    void loadWorking() {}  // x_N, the schedule's end position: never restored
+    void loadWorking() {}  // x_{N-1}, reversed right after the forward run
     void load(std::int64_t slot) {
       const std::int64_t position = s.stack_[static_cast<std::size_t>(slot)];
       const bool last = position == s.restoring_;
@@ -221,36 +222,25 @@ class BinomialStream final : public BatchedStream {
     const std::int64_t steps = maxN_;
     if (phase_ == Phase::kForward) {
       // The forward run, cut where the first sweep keeps a state: each piece writes the restart data of
-      // the checkpoint it leaves (x_0 first). x_{N-1} kept by the sweep is the working state.
+      // the checkpoint it leaves (x_0 first). The schedule keeps none at x_{N-1}, the working state.
       const std::int64_t target = schedule_.nextForward();
-      if (target > 0 && target < steps - 1) {
+      if (target > 0) {
         queue_.push_back(forward(at_, target, true, false, CheckpointStorage::kRam));
         schedule_.recordForward(target);
         stack_.push_back(target);
         at_ = target;
         return true;
       }
-      if (target == steps - 1) {
-        schedule_.recordForward(target);
-        stack_.push_back(target);
-      }
+      // The last step writes the adjoint data of x_{N-1} to WORK, and the schedule's first restore (its
+      // working state; for N = 1 the load and pop of x_0's slot) is the forward run itself.
+      if (at_ < steps - 1) queue_.push_back(forward(at_, steps - 1, true, false, CheckpointStorage::kRam));
+      queue_.push_back(forward(steps - 1, steps, false, true, CheckpointStorage::kWork));
+      queue_.push_back(marker(Kind::kEndForward));
+      queue_.push_back(reverseStep(steps - 1));
       NullVisitor none;
-      schedule_.restoreStep(steps, none);  // x_N, the schedule's end position: the working state
-      if (stack_.back() == steps - 1) {
-        // x_{N-1} is held (for N = 1 it is x_0): the last step writes its adjoint data, and the
-        // schedule's load and pop of that slot is the forward run itself.
-        if (at_ < steps - 1) queue_.push_back(forward(at_, steps - 1, true, false, CheckpointStorage::kRam));
-        queue_.push_back(forward(steps - 1, steps, false, true, CheckpointStorage::kWork));
-        queue_.push_back(marker(Kind::kEndForward));
-        queue_.push_back(reverseStep(steps - 1));
-        schedule_.restoreStep(steps - 1, none);
-        stack_.pop_back();
-        restoring_ = steps - 2;
-      } else {
-        queue_.push_back(forward(at_, steps, true, false, CheckpointStorage::kRam));
-        queue_.push_back(marker(Kind::kEndForward));
-        restoring_ = steps - 1;
-      }
+      schedule_.restoreStep(steps - 1, none);
+      if (steps == 1) stack_.pop_back();
+      restoring_ = steps - 2;
       at_ = -1;
       phase_ = Phase::kReverse;
       return true;
@@ -340,12 +330,13 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
       predictSchedule(specText, steps == kUnknownSteps ? 1 : steps, stateBytes, stages, costs);
     } else {
       // Every check of the plan: the spec first (a missing checkpoints= is named), then the budget at
-      // the min(C + 1, N) slots the stream uses. The prediction at N itself walks the plan up to 2^24
-      // steps (100 ms at N = 10^6), which a stream that walks it as the host goes does not need.
+      // the slotsFor(N, C, true) slots the stream uses (the same at min(N, C + 2) steps). The prediction at
+      // N itself walks the plan up to 2^24 steps (100 ms at N = 10^6), which a stream that walks it as the
+      // host goes does not need.
       predictSchedule(specText, 1, stateBytes, stages, costs);
       const std::int64_t checkpoints =
           spec.integer("checkpoints", 1, 1, BinomialCheckpointing::kMaxCheckpoints);
-      predictSchedule(specText, std::min(steps, checkpoints + 1), stateBytes, stages, costs);
+      predictSchedule(specText, std::min(steps, checkpoints + 2), stateBytes, stages, costs);
       return std::make_unique<BinomialStream>(steps, checkpoints);
     }
     return std::make_unique<EveryStateStream>(

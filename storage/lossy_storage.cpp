@@ -61,6 +61,10 @@ bool LossyStorage::Options::IsValid(std::string* error) const {
               " must be in (0, 0.5] for codec=" + (codec == Codec::kRound ? "round" : "time") + " (relative)";
   } else if (target != 0.0 && !(target >= kMinTarget && target <= kMaxTarget)) {
     message = "lossy.target = " + shortest(target) + " must be in [1e-14, 0.1]";
+  } else if (sensitivity != 0.0 && !(sensitivity >= kMinSensitivity && sensitivity <= kMaxSensitivity)) {
+    message = "lossy.sensitivity = " + shortest(sensitivity) + " must be in [0.001, 1000]";
+  } else if (sensitivity != 0.0 && target == 0.0) {
+    message = "lossy.sensitivity goes with target=T (it sets the tolerance T / sensitivity)";
   } else if (budgetBytes <= 0) {
     message = "lossy.budget = " + std::to_string(budgetBytes) + " must be positive";
   } else if (blockStates < 0) {
@@ -85,10 +89,15 @@ std::unique_ptr<TrajectoryStorage> LossyStorage::create(const StorageSpec& spec)
       throw std::invalid_argument(
           "lossy.target sets codec and tolerance itself: give target or codec+tolerance");
     options.target = spec.real("target", 0.0, kMinTarget, kMaxTarget);
+    options.sensitivity = spec.real("sensitivity", 0.0, kMinSensitivity, kMaxSensitivity);
     options.codec = Codec::kTime;
-    options.tolerance = options.target / kGradientSensitivity;
+    options.tolerance =
+        options.target / (options.sensitivity > 0.0 ? options.sensitivity : kGradientSensitivity);
     return std::make_unique<LossyStorage>(options);
   }
+  if (spec.has("sensitivity"))
+    throw std::invalid_argument(
+        "lossy.sensitivity goes with target=T (it sets the tolerance T / sensitivity)");
   const std::string codec = spec.text("codec", "", {"zfp", "round", "time"});
   if (codec.empty())
     throw std::invalid_argument(
@@ -127,9 +136,26 @@ std::string LossyStorage::spec() const {
                                                   : options_.codec == Codec::kRound ? "round"
                                                                                     : "time") +
                                                  ",tolerance=" + shortest(options_.tolerance);
+  // A calibrated factor is part of what the run did: the spec says it (and gives it back when parsed).
+  if (options_.target > 0.0 && sensitivity() != kGradientSensitivity)
+    text += ",sensitivity=" + shortest(sensitivity());
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.blockStates > 0) text += ",block=" + std::to_string(options_.blockStates);
   return text;
+}
+
+double LossyStorage::sensitivity() const {
+  if (options_.sensitivity > 0.0) return options_.sensitivity;
+  return calibrated_ > 0.0 ? calibrated_ : kGradientSensitivity;
+}
+
+void LossyStorage::calibrate(double sensitivity) {
+  if (!(sensitivity >= kMinSensitivity && sensitivity <= kMaxSensitivity))
+    throw std::invalid_argument("lossy: a calibrated sensitivity of " + shortest(sensitivity) +
+                                " is outside [0.001, 1000]");
+  if (options_.target <= 0.0) return;  // the expert codecs keep their own tolerance and estimate
+  calibrated_ = sensitivity;
+  options_.tolerance = options_.target / this->sensitivity();
 }
 
 int LossyStorage::keptMantissaBits(double relativeTolerance) {
@@ -230,7 +256,7 @@ void LossyStorage::compressBlock() {
     size = timeCodec_->encodeBounded(raw_.data(), count, internal::TimeCodec::kBoundedOrder, bounds_.data(),
                                      scratch_.data(), scale_.data(), &worst);
     worstRelativeError_ = std::max(worstRelativeError_, worst);
-    mutableCounters().gradientErrorEstimate = kGradientSensitivity * worstRelativeError_;
+    mutableCounters().gradientErrorEstimate = sensitivity() * worstRelativeError_;
   } else if (options_.codec == Codec::kZfp) {
     // ZFP's absolute bound T against each component's largest magnitude in the block: the relative
     // state error the estimate is made of (infinite for a component that is zero over a block: the

@@ -3,7 +3,7 @@
 // ones, so the gradient is that of a perturbed trajectory; its error is O(tolerance) (measured in
 // tests/storage/lossy_storage_test.cpp). Nothing is recomputed.
 //
-// Spec: lossy:target=T[,budget=BYTES][,block=STATES]
+// Spec: lossy:target=T[,sensitivity=S][,budget=BYTES][,block=STATES]
 //       lossy:codec=zfp|round|time,tolerance=T[,budget=BYTES][,block=STATES]   (for experts)
 //   target=T     the relative 2-norm error ||g - g_full|| / ||g_full|| of the gradient the user
 //                accepts, T in [1e-14, 0.1]. Codec time with tolerance T / kGradientSensitivity (= 10): the
@@ -18,6 +18,13 @@
 //                It is a documented estimate, not a proof: a problem whose gradient is more sensitive to its
 //                states than these can exceed T, and components that fall by decades within a block
 //                (Robertson) lose their small values' digits.
+//   sensitivity  with target: the factor S of the problem at hand in place of kGradientSensitivity, in
+//                [1e-3, 1e3]: codec time with tolerance T / S, gradient_error_estimate = S x the relative
+//                state error made. A calibration that belongs to a problem and its integrator, measured
+//                against full storage (calibrate() lets an application set its own measured one; a
+//                sensitivity= in the spec wins). The piston rod's reduced model sets S = 0.3 for
+//                generalized-alpha and rk4 (measured ratio at most 0.05 and 0.09; docs/theory/storage.md,
+//                "Compression along time").
 //   codec=time   prediction along time with quantized residuals (storage/time_codec.h): every
 //                restored value is within tolerance x max|component| over its block of the recorded
 //                one, tolerance in (0, 0.5].
@@ -66,6 +73,8 @@ class LossyStorage final : public TrajectoryStorage {
   static constexpr double kGradientSensitivity = 10.0;
   static constexpr double kMinTarget = 1e-14;
   static constexpr double kMaxTarget = 0.1;
+  static constexpr double kMinSensitivity = 1e-3;
+  static constexpr double kMaxSensitivity = 1e3;
   static constexpr std::int64_t kDefaultBudget = std::int64_t{4} << 30;
 
   struct Options {
@@ -73,6 +82,9 @@ class LossyStorage final : public TrajectoryStorage {
     double tolerance =
         1e-8;             ///< absolute for zfp, relative for round, relative to the block's scale for time
     double target = 0.0;  ///< > 0: the gradient error target (codec time, tolerance from it)
+    /// With target: the calibrated ratio of relative gradient error to relative state error; 0: none given
+    /// (kGradientSensitivity, or what calibrate() sets).
+    double sensitivity = 0.0;
     std::int64_t budgetBytes = kDefaultBudget;
     std::int64_t blockStates = 0;  ///< 0: automatic
     /// The strategy "packed": codec time without a bound, every bit restored (isExact() is true).
@@ -89,6 +101,14 @@ class LossyStorage final : public TrajectoryStorage {
 
   std::string spec() const override;
   bool isExact() const override { return options_.lossless; }
+
+  /// The factor target=T plans by and the estimate reports: the spec's sensitivity=, else the last
+  /// calibrate(), else kGradientSensitivity.
+  double sensitivity() const;
+  /// An application's measured sensitivity for its problem and integrator (in [kMinSensitivity,
+  /// kMaxSensitivity]), used by target=T when the spec gives none; no effect without target. Takes effect
+  /// at the next begin().
+  void calibrate(double sensitivity);
 
   /// Mantissa bits kept by codec=round for a relative tolerance (0..52).
   static int keptMantissaBits(double relativeTolerance);
@@ -110,6 +130,7 @@ class LossyStorage final : public TrajectoryStorage {
   };
 
   Options options_;
+  double calibrated_ = 0.0;  // calibrate()'s sensitivity; 0: none
   std::int64_t blockStates_ = 1;
   bool componentMajor_ = true;
   std::vector<double> raw_;   // state-major: the block being filled / zstd scratch

@@ -1,6 +1,7 @@
 #include <hindsight/storage/multilevel_storage.h>
 
 #include <hindsight/storage/chunked_state_file.h>
+#include <hindsight/storage/overlapped_io.h>
 #include <hindsight/storage/scratch_files.h>
 
 #include <hindsight/engine/hash.h>
@@ -67,6 +68,8 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
   options.stride = spec.text("schedule", "optimal", {"optimal", "stride"}) == "stride";
   if (spec.has("costs")) options.costs = ScheduleCosts::parse(spec.text("costs", ""), "multilevel.costs");
+  options.overlap = spec.integer("overlap", 1, 0, 1) == 1;
+  options.syncWrites = spec.integer("sync", 0, 0, 1) == 1;
   return std::make_unique<MultilevelStorage>(std::move(options));
 }
 
@@ -78,6 +81,8 @@ std::string MultilevelStorage::spec() const {
   if (options_.keepFile) text += ",keep=true";
   if (options_.costs) text += ",costs=" + options_.costs->text();
   if (options_.stride) text += ",schedule=stride";
+  if (!options_.overlap) text += ",overlap=0";
+  if (options_.syncWrites) text += ",sync=1";
   return text;
 }
 
@@ -86,6 +91,9 @@ void MultilevelStorage::closeFile() {
     file_->close();
     file_.reset();
   }
+  if (io_) prefetchedReads_ = io_->prefetchedReads();
+  io_.reset();  // joins the I/O thread, which uses slotFile_
+  lookahead_.reset();
   slotFile_.reset();
 }
 
@@ -319,7 +327,8 @@ struct MultilevelStorage::SlotFile {
   bool keep = false;
   std::vector<char> record;  // one slot, allocated once: reads and writes allocate nothing
 
-  SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter)
+  SlotFile(const std::string& directory, std::int64_t bytes, bool keepFile, std::int64_t failWritesAfter,
+           bool syncWrites)
       : stateBytes(bytes),
         recordBytes(bytes + kTrailerBytes),
         failAfter(failWritesAfter),
@@ -331,7 +340,7 @@ struct MultilevelStorage::SlotFile {
     path = (std::filesystem::path(directory) /
             internal::scratchFileName("hindsight-multilevel", ".slots", keepFile))
                .string();
-    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC | (syncWrites ? O_DSYNC : 0), 0600);
     if (fd < 0)
       throw StorageError("multilevel: cannot create the disk level: " + std::string(std::strerror(errno)),
                          path);
@@ -419,6 +428,9 @@ void MultilevelStorage::doBegin() {
   slotIoSeconds_ = 0.0;
   diskWrites_ = 0;
   diskReads_ = 0;
+  backwardSweep_ = false;
+  hiddenSeconds_ = 0.0;
+  prefetchedReads_ = 0;
   if (options_.stride || info().stepCount < 0) {
     beginStride();
     return;
@@ -467,7 +479,7 @@ void MultilevelStorage::beginPlan() {
 void MultilevelStorage::measureDiskCosts(ScheduleCosts& costs) {
   const std::string directory =
       options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-  SlotFile probe(directory, stateBytes(), false, -1);
+  SlotFile probe(directory, stateBytes(), false, -1, options_.syncWrites);
   std::vector<double> state(static_cast<std::size_t>(info().stateSize), 0.0);
   std::vector<double> writes, reads;
   for (int i = 0; i < 5; ++i) {
@@ -496,10 +508,53 @@ void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
   if (plan_.diskSlotsUsed() > 0) {
     const std::string directory =
         options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-    slotFile_ =
-        std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile, options_.failWriteAfterChunks);
+    slotFile_ = std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile,
+                                           options_.failWriteAfterChunks, options_.syncWrites);
     filePath_ = slotFile_->path;
+    if (options_.overlap) {
+      SlotFile& file = *slotFile_;
+      io_ = std::make_unique<internal::OverlappedSlotIo>(
+          info().stateSize, internal::OverlappedSlotIo::kDefaultQueueDepth,
+          [&file](std::int64_t slot, const double* z) { file.write(slot, z); },
+          [&file](std::int64_t slot, double* z) { file.read(slot, z); });
+      lookahead_ = std::make_unique<internal::DiskEventLookahead>(plan_);
+      hiddenSeconds_ =
+          internal::hiddenDiskSeconds(plan_, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
+    }
   }
+}
+
+void MultilevelStorage::writeSlot(std::int64_t slot, const double* z) {
+  Stopwatch watch;
+  if (io_) {
+    lookahead_->pop(internal::DiskEvent{false, slot});
+    io_->write(slot, z);
+    if (backwardSweep_) startNextRead();
+  } else {
+    slotFile_->write(slot, z);
+  }
+  slotIoSeconds_ += watch.seconds();
+  ++diskWrites_;
+  diskRows_ = std::max(diskRows_, slot + 1);
+}
+
+void MultilevelStorage::readSlot(std::int64_t slot, double* z) {
+  Stopwatch watch;
+  if (io_) {
+    lookahead_->pop(internal::DiskEvent{true, slot});
+    io_->read(slot, z);
+    startNextRead();
+  } else {
+    slotFile_->read(slot, z);
+  }
+  slotIoSeconds_ += watch.seconds();
+  ++diskReads_;
+}
+
+void MultilevelStorage::startNextRead() {
+  // The rule of storage/overlapped_io.h: when the plan's next disk event is a read, start it now.
+  const internal::DiskEvent* next = lookahead_->peek();
+  if (next != nullptr && next->read) io_->prefetch(next->slot);
 }
 
 void MultilevelStorage::recordPlanned(std::int64_t step, const double* z) {
@@ -511,11 +566,7 @@ void MultilevelStorage::recordPlanned(std::int64_t step, const double* z) {
       if (level == StorageLevel::kRam) {
         std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z, n * 8);
       } else {
-        Stopwatch watch;
-        self.slotFile_->write(slot, z);
-        self.slotIoSeconds_ += watch.seconds();
-        ++self.diskWrites_;
-        self.diskRows_ = std::max(self.diskRows_, slot + 1);
+        self.writeSlot(slot, z);
       }
       ++self.mutableCounters().statesStored;
     }
@@ -563,11 +614,18 @@ void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
     finishStride();
     return;
   }
+  if (io_) {
+    Stopwatch watch;
+    io_->drain();  // every write on disk (and any failure thrown) before the file is complete
+    slotIoSeconds_ += watch.seconds();
+  }
   StorageCounters& c = mutableCounters();
   c.bytesOnDisk = slotFile_ ? slotFile_->size() : 0;
   c.ioSeconds = slotIoSeconds_;
   statesInRam_ = 0;
   if (slotFile_ && options_.afterForwardSweep) options_.afterForwardSweep(slotFile_->path);
+  backwardSweep_ = true;
+  if (io_) startNextRead();
 }
 
 void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
@@ -583,11 +641,7 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
       if (level == StorageLevel::kRam) {
         std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * 8);
       } else {
-        Stopwatch watch;
-        self.slotFile_->write(slot, z.data());
-        self.slotIoSeconds_ += watch.seconds();
-        ++self.diskWrites_;
-        self.diskRows_ = std::max(self.diskRows_, slot + 1);  // the optimal plan also writes while reversing
+        self.writeSlot(slot, z.data());  // the optimal plan also writes while reversing
       }
     }
     void load(StorageLevel level, std::int64_t slot) {
@@ -595,10 +649,7 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
       if (level == StorageLevel::kRam) {
         std::memcpy(z.data(), self.ramPool_.get() + static_cast<std::size_t>(slot) * n, n * 8);
       } else {
-        Stopwatch watch;
-        self.slotFile_->read(slot, z.data());
-        self.slotIoSeconds_ += watch.seconds();
-        ++self.diskReads_;
+        self.readSlot(slot, z.data());
       }
     }
     void advance(std::int64_t from, std::int64_t to) {
@@ -612,7 +663,7 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
     mutableCounters().ioSeconds = slotIoSeconds_;
     mutableCounters().predictedSeconds = predictedSeconds();
     mutableCounters().scheduleSeconds = measuredSeconds();
-    slotFile_.reset();
+    closeFile();
     releaseBytes(poolSlots_ * stateBytes());
     ramPool_.reset();
     poolSlots_ = 0;
@@ -773,8 +824,14 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
     warnAgainstStride(layout, request, p);
     return;
   }
+  const ScheduleCosts costs = planningCosts(multilevel.options(), request, layout);
   TwoLevelPlan plan = fixedStepPlan(storage, request);
   p.plan = plan.describe();
+  // A run with overlap=1 hides part of its disk I/O: the same model the run's predictedSeconds() uses.
+  if (multilevel.options().overlap) {
+    p.hiddenIoCost = internal::hiddenDiskSeconds(plan, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
+    if (p.hiddenIoCost > 0.0) p.plan += "; disk I/O overlapped with computation (write-behind, read-ahead)";
+  }
   const TwoLevelPlan::Counts& c = plan.counts();
   p.recomputedSteps = c.recomputedSteps;
   p.statesStored = c.statesStored;

@@ -2,7 +2,7 @@
 // (gradients bitwise identical to "full", recomputation included; docs/design.md §6).
 //
 // Spec: multilevel:ram=BYTES,disk=BYTES[,costs=uf:ub:wd:rd][,schedule=optimal|stride][,dir=PATH]
-//                  [,level=1..22][,keep=true|false]
+//                  [,level=1..22][,keep=true|false][,overlap=0|1][,sync=0|1]
 //   ram       bytes held in memory (the strategy's budget)
 //   disk      bytes of states on disk (raw states for schedule=optimal; rows with their times,
 //             counted uncompressed, for schedule=stride)
@@ -21,6 +21,13 @@
 //             the plan schedule=optimal runs with the same levels and costs.
 //   dir       directory of the file (default: the system temp directory); level, keep as for "disk"
 //             (level only matters for schedule=stride, whose file is compressed).
+//   overlap   1 (default): schedule=optimal's disk level writes behind and reads ahead on a second
+//             thread (storage/overlapped_io.h: two write buffers and one read-ahead buffer of a state
+//             each, beside ram= as the slot file's own record buffer is); 0: every write and read waits
+//             for the disk. The same bits either way; the predicted seconds subtract what the overlap
+//             hides (internal::hiddenDiskSeconds), and the measured ones count the waits only.
+//   sync      1: schedule=optimal's slot file is opened O_DSYNC, so each write has reached the device when
+//             it returns (a disk without a write cache; bench/disk_bench.cpp's disk-bound case); default 0.
 // schedule=optimal keeps its disk level in a file of fixed-size slots of raw states
 // ("hindsight-multilevel-*.slots", written and read with pwrite/pread: the plan rewrites and rereads
 // slots in any order, which the append-only compressed file cannot), RAM slots allocated once at
@@ -68,7 +75,9 @@ namespace hindsight {
 
 namespace internal {
 class ChunkedStateFile;
-}
+class OverlappedSlotIo;
+class DiskEventLookahead;
+}  // namespace internal
 
 class MultilevelStorage final : public TrajectoryStorage {
  public:
@@ -90,6 +99,10 @@ class MultilevelStorage final : public TrajectoryStorage {
     bool stride = false;
     /// The cost model; measured at the start of each run when empty.
     std::optional<ScheduleCosts> costs;
+    /// schedule=optimal: write behind and read ahead on a second thread (spec overlap=1, the default).
+    bool overlap = true;
+    /// schedule=optimal: slot writes reach the device before they return (O_DSYNC; spec sync=1).
+    bool syncWrites = false;
     bool IsValid(std::string* error) const;
   };
 
@@ -121,7 +134,13 @@ class MultilevelStorage final : public TrajectoryStorage {
   bool usesPlan() const { return usesPlan_; }
   const TwoLevelPlan& plan() const { return plan_; }
   const ScheduleCosts& costs() const { return costsInUse_; }
-  double predictedSeconds() const { return usesPlan_ ? plan_.counts().cost(costsInUse_) : 0.0; }
+  double predictedSeconds() const {
+    return usesPlan_ ? plan_.counts().cost(costsInUse_) - hiddenSeconds_ : 0.0;
+  }
+  /// Disk seconds the overlap hides by the cost model in the current or last run (0 without overlap).
+  double hiddenSeconds() const { return hiddenSeconds_; }
+  /// Disk reads of the last run served by a read-ahead (overlap=1; every disk read when it works).
+  std::int64_t prefetchedReads() const { return prefetchedReads_; }
   double measuredSeconds() const { return recomputeSeconds_ + slotIoSeconds_; }
   /// States written to and read from the disk level in the last run (either schedule).
   std::int64_t diskWrites() const { return diskWrites_; }
@@ -160,6 +179,10 @@ class MultilevelStorage final : public TrajectoryStorage {
   void choosePlan(const ScheduleCosts& costs);
   void recordPlanned(std::int64_t step, const double* z);
   void measureDiskCosts(ScheduleCosts& costs);
+  /// The disk level's write and read, through the I/O thread with overlap=1 (time waited in slotIoSeconds_).
+  void writeSlot(std::int64_t slot, const double* z);
+  void readSlot(std::int64_t slot, double* z);
+  void startNextRead();
 
   std::int64_t availableSlots() const;
   /// A free RAM slot; allocates a block of up to `wanted` slots when none is free.
@@ -210,6 +233,13 @@ class MultilevelStorage final : public TrajectoryStorage {
   double recomputeSeconds_ = 0.0;
   double slotIoSeconds_ = 0.0;
   std::int64_t diskWrites_ = 0, diskReads_ = 0;
+  // overlap=1: the I/O thread over slotFile_ and the plan's disk events ahead of the run (reads start
+  // only after the forward sweep, whose end waits for every write: the file is then complete).
+  std::unique_ptr<internal::OverlappedSlotIo> io_;
+  std::unique_ptr<internal::DiskEventLookahead> lookahead_;
+  bool backwardSweep_ = false;
+  double hiddenSeconds_ = 0.0;
+  std::int64_t prefetchedReads_ = 0;
   // The stride's counting executor (predict): the same placement, slots and scratch rounds, with no
   // state copied, no RAM slot allocated (only charged) and no file written; recompute() reaches a
   // recomputer that only counts.

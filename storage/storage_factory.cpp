@@ -81,6 +81,9 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                 "the relative gradient error T accepted; chooses codec=time and its tolerance (give target "
                 "or "
                 "codec + tolerance)"},
+               {"sensitivity",
+                "with target: the problem's calibrated ratio S of relative gradient error to relative state "
+                "error, in [0.001, 1000] (default 10, or the application's calibration); tolerance T / S"},
                {"codec",
                 "zfp (absolute error bound) | round | time (relative error bounds, tolerance in (0, 0.5])"},
                {"tolerance", "the error bound T > 0, with codec"},
@@ -109,7 +112,13 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
                {"costs",
                 "uf:ub:wd:rd, seconds of a forward step, an adjoint step, a disk write and a read (default: "
                 "measured at the start of the run; storage/schedule.h)"},
-               {"schedule", "optimal (default, fixed steps) | stride"}}},
+               {"schedule", "optimal (default, fixed steps) | stride"},
+               {"overlap",
+                "1 (default) | 0: schedule=optimal's disk writes behind and reads ahead on a second thread "
+                "(the same bits; the prediction subtracts the hidden I/O)"},
+               {"sync",
+                "0 (default) | 1: schedule=optimal's disk writes reach the device before they return "
+                "(O_DSYNC)"}}},
              &MultilevelStorage::create,
              &MultilevelStorage::predict,
              {},

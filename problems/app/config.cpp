@@ -664,6 +664,7 @@ nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateByt
                          {"disk_reads", p.diskReads},
                          {"peak_ram_bytes", p.peakRamBytes},
                          {"peak_disk_bytes", p.peakDiskBytes},
+                         {"hidden_io_cost", p.hiddenIoCost},
                          {"schedule_cost", p.scheduleCost},
                          {"total_cost", p.totalCost}};
   if (!p.warning.empty()) json["warning"] = p.warning;

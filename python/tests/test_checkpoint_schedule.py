@@ -220,9 +220,11 @@ def test_defaults_are_schedules():
 
 
 def test_actions_read_as_checkpoint_schedules():
+    # C + 1 = 2 snapshots hold x_0 and x_1; x_2's adjoint data is WORK when the forward run ends.
     actions = list(hindsight.checkpoint_schedule("binomial:checkpoints=1", steps=3))
-    assert repr(actions[0]) == "Forward(0, 2, True, False, StorageType.RAM)"
-    assert actions[2] == EndForward() and actions[-1] == EndReverse()
+    assert repr(actions[0]) == "Forward(0, 1, True, False, StorageType.RAM)"
+    assert repr(actions[2]) == "Forward(2, 3, False, True, StorageType.WORK)"
+    assert actions[3] == EndForward() and actions[-1] == EndReverse()
     assert [list(a) for a in actions if type(a) is Reverse] == [[2], [1], [0]]
 
 

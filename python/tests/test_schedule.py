@@ -23,9 +23,10 @@ def test_cams_needs_fewer_rhs_than_binomial_at_equal_bytes():
     cams = hindsight.schedule("cams:checkpoints=10", 30000, state_bytes=160)
     assert cams.peak_ram_bytes <= binomial.peak_ram_bytes
     assert cams.rhs_evaluations < binomial.rhs_evaluations
-    # binomial reverses over all its C + 1 slots, the optimum without records; cams' records lower it a
-    # little at C = 10 (880 400 against 885 772), its online mode (913 280) does not reach it.
-    assert binomial.rhs_evaluations == 885_772
+    # binomial reverses by revolve with all its C + 1 slots as snapshots (x_{N-1} the engine's working
+    # state), the optimum without records; cams' records lower it a little at C = 10 (880 400 against
+    # 885 748), its online mode (913 280) does not reach it.
+    assert binomial.rhs_evaluations == 885_748
     assert cams.rhs_evaluations == 880_400
     online = hindsight.schedule("cams:checkpoints=10,online=1", 30000, state_bytes=160)
     assert cams.rhs_evaluations < online.rhs_evaluations

@@ -125,8 +125,10 @@ void expectSound(const Arguments& a, const Outcome& o) {
   EXPECT_GE(p.totalCost, fixed * (1 - 1e-12)) << input;
   if (a.storage.rfind("binomial", 0) == 0) {
     const std::int64_t c = dynamic_cast<BinomialCheckpointing&>(*createStorage(a.storage)).checkpoints();
-    EXPECT_TRUE(static_cast<UnsignedInt128>(p.recomputedSteps) ==
-                revolve::optimalRecomputedSteps(o.steps, std::min(c + 1, o.steps)))
+    // Revolve with C + 1 snapshots, x_{N-1} the engine's working state (engine/binomial_checkpointing.h).
+    EXPECT_TRUE(
+        static_cast<UnsignedInt128>(p.recomputedSteps) ==
+        revolve::workingStateRecomputedSteps(o.steps, BinomialCheckpointing::slotsFor(o.steps, c, true)))
         << input;
   }
 }

@@ -1,8 +1,9 @@
 // Binomial (revolve) checkpointing: the schedule attains the Griewank-Walther optimum
 // T(N, c) = r N - C(c + r, r - 1) exactly, as a pure schedule (large N); the strategy, which charges
-// every state it keeps, attains the optimum of that game over all its C + 1 slots,
-// R(N, S) = T(N + 1, S) - N (exhaustive search over every schedule for small N), through the real storage
-// with a real problem (moderate N), without overflow, within its byte budget.
+// every state it keeps, attains the optimum of its game over all its C + 1 slots: with the caller's working
+// state holding x_{N-1} (computeGradient) revolve's own count T(N, C + 1) - (N - 1), without it
+// R(N, S) = T(N + 1, S) - N (both against exhaustive search over every schedule for small N), through the
+// real storage with a real problem (moderate N), without overflow, within its byte budget.
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
@@ -74,14 +75,18 @@ TEST(RevolveFormula, KnownValuesAndNoOverflow) {
 // then x_{N-1}, ..., x_0 are produced in turn, each by loading a slot and advancing (one recomputed step
 // per advance), copying states into free slots on the way; a produced state is consumed. The least
 // number of recomputed steps over every schedule, by exhaustive search over the held sets (bit masks).
+// With a working state, x_{N-1} is the caller's (produced for free, in no slot): the forward sweep's copies
+// are then of x_0 .. x_{N-2}.
 class ExhaustiveGame {
  public:
-  ExhaustiveGame(int steps, int slots) : steps_(steps), slots_(slots) {}
+  ExhaustiveGame(int steps, int slots, bool working = false)
+      : steps_(steps), slots_(slots), working_(working && steps >= 2) {}
   std::int64_t optimum() {
     std::int64_t best = kInfinity;
+    const int copyable = working_ ? steps_ - 1 : steps_;
     // The forward sweep's copies: any set holding x_0 (nothing else can produce it) of at most S states.
-    for (std::uint32_t mask = 1; mask < (1u << steps_); mask += 2)
-      if (__builtin_popcount(mask) <= slots_) best = std::min(best, produce(mask, steps_ - 1));
+    for (std::uint32_t mask = 1; mask < (1u << copyable); mask += 2)
+      if (__builtin_popcount(mask) <= slots_) best = std::min(best, produce(mask, copyable - 1));
     return best;
   }
 
@@ -115,8 +120,34 @@ class ExhaustiveGame {
     return best;
   }
   int steps_, slots_;
+  bool working_;
   std::map<std::pair<std::uint32_t, int>, std::int64_t> memo_;
 };
+
+// With the working state the game is revolve's own: T(N, S) - (N - 1) by exhaustive search, and the
+// strategy's plan (what a run of computeGradient executes, counted without states) attains it with the
+// C + 1 slots of binomial:checkpoints=C for every N <= 600 and C <= 12: revolve with C + 1 snapshots.
+TEST(RevolveFormula, TheGameWithAWorkingStateCostsRevolveItself) {
+  for (int s = 1; s <= 3; ++s) {
+    for (int n = 1; n <= (s == 3 ? 10 : 11); ++n) {
+      ASSERT_EQ(toString(revolve::workingStateRecomputedSteps(n, s)),
+                std::to_string(ExhaustiveGame(n, s, true).optimum()))
+          << "N = " << n << ", S = " << s;
+    }
+  }
+  for (std::int64_t c = 1; c <= 12; ++c) {
+    for (std::int64_t n = 1; n <= 600; ++n) {
+      const std::int64_t slots = BinomialCheckpointing::slotsFor(n, c, true);
+      ASSERT_EQ(toString(BinomialCheckpointing::countPlan(n, slots, false, true).recomputedSteps),
+                toString(optimalForwardSteps(n, std::min(c + 1, n)) - static_cast<UnsignedInt128>(n - 1)))
+          << "N = " << n << ", C = " << c;
+    }
+  }
+  // N = 1000, C = 2: revolve's 11 156 with 3 snapshots (11 172 without the working state); N = 10: 6.
+  EXPECT_EQ(toString(BinomialCheckpointing::countPlan(1000, 3, false, true).recomputedSteps), "11156");
+  EXPECT_EQ(toString(BinomialCheckpointing::countPlan(10, 3, false, true).recomputedSteps), "6");
+  EXPECT_EQ(toString(BinomialCheckpointing::countPlan(1000, 3, false, false).recomputedSteps), "11172");
+}
 
 // The same game by a dynamic programme over the forward sweep's next copy at m (or none):
 //   G(1, s) = 0,  G(l, s) = min( T(l, s),  min_m G(l - m, s - 1) + T(m, s) )   (s >= 2 for the copy),
@@ -226,11 +257,15 @@ TEST_P(BinomialOnPendulum, BitwiseGradientOfFullAndOptimalRecomputation) {
     EXPECT_EQ(std::memcmp(result.gradient.data(), reference.gradient.data(),
                           sizeof(double) * static_cast<std::size_t>(result.gradient.size())),
               0);
-    // Revolve over all C + 1 slots (positions 0..N): the game's optimum.
+    // Revolve over all C + 1 slots (positions 0..N-1, x_{N-1} the engine's working state): revolve's own
+    // count with C + 1 snapshots.
+    const std::int64_t states = BinomialCheckpointing::slotsFor(steps, c, true);
     EXPECT_EQ(toString(static_cast<UnsignedInt128>(storage.counters().recomputedSteps)),
-              toString(revolve::optimalRecomputedSteps(steps, std::min(c + 1, steps))))
+              toString(revolve::workingStateRecomputedSteps(steps, states)))
         << "N = " << steps << ", c = " << c;
-    const std::int64_t states = std::min(c + 1, steps);
+    EXPECT_EQ(toString(revolve::workingStateRecomputedSteps(steps, states)),
+              toString(optimalForwardSteps(steps, std::min(c + 1, steps)) -
+                       static_cast<UnsignedInt128>(steps - 1)));
     EXPECT_EQ(storage.counters().peakBytesInMemory, states * 2 * 8) << "N = " << steps;
     EXPECT_LE(storage.counters().peakBytesInMemory, storage.budgetBytes());
     EXPECT_EQ(storage.counters().bytesInMemory, 0);
@@ -242,16 +277,21 @@ TEST_P(BinomialOnPendulum, BitwiseGradientOfFullAndOptimalRecomputation) {
 // N up to 300 for 1..9 slots and on larger cases. (The counting run itself is held equal to real runs by
 // tests/storage/prediction_grid_test.cpp.)
 TEST(BinomialCheckpointing, ClosedFormCountsEqualTheCountingRunOfItsPlan) {
-  const auto expectEqual = [](std::int64_t steps, std::int64_t slots, bool keepStages) {
-    const auto run = BinomialCheckpointing::countPlan(steps, slots, keepStages);
-    const auto closed = BinomialCheckpointing::closedFormCounts(steps, slots, keepStages);
-    const std::string where =
-        "N = " + std::to_string(steps) + ", S = " + std::to_string(slots) + (keepStages ? ", stages=1" : "");
+  const auto expectEqualIn = [](std::int64_t steps, std::int64_t slots, bool keepStages, bool working) {
+    const auto run = BinomialCheckpointing::countPlan(steps, slots, keepStages, working);
+    const auto closed = BinomialCheckpointing::closedFormCounts(steps, slots, keepStages, working);
+    const std::string where = "N = " + std::to_string(steps) + ", S = " + std::to_string(slots) +
+                              (keepStages ? ", stages=1" : "") + (working ? ", working state" : "");
     EXPECT_EQ(toString(run.recomputedSteps), toString(closed.recomputedSteps)) << where;
     EXPECT_EQ(run.statesStored, closed.statesStored) << where;
     EXPECT_EQ(run.ramWrites, closed.ramWrites) << where;
     EXPECT_EQ(run.stepDataStored, closed.stepDataStored) << where;
     EXPECT_EQ(run.stepDataRestored, closed.stepDataRestored) << where;
+  };
+  const auto expectEqual = [&](std::int64_t steps, std::int64_t slots, bool keepStages) {
+    expectEqualIn(steps, slots, keepStages, false);
+    // With the working state at most N - 1 slots serve (1 for N = 1).
+    if (slots <= std::max<std::int64_t>(steps - 1, 1)) expectEqualIn(steps, slots, keepStages, true);
   };
   for (std::int64_t steps = 1; steps <= 300; ++steps) {
     for (std::int64_t slots = 1; slots <= std::min<std::int64_t>(9, steps); ++slots) {
@@ -279,7 +319,7 @@ TEST(BinomialCheckpointing, ReusableForASecondRun) {
   const GradientResult second = computeGradient(problem, p, pendulumOptions(1.0, 0.01), storage);
   EXPECT_EQ(first.gradient, second.gradient);
   EXPECT_EQ(toString(static_cast<UnsignedInt128>(storage.counters().recomputedSteps)),
-            toString(revolve::optimalRecomputedSteps(100, 5)));
+            toString(revolve::workingStateRecomputedSteps(100, 5)));
 }
 
 TEST(BinomialCheckpointing, AdaptiveStepsAreRejectedWithAPointerToOnline) {

@@ -1,6 +1,7 @@
 // The checkpoint_schedules action stream (storage/checkpoint_actions.h): valid for every fixed-step
 // strategy on a grid of N and budgets (a host that tracks which step each piece of data belongs to
 // executes it), and it recomputes what the strategy's own prediction says.
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/storage/checkpoint_actions.h>
 #include <hindsight/storage/checkpoint_stream.h>
 #include <hindsight/storage/storage_factory.h>
@@ -72,20 +73,52 @@ TEST(CheckpointActions, TextIsCheckpointSchedulesRepr) {
       checkpointSchedule("binomial:checkpoints=1", 3, 16, 1, nullptr);
   std::string text;
   for (const CheckpointAction& a : actions) text += a.text() + "\n";
-  // revolve with x_0 as the one checkpoint: x_2's adjoint data from the forward run, x_1 from x_0 again.
+  // C + 1 = 2 slots over x_0, x_1 (x_2 is WORK when the forward run ends): nothing recomputed. The same
+  // actions as checkpoint_schedules' MultistageCheckpointSchedule(3, 2, 0) (read from its multistage.py).
   EXPECT_EQ(text,
-            "Forward(0, 2, True, False, StorageType.RAM)\n"
+            "Forward(0, 1, True, False, StorageType.RAM)\n"
+            "Forward(1, 2, True, False, StorageType.RAM)\n"
             "Forward(2, 3, False, True, StorageType.WORK)\n"
             "EndForward()\n"
             "Reverse(3, 2, True)\n"
-            "Copy(0, StorageType.RAM, StorageType.WORK)\n"
-            "Forward(0, 1, False, False, StorageType.WORK)\n"
+            "Move(1, StorageType.RAM, StorageType.WORK)\n"
             "Forward(1, 2, False, True, StorageType.WORK)\n"
             "Reverse(2, 1, True)\n"
             "Move(0, StorageType.RAM, StorageType.WORK)\n"
             "Forward(0, 1, False, True, StorageType.WORK)\n"
             "Reverse(1, 0, True)\n"
             "EndReverse()\n");
+}
+
+// binomial's stream is revolve with C + 1 snapshots, as checkpoint_schedules' MultistageCheckpointSchedule
+// counts it: x_{N-1}'s adjoint data comes from the forward run's last step (WORK), so N = 10, C = 2 takes
+// 9 + 1 forward steps, 6 recomputed and 9 re-runs (25 in all, T(10, 3) + 10), and N = 1000, C = 2
+// recomputes 11 156 = T(1000, 3) - 999 steps; never more than C + 1 restart states in RAM.
+TEST(CheckpointActions, BinomialStreamIsRevolveWithOneSnapshotPerSlot) {
+  for (const std::int64_t steps : {10, 1000, 4097}) {
+    for (const std::int64_t c : {1, 2, 5, 20}) {
+      const CheckpointStreamCounts counts = checkCheckpointStream(
+          checkpointSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 1, nullptr), steps);
+      const std::int64_t snapshots = std::min(c + 1, steps);
+      EXPECT_EQ(std::to_string(counts.recomputedSteps),
+                revolve::toString(revolve::optimalForwardSteps(steps, snapshots) -
+                                  static_cast<UnsignedInt128>(steps - 1)))
+          << "N = " << steps << ", C = " << c;
+      EXPECT_EQ(std::to_string(counts.forwardSteps + counts.recomputedSteps + counts.adjointReruns - 1),
+                revolve::toString(revolve::optimalForwardSteps(steps, snapshots) +
+                                  static_cast<UnsignedInt128>(steps)))
+          << "N = " << steps << ", C = " << c;
+      EXPECT_LE(counts.peakRamCheckpoints, c + 1);
+    }
+  }
+  const std::vector<CheckpointAction> small =
+      checkpointSchedule("binomial:checkpoints=2", 10, 16, 1, nullptr);
+  const CheckpointStreamCounts counts = checkCheckpointStream(small, 10);
+  EXPECT_EQ(counts.recomputedSteps, 6);
+  EXPECT_EQ(counts.forwardSteps + counts.recomputedSteps + counts.adjointReruns - 1, 25);
+  EXPECT_EQ(checkCheckpointStream(checkpointSchedule("binomial:checkpoints=2", 1000, 16, 1, nullptr), 1000)
+                .recomputedSteps,
+            11156);
 }
 
 // binomial's stream drives the run's own BinomialSchedule as the host consumes it: at N = 2^40 its first

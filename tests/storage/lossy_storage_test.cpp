@@ -242,10 +242,10 @@ TEST(LossyTarget, TimeCodecKeepsEveryValueWithinItsComponentsBlockScale) {
 }
 
 TEST(LossyStorage, SpecStringsRoundTripThroughTheFactory) {
-  for (const std::string spec :
-       {"lossy:codec=zfp,tolerance=1e-06", "lossy:codec=round,tolerance=0.0001",
-        "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64", "lossy:target=1e-06",
-        "lossy:target=0.001,block=100", "lossy:codec=time,tolerance=1e-05"}) {
+  for (const std::string spec : {"lossy:codec=zfp,tolerance=1e-06", "lossy:codec=round,tolerance=0.0001",
+                                 "lossy:codec=round,tolerance=1e-10,budget=1048576,block=64",
+                                 "lossy:target=1e-06", "lossy:target=0.001,block=100",
+                                 "lossy:codec=time,tolerance=1e-05", "lossy:target=1e-06,sensitivity=0.3"}) {
     EXPECT_EQ(createStorage(spec)->spec(), spec);
     EXPECT_FALSE(createStorage(spec)->isExact());
   }
@@ -260,12 +260,43 @@ TEST(LossyStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_THROW(createStorage("lossy:target=1e-6,codec=zfp"), std::invalid_argument);
   EXPECT_THROW(createStorage("lossy:target=1e-6,tolerance=1e-3"), std::invalid_argument);
   EXPECT_THROW(createStorage("lossy:codec=time,tolerance=0.6"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=1e-6,sensitivity=0"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:target=1e-6,sensitivity=2000"), std::invalid_argument);
+  EXPECT_THROW(createStorage("lossy:codec=time,tolerance=1e-5,sensitivity=1"), std::invalid_argument);
   try {
     createStorage("lossy:target=2");
     ADD_FAILURE() << "no error";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("lossy.target"), std::string::npos) << e.what();
   }
+}
+
+TEST(LossyStorage, CalibratedSensitivitySetsTheTargetsToleranceAndTheSpecSaysIt) {
+  // target=T codes with tolerance T / S (S = 0.5: bounds 20 times those of the default S = 10); the spec's
+  // own sensitivity= wins over an application's calibration, which the expert codecs ignore.
+  auto plain = createStorage("lossy:target=1e-6");
+  auto& lossy = dynamic_cast<LossyStorage&>(*plain);
+  EXPECT_EQ(lossy.sensitivity(), LossyStorage::kGradientSensitivity);
+  lossy.calibrate(0.5);
+  EXPECT_EQ(lossy.sensitivity(), 0.5);
+  EXPECT_EQ(lossy.spec(), "lossy:target=1e-06,sensitivity=0.5");
+  auto given = createStorage("lossy:target=1e-6,sensitivity=2");
+  dynamic_cast<LossyStorage&>(*given).calibrate(0.5);
+  EXPECT_EQ(dynamic_cast<LossyStorage&>(*given).sensitivity(), 2.0);
+  auto expert = createStorage("lossy:codec=time,tolerance=1e-5");
+  dynamic_cast<LossyStorage&>(*expert).calibrate(0.5);
+  EXPECT_EQ(expert->spec(), "lossy:codec=time,tolerance=1e-05");
+  EXPECT_THROW(lossy.calibrate(0.0), std::invalid_argument);
+
+  // On the pendulum the estimate is S x the relative state error made, and a looser S compresses more.
+  Pendulum problem;
+  auto strict = createStorage("lossy:target=1e-6");
+  auto loose = createStorage("lossy:target=1e-6,sensitivity=0.5");
+  const GradientResult a = computeGradient(problem, pendulumParameters(), fixedStepRk4(), *strict);
+  const GradientResult b = computeGradient(problem, pendulumParameters(), fixedStepRk4(), *loose);
+  EXPECT_GT(b.summary.compressionRatio, a.summary.compressionRatio);
+  EXPECT_LE(b.summary.gradientErrorEstimate, 1e-6);
+  EXPECT_GT(b.summary.gradientErrorEstimate, 0.0);
 }
 
 }  // namespace

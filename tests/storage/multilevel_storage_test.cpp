@@ -223,6 +223,13 @@ TEST(MultilevelStorage, SpecStringsRoundTripThroughTheFactory) {
   EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,schedule=stride")->spec(),
             "multilevel:ram=65536,disk=1048576,schedule=stride");
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,schedule=revolve"), std::invalid_argument);
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,overlap=0")->spec(),
+            "multilevel:ram=65536,disk=1048576,overlap=0");
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,overlap=1")->spec(),
+            "multilevel:ram=65536,disk=1048576");
+  EXPECT_THROW(createStorage("multilevel:ram=64KiB,disk=1MiB,overlap=2"), std::invalid_argument);
+  EXPECT_EQ(createStorage("multilevel:ram=64KiB,disk=1MiB,sync=1,overlap=0")->spec(),
+            "multilevel:ram=65536,disk=1048576,overlap=0,sync=1");
   EXPECT_THROW(createStorage("multilevel:ram=1MiB,disk=1MiB,costs=1:1:1"), std::invalid_argument);
   // disk=0: refused with a pointer to the strategies for RAM alone.
   for (const std::string zero : {"0", "0B", "0KiB", "0.0GiB"}) {
@@ -255,27 +262,35 @@ TEST(MultilevelPlan, BitwiseIdenticalToFullWithinBothBudgetsForMeasuredAndGivenC
       std::nullopt, ScheduleCosts{1, 1, 0, 0}, ScheduleCosts{1, 1, 0.3, 0.3}, ScheduleCosts{1, 1, 50, 50}};
   for (const Case& c : kCases) {
     for (const auto& costs : costChoices) {
-      SCOPED_TRACE(std::string(c.name) + ", costs " + (costs ? costs->text() : "measured"));
-      ScratchDirectory dir;
-      MultilevelStorage storage(planned(c.ram, c.disk, dir.path(), costs));
-      storage.setVerifyRestores(true);
-      const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
-      EXPECT_TRUE(bitwiseEqual(result, reference));
-      ASSERT_TRUE(storage.usesPlan());
-      EXPECT_LE(storage.counters().peakBytesInMemory, c.ram);
-      EXPECT_LE(storage.plan().diskSlotsUsed() * 16, c.disk);
-      EXPECT_EQ(storage.diskWrites() > 0, storage.plan().diskSlotsUsed() > 0);
-      EXPECT_EQ(storage.diskReads(), storage.plan().counts().diskReads);
-      EXPECT_EQ(result.summary.recomputedSteps, storage.plan().counts().recomputedSteps);
-      EXPECT_GE(storage.measuredSeconds(), 0.0);
-      if (!costs) EXPECT_GT(storage.costs().forwardStep, 0.0);
-      EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is gone after the backward sweep
-      ::testing::Test::RecordProperty(std::string(c.name) + " " + (costs ? costs->text() : "measured"),
-                                      storage.plan().describe() + "; recomputed " +
-                                          std::to_string(result.summary.recomputedSteps) + "; disk writes " +
-                                          std::to_string(storage.diskWrites()) + "; predicted s " +
-                                          std::to_string(storage.predictedSeconds()) + "; measured s " +
-                                          std::to_string(storage.measuredSeconds()));
+      for (const bool overlap : {false, true}) {
+        SCOPED_TRACE(std::string(c.name) + ", costs " + (costs ? costs->text() : "measured") +
+                     (overlap ? ", overlapped I/O" : ", synchronous I/O"));
+        ScratchDirectory dir;
+        MultilevelStorage::Options options = planned(c.ram, c.disk, dir.path(), costs);
+        options.overlap = overlap;
+        MultilevelStorage storage(options);
+        storage.setVerifyRestores(true);
+        const GradientResult result = computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
+        EXPECT_TRUE(bitwiseEqual(result, reference));
+        // With overlap every disk read is served by the read-ahead the plan's lookahead started.
+        EXPECT_EQ(storage.prefetchedReads(), overlap ? storage.diskReads() : 0);
+        if (!overlap) EXPECT_EQ(storage.hiddenSeconds(), 0.0);
+        ASSERT_TRUE(storage.usesPlan());
+        EXPECT_LE(storage.counters().peakBytesInMemory, c.ram);
+        EXPECT_LE(storage.plan().diskSlotsUsed() * 16, c.disk);
+        EXPECT_EQ(storage.diskWrites() > 0, storage.plan().diskSlotsUsed() > 0);
+        EXPECT_EQ(storage.diskReads(), storage.plan().counts().diskReads);
+        EXPECT_EQ(result.summary.recomputedSteps, storage.plan().counts().recomputedSteps);
+        EXPECT_GE(storage.measuredSeconds(), 0.0);
+        if (!costs) EXPECT_GT(storage.costs().forwardStep, 0.0);
+        EXPECT_EQ(dir.entryCount(), 0u);  // the slot file is gone after the backward sweep
+        ::testing::Test::RecordProperty(std::string(c.name) + " " + (costs ? costs->text() : "measured"),
+                                        storage.plan().describe() + "; recomputed " +
+                                            std::to_string(result.summary.recomputedSteps) +
+                                            "; disk writes " + std::to_string(storage.diskWrites()) +
+                                            "; predicted s " + std::to_string(storage.predictedSeconds()) +
+                                            "; measured s " + std::to_string(storage.measuredSeconds()));
+      }
     }
   }
 }
@@ -308,10 +323,12 @@ TEST(MultilevelPlan, KeptSlotFileAndFaultsAreStorageErrors) {
     EXPECT_TRUE(std::filesystem::exists(storage.filePath()));
     EXPECT_EQ(dir.entryCount(), 1u);
   }
-  {
+  for (const bool overlap : {false, true}) {  // a full disk on the I/O thread surfaces on the caller's
+    SCOPED_TRACE(overlap);
     ScratchDirectory dir;
     MultilevelStorage::Options options = planned(800, 1 << 20, dir.path(), cheap);
     options.failWriteAfterChunks = 2;
+    options.overlap = overlap;
     {
       MultilevelStorage storage(options);
       try {

@@ -403,7 +403,8 @@ TEST(SchedulePrediction, HandlesABillionStepsInClosedForm) {
   const ScheduleCosts costs{1e-4, 2e-4, 1e-5, 1e-5};
   const std::int64_t n = 1'000'000'000;
   const SchedulePrediction binomial = predictSchedule("binomial:checkpoints=100", n, 8000, 4, nullptr);
-  EXPECT_EQ(binomial.recomputedSteps, static_cast<std::int64_t>(revolve::optimalRecomputedSteps(n, 101)));
+  EXPECT_EQ(binomial.recomputedSteps,
+            static_cast<std::int64_t>(revolve::workingStateRecomputedSteps(n, 101)));
   EXPECT_EQ(binomial.rhsEvaluations, 4 * (2 * n + binomial.recomputedSteps));
   const SchedulePrediction multilevel = predictSchedule("multilevel:ram=64MiB,disk=1TiB", n, 8000, 4, &costs);
   EXPECT_GT(multilevel.diskWrites, 0);
@@ -637,14 +638,15 @@ TEST(SchedulePrediction, BinomialWritesInClosedFormEqualTheScheduleRun) {
   const auto check = [](std::int64_t steps, std::int64_t c) {
     const SchedulePrediction p =
         predictSchedule("binomial:checkpoints=" + std::to_string(c), steps, 16, 4, nullptr);
-    // The strategy runs revolve with min(C + 1, N) slots over positions 0..N (x_N never restored).
-    const std::int64_t slots = std::min(c + 1, steps);
-    const ScheduleCounts counts = revolve::simulateSchedule(steps + 1, slots);
+    // A run of computeGradient: revolve with slotsFor(N, C, true) slots over positions 0..N-1, x_{N-1}
+    // the working state.
+    const std::int64_t slots = BinomialCheckpointing::slotsFor(steps, c, true);
+    const ScheduleCounts counts = revolve::simulateSchedule(steps, slots);
     EXPECT_EQ(p.ramWrites, counts.checkpointWrites) << "N " << steps << " c " << c;
     EXPECT_EQ(revolve::toString(counts.recomputedSteps), std::to_string(p.recomputedSteps))
         << "N " << steps << " c " << c;
     BinomialSchedule schedule;  // the first sweep's pushes (statesStored, and stepDataStored with stages=1)
-    schedule.reset(steps + 1, slots, true);
+    schedule.reset(steps, slots, true);
     std::int64_t pushes = 0;
     for (std::int64_t n = 1; n < steps; ++n) pushes += schedule.recordForward(n) >= 0 ? 1 : 0;
     EXPECT_EQ(p.statesStored, 1 + pushes) << "N " << steps << " c " << c;
@@ -661,9 +663,9 @@ struct StageCounts {
   std::int64_t stored = 0, restored = 0;
 };
 StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
-  const std::int64_t slots = std::min(c + 1, steps);
+  const std::int64_t slots = BinomialCheckpointing::slotsFor(steps, c, true);
   BinomialSchedule schedule;
-  schedule.reset(steps + 1, slots, true);
+  schedule.reset(steps, slots, true);  // positions 0..N-1, x_{N-1} the working state
   internal::RecomputedStages stages;
   stages.reset(1);
   StageCounts counts;
@@ -685,7 +687,6 @@ StageCounts binomialStagesByRule(std::int64_t steps, std::int64_t c) {
       }
     }
   } visitor{stages, counts};
-  schedule.restoreStep(steps, visitor);  // x_N, the schedule's end position: no action
   for (std::int64_t e = steps - 1; e >= 0; --e) {
     stages.beginRestore(e);
     schedule.restoreStep(e, visitor);
@@ -725,15 +726,16 @@ TEST(SchedulePrediction, BinomialStagesHandleABillionSteps) {
   const SchedulePrediction plain = predictSchedule("binomial:checkpoints=10", n, 160, 4, nullptr);
   const SchedulePrediction p = predictSchedule("binomial:checkpoints=10,stages=1", n, 160, 4, nullptr);
   EXPECT_GT(plain.ramWrites, 0);  // counted in closed form beyond the 2^24 steps a simulation would take
-  EXPECT_EQ(p.stepDataRestored, n - (plain.ramWrites - 1));
+  EXPECT_EQ(p.stepDataRestored, n - plain.ramWrites);
   EXPECT_GT(p.stepDataRestored, n / 2);
   EXPECT_EQ(p.rhsEvaluations, 4 * (2 * n + p.recomputedSteps - p.stepDataRestored));
-  // As many slots as steps: no recomputation, every state a checkpoint (no restore recomputes), only the
-  // last adjoint step served (by the forward sweep's record); counted without a walk.
+  // As many slots as steps: no recomputation, every state but the working state's x_{N-1} a checkpoint (no
+  // restore recomputes), only the last adjoint step served (by the forward sweep's record); counted
+  // without a walk.
   const SchedulePrediction all =
       predictSchedule("binomial:checkpoints=1000000000,budget=1000GiB,stages=1", n, 160, 4, nullptr);
   EXPECT_EQ(all.recomputedSteps, 0);
-  EXPECT_EQ(all.statesStored, n);
+  EXPECT_EQ(all.statesStored, n - 1);
   EXPECT_EQ(all.stepDataRestored, 1);
   EXPECT_EQ(all.rhsEvaluations, 4 * (2 * n - 1));
 }
@@ -979,8 +981,9 @@ TEST(ScheduleInput, ExtremeArgumentsGiveSoundCountsOrAClearRefusal) {
           EXPECT_TRUE(std::isfinite(p.totalCost));
           if (spec.rfind("binomial", 0) == 0) {
             const std::int64_t c = dynamic_cast<BinomialCheckpointing&>(*createStorage(spec)).checkpoints();
-            EXPECT_EQ(static_cast<UnsignedInt128>(p.recomputedSteps),
-                      revolve::optimalRecomputedSteps(steps, std::min(c + 1, steps)));
+            EXPECT_EQ(
+                static_cast<UnsignedInt128>(p.recomputedSteps),
+                revolve::workingStateRecomputedSteps(steps, BinomialCheckpointing::slotsFor(steps, c, true)));
           }
         }
       }

@@ -37,7 +37,7 @@ std::vector<Vector> trajectory(std::int64_t steps, int size) {
 /// The forward sweep of the protocol over `states` (all but the last recorded, the last the end state),
 /// with the given stepCount in TrajectoryInfo (-1: unknown) and restores verified; `map` recomputes.
 void recordForward(TrajectoryStorage& storage, CosineMap& map, const std::vector<Vector>& states,
-                   std::int64_t announcedSteps) {
+                   std::int64_t announcedSteps, bool workingStateHoldsLast = false) {
   const int size = static_cast<int>(states.front().size());
   const auto steps = static_cast<std::int64_t>(states.size()) - 1;
   TrajectoryInfo info;
@@ -46,6 +46,7 @@ void recordForward(TrajectoryStorage& storage, CosineMap& map, const std::vector
   info.t0 = 0.0;
   info.t1 = 1.0;
   info.stepCount = announcedSteps;
+  info.workingStateHoldsLast = workingStateHoldsLast;
   storage.setVerifyRestores(true);
   storage.begin(info, map);
   const Vector unused = Vector::Zero(size);
@@ -83,6 +84,45 @@ TEST(StorageProtocol, BinomialRestoresExactStatesWithoutAllocating) {
                 revolve::toString(revolve::optimalRecomputedSteps(steps, std::min(c + 1, steps))))
           << "c = " << c << ", N = " << steps;
     }
+  }
+}
+
+// With the caller's working state holding x_{N-1} (as computeGradient's does), binomial keeps no slot for
+// it: revolve's own count with C + 1 snapshots, T(N, C + 1) - (N - 1), in min(C + 1, N - 1) slots; and a
+// caller that breaks the promise is told so (verifyRestores on) before anything is restored.
+TEST(StorageProtocol, BinomialLeavesTheLastStateToTheWorkingState) {
+  const int size = 5;
+  for (const std::int64_t c : {1, 2, 3, 7, 30}) {
+    for (const std::int64_t steps : {1, 2, 5, 100, 777}) {
+      const std::vector<Vector> states = trajectory(steps, size);
+      BinomialCheckpointing storage(c);
+      CosineMap map;
+      recordForward(storage, map, states, steps, true);
+      Vector z = states[static_cast<std::size_t>(steps) - 1];  // the working state
+      bool allEqual = true;
+      for (std::int64_t n = steps - 1; n >= 0; --n) {
+        storage.restore(n, z);
+        allEqual = allEqual && z == states[static_cast<std::size_t>(n)];
+      }
+      EXPECT_TRUE(allEqual) << "c = " << c << ", N = " << steps;
+      const std::int64_t slots = std::min(c + 1, std::max<std::int64_t>(steps - 1, 1));
+      EXPECT_EQ(revolve::toString(static_cast<UnsignedInt128>(storage.counters().recomputedSteps)),
+                revolve::toString(revolve::optimalForwardSteps(steps, slots) -
+                                  static_cast<UnsignedInt128>(steps - 1)))
+          << "c = " << c << ", N = " << steps;
+      EXPECT_EQ(storage.counters().peakBytesInMemory, slots * size * 8) << "c = " << c << ", N = " << steps;
+    }
+  }
+  const std::vector<Vector> states = trajectory(20, size);
+  BinomialCheckpointing storage(3);
+  CosineMap map;
+  recordForward(storage, map, states, 20, true);
+  Vector z = states[18];  // not x_19
+  try {
+    storage.restore(19, z);
+    FAIL() << "no std::logic_error";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("workingStateHoldsLast"), std::string::npos) << e.what();
   }
 }
 
