@@ -64,7 +64,8 @@ def run(actions, steps, a=0.3):
 
 
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
-                                         ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4)])
+                                         ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4),
+                                         ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
     steps = 60
     reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
@@ -75,7 +76,8 @@ def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stag
     p = hindsight.schedule(spec, steps, state_bytes=16, stages=stages)
     # The host re-runs a step for each adjoint step without held data (hindsight's adjoint steps that
     # recompute their stages), except the forward run's last step, which writes its data to WORK itself.
-    reruns = p.adjoint_stage_recomputations if spec.startswith("cams") else steps
+    # cams and mixed hold some steps' adjoint data and re-run only the others.
+    reruns = p.adjoint_stage_recomputations if spec.startswith(("cams", "mixed")) else steps
     last = [a for a in actions[:actions.index(EndForward())] if type(a) is Forward][-1]
     taped_in_forward = last.write_adj_deps and last.storage == StorageType.WORK
     assert extra == p.recomputed_steps + reruns - taped_in_forward
@@ -89,7 +91,8 @@ def _families(rng):
             (f"binomial:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),
             (f"cams:checkpoints={c}", rng.choice([1, 4]), None, 0),
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
-             ram, disk)]
+             ram, disk),
+            (f"mixed:checkpoints={c}", 1, c, 0)]  # c units: restart states and adjoint data alike
 
 
 def _sweep(ns, seed):
