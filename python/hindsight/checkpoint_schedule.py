@@ -209,13 +209,14 @@ class CheckpointSchedule:
 
 def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """The actions that reverse `steps` fixed steps with storage strategy `spec` (full, disk, binomial,
-    multilevel, cams; the same plan a run of the strategy executes), as a CheckpointSchedule: an iterator
+    multilevel, cams; the same plan a run of the strategy executes; or mixed, checkpoint_schedules' Mixed
+    plan, whose units hold a state or one step's adjoint data), as a CheckpointSchedule: an iterator
     of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
     Arguments and defaults are hindsight.schedule's: `state_bytes` sizes the budgets (a strategy given
     in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
     cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.
     ValueError names a bad argument. binomial, full and disk streams are made as they are consumed (any
-    N); cams and multilevel translate their plan first (steps up to 2^24)."""
+    N); cams, multilevel and mixed translate their plan first (steps up to 2^24)."""
     return _open(spec, steps, state_bytes, stages, costs, _OWN)
 
 
