@@ -40,6 +40,7 @@
 #include <hindsight/storage/checkpoint_actions.h>
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -91,8 +92,9 @@ std::vector<CheckpointAction> actions(const Plan& plan);
 class MixedPlanStorage final : public TrajectoryStorage {
  public:
   static constexpr std::int64_t kMaxCheckpoints = 1'000'000;
-  /// Holds nothing: a run is refused at begin().
-  explicit MixedPlanStorage(std::int64_t checkpoints) : TrajectoryStorage(1), checkpoints_(checkpoints) {}
+  /// No byte budget (its limit is C units of the state's size); a run is refused at begin().
+  explicit MixedPlanStorage(std::int64_t checkpoints)
+      : TrajectoryStorage(std::numeric_limits<std::int64_t>::max()), checkpoints_(checkpoints) {}
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
   /// Counts of the plan's stream: recomputed steps, stored and restored step data, states stored, peak
   /// bytes (units x state bytes).
