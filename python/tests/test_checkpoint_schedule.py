@@ -276,3 +276,24 @@ def test_the_checker_accepts_checkpoint_schedules_own_schedules():
                 check_stream(schedule, n, cs, work_limit=work, online=True, allow_leftovers=True)
                 checked += 1
     assert checked == 6 * 4 * 5 + 5
+
+
+def test_mixed_is_checkpoint_schedules_mixed_action_by_action():
+    # mixed:checkpoints=C is MixedCheckpointSchedule(N, C) with its units in RAM (storage/mixed_plan.h).
+    cs = pytest.importorskip("checkpoint_schedules")
+
+    def key(action):
+        name = type(action).__name__
+        if name == "Forward":
+            return name, action.n0, action.n1, action.write_ics, action.write_adj_deps, action.storage.name
+        if name == "Reverse":
+            return name, action.n1, action.n0, action.clear_adj_deps
+        if name in ("Copy", "Move"):
+            return name, action.n, action.from_storage.name, action.to_storage.name
+        return (name,)
+
+    for units in (1, 2, 3, 5, 11):
+        for n in range(1, 61):
+            theirs = [key(a) for a in cs.MixedCheckpointSchedule(n, units, storage=cs.StorageType.RAM)]
+            ours = [key(a) for a in hindsight.checkpoint_schedule(f"mixed:checkpoints={units}", n)]
+            assert ours == theirs, (units, n)
