@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -83,10 +84,9 @@ Plan::Step Plan::step(std::int64_t n, std::int64_t s) const {
   return split == 1 ? Step{Kind::kAdjointData, 1} : Step{Kind::kState, split};
 }
 
-std::vector<CheckpointAction> actions(const Plan& plan) {
+void forEachAction(const Plan& plan, const std::function<void(const CheckpointAction&)>& out) {
   using Kind = CheckpointAction::Kind;
   const std::int64_t steps = plan.steps(), units = plan.units();
-  std::vector<CheckpointAction> out;
   const auto forward = [&out](std::int64_t n0, std::int64_t n1, bool ics, bool adjDeps,
                               CheckpointStorage where) {
     CheckpointAction a;
@@ -96,7 +96,7 @@ std::vector<CheckpointAction> actions(const Plan& plan) {
     a.writeIcs = ics;
     a.writeAdjDeps = adjDeps;
     a.storage = where;
-    out.push_back(a);
+    out(a);
   };
   const auto simple = [&out](Kind kind, std::int64_t n0, std::int64_t n1) {
     CheckpointAction a;
@@ -108,7 +108,7 @@ std::vector<CheckpointAction> actions(const Plan& plan) {
       a.from = CheckpointStorage::kRam;
       a.to = CheckpointStorage::kWork;
     }
-    out.push_back(a);
+    out(a);
   };
   // The units held, in the order they were written: each is the first decision of a subproblem still
   // open, so the latest is the one the adjoint reaches next (a stack).
@@ -164,6 +164,11 @@ std::vector<CheckpointAction> actions(const Plan& plan) {
   }
   assert(held.empty());
   simple(Kind::kEndReverse, 0, 0);
+}
+
+std::vector<CheckpointAction> actions(const Plan& plan) {
+  std::vector<CheckpointAction> out;
+  forEachAction(plan, [&out](const CheckpointAction& a) { out.push_back(a); });
   return out;
 }
 
@@ -191,10 +196,11 @@ void MixedPlanStorage::predict(const TrajectoryStorage& storage, const StorageSp
                                const PredictionRequest& request, SchedulePrediction& p) {
   const auto& self = static_cast<const MixedPlanStorage&>(storage);
   const mixed::Plan plan(request.steps, self.checkpoints());
-  const std::vector<CheckpointAction> stream = mixed::actions(plan);
-  const CheckpointStreamCounts counts = checkCheckpointStream(stream, request.steps);
+  // The stream checked and counted as it is made (N up to 2^24 would be gigabytes of actions).
+  CheckpointStreamChecker checker(request.steps);
   std::int64_t records = 0, loads = 0, heldUnits = 0, peakUnits = 0;
-  for (const CheckpointAction& a : stream) {
+  mixed::forEachAction(plan, [&](const CheckpointAction& a) {
+    checker.take(a);
     if (a.kind == CheckpointAction::Kind::kForward && a.storage == CheckpointStorage::kRam) {
       records += a.writeAdjDeps ? 1 : 0;
       peakUnits = std::max(peakUnits, ++heldUnits);
@@ -202,7 +208,8 @@ void MixedPlanStorage::predict(const TrajectoryStorage& storage, const StorageSp
       ++loads;
       heldUnits -= a.kind == CheckpointAction::Kind::kMove ? 1 : 0;
     }
-  }
+  });
+  const CheckpointStreamCounts counts = checker.finish();
   p.plan = "mixed: " + std::to_string(plan.units()) +
            " units of a state or one step's adjoint data (checkpoint_schedules' Mixed, Maddison 2023); " +
            std::to_string(plan.cost(request.steps, plan.units())) + " forward steps in its stream";

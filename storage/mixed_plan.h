@@ -40,6 +40,7 @@
 #include <hindsight/storage/checkpoint_actions.h>
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -84,6 +85,8 @@ class Plan {
 /// storage/checkpoint_actions.h), checkpoints in RAM. Its Forward steps add up to plan.cost(N, C); at most C
 /// units are held at once.
 std::vector<CheckpointAction> actions(const Plan& plan);
+/// The same actions handed to `out` one at a time, as they are made (no vector of them).
+void forEachAction(const Plan& plan, const std::function<void(const CheckpointAction&)>& out);
 
 }  // namespace mixed
 
