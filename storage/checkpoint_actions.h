@@ -60,10 +60,10 @@ struct CheckpointAction {
 
 /// The action stream of `spec` for N = `steps` fixed steps, collected (openCheckpointStream() in
 /// storage/checkpoint_stream.h hands it out one action at a time), with the arguments and checks of
-/// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel and cams (offline; N <= 2^24 for
-/// the last two). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
-/// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
-/// by a rule of its own (stages=1; cams' step records are expressed).
+/// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel, cams (offline; N <= 2^24 for
+/// the last two) and mixed (storage/mixed_plan.h). Throws std::invalid_argument naming the field for bad
+/// input, and for what has no fixed plan (online, cams online=1, lossy, hermite, packed, multilevel
+/// schedule=stride) or keeps stage values by a rule of its own (stages=1; cams' step records are expressed).
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
                                                  std::int64_t stateBytes, int stages,
                                                  const ScheduleCosts* costs);
