@@ -625,115 +625,113 @@ std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::i
   return actions;
 }
 
-CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
-                                             std::int64_t steps) {
-  // The contract of docs/guides/checkpoint_schedule.md ("The contract"), as python/tests/
-  // stream_contract.py states it rule by rule: checkpoints are keyed by their step per storage and hold
-  // the step ranges of their restart data and adjoint data; WORK holds the same two sets.
-  using Range = std::pair<std::int64_t, std::int64_t>;  // [first, end), empty when first == end
-  struct Snapshot {
-    Range ics{0, 0}, adjDeps{0, 0};
-  };
-  CheckpointStreamCounts counts;
-  std::int64_t at = 0, reversed = 0;  // at: the step of the WORK state, -1 none
-  Range workIcs{0, 0}, workAdjDeps{0, 0};
-  std::map<CheckpointStorage, std::map<std::int64_t, Snapshot>> held;
-  bool forwardDone = false, reverseDone = false;
+// The contract of docs/guides/checkpoint_schedule.md ("The contract"), as python/tests/stream_contract.py
+// states it rule by rule: checkpoints are keyed by their step per storage and hold the step ranges of their
+// restart data and adjoint data; WORK holds the same two sets.
+void CheckpointStreamChecker::take(const CheckpointAction& a) {
   const auto empty = [](const Range& r) { return r.first >= r.second; };
-  for (const CheckpointAction& a : actions) {
-    const auto fail = [&](const std::string& why) { throw std::logic_error(a.text() + ": " + why); };
-    const auto checkpointStorage = [](CheckpointStorage s) {
-      return s == CheckpointStorage::kRam || s == CheckpointStorage::kDisk;
-    };
-    if (reverseDone) fail("after EndReverse");
-    switch (a.kind) {
-      case CheckpointAction::Kind::kForward: {
-        if (at != a.n0) fail("WORK holds x_" + std::to_string(at));
-        if (a.n1 <= a.n0) fail("advances no step");
-        if (a.n1 > steps - reversed)
-          fail("advances past the adjoint at step " + std::to_string(steps - reversed));
-        workIcs = workAdjDeps = Range{0, 0};
-        const Range ics = a.writeIcs ? Range{a.n0, a.n1} : Range{0, 0};
-        const Range adjDeps = a.writeAdjDeps ? Range{a.n0, a.n1} : Range{0, 0};
-        if (checkpointStorage(a.storage)) {
-          if (empty(ics) && empty(adjDeps)) fail("writes nothing to a checkpoint storage");
-          if (!held[a.storage].emplace(a.n0, Snapshot{ics, adjDeps}).second)
-            fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
-          if (a.writeIcs)
-            (a.storage == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
-        } else if (a.storage == CheckpointStorage::kWork) {
-          workIcs = ics;
-          workAdjDeps = adjDeps;
-        }
-        const std::int64_t length = a.n1 - a.n0;
-        const bool rerun = a.writeAdjDeps && a.storage == CheckpointStorage::kWork && length == 1;
-        if (!forwardDone) {
-          counts.forwardSteps += length;
-          if (rerun && a.n1 == steps) ++counts.adjointReruns;
-        } else if (rerun) {
-          ++counts.adjointReruns;
-        } else {
-          counts.recomputedSteps += length;
-        }
-        at = a.n1;
-        break;
+  const auto fail = [&](const std::string& why) { throw std::logic_error(a.text() + ": " + why); };
+  const auto checkpointStorage = [](CheckpointStorage s) {
+    return s == CheckpointStorage::kRam || s == CheckpointStorage::kDisk;
+  };
+  if (reverseDone) fail("after EndReverse");
+  switch (a.kind) {
+    case CheckpointAction::Kind::kForward: {
+      if (at != a.n0) fail("WORK holds x_" + std::to_string(at));
+      if (a.n1 <= a.n0) fail("advances no step");
+      if (a.n1 > steps - reversed)
+        fail("advances past the adjoint at step " + std::to_string(steps - reversed));
+      workIcs = workAdjDeps = Range{0, 0};
+      const Range ics = a.writeIcs ? Range{a.n0, a.n1} : Range{0, 0};
+      const Range adjDeps = a.writeAdjDeps ? Range{a.n0, a.n1} : Range{0, 0};
+      if (checkpointStorage(a.storage)) {
+        if (empty(ics) && empty(adjDeps)) fail("writes nothing to a checkpoint storage");
+        if (!held[a.storage].emplace(a.n0, Snapshot{ics, adjDeps}).second)
+          fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
+        if (a.writeIcs)
+          (a.storage == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
+      } else if (a.storage == CheckpointStorage::kWork) {
+        workIcs = ics;
+        workAdjDeps = adjDeps;
       }
-      case CheckpointAction::Kind::kCopy:
-      case CheckpointAction::Kind::kMove: {
-        if (!checkpointStorage(a.from)) fail("copies from a storage that holds no checkpoints");
-        if (!checkpointStorage(a.to) && a.to != CheckpointStorage::kWork) fail("copies to no storage");
-        if (!empty(workIcs) || !empty(workAdjDeps)) fail("WORK still holds data");
-        const auto it = held[a.from].find(a.n0);
-        if (it == held[a.from].end()) fail("no checkpoint at " + std::to_string(a.n0) + " there");
-        const Snapshot snapshot = it->second;
-        if (a.kind == CheckpointAction::Kind::kMove) held[a.from].erase(it);
-        if (a.n0 >= steps - reversed) fail("the checkpoint is not before the adjoint");
-        if (checkpointStorage(a.to)) {
-          if (!held[a.to].emplace(a.n0, snapshot).second)
-            fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
-          if (!empty(snapshot.ics))
-            (a.to == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
-        } else {
-          const bool restart = snapshot.ics.first <= a.n0 && a.n0 < snapshot.ics.second;
-          at = restart ? a.n0 : -1;
-          if (restart && snapshot.ics.second < steps - reversed)
-            fail("its restart data does not reach the adjoint at step " + std::to_string(steps - reversed));
-          workIcs = snapshot.ics;
-          workAdjDeps = snapshot.adjDeps;
-          if (std::min<std::int64_t>(1, workIcs.second - workIcs.first) +
-                  std::max<std::int64_t>(0, workAdjDeps.second - workAdjDeps.first) >
-              1)
-            fail("WORK would hold more than one unit");
-        }
-        break;
+      const std::int64_t length = a.n1 - a.n0;
+      const bool rerun = a.writeAdjDeps && a.storage == CheckpointStorage::kWork && length == 1;
+      if (!forwardDone) {
+        counts.forwardSteps += length;
+        if (rerun && a.n1 == steps) ++counts.adjointReruns;
+      } else if (rerun) {
+        ++counts.adjointReruns;
+      } else {
+        counts.recomputedSteps += length;
       }
-      case CheckpointAction::Kind::kReverse:
-        if (!forwardDone) fail("before EndForward");
-        if (a.n1 != steps - reversed || a.n0 >= a.n1)
-          fail("the adjoint is at step " + std::to_string(steps - reversed));
-        if (workAdjDeps.first > a.n0 || workAdjDeps.second < a.n1) fail("its adjoint data is not in WORK");
-        reversed += a.n1 - a.n0;
-        if (a.clearAdjDeps) workAdjDeps = Range{0, 0};
-        break;
-      case CheckpointAction::Kind::kEndForward:
-        if (forwardDone || at != steps) fail("the forward run is not at x_N");
-        forwardDone = true;
-        break;
-      case CheckpointAction::Kind::kEndReverse:
-        if (reversed != steps) fail(std::to_string(reversed) + " steps reversed");
-        reverseDone = true;
-        break;
+      at = a.n1;
+      break;
     }
-    std::int64_t restartRam = 0, restartDisk = 0;
-    for (const auto& [step, snapshot] : held[CheckpointStorage::kRam]) restartRam += !empty(snapshot.ics);
-    for (const auto& [step, snapshot] : held[CheckpointStorage::kDisk]) restartDisk += !empty(snapshot.ics);
-    counts.peakRamCheckpoints = std::max(counts.peakRamCheckpoints, restartRam);
-    counts.peakDiskCheckpoints = std::max(counts.peakDiskCheckpoints, restartDisk);
+    case CheckpointAction::Kind::kCopy:
+    case CheckpointAction::Kind::kMove: {
+      if (!checkpointStorage(a.from)) fail("copies from a storage that holds no checkpoints");
+      if (!checkpointStorage(a.to) && a.to != CheckpointStorage::kWork) fail("copies to no storage");
+      if (!empty(workIcs) || !empty(workAdjDeps)) fail("WORK still holds data");
+      const auto it = held[a.from].find(a.n0);
+      if (it == held[a.from].end()) fail("no checkpoint at " + std::to_string(a.n0) + " there");
+      const Snapshot snapshot = it->second;
+      if (a.kind == CheckpointAction::Kind::kMove) held[a.from].erase(it);
+      if (a.n0 >= steps - reversed) fail("the checkpoint is not before the adjoint");
+      if (checkpointStorage(a.to)) {
+        if (!held[a.to].emplace(a.n0, snapshot).second)
+          fail("a checkpoint at " + std::to_string(a.n0) + " exists there");
+        if (!empty(snapshot.ics))
+          (a.to == CheckpointStorage::kRam ? counts.ramIcsWrites : counts.diskIcsWrites) += 1;
+      } else {
+        const bool restart = snapshot.ics.first <= a.n0 && a.n0 < snapshot.ics.second;
+        at = restart ? a.n0 : -1;
+        if (restart && snapshot.ics.second < steps - reversed)
+          fail("its restart data does not reach the adjoint at step " + std::to_string(steps - reversed));
+        workIcs = snapshot.ics;
+        workAdjDeps = snapshot.adjDeps;
+        if (std::min<std::int64_t>(1, workIcs.second - workIcs.first) +
+                std::max<std::int64_t>(0, workAdjDeps.second - workAdjDeps.first) >
+            1)
+          fail("WORK would hold more than one unit");
+      }
+      break;
+    }
+    case CheckpointAction::Kind::kReverse:
+      if (!forwardDone) fail("before EndForward");
+      if (a.n1 != steps - reversed || a.n0 >= a.n1)
+        fail("the adjoint is at step " + std::to_string(steps - reversed));
+      if (workAdjDeps.first > a.n0 || workAdjDeps.second < a.n1) fail("its adjoint data is not in WORK");
+      reversed += a.n1 - a.n0;
+      if (a.clearAdjDeps) workAdjDeps = Range{0, 0};
+      break;
+    case CheckpointAction::Kind::kEndForward:
+      if (forwardDone || at != steps) fail("the forward run is not at x_N");
+      forwardDone = true;
+      break;
+    case CheckpointAction::Kind::kEndReverse:
+      if (reversed != steps) fail(std::to_string(reversed) + " steps reversed");
+      reverseDone = true;
+      break;
   }
+  std::int64_t restartRam = 0, restartDisk = 0;
+  for (const auto& [step, snapshot] : held[CheckpointStorage::kRam]) restartRam += !empty(snapshot.ics);
+  for (const auto& [step, snapshot] : held[CheckpointStorage::kDisk]) restartDisk += !empty(snapshot.ics);
+  counts.peakRamCheckpoints = std::max(counts.peakRamCheckpoints, restartRam);
+  counts.peakDiskCheckpoints = std::max(counts.peakDiskCheckpoints, restartDisk);
+}
+
+CheckpointStreamCounts CheckpointStreamChecker::finish() {
   if (!reverseDone) throw std::logic_error("the stream ends without EndReverse");
   if (!held[CheckpointStorage::kRam].empty() || !held[CheckpointStorage::kDisk].empty())
     throw std::logic_error("checkpoints are left when the stream ends");
   return counts;
+}
+
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
+                                             std::int64_t steps) {
+  CheckpointStreamChecker checker(steps);
+  for (const CheckpointAction& a : actions) checker.take(a);
+  return checker.finish();
 }
 
 }  // namespace hindsight

@@ -33,7 +33,9 @@
 #include <hindsight/storage/schedule.h>
 
 #include <cstdint>
+#include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hindsight {
@@ -58,10 +60,10 @@ struct CheckpointAction {
 
 /// The action stream of `spec` for N = `steps` fixed steps, collected (openCheckpointStream() in
 /// storage/checkpoint_stream.h hands it out one action at a time), with the arguments and checks of
-/// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel and cams (offline; N <= 2^24 for
-/// cams). Throws std::invalid_argument naming the field for bad input, and for what has no fixed
-/// plan (online, cams online=1, lossy, hermite, packed, multilevel schedule=stride) or keeps stage values
-/// by a rule of its own (stages=1; cams' step records are expressed).
+/// predictSchedule (storage/schedule.h): full, disk, binomial, multilevel, cams (offline; N <= 2^24 for
+/// cams) and mixed (storage/mixed_plan.h). Throws std::invalid_argument naming the field for bad input,
+/// and for what has no fixed plan (online, cams online=1, lossy, hermite, packed, multilevel
+/// schedule=stride) or keeps stage values by a rule of its own (stages=1; cams' step records are expressed).
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
                                                  std::int64_t stateBytes, int stages,
                                                  const ScheduleCosts* costs);
@@ -74,6 +76,28 @@ struct CheckpointStreamCounts {
       0;  ///< one-step Forwards writing adjoint data to WORK (incl. the forward's last)
   std::int64_t ramIcsWrites = 0, diskIcsWrites = 0;
   std::int64_t peakRamCheckpoints = 0, peakDiskCheckpoints = 0;  ///< restart states held at once
+};
+
+/// checkCheckpointStream() one action at a time, for a stream that is counted as it is made (no vector of
+/// it): take() throws std::logic_error naming the action that breaks the contract, finish() when the stream
+/// ends without EndReverse or leaves checkpoints behind, else returns the counts.
+class CheckpointStreamChecker {
+ public:
+  explicit CheckpointStreamChecker(std::int64_t steps) : steps(steps) {}
+  void take(const CheckpointAction& a);
+  CheckpointStreamCounts finish();
+
+ private:
+  using Range = std::pair<std::int64_t, std::int64_t>;  // [first, end), empty when first == end
+  struct Snapshot {
+    Range ics{0, 0}, adjDeps{0, 0};
+  };
+  std::int64_t steps;
+  CheckpointStreamCounts counts;
+  std::int64_t at = 0, reversed = 0;  // at: the step of the WORK state, -1 none
+  Range workIcs{0, 0}, workAdjDeps{0, 0};
+  std::map<CheckpointStorage, std::map<std::int64_t, Snapshot>> held;
+  bool forwardDone = false, reverseDone = false;
 };
 
 /// Executes `actions` on a host that tracks only which steps each piece of data belongs to, and throws

@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
+#include <hindsight/storage/mixed_plan.h>
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
@@ -356,6 +357,11 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
     return openTwoLevelPlanStream(
         steps,
         MultilevelStorage::fixedStepPlan(*storage, PredictionRequest{steps, stateBytes, stages, costs, 0}));
+  }
+  if (name == "mixed") {
+    predictSchedule(specText, 1, stateBytes, stages, costs);  // the spec's keys and sizes checked
+    const std::int64_t units = spec.integer("checkpoints", 0, 1, MixedPlanStorage::kMaxCheckpoints);
+    return std::make_unique<StoredStream>(steps, mixed::actions(mixed::Plan(steps, units)));
   }
   if (steps > kMaxTranslatedSteps) {
     throw std::invalid_argument(

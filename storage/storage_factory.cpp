@@ -4,6 +4,7 @@
 #include <hindsight/storage/disk_storage.h>
 #include <hindsight/storage/hermite_storage.h>
 #include <hindsight/storage/lossy_storage.h>
+#include <hindsight/storage/mixed_plan.h>
 #include <hindsight/storage/multilevel_storage.h>
 
 #include <stdexcept>
@@ -96,6 +97,20 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
              "its bytes depend on how well the states compress",
              nullptr,
              "it keeps every state, compressed: no checkpoints to plan"},
+            {{"mixed",
+              "checkpoint_schedules' Mixed plan (Maddison 2023) for action streams and predictions: C units, "
+              "each a restart state or one step's adjoint data of a state's size; runs of the engine are "
+              "refused (cams is the engine's equivalent, records sized by the stage data)",
+              true,
+              "mixed:checkpoints=11",
+              {{"checkpoints", "units C in [1, 1e6], each a state or one step's adjoint data (required)"}}},
+             &MixedPlanStorage::create,
+             &MixedPlanStorage::predict,
+             {},
+             nullptr,
+             "its units hold one step's adjoint data, which --actions' state vocabulary does not express; "
+             "hindsight.checkpoint_schedule('mixed:checkpoints=C', N) hands out its checkpoint_schedules "
+             "stream"},
             {{"multilevel",
               "states in RAM and in a file on disk up to a budget each, reversed by the two-level plan "
               "cheapest under a cost model (fixed steps) or by a uniform stride with recomputation of "

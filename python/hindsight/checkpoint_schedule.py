@@ -209,7 +209,8 @@ class CheckpointSchedule:
 
 def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """The actions that reverse `steps` fixed steps with storage strategy `spec` (full, disk, binomial,
-    multilevel, cams; the same plan a run of the strategy executes), as a CheckpointSchedule: an iterator
+    multilevel, cams; the same plan a run of the strategy executes; or mixed, checkpoint_schedules' Mixed
+    plan, whose units hold a state or one step's adjoint data), as a CheckpointSchedule: an iterator
     of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
     steps=None (full and disk): N is unknown; the forward run goes on step by step until the host calls
     finalize(n) at step n, as with checkpoint_schedules' schedules of unknown length.
@@ -217,7 +218,7 @@ def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
     cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.
     ValueError names a bad argument. binomial, full and disk streams are made as they are consumed (any
-    N), multilevel once its plan is chosen; cams translates its plan first (steps up to 2^24)."""
+    N), multilevel once its plan is chosen; cams and mixed translate their plan first (steps up to 2^24)."""
     return _open(spec, steps, state_bytes, stages, costs, _OWN)
 
 

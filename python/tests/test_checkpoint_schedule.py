@@ -67,7 +67,8 @@ def run(actions, steps, a=0.3, schedule=None):
 
 
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
-                                         ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4)])
+                                         ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4),
+                                         ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
     steps = 60
     reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
@@ -78,7 +79,8 @@ def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stag
     p = hindsight.schedule(spec, steps, state_bytes=16, stages=stages)
     # The host re-runs a step for each adjoint step without held data (hindsight's adjoint steps that
     # recompute their stages), except the forward run's last step, which writes its data to WORK itself.
-    reruns = p.adjoint_stage_recomputations if spec.startswith("cams") else steps
+    # cams and mixed hold some steps' adjoint data and re-run only the others.
+    reruns = p.adjoint_stage_recomputations if spec.startswith(("cams", "mixed")) else steps
     last = [a for a in actions[:actions.index(EndForward())] if type(a) is Forward][-1]
     taped_in_forward = last.write_adj_deps and last.storage == StorageType.WORK
     assert extra == p.recomputed_steps + reruns - taped_in_forward
@@ -116,7 +118,8 @@ def _families(rng):
             (f"binomial:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),
             (f"cams:checkpoints={c}", rng.choice([1, 4]), None, 0),
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
-             ram, disk)]
+             ram, disk),
+            (f"mixed:checkpoints={c}", 1, c, 0)]  # c units: restart states and adjoint data alike
 
 
 def _sweep(ns, seed):
@@ -308,3 +311,24 @@ def test_the_checker_accepts_checkpoint_schedules_own_schedules():
                 check_stream(schedule, n, cs, work_limit=work, online=True, allow_leftovers=True)
                 checked += 1
     assert checked == 6 * 4 * 5 + 5
+
+
+def test_mixed_is_checkpoint_schedules_mixed_action_by_action():
+    # mixed:checkpoints=C is MixedCheckpointSchedule(N, C) with its units in RAM (storage/mixed_plan.h).
+    cs = pytest.importorskip("checkpoint_schedules")
+
+    def key(action):
+        name = type(action).__name__
+        if name == "Forward":
+            return name, action.n0, action.n1, action.write_ics, action.write_adj_deps, action.storage.name
+        if name == "Reverse":
+            return name, action.n1, action.n0, action.clear_adj_deps
+        if name in ("Copy", "Move"):
+            return name, action.n, action.from_storage.name, action.to_storage.name
+        return (name,)
+
+    for units in (1, 2, 3, 5, 11):
+        for n in range(1, 61):
+            theirs = [key(a) for a in cs.MixedCheckpointSchedule(n, units, storage=cs.StorageType.RAM)]
+            ours = [key(a) for a in hindsight.checkpoint_schedule(f"mixed:checkpoints={units}", n)]
+            assert ours == theirs, (units, n)

@@ -102,7 +102,9 @@ void expectSound(const Arguments& a, const Outcome& o) {
   // -1: not counted (engine/storage_registry.h; the stride's RAM traffic).
   EXPECT_GE(p.ramWrites, -1) << input;
   EXPECT_GE(p.ramReads, -1) << input;
-  EXPECT_GT(p.peakRamBytes + p.peakDiskBytes, 0) << input;
+  // mixed's one step (N = 1) is reversed from WORK alone (storage/mixed_plan.h): it holds no unit.
+  if (!(a.storage.rfind("mixed", 0) == 0 && o.steps == 1))
+    EXPECT_GT(p.peakRamBytes + p.peakDiskBytes, 0) << input;
   EXPECT_LE(p.peakRamBytes, createStorage(a.storage)->budgetBytes()) << input;
   const bool cams = a.storage.rfind("cams", 0) == 0;
   const UnsignedInt128 rhs =
