@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <string>
 
 namespace hindsight {
@@ -45,6 +46,8 @@ TEST(Hdf5Attributes, ArraysAreRefusedWhereOneValueIsRead) {
     EXPECT_NE(std::string(e.what()).find("not a single value"), std::string::npos) << e.what();
   }
   EXPECT_EQ(hdf5::readIntAttribute(file.get(), "one"), 3);  // scalars still read
+  file.reset();
+  std::remove(path.c_str());
 }
 
 }  // namespace
