@@ -8,6 +8,7 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/solid_member.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include <cmath>
@@ -51,10 +52,18 @@ IntegratorOptions PistonRod::integratorOptions() const {
 }
 
 PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& request) const {
+  // The member is the plate or the solid (problems/rod/member.h); everything after the model is the same
+  // code for both, and the mechanism sees only the invariants.
+  Stopwatch phase;
+  if (config_.rod.isSolid()) return evaluateMember(rod::SolidMember(config_.rod, design), request, phase);
+  return evaluateMember(rod::FeModel(config_.rod, design), request, phase);
+}
+
+template <class Member>
+PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request& request,
+                                              Stopwatch& phase) const {
   const rod::RodConfig& rc = config_.rod;
   PistonRodEvaluation out;
-  Stopwatch phase;
-  const rod::FeModel model(rc, design);
   // A design the eigensolver cannot handle (a near-mechanism: the stiffness is singular or not positive
   // definite, or the eigenpairs do not converge) is a numerical outcome of that design, like a diverged
   // simulation: as NumericalError the optimizer's divergence guard and GCMMA's trials step back from it
@@ -97,7 +106,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
       config_.mechanism ? *config_.mechanism
                         : mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
   described.member.length = rc.length;
-  auto mechanismProblem = std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount());
+  auto mechanismProblem =
+      std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount(), invariants.spatial());
   const int modalOffset = mechanismProblem->freeCount();  // q within the minimal coordinates
   const std::unique_ptr<SecondOrderProblem> problemPointer = std::move(mechanismProblem);
   const SecondOrderProblem& problem = *problemPointer;
