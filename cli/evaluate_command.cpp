@@ -199,10 +199,12 @@ void registerEvaluate(CLI::App& app) {
       app.add_subcommand("evaluate", "psi1, psi2, volume fraction and frequencies of a piston-rod design");
   cmd->add_option("--config", s->configFile, "JSON configuration file (see --print-config)");
   cmd->add_option("--set", s->assignments, "section.field=value, e.g. rod.modeCount=12 (repeatable)");
-  cmd->add_option("--design", s->designFile,
-                  "HDF5 file with dataset x of shape (ny, nx); default: uniform x0");
-  cmd->add_option("--gradient", s->gradientFile,
-                  "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx) to this HDF5 file");
+  cmd->add_option(
+      "--design", s->designFile,
+      "HDF5 file with dataset x of shape (ny, nx), the solid's (nz, ny, nx); default: uniform x0");
+  cmd->add_option(
+      "--gradient", s->gradientFile,
+      "write dpsi1_dx, dpsi2_dx, dvolume_dx (ny, nx), the solid's (nz, ny, nx), to this HDF5 file");
   cmd->add_flag("--force", s->force, "overwrite an existing --gradient file (never the --design input)");
   s->flags.add(cmd, "simulation.storage");
   s->flags.add(cmd, "simulation.integrator");

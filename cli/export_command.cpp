@@ -4,9 +4,12 @@
 // element density field the model saw in iteration K (default: the last one) of DIR/results.h5, read
 // with every check of a resume. STEM defaults to DIR/design_final (finished run, last iteration) or
 // DIR/design_iter_K; existing files are overwritten only with --force. Exit 2 for bad input, 3 for a
-// corrupted results file or a failed write.
+// corrupted results file or a failed write. The solid member's design (rod.elementsThroughThickness >= 1)
+// goes to STEM.stl (the surface of the elements at or above the iso density) and STEM.vtu (the densities
+// for ParaView).
 #include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/results_file.h>
+#include <hindsight/problems/topopt/topology_optimizer.h>
 #include "commands.h"
 
 #include <filesystem>
@@ -25,6 +28,33 @@ struct ExportSettings {
   std::string stem;
   bool force = false;
 };
+
+// The solid member (rod.elementsThroughThickness >= 1): the surface of the elements at or above the iso
+// density as STEM.stl and the densities as STEM.vtu (ParaView), both of the whole body. results.h5 keeps
+// the design variables of the final design (the optimizer's state), so a finished run's last iteration
+// is what can be exported; the model's densities follow from them by the run's filter and projection.
+int exportSolid(const ExportSettings& s, const ResultsData& data, const Config& config, int k,
+                const std::string& stem) {
+  namespace fs = std::filesystem;
+  const int last = static_cast<int>(data.densities.size()) - 1;
+  if (!data.finished || k != last)
+    throw std::invalid_argument(
+        "export: the solid member's design is kept for the final iteration of a "
+        "finished run only (--iteration " +
+        std::to_string(last) + " of a finished run)");
+  for (const char* extension : {".stl", ".vtu"}) {
+    if (!s.force && fs::exists(stem + extension))
+      throw std::invalid_argument(stem + extension + " exists; use --force to overwrite it");
+  }
+  const TopologyOptimizer optimizer(config);
+  const BoxDensityField field = optimizer.solidField(data.state.design, data.history.back().iteration);
+  const std::vector<std::string> written = exportSolidGeometry(stem, field, s.iso);
+  const long above = (field.values.array() >= s.iso).count();
+  std::cout << "iteration " << k << ", iso " << s.iso << ": " << above << " of " << field.values.size()
+            << " modelled elements at or above it\n";
+  for (const std::string& file : written) std::cout << "wrote " << file << '\n';
+  return 0;
+}
 
 int runExport(const ExportSettings& s) {
   namespace fs = std::filesystem;
@@ -50,6 +80,7 @@ int runExport(const ExportSettings& s) {
           : (fs::path(s.directory) /
              (data.finished && k == rows - 1 ? "design_final" : "design_iter_" + std::to_string(k)))
                 .string();
+  if (config.rod.isSolid()) return exportSolid(s, data, config, k, stem);
   for (const char* extension : {".svg", ".dxf", ".stl"}) {
     if (!s.force && fs::exists(stem + extension))
       throw std::invalid_argument(stem + extension + " exists; use --force to overwrite it");
@@ -75,7 +106,8 @@ void registerExport(CLI::App& app) {
   auto s = std::make_shared<ExportSettings>();
   CLI::App* command = app.add_subcommand(
       "export",
-      "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL)");
+      "Geometry of a design of an optimization run: outline (SVG, DXF, mm) and extruded solid (STL); of the "
+      "solid member its surface (STL) and densities (VTU)");
   command->add_option("directory", s->directory, "result directory (of hindsight optimize --out)")
       ->required();
   command->add_option("--iso", s->iso, "density of the contour, in (0, 1)")->capture_default_str();

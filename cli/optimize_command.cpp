@@ -109,10 +109,14 @@ int runOptimize(const OptimizeSettings& s) {
         << (threadsSupported() ? "" : " (built without TBB: 1)") << std::endl;
   }
   out << "optimize " << toString(config.optimization.objective) << ": " << rc.elementsAlongLength << " x "
-      << rc.elementsThroughHeight << " elements, " << rc.designCount() << " design variables, "
-      << config.optimization.iterations << " iterations, V/V0 <= " << config.optimization.volumeFraction
-      << ", filter radius " << config.optimization.filterRadius << ", move limit "
-      << config.optimization.moveLimit << "; results in " << run.resultsPath()
+      << rc.elementsThroughHeight
+      << (rc.isSolid() ? " x " + std::to_string(rc.elementsThroughThickness) +
+                             (rc.midPlaneSymmetry ? " (half, mid-plane symmetry) solid" : " solid")
+                       : std::string())
+      << " elements, " << rc.designCount() << " design variables, " << config.optimization.iterations
+      << " iterations, V/V0 <= " << config.optimization.volumeFraction << ", filter radius "
+      << config.optimization.filterRadius << ", move limit " << config.optimization.moveLimit
+      << "; results in " << run.resultsPath()
       << (run.resumedIterations() > 0
               ? " (resumed after " + std::to_string(run.resumedIterations()) + " iterations)"
               : std::string())

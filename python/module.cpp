@@ -251,8 +251,9 @@ py::array_t<double> vectorArray(const Vector& v) {
 }
 
 py::array_t<double> gridArray(const rod::RodConfig& config, const Vector& field, double interfaceValue) {
+  const std::vector<std::size_t> shape = designGridShape(config);  // (ny, nx), the solid's (nz, ny, nx)
   return ownedArray(designToGrid(config, field, interfaceValue),
-                    {config.elementsThroughHeight, config.elementsAlongLength});
+                    std::vector<py::ssize_t>(shape.begin(), shape.end()));
 }
 
 /// The configuration from a dict (the JSON file's content), a path to a JSON file or None, then the
@@ -307,9 +308,17 @@ class PyPistonRod {
   Vector design(const py::handle& input) const {
     const DoubleArray x = realArray(input, "design x");
     const rod::RodConfig& c = config().rod;
-    if (x.ndim() == 2 && x.shape(0) == c.elementsThroughHeight && x.shape(1) == c.elementsAlongLength) {
-      return gridToDesign(c, x.data(), "design x");
-    }
+    const std::vector<std::size_t> shape = designGridShape(c);
+    bool same = x.ndim() == static_cast<py::ssize_t>(shape.size());
+    for (std::size_t a = 0; same && a < shape.size(); ++a)
+      same = x.shape(static_cast<py::ssize_t>(a)) == static_cast<py::ssize_t>(shape[a]);
+    if (same) return gridToDesign(c, x.data(), "design x");
+    if (c.isSolid())
+      throw std::invalid_argument(
+          "design x must have shape (nz, ny, nx) = (" + std::to_string(c.elementsThroughThickness) + ", " +
+          std::to_string(c.elementsThroughHeight) + ", " + std::to_string(c.elementsAlongLength) +
+          "): rod.elementsThroughThickness x rod.elementsThroughHeight x "
+          "rod.elementsAlongLength, end columns 1");
     throw std::invalid_argument("design x must have shape (ny, nx) = (" +
                                 std::to_string(c.elementsThroughHeight) + ", " +
                                 std::to_string(c.elementsAlongLength) +
@@ -962,8 +971,11 @@ PYBIND11_MODULE(_hindsight, m) {
                              [](const PyPistonRod& r) { return r.config().rod.designCount(); })
       .def_property_readonly("shape",
                              [](const PyPistonRod& r) {
-                               return py::make_tuple(r.config().rod.elementsThroughHeight,
-                                                     r.config().rod.elementsAlongLength);
+                               const rod::RodConfig& c = r.config().rod;
+                               if (c.isSolid())
+                                 return py::make_tuple(c.elementsThroughThickness, c.elementsThroughHeight,
+                                                       c.elementsAlongLength);
+                               return py::make_tuple(c.elementsThroughHeight, c.elementsAlongLength);
                              })
       .def("design_variables",
            [](const PyPistonRod& r, const py::object& x) { return vectorArray(r.design(x)); })

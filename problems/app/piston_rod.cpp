@@ -8,6 +8,7 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
+#include <hindsight/problems/rod/solid_member.h>
 #include <hindsight/storage/lossy_storage.h>
 #include <hindsight/storage/storage_factory.h>
 
@@ -24,10 +25,13 @@ namespace {
 // gradient error to relative state error measured against full storage was at most 0.05 with
 // generalized-alpha (h = 5e-4; 10 and 20 modes, T = 3 and 10 s, bounds 3e-8 to 1e-4) and 0.09 with rk4
 // (h = 1e-4), so S = 0.3 keeps a margin of 6 and 3.3 (docs/theory/storage.md, "Compression along time";
-// the default-path test in tests/problems/app checks it). Other integrators keep the storage's default.
-void calibrateLossyTarget(TrajectoryStorage& storage, const std::string& integrator) {
+// the default-path test in tests/problems/app checks it). It was measured on the plate: other integrators
+// and the solid member keep the storage's default.
+void calibrateLossyTarget(TrajectoryStorage& storage, const std::string& integrator, bool plate) {
   auto* lossy = dynamic_cast<LossyStorage*>(&storage);
-  if (lossy != nullptr && (integrator == "generalized-alpha" || integrator == "rk4")) lossy->calibrate(0.3);
+  if (lossy != nullptr && plate && (integrator == "generalized-alpha" || integrator == "rk4")) {
+    lossy->calibrate(0.3);
+  }
 }
 
 }  // namespace
@@ -65,10 +69,18 @@ IntegratorOptions PistonRod::integratorOptions() const {
 }
 
 PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& request) const {
+  // The member is the plate or the solid (problems/rod/member.h); everything after the model is the same
+  // code for both, and the mechanism sees only the invariants.
+  Stopwatch phase;
+  if (config_.rod.isSolid()) return evaluateMember(rod::SolidMember(config_.rod, design), request, phase);
+  return evaluateMember(rod::FeModel(config_.rod, design), request, phase);
+}
+
+template <class Member>
+PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request& request,
+                                              Stopwatch& phase) const {
   const rod::RodConfig& rc = config_.rod;
   PistonRodEvaluation out;
-  Stopwatch phase;
-  const rod::FeModel model(rc, design);
   // A design the eigensolver cannot handle (a near-mechanism: the stiffness is singular or not positive
   // definite, or the eigenpairs do not converge) is a numerical outcome of that design, like a diverged
   // simulation: as NumericalError the optimizer's divergence guard and GCMMA's trials step back from it
@@ -111,7 +123,8 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
       config_.mechanism ? *config_.mechanism
                         : mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
   described.member.length = rc.length;
-  auto mechanismProblem = std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount());
+  auto mechanismProblem =
+      std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount(), invariants.spatial());
   const int modalOffset = mechanismProblem->freeCount();  // q within the minimal coordinates
   const std::unique_ptr<SecondOrderProblem> problemPointer = std::move(mechanismProblem);
   const SecondOrderProblem& problem = *problemPointer;
@@ -139,7 +152,7 @@ PistonRodEvaluation PistonRod::evaluate(ConstVectorRef design, const Request& re
     GradientResult result;
     if (config_.simulation.adjoint == AdjointMethod::Discrete) {
       auto storage = createStorage(config_.simulation.storage);
-      calibrateLossyTarget(*storage, options.method);
+      calibrateLossyTarget(*storage, options.method, !config_.rod.isSolid());
       result = computeGradient(problem, p, options, *storage, observer);
     } else {
       // The continuous and CVODES routes take their own steps; the ESL samples come from a

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/app/config.h>
 
 #include <memory>
@@ -64,6 +65,10 @@ class PistonRod {
   IntegratorOptions integratorOptions() const;
 
  private:
+  /// evaluate() for the member model of the configuration (rod::FeModel or rod::SolidMember).
+  template <class Member>
+  PistonRodEvaluation evaluateMember(const Member& model, const Request& request, Stopwatch& phase) const;
+
   Config config_;
   // The factorisation of K kept from one design to the next (the symbolic analysis depends on the mesh
   // alone); shared by copies of this object, which evaluate the same mesh.

@@ -69,9 +69,12 @@ struct Make<ADOf<C>> {
 
 /// The member's invariants inside p (the order of problems/rod/invariants.h).
 struct View {
-  View(int modes, const double* p) : n(modes), p(p) {}
+  View(int modes, const double* p, bool spatial) : n(modes), p(p), spatial(spatial) {}
   int n;
   const double* p;
+  /// A member that deforms in 3-D (problems/rod/invariants.h): the rotation about z sees the modal mass
+  /// of the in-plane components, M_ee^xy, a block of its own after b; for a plate it is M_ee itself.
+  bool spatial;
   double mass() const { return p[0]; }
   double mc(int k) const { return p[1 + k]; }
   double j0() const { return p[3]; }
@@ -89,6 +92,12 @@ struct View {
   // M_ee enters through its symmetric part, as in problems/rod/slider_crank.cpp: the reduced mass
   // matrix must be symmetric, and the gradient splits evenly between (i, j) and (j, i).
   double mee(int i, int j) const { return 0.5 * (p[meeOffset() + i + n * j] + p[meeOffset() + j + n * i]); }
+  /// M_ee^xy, the modal mass the rotation about z sees (J_w and h; docs/design.md, "The solid member in
+  /// the mechanism"): M_ee for a plate, its own block for a spatial member. Symmetric part, as mee().
+  int meeRotationOffset() const { return spatial ? 4 + 4 * n + 3 * n * n + n : meeOffset(); }
+  double meeRotation(int i, int j) const {
+    return 0.5 * (p[meeRotationOffset() + i + n * j] + p[meeRotationOffset() + j + n * i]);
+  }
   double kee(int i, int j) const { return p[keeOffset() + i + n * j]; }
   double b(int i) const { return p[bOffset() + i]; }
 };
@@ -96,8 +105,8 @@ struct View {
 constexpr int kGround = -1;
 
 /// The member's moments: the scalars through which its frame rows depend on q, q' and a
-/// (chordForce()): s_w = m c + C1 q (2), J_w = J0 + 2 C2 q + q^T M_ee q, A1 . a, C1 a (2), C1 q' (2),
-/// h . q' (h = C2 + M_ee q).
+/// (chordForce()): s_w = m c + C1 q (2), J_w = J0 + 2 C2 q + q^T M_ee^xy q, A1 . a, C1 a (2), C1 q' (2),
+/// h . q' (h = C2 + M_ee^xy q; M_ee^xy = M_ee for a plate, View::meeRotation).
 enum Moment { kSw0, kSw1, kJw, kA1a, kC1a0, kC1a1, kC1v0, kC1v1, kHv, kMoments };
 
 struct PointRef {
@@ -264,6 +273,7 @@ struct MechanismProblem::Impl {
   int f = 0;     ///< minimal coordinates
   int base = 0;  ///< member offset in z
   int nFree = 0;
+  bool spatial = false;  ///< the member deforms in 3-D: p carries M_ee^xy (View::spatial)
   double length = 1.0;
   Vec2 gravity = Vec2::Zero();
   std::vector<double> mass, inertia;
@@ -1334,6 +1344,7 @@ struct Work final : ProblemWorkspace {
   // The symmetric part of M_ee: once per solve for a workspace made for a fixed p.
   bool parametersFixed = false;
   Matrix meeSym;
+  Matrix meeRotationSym;  ///< M_ee^xy's of a spatial member (View::meeRotation), empty for a plate
   // Products of the modal coordinates with the invariant matrices (modalProducts()), the member's
   // moments, and the q, q', a they were formed from (kept only for a fixed p).
   Vector meeQ, h, a1, keeQ, ctV, meeA, ctA, meeV, along, vel, uq;
@@ -1644,7 +1655,7 @@ void generalizedForce(const MechanismProblem::Impl& I, const View& P, Buffers<T>
   for (int j = 0; j < n; ++j) {
     T mq = zero, a1 = zero + P.a0(j);
     for (int i = 0; i < n; ++i) {
-      mq += P.mee(j, i) * z[3 + i];
+      mq += P.meeRotation(j, i) * z[3 + i];
       a1 += z[3 + i] * P.ct(i, j);
     }
     B.mq[j] = mq;
@@ -1800,9 +1811,18 @@ const Matrix& meeOf(const View& P, Work& w) {
     for (int j = 0; j < P.n; ++j) {
       for (int i = 0; i < P.n; ++i) w.meeSym(i, j) = P.mee(i, j);
     }
+    if (P.spatial) {
+      w.meeRotationSym.resize(P.n, P.n);
+      for (int j = 0; j < P.n; ++j) {
+        for (int i = 0; i < P.n; ++i) w.meeRotationSym(i, j) = P.meeRotation(i, j);
+      }
+    }
   }
   return w.meeSym;
 }
+
+/// The symmetric part of M_ee^xy (View::meeRotation) after meeOf(): the same matrix for a plate.
+const Matrix& meeRotationOf(const View& P, const Work& w) { return P.spatial ? w.meeRotationSym : w.meeSym; }
 
 /// Whether x[0, n) has the bits kept in key (kept: a workspace made for a fixed p).
 bool keptBits(const double* x, const Vector& key, bool kept) {
@@ -1814,14 +1834,15 @@ bool keptBits(const double* x, const Vector& key, bool kept) {
 /// member's moments (enum Moment). a == nullptr stands for a = 0. O(n^2). For a workspace made for a
 /// fixed p, the products of q, of q' and of a are kept with the bits they were formed from: the engine
 /// asks for the mass matrix, the Jacobians, the force and the parameter product at one point.
-void modalProducts(const View& P, const Matrix& mee, const double* q, const double* v, const double* a,
-                   bool jacobian, Work& w, double* moments) {
+/// mee is M_ee (the modal mass, M_ee a), rotation M_ee^xy (h, J_w, M_ee^xy q'): one matrix for a plate.
+void modalProducts(const View& P, const Matrix& mee, const Matrix& rotation, const double* q, const double* v,
+                   const double* a, bool jacobian, Work& w, double* moments) {
   const int n = P.n;
   const bool keep = w.parametersFixed;
   const Eigen::Map<const Vector> Q(q, n), V(v, n);
   const Eigen::Map<const Matrix> ct(P.p + P.ctOffset(), n, n), kee(P.p + P.keeOffset(), n, n);
   if (!keptBits(q, w.qKey, keep && w.qKept)) {
-    w.meeQ.noalias() = mee * Q;
+    w.meeQ.noalias() = rotation * Q;
     w.a1.noalias() = ct.transpose() * Q;
     w.keeQ.noalias() = kee * Q;
     double sw0 = P.mc(0), sw1 = P.mc(1), jw = P.j0();
@@ -1847,7 +1868,7 @@ void modalProducts(const View& P, const Matrix& mee, const double* q, const doub
       c1v1 += P.c1(1, i) * v[i];
       hv += w.h(i) * v[i];
     }
-    if (jacobian) w.meeV.noalias() = mee * V;
+    if (jacobian) w.meeV.noalias() = rotation * V;
     w.moments[kC1v0] = c1v0;
     w.moments[kC1v1] = c1v1;
     w.moments[kHv] = hv;
@@ -1996,7 +2017,7 @@ void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, cons
   const double sig1 = -thdd * nb0 - thd * thd * nb1 - nth * rho0;
   out(1) += sig0;
   out(2) += sig1;
-  // J_w = J0 + 2 C2 q + q^T M_ee q multiplies theta'' in the theta row.
+  // J_w = J0 + 2 C2 q + q^T M_ee^xy q multiplies theta'' in the theta row.
   const double zeta = nth * thdd;
   out(3) += zeta;
   // C1 directly: nb . (C1 q'' + 2 thd S C1 q') + nq . C1^T rho.
@@ -2004,10 +2025,11 @@ void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, cons
     out(P.c1Offset() + 2 * j) += sig0 * q[j] + nb0 * qdd[j] + 2.0 * thd * nb1 * qd[j] + rho0 * nq(j);
     out(P.c1Offset() + 1 + 2 * j) += sig1 * q[j] + nb1 * qdd[j] - 2.0 * thd * nb0 * qd[j] + rho1 * nq(j);
   }
-  // h = C2 + M_ee q: 2 thd h . q' (theta row) and -h thd^2 (q rows). A1 = a0 + Ct^T q: A1 . q''
+  // h = C2 + M_ee^xy q: 2 thd h . q' (theta row) and -h thd^2 (q rows). A1 = a0 + Ct^T q: A1 . q''
   // (theta row) and A1 thdd (q rows).
   double* ct = out.data() + P.ctOffset();
   double* mee = out.data() + P.meeOffset();
+  double* rotation = out.data() + P.meeRotationOffset();
   double* kee = out.data() + P.keeOffset();
   // eta once per entry, not once per (i, j): the same expression, so the same bits.
   double eta[MechanismProblem::kMaxModes];
@@ -2021,9 +2043,15 @@ void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, cons
       const double etaI = eta[i];
       // Ct: A1_j = a0_j + sum_i q_i Ct_ij, and -2 thd Ct q' in the q rows.
       ct[i + n * j] += q[i] * alphaJ - 2.0 * thd * nq(i) * qd[j];
-      // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised.
-      mee[i + n * j] +=
-          zeta * q[i] * q[j] + 0.5 * (etaI * q[j] + etaJ * q[i] + nq(i) * qdd[j] + nq(j) * qdd[i]);
+      // M_ee (symmetric part): zeta q q^T + eta q^T + nq q''^T, symmetrised; of a spatial member's
+      // the first two are M_ee^xy's (J_w and h), the last M_ee's (the modal mass).
+      if (P.spatial) {
+        rotation[i + n * j] += zeta * q[i] * q[j] + 0.5 * (etaI * q[j] + etaJ * q[i]);
+        mee[i + n * j] += 0.5 * (nq(i) * qdd[j] + nq(j) * qdd[i]);
+      } else {
+        mee[i + n * j] +=
+            zeta * q[i] * q[j] + 0.5 * (etaI * q[j] + etaJ * q[i] + nq(i) * qdd[j] + nq(j) * qdd[i]);
+      }
       kee[i + n * j] += nq(i) * q[j];
     }
   }
@@ -2031,8 +2059,9 @@ void memberParameterProduct(const MechanismProblem::Impl& I, const View& P, cons
 
 }  // namespace
 
-MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount)
+MechanismProblem::MechanismProblem(const Mechanism& mechanism, int modeCount, bool spatialMember)
     : mechanism_(mechanism), modes_(modeCount), impl_(std::make_unique<Impl>()) {
+  impl_->spatial = spatialMember;
   if (modeCount < 1 || modeCount > kMaxModes) {
     throw std::invalid_argument("modeCount = " + std::to_string(modeCount) + " must be in [1, " +
                                 std::to_string(kMaxModes) + "]");
@@ -2194,7 +2223,9 @@ MechanismProblem::~MechanismProblem() = default;
 
 int MechanismProblem::coordinateCount() const { return impl_->f; }
 int MechanismProblem::freeCount() const { return impl_->nFree; }
-int MechanismProblem::parameterSize() const { return 4 + 5 * modes_ + 3 * modes_ * modes_; }
+int MechanismProblem::parameterSize() const {
+  return 4 + 5 * modes_ + (impl_->spatial ? 4 : 3) * modes_ * modes_;
+}
 int MechanismProblem::fullCoordinateCount() const { return impl_->nz; }
 int MechanismProblem::memberOffset() const { return impl_->base; }
 
@@ -2204,7 +2235,7 @@ std::unique_ptr<ProblemWorkspace> MechanismProblem::createModelWorkspace() const
 
 std::unique_ptr<ProblemWorkspace> MechanismProblem::createModelWorkspaceFor(ConstVectorRef p) const {
   auto w = std::make_unique<Work>(*impl_, *chord_);
-  meeOf(View(modes_, p.data()), *w);
+  meeOf(View(modes_, p.data(), impl_->spatial), *w);
   w->parametersFixed = true;
   return w;
 }
@@ -2294,13 +2325,13 @@ void accelerationDerivatives(const MechanismProblem::Impl& C, const View& P, Wor
 void massAndForce(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, double t,
                   ConstVectorRef y, ConstVectorRef v, ConstVectorRef p, MatrixRef mass, VectorRef f, Work& w,
                   bool massOnly) {
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   const int n = I.n, nf = I.nFree, k = C.f, ci = nf;
   chordInputs(I, P, y, v, nullptr, w);
   chordKinematics(C, t, w, massOnly);
   const Matrix& mee = meeOf(P, w);
   double mom[kMoments];
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, nullptr, false, w, mom);
+  modalProducts(P, mee, meeRotationOf(P, w), y.data() + nf, v.data() + nf, nullptr, false, w, mom);
   if (!massOnly) {
     // The force: the residual at a = 0 (chordInputs() set sigma'' = 0, modalProducts() the moments of a).
     double phi[4];
@@ -2414,12 +2445,13 @@ void MechanismProblem::force(double t, ConstVectorRef y, ConstVectorRef v, Const
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   const int n = I.n, nf = I.nFree;
   chordInputs(I, P, y, v, nullptr, w);
   chordKinematics(C, t, w);
   double mom[kMoments], phi[4];
-  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, nullptr, false, w, mom);
+  const Matrix& mee = meeOf(P, w);
+  modalProducts(P, mee, meeRotationOf(P, w), y.data() + nf, v.data() + nf, nullptr, false, w, mom);
   chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
   for (int i = 0; i < nf; ++i) f(i) = -w.cd.r[i];
   for (int l = 0; l < n; ++l) f(nf + l) = -(modalRow(P, w, phi, l) + P.b(l) * w.cd.r[nf]);
@@ -2430,12 +2462,13 @@ void MechanismProblem::residual(double t, ConstVectorRef y, ConstVectorRef v, Co
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   const int n = I.n, nf = I.nFree;
   chordInputs(I, P, y, v, a.data(), w);
   chordKinematics(C, t, w);
   double mom[kMoments], phi[4];
-  modalProducts(P, meeOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
+  const Matrix& mee = meeOf(P, w);
+  modalProducts(P, mee, meeRotationOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, false, w, mom);
   chordResidual<double>(C, P, w.cd, w.sigmaDdot.data(), mom, phi, 0.0);
   for (int i = 0; i < nf; ++i) r(i) = w.cd.r[i];
   for (int l = 0; l < n; ++l) r(nf + l) = modalRow(P, w, phi, l) + P.b(l) * w.cd.r[nf];
@@ -2617,7 +2650,7 @@ void chordStateVjp(const MechanismProblem::Impl& I, const MechanismProblem::Impl
 
 /// The point (t, y, y', a) of the chord path's products: positions and kinematics (kept when they are
 /// the last call's), the modal products (with the Jacobians' when `jacobian`) and the moments into mom;
-/// returns the symmetric part of M_ee.
+/// returns the symmetric part of M_ee^xy (the Jacobians' and products' -beta'^2 h term; M_ee for a plate).
 const Matrix& productPoint(const MechanismProblem::Impl& I, const MechanismProblem::Impl& C, const View& P,
                            double t, ConstVectorRef y, ConstVectorRef v, ConstVectorRef a, bool jacobian,
                            Work& w, double* mom) {
@@ -2625,8 +2658,8 @@ const Matrix& productPoint(const MechanismProblem::Impl& I, const MechanismProbl
   chordInputs(I, P, y, v, a.data(), w);
   chordKinematics(C, t, w);
   const Matrix& mee = meeOf(P, w);
-  modalProducts(P, mee, y.data() + nf, v.data() + nf, a.data() + nf, jacobian, w, mom);
-  return mee;
+  modalProducts(P, mee, meeRotationOf(P, w), y.data() + nf, v.data() + nf, a.data() + nf, jacobian, w, mom);
+  return meeRotationOf(P, w);
 }
 
 /// chordStateVjp() with the dual numbers of the chord system's size.
@@ -2648,7 +2681,7 @@ void MechanismProblem::residualJacobians(double t, ConstVectorRef y, ConstVector
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   double mom[kMoments];
   const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
   if (C.f == 1) {
@@ -2726,7 +2759,7 @@ void MechanismProblem::addResidualParameterVjp(double t, ConstVectorRef y, Const
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   double mom[kMoments];
   productPoint(I, C, P, t, y, v, a, false, w, mom);
   parameterProduct(I, C, P, t, y, v, a, mu, mom, w, out);
@@ -2738,7 +2771,7 @@ void MechanismProblem::residualStateVjp(double t, ConstVectorRef y, ConstVectorR
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   double mom[kMoments];
   const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
   stateVjp(I, C, P, t, mom, mee, mu, outY, outV, w);
@@ -2750,7 +2783,7 @@ void MechanismProblem::residualVjps(double t, ConstVectorRef y, ConstVectorRef v
   const Impl& I = *impl_;
   const Impl& C = *chord_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   // One set of positions, kinematics and modal products for both products.
   double mom[kMoments];
   const Matrix& mee = productPoint(I, C, P, t, y, v, a, true, w, mom);
@@ -2765,7 +2798,7 @@ void MechanismProblem::massMatrixAndForceByProjection(double t, ConstVectorRef y
                                                       ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   // f = -R^T (M zeta - Q).
@@ -2797,7 +2830,7 @@ void MechanismProblem::residualByProjection(double t, ConstVectorRef y, ConstVec
                                             ConstVectorRef p, VectorRef r, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   fullPass(I, *chord_, P, t, y, v, w);
   residualFromKinematics(I, P, w.d, a, 0);
   for (int i = 0; i < I.f; ++i) r(i) = w.d.r[i];
@@ -2808,7 +2841,7 @@ void MechanismProblem::residualJacobiansByAutoDiff(double t, ConstVectorRef y, C
                                                    MatrixRef rv, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   fullPass(I, *chord_, P, t, y, v, w);
   if (2 * I.f <= kSmall) {
     stateJacobians(I, P, t, y, v, a, ry, rv, w.s, w);
@@ -2823,7 +2856,7 @@ void MechanismProblem::addResidualParameterVjpByAutoDiff(double t, ConstVectorRe
                                                          ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   residualFromKinematics(I, P, B, a, 0);
@@ -2845,7 +2878,7 @@ void MechanismProblem::addResidualParameterVjpByAutoDiff(double t, ConstVectorRe
 
 double MechanismProblem::integrand(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
                                    ProblemWorkspace*) const {
-  const View P(modes_, p.data());
+  const View P(modes_, p.data(), impl_->spatial);
   const int o = impl_->nFree;
   double s = 0.0;
   for (int i = 0; i < modes_; ++i) {
@@ -2857,7 +2890,7 @@ double MechanismProblem::integrand(double, ConstVectorRef y, ConstVectorRef, Con
 void MechanismProblem::addIntegrandStateGradient(double, ConstVectorRef y, ConstVectorRef, ConstVectorRef p,
                                                  double scale, VectorRef gy, VectorRef,
                                                  ProblemWorkspace*) const {
-  const View P(modes_, p.data());
+  const View P(modes_, p.data(), impl_->spatial);
   const int o = impl_->nFree;
   for (int i = 0; i < modes_; ++i) {
     for (int j = 0; j < modes_; ++j) gy(o + i) += scale * (P.kee(i, j) + P.kee(j, i)) * y(o + j);
@@ -2867,7 +2900,7 @@ void MechanismProblem::addIntegrandStateGradient(double, ConstVectorRef y, Const
 void MechanismProblem::addIntegrandParameterGradient(double, ConstVectorRef y, ConstVectorRef,
                                                      ConstVectorRef p, double scale, VectorRef gp,
                                                      ProblemWorkspace*) const {
-  const View P(modes_, p.data());
+  const View P(modes_, p.data(), impl_->spatial);
   const int o = impl_->nFree;
   for (int j = 0; j < modes_; ++j) {
     for (int i = 0; i < modes_; ++i) gp(P.keeOffset() + i + modes_ * j) += scale * y(o + i) * y(o + j);
@@ -2878,7 +2911,7 @@ void MechanismProblem::coordinates(double t, ConstVectorRef y, ConstVectorRef v,
                                    VectorRef z, VectorRef zDot, ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  fullPass(I, *chord_, View(I.n, p.data()), t, y, v, w);
+  fullPass(I, *chord_, View(I.n, p.data(), I.spatial), t, y, v, w);
   for (int i = 0; i < I.nz; ++i) {
     z(i) = w.d.z[i];
     zDot(i) = w.d.zd[i];
@@ -2890,7 +2923,7 @@ MechanismProblem::Energies MechanismProblem::energies(double t, ConstVectorRef y
                                                       ProblemWorkspace* ws) const {
   const Impl& I = *impl_;
   Work& w = workOf(ws);
-  const View P(I.n, p.data());
+  const View P(I.n, p.data(), I.spatial);
   fullPass(I, *chord_, P, t, y, v, w);
   Buffers<double>& B = w.d;
   Energies e;
@@ -2977,7 +3010,7 @@ void MechanismProblem::constraintJacobian(double t, ConstVectorRef y, ConstVecto
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   w.mu.setZero();
-  chordInputs(I, View(I.n, p.data()), y, w.mu, nullptr, w);
+  chordInputs(I, View(I.n, p.data(), I.spatial), y, w.mu, nullptr, w);
   chordKinematics(C, t, w, true);
   for (int j = 0; j < C.m; ++j) {
     for (int i = 0; i < C.m; ++i) phiU(i, j) = w.cd.jac[i + C.m * C.dependent[j]];
@@ -2990,7 +3023,7 @@ void MechanismProblem::positionsBlockAndDense(double t, ConstVectorRef y, ConstV
   const Impl& C = *chord_;
   Work& w = workOf(ws);
   w.mu.setZero();
-  chordInputs(I, View(I.n, p.data()), y, w.mu, nullptr, w);
+  chordInputs(I, View(I.n, p.data(), I.spatial), y, w.mu, nullptr, w);
   w.kinematicsValid = false;
   solvePositions(C, t, w.sigma, w);
   z = w.zChord;

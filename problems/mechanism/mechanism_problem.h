@@ -79,8 +79,9 @@
 // Jacobians, force and parameter product at one point.
 //
 // Parameters p: the member's invariants in the layout of problems/rod/invariants.h (b = the u_x row of
-// the modes at B, which is how the member's B attaches), so problems/rod/design_gradient.h chains
-// dpsi/dp to the element densities. The objective is psi1 = int q^T K_ee q dt as for the built-in model.
+// the modes at B, which is how the member's B attaches; a solid's M_ee^xy after it), so
+// problems/rod/design_gradient.h chains dpsi/dp to the element densities. The objective is psi1 = int q^T
+// K_ee q dt as for the built-in model.
 #pragma once
 
 #include <hindsight/engine/second_order_problem.h>
@@ -99,7 +100,10 @@ class MechanismProblem final : public SecondOrderProblem {
   /// Validates the description (std::invalid_argument naming the element) and assembles it at t = 0
   /// (std::invalid_argument when the initial positions cannot be assembled or the constraints are
   /// redundant there).
-  MechanismProblem(const Mechanism& mechanism, int modeCount);
+  /// spatialMember: the member deforms in 3-D (a solid, problems/rod/member.h), and p carries the rotational
+  /// modal mass M_ee^xy after b (problems/rod/invariants.h), which J_w and the centrifugal terms use in
+  /// place of M_ee (docs/design.md, "The solid member in the mechanism").
+  MechanismProblem(const Mechanism& mechanism, int modeCount, bool spatialMember = false);
   ~MechanismProblem() override;
 
   std::string name() const override { return "mechanism"; }

@@ -10,8 +10,8 @@ namespace rod {
 
 #if defined(HINDSIGHT_FMA_KERNELS)
 // compensated_kernels_fma.cpp
-void fmaElementProducts(const double* unit, const double* x, int columns, double* product, double* high,
-                        double* low);
+void fmaElementProducts(const double* unit, int rows, const double* x, int columns, double* product,
+                        double* high, double* low);
 void fmaSparseUpdate(int outerSize, const int* outer, const int* inner, const double* values, const double* x,
                      int columns, double* high, double* low);
 #endif
@@ -84,16 +84,25 @@ KernelIsa defaultKernelIsa() {
   return isa;
 }
 
-void compensatedElementProducts(const double* unit, const double* x, int columns, bool dekker,
+void compensatedElementProducts(const double* unit, int rows, const double* x, int columns, bool dekker,
                                 double* product, double* high, double* low, KernelIsa isa) {
   requireAvailable(isa);
+  if (rows != 8 && rows != 24)
+    throw std::invalid_argument("compensatedElementProducts: rows = " + std::to_string(rows) +
+                                " is outside the allowed range {8, 24}");
 #if defined(HINDSIGHT_FMA_KERNELS)
-  if (isa == KernelIsa::Fma) return fmaElementProducts(unit, x, columns, product, high, low);
+  if (isa == KernelIsa::Fma) return fmaElementProducts(unit, rows, x, columns, product, high, low);
 #endif
-  if (dekker)
-    elementProducts(unit, x, columns, product, high, low, DekkerError());
-  else
-    elementProducts(unit, x, columns, product, high, low, LibraryFmaError());
+  if (rows == 8) {
+    if (dekker)
+      elementProducts<8>(unit, x, columns, product, high, low, DekkerError());
+    else
+      elementProducts<8>(unit, x, columns, product, high, low, LibraryFmaError());
+  } else if (dekker) {
+    elementProducts<24>(unit, x, columns, product, high, low, DekkerError());
+  } else {
+    elementProducts<24>(unit, x, columns, product, high, low, LibraryFmaError());
+  }
 }
 
 void compensatedSparseUpdate(int outerSize, const int* outer, const int* inner, const double* values,

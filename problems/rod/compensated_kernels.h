@@ -28,14 +28,15 @@ KernelIsa kernelIsaFromSetting(const char* setting);
 /// succeeds).
 KernelIsa defaultKernelIsa();
 
-/// product[a + 8 c] = sum_{b = 0..7} unit[a + 8 b] x[b * columns + c] (unit: an 8 x 8 element matrix,
-/// column-major; x: 8 rows of `columns`, row-major), each sum accumulated in double-double over b in
+/// product[a + r c] = sum_{b = 0..r-1} unit[a + r b] x[b * columns + c] (unit: an r x r element matrix,
+/// column-major, r = rows: 8 for the plate's quadrilateral, 24 for the solid's hexahedron; x: r rows of
+/// `columns`, row-major), each sum accumulated in double-double over b in
 /// increasing order (two-sum of the rounded products, their exact errors added to the low part) and
 /// rounded once. `dekker` (Baseline only): every entry of unit and x is zero or of magnitude in
 /// [2^-480, 2^480], where Dekker's split is exact; otherwise the baseline takes each error from std::fma.
 /// high, low: scratch of `columns` doubles. Throws std::invalid_argument for an ISA kernelIsaAvailable()
-/// denies.
-void compensatedElementProducts(const double* unit, const double* x, int columns, bool dekker,
+/// denies or rows outside {8, 24}.
+void compensatedElementProducts(const double* unit, int rows, const double* x, int columns, bool dekker,
                                 double* product, double* high, double* low, KernelIsa isa);
 
 /// (high, low) <- (high, low) - A X in double-double, for A in compressed column storage (outerSize

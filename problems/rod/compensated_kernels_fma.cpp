@@ -14,9 +14,12 @@ struct FusedError {
 
 }  // namespace
 
-void fmaElementProducts(const double* unit, const double* x, int columns, double* product, double* high,
-                        double* low) {
-  elementProducts(unit, x, columns, product, high, low, FusedError());
+void fmaElementProducts(const double* unit, int rows, const double* x, int columns, double* product,
+                        double* high, double* low) {
+  if (rows == 8)
+    elementProducts<8>(unit, x, columns, product, high, low, FusedError());
+  else
+    elementProducts<24>(unit, x, columns, product, high, low, FusedError());
 }
 
 void fmaSparseUpdate(int outerSize, const int* outer, const int* inner, const double* values, const double* x,

@@ -3,6 +3,7 @@
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/parallel.h>
+#include <hindsight/problems/rod/solid_member.h>
 
 #include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
@@ -19,15 +20,18 @@ namespace rod {
 namespace {
 
 // Gathers the rows of the element DOFs of a full-DOF matrix.
-Eigen::Matrix<double, 8, Eigen::Dynamic> gatherRows(const Matrix& full, const std::array<int, 8>& dofs) {
-  Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, full.cols());
-  for (int a = 0; a < 8; ++a) local.row(a) = full.row(dofs[a]);
+template <std::size_t N>
+Eigen::Matrix<double, static_cast<int>(N), Eigen::Dynamic> gatherRows(const Matrix& full,
+                                                                      const std::array<int, N>& dofs) {
+  Eigen::Matrix<double, static_cast<int>(N), Eigen::Dynamic> local(static_cast<int>(N), full.cols());
+  for (int a = 0; a < static_cast<int>(N); ++a) local.row(a) = full.row(dofs[a]);
   return local;
 }
 
-ElementVector gather(const Vector& full, const std::array<int, 8>& dofs) {
-  ElementVector local;
-  for (int a = 0; a < 8; ++a) local(a) = full(dofs[a]);
+template <std::size_t N>
+Eigen::Matrix<double, static_cast<int>(N), 1> gather(const Vector& full, const std::array<int, N>& dofs) {
+  Eigen::Matrix<double, static_cast<int>(N), 1> local;
+  for (int a = 0; a < static_cast<int>(N); ++a) local(a) = full(dofs[a]);
   return local;
 }
 
@@ -36,7 +40,8 @@ using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int
 // The fill-reducing ordering (AMD) of the pattern of K - lambda M, the same for every mode: computed
 // once per design and shared by all Nelson systems, so each factorisation does only its numeric part
 // (and the cheap elimination tree of the permuted pattern).
-Permutation nelsonOrdering(const FeModel& model) {
+template <class Member>
+Permutation nelsonOrdering(const Member& model) {
   const SparseMatrix pattern = model.stiffness() + model.mass();
   Permutation inverse;
   Eigen::AMDOrdering<int>()(pattern, inverse);
@@ -51,7 +56,8 @@ struct PermutedOperators {
   SparseMatrix stiffness, mass;
 };
 
-PermutedOperators permutedOperators(const FeModel& model, const Permutation& ordering) {
+template <class Member>
+PermutedOperators permutedOperators(const Member& model, const Permutation& ordering) {
   SparseMatrix stiffness = model.stiffness() + 0.0 * model.mass();
   SparseMatrix mass = 0.0 * model.stiffness() + model.mass();
   stiffness.makeCompressed();
@@ -78,7 +84,8 @@ PermutedOperators permutedOperators(const FeModel& model, const Permutation& ord
 // the pivoting sparse LU.
 class NelsonSystem {
  public:
-  NelsonSystem(const FeModel& model, double eigenvalue, const Vector& modeFree, const Permutation& ordering,
+  template <class Member>
+  NelsonSystem(const Member& model, double eigenvalue, const Vector& modeFree, const Permutation& ordering,
                const PermutedOperators& operators)
       : ordering_(ordering) {
     modeFree.cwiseAbs().maxCoeff(&pivot_);
@@ -160,7 +167,8 @@ struct DeflatedAdjoint {
   std::vector<int> iterations;  // per mode; -1 when solved directly
 };
 
-DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis,
+template <class Member>
+DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
                                    const StiffnessFactorization& stiffnessFactorization,
                                    const Matrix& massModes, const Matrix& rightHandSides,
                                    int iterationLimit) {
@@ -281,11 +289,8 @@ DeflatedAdjoint solveAdjointNelson(const FeModel& model, const ModalBasis& basis
   return out;
 }
 
-}  // namespace
-
-namespace {
-
-void checkBasis(const FeModel& model, const ModalBasis& basis) {
+template <class Member>
+void checkBasis(const Member& model, const ModalBasis& basis) {
   if (basis.reliefModeCount != 0)
     throw std::invalid_argument(
         "design gradient: basis.reliefModeCount = " + std::to_string(basis.reliefModeCount) +
@@ -293,40 +298,33 @@ void checkBasis(const FeModel& model, const ModalBasis& basis) {
   if (basis.modesFree.rows() != model.freeDofCount() || basis.modesFull.rows() != model.dofCount() ||
       basis.modesFree.cols() != basis.eigenmodeCount || basis.eigenvalues.size() != basis.eigenmodeCount)
     throw std::invalid_argument(
-        "design gradient: the modal basis does not belong to this FeModel (sizes differ)");
+        "design gradient: the modal basis does not belong to this member model (sizes differ)");
 }
 
 // Free-DOF vector -(K' - lambda M') phi for design element e (K' = dE Ke0, M' = drho Me0) plus
 // lambda' M phi; K' and M' are restricted to the free DOFs by dropping constrained rows.
-Vector nelsonRightHandSide(const FeModel& model, const std::array<int, 8>& dofs,
-                           const ElementVector& modeLocal, double stiffnessSlope, double densitySlope,
-                           double eigenvalue, double eigenvalueDerivative, const Vector& massTimesMode) {
+template <class Member>
+Vector nelsonRightHandSide(const Member& model, const std::array<int, Member::kElementDofs>& dofs,
+                           const typename Member::ElementVectorType& modeLocal, double stiffnessSlope,
+                           double densitySlope, double eigenvalue, double eigenvalueDerivative,
+                           const Vector& massTimesMode) {
   Vector rhs = eigenvalueDerivative * massTimesMode;
-  const ElementVector local =
+  const typename Member::ElementVectorType local =
       (stiffnessSlope * model.unitStiffness() - eigenvalue * densitySlope * model.unitMass()) * modeLocal;
-  for (int a = 0; a < 8; ++a) {
+  for (int a = 0; a < Member::kElementDofs; ++a) {
     const int free = model.fullToFree()[dofs[a]];
     if (free >= 0) rhs(free) -= local(a);
   }
   return rhs;
 }
 
-}  // namespace
-
-DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
-                                           ConstVectorRef invariantGradient,
-                                           const DesignGradientOptions& options,
-                                           const DesignGradientExtras& extras) {
-  checkBasis(model, basis);
-  const StiffnessFactorization stiffnessFactorization(model.stiffness());
-  return computeDesignGradient(model, basis, invariantGradient, options, extras, stiffnessFactorization);
-}
-
-DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
-                                           ConstVectorRef invariantGradient,
-                                           const DesignGradientOptions& options,
-                                           const DesignGradientExtras& extras,
-                                           const StiffnessFactorization& stiffnessFactorization) {
+template <class Member>
+DesignGradientResult designGradientOf(const Member& model, const ModalBasis& basis,
+                                      ConstVectorRef invariantGradient, const DesignGradientOptions& options,
+                                      const DesignGradientExtras& extras,
+                                      const StiffnessFactorization& stiffnessFactorization) {
+  constexpr int kComponents = Member::kComponents, kDofs = Member::kElementDofs;
+  using ElementVectorType = typename Member::ElementVectorType;
   const Stopwatch timer;
   checkBasis(model, basis);
   if (options.adjointIterationLimit < 0)
@@ -337,11 +335,12 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     throw std::invalid_argument(
         "computeDesignGradient: the stiffness factorisation belongs to another model");
   const int n = basis.eigenmodeCount;
-  const InvariantLayout layout(n);
+  const InvariantLayout layout(n, kComponents == 3);
   if (invariantGradient.size() != layout.size) {
     std::ostringstream message;
     message << "computeDesignGradient: invariantGradient has " << invariantGradient.size()
-            << " entries, expected " << layout.size << " (InertiaInvariants::packedSize(" << n << "))";
+            << " entries, expected " << layout.size << " (InertiaInvariants::packedSize(" << n << ", "
+            << (layout.spatial ? "true" : "false") << "))";
     throw std::invalid_argument(message.str());
   }
   if (extras.eigenvalueGradient.size() != 0 && extras.eigenvalueGradient.size() != n)
@@ -361,8 +360,10 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
   const SparseMatrix& stiffnessFull = model.stiffnessFull();
   const Matrix& modes = basis.modesFull;
   const Vector& coordinates = model.referenceCoordinates();
-  const Vector rotatedCoordinates = rotateNodewise(coordinates);
-  const Matrix rotatedModesTransposed = rotateNodewiseTransposedColumns(modes);
+  const Vector rotatedCoordinates = rotateNodewise(coordinates, kComponents);
+  const Matrix rotatedModesTransposed = rotateNodewiseTransposedColumns(modes, kComponents);
+  // The solid's rotational modal mass MeeRot = Phi_xy^T M Phi_xy (invariants.h); empty for the plate.
+  const Matrix planarModes = kComponents == 3 ? planarComponents(modes, kComponents) : Matrix();
 
   // Explicit part: psi_explicit = sum_ab Gm_ab L_a^T M R_b + sum_ij Gk_ij phi_i^T K phi_j with
   // L = [e_x, e_y, X, S X, Phi], R = [e_x, e_y, X, Phi, S^T Phi].
@@ -389,12 +390,16 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
     for (int d = block * 256; d < std::min(designs, (block + 1) * 256); ++d) {
       const int element = model.designToElement(d);
       const double x = model.design()(d);
-      const std::array<int, 8> dofs = model.elementDofs(element);
+      const std::array<int, kDofs> dofs = model.elementDofs(element);
       const auto leftLocal = gatherRows(left, dofs);
       const auto rightLocal = gatherRows(right, dofs);
       const auto modesLocal = gatherRows(modes, dofs);
-      const double massPart =
-          massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
+      double massPart = massWeights.cwiseProduct(leftLocal.transpose() * model.unitMass() * rightLocal).sum();
+      if constexpr (kComponents == 3) {
+        const auto planarLocal = gatherRows(planarModes, dofs);
+        massPart +=
+            weights.meeRotation.cwiseProduct(planarLocal.transpose() * model.unitMass() * planarLocal).sum();
+      }
       const double stiffnessPart =
           stiffnessWeights.cwiseProduct(modesLocal.transpose() * model.unitStiffness() * modesLocal).sum();
       result.gradient(d) =
@@ -409,10 +414,17 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
                             (massFull * coordinates) * weights.c2.transpose() +
                             (massFull * rotatedCoordinates) * weights.a0.transpose() +
                             (massFull * rotatedModesTransposed) * weights.cTilde.transpose() +
-                            rotateNodewiseColumns(massModes) * weights.cTilde +
+                            rotateNodewiseColumns(massModes, kComponents) * weights.cTilde +
                             massModes * (weights.mee + weights.mee.transpose()) +
                             (stiffnessFull * modes) * (weights.kee + weights.kee.transpose());
-  modeGradientFull.row(model.jointBAxialDof()) += weights.b.transpose();
+  if constexpr (kComponents == 2) {
+    modeGradientFull.row(model.jointBAxialDof()) += weights.b.transpose();
+  } else {
+    const std::vector<int> axis = model.jointBAxialDofs();
+    for (int dof : axis)
+      modeGradientFull.row(dof) += weights.b.transpose() / static_cast<double>(axis.size());
+    modeGradientFull += (massFull * planarModes) * (weights.meeRotation + weights.meeRotation.transpose());
+  }
   const Matrix modeGradient = model.restrictColumnsToFree(modeGradientFull);
 
   // The adjoint route solves every mode's system first (solveAdjointNelson, all modes in one block
@@ -467,11 +479,11 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
       for (int d = 0; d < model.designCount(); ++d) {
         const double stiffnessSlope = stiffnessSlopes(d);
         const double densitySlope = densitySlopes(d);
-        const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
-        const ElementVector phi = gather(modeFull, dofs);
-        const ElementVector z = gather(adjointFull, dofs);
-        const ElementVector stiffnessPhi = model.unitStiffness() * phi;
-        const ElementVector massPhi = model.unitMass() * phi;
+        const std::array<int, kDofs> dofs = model.elementDofs(model.designToElement(d));
+        const ElementVectorType phi = gather(modeFull, dofs);
+        const ElementVectorType z = gather(adjointFull, dofs);
+        const ElementVectorType stiffnessPhi = model.unitStiffness() * phi;
+        const ElementVectorType massPhi = model.unitMass() * phi;
         const double phiMassPhi = phi.dot(massPhi);
         const double eigenvalueDerivative =
             stiffnessSlope * phi.dot(stiffnessPhi) - eigenvalue * densitySlope * phiMassPhi;
@@ -485,8 +497,8 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
       for (int d = 0; d < model.designCount(); ++d) {
         const double stiffnessSlope = stiffnessSlopes(d);
         const double densitySlope = densitySlopes(d);
-        const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
-        const ElementVector phi = gather(modeFull, dofs);
+        const std::array<int, kDofs> dofs = model.elementDofs(model.designToElement(d));
+        const ElementVectorType phi = gather(modeFull, dofs);
         const double phiMassPhi = phi.dot(model.unitMass() * phi);
         const double eigenvalueDerivative =
             stiffnessSlope * phi.dot(model.unitStiffness() * phi) - eigenvalue * densitySlope * phiMassPhi;
@@ -509,8 +521,9 @@ DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasi
   return result;
 }
 
-EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const ModalBasis& basis, int mode,
-                                               int designIndex) {
+template <class Member>
+EigenpairDerivative eigenpairDerivativeOf(const Member& model, const ModalBasis& basis, int mode,
+                                          int designIndex) {
   checkBasis(model, basis);
   if (mode < 0 || mode >= basis.eigenmodeCount)
     throw std::invalid_argument("computeEigenpairDerivative: mode = " + std::to_string(mode) +
@@ -528,8 +541,8 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   const double x = model.design()(designIndex);
   const double stiffnessSlope = model.simp().stiffnessDerivative(x);
   const double densitySlope = model.simp().densityDerivative(x);
-  const std::array<int, 8> dofs = model.elementDofs(model.designToElement(designIndex));
-  const ElementVector phi = gather(Vector(basis.modesFull.col(mode)), dofs);
+  const std::array<int, Member::kElementDofs> dofs = model.elementDofs(model.designToElement(designIndex));
+  const typename Member::ElementVectorType phi = gather(Vector(basis.modesFull.col(mode)), dofs);
   const double phiMassPhi = phi.dot(model.unitMass() * phi);
   EigenpairDerivative derivative;
   derivative.eigenvalue =
@@ -539,6 +552,52 @@ EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const Modal
   const double c = -0.5 * densitySlope * phiMassPhi - massTimesMode.dot(v);
   derivative.modeFree = v + c * modeFree;
   return derivative;
+}
+
+template <class Member>
+DesignGradientResult designGradientOf(const Member& model, const ModalBasis& basis,
+                                      ConstVectorRef invariantGradient, const DesignGradientOptions& options,
+                                      const DesignGradientExtras& extras) {
+  checkBasis(model, basis);
+  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  return designGradientOf(model, basis, invariantGradient, options, extras, stiffnessFactorization);
+}
+
+}  // namespace
+
+DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras) {
+  return designGradientOf(model, basis, invariantGradient, options, extras);
+}
+DesignGradientResult computeDesignGradient(const SolidMember& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras) {
+  return designGradientOf(model, basis, invariantGradient, options, extras);
+}
+DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras,
+                                           const StiffnessFactorization& stiffnessFactorization) {
+  return designGradientOf(model, basis, invariantGradient, options, extras, stiffnessFactorization);
+}
+DesignGradientResult computeDesignGradient(const SolidMember& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras,
+                                           const StiffnessFactorization& stiffnessFactorization) {
+  return designGradientOf(model, basis, invariantGradient, options, extras, stiffnessFactorization);
+}
+EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const ModalBasis& basis, int mode,
+                                               int designIndex) {
+  return eigenpairDerivativeOf(model, basis, mode, designIndex);
+}
+EigenpairDerivative computeEigenpairDerivative(const SolidMember& model, const ModalBasis& basis, int mode,
+                                               int designIndex) {
+  return eigenpairDerivativeOf(model, basis, mode, designIndex);
 }
 
 }  // namespace rod

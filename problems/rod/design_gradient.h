@@ -66,12 +66,22 @@ struct DesignGradientResult {
 /// Throws std::invalid_argument for a wrong size of `invariantGradient` or of an extra, or a basis with
 /// inertia-relief modes (their design derivative is not implemented); throws std::runtime_error if A_mod
 /// cannot be factorised (repeated eigenvalue).
+/// The member is the plate or the solid (member.h); the solid's p carries MeeRot (invariants.h).
 DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options = {},
+                                           const DesignGradientExtras& extras = {});
+DesignGradientResult computeDesignGradient(const SolidMember& model, const ModalBasis& basis,
                                            ConstVectorRef invariantGradient,
                                            const DesignGradientOptions& options = {},
                                            const DesignGradientExtras& extras = {});
 /// The same with the factorisation of model.stiffness() the eigen-solve made (shared, not repeated).
 DesignGradientResult computeDesignGradient(const FeModel& model, const ModalBasis& basis,
+                                           ConstVectorRef invariantGradient,
+                                           const DesignGradientOptions& options,
+                                           const DesignGradientExtras& extras,
+                                           const StiffnessFactorization& stiffnessFactorization);
+DesignGradientResult computeDesignGradient(const SolidMember& model, const ModalBasis& basis,
                                            ConstVectorRef invariantGradient,
                                            const DesignGradientOptions& options,
                                            const DesignGradientExtras& extras,
@@ -86,6 +96,8 @@ struct EigenpairDerivative {
   Vector modeFree;
 };
 EigenpairDerivative computeEigenpairDerivative(const FeModel& model, const ModalBasis& basis, int mode,
+                                               int designIndex);
+EigenpairDerivative computeEigenpairDerivative(const SolidMember& model, const ModalBasis& basis, int mode,
                                                int designIndex);
 
 }  // namespace rod

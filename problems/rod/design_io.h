@@ -1,7 +1,9 @@
 // Designs and design-sized fields in HDF5 files, laid out as (ny, nx) arrays over ALL elements:
 // element row j (bottom to top), column i (A to B). The interface columns i = 0 and i = nx-1 are
 // not design variables; in a design they hold 1. Design variable d sits at column i = d / ny + 1,
-// row j = d % ny (the order of rod::FeModel).
+// row j = d % ny (the order of rod::FeModel). The solid member's (rod.elementsThroughThickness = nz >= 1)
+// are (nz, ny, nx) arrays, layer k (z upwards) first: design variable d = ((i - 1) ny + j) nz + k (the
+// order of rod::SolidModel); "(ny, nx)" below then reads "(nz, ny, nx)".
 #pragma once
 
 #include <hindsight/engine/types.h>
@@ -30,6 +32,9 @@ Vector gridToDesign(const rod::RodConfig& config, const double* grid, const std:
 /// naming the file on failure, std::invalid_argument when a field has the wrong length.
 void writeDesignFields(const std::string& path, const rod::RodConfig& config,
                        const std::vector<std::pair<std::string, Vector>>& fields, double interfaceValue);
+
+/// (ny, nx) of the plate, (nz, ny, nx) of the solid.
+std::vector<std::size_t> designGridShape(const rod::RodConfig& config);
 
 /// Design vector <-> (ny, nx) row-major array over all elements.
 std::vector<double> designToGrid(const rod::RodConfig& config, ConstVectorRef values, double interfaceValue);

@@ -1,5 +1,7 @@
 #include <hindsight/problems/rod/eigen_constraint.h>
 
+#include <hindsight/problems/rod/solid_member.h>
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -7,7 +9,11 @@
 namespace hindsight {
 namespace rod {
 
-Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVectorRef modeFull) {
+namespace {
+
+template <class Member>
+Vector eigenvalueDesignGradientOf(const Member& model, double eigenvalue, ConstVectorRef modeFull) {
+  constexpr int kDofs = Member::kElementDofs;
   if (modeFull.size() != model.dofCount()) {
     throw std::invalid_argument("eigenvalueDesignGradient: modeFull has " + std::to_string(modeFull.size()) +
                                 " entries, expected dofCount = " + std::to_string(model.dofCount()));
@@ -15,17 +21,18 @@ Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVe
   Vector gradient(model.designCount());
   for (int d = 0; d < model.designCount(); ++d) {
     const double x = model.design()(d);
-    const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
-    ElementVector phi;
-    for (int a = 0; a < 8; ++a) phi(a) = modeFull(dofs[a]);
+    const std::array<int, kDofs> dofs = model.elementDofs(model.designToElement(d));
+    typename Member::ElementVectorType phi;
+    for (int a = 0; a < kDofs; ++a) phi(a) = modeFull(dofs[a]);
     gradient(d) = model.simp().stiffnessDerivative(x) * phi.dot(model.unitStiffness() * phi) -
                   eigenvalue * model.simp().densityDerivative(x) * phi.dot(model.unitMass() * phi);
   }
   return gradient;
 }
 
-FirstEigenvalue firstEigenvalue(const FeModel& model, ConstVectorRef eigenvalues, ConstMatrixRef modesFull,
-                                double clusterTolerance) {
+template <class Member>
+FirstEigenvalue firstEigenvalueOf(const Member& model, ConstVectorRef eigenvalues, ConstMatrixRef modesFull,
+                                  double clusterTolerance) {
   if (eigenvalues.size() < 1 || modesFull.cols() < eigenvalues.size() || modesFull.rows() != model.dofCount())
     throw std::invalid_argument(
         "firstEigenvalue: need at least one eigenvalue and one mode column per "
@@ -43,11 +50,28 @@ FirstEigenvalue firstEigenvalue(const FeModel& model, ConstVectorRef eigenvalues
   out.gradient = Vector::Zero(model.designCount());
   for (int a = 0; a < size; ++a) {
     out.value += eigenvalues(a);
-    out.gradient += eigenvalueDesignGradient(model, eigenvalues(a), modesFull.col(a));
+    out.gradient += eigenvalueDesignGradientOf(model, eigenvalues(a), modesFull.col(a));
   }
   out.value /= size;
   out.gradient /= size;
   return out;
+}
+
+}  // namespace
+
+Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVectorRef modeFull) {
+  return eigenvalueDesignGradientOf(model, eigenvalue, modeFull);
+}
+Vector eigenvalueDesignGradient(const SolidMember& model, double eigenvalue, ConstVectorRef modeFull) {
+  return eigenvalueDesignGradientOf(model, eigenvalue, modeFull);
+}
+FirstEigenvalue firstEigenvalue(const FeModel& model, ConstVectorRef eigenvalues, ConstMatrixRef modesFull,
+                                double clusterTolerance) {
+  return firstEigenvalueOf(model, eigenvalues, modesFull, clusterTolerance);
+}
+FirstEigenvalue firstEigenvalue(const SolidMember& model, ConstVectorRef eigenvalues,
+                                ConstMatrixRef modesFull, double clusterTolerance) {
+  return firstEigenvalueOf(model, eigenvalues, modesFull, clusterTolerance);
 }
 
 }  // namespace rod

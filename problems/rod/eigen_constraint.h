@@ -21,10 +21,13 @@
 namespace hindsight {
 namespace rod {
 
+class SolidMember;
+
 /// d lambda / dx_d for every design variable of `model`, for the eigenvalue `eigenvalue` with
 /// mass-normalised mode `modeFull` on all DOFs (zeros at the constrained ones). Throws
 /// std::invalid_argument when modeFull has not model.dofCount() entries.
 Vector eigenvalueDesignGradient(const FeModel& model, double eigenvalue, ConstVectorRef modeFull);
+Vector eigenvalueDesignGradient(const SolidMember& model, double eigenvalue, ConstVectorRef modeFull);
 
 struct FirstEigenvalue {
   double value = 0.0;   ///< lambda_1, or the mean of its cluster [1/s^2]
@@ -37,6 +40,8 @@ struct FirstEigenvalue {
 /// std::invalid_argument for empty or mismatched inputs or a clusterTolerance that is negative or not finite.
 FirstEigenvalue firstEigenvalue(const FeModel& model, ConstVectorRef eigenvalues, ConstMatrixRef modesFull,
                                 double clusterTolerance = 1e-6);
+FirstEigenvalue firstEigenvalue(const SolidMember& model, ConstVectorRef eigenvalues,
+                                ConstMatrixRef modesFull, double clusterTolerance = 1e-6);
 
 }  // namespace rod
 }  // namespace hindsight

@@ -1,6 +1,7 @@
 #include <hindsight/problems/rod/esl.h>
 
 #include <hindsight/problems/rod/parallel.h>
+#include <hindsight/problems/rod/solid_member.h>
 
 #include <algorithm>
 #include <memory>
@@ -45,7 +46,8 @@ void checkEslArguments(const FeModel& model, ConstMatrixRef loads, double endTim
   checkEndTime("evaluateEsl", endTime);
 }
 
-Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double weight);
+template <class Member>
+Vector eslGradient(const Member& model, const Matrix& displacementsFull, double weight);
 
 }  // namespace
 
@@ -86,8 +88,11 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
   return result;
 }
 
-EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis, ConstMatrixRef kee,
-                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient) {
+namespace {
+
+template <class Member>
+EslResult eslAtLoadDesign(const Member& model, const ModalBasis& basis, ConstMatrixRef kee,
+                          ConstMatrixRef modalCoordinates, double endTime, bool withGradient) {
   const Eigen::Index n = basis.columnCount();
   if (basis.modesFull.rows() != model.dofCount() || kee.rows() != n || kee.cols() != n ||
       modalCoordinates.rows() != n || modalCoordinates.cols() < 1) {
@@ -106,20 +111,21 @@ EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis,
   return result;
 }
 
-namespace {
-
 // -weight sum_k u_k^T (dK/dx_d) u_k for every design variable, u_k the columns of `displacementsFull`.
-Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double weight) {
+template <class Member>
+Vector eslGradient(const Member& model, const Matrix& displacementsFull, double weight) {
+  constexpr int kDofs = Member::kElementDofs;
   Vector gradient(model.designCount());
   // Every design variable's entry on its own: fixed blocks in parallel.
   const int designs = model.designCount();
   const int designBlocks = (designs + 255) / 256;
   parallelFor(designBlocks, [&](int b) {
     // Both blocks sized once per thread: the loop over the elements allocates nothing.
-    Eigen::Matrix<double, 8, Eigen::Dynamic> local(8, displacementsFull.cols()), product(8, local.cols());
+    Eigen::Matrix<double, kDofs, Eigen::Dynamic> local(kDofs, displacementsFull.cols()),
+        product(kDofs, local.cols());
     for (int d = b * 256; d < std::min(designs, (b + 1) * 256); ++d) {
-      const std::array<int, 8> dofs = model.elementDofs(model.designToElement(d));
-      for (int a = 0; a < 8; ++a) local.row(a) = displacementsFull.row(dofs[a]);
+      const std::array<int, kDofs> dofs = model.elementDofs(model.designToElement(d));
+      for (int a = 0; a < kDofs; ++a) local.row(a) = displacementsFull.row(dofs[a]);
       product.noalias() = model.unitStiffness() * local;
       const double energy = local.cwiseProduct(product).sum();
       gradient(d) = -weight * model.simp().stiffnessDerivative(model.design()(d)) * energy;
@@ -129,6 +135,15 @@ Vector eslGradient(const FeModel& model, const Matrix& displacementsFull, double
 }
 
 }  // namespace
+
+EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis, ConstMatrixRef kee,
+                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient) {
+  return eslAtLoadDesign(model, basis, kee, modalCoordinates, endTime, withGradient);
+}
+EslResult evaluateEslAtLoadDesign(const SolidMember& model, const ModalBasis& basis, ConstMatrixRef kee,
+                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient) {
+  return eslAtLoadDesign(model, basis, kee, modalCoordinates, endTime, withGradient);
+}
 
 }  // namespace rod
 }  // namespace hindsight

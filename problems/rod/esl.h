@@ -18,6 +18,8 @@
 namespace hindsight {
 namespace rod {
 
+class SolidMember;
+
 /// Loads f_k = K Phi q_k as columns, freeDofCount x N [N]. `modalCoordinates` is n x N with
 /// n = basis.columnCount(), column k - 1 holding q(t_k).
 /// Throws std::invalid_argument if the sizes do not match.
@@ -46,6 +48,9 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
 /// 1 / E(x_min)). `modalCoordinates` is n x N, column k - 1 holding q(t_k); EslResult::displacements is
 /// left empty. Throws std::invalid_argument if the sizes do not match or endTime <= 0.
 EslResult evaluateEslAtLoadDesign(const FeModel& model, const ModalBasis& basis, ConstMatrixRef kee,
+                                  ConstMatrixRef modalCoordinates, double endTime, bool withGradient);
+/// The same for the solid member (member.h).
+EslResult evaluateEslAtLoadDesign(const SolidMember& model, const ModalBasis& basis, ConstMatrixRef kee,
                                   ConstMatrixRef modalCoordinates, double endTime, bool withGradient);
 
 }  // namespace rod

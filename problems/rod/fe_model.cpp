@@ -7,6 +7,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 namespace hindsight {
 namespace rod {
@@ -98,41 +99,50 @@ ElementMatrix quadUnitConsistentMass(double width, double height, double thickne
   return 0.5 * (mass + mass.transpose());
 }
 
-Vector rotateNodewise(ConstVectorRef full) {
-  assert(full.size() % 2 == 0);
+Vector rotateNodewise(ConstVectorRef full, int components) {
+  assert(components == 2 || components == 3);
+  assert(full.size() % components == 0);
   Vector result(full.size());
-  for (Eigen::Index node = 0; node < full.size() / 2; ++node) {
-    result(2 * node) = -full(2 * node + 1);
-    result(2 * node + 1) = full(2 * node);
+  for (Eigen::Index node = 0; node < full.size() / components; ++node) {
+    result(components * node) = -full(components * node + 1);
+    result(components * node + 1) = full(components * node);
+    if (components == 3) result(3 * node + 2) = 0.0;
   }
   return result;
 }
 
-Vector rotateNodewiseTransposed(ConstVectorRef full) {
-  assert(full.size() % 2 == 0);
+Vector rotateNodewiseTransposed(ConstVectorRef full, int components) {
+  assert(components == 2 || components == 3);
+  assert(full.size() % components == 0);
   Vector result(full.size());
-  for (Eigen::Index node = 0; node < full.size() / 2; ++node) {
-    result(2 * node) = full(2 * node + 1);
-    result(2 * node + 1) = -full(2 * node);
+  for (Eigen::Index node = 0; node < full.size() / components; ++node) {
+    result(components * node) = full(components * node + 1);
+    result(components * node + 1) = -full(components * node);
+    if (components == 3) result(3 * node + 2) = 0.0;
   }
   return result;
 }
 
-Matrix rotateNodewiseColumns(ConstMatrixRef full) {
-  Matrix result(full.rows(), full.cols());
-  for (Eigen::Index c = 0; c < full.cols(); ++c) result.col(c) = rotateNodewise(Vector(full.col(c)));
-  return result;
-}
-
-Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full) {
+Matrix rotateNodewiseColumns(ConstMatrixRef full, int components) {
   Matrix result(full.rows(), full.cols());
   for (Eigen::Index c = 0; c < full.cols(); ++c)
-    result.col(c) = rotateNodewiseTransposed(Vector(full.col(c)));
+    result.col(c) = rotateNodewise(Vector(full.col(c)), components);
+  return result;
+}
+
+Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full, int components) {
+  Matrix result(full.rows(), full.cols());
+  for (Eigen::Index c = 0; c < full.cols(); ++c)
+    result.col(c) = rotateNodewiseTransposed(Vector(full.col(c)), components);
   return result;
 }
 
 FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(config), simp_(config) {
   config_.validate();
+  if (config_.isSolid())
+    throw std::invalid_argument(
+        "FeModel: RodConfig.elementsThroughThickness = " + std::to_string(config_.elementsThroughThickness) +
+        " is outside the allowed range {0} (the plate; the solid is SolidMember)");
   const int nx = config_.elementsAlongLength;
   const int ny = config_.elementsThroughHeight;
   if (design.size() != config_.designCount()) {
@@ -162,7 +172,7 @@ FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(confi
   unitStiffness_ = planeStressQuadUnitStiffness(width, height, config_.poissonRatio, config_.thickness);
   unitMass_ = quadUnitConsistentMass(width, height, config_.thickness);
 
-  const int dofs = dofCount();
+  const int dofs = 2 * nodeCount_;
   referenceCoordinates_.resize(dofs);
   unitTranslationX_ = Vector::Zero(dofs);
   unitTranslationY_ = Vector::Zero(dofs);
@@ -177,13 +187,7 @@ FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(confi
   }
 
   const int pinX = 2 * jointANode(), pinY = 2 * jointANode() + 1, rollerY = 2 * jointBNode() + 1;
-  fullToFree_.assign(dofs, -1);
-  freeToFull_.clear();
-  for (int d = 0; d < dofs; ++d) {
-    if (d == pinX || d == pinY || d == rollerY) continue;
-    fullToFree_[d] = static_cast<int>(freeToFull_.size());
-    freeToFull_.push_back(d);
-  }
+  static_cast<SupportedDofs&>(*this) = SupportedDofs(dofs, {pinX, pinY, rollerY});
   assemble();
 }
 
@@ -274,7 +278,7 @@ void FeModel::assemble() {
   for (int d = 0; d < dofs; ++d) all[static_cast<std::size_t>(d)] = d;
   std::vector<int> fullOuter, fullInner, freeOuter, freeInner;
   couplingPattern(nx, ny, all, dofs, fullOuter, fullInner);
-  couplingPattern(nx, ny, fullToFree_, free, freeOuter, freeInner);
+  couplingPattern(nx, ny, fullToFree(), free, freeOuter, freeInner);
   stiffnessFull_ = withPattern(dofs, fullOuter, fullInner);
   massFull_ = withPattern(dofs, fullOuter, fullInner);
   stiffness_ = withPattern(free, freeOuter, freeInner);
@@ -302,7 +306,7 @@ void FeModel::assemble() {
         const double m = elementDensity * unitMass_(a, b);
         add(stiffnessFull_, massFull_, fullSeen, slotOf(fullOuter, fullInner, elementDofs[a], elementDofs[b]),
             k, m);
-        const int fa = fullToFree_[elementDofs[a]], fb = fullToFree_[elementDofs[b]];
+        const int fa = fullToFree()[elementDofs[a]], fb = fullToFree()[elementDofs[b]];
         if (fa >= 0 && fb >= 0) {
           add(stiffness_, mass_, freeSeen, slotOf(freeOuter, freeInner, fa, fb), k, m);
         }
@@ -311,28 +315,43 @@ void FeModel::assemble() {
   }
 }
 
-Vector FeModel::restrictToFree(ConstVectorRef full) const {
+SupportedDofs::SupportedDofs(int dofCount, const std::vector<int>& constrained) {
+  fullToFree_.assign(static_cast<std::size_t>(dofCount), 0);
+  for (int d : constrained) {
+    if (d < 0 || d >= dofCount)
+      throw std::invalid_argument("SupportedDofs: constrained DOF " + std::to_string(d) +
+                                  " is outside the allowed range [0, " + std::to_string(dofCount - 1) + "]");
+    fullToFree_[static_cast<std::size_t>(d)] = -1;
+  }
+  for (int d = 0; d < dofCount; ++d) {
+    if (fullToFree_[static_cast<std::size_t>(d)] < 0) continue;
+    fullToFree_[static_cast<std::size_t>(d)] = static_cast<int>(freeToFull_.size());
+    freeToFull_.push_back(d);
+  }
+}
+
+Vector SupportedDofs::restrictToFree(ConstVectorRef full) const {
   assert(full.size() == dofCount());
   Vector result(freeDofCount());
   for (int k = 0; k < freeDofCount(); ++k) result(k) = full(freeToFull_[k]);
   return result;
 }
 
-Matrix FeModel::restrictColumnsToFree(ConstMatrixRef full) const {
+Matrix SupportedDofs::restrictColumnsToFree(ConstMatrixRef full) const {
   assert(full.rows() == dofCount());
   Matrix result(freeDofCount(), full.cols());
   for (int k = 0; k < freeDofCount(); ++k) result.row(k) = full.row(freeToFull_[k]);
   return result;
 }
 
-Vector FeModel::extendToFull(ConstVectorRef free) const {
+Vector SupportedDofs::extendToFull(ConstVectorRef free) const {
   assert(free.size() == freeDofCount());
   Vector result = Vector::Zero(dofCount());
   for (int k = 0; k < freeDofCount(); ++k) result(freeToFull_[k]) = free(k);
   return result;
 }
 
-Matrix FeModel::extendColumnsToFull(ConstMatrixRef free) const {
+Matrix SupportedDofs::extendColumnsToFull(ConstMatrixRef free) const {
   assert(free.rows() == freeDofCount());
   Matrix result = Matrix::Zero(dofCount(), free.cols());
   for (int k = 0; k < freeDofCount(); ++k) result.row(freeToFull_[k]) = free.row(k);

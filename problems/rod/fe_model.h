@@ -18,6 +18,7 @@
 #pragma once
 
 #include <hindsight/engine/types.h>
+#include <hindsight/problems/rod/member.h>
 #include <hindsight/problems/rod/rod_config.h>
 
 #include <Eigen/Core>
@@ -56,19 +57,28 @@ ElementMatrix planeStressQuadUnitStiffness(double width, double height, double p
 ElementMatrix quadUnitConsistentMass(double width, double height, double thickness);
 
 /// Applies S = [[0, -1], [1, 0]] to every node's (u_x, u_y) pair of a full DOF vector (rotation by +90 deg).
-Vector rotateNodewise(ConstVectorRef full);
+/// With components = 3 (the solid's (u_x, u_y, u_z)), S = [[0, -1, 0], [1, 0, 0], [0, 0, 0]]: the
+/// derivative of a rotation about z, which sees neither u_z nor moves anything along z (docs/design.md,
+/// "The solid member in the mechanism").
+Vector rotateNodewise(ConstVectorRef full, int components = 2);
 /// Applies S^T node-wise.
-Vector rotateNodewiseTransposed(ConstVectorRef full);
+Vector rotateNodewiseTransposed(ConstVectorRef full, int components = 2);
 /// Column-wise versions of the two above.
-Matrix rotateNodewiseColumns(ConstMatrixRef full);
-Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full);
+Matrix rotateNodewiseColumns(ConstMatrixRef full, int components = 2);
+Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full, int components = 2);
 
 /// Throws std::invalid_argument naming `who`, the entry and the range when a design variable is not in
 /// [designLowerBound, 1] or not finite: the one check of every member model's design (plate and solid).
 void requireDesignInRange(const char* who, ConstVectorRef design, double designLowerBound);
 
-class FeModel {
+/// The plate member (problems/rod/member.h); its free-DOF map is the pinned (A) / roller (B) support's.
+class FeModel : public SupportedDofs {
  public:
+  static constexpr int kComponents = 2;
+  static constexpr int kElementDofs = 8;
+  using ElementMatrixType = ElementMatrix;
+  using ElementVectorType = ElementVector;
+
   /// Builds mesh, element matrices and the assembled sparse K, M (full and constrained) for `design`.
   /// `design` has config.designCount() entries in [designLowerBound, 1].
   /// Throws std::invalid_argument for an invalid config (RodConfig::validate) or a design of wrong size,
@@ -80,8 +90,6 @@ class FeModel {
   const Vector& design() const { return design_; }
 
   int nodeCount() const { return nodeCount_; }
-  int dofCount() const { return 2 * nodeCount_; }
-  int freeDofCount() const { return static_cast<int>(freeToFull_.size()); }
   int elementCount() const { return elementCount_; }
   int designCount() const { return static_cast<int>(design_.size()); }
 
@@ -113,20 +121,13 @@ class FeModel {
   const Vector& unitTranslationX() const { return unitTranslationX_; }
   const Vector& unitTranslationY() const { return unitTranslationY_; }
 
-  /// freeToFull()[k] is the full DOF of free DOF k; fullToFree()[d] is -1 for constrained DOFs.
-  const std::vector<int>& freeToFull() const { return freeToFull_; }
-  const std::vector<int>& fullToFree() const { return fullToFree_; }
-  Vector restrictToFree(ConstVectorRef full) const;
-  Matrix restrictColumnsToFree(ConstMatrixRef full) const;
-  /// Extends free-DOF vectors/matrices by zeros at the constrained DOFs.
-  Vector extendToFull(ConstVectorRef free) const;
-  Matrix extendColumnsToFull(ConstMatrixRef free) const;
-
   int jointANode() const;
   int jointBNode() const;
   /// Full DOF of u_x at B, and its free-DOF index (u_x at B is free: roller).
   int jointBAxialDof() const { return 2 * jointBNode(); }
-  int jointBAxialFreeDof() const { return fullToFree_[jointBAxialDof()]; }
+  int jointBAxialFreeDof() const { return fullToFree()[jointBAxialDof()]; }
+  /// The member interface's B (member.h): the one node's u_x.
+  std::vector<int> jointBAxialDofs() const { return {jointBAxialDof()}; }
 
   /// V(x)/V0 over all elements (solid columns count with x = 1; all elements have equal area).
   double volumeFraction() const;
@@ -147,7 +148,6 @@ class FeModel {
   ElementMatrix unitMass_;
   SparseMatrix stiffnessFull_, massFull_, stiffness_, mass_;
   Vector referenceCoordinates_, unitTranslationX_, unitTranslationY_;
-  std::vector<int> freeToFull_, fullToFree_;
 };
 
 }  // namespace rod

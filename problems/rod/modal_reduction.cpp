@@ -2,6 +2,7 @@
 
 #include <hindsight/problems/rod/compensated_kernels.h>
 #include <hindsight/problems/rod/parallel.h>
+#include <hindsight/problems/rod/solid_member.h>
 
 #include <Spectra/SymEigsSolver.h>
 #include <Eigen/Eigenvalues>
@@ -203,11 +204,15 @@ Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixR
   return Matrix(high + low);
 }
 
-Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
+namespace {
+
+template <class Member>
+Matrix elementwiseStiffnessFormOf(const Member& model, ConstMatrixRef xFull) {
+  constexpr int kDofs = Member::kElementDofs;
   if (xFull.rows() != model.dofCount())
     throw std::invalid_argument("elementwiseStiffnessForm: X has " + std::to_string(xFull.rows()) +
                                 " rows, expected dofCount() = " + std::to_string(model.dofCount()));
-  const ElementMatrix& unit = model.unitStiffness();
+  const typename Member::ElementMatrixType& unit = model.unitStiffness();
   const Eigen::Index columns = xFull.cols();
   const bool dekker = inDekkerRange(unit) && inDekkerRange(xFull);
   const KernelIsa isa = defaultKernelIsa();
@@ -223,17 +228,17 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
   for (int start = 0; start < elements; start += kChunk) {
     const int count = std::min(kChunk, elements - start);
     parallelFor((count + kBlock - 1) / kBlock, [&](int block) {
-      Matrix local(8, columns), product(8, columns);
-      Eigen::Matrix<double, 8, Eigen::Dynamic, Eigen::RowMajor> localRows(8, columns);
+      Matrix local(kDofs, columns), product(kDofs, columns);
+      Eigen::Matrix<double, kDofs, Eigen::Dynamic, Eigen::RowMajor> localRows(kDofs, columns);
       Vector high(columns), low(columns);
       for (int i = block * kBlock; i < std::min(count, (block + 1) * kBlock); ++i) {
         const int e = start + i;
-        const std::array<int, 8> dofs = model.elementDofs(e);
-        for (int a = 0; a < 8; ++a) local.row(a) = xFull.row(dofs[a]);
+        const std::array<int, kDofs> dofs = model.elementDofs(e);
+        for (int a = 0; a < kDofs; ++a) local.row(a) = xFull.row(dofs[a]);
         // Ke0 X_e nearly cancels for the rigid-body part of X_e: accumulate in double-double
         // (compensated_kernels.h), on a row-major copy of X_e.
         localRows = local;
-        compensatedElementProducts(unit.data(), localRows.data(), static_cast<int>(columns), dekker,
+        compensatedElementProducts(unit.data(), kDofs, localRows.data(), static_cast<int>(columns), dekker,
                                    product.data(), high.data(), low.data(), isa);
         Eigen::Map<Matrix> term(terms.col(i).data(), columns, columns);
         term.noalias() = model.simp().stiffness(model.elementDesignValue(e)) * (local.transpose() * product);
@@ -244,13 +249,9 @@ Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
   return 0.5 * (form + form.transpose());
 }
 
-ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options) {
-  const StiffnessFactorization stiffnessFactorization(model.stiffness());
-  return computeModalBasis(model, options, stiffnessFactorization);
-}
-
-ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,
-                             const StiffnessFactorization& factorization) {
+template <class Member>
+ModalBasis computeModalBasisOf(const Member& model, const ModalReductionOptions& options,
+                               const StiffnessFactorization& factorization) {
   const int freeDofs = model.freeDofCount();
   const int n = options.modeCount;
   if (n < 1 || n + 1 >= freeDofs) {
@@ -321,7 +322,8 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
       // (lambda_{n+1} / lambda_1)^2 and the dense Ritz solve would lose that factor in accuracy.
       for (Eigen::Index j = 0; j < subspace.cols(); ++j)
         subspace.col(j) /= std::sqrt(subspace.col(j).dot(mass * subspace.col(j)));
-      const Matrix projectedStiffness = elementwiseStiffnessForm(model, model.extendColumnsToFull(subspace));
+      const Matrix projectedStiffness =
+          elementwiseStiffnessFormOf(model, model.extendColumnsToFull(subspace));
       const Matrix projectedMass = subspace.transpose() * (mass * subspace);
       const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(
           projectedStiffness, 0.5 * (projectedMass + projectedMass.transpose()));
@@ -354,7 +356,7 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
     // lambda_1 here); the Rayleigh quotients of the refined, M-normalised modes are accurate to ~eps
     // relative and equal the diagonal of Kee (invariants), so the Nelson chain sees the same numbers.
     const Matrix rayleigh =
-        elementwiseStiffnessForm(model, model.extendColumnsToFull(basis.modesFree.leftCols(n)));
+        elementwiseStiffnessFormOf(model, model.extendColumnsToFull(basis.modesFree.leftCols(n)));
     basis.eigenvalues.head(n) = rayleigh.diagonal();
     if (!options.inertiaReliefModes) basis.stiffnessForm = rayleigh;
   }
@@ -371,7 +373,7 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
   if (options.inertiaReliefModes) {
     const SparseMatrix& massFull = model.massFull();
     const Vector loads[3] = {massFull * model.unitTranslationX(), massFull * model.unitTranslationY(),
-                             massFull * rotateNodewise(model.referenceCoordinates())};
+                             massFull * rotateNodewise(model.referenceCoordinates(), Member::kComponents)};
     for (int r = 0; r < 3; ++r) {
       Vector mode = factorization.solver().solve(model.restrictToFree(loads[r]));
       for (int pass = 0; pass < 2; ++pass) {
@@ -387,11 +389,37 @@ ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& 
       mode /= norm;
       applySignConvention(mode);
       basis.modesFree.col(n + r) = mode;
-      basis.eigenvalues(n + r) = elementwiseStiffnessForm(model, model.extendToFull(mode))(0, 0);
+      basis.eigenvalues(n + r) = elementwiseStiffnessFormOf(model, model.extendToFull(mode))(0, 0);
     }
   }
   basis.modesFull = model.extendColumnsToFull(basis.modesFree);
   return basis;
+}
+
+}  // namespace
+
+Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull) {
+  return elementwiseStiffnessFormOf(model, xFull);
+}
+Matrix elementwiseStiffnessForm(const SolidMember& model, ConstMatrixRef xFull) {
+  return elementwiseStiffnessFormOf(model, xFull);
+}
+
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options) {
+  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  return computeModalBasisOf(model, options, stiffnessFactorization);
+}
+ModalBasis computeModalBasis(const SolidMember& model, const ModalReductionOptions& options) {
+  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  return computeModalBasisOf(model, options, stiffnessFactorization);
+}
+ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,
+                             const StiffnessFactorization& factorization) {
+  return computeModalBasisOf(model, options, factorization);
+}
+ModalBasis computeModalBasis(const SolidMember& model, const ModalReductionOptions& options,
+                             const StiffnessFactorization& factorization) {
+  return computeModalBasisOf(model, options, factorization);
 }
 
 }  // namespace rod

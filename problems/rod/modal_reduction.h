@@ -31,6 +31,8 @@
 namespace hindsight {
 namespace rod {
 
+class SolidMember;
+
 struct ModalReductionOptions {
   int modeCount = 10;                 ///< n eigenmodes kept, 1 <= n, n + 1 < free DOF count.
   bool inertiaReliefModes = false;    ///< append K^-1 M [e_x, e_y, S X] (3 more columns).
@@ -94,6 +96,7 @@ Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixR
 /// phi^T K phi by ~eps |phi|^T |K| |phi| ~ eps lambda_max (1e-12 relative in lambda_1 on a random
 /// 200 x 12 design), erratically as the design changes.
 Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull);
+Matrix elementwiseStiffnessForm(const SolidMember& model, ConstMatrixRef xFull);
 
 /// One sparse LDL^T factorisation of the constrained stiffness K of a design (AMD ordering), shared by
 /// everything that solves with K: the eigen-solve (Lanczos on its transformed pencil), the refinement, the
@@ -157,12 +160,15 @@ class StiffnessFactorizationPool {
   std::vector<std::unique_ptr<StiffnessFactorization>> kept_;
 };
 
-/// Computes the modal basis of `model`.
+/// Computes the modal basis of `model`, the plate or the solid (member.h).
 /// Throws std::invalid_argument for modeCount < 1 or modeCount + 1 >= freeDofCount, or a
 /// gapWarningThreshold < 1; throws std::runtime_error when Spectra does not converge (numerical outcome).
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options);
+ModalBasis computeModalBasis(const SolidMember& model, const ModalReductionOptions& options);
 /// The same with the factorisation of model.stiffness() supplied by the caller (who reuses it).
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,
+                             const StiffnessFactorization& stiffnessFactorization);
+ModalBasis computeModalBasis(const SolidMember& model, const ModalReductionOptions& options,
                              const StiffnessFactorization& stiffnessFactorization);
 
 }  // namespace rod

@@ -58,6 +58,14 @@ void RodConfig::validate() const {
     fail("initialDesign", initialDesign,
          "[designLowerBound, 1] = [" + std::to_string(designLowerBound) + ", 1]");
   if (modeCount < 1) fail("modeCount", modeCount, "[1, inf)");
+  if (elementsThroughThickness < 0 || elementsThroughThickness > 10000)
+    fail("elementsThroughThickness", elementsThroughThickness, "[0, 10000] (0: the plate, >= 1: the solid)");
+  if (midPlaneSymmetry && !isSolid())
+    fail("midPlaneSymmetry", "true", "{false} for the plate (elementsThroughThickness = 0)");
+  // The inertia-relief modes' design derivatives exist for neither member, and the solid's basis is the
+  // eigenmodes' alone.
+  if (inertiaReliefModes && isSolid())
+    fail("inertiaReliefModes", "true", "{false} for the solid (elementsThroughThickness >= 1)");
   if (!std::isfinite(crankRadius) || !(crankRadius > 0.0 && crankRadius < length))
     fail("crankRadius", crankRadius, "(0, length) = (0, " + std::to_string(length) + ")");
   requireFinitePositive("crankSpeed", crankSpeed);

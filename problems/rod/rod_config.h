@@ -17,7 +17,12 @@ struct RodConfig {
   int elementsThroughHeight = 12;  ///< ny, element rows along y; even (mid-height nodes needed), >= 2.
   double length = 1.0;             ///< L [m], distance between joints A and B.
   double height = 0.06;            ///< H [m].
-  double thickness = 0.01;         ///< t [m], plane-stress thickness.
+  double thickness = 0.01;         ///< t [m], plane-stress thickness (the solid's extent in z).
+  /// nz: 0 = the member is the plate (plane-stress Q4, problems/rod/fe_model.h); >= 1 = the solid of
+  /// hexahedra with nz element layers through the modelled thickness (problems/rod/solid_member.h) [C].
+  int elementsThroughThickness = 0;
+  /// Solid only: model the half z >= 0 with u_z = 0 on the mid-plane (problems/rod/solid_model.h) [C].
+  bool midPlaneSymmetry = false;
 
   // --- Material (docs/design.md §2) ---
   double youngsModulus = 0.5e11;  ///< E0 [N/m^2] of solid material [P].
@@ -43,8 +48,13 @@ struct RodConfig {
   double endTime = 3.0;                               ///< t1 [s], >= rampTime [P].
   int eslSamples = 100;                               ///< number of equivalent static load time points [P].
 
-  /// Number of design variables: the inner (nx - 2) * ny elements.
-  int designCount() const { return (elementsAlongLength - 2) * elementsThroughHeight; }
+  /// Whether the member is the solid (elementsThroughThickness >= 1) rather than the plate.
+  bool isSolid() const { return elementsThroughThickness > 0; }
+  /// Number of design variables: the inner (nx - 2) * ny elements of the plate, (nx - 2) * ny * nz of the
+  /// solid.
+  int designCount() const {
+    return (elementsAlongLength - 2) * elementsThroughHeight * (isSolid() ? elementsThroughThickness : 1);
+  }
 
   /// Checks every field against its allowed range.
   /// Throws std::invalid_argument naming the field, its value and the allowed range.

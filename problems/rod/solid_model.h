@@ -1,6 +1,6 @@
 // Design-dependent finite-element model of the connecting rod as a 3-D solid (docs/design.md, "The solid
-// member"). Not yet connected to the mechanism or the optimiser: it builds K and M of a design and their
-// element-wise design derivatives; the plate (fe_model.h) remains the model every command uses.
+// member"): K and M of a design and their element-wise design derivatives. The mechanism's member is
+// SolidMember (solid_member.h), which adds the supports of the modal basis; the plate is fe_model.h.
 //
 // A structured box mesh of nx x ny x nz 8-node hexahedra over [0, L] x [-H/2, H/2] x [-t/2, t/2], or over
 // [0, L] x [-H/2, H/2] x [0, t/2] with mid-plane symmetry, 3 DOFs per node ordered (u_x, u_y, u_z).

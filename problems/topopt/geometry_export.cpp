@@ -283,6 +283,139 @@ void writeSolidStl(const std::string& path, const TriangleMesh& mesh) {
   writeBytesAtomically(path, text.data(), text.size(), "the STL file");
 }
 
+namespace {
+
+void checkBoxField(const BoxDensityField& field) {
+  if (field.nx < 1 || field.ny < 1 || field.nz < 1 ||
+      field.values.size() != static_cast<Eigen::Index>(field.nx) * field.ny * field.nz)
+    throw std::invalid_argument("BoxDensityField: values must have nx ny nz >= 1 entries");
+  if (!(field.cellWidthMm > 0.0 && field.cellHeightMm > 0.0 && field.cellDepthMm > 0.0))
+    throw std::invalid_argument("BoxDensityField: the cell sizes must be > 0");
+}
+
+}  // namespace
+
+double BoxDensityField::at(int i, int j, int layer) const {
+  // With symmetry the whole body's layers run from the back face: layer nz - 1 - k mirrors layer k.
+  const int k = !midPlaneSymmetry ? layer : (layer < nz ? nz - 1 - layer : layer - nz);
+  return values((static_cast<Eigen::Index>(i) * ny + j) * nz + k);
+}
+
+TriangleMesh voxelSurface(const BoxDensityField& field, double iso) {
+  checkBoxField(field);
+  if (!(iso > 0.0 && iso < 1.0))
+    throw std::invalid_argument("voxelSurface: iso = " + std::to_string(iso) + " must be in (0, 1)");
+  const int nx = field.nx, ny = field.ny, nz = field.layers();
+  auto solid = [&](int i, int j, int k) {
+    return i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz && field.at(i, j, k) >= iso;
+  };
+  TriangleMesh mesh;
+  std::vector<int> index(static_cast<std::size_t>(nx + 1) * (ny + 1) * (nz + 1), -1);
+  auto vertex = [&](int i, int j, int k) {
+    int& v = index[(static_cast<std::size_t>(i) * (ny + 1) + j) * (nz + 1) + k];
+    if (v < 0) {
+      v = static_cast<int>(mesh.vertices.size());
+      mesh.vertices.emplace_back(i * field.cellWidthMm, j * field.cellHeightMm, k * field.cellDepthMm);
+    }
+    return v;
+  };
+  // Face of element (i, j, k) towards axis a, side s (0: low, 1: high): its four corners counter-clockwise
+  // seen from outside, i.e. along the outward normal (the axes' cyclic order b = a + 1, c = a + 2 gives
+  // e_b x e_c = e_a on the high side; the low side is the reverse).
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) {
+        if (!solid(i, j, k)) continue;
+        for (int a = 0; a < 3; ++a) {
+          for (int side = 0; side < 2; ++side) {
+            int n[3] = {i, j, k};
+            n[a] += side == 0 ? -1 : 1;
+            if (solid(n[0], n[1], n[2])) continue;
+            const int b = (a + 1) % 3, c = (a + 2) % 3;
+            int corner[4][3];
+            const int du[4] = {0, 1, 1, 0}, dv[4] = {0, 0, 1, 1};
+            for (int q = 0; q < 4; ++q) {
+              int p[3] = {i, j, k};
+              p[a] += side;
+              p[b] += du[q];
+              p[c] += dv[q];
+              for (int e = 0; e < 3; ++e) corner[q][e] = p[e];
+            }
+            int v[4];
+            for (int q = 0; q < 4; ++q) v[q] = vertex(corner[q][0], corner[q][1], corner[q][2]);
+            if (side == 1) {
+              mesh.triangles.push_back({v[0], v[1], v[2]});
+              mesh.triangles.push_back({v[0], v[2], v[3]});
+            } else {
+              mesh.triangles.push_back({v[0], v[2], v[1]});
+              mesh.triangles.push_back({v[0], v[3], v[2]});
+            }
+          }
+        }
+      }
+    }
+  }
+  return mesh;
+}
+
+void writeDensityVtu(const std::string& path, const BoxDensityField& field) {
+  checkBoxField(field);
+  const int nx = field.nx, ny = field.ny, nz = field.layers();
+  const long points = static_cast<long>(nx + 1) * (ny + 1) * (nz + 1);
+  const long cells = static_cast<long>(nx) * ny * nz;
+  auto point = [&](int i, int j, int k) { return (static_cast<long>(i) * (ny + 1) + j) * (nz + 1) + k; };
+  std::string text =
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" "
+      "byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"" +
+      std::to_string(points) + "\" NumberOfCells=\"" + std::to_string(cells) + "\">\n";
+  text += "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int k = 0; k <= nz; ++k)
+        text += formatNumber(i * field.cellWidthMm) + " " + formatNumber(j * field.cellHeightMm) + " " +
+                formatNumber(k * field.cellDepthMm) + "\n";
+    }
+  }
+  text +=
+      "</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" "
+      "format=\"ascii\">\n";
+  // VTK_HEXAHEDRON's order: the bottom face counter-clockwise, then the top face.
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) {
+        const long ids[8] = {
+            point(i, j, k),     point(i + 1, j, k),     point(i + 1, j + 1, k),     point(i, j + 1, k),
+            point(i, j, k + 1), point(i + 1, j, k + 1), point(i + 1, j + 1, k + 1), point(i, j + 1, k + 1)};
+        for (long id : ids) text += std::to_string(id) + " ";
+        text += "\n";
+      }
+    }
+  }
+  text += "</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
+  for (long c = 1; c <= cells; ++c) text += std::to_string(8 * c) + "\n";
+  text += "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+  for (long c = 0; c < cells; ++c) text += "12\n";
+  text +=
+      "</DataArray>\n</Cells>\n<CellData Scalars=\"density\">\n<DataArray type=\"Float64\" "
+      "Name=\"density\" format=\"ascii\">\n";
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) text += formatNumber(field.at(i, j, k)) + "\n";
+    }
+  }
+  text += "</DataArray>\n</CellData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+  writeBytesAtomically(path, text.data(), text.size(), "the VTU file");
+}
+
+std::vector<std::string> exportSolidGeometry(const std::string& stem, const BoxDensityField& field,
+                                             double iso) {
+  const TriangleMesh surface = voxelSurface(field, iso);
+  const std::vector<std::string> paths = {stem + ".stl", stem + ".vtu"};
+  writeSolidStl(paths[0], surface);
+  writeDensityVtu(paths[1], field);
+  return paths;
+}
+
 std::vector<std::string> exportGeometry(const std::string& stem, const DensityField& field, double iso,
                                         double thicknessMm) {
   const Outline outline = contourOutline(field, iso);

@@ -69,4 +69,34 @@ void writeSolidStl(const std::string& path, const TriangleMesh& mesh);
 std::vector<std::string> exportGeometry(const std::string& stem, const DensityField& field, double iso,
                                         double thicknessMm);
 
+// ---- The solid member (problems/rod/solid_model.h): densities on a box grid. ----
+
+/// Element densities of the solid, values[(i ny + j) nz + k] (SolidModel's element order: column i along
+/// the length, row j through the height, layer k through the thickness), on boxes of the given sizes.
+/// With midPlaneSymmetry the layers are the half z >= 0 (layer 0 at the mid-plane); the writers below
+/// mirror it into the whole body.
+struct BoxDensityField {
+  int nx = 0, ny = 0, nz = 0;
+  Vector values;
+  double cellWidthMm = 1.0, cellHeightMm = 1.0, cellDepthMm = 1.0;
+  bool midPlaneSymmetry = false;
+  /// The whole body's layers (2 nz with symmetry) and the density of layer k of the whole body.
+  int layers() const { return midPlaneSymmetry ? 2 * nz : nz; }
+  double at(int i, int j, int layer) const;
+};
+
+/// The surface of the elements with density >= iso: every face between such an element and one below
+/// iso (or the outside), two triangles each, counter-clockwise seen from outside (outward normals),
+/// vertices shared at the grid points. A closed surface: every directed edge has its reverse, so each
+/// edge is shared by an even number of triangles, exactly two except where two solid elements touch only
+/// along an edge (there four). Coordinates in mm: x along the rod from A's face, y up from the bottom, z
+/// from the back face. Throws std::invalid_argument for a bad size or iso outside (0, 1).
+TriangleMesh voxelSurface(const BoxDensityField& field, double iso);
+/// The densities as a VTK XML unstructured grid (.vtu, ASCII) of hexahedra with the cell field
+/// "density": ParaView opens it. The whole body (mirrored with symmetry), mm.
+void writeDensityVtu(const std::string& path, const BoxDensityField& field);
+/// STEM.stl (voxelSurface at iso) and STEM.vtu of the solid's field. Returns the paths.
+std::vector<std::string> exportSolidGeometry(const std::string& stem, const BoxDensityField& field,
+                                             double iso);
+
 }  // namespace hindsight

@@ -258,15 +258,22 @@ OptimizationRunSummary OptimizationRun::run(std::ostream& progress) {
           const int best = bestFeasibleIndex(data_.history, config_);
           if (best >= 0 && static_cast<std::size_t>(best) + 1 != data_.history.size())
             writePictures("design_best", data_.densities[static_cast<std::size_t>(best)]);
-          // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL).
-          DensityField field;
-          field.nx = config_.rod.elementsAlongLength;
-          field.ny = config_.rod.elementsThroughHeight;
-          field.values = grid;
-          field.cellWidthMm = 1000.0 * config_.rod.length / field.nx;
-          field.cellHeightMm = 1000.0 * config_.rod.height / field.ny;
-          exportGeometry((fs::path(options_.outputDirectory) / "design_final").string(), field, 0.5,
-                         1000.0 * config_.rod.thickness);
+          // The geometry for CAD: outline at density 0.5 (SVG, DXF) and the extruded solid (STL); of the
+          // solid member its surface (STL) and densities (VTU).
+          if (config_.rod.isSolid()) {
+            exportSolidGeometry((fs::path(options_.outputDirectory) / "design_final").string(),
+                                optimizer_.solidField(optimizer_.lastEvaluatedDesign(), record.iteration),
+                                0.5);
+          } else {
+            DensityField field;
+            field.nx = config_.rod.elementsAlongLength;
+            field.ny = config_.rod.elementsThroughHeight;
+            field.values = grid;
+            field.cellWidthMm = 1000.0 * config_.rod.length / field.nx;
+            field.cellHeightMm = 1000.0 * config_.rod.height / field.ny;
+            exportGeometry((fs::path(options_.outputDirectory) / "design_final").string(), field, 0.5,
+                           1000.0 * config_.rod.thickness);
+          }
         }
         data_.history.back().totalSeconds = record.totalSeconds = iterationTimer.seconds();
         writeResultsFile(resultsPath_, data_);

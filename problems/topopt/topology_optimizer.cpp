@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/rod/eigen_constraint.h>
+#include <hindsight/problems/rod/solid_member.h>
 
 #include <algorithm>
 #include <cmath>
@@ -11,10 +12,22 @@
 namespace hindsight {
 namespace {
 
+// The elements of the filter's grid: nx ny of the plate, nx ny nz of the solid.
+int gridCount(const rod::RodConfig& rc) {
+  return rc.elementsAlongLength * rc.elementsThroughHeight * (rc.isSolid() ? rc.elementsThroughThickness : 1);
+}
+
 std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
   const int nx = rc.elementsAlongLength;
   const int ny = rc.elementsThroughHeight;
   std::vector<int> map(static_cast<std::size_t>(rc.designCount()));
+  if (rc.isSolid()) {
+    // The solid's grid is its element order (i ny + j) nz + k, the design index ((i - 1) ny + j) nz + k
+    // (problems/rod/solid_model.h): one column of ny nz elements apart.
+    for (int d = 0; d < rc.designCount(); ++d)
+      map[static_cast<std::size_t>(d)] = d + ny * rc.elementsThroughThickness;
+    return map;
+  }
   // Design index d = (i - 1) ny + j for element column i, row j (problems/rod/fe_model.h).
   for (int d = 0; d < rc.designCount(); ++d) {
     const int column = d / ny + 1;
@@ -25,7 +38,7 @@ std::vector<int> makeDesignToGrid(const rod::RodConfig& rc) {
 }
 
 std::vector<bool> designMask(const rod::RodConfig& rc, const std::vector<int>& designToGrid) {
-  std::vector<bool> mask(static_cast<std::size_t>(rc.elementsAlongLength * rc.elementsThroughHeight), false);
+  std::vector<bool> mask(static_cast<std::size_t>(gridCount(rc)), false);
   for (int g : designToGrid) mask[static_cast<std::size_t>(g)] = true;
   return mask;
 }
@@ -61,7 +74,8 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
       multiple_(!config.scenarios.empty()),
       bound_(multiple_ && config.optimization.aggregate == Aggregate::Max),
       filter_(config.rod.elementsAlongLength, config.rod.elementsThroughHeight,
-              config.optimization.filterRadius, designMask(config.rod, designToGrid_)),
+              config.rod.isSolid() ? 0.0 : config.optimization.filterRadius,
+              config.rod.isSolid() ? std::vector<bool>() : designMask(config.rod, designToGrid_)),
       // The bound formulation: one more variable (z) and one constraint per scenario; the frequency
       // guard adds one constraint (constraintCount()).
       mma_(config.rod.designCount() + (bound_ ? 1 : 0), constraintCount() + (bound_ ? scenarios_.count() : 0),
@@ -89,6 +103,22 @@ TopologyOptimizer::TopologyOptimizer(const Config& config, const Communicator& c
     // that of MMA's (the bound formulation: z and one constraint per scenario more).
     gcmma_ = std::make_unique<Gcmma>(config.rod.designCount() + (bound_ ? 1 : 0),
                                      constraintCount() + (bound_ ? scenarios_.count() : 0), options);
+  }
+  // optimization.filterRadius = 0 means no filter; the 3-D filter's rule would give every element a
+  // weight of zero there, so it is made only for a positive radius (filter_ is the identity then).
+  if (config.rod.isSolid() && config.optimization.filterRadius > 0.0) {
+    const rod::SolidModel geometry(config.rod, rod::solidMeshOptions(config.rod),
+                                   Vector::Constant(config.rod.designCount(), 1.0));
+    DensityFilter3d::Grid grid;
+    grid.elementsAlongLength = config.rod.elementsAlongLength;
+    grid.elementsThroughHeight = config.rod.elementsThroughHeight;
+    grid.elementsThroughThickness = config.rod.elementsThroughThickness;
+    grid.elementWidthX = geometry.elementWidthX();
+    grid.elementWidthY = geometry.elementWidthY();
+    grid.elementWidthZ = geometry.elementWidthZ();
+    grid.midPlaneSymmetry = config.rod.midPlaneSymmetry;
+    filter3d_ = std::make_unique<DensityFilter3d>(grid, config.optimization.filterRadius,
+                                                  designMask(config.rod, designToGrid_));
   }
   state_.design = scenarios_.rod(0).initialDesign();
   state_.mma = mma_.state();
@@ -146,12 +176,15 @@ MmaState TopologyOptimizer::fullMmaState(const OptimizerState& state) const {
 }
 
 Vector TopologyOptimizer::physicalDesign(ConstVectorRef design) const {
-  if (filter_.isIdentity()) return design;
+  if (filter3d_ ? filter3d_->isIdentity() : filter_.isIdentity()) return design;
   const rod::RodConfig& rc = config().rod;
-  Vector grid = Vector::Ones(rc.elementsAlongLength * rc.elementsThroughHeight);
+  Vector grid = Vector::Ones(gridCount(rc));
   for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = design(d);
   Vector filtered(grid.size());
-  filter_.apply(grid, filtered);
+  if (filter3d_)
+    filter3d_->apply(grid, filtered);
+  else
+    filter_.apply(grid, filtered);
   Vector out(designCount());
   // A convex combination of values in [xMin, 1]; the clamp only removes rounding.
   for (int d = 0; d < designCount(); ++d) {
@@ -161,12 +194,15 @@ Vector TopologyOptimizer::physicalDesign(ConstVectorRef design) const {
 }
 
 Vector TopologyOptimizer::chainThroughFilter(ConstVectorRef gradient) const {
-  if (filter_.isIdentity()) return gradient;
+  if (filter3d_ ? filter3d_->isIdentity() : filter_.isIdentity()) return gradient;
   const rod::RodConfig& rc = config().rod;
-  Vector grid = Vector::Zero(rc.elementsAlongLength * rc.elementsThroughHeight);
+  Vector grid = Vector::Zero(gridCount(rc));
   for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = gradient(d);
   Vector chained(grid.size());
-  filter_.applyTranspose(grid, chained);
+  if (filter3d_)
+    filter3d_->applyTranspose(grid, chained);
+  else
+    filter_.applyTranspose(grid, chained);
   Vector out(designCount());
   for (int d = 0; d < designCount(); ++d) out(d) = chained(designToGrid_[static_cast<std::size_t>(d)]);
   return out;
@@ -215,9 +251,12 @@ Vector TopologyOptimizer::constraintsOf(double volumeFraction, ConstVectorRef dv
   if (settings.minFirstFrequency > 0.0) {
     if (evaluation == nullptr) throw std::logic_error("the frequency guard needs the full evaluation");
     const double bound = eigenvalueBound(settings.minFirstFrequency);
-    const rod::FeModel model(config().rod, modelDesign(design, iteration));
-    const rod::FirstEigenvalue first =
-        rod::firstEigenvalue(model, evaluation->eigenvalues, evaluation->modes);
+    const Vector physical = modelDesign(design, iteration);
+    const rod::FirstEigenvalue first = config().rod.isSolid()
+                                           ? rod::firstEigenvalue(rod::SolidMember(config().rod, physical),
+                                                                  evaluation->eigenvalues, evaluation->modes)
+                                           : rod::firstEigenvalue(rod::FeModel(config().rod, physical),
+                                                                  evaluation->eigenvalues, evaluation->modes);
     constraint(1) = 1.0 - first.value / bound;
     if (jacobian != nullptr)
       jacobian->row(1) = chainToDesign(-first.gradient / bound, design, iteration).transpose();
@@ -238,10 +277,44 @@ Vector TopologyOptimizer::recordConstraints(const IterationRecord& record,
 
 Vector TopologyOptimizer::densityGrid(ConstVectorRef design) const {
   const rod::RodConfig& rc = config().rod;
+  const int nx = rc.elementsAlongLength, ny = rc.elementsThroughHeight;
+  if (rc.isSolid()) {
+    // The picture of the solid: each (column, row)'s mean over the layers, on the plate's grid.
+    const int nz = rc.elementsThroughThickness;
+    const Vector solid = solidDensities(design, lastIteration_);
+    Vector grid(nx * ny);
+    for (int i = 0; i < nx; ++i) {
+      for (int j = 0; j < ny; ++j) grid(j * nx + i) = solid.segment((i * ny + j) * nz, nz).mean();
+    }
+    return grid;
+  }
   const Vector physical = modelDesign(design, lastIteration_);
-  Vector grid = Vector::Ones(rc.elementsAlongLength * rc.elementsThroughHeight);
+  Vector grid = Vector::Ones(nx * ny);
   for (int d = 0; d < designCount(); ++d) grid(designToGrid_[static_cast<std::size_t>(d)]) = physical(d);
   return grid;
+}
+
+Vector TopologyOptimizer::solidDensities(ConstVectorRef design, int iteration) const {
+  const rod::RodConfig& rc = config().rod;
+  if (!rc.isSolid()) throw std::logic_error("TopologyOptimizer::solidDensities: the member is the plate");
+  const Vector physical = modelDesign(design, iteration);
+  Vector densities = Vector::Ones(gridCount(rc));
+  for (int d = 0; d < designCount(); ++d) densities(designToGrid_[static_cast<std::size_t>(d)]) = physical(d);
+  return densities;
+}
+
+BoxDensityField TopologyOptimizer::solidField(ConstVectorRef design, int iteration) const {
+  const rod::RodConfig& rc = config().rod;
+  BoxDensityField field;
+  field.nx = rc.elementsAlongLength;
+  field.ny = rc.elementsThroughHeight;
+  field.nz = rc.elementsThroughThickness;
+  field.midPlaneSymmetry = rc.midPlaneSymmetry;
+  field.values = solidDensities(design, iteration);
+  field.cellWidthMm = 1000.0 * rc.length / field.nx;
+  field.cellHeightMm = 1000.0 * rc.height / field.ny;
+  field.cellDepthMm = 1000.0 * rc.thickness / field.layers();
+  return field;
 }
 
 IterationRecord TopologyOptimizer::step() {

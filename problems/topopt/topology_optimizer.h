@@ -91,7 +91,9 @@
 #include <hindsight/problems/app/config.h>
 #include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/topopt/density_filter.h>
+#include <hindsight/problems/topopt/density_filter_3d.h>
 #include <hindsight/problems/topopt/gcmma.h>
+#include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/problems/topopt/heaviside_projection.h>
 #include <hindsight/problems/topopt/mma.h>
 #include <hindsight/problems/topopt/scenario_objective.h>
@@ -225,8 +227,13 @@ class TopologyOptimizer final {
 
   /// The element densities the model sees for design variables x (filtered when a filter is on),
   /// over ALL elements on the picture grid (problems/topopt/pictures.h numbering e = row * nx + column,
-  /// solid end columns = 1); length nx * ny.
+  /// solid end columns = 1); length nx * ny. Of the solid member: the mean through the thickness.
   Vector densityGrid(ConstVectorRef design) const;
+  /// The solid member's element densities the model sees in iteration k, in SolidModel's element order
+  /// ((i ny + j) nz + k, problems/rod/solid_model.h; end columns = 1), nx ny nz entries.
+  Vector solidDensities(ConstVectorRef design, int iteration) const;
+  /// The same on the solid's box grid in millimetres, for the STL and VTU writers (geometry_export.h).
+  BoxDensityField solidField(ConstVectorRef design, int iteration) const;
 
   /// What the model sees in iteration k for design variables x: the filtered design, projected when
   /// optimization.projectionBeta > 0 (with the beta of iteration k); one entry per design variable.
@@ -279,9 +286,10 @@ class TopologyOptimizer final {
 
   Config config_;
   ScenarioObjective scenarios_;
-  bool multiple_;  // the configuration lists scenarios
-  bool bound_;     // multiple_ and aggregate max
-  DensityFilter filter_;
+  bool multiple_;                              // the configuration lists scenarios
+  bool bound_;                                 // multiple_ and aggregate max
+  DensityFilter filter_;                       // the plate's (the identity for the solid)
+  std::unique_ptr<DensityFilter3d> filter3d_;  // the solid member's (rod.elementsThroughThickness >= 1)
   Mma mma_;
   std::unique_ptr<Gcmma> gcmma_;  // optimization.method = gcmma
   OptimizerState state_;

@@ -80,7 +80,8 @@ class PistonRod:
 
     @property
     def shape(self):
-        """(ny, nx) = (rod.elementsThroughHeight, rod.elementsAlongLength)."""
+        """(ny, nx) = (rod.elementsThroughHeight, rod.elementsAlongLength); the solid member's
+        (rod.elementsThroughThickness >= 1) designs are (nz, ny, nx)."""
         return self._rod.shape
 
     @property
@@ -109,8 +110,9 @@ class PistonRod:
         return Result(self._rod._evaluate(x, gradient, storage, adjoint, integrator, psi2))
 
     def __repr__(self):
-        ny, nx = self.shape
-        return f"PistonRod(ny={ny}, nx={nx}, design_count={self.design_count})"
+        shape = self.shape
+        layers = f"nz={shape[0]}, " if len(shape) == 3 else ""
+        return f"PistonRod({layers}ny={shape[-2]}, nx={shape[-1]}, design_count={self.design_count})"
 
 
 # The C++ behind optimize() and schedule() words its errors for the command line (its flags); Python

@@ -11,6 +11,7 @@
 #include <hindsight/engine/gradient_checker.h>
 #include <hindsight/engine/integrator.h>
 #include <hindsight/problems/rod/slider_crank.h>
+
 #include "support/allocation_counting.h"
 #include "support/synthetic_rod.h"
 
@@ -187,11 +188,30 @@ struct NodalEnergy {
   }
 };
 
+/// p of a member that deforms in 3-D (problems/rod/invariants.h): the plate layout and the rotation's
+/// modal mass M_ee^xy after b, here 0.7 M_ee plus a symmetric perturbation, so that a term that takes
+/// M_ee where M_ee^xy belongs (or the reverse) changes the residual.
+Vector withRotationalModalMass(const Vector& plate, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-0.05, 0.05);
+  Vector p(plate.size() + n * n);
+  p.head(plate.size()) = plate;
+  const int mee = 4 + 4 * n + n * n;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i <= j; ++i) {
+      const double v = 0.7 * plate(mee + i + n * j) + u(rng);
+      p(plate.size() + i + n * j) = v;
+      p(plate.size() + j + n * i) = v;
+    }
+  }
+  return p;
+}
+
 struct Case {
-  Case(const Mechanism& m, int modes, unsigned seed)
+  Case(const Mechanism& m, int modes, unsigned seed, bool spatial = false)
       : body(modes, 1.0, seed),
-        problem(m, modes),
-        p(body.invariants()),
+        problem(m, modes, spatial),
+        p(spatial ? withRotationalModalMass(body.invariants(), modes, seed + 7) : body.invariants()),
         ws(problem.createModelWorkspace()),
         s(problem.coordinateCount(), seed + 1, problem.freeCount()) {}
   Vector residual(double t, const Vector& y, const Vector& v, const Vector& a, const Vector& pp) const {
@@ -204,7 +224,11 @@ struct Case {
   State s;
 };
 
-void checkDerivatives(Case& c, const std::vector<double>& times) {
+/// linearInvariants: check the entries of p that r is linear in (all but b) with unit central differences,
+/// exact up to round-off, and b with the small steps: a spatial member's M_ee^xy enters through products
+/// with the modal coordinates, small at these states, where a step of 1e-6 leaves the round-off of mu . r
+/// near the derivative.
+void checkDerivatives(Case& c, const std::vector<double>& times, bool linearInvariants = false) {
   const int f = c.problem.coordinateCount();
   for (double t : times) {
     Matrix ry(f, f), rv(f, f);
@@ -226,10 +250,30 @@ void checkDerivatives(Case& c, const std::vector<double>& times) {
     }
     Vector vjp = Vector::Zero(c.p.size());
     c.problem.addResidualParameterVjp(t, c.s.y, c.s.v, c.s.a, c.p, c.s.mu, vjp, c.ws.get());
-    const auto pCheck =
-        checkGradient([&](const Vector& x) { return c.s.mu.dot(c.residual(t, c.s.y, c.s.v, c.s.a, x)); }, c.p,
-                      vjp, {1e-6, 1e-6});
-    EXPECT_TRUE(pCheck.passed) << "t = " << t << ": " << pCheck.message;
+    auto muR = [&](const Vector& x) { return c.s.mu.dot(c.residual(t, c.s.y, c.s.v, c.s.a, x)); };
+    if (!linearInvariants) {
+      const auto pCheck = checkGradient(muR, c.p, vjp, {1e-6, 1e-6});
+      EXPECT_TRUE(pCheck.passed) << "t = " << t << ": " << pCheck.message;
+    } else {
+      const int n = c.problem.modeCount(), b = 4 + 4 * n + 3 * n * n;  // b's offset (invariants.h)
+      const auto bCheck = checkGradient(
+          [&](const Vector& x) {
+            Vector full = c.p;
+            full.segment(b, n) = x;
+            return muR(full);
+          },
+          c.p.segment(b, n), vjp.segment(b, n), {1e-6, 1e-6});
+      EXPECT_TRUE(bCheck.passed) << "t = " << t << ": " << bCheck.message;
+      const double largest = vjp.cwiseAbs().maxCoeff(), scale = std::abs(muR(c.p));
+      for (Eigen::Index k = 0; k < c.p.size(); ++k) {
+        if (k >= b && k < b + n) continue;
+        Vector plus = c.p, minus = c.p;
+        plus(k) += 1.0;
+        minus(k) -= 1.0;
+        const double fd = 0.5 * (muR(plus) - muR(minus));
+        EXPECT_NEAR(vjp(k), fd, 1e-9 * largest + 1e-13 * scale) << "t = " << t << ", p(" << k << ")";
+      }
+    }
     // The mass matrix is the acceleration part of the residual, the force minus its rest.
     Matrix mass(f, f);
     Vector force(f);
@@ -526,6 +570,42 @@ TEST(MechanismChordPath, FreeSliderCrankEqualsTheFullCoordinateReference) {
 TEST(MechanismChordPath, SliderCrankMassEqualsTheFullCoordinateReference) {
   Case c(fromExample("slider_crank_mass.json"), 5, 23);
   checkAgainstReference(c, {0.5, 2.5});
+}
+
+// A spatial member (the solid, problems/rod/solid_member.h): M_ee^xy in J_w and the centrifugal terms, M_ee
+// in the modal mass. The chord path against the full-coordinate reference and every derivative against
+// finite differences, on a mechanism with a closed loop and one with a free coordinate.
+TEST(MechanismSpatialMember, FourBarEqualsTheReferenceAndItsDerivativesTheFiniteDifferences) {
+  Case c(fromExample("four_bar.json"), 4, 31, true);
+  ASSERT_EQ(c.p.size(), 4 + 5 * 4 + 4 * 4 * 4);
+  ASSERT_EQ(c.problem.parameterSize(), c.p.size());
+  checkAgainstReference(c, {0.3, 1.2});
+  checkDerivatives(c, {0.6, 2.4}, true);
+}
+
+TEST(MechanismSpatialMember, FreeSliderCrankEqualsTheReferenceAndItsDerivativesTheFiniteDifferences) {
+  Case c(freeSliderCrank(), 3, 32, true);
+  checkAgainstReference(c, {0.3, 1.1});
+  checkDerivatives(c, {0.3, 1.1}, true);
+}
+
+// A spatial member whose M_ee^xy equals M_ee is the plate (the same residual to round-off), and one whose
+// M_ee^xy differs has another residual, by far more than round-off: the block is read (through J_w and
+// h, products with the modal coordinates, which are small at these states).
+TEST(MechanismSpatialMember, WithTheRotationalModalMassEqualToTheModalMassItIsThePlate) {
+  const Mechanism m = fromExample("four_bar.json");
+  Case plate(m, 4, 33);
+  Case spatial(m, 4, 33, true);
+  const int n = 4, mee = 4 + 4 * n + n * n;
+  Vector same = spatial.p;
+  same.tail(n * n) = plate.p.segment(mee, n * n);
+  for (double t : {0.4, 1.9}) {
+    const Vector r = plate.residual(t, plate.s.y, plate.s.v, plate.s.a, plate.p);
+    const Vector rs = spatial.residual(t, plate.s.y, plate.s.v, plate.s.a, same);
+    EXPECT_LT((r - rs).norm(), 1e-14 * r.norm()) << "t = " << t;
+    const Vector rd = spatial.residual(t, plate.s.y, plate.s.v, plate.s.a, spatial.p);
+    EXPECT_GT((r - rd).norm(), 1e-10 * r.norm()) << "t = " << t;
+  }
 }
 
 TEST(MechanismChordPath, OpenChainEqualsTheFullCoordinateReference) {

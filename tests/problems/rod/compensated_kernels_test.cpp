@@ -51,7 +51,8 @@ TEST(CompensatedKernels, ElementProductsResolveCancellation) {
   }
   for (KernelIsa isa : {KernelIsa::Baseline, KernelIsa::Fma}) {
     if (!kernelIsaAvailable(isa)) continue;
-    compensatedElementProducts(unit, x.data(), columns, true, product.data(), high.data(), low.data(), isa);
+    compensatedElementProducts(unit, 8, x.data(), columns, true, product.data(), high.data(), low.data(),
+                               isa);
     for (int c = 0; c < columns; ++c) {
       long double exact = 0.0L, magnitude = 0.0L;
       double plain = 0.0;
@@ -83,9 +84,9 @@ TEST(CompensatedKernels, ElementProductsAreBitwiseEqualForEveryIsa) {
         x[0] = 1e200;
       }
       std::vector<double> baseline(x.size()), fused(x.size()), high(columns), low(columns);
-      compensatedElementProducts(unit, x.data(), columns, pass == 0, baseline.data(), high.data(), low.data(),
-                                 KernelIsa::Baseline);
-      compensatedElementProducts(unit, x.data(), columns, pass == 0, fused.data(), high.data(), low.data(),
+      compensatedElementProducts(unit, 8, x.data(), columns, pass == 0, baseline.data(), high.data(),
+                                 low.data(), KernelIsa::Baseline);
+      compensatedElementProducts(unit, 8, x.data(), columns, pass == 0, fused.data(), high.data(), low.data(),
                                  KernelIsa::Fma);
       EXPECT_TRUE(sameBits(baseline, fused)) << columns << " columns, pass " << pass;
     }
@@ -168,7 +169,7 @@ TEST(CompensatedKernels, TheBaselineIsAlwaysAvailableAndTheDefaultIsAvailable) {
   EXPECT_TRUE(kernelIsaAvailable(defaultKernelIsa()));
   if (!kernelIsaAvailable(KernelIsa::Fma)) {
     double unit[64] = {}, x[8] = {}, product[8], high[1], low[1];
-    EXPECT_THROW(compensatedElementProducts(unit, x, 1, true, product, high, low, KernelIsa::Fma),
+    EXPECT_THROW(compensatedElementProducts(unit, 8, x, 1, true, product, high, low, KernelIsa::Fma),
                  std::invalid_argument);
   }
 }
