@@ -395,7 +395,39 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
   double work = static_cast<double>(steps) * static_cast<double>(steps) * k * k;
   for (std::int64_t c : capacity) work *= static_cast<double>(c + 1);
   if (work <= static_cast<double>(kChooseExactWork)) return optimal(steps, ramSlots, levels, forwardStep);
-  return graded(steps, ramSlots, levels, forwardStep);
+  // The largest cap c on every level's slots with rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
+  const std::int64_t columns = kMaxGradedCells / gradedRows(steps);
+  const auto columnsWith = [&](std::int64_t cap) {
+    std::int64_t sum = 0;
+    for (std::int64_t c : capacity) sum += std::min(c, cap) + 1;
+    return sum;
+  };
+  std::int64_t cap = steps;
+  if (columnsWith(cap) > columns) {
+    std::int64_t low = 1, high = steps;  // columnsWith(low) fits: K levels of 2 columns each
+    while (low < high) {
+      const std::int64_t middle = low + (high - low + 1) / 2;
+      if (columnsWith(middle) <= columns)
+        low = middle;
+      else
+        high = middle - 1;
+    }
+    cap = low;
+  }
+  std::vector<StorageLevelCosts> capped = levels;
+  for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
+  return graded(steps, std::min(ramSlots, cap), capped, forwardStep);
+}
+
+std::int64_t KLevelPlan::gradedRows(std::int64_t steps) {
+  std::int64_t rows = std::min(steps, kGradedExactLengths) + 1, length = rows - 1;
+  while (length < steps) {  // as solveHierarchical's grid
+    const auto next =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(length) * (1.0 + kGradedSpacing)));
+    length = std::min(steps, std::max(next, length + 1));
+    ++rows;
+  }
+  return rows;
 }
 
 std::string KLevelPlan::describe() const {
@@ -423,12 +455,15 @@ KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
       const auto& e = t.forward[t.at(row, level, free_[static_cast<std::size_t>(level)])];
       return Decision{e.level, e.level, e.distance};
     }
-    // Between the rows of a graded grid: the recurrence evaluated for this length, every row a split.
+    // Between the rows of a graded grid: the recurrence evaluated for this length, the splits searched as
+    // for a row (around the row below's best split scaled to this length).
+    const std::int64_t below = t.lengths[static_cast<std::size_t>(row)];
     HierarchicalTables::Entry best{HierarchicalTables::kInfinity, 0, 0, 0};
     for (int k = level; k >= 0; --k) {
       const std::int64_t m =
           k == level ? free_[static_cast<std::size_t>(level)] : capacity_[static_cast<std::size_t>(k)];
-      const HierarchicalTables::Entry e = t.forwardEntry(length, k, m, 1, t.rowOf(length - 1));
+      const auto [first, last] = t.splits(length, below, t.forward[t.at(row, k, m)].distance, length - 1);
+      const HierarchicalTables::Entry e = t.forwardEntry(length, k, m, first, last);
       if (e.cost < best.cost) best = e;
     }
     return Decision{best.level, best.level, best.distance};
@@ -448,7 +483,9 @@ KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length
       const auto& e = t.backward[t.at(row, level, m)];
       return Decision{e.action, e.level, e.distance};
     }
-    const HierarchicalTables::Entry e = t.backwardEntry(length, level, m, 1, t.rowOf(length - 2));
+    const auto [first, last] = t.splits(length, t.lengths[static_cast<std::size_t>(row)],
+                                        t.backward[t.at(row, level, m)].distance, length - 2);
+    const HierarchicalTables::Entry e = t.backwardEntry(length, level, m, first, last);
     return Decision{e.action, e.level, e.distance};
   }
   std::int64_t cell = 0;

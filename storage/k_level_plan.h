@@ -80,11 +80,17 @@ class KLevelPlan {
   static constexpr std::int64_t kGradedExactLengths = 4096;
   static constexpr double kGradedSpacing = 1.0 / 256;
   static constexpr std::int64_t kGradedWindow = 16;
+  /// Rows of graded()'s tables for N steps (the exact lengths, the grid and length 0).
+  static std::int64_t gradedRows(std::int64_t steps);
+  /// graded()'s table entries at the most (32 bytes each: 64 MiB); choose() plans with fewer slots of the
+  /// largest levels beyond (a plan with fewer slots is one of the plans with more).
+  static constexpr std::int64_t kMaxGradedCells = std::int64_t{1} << 21;
   static KLevelPlan graded(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
 
   /// The plan a `multilevel` spec with K levels runs: optimal() where its work is at most kChooseExactWork,
-  /// else graded(). Same arguments and errors as optimal().
+  /// else graded() (with each level's slots capped so that its tables stay within kMaxGradedCells). Same
+  /// arguments and errors as optimal().
   static constexpr std::int64_t kChooseExactWork = std::int64_t{1} << 26;
   static KLevelPlan choose(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
