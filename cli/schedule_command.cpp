@@ -72,9 +72,14 @@ int runSchedule(const ScheduleArgs& args) {
             << "\nstates stored:     " << p.statesStored << "\nram:               writes "
             << count(p.ramWrites) << ", reads " << count(p.ramReads) << ", peak "
             << formatBytes(p.peakRamBytes) << "\ndisk:              writes " << p.diskWrites << ", reads "
-            << p.diskReads << ", peak " << formatBytes(p.peakDiskBytes)
-            << " (uncompressed)\npredicted cost:    " << std::setprecision(6) << p.totalCost << " (schedule "
-            << p.scheduleCost << " = recomputation + disk I/O"
+            << p.diskReads << ", peak " << formatBytes(p.peakDiskBytes) << " (uncompressed)\n";
+  for (const LevelTraffic& level : p.levels) {  // three or more levels: the disk line sums these
+    std::cout << "  " << std::left << std::setw(17) << (level.name + ":") << std::right << "writes "
+              << level.writes << ", reads " << level.reads << ", peak " << formatBytes(level.peakBytes)
+              << " (costs " << level.write << ":" << level.read << ")\n";
+  }
+  std::cout << "predicted cost:    " << std::setprecision(6) << p.totalCost << " (schedule " << p.scheduleCost
+            << " = recomputation + disk I/O"
             << (p.hiddenIoCost > 0.0 ? " - " + formatCost(p.hiddenIoCost) + " hidden by overlapped disk I/O"
                                      : std::string())
             << ")\n";

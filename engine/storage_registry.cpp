@@ -188,9 +188,15 @@ SchedulePrediction predictFromRows(const std::vector<StorageStrategyRow>& rows, 
                                "rhs evaluations");
   // The request's cost model, or the row's own (multilevel's costs=).
   const ScheduleCosts& model = p.costs;
-  p.scheduleCost = static_cast<double>(p.recomputedSteps + p.adjointRecomputations) * model.forwardStep +
-                   static_cast<double>(p.diskWrites) * model.diskWrite +
-                   static_cast<double>(p.diskReads) * model.diskRead - p.hiddenIoCost;
+  const double recomputation =
+      static_cast<double>(p.recomputedSteps + p.adjointRecomputations) * model.forwardStep;
+  p.scheduleCost = p.levels.empty() ? recomputation + static_cast<double>(p.diskWrites) * model.diskWrite +
+                                          static_cast<double>(p.diskReads) * model.diskRead
+                                    : recomputation;
+  for (const LevelTraffic& level : p.levels)  // each level its own costs, in the order KLevelPlan sums them
+    p.scheduleCost +=
+        static_cast<double>(level.writes) * level.write + static_cast<double>(level.reads) * level.read;
+  p.scheduleCost -= p.hiddenIoCost;
   p.totalCost = static_cast<double>(request.steps) * (model.forwardStep + model.adjointStep) + p.scheduleCost;
   return p;
 }

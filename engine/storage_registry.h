@@ -44,6 +44,14 @@ struct ScheduleCosts {
 enum class StorageLevel { kRam, kDisk };
 const char* levelName(StorageLevel level);
 
+/// One storage level below RAM in a prediction of more than two levels (multilevel's levels=).
+struct LevelTraffic {
+  std::string name;
+  std::int64_t writes = 0, reads = 0;  ///< states
+  std::int64_t peakBytes = 0;          ///< bytes of states held at the most
+  double write = 0.0, read = 0.0;      ///< the cost model's write and read of one state
+};
+
 /// What a schedule does, counted (a prediction or, for a run, what happened).
 struct SchedulePrediction {
   std::string strategy;    ///< the spec
@@ -70,6 +78,9 @@ struct SchedulePrediction {
   double scheduleCost = 0.0;  ///< (R + adjoint recomputations) uf + W wd + Q rd - hiddenIoCost
   double totalCost = 0.0;     ///< N uf + N ub + scheduleCost
   ScheduleCosts costs;        ///< the cost model of the two costs (a spec's own costs= first)
+  /// Three or more levels: each level below RAM, its traffic and its own costs (diskWrites, diskReads and
+  /// peakDiskBytes are their sums; costs.diskWrite and diskRead are unused). Empty otherwise.
+  std::vector<LevelTraffic> levels;
   /// Empty, or why this plan is a trap: its schedule cost exceeds a simple alternative's (named here, with
   /// its cost) by more than twice (docs/theory/storage.md, "No silent trap").
   std::string warning;

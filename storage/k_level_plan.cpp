@@ -3,6 +3,7 @@
 #include <hindsight/engine/interrupt.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -171,25 +172,143 @@ KLevelPlan KLevelPlan::optimal(std::int64_t steps, std::int64_t ramSlots,
 
 // ---- the hierarchical family ----
 
+// The programme's tables over rows of segment lengths: every length 1..exact, then (graded()) a geometric
+// grid of lengths up to N, each at least `spacing` times the previous one further. Values between rows are
+// interpolated linearly. A row is computed level by level and slot count by slot count, ascending, so that
+// the values a split needs between the previous row and the current one (the second part with one slot
+// less, or at a faster level) are interpolated from entries already done; only what is not done yet is
+// extrapolated from the two rows before.
 struct KLevelPlan::HierarchicalTables {
   std::int64_t steps = 0;
+  std::int64_t exact = 0;   // rows 0..exact are the lengths 0..exact
+  std::int64_t window = 0;  // 0: full split search
+  double uf = 0.0;
+  std::vector<double> write, read;
   std::vector<std::int64_t> capacity, offset;  // offset[k]: first column of level k; columns m = 0..s_k
+  std::vector<std::int64_t> lengths;           // lengths[row]
   std::int64_t columns = 0;
+  // Entries done: rows 0..rows-1 and the columns 0..columns-1 of the next row, for each table.
+  struct Done {
+    std::int64_t rows = 0, columns = 0;
+  } backwardDone, forwardDone;
   struct Entry {
     double cost;
     std::int32_t distance;
-    std::int8_t action;  // E: kDone, kNone, kStore; W: unused
-    std::int8_t level;   // the level stored at
+    std::int8_t action;  // E: kDone, kNone, kStore, kMove; W: unused
+    std::int8_t level;   // the level stored at (moved to)
   };
-  std::vector<Entry> backward, forward;  // [l][column]
-  std::size_t at(std::int64_t l, int level, std::int64_t m) const {
-    return static_cast<std::size_t>(l * columns + offset[static_cast<std::size_t>(level)] + m);
+  std::vector<Entry> backward, forward;  // [row][column]
+  static constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+  std::size_t at(std::int64_t row, int level, std::int64_t m) const {
+    return static_cast<std::size_t>(row * columns + offset[static_cast<std::size_t>(level)] + m);
+  }
+  std::int64_t rows() const { return static_cast<std::int64_t>(lengths.size()); }
+  /// The last row whose length is at most l (l >= 0).
+  std::int64_t rowOf(std::int64_t l) const {
+    if (l <= exact) return l;
+    return static_cast<std::int64_t>(std::upper_bound(lengths.begin(), lengths.end(), l) - lengths.begin()) -
+           1;
+  }
+  /// The table's value for a segment of l states (a row's, else interpolated or extrapolated).
+  double cost(const std::vector<Entry>& table, std::int64_t l, int level, std::int64_t m) const {
+    const std::int64_t row = rowOf(l);
+    const double value = table[at(row, level, m)].cost;
+    if (lengths[static_cast<std::size_t>(row)] == l) return value;
+    const Done& done = &table == &backward ? backwardDone : forwardDone;
+    const bool inside = row + 1 < done.rows ||
+                        (row + 1 == done.rows && offset[static_cast<std::size_t>(level)] + m < done.columns);
+    const std::int64_t other = inside ? row + 1 : row - 1;
+    const double second = table[at(other, level, m)].cost;
+    if (!(value < kInfinity) || !(second < kInfinity)) return kInfinity;
+    const double x0 = static_cast<double>(lengths[static_cast<std::size_t>(row)]);
+    const double x1 = static_cast<double>(lengths[static_cast<std::size_t>(other)]);
+    return value + (second - value) * (static_cast<double>(l) - x0) / (x1 - x0);
+  }
+  double backwardCost(std::int64_t l, int level, std::int64_t m) const { return cost(backward, l, level, m); }
+  /// min_{i<k} w_i + E_i(l, s_i - 1): the cheapest store of a segment's first state at a faster level, and
+  /// that level (-1: none).
+  std::pair<double, int> storeBelow(int k, std::int64_t l) const {
+    std::pair<double, int> best{kInfinity, -1};
+    for (int i = 0; i < k; ++i) {
+      const std::int64_t c = capacity[static_cast<std::size_t>(i)];
+      if (c < 1) continue;
+      const double value = write[static_cast<std::size_t>(i)] + backwardCost(l, i, c - 1);
+      if (value < best.first) best = {value, i};
+    }
+    return best;
+  }
+  /// E_k(l, m) (storage/k_level_plan.h) with the splits j = lengths[row], row in [first, last].
+  Entry backwardEntry(std::int64_t l, int k, std::int64_t m, std::int64_t first, std::int64_t last) const {
+    const std::size_t kk = static_cast<std::size_t>(k);
+    if (l == 1) return Entry{0.0, 0, kDone, 0};
+    Entry best{kInfinity, 0, kNone, 0};
+    // Advancing to the segment's end: beyond the exact lengths only where nothing can be stored (RAM with no
+    // free slot, (l - 1) l / 2 steps); elsewhere a store is cheaper for such lengths.
+    if (l <= exact)
+      best.cost = static_cast<double>(l - 1) * uf + read[kk] + backwardCost(l - 1, k, m);
+    else if (k == 0 && m == 0)
+      best.cost = 0.5 * static_cast<double>(l - 1) * static_cast<double>(l) * uf;
+    for (std::int64_t row = first; row <= last; ++row) {
+      const std::int64_t j = lengths[static_cast<std::size_t>(row)];
+      const double left = static_cast<double>(j) * uf + read[kk] + backwardCost(j, k, m);
+      if (m >= 1) {
+        const double value = left + write[kk] + backwardCost(l - j, k, m - 1);
+        if (value < best.cost)
+          best = {value, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(k)};
+      }
+      const auto [store, level] = storeBelow(k, l - j);
+      if (level >= 0 && left + store < best.cost)
+        best = {left + store, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(level)};
+    }
+    // Move x_p to a faster level and reverse the whole segment from there (one read instead of many).
+    const auto [store, level] = storeBelow(k, l);
+    if (level >= 0 && store < best.cost) best = {store, 0, kMove, static_cast<std::int8_t>(level)};
+    return best;
+  }
+  /// W_k(l, m) without the faster levels' W_{k-1}(l, s_{k-1}), splits as backwardEntry's.
+  Entry forwardEntry(std::int64_t l, int k, std::int64_t m, std::int64_t first, std::int64_t last) const {
+    const std::size_t kk = static_cast<std::size_t>(k);
+    Entry best{kInfinity, 0, 0, 0};
+    if (m < 1) return best;
+    best = {write[kk] + read[kk] + backwardCost(l, k, m - 1), 0, 0, static_cast<std::int8_t>(k)};
+    for (std::int64_t row = first; row <= last; ++row) {
+      const std::int64_t j = lengths[static_cast<std::size_t>(row)];
+      const double value = write[kk] + cost(forward, l - j, k, m - 1) + read[kk] + backwardCost(j, k, m - 1);
+      if (value < best.cost) best = {value, static_cast<std::int32_t>(j), 0, static_cast<std::int8_t>(k)};
+    }
+    return best;
+  }
+  /// The rows of the splits searched for length l whose previous row's best split was `previous`, the
+  /// splits at most `top`: all, or within `window` rows of the previous best scaled to l.
+  std::pair<std::int64_t, std::int64_t> splits(std::int64_t l, std::int64_t previousLength,
+                                               std::int64_t previous, std::int64_t top) const {
+    const std::int64_t last = rowOf(top);
+    if (window <= 0 || previous <= 0) return {1, last};
+    std::int64_t center = previous;
+    if (l > exact) {
+      center = rowOf(static_cast<std::int64_t>(static_cast<double>(previous) * static_cast<double>(l) /
+                                               static_cast<double>(previousLength)));
+    }
+    return {std::max<std::int64_t>(1, center - window), std::min(last, center + window)};
   }
 };
 
 KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
                                     const std::vector<StorageLevelCosts>& levels, double forwardStep,
                                     std::int64_t window) {
+  return solveHierarchical(steps, ramSlots, levels, forwardStep, window, steps, 0.0);
+}
+
+KLevelPlan KLevelPlan::graded(std::int64_t steps, std::int64_t ramSlots,
+                              const std::vector<StorageLevelCosts>& levels, double forwardStep) {
+  return solveHierarchical(steps, ramSlots, levels, forwardStep, kGradedWindow, kGradedExactLengths,
+                           kGradedSpacing);
+}
+
+KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
+                                         const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                         std::int64_t window, std::int64_t exactLengths, double spacing) {
   std::vector<std::int64_t> capacity;
   std::vector<double> write, read;
   checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
@@ -197,118 +316,157 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
   HierarchicalTables& t = *tables;
   t.steps = steps;
   t.capacity = capacity;
+  t.write = write;
+  t.read = read;
+  t.uf = forwardStep;
+  t.window = window;
+  t.exact = std::min(steps, exactLengths);
+  for (std::int64_t l = 0; l <= t.exact; ++l) t.lengths.push_back(l);
+  while (t.lengths.back() < steps) {
+    const std::int64_t next =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(t.lengths.back()) * (1.0 + spacing)));
+    t.lengths.push_back(std::min(steps, std::max(next, t.lengths.back() + 1)));
+  }
   for (std::int64_t c : capacity) {
     t.offset.push_back(t.columns);
     t.columns += c + 1;
   }
-  const double splits = window > 0
-                            ? std::min(static_cast<double>(steps), 2.0 * static_cast<double>(window) + 1)
-                            : static_cast<double>(steps);
-  const double work = static_cast<double>(steps) * splits * static_cast<double>(t.columns);
+  const double rows = static_cast<double>(t.rows() - 1);
+  const double splits = window > 0 ? std::min(rows, 2.0 * static_cast<double>(window) + 1) : rows;
+  const double work = rows * splits * static_cast<double>(t.columns);
   if (work > static_cast<double>(kMaxHierarchicalWork)) {
     throw std::invalid_argument(
         "K-level plan (hierarchical): N = " + std::to_string(steps) +
         " with these slots exceeds its work limit N min(N, 2 window + 1) sum(s_k + 1) <= 2^33");
   }
   const int levelCount = static_cast<int>(capacity.size());
-  constexpr double kInfinity = std::numeric_limits<double>::infinity();
-  const std::size_t size = static_cast<std::size_t>((steps + 1) * t.columns);
-  t.backward.assign(size, HierarchicalTables::Entry{kInfinity, 0, kDone, 0});
-  t.forward.assign(size, HierarchicalTables::Entry{kInfinity, 0, 0, 0});
-  const double uf = forwardStep;
-  // The splits searched for length l: all of 1..top, or a window around the best split of length l - 1.
-  const auto range = [window](std::int64_t previous, std::int64_t top) {
-    if (window <= 0 || previous <= 0) return std::pair<std::int64_t, std::int64_t>{1, top};
-    return std::pair<std::int64_t, std::int64_t>{std::max<std::int64_t>(1, previous - window),
-                                                 std::min(top, previous + window)};
-  };
-  // below[k][l]: the cheapest store of a state that starts a segment of l states at a level under k,
-  // min_{i<k} w_i + E_i(l, s_i - 1), and that level.
-  std::vector<std::vector<std::pair<double, int>>> below(
-      static_cast<std::size_t>(levelCount),
-      std::vector<std::pair<double, int>>(static_cast<std::size_t>(steps + 1), {kInfinity, -1}));
-  for (std::int64_t l = 1; l <= steps; ++l) {
+  const std::size_t size = static_cast<std::size_t>(t.rows() * t.columns);
+  t.backward.assign(size, HierarchicalTables::Entry{HierarchicalTables::kInfinity, 0, kDone, 0});
+  t.forward.assign(size, HierarchicalTables::Entry{HierarchicalTables::kInfinity, 0, 0, 0});
+  for (std::int64_t row = 1; row < t.rows(); ++row) {
     pollInterrupt();
+    t.forwardDone = {row, 0};
+    const std::int64_t l = t.lengths[static_cast<std::size_t>(row)];
+    const std::int64_t previousLength = t.lengths[static_cast<std::size_t>(row - 1)];
     for (int k = 0; k < levelCount; ++k) {
-      const auto& lower = below[static_cast<std::size_t>(k)];
       for (std::int64_t m = 0; m <= capacity[static_cast<std::size_t>(k)]; ++m) {
-        HierarchicalTables::Entry best{l == 1 ? 0.0 : kInfinity, 0,
-                                       static_cast<std::int8_t>(l == 1 ? kDone : kNone), 0};
-        if (l >= 2) {
-          best.cost = static_cast<double>(l - 1) * uf + read[static_cast<std::size_t>(k)] +
-                      t.backward[t.at(l - 1, k, m)].cost;
-          const auto [first, last] = range(t.backward[t.at(l - 1, k, m)].distance, l - 2);
-          for (std::int64_t j = first; j <= last; ++j) {
-            const double left = static_cast<double>(j) * uf + read[static_cast<std::size_t>(k)] +
-                                t.backward[t.at(j, k, m)].cost;
-            if (m >= 1) {
-              const double cost =
-                  left + write[static_cast<std::size_t>(k)] + t.backward[t.at(l - j, k, m - 1)].cost;
-              if (cost < best.cost)
-                best = {cost, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(k)};
-            }
-            const auto& [store, level] = lower[static_cast<std::size_t>(l - j)];
-            if (level >= 0 && left + store < best.cost)
-              best = {left + store, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(level)};
-          }
-          // Move x_p to a faster level and reverse the whole segment from there (one read instead of many).
-          const auto& [store, level] = lower[static_cast<std::size_t>(l)];
-          if (level >= 0 && store < best.cost) best = {store, 0, kMove, static_cast<std::int8_t>(level)};
-        }
-        t.backward[t.at(l, k, m)] = best;
-      }
-      if (k + 1 < levelCount) {  // the stores below level k + 1 for segments of l states
-        const std::int64_t c = capacity[static_cast<std::size_t>(k)];
-        auto entry = below[static_cast<std::size_t>(k)][static_cast<std::size_t>(l)];
-        if (c >= 1) {
-          const double cost = write[static_cast<std::size_t>(k)] + t.backward[t.at(l, k, c - 1)].cost;
-          if (cost < entry.first) entry = {cost, k};
-        }
-        below[static_cast<std::size_t>(k) + 1][static_cast<std::size_t>(l)] = entry;
+        t.backwardDone = {row, t.offset[static_cast<std::size_t>(k)] + m};
+        const auto [first, last] =
+            t.splits(l, previousLength, t.backward[t.at(row - 1, k, m)].distance, l - 2);
+        t.backward[t.at(row, k, m)] = t.backwardEntry(l, k, m, first, last);
       }
     }
+    t.backwardDone = {row + 1, 0};
     for (int k = 0; k < levelCount; ++k) {
       const std::size_t kk = static_cast<std::size_t>(k);
       for (std::int64_t m = 0; m <= capacity[kk]; ++m) {
-        HierarchicalTables::Entry best{kInfinity, 0, 0, 0};
-        if (m >= 1) {
-          best = {write[kk] + read[kk] + t.backward[t.at(l, k, m - 1)].cost, 0, 0,
-                  static_cast<std::int8_t>(k)};
-          const auto [first, last] = range(t.forward[t.at(l - 1, k, m)].distance, l - 1);
-          for (std::int64_t j = first; j <= last; ++j) {
-            const double cost = write[kk] + t.forward[t.at(l - j, k, m - 1)].cost + read[kk] +
-                                t.backward[t.at(j, k, m - 1)].cost;
-            if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), 0, static_cast<std::int8_t>(k)};
-          }
-        }
+        t.forwardDone = {row, t.offset[kk] + m};
+        const auto [first, last] =
+            t.splits(l, previousLength, t.forward[t.at(row - 1, k, m)].distance, l - 1);
+        HierarchicalTables::Entry best = t.forwardEntry(l, k, m, first, last);
         if (k >= 1) {
-          const HierarchicalTables::Entry& lower = t.forward[t.at(l, k - 1, capacity[kk - 1])];
+          const HierarchicalTables::Entry& lower = t.forward[t.at(row, k - 1, capacity[kk - 1])];
           if (lower.cost < best.cost) best = lower;
         }
-        t.forward[t.at(l, k, m)] = best;
+        t.forward[t.at(row, k, m)] = best;
       }
     }
   }
+  t.backwardDone = t.forwardDone = {t.rows(), 0};
   const int top = levelCount - 1;
-  const double optimum = t.forward[t.at(steps, top, capacity[static_cast<std::size_t>(top)])].cost;
-  if (!(optimum < kInfinity))
+  const double optimum = t.forward[t.at(t.rows() - 1, top, capacity[static_cast<std::size_t>(top)])].cost;
+  if (!(optimum < HierarchicalTables::kInfinity))
     throw std::invalid_argument("K-level plan (hierarchical): no schedule for N = " + std::to_string(steps));
   KLevelPlan plan;
   plan.steps_ = steps;
   plan.capacity_ = capacity;
   plan.optimum_ = optimum;
   plan.hierarchical_ = std::move(tables);
-  plan.finish(uf, write, read);
+  plan.finish(forwardStep, write, read);
   return plan;
+}
+
+KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
+                              const std::vector<StorageLevelCosts>& levels, double forwardStep) {
+  std::vector<std::int64_t> capacity;
+  std::vector<double> write, read;
+  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+  const double k = static_cast<double>(capacity.size());
+  double work = static_cast<double>(steps) * static_cast<double>(steps) * k * k;
+  for (std::int64_t c : capacity) work *= static_cast<double>(c + 1);
+  if (work <= static_cast<double>(kChooseExactWork)) return optimal(steps, ramSlots, levels, forwardStep);
+  // The largest cap c on every level's slots with rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
+  const std::int64_t columns = kMaxGradedCells / gradedRows(steps);
+  const auto columnsWith = [&](std::int64_t cap) {
+    std::int64_t sum = 0;
+    for (std::int64_t c : capacity) sum += std::min(c, cap) + 1;
+    return sum;
+  };
+  std::int64_t cap = steps;
+  if (columnsWith(cap) > columns) {
+    std::int64_t low = 1, high = steps;  // columnsWith(low) fits: K levels of 2 columns each
+    while (low < high) {
+      const std::int64_t middle = low + (high - low + 1) / 2;
+      if (columnsWith(middle) <= columns)
+        low = middle;
+      else
+        high = middle - 1;
+    }
+    cap = low;
+  }
+  std::vector<StorageLevelCosts> capped = levels;
+  for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
+  return graded(steps, std::min(ramSlots, cap), capped, forwardStep);
+}
+
+std::int64_t KLevelPlan::gradedRows(std::int64_t steps) {
+  std::int64_t rows = std::min(steps, kGradedExactLengths) + 1, length = rows - 1;
+  while (length < steps) {  // as solveHierarchical's grid
+    const auto next =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(length) * (1.0 + kGradedSpacing)));
+    length = std::min(steps, std::max(next, length + 1));
+    ++rows;
+  }
+  return rows;
+}
+
+std::string KLevelPlan::describe() const {
+  std::string slots;
+  for (std::size_t k = 1; k < peak_.size(); ++k) slots += (k > 1 ? ", " : "") + std::to_string(peak_[k]);
+  const std::string used = ": up to " + std::to_string(peak_.empty() ? 0 : peak_[0]) + " RAM states and " +
+                           slots + " on the levels below, slots reused";
+  if (tables_)
+    return "optimal " + std::to_string(levelCount()) + "-level stack schedule (dynamic programme)" + used;
+  const bool grid = hierarchical_->exact < steps_;
+  return "hierarchical " + std::to_string(levelCount()) +
+         "-level stack schedule (H-Revolve's structure with moves" +
+         (grid ? ", lengths beyond " + std::to_string(hierarchical_->exact) + " on a geometric grid"
+               : std::string()) +
+         ")" + used;
 }
 
 KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
   if (hierarchical_) {
     // The forward sweep stores on the level of its last store or a faster one (K - 1 at first).
+    const HierarchicalTables& t = *hierarchical_;
     const int level = held_.empty() ? levelCount() - 1 : held_.back().level;
-    const auto& e =
-        hierarchical_->forward[hierarchical_->at(length, level, free_[static_cast<std::size_t>(level)])];
-    return Decision{e.level, e.level, e.distance};
+    const std::int64_t row = t.rowOf(length);
+    if (t.lengths[static_cast<std::size_t>(row)] == length) {
+      const auto& e = t.forward[t.at(row, level, free_[static_cast<std::size_t>(level)])];
+      return Decision{e.level, e.level, e.distance};
+    }
+    // Between the rows of a graded grid: the recurrence evaluated for this length, the splits searched as
+    // for a row (around the row below's best split scaled to this length).
+    const std::int64_t below = t.lengths[static_cast<std::size_t>(row)];
+    HierarchicalTables::Entry best{HierarchicalTables::kInfinity, 0, 0, 0};
+    for (int k = level; k >= 0; --k) {
+      const std::int64_t m =
+          k == level ? free_[static_cast<std::size_t>(level)] : capacity_[static_cast<std::size_t>(k)];
+      const auto [first, last] = t.splits(length, below, t.forward[t.at(row, k, m)].distance, length - 1);
+      const HierarchicalTables::Entry e = t.forwardEntry(length, k, m, first, last);
+      if (e.cost < best.cost) best = e;
+    }
+    return Decision{best.level, best.level, best.distance};
   }
   std::int64_t cell = 0;
   for (int k = 0; k < levelCount(); ++k) cell += free_[static_cast<std::size_t>(k)] * tables_->stride[k];
@@ -318,8 +476,16 @@ KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
 
 KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length, bool moved) const {
   if (hierarchical_) {
-    const auto& e =
-        hierarchical_->backward[hierarchical_->at(length, level, free_[static_cast<std::size_t>(level)])];
+    const HierarchicalTables& t = *hierarchical_;
+    const std::int64_t m = free_[static_cast<std::size_t>(level)];
+    const std::int64_t row = t.rowOf(length);
+    if (t.lengths[static_cast<std::size_t>(row)] == length) {
+      const auto& e = t.backward[t.at(row, level, m)];
+      return Decision{e.action, e.level, e.distance};
+    }
+    const auto [first, last] = t.splits(length, t.lengths[static_cast<std::size_t>(row)],
+                                        t.backward[t.at(row, level, m)].distance, length - 2);
+    const HierarchicalTables::Entry e = t.backwardEntry(length, level, m, first, last);
     return Decision{e.action, e.level, e.distance};
   }
   std::int64_t cell = 0;
@@ -357,7 +523,11 @@ void KLevelPlan::rewind() {
 KLevelPlan::Counts KLevelPlan::walk() {
   struct Counter {
     Counts& c;
-    void store(int level, std::int64_t) { ++c.writes[static_cast<std::size_t>(level)]; }
+    bool forward = true;
+    void store(int level, std::int64_t) {
+      ++c.writes[static_cast<std::size_t>(level)];
+      if (forward) ++c.forwardStores;
+    }
     void load(int level, std::int64_t) { ++c.reads[static_cast<std::size_t>(level)]; }
     void advance(std::int64_t from, std::int64_t to) { c.recomputedSteps += to - from; }
   };
@@ -365,12 +535,13 @@ KLevelPlan::Counts KLevelPlan::walk() {
   c.writes.assign(capacity_.size(), 0);
   c.reads.assign(capacity_.size(), 0);
   peak_.assign(capacity_.size(), 0);
-  Counter counter{c};
+  Counter counter{c, true};
   rewind();
   for (std::int64_t n = 0; n < steps_; ++n) {
     if ((n & 0xffff) == 0) pollInterrupt();
     recordForward(n, counter);
   }
+  counter.forward = false;
   for (std::int64_t e = steps_ - 1; e >= 0; --e) {
     if ((e & 0xffff) == 0) pollInterrupt();
     restoreStep(e, counter);

@@ -70,8 +70,36 @@ class KLevelPlan {
                                  const std::vector<StorageLevelCosts>& levels, double forwardStep,
                                  std::int64_t window = 0);
 
+  /// H-Revolve's structure for any N (up to 10^6 in seconds): hierarchical()'s programme with the window
+  /// kGradedWindow over the lengths 1..kGradedExactLengths and, beyond, over a geometric grid of lengths
+  /// (each at least kGradedSpacing times the previous one further), values between the grid's lengths
+  /// interpolated linearly; the executor evaluates the recurrence for a length between grid points when
+  /// it meets one (every grid length a split). Tables O((kGradedExactLengths + ln(N) / kGradedSpacing)
+  /// sum_k (s_k + 1)). A heuristic: the tests measure it against the full search (docs/theory/storage.md,
+  /// "K storage levels"). For N <= kGradedExactLengths it is hierarchical(..., kGradedWindow).
+  static constexpr std::int64_t kGradedExactLengths = 4096;
+  static constexpr double kGradedSpacing = 1.0 / 256;
+  static constexpr std::int64_t kGradedWindow = 16;
+  /// Rows of graded()'s tables for N steps (the exact lengths, the grid and length 0).
+  static std::int64_t gradedRows(std::int64_t steps);
+  /// graded()'s table entries at the most (32 bytes each: 64 MiB); choose() plans with fewer slots of the
+  /// largest levels beyond (a plan with fewer slots is one of the plans with more).
+  static constexpr std::int64_t kMaxGradedCells = std::int64_t{1} << 21;
+  static KLevelPlan graded(std::int64_t steps, std::int64_t ramSlots,
+                           const std::vector<StorageLevelCosts>& levels, double forwardStep);
+
+  /// The plan a `multilevel` spec with K levels runs: optimal() where its work is at most kChooseExactWork,
+  /// else graded() (with each level's slots capped so that its tables stay within kMaxGradedCells). Same
+  /// arguments and errors as optimal().
+  static constexpr std::int64_t kChooseExactWork = std::int64_t{1} << 26;
+  static KLevelPlan choose(std::int64_t steps, std::int64_t ramSlots,
+                           const std::vector<StorageLevelCosts>& levels, double forwardStep);
+  /// One line: the programme and the slots each level uses at the most.
+  std::string describe() const;
+
   struct Counts {
     std::int64_t recomputedSteps = 0;
+    std::int64_t forwardStores = 0;           ///< states stored during the forward sweep (any level)
     std::vector<std::int64_t> writes, reads;  ///< per level, RAM (level 0) included
     /// recomputed steps * uf + sum over the levels below RAM of writes * w + reads * r.
     double cost = 0.0;
@@ -115,6 +143,10 @@ class KLevelPlan {
   Counts walk();
 
   struct HierarchicalTables;
+  /// hierarchical() over the lengths 1..exactLengths and a geometric grid beyond (spacing: see graded()).
+  static KLevelPlan solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
+                                      const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                      std::int64_t window, std::int64_t exactLengths, double spacing);
   std::shared_ptr<const Tables> tables_;
   std::shared_ptr<const HierarchicalTables> hierarchical_;
   /// Checks the arguments of optimal() and hierarchical(); fills capacity (RAM first, each at most N),

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <filesystem>
 #include <optional>
@@ -46,11 +47,94 @@ MultilevelStorage::MultilevelStorage(Options options)
   if (!options_.IsValid(&error)) throw std::invalid_argument(error);
 }
 
-MultilevelStorage::~MultilevelStorage() { closeFile(); }
+MultilevelStorage::~MultilevelStorage() {
+  closeFile();
+  removeLevelDirectories();
+}
+
+namespace {
+
+// A cost of levels= or costs= (a number in [0, 1e30]); throws naming `field` and the expected form.
+double parseCost(const std::string& text, const std::string& field, const std::string& expected) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !(value >= 0.0 && value <= 1e30))
+    throw std::invalid_argument(field + " = '" + text + "' must be " + expected);
+  return value;
+}
+
+// The shortest text that reads back to the same double (the spec round-trips), as ScheduleCosts::text.
+std::string costText(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
+  return std::string(buffer, result.ptr);
+}
+
+// levels=NAME:BYTES[:PATH][@WRITE:READ];... (storage/multilevel_storage.h).
+std::vector<MultilevelStorage::Options::Level> parseLevels(const std::string& text) {
+  const std::string form =
+      "NAME:BYTES[:PATH][@WRITE:READ] separated by ';', e.g. levels=ssd:80@1:1;hdd:1600@2:2";
+  std::vector<MultilevelStorage::Options::Level> levels;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find(';', start), text.size());
+    const std::string item = text.substr(start, end - start);
+    start = end + 1;
+    MultilevelStorage::Options::Level level;
+    const std::size_t at = item.rfind('@');
+    const std::string head = item.substr(0, at);
+    const std::size_t colon = head.find(':');
+    level.name = head.substr(0, colon);
+    const std::string field = "multilevel.levels '" + item + "'";
+    if (colon == std::string::npos || level.name.empty() ||
+        level.name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-") !=
+            std::string::npos ||
+        level.name == "ram") {
+      throw std::invalid_argument(field + ": each level is " + form +
+                                  " (a name of letters, digits, '_' or '-', not 'ram')");
+    }
+    for (const auto& other : levels) {
+      if (other.name == level.name)
+        throw std::invalid_argument("multilevel.levels: level '" + level.name + "' given twice");
+    }
+    const std::string rest = head.substr(colon + 1);
+    const std::size_t pathColon = rest.find(':');
+    level.bytes = parseBytes(rest.substr(0, pathColon), "multilevel.levels." + level.name);
+    if (level.bytes <= 0) {
+      throw std::invalid_argument("multilevel.levels." + level.name + " = " + std::to_string(level.bytes) +
+                                  " bytes: a level must hold a positive byte count");
+    }
+    if (pathColon != std::string::npos) level.path = rest.substr(pathColon + 1);
+    if (pathColon != std::string::npos && level.path.empty())
+      throw std::invalid_argument(field + ": an empty directory after the bytes; " + form);
+    if (at != std::string::npos) {
+      const std::string costs = item.substr(at + 1);
+      const std::size_t split = costs.find(':');
+      const std::string expected = "two costs WRITE:READ in [0, 1e30] (seconds of a write and a read)";
+      if (split == std::string::npos)
+        throw std::invalid_argument(field + " costs = '" + costs + "' must be " + expected);
+      level.write = parseCost(costs.substr(0, split), field + " write", expected);
+      level.read = parseCost(costs.substr(split + 1), field + " read", expected);
+      level.costed = true;
+    }
+    levels.push_back(level);
+  }
+  return levels;
+}
+
+}  // namespace
 
 std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& spec) {
+  if (spec.has("levels")) return createLevels(spec);
   if (!spec.has("ram") || !spec.has("disk")) {
-    throw std::invalid_argument("multilevel needs ram= and disk=, e.g. multilevel:ram=64MiB,disk=4GiB");
+    throw std::invalid_argument(
+        "multilevel needs ram= and disk=, e.g. multilevel:ram=64MiB,disk=4GiB, or ram= and levels=, e.g. "
+        "multilevel:ram=64MiB,levels=ssd:4GiB;hdd:64GiB");
   }
   Options options;
   options.ramBytes = spec.bytes("ram", 0);
@@ -73,13 +157,91 @@ std::unique_ptr<TrajectoryStorage> MultilevelStorage::create(const StorageSpec& 
   return std::make_unique<MultilevelStorage>(std::move(options));
 }
 
+std::unique_ptr<TrajectoryStorage> MultilevelStorage::createLevels(const StorageSpec& spec) {
+  if (spec.has("disk")) {
+    throw std::invalid_argument(
+        "multilevel: give disk= (two levels) or levels= (K levels), not both; disk=BYTES is "
+        "levels=disk:BYTES");
+  }
+  if (!spec.has("ram"))
+    throw std::invalid_argument(
+        "multilevel needs ram= with levels=, e.g. multilevel:ram=64MiB,levels=ssd:4GiB");
+  Options options;
+  options.ramBytes = spec.bytes("ram", 0);
+  options.levels = parseLevels(spec.text("levels", ""));
+  options.directory = spec.text("dir", "");
+  options.compressionLevel = static_cast<int>(spec.integer("level", 3, 1, 22));
+  options.keepFile = spec.text("keep", "false", {"true", "false"}) == "true";
+  options.stride = spec.text("schedule", "optimal", {"optimal", "stride"}) == "stride";
+  std::size_t costed = 0;
+  for (const auto& level : options.levels) costed += level.costed ? 1 : 0;
+  if (costed != 0 && (costed != options.levels.size() || !spec.has("costs"))) {
+    throw std::invalid_argument(
+        "multilevel.levels: costs are given completely (every level's @WRITE:READ and costs=uf:ub) or not at "
+        "all (measured by the run); " +
+        std::to_string(costed) + " of " + std::to_string(options.levels.size()) + " levels have theirs" +
+        (spec.has("costs") ? "" : " and costs= is missing"));
+  }
+  if (spec.has("costs")) {
+    const std::string text = spec.text("costs", "");
+    const std::string expected =
+        "two numbers uf:ub in [0, 1e30] (seconds of a forward and an adjoint step; "
+        "each level's write and read follow its size: levels=NAME:BYTES@WRITE:READ), uf > 0";
+    const std::size_t split = text.find(':');
+    if (split == std::string::npos)
+      throw std::invalid_argument("multilevel.costs = '" + text + "' must be " + expected);
+    const double uf = parseCost(text.substr(0, split), "multilevel.costs", expected);
+    const double ub = parseCost(text.substr(split + 1), "multilevel.costs", expected);
+    if (!(uf > 0.0)) throw std::invalid_argument("multilevel.costs = '" + text + "' must be " + expected);
+    if (costed == 0) {
+      throw std::invalid_argument(
+          "multilevel.costs with levels=: give each level's @WRITE:READ too, e.g. "
+          "levels=ssd:80@1:1;hdd:1600@2:2,costs=1:1");
+    }
+    options.costs = ScheduleCosts{uf, ub, options.levels[0].write, options.levels[0].read};
+  }
+  // The first level is the disk of the two-level form and of the stride.
+  options.diskBytes = options.levels[0].bytes;
+  return std::make_unique<MultilevelStorage>(std::move(options));
+}
+
+std::string MultilevelStorage::levelDirectory(std::size_t k) const {
+  const std::string base =
+      options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
+  if (options_.levels.empty()) return base;
+  const Options::Level& level = options_.levels[k - 1];
+  return level.path.empty() ? (std::filesystem::path(base) / level.name).string() : level.path;
+}
+
+void MultilevelStorage::removeLevelDirectories() const {
+  for (std::size_t k = 1; k <= options_.levels.size(); ++k) {
+    if (!options_.levels[k - 1].path.empty()) continue;
+    std::error_code ec;
+    std::filesystem::remove(levelDirectory(k), ec);  // only when empty: a kept file or the user's stay
+  }
+}
+
 std::string MultilevelStorage::spec() const {
-  std::string text =
-      "multilevel:ram=" + std::to_string(options_.ramBytes) + ",disk=" + std::to_string(options_.diskBytes);
+  std::string text = "multilevel:ram=" + std::to_string(options_.ramBytes);
+  if (options_.levels.empty()) {
+    text += ",disk=" + std::to_string(options_.diskBytes);
+  } else {
+    text += ",levels=";
+    for (std::size_t k = 0; k < options_.levels.size(); ++k) {
+      const Options::Level& level = options_.levels[k];
+      text += (k ? ";" : "") + level.name + ":" + std::to_string(level.bytes);
+      if (!level.path.empty()) text += ":" + level.path;
+      if (level.costed) text += "@" + costText(level.write) + ":" + costText(level.read);
+    }
+  }
   if (!options_.directory.empty()) text += ",dir=" + options_.directory;
   if (options_.compressionLevel != 3) text += ",level=" + std::to_string(options_.compressionLevel);
   if (options_.keepFile) text += ",keep=true";
-  if (options_.costs) text += ",costs=" + options_.costs->text();
+  if (options_.costs) {
+    text += ",costs=" + (options_.levels.empty() ? options_.costs->text()
+                                                 : costText(options_.costs->forwardStep) + ":" +
+                                                       costText(options_.costs->adjointStep));
+  }
   if (options_.stride) text += ",schedule=stride";
   if (!options_.overlap) text += ",overlap=0";
   if (options_.syncWrites) text += ",sync=1";
@@ -92,9 +254,9 @@ void MultilevelStorage::closeFile() {
     file_.reset();
   }
   if (io_) prefetchedReads_ = io_->prefetchedReads();
-  io_.reset();  // joins the I/O thread, which uses slotFile_
+  io_.reset();  // joins the I/O thread, which uses slotFiles_[0]
   lookahead_.reset();
-  slotFile_.reset();
+  slotFiles_.clear();
 }
 
 void MultilevelStorage::beginStride() {
@@ -183,8 +345,7 @@ std::int64_t MultilevelStorage::acquireSlot(std::int64_t wanted) {
 
 void MultilevelStorage::openFile() {
   internal::StateFileOptions fileOptions;
-  fileOptions.directory =
-      options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
+  fileOptions.directory = levelDirectory(1);
   fileOptions.filePrefix = "hindsight-multilevel";
   fileOptions.compressionLevel = options_.compressionLevel;
   fileOptions.chunkStates = chunkStates_;
@@ -414,7 +575,9 @@ struct MultilevelStorage::SlotFile {
 
 MultilevelStorage::Layout MultilevelStorage::layoutFor(std::int64_t, int stateSize) const {
   const std::int64_t bytes = static_cast<std::int64_t>(stateSize) * 8;
-  return Layout{budgetBytes() / bytes, options_.diskBytes / bytes};
+  Layout layout{budgetBytes() / bytes, options_.diskBytes / bytes, {}};
+  for (const Options::Level& level : options_.levels) layout.levelSlots.push_back(level.bytes / bytes);
+  return layout;
 }
 
 void MultilevelStorage::doBegin() {
@@ -431,6 +594,11 @@ void MultilevelStorage::doBegin() {
   backwardSweep_ = false;
   hiddenSeconds_ = 0.0;
   prefetchedReads_ = 0;
+  levelPlan_.reset();
+  const std::size_t below = usesLevels() ? options_.levels.size() : 1;
+  levelWrites_.assign(below, 0);
+  levelReads_.assign(below, 0);
+  levelRows_.assign(below, 0);
   if (options_.stride || info().stepCount < 0) {
     beginStride();
     return;
@@ -449,13 +617,30 @@ void MultilevelStorage::beginPlan() {
   const Layout layout = layoutFor(steps, info().stateSize);
   planRamSlots_ = layout.ramSlots;
   planDiskSlots_ = layout.diskSlots;
-  if (planRamSlots_ < 1 || (steps >= 2 && planRamSlots_ + planDiskSlots_ < 2)) {
-    throw StorageError("storage '" + spec() + "' cannot reverse " + std::to_string(steps) +
-                       " steps: RAM holds " + std::to_string(planRamSlots_) + " and disk " +
-                       std::to_string(planDiskSlots_) + " states of " + formatBytes(stateBytes()) +
-                       "; RAM must hold one state and both levels two; raise ram or disk");
+  std::int64_t below = planDiskSlots_;
+  if (usesLevels()) {
+    below = 0;
+    levelsInUse_.clear();
+    for (std::size_t k = 0; k < options_.levels.size(); ++k) {
+      const Options::Level& level = options_.levels[k];
+      levelsInUse_.push_back(StorageLevelCosts{layout.levelSlots[k], level.write, level.read});
+      below += layout.levelSlots[k];
+    }
+    if (steps > kMaxLevelSteps) {
+      throw StorageError("storage '" + spec() + "' plans " + std::to_string(options_.levels.size() + 1) +
+                         " levels for up to 2^24 fixed steps, not " + std::to_string(steps) +
+                         "; use two levels (disk=) or schedule=stride");
+    }
   }
-  if (options_.costs || steps == 1 || planDiskSlots_ == 0) {
+  if (planRamSlots_ < 1 || (steps >= 2 && planRamSlots_ + below < 2)) {
+    throw StorageError("storage '" + spec() + "' cannot reverse " + std::to_string(steps) +
+                       " steps: RAM holds " + std::to_string(planRamSlots_) +
+                       (usesLevels() ? " and the levels below " : " and disk ") + std::to_string(below) +
+                       " states of " + formatBytes(stateBytes()) +
+                       (usesLevels() ? "; RAM must hold one state and all levels two; raise ram or levels"
+                                     : "; RAM must hold one state and both levels two; raise ram or disk"));
+  }
+  if (options_.costs || steps == 1 || below == 0) {
     // Costs given, or nothing to choose (without disk slots every plan is revolve in RAM).
     choosePlan(options_.costs ? *options_.costs : ScheduleCosts{});
     return;
@@ -463,7 +648,14 @@ void MultilevelStorage::beginPlan() {
   // Measure: a disk write and read now, the forward step from the first records (buffered in the top
   // slots of the RAM pool until the plan is chosen; the plan's first records use the bottom ones).
   ScheduleCosts measured;
-  measureDiskCosts(measured);
+  if (usesLevels()) {
+    for (std::size_t k = 0; k < levelsInUse_.size(); ++k) {
+      if (levelsInUse_[k].slots > 0)
+        std::tie(levelsInUse_[k].write, levelsInUse_[k].read) = measureLevelCosts(levelDirectory(k + 1));
+    }
+  } else {
+    measureDiskCosts(measured);
+  }
   costsInUse_ = measured;
   // The probe states wait in the top RAM slots while the plan's first stores use the bottom ones, so at
   // most half the slots beside the first. One state always fits: with one or two RAM slots the single probe
@@ -477,8 +669,10 @@ void MultilevelStorage::beginPlan() {
 }
 
 void MultilevelStorage::measureDiskCosts(ScheduleCosts& costs) {
-  const std::string directory =
-      options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
+  std::tie(costs.diskWrite, costs.diskRead) = measureLevelCosts(levelDirectory(1));
+}
+
+std::pair<double, double> MultilevelStorage::measureLevelCosts(const std::string& directory) {
   SlotFile probe(directory, stateBytes(), false, -1, options_.syncWrites);
   std::vector<double> state(static_cast<std::size_t>(info().stateSize), 0.0);
   std::vector<double> writes, reads;
@@ -491,64 +685,49 @@ void MultilevelStorage::measureDiskCosts(ScheduleCosts& costs) {
   }
   std::sort(writes.begin(), writes.end());
   std::sort(reads.begin(), reads.end());
-  costs.diskWrite = writes[2];
-  costs.diskRead = reads[2];
+  return {writes[2], reads[2]};
 }
 
 void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
   costsInUse_ = costs;
   const std::int64_t steps = info().stepCount;
-  plan_ = TwoLevelPlan::choose(steps, planRamSlots_, planDiskSlots_, costs);
-  plan_.rewind();
+  std::int64_t ramUsed = 0;
+  std::vector<std::int64_t> used;  // slots of each level below RAM the plan uses at the most
+  if (usesLevels()) {
+    levelPlan_ = KLevelPlan::choose(steps, planRamSlots_, levelsInUse_, costs.forwardStep);
+    levelPlan_->rewind();
+    ramUsed = levelPlan_->slotsUsed()[0];
+    used.assign(levelPlan_->slotsUsed().begin() + 1, levelPlan_->slotsUsed().end());
+  } else {
+    plan_ = TwoLevelPlan::choose(steps, planRamSlots_, planDiskSlots_, costs);
+    plan_.rewind();
+    ramUsed = plan_.ramSlotsUsed();
+    used.push_back(plan_.diskSlotsUsed());
+  }
   if (!ramPool_) {
-    poolSlots_ = plan_.ramSlotsUsed();
+    poolSlots_ = ramUsed;
     holdBytes(poolSlots_ * stateBytes());
     ramPool_.reset(new double[static_cast<std::size_t>(poolSlots_ * info().stateSize)]);
   }
-  if (plan_.diskSlotsUsed() > 0) {
-    const std::string directory =
-        options_.directory.empty() ? std::filesystem::temp_directory_path().string() : options_.directory;
-    slotFile_ = std::make_unique<SlotFile>(directory, stateBytes(), options_.keepFile,
-                                           options_.failWriteAfterChunks, options_.syncWrites);
-    filePath_ = slotFile_->path;
-    if (options_.overlap) {
-      SlotFile& file = *slotFile_;
-      io_ = std::make_unique<internal::OverlappedSlotIo>(
-          info().stateSize, internal::OverlappedSlotIo::kDefaultQueueDepth,
-          [&file](std::int64_t slot, const double* z) { file.write(slot, z); },
-          [&file](std::int64_t slot, double* z) { file.read(slot, z); });
-      lookahead_ = std::make_unique<internal::DiskEventLookahead>(plan_);
-      hiddenSeconds_ =
-          internal::hiddenDiskSeconds(plan_, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
-    }
+  slotFiles_.clear();
+  slotFiles_.resize(used.size());
+  for (std::size_t k = 0; k < used.size(); ++k) {
+    if (used[k] == 0) continue;
+    slotFiles_[k] = std::make_unique<SlotFile>(levelDirectory(k + 1), stateBytes(), options_.keepFile,
+                                               options_.failWriteAfterChunks, options_.syncWrites);
+    if (filePath_.empty()) filePath_ = slotFiles_[k]->path;
   }
-}
-
-void MultilevelStorage::writeSlot(std::int64_t slot, const double* z) {
-  Stopwatch watch;
-  if (io_) {
-    lookahead_->pop(internal::DiskEvent{false, slot});
-    io_->write(slot, z);
-    if (backwardSweep_) startNextRead();
-  } else {
-    slotFile_->write(slot, z);
+  // Write-behind and read-ahead (storage/overlapped_io.h) on the one level below RAM of the two-level plan;
+  // with three or more levels every write and read waits.
+  if (options_.overlap && !levelPlan_ && !slotFiles_.empty() && slotFiles_[0]) {
+    SlotFile& file = *slotFiles_[0];
+    io_ = std::make_unique<internal::OverlappedSlotIo>(
+        info().stateSize, internal::OverlappedSlotIo::kDefaultQueueDepth,
+        [&file](std::int64_t slot, const double* z) { file.write(slot, z); },
+        [&file](std::int64_t slot, double* z) { file.read(slot, z); });
+    lookahead_ = std::make_unique<internal::DiskEventLookahead>(plan_);
+    hiddenSeconds_ = internal::hiddenDiskSeconds(plan_, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
   }
-  slotIoSeconds_ += watch.seconds();
-  ++diskWrites_;
-  diskRows_ = std::max(diskRows_, slot + 1);
-}
-
-void MultilevelStorage::readSlot(std::int64_t slot, double* z) {
-  Stopwatch watch;
-  if (io_) {
-    lookahead_->pop(internal::DiskEvent{true, slot});
-    io_->read(slot, z);
-    startNextRead();
-  } else {
-    slotFile_->read(slot, z);
-  }
-  slotIoSeconds_ += watch.seconds();
-  ++diskReads_;
 }
 
 void MultilevelStorage::startNextRead() {
@@ -557,23 +736,81 @@ void MultilevelStorage::startNextRead() {
   if (next != nullptr && next->read) io_->prefetch(next->slot);
 }
 
+// The plan's actions on the RAM pool and the levels' slot files: levels as KLevelPlan's ints (0 = RAM) or
+// TwoLevelPlan's StorageLevel. Forward sweep: `recorded` is the recorded state; backward: `z` the state at
+// hand.
+struct MultilevelStorage::PlanVisitor {
+  MultilevelStorage& self;
+  const double* recorded;
+  VectorRef* z;
+  static int index(StorageLevel level) { return level == StorageLevel::kRam ? 0 : 1; }
+  void store(int level, std::int64_t slot) {
+    self.storeSlot(level, slot, recorded != nullptr ? recorded : z->data());
+    if (recorded != nullptr) ++self.mutableCounters().statesStored;
+  }
+  void store(StorageLevel level, std::int64_t slot) { store(index(level), slot); }
+  void load(int level, std::int64_t slot) {
+    if (z != nullptr) self.loadSlot(level, slot, z->data());
+  }
+  void load(StorageLevel level, std::int64_t slot) { load(index(level), slot); }
+  void advance(std::int64_t from, std::int64_t to) {
+    if (z == nullptr) return;
+    Stopwatch watch;
+    for (std::int64_t k = from; k < to; ++k) self.recompute(k, *z);
+    self.recomputeSeconds_ += watch.seconds();
+  }
+};
+
+void MultilevelStorage::storeSlot(int level, std::int64_t slot, const double* z) {
+  const std::size_t n = static_cast<std::size_t>(info().stateSize);
+  if (level == 0) {
+    std::memcpy(ramPool_.get() + static_cast<std::size_t>(slot) * n, z, n * 8);
+    return;
+  }
+  const std::size_t k = static_cast<std::size_t>(level - 1);
+  Stopwatch watch;
+  if (io_) {  // the two-level plan's one level below RAM
+    lookahead_->pop(internal::DiskEvent{false, slot});
+    io_->write(slot, z);
+    if (backwardSweep_) startNextRead();
+  } else {
+    slotFiles_[k]->write(slot, z);
+  }
+  slotIoSeconds_ += watch.seconds();
+  ++diskWrites_;
+  ++levelWrites_[k];
+  if (slot + 1 > levelRows_[k]) {  // the plan also writes while reversing
+    diskRows_ += slot + 1 - levelRows_[k];
+    levelRows_[k] = slot + 1;
+  }
+}
+
+void MultilevelStorage::loadSlot(int level, std::int64_t slot, double* z) {
+  const std::size_t n = static_cast<std::size_t>(info().stateSize);
+  if (level == 0) {
+    std::memcpy(z, ramPool_.get() + static_cast<std::size_t>(slot) * n, n * 8);
+    return;
+  }
+  const std::size_t k = static_cast<std::size_t>(level - 1);
+  Stopwatch watch;
+  if (io_) {
+    lookahead_->pop(internal::DiskEvent{true, slot});
+    io_->read(slot, z);
+    startNextRead();
+  } else {
+    slotFiles_[k]->read(slot, z);
+  }
+  slotIoSeconds_ += watch.seconds();
+  ++diskReads_;
+  ++levelReads_[k];
+}
+
 void MultilevelStorage::recordPlanned(std::int64_t step, const double* z) {
-  struct Visitor {
-    MultilevelStorage& self;
-    const double* z;
-    void store(StorageLevel level, std::int64_t slot) {
-      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
-      if (level == StorageLevel::kRam) {
-        std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z, n * 8);
-      } else {
-        self.writeSlot(slot, z);
-      }
-      ++self.mutableCounters().statesStored;
-    }
-    void load(StorageLevel, std::int64_t) {}
-    void advance(std::int64_t, std::int64_t) {}
-  } visitor{*this, z};
-  plan_.recordForward(step, visitor);
+  PlanVisitor visitor{*this, z, nullptr};
+  if (levelPlan_)
+    levelPlan_->recordForward(step, visitor);
+  else
+    plan_.recordForward(step, visitor);
 }
 
 void MultilevelStorage::doRecord(std::int64_t step, double t, ConstVectorRef z, ConstVectorRef) {
@@ -620,10 +857,13 @@ void MultilevelStorage::doFinish(double, ConstVectorRef, ConstVectorRef) {
     slotIoSeconds_ += watch.seconds();
   }
   StorageCounters& c = mutableCounters();
-  c.bytesOnDisk = slotFile_ ? slotFile_->size() : 0;
+  c.bytesOnDisk = 0;
+  for (const auto& file : slotFiles_) c.bytesOnDisk += file ? file->size() : 0;
   c.ioSeconds = slotIoSeconds_;
   statesInRam_ = 0;
-  if (slotFile_ && options_.afterForwardSweep) options_.afterForwardSweep(slotFile_->path);
+  for (const auto& file : slotFiles_) {
+    if (file && options_.afterForwardSweep) options_.afterForwardSweep(file->path);
+  }
   backwardSweep_ = true;
   if (io_) startNextRead();
 }
@@ -633,37 +873,17 @@ void MultilevelStorage::doRestore(std::int64_t step, VectorRef z) {
     restoreStride(step, z);
     return;
   }
-  struct Visitor {
-    MultilevelStorage& self;
-    VectorRef z;
-    void store(StorageLevel level, std::int64_t slot) {
-      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
-      if (level == StorageLevel::kRam) {
-        std::memcpy(self.ramPool_.get() + static_cast<std::size_t>(slot) * n, z.data(), n * 8);
-      } else {
-        self.writeSlot(slot, z.data());  // the optimal plan also writes while reversing
-      }
-    }
-    void load(StorageLevel level, std::int64_t slot) {
-      const std::size_t n = static_cast<std::size_t>(self.info().stateSize);
-      if (level == StorageLevel::kRam) {
-        std::memcpy(z.data(), self.ramPool_.get() + static_cast<std::size_t>(slot) * n, n * 8);
-      } else {
-        self.readSlot(slot, z.data());
-      }
-    }
-    void advance(std::int64_t from, std::int64_t to) {
-      Stopwatch watch;
-      for (std::int64_t k = from; k < to; ++k) self.recompute(k, z);
-      self.recomputeSeconds_ += watch.seconds();
-    }
-  } visitor{*this, z};
-  plan_.restoreStep(step, visitor);
+  PlanVisitor visitor{*this, nullptr, &z};
+  if (levelPlan_)
+    levelPlan_->restoreStep(step, visitor);
+  else
+    plan_.restoreStep(step, visitor);
   if (step == 0) {
     mutableCounters().ioSeconds = slotIoSeconds_;
     mutableCounters().predictedSeconds = predictedSeconds();
     mutableCounters().scheduleSeconds = measuredSeconds();
     closeFile();
+    removeLevelDirectories();
     releaseBytes(poolSlots_ * stateBytes());
     ramPool_.reset();
     poolSlots_ = 0;
@@ -786,6 +1006,11 @@ void MultilevelStorage::warnAgainstStride(const Layout& layout, const Prediction
 TwoLevelPlan MultilevelStorage::fixedStepPlan(const TrajectoryStorage& storage,
                                               const PredictionRequest& request) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
+  if (multilevel.usesLevels()) {
+    throw std::invalid_argument(
+        "multilevel with levels= of two or more levels below RAM has no two-level plan (and no action "
+        "stream yet): use one level, or disk=");
+  }
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
   const Layout layout = multilevel.layoutFor(steps, static_cast<int>(stateBytes / 8));
   // The run's own check (MultilevelStorage::beginPlan), in the flags' words: the plan's message would
@@ -824,6 +1049,10 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
     warnAgainstStride(layout, request, p);
     return;
   }
+  if (multilevel.usesLevels()) {
+    predictLevels(multilevel, request, layout, p);
+    return;
+  }
   const ScheduleCosts costs = planningCosts(multilevel.options(), request, layout);
   TwoLevelPlan plan = fixedStepPlan(storage, request);
   p.plan = plan.describe();
@@ -849,9 +1078,87 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   p.peakDiskBytes = prediction::checkedProduct(plan.diskSlotsUsed(), stateBytes, "peak disk bytes");
 }
 
+KLevelPlan MultilevelStorage::levelPlanFor(const MultilevelStorage& multilevel,
+                                           const PredictionRequest& request, const Layout& layout,
+                                           ScheduleCosts& costs) {
+  // As beginPlan: the spec's costs, else nothing to choose (one step, or no slot below RAM) and 1:1 with
+  // free levels; --costs has four numbers (two levels) and cannot stand for the K levels' measured costs.
+  const Options& options = multilevel.options();
+  const std::string levels =
+      "multilevel.ram = " + formatBytes(multilevel.budgetBytes()) + " and multilevel.levels";
+  std::vector<StorageLevelCosts> below;
+  std::int64_t slots = 0;
+  for (std::size_t k = 0; k < options.levels.size(); ++k) {
+    below.push_back(StorageLevelCosts{layout.levelSlots[k], options.levels[k].write, options.levels[k].read});
+    slots += layout.levelSlots[k];
+  }
+  const std::int64_t steps = request.steps;
+  if (layout.ramSlots < 1 || (steps >= 2 && layout.ramSlots + slots < 2)) {
+    throw std::invalid_argument(levels + " hold " + std::to_string(layout.ramSlots) + " and " +
+                                std::to_string(slots) + " states of --state-bytes = " +
+                                formatBytes(request.stateBytes) + " for --steps = " + std::to_string(steps) +
+                                "; RAM must hold one state and all levels two: raise ram or levels");
+  }
+  if (steps > kMaxLevelSteps) {
+    throw std::invalid_argument(std::to_string(options.levels.size() + 1) +
+                                " levels (multilevel.levels) are planned for --steps up to 2^24 = " +
+                                std::to_string(kMaxLevelSteps) + "; --steps = " + std::to_string(steps));
+  }
+  if (options.costs) {
+    costs = *options.costs;
+  } else if (steps == 1 || slots == 0) {
+    costs = ScheduleCosts{};
+  } else {
+    throw std::invalid_argument(
+        "multilevel with levels= plans by its costs: give costs=uf:ub and each level's @WRITE:READ in the "
+        "spec "
+        "(--costs describes two levels)");
+  }
+  return KLevelPlan::choose(steps, layout.ramSlots, below, costs.forwardStep);
+}
+
+void MultilevelStorage::predictLevels(const MultilevelStorage& multilevel, const PredictionRequest& request,
+                                      const Layout& layout, SchedulePrediction& p) {
+  ScheduleCosts costs;
+  const KLevelPlan plan = levelPlanFor(multilevel, request, layout, costs);
+  p.costs = ScheduleCosts{costs.forwardStep, costs.adjointStep, 0.0, 0.0};
+  p.plan = plan.describe();
+  const KLevelPlan::Counts& c = plan.counts();
+  p.recomputedSteps = c.recomputedSteps;
+  p.statesStored = c.forwardStores;
+  p.ramWrites = c.writes[0];
+  p.ramReads = c.reads[0];
+  p.diskWrites = 0;
+  p.diskReads = 0;
+  p.peakDiskBytes = 0;
+  p.levels.clear();
+  const std::vector<Options::Level>& levels = multilevel.options().levels;
+  for (std::size_t k = 1; k < c.writes.size(); ++k) {
+    LevelTraffic level;
+    level.name = levels[k - 1].name;
+    level.writes = c.writes[k];
+    level.reads = c.reads[k];
+    level.peakBytes = prediction::checkedProduct(plan.slotsUsed()[k], request.stateBytes, "peak level bytes");
+    level.write = levels[k - 1].write;
+    level.read = levels[k - 1].read;
+    if (!multilevel.options().costs) level.write = level.read = 0.0;  // nothing to choose: free levels
+    p.diskWrites += level.writes;
+    p.diskReads += level.reads;
+    p.peakDiskBytes += level.peakBytes;
+    p.levels.push_back(level);
+  }
+  p.peakRamBytes = prediction::checkedProduct(plan.slotsUsed()[0], request.stateBytes, "peak RAM bytes");
+}
+
 void MultilevelStorage::writeActions(const TrajectoryStorage& storage, const StorageSpec&,
                                      const PredictionRequest& request, std::ostream& out) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
+  if (multilevel.usesLevels()) {
+    throw std::invalid_argument(
+        "--actions prints plans of RAM and disk; multilevel with three or more levels (levels=) has no "
+        "action "
+        "stream yet (its counts are printed without --actions)");
+  }
   const std::int64_t steps = request.steps;
   if (multilevel.options().stride) {
     throw std::invalid_argument(

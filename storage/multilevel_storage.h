@@ -3,6 +3,18 @@
 //
 // Spec: multilevel:ram=BYTES,disk=BYTES[,costs=uf:ub:wd:rd][,schedule=optimal|stride][,dir=PATH]
 //                  [,level=1..22][,keep=true|false][,overlap=0|1][,sync=0|1]
+//   or, for K levels (RAM and K - 1 slower ones, each its own size, directory and costs):
+//       multilevel:ram=BYTES,levels=LEVEL;LEVEL;...[,costs=uf:ub][,schedule=...][,dir=PATH][,keep=...]
+//       LEVEL = NAME:BYTES[:PATH][@WRITE:READ]   e.g. levels=ssd:80@1:1;hdd:1600:/mnt/hdd@2:2
+//   levels    the levels below RAM, fastest first: a name (letters, digits, '_' or '-'; not "ram"), the
+//             bytes of states it holds, its directory (default: the subfolder NAME of dir=, made and
+//             removed when empty by the run) and its write and read costs of one state in seconds.
+//             Costs are given completely (every level's @WRITE:READ and costs=uf:ub) or not at all (each
+//             level's write and read measured at the start of the run in its directory, the forward step
+//             as for two levels). One level is the two-level form (disk= with that level's directory and
+//             costs uf:ub:WRITE:READ: the same plans and bits); two or more are planned by
+//             KLevelPlan::choose (storage/k_level_plan.h) for fixed steps up to kMaxLevelSteps, and
+//             adaptive steps and schedule=stride use RAM and the first level only.
 //   ram       bytes held in memory (the strategy's budget)
 //   disk      bytes of states on disk (raw states for schedule=optimal; rows with their times,
 //             counted uncompressed, for schedule=stride)
@@ -66,6 +78,7 @@
 #include <functional>
 #include <iosfwd>
 #include <optional>
+#include <utility>
 
 #include <memory>
 #include <string>
@@ -97,12 +110,23 @@ class MultilevelStorage final : public TrajectoryStorage {
     std::function<void(const std::string& path)> afterForwardSweep;
     /// The uniform stride instead of the cost-optimal plan (spec schedule=stride).
     bool stride = false;
-    /// The cost model; measured at the start of each run when empty.
+    /// The cost model; measured at the start of each run when empty. With levels: uf and ub, and the first
+    /// level's write and read (the stride's disk).
     std::optional<ScheduleCosts> costs;
     /// schedule=optimal: write behind and read ahead on a second thread (spec overlap=1, the default).
     bool overlap = true;
     /// schedule=optimal: slot writes reach the device before they return (O_DSYNC; spec sync=1).
     bool syncWrites = false;
+    /// levels= (storage/multilevel_storage.h's spec); empty for ram=,disk=. diskBytes and directory are the
+    /// first level's.
+    struct Level {
+      std::string name;
+      std::int64_t bytes = 0;
+      std::string path;  ///< given directory, or empty: the subfolder `name` of directory
+      bool costed = false;
+      double write = 0.0, read = 0.0;
+    };
+    std::vector<Level> levels;
     bool IsValid(std::string* error) const;
   };
 
@@ -110,6 +134,8 @@ class MultilevelStorage final : public TrajectoryStorage {
   explicit MultilevelStorage(Options options);
   ~MultilevelStorage() override;
   static std::unique_ptr<TrajectoryStorage> create(const StorageSpec& spec);
+  /// The levels= form of create().
+  static std::unique_ptr<TrajectoryStorage> createLevels(const StorageSpec& spec);
   /// The registry's prediction (engine/storage_registry.h): the counts of N fixed steps.
   static void predict(const TrajectoryStorage& storage, const StorageSpec& spec,
                       const PredictionRequest& request, SchedulePrediction& p);
@@ -126,21 +152,33 @@ class MultilevelStorage final : public TrajectoryStorage {
   struct Layout {
     std::int64_t ramSlots = 0;
     std::int64_t diskSlots = 0;
+    std::vector<std::int64_t> levelSlots;  ///< levels=: each level's below RAM (diskSlots: the first's)
   };
+  /// K-level plans (three or more levels) are planned and predicted up to this many steps (their plan is
+  /// walked once to count it).
+  static constexpr std::int64_t kMaxLevelSteps = std::int64_t{1} << 24;
   Layout layoutFor(std::int64_t steps, int stateSize) const;
   const Options& options() const { return options_; }
   /// schedule=optimal with fixed steps in the current or last run: its plan, the costs it was chosen
   /// by (given or measured), and the schedule's predicted and measured seconds (recomputation + disk).
   bool usesPlan() const { return usesPlan_; }
   const TwoLevelPlan& plan() const { return plan_; }
+  /// Three or more levels: the K-level plan of the current or last run (else nullptr).
+  const KLevelPlan* levelPlan() const { return levelPlan_ ? &*levelPlan_ : nullptr; }
   const ScheduleCosts& costs() const { return costsInUse_; }
   double predictedSeconds() const {
-    return usesPlan_ ? plan_.counts().cost(costsInUse_) - hiddenSeconds_ : 0.0;
+    if (!usesPlan_) return 0.0;
+    return levelPlan_ ? levelPlan_->counts().cost : plan_.counts().cost(costsInUse_) - hiddenSeconds_;
   }
   /// Disk seconds the overlap hides by the cost model in the current or last run (0 without overlap).
   double hiddenSeconds() const { return hiddenSeconds_; }
   /// Disk reads of the last run served by a read-ahead (overlap=1; every disk read when it works).
   std::int64_t prefetchedReads() const { return prefetchedReads_; }
+  /// States written to and read from each level below RAM in the last run (schedule=optimal).
+  const std::vector<std::int64_t>& levelWrites() const { return levelWrites_; }
+  const std::vector<std::int64_t>& levelReads() const { return levelReads_; }
+  /// The directory of level k >= 1 below RAM (1: the disk of the two-level form).
+  std::string levelDirectory(std::size_t k) const;
   double measuredSeconds() const { return recomputeSeconds_ + slotIoSeconds_; }
   /// States written to and read from the disk level in the last run (either schedule).
   std::int64_t diskWrites() const { return diskWrites_; }
@@ -175,14 +213,26 @@ class MultilevelStorage final : public TrajectoryStorage {
   /// Sets p.warning when the stride's predicted schedule cost exceeds kTrapFactor times the optimal plan's.
   static void warnAgainstStride(const Layout& layout, const PredictionRequest& request,
                                 SchedulePrediction& p);
+  /// The K-level plan a run with levels= executes for a prediction's N and sizes, and the costs it is
+  /// chosen by (throws std::invalid_argument naming the flags and fields).
+  static KLevelPlan levelPlanFor(const MultilevelStorage& multilevel, const PredictionRequest& request,
+                                 const Layout& layout, ScheduleCosts& costs);
+  static void predictLevels(const MultilevelStorage& multilevel, const PredictionRequest& request,
+                            const Layout& layout, SchedulePrediction& p);
   void beginPlan();
   void choosePlan(const ScheduleCosts& costs);
   void recordPlanned(std::int64_t step, const double* z);
   void measureDiskCosts(ScheduleCosts& costs);
-  /// The disk level's write and read, through the I/O thread with overlap=1 (time waited in slotIoSeconds_).
-  void writeSlot(std::int64_t slot, const double* z);
-  void readSlot(std::int64_t slot, double* z);
+  /// With overlap=1, starts the plan's next disk read when it is the next disk event.
   void startNextRead();
+  /// The median of five writes and reads of one state in `directory`.
+  std::pair<double, double> measureLevelCosts(const std::string& directory);
+  bool usesLevels() const { return options_.levels.size() >= 2; }
+  void storeSlot(int level, std::int64_t slot, const double* z);
+  void loadSlot(int level, std::int64_t slot, double* z);
+  /// Removes the default level subfolders the run made, when empty.
+  void removeLevelDirectories() const;
+  struct PlanVisitor;
 
   std::int64_t availableSlots() const;
   /// A free RAM slot; allocates a block of up to `wanted` slots when none is free.
@@ -227,13 +277,16 @@ class MultilevelStorage final : public TrajectoryStorage {
   std::int64_t planRamSlots_ = 0, planDiskSlots_ = 0;
   std::unique_ptr<double[]> ramPool_;
   std::int64_t poolSlots_ = 0;
-  std::unique_ptr<SlotFile> slotFile_;
+  std::vector<std::unique_ptr<SlotFile>> slotFiles_;  // [k - 1]: level k below RAM
+  std::optional<KLevelPlan> levelPlan_;               // three or more levels
+  std::vector<StorageLevelCosts> levelsInUse_;        // their slots and costs (given or measured)
+  std::vector<std::int64_t> levelWrites_, levelReads_, levelRows_;
   std::int64_t probeSteps_ = 0;  // states buffered before the plan is chosen (costs measured)
   std::vector<double> probeTimes_;
   double recomputeSeconds_ = 0.0;
   double slotIoSeconds_ = 0.0;
   std::int64_t diskWrites_ = 0, diskReads_ = 0;
-  // overlap=1: the I/O thread over slotFile_ and the plan's disk events ahead of the run (reads start
+  // overlap=1: the I/O thread over slotFiles_[0] and the plan's disk events ahead of the run (reads start
   // only after the forward sweep, whose end waits for every write: the file is then complete).
   std::unique_ptr<internal::OverlappedSlotIo> io_;
   std::unique_ptr<internal::DiskEventLookahead> lookahead_;

@@ -112,25 +112,34 @@ const std::vector<StorageStrategyRow>& storageStrategies() {
              "hindsight.checkpoint_schedule('mixed:checkpoints=C', N) hands out its checkpoint_schedules "
              "stream"},
             {{"multilevel",
-              "states in RAM and in a file on disk up to a budget each, reversed by the two-level plan "
-              "cheapest under a cost model (fixed steps) or by a uniform stride with recomputation of "
-              "the states between (schedule=stride, adaptive steps)",
+              "states in RAM and in a file on disk (or on K - 1 slower levels, levels=) up to a budget "
+              "each, reversed by the plan cheapest under a cost model (fixed steps) or by a uniform stride "
+              "with recomputation of the states between (schedule=stride, adaptive steps)",
               true,
               "multilevel:ram=64MiB,disk=1GiB",
               {{"ram", "bytes held in memory (required)"},
                {"disk",
-                "bytes of states written to the file, counted uncompressed (required, positive: disk=0 is "
-                "refused, binomial or cams hold states in RAM alone)"},
-               {"dir", "directory of the file (default: the system temp directory)"},
+                "bytes of states written to the file, counted uncompressed (required without levels=, "
+                "positive: disk=0 is refused, binomial or cams hold states in RAM alone)"},
+               {"levels",
+                "instead of disk=, the levels below RAM fastest first, NAME:BYTES[:PATH][@WRITE:READ] "
+                "separated "
+                "by ';', e.g. ssd:4GiB@1e-4:1e-4;hdd:64GiB@1e-3:1e-3 (each level's directory PATH, default "
+                "the subfolder NAME of dir=; its write and read seconds of one state, given for every level "
+                "with costs=uf:ub or measured by the run); fixed steps up to 2^24 planned on all levels"},
+               {"dir",
+                "directory of the file (default: the system temp directory); with levels=, of the "
+                "levels' subfolders"},
                {"level", "zstd level in [1, 22] (default 3)"},
                {"keep", "true | false: keep the file after the backward sweep (default false)"},
                {"costs",
                 "uf:ub:wd:rd, seconds of a forward step, an adjoint step, a disk write and a read (default: "
-                "measured at the start of the run; storage/schedule.h)"},
+                "measured at the start of the run; storage/schedule.h); with levels=, uf:ub"},
                {"schedule", "optimal (default, fixed steps) | stride"},
                {"overlap",
                 "1 (default) | 0: schedule=optimal's disk writes behind and reads ahead on a second thread "
-                "(the same bits; the prediction subtracts the hidden I/O)"},
+                "(the same bits; the prediction subtracts the hidden I/O); one level below RAM only, with "
+                "three or more levels every write and read waits"},
                {"sync",
                 "0 (default) | 1: schedule=optimal's disk writes reach the device before they return "
                 "(O_DSYNC)"}}},

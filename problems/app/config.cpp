@@ -674,6 +674,18 @@ nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateByt
                          {"schedule_cost", p.scheduleCost},
                          {"total_cost", p.totalCost}};
   if (!p.warning.empty()) json["warning"] = p.warning;
+  if (!p.levels.empty()) {  // three or more levels: disk_writes, disk_reads and peak_disk_bytes sum these
+    nlohmann::json levels = nlohmann::json::array();
+    for (const LevelTraffic& level : p.levels) {
+      levels.push_back({{"name", level.name},
+                        {"writes", level.writes},
+                        {"reads", level.reads},
+                        {"peak_bytes", level.peakBytes},
+                        {"write_cost", level.write},
+                        {"read_cost", level.read}});
+    }
+    json["levels"] = levels;
+  }
   return json;
 }
 

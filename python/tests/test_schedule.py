@@ -120,3 +120,19 @@ def test_costs_argument_means_costs_in_the_spec_and_a_stride_trap_is_named():
                                 costs="1:1:2:2")
     assert stride.recomputed_steps == 6_748_500
     assert "schedule=optimal" in stride["warning"] and "24752 recomputed steps" in stride["warning"]
+
+
+def test_three_levels_predict_each_level_as_the_run_does(tmp_path):
+    # RAM 3, SSD 10 and HDD 200 states of the pendulum (16 bytes), each level below RAM in its own subfolder.
+    spec = f"multilevel:ram=48,levels=ssd:160@1:1;hdd:3200@2:2,costs=1:1,dir={tmp_path}"
+    run = hindsight.classic_gradient("pendulum", [1.0, 1.0, 0.1, 0.5], step=1e-3, t1=2.0, storage=spec)
+    reference = hindsight.classic_gradient("pendulum", [1.0, 1.0, 0.1, 0.5], step=1e-3, t1=2.0, storage="full")
+    assert list(run.gradient) == list(reference.gradient)
+    p = hindsight.schedule(spec, 2000, state_bytes=16, stages=4)
+    assert p.recomputed_steps == run.summary["recomputed_steps"]
+    assert p.states_stored == run.summary["states_stored"]
+    assert [level["name"] for level in p.levels] == ["ssd", "hdd"]
+    assert p.disk_writes == sum(level["writes"] for level in p.levels)
+    assert p.schedule_cost == p.recomputed_steps + sum(
+        level["writes"] * level["write_cost"] + level["reads"] * level["read_cost"] for level in p.levels)
+    assert list(tmp_path.iterdir()) == []  # the level subfolders are removed after the run

@@ -11,6 +11,7 @@
 #include "support/storage_fixtures.h"
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <queue>
@@ -573,6 +574,117 @@ TEST(SchedulePrediction, HierarchicalPlanBeyondTheDynamicProgrammeEqualsItsRun) 
   EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
   EXPECT_LE(multilevel->plan().diskSlotsUsed(), 40);
   EXPECT_EQ(dir.entryCount(), 0u);
+}
+
+// Three levels from the spec's levels= (the RAM 3, SSD 10, HDD 200 states with 16-byte states, and a
+// dearer hierarchy): the prediction equals the run on the pendulum (N = 2000) counter by counter, each
+// level's writes and reads too, with a bitwise gradient; with measured costs the run is exact too; the
+// level subfolders the runs make are removed.
+TEST(SchedulePrediction, ThreeLevelPlanEqualsItsRun) {
+  Pendulum problem;
+  const IntegratorOptions options = fixedStepRk4();
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  ScratchDirectory dir;
+  const ScheduleCosts costs{1, 1, 0, 0};
+  for (const std::string& levels : std::vector<std::string>{
+           "ssd:160@1:1;hdd:3200@2:2", "ssd:48@0.5:1;hdd:640:" + dir.path() + "/h@3:3"}) {
+    const std::string spec = "multilevel:ram=48,levels=" + levels + ",costs=1:1,dir=" + dir.path();
+    SCOPED_TRACE(spec);
+    const auto [p, storage] = expectPredictionEqualsRun(spec, options, reference, costs);
+    auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+    ASSERT_NE(multilevel, nullptr);
+    ASSERT_NE(multilevel->levelPlan(), nullptr);
+    ASSERT_EQ(p.levels.size(), 2u);
+    for (std::size_t k = 0; k < 2; ++k) {
+      EXPECT_EQ(p.levels[k].writes, multilevel->levelWrites()[k]) << p.plan;
+      EXPECT_EQ(p.levels[k].reads, multilevel->levelReads()[k]) << p.plan;
+      EXPECT_GT(p.levels[k].writes, 0) << p.plan;
+    }
+    EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
+    EXPECT_EQ(p.diskReads, multilevel->diskReads());
+    EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+    EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->levelPlan()->optimum());
+    ::testing::Test::RecordProperty(spec, p.plan);
+  }
+  {
+    auto storage = createStorage("multilevel:ram=48,levels=ssd:160;hdd:3200,dir=" + dir.path());
+    const GradientResult result = computeGradient(problem, pendulumParameters(), options, *storage);
+    EXPECT_TRUE(bitwiseEqual(result, reference));
+    auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+    ASSERT_NE(multilevel->levelPlan(), nullptr);
+    EXPECT_GT(multilevel->costs().forwardStep, 0.0);
+  }
+  std::filesystem::remove(dir.path() + "/h");  // the given directory stays; the default subfolders do not
+  EXPECT_EQ(dir.entryCount(), 0u);
+}
+
+// levels= with one level is the two-level form: the same plan and counts as disk= with its costs.
+TEST(SchedulePrediction, OneLevelBelowRamIsTheTwoLevelForm) {
+  for (std::int64_t steps : {10, 500, 3000}) {
+    const SchedulePrediction levels =
+        predictSchedule("multilevel:ram=64,levels=disk:640@0.5:0.5,costs=1:1", steps, 16, 4, nullptr);
+    const SchedulePrediction disk =
+        predictSchedule("multilevel:ram=64,disk=640,costs=1:1:0.5:0.5", steps, 16, 4, nullptr);
+    EXPECT_EQ(levels.plan, disk.plan);
+    EXPECT_EQ(levels.recomputedSteps, disk.recomputedSteps);
+    EXPECT_EQ(levels.diskWrites, disk.diskWrites);
+    EXPECT_EQ(levels.diskReads, disk.diskReads);
+    EXPECT_EQ(levels.scheduleCost, disk.scheduleCost);
+    EXPECT_TRUE(levels.levels.empty());
+  }
+}
+
+TEST(SchedulePrediction, LevelsSpecRoundTripsAndBadLevelsNameTheField) {
+  EXPECT_EQ(
+      createStorage("multilevel:ram=1KiB,levels=ssd:1MiB@1:1;hdd:1GiB:/mnt/h@2:2.5,costs=1:0.5")->spec(),
+      "multilevel:ram=1024,levels=ssd:1048576@1:1;hdd:1073741824:/mnt/h@2:2.5,costs=1:0.5");
+  EXPECT_EQ(createStorage("multilevel:ram=1KiB,levels=ssd:1MiB;hdd:1GiB,dir=/tmp/x")->spec(),
+            "multilevel:ram=1024,levels=ssd:1048576;hdd:1073741824,dir=/tmp/x");
+  const auto message = [](const std::string& spec) {
+    try {
+      createStorage(spec);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=ssd:1MiB,disk=1MiB").find("not both"), std::string::npos);
+  EXPECT_NE(message("multilevel:levels=ssd:1MiB").find("ram="), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=ssd").find("NAME:BYTES"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=ram:1MiB").find("not 'ram'"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB;a:2MiB").find("twice"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:0;b:2MiB").find("multilevel.levels.a"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1x").find("multilevel.levels.a"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1").find("WRITE:READ"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1:-2,costs=1:1").find("WRITE:READ"),
+            std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1:1;b:1MiB,costs=1:1").find("1 of 2"),
+            std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1:1").find("costs= is missing"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1:1,costs=1:1:1:1").find("uf:ub"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB@1:1,costs=0:1").find("uf > 0"), std::string::npos);
+  EXPECT_NE(message("multilevel:ram=1KiB,levels=a:1MiB;b:1MiB,costs=1:1").find("@WRITE:READ"),
+            std::string::npos);
+  // A prediction of measured K-level costs cannot take --costs (four numbers, two levels); --actions is
+  // refused.
+  const ScheduleCosts costs{1, 1, 1, 1};
+  const auto predicted = [&](const std::string& spec, std::int64_t steps) {
+    try {
+      predictSchedule(spec, steps, 16, 4, &costs);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(predicted("multilevel:ram=48,levels=a:160;b:320", 100).find("costs=uf:ub"), std::string::npos);
+  EXPECT_NE(predicted("multilevel:ram=8,levels=a:8@1:1;b:8@1:1,costs=1:1", 100).find("multilevel.levels"),
+            std::string::npos);
+  EXPECT_NE(predicted("multilevel:ram=48,levels=a:160@1:1;b:320@2:2,costs=1:1", 100'000'000).find("2^24"),
+            std::string::npos);
+  std::ostringstream out;
+  EXPECT_THROW(
+      writeScheduleActions("multilevel:ram=48,levels=a:160@1:1;b:320@2:2,costs=1:1", 10, 16, 4, nullptr, out),
+      std::invalid_argument);
 }
 
 // The trap that was: a RAM of fewer than 3 states without costs= used to take the stride, and the
