@@ -5,6 +5,7 @@
 #include <hindsight/storage/hdf5.h>
 
 #include "support/run_cli.h"
+#include "support/storage_fixtures.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -16,18 +17,10 @@
 namespace hindsight {
 namespace {
 
-namespace fs = std::filesystem;
 using testing::runCli;
 
 const std::string kCoarse =
     "--set rod.elementsAlongLength=20 --set rod.elementsThroughHeight=4 --set rod.modeCount=4 ";
-
-std::string freshDirectory(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/evaluate_command_" + name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 rod::RodConfig coarseRod() {
   rod::RodConfig config;
@@ -52,7 +45,8 @@ TEST(EvaluateCommand, UnwritableGradientPathIsRefusedBeforeAnyWork) {
 }
 
 TEST(EvaluateCommand, ExistingGradientFileNeedsForceAndTheDesignInputIsNeverOverwritten) {
-  const std::string dir = freshDirectory("force");
+  const testing::ScratchDirectory scratch;
+  const std::string& dir = scratch.path();
   const std::string gradient = dir + "/g.h5";
   std::ofstream(gradient) << "keep me";
   auto result = runCli("evaluate " + kCoarse + "--gradient " + gradient);
@@ -77,7 +71,8 @@ TEST(EvaluateCommand, ExistingGradientFileNeedsForceAndTheDesignInputIsNeverOver
 }
 
 TEST(EvaluateCommand, DesignWithAnInterfaceColumnOtherThanOneIsBadInput) {
-  const std::string dir = freshDirectory("interface");
+  const testing::ScratchDirectory scratch;
+  const std::string& dir = scratch.path();
   const rod::RodConfig config = coarseRod();
   writeDesignFields(dir + "/design.h5", config, {{"x", Vector::Constant(config.designCount(), 0.6)}}, 0.5);
   const auto result = runCli("evaluate " + kCoarse + "--design " + dir + "/design.h5");
