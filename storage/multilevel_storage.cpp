@@ -726,7 +726,8 @@ void MultilevelStorage::choosePlan(const ScheduleCosts& costs) {
         [&file](std::int64_t slot, const double* z) { file.write(slot, z); },
         [&file](std::int64_t slot, double* z) { file.read(slot, z); });
     lookahead_ = std::make_unique<internal::DiskEventLookahead>(plan_);
-    hiddenSeconds_ = internal::hiddenDiskSeconds(plan_, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
+    hiddenSeconds_ =
+        internal::hiddenDiskSeconds(plan_, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
   }
 }
 

@@ -59,7 +59,8 @@ Vector randomDesign(int size, unsigned seed) {
 /// model, so that the tests choose the element formulation).
 double psi1Of(const Config& config, const rod::InertiaInvariants& invariants) {
   const rod::RodConfig& rc = config.rod;
-  mechanism::Mechanism described = mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
+  mechanism::Mechanism described =
+      mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);
   described.member.length = rc.length;
   const mechanism::MechanismProblem problem(described, invariants.modeCount(), invariants.spatial());
   return simulate(problem, invariants.pack(), PistonRod(config).integratorOptions()).objective;
@@ -152,13 +153,16 @@ TEST(SolidMember, Psi1GradientMatchesFiniteDifferences) {
       Vector plus = x, minus = x;
       plus(d) += h;
       minus(d) -= h;
-      const double fd = (rod.evaluate(plus, forwardOnly).psi1 - rod.evaluate(minus, forwardOnly).psi1) / (2 * h);
+      const double fd =
+          (rod.evaluate(plus, forwardOnly).psi1 - rod.evaluate(minus, forwardOnly).psi1) / (2 * h);
       const double error = std::abs(fd - result.dpsi1(d));
       worst = std::max(worst, error / scale);
       EXPECT_LE(error, 1e-5 * scale + 1e-4 * std::abs(result.dpsi1(d)))
-          << "design " << d << " step " << relativeStep << ": adjoint " << result.dpsi1(d) << ", differences " << fd;
+          << "design " << d << " step " << relativeStep << ": adjoint " << result.dpsi1(d) << ", differences "
+          << fd;
     }
-    std::cout << "[ solid ] step " << relativeStep << ": largest |fd - adjoint| / max |g| = " << worst << "\n";
+    std::cout << "[ solid ] step " << relativeStep << ": largest |fd - adjoint| / max |g| = " << worst
+              << "\n";
   }
 }
 
