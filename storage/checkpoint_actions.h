@@ -56,6 +56,41 @@ struct CheckpointAction {
   CheckpointStorage from = CheckpointStorage::kNone, to = CheckpointStorage::kNone;  ///< Copy/Move
   /// checkpoint_schedules' repr, e.g. "Forward(0, 10, True, False, StorageType.RAM)".
   std::string text() const;
+
+  /// The actions every stream builds: Forward(n0, n1, writeIcs, writeAdjDeps, storage); Reverse(e + 1, e,
+  /// clearing the adjoint data); Copy or Move(n, from, WORK); a marker (EndForward, EndReverse).
+  static CheckpointAction forward(std::int64_t n0, std::int64_t n1, bool writeIcs, bool writeAdjDeps,
+                                  CheckpointStorage storage) {
+    CheckpointAction a;
+    a.kind = Kind::kForward;
+    a.n0 = n0;
+    a.n1 = n1;
+    a.writeIcs = writeIcs;
+    a.writeAdjDeps = writeAdjDeps;
+    a.storage = storage;
+    return a;
+  }
+  static CheckpointAction reverseStep(std::int64_t e) {
+    CheckpointAction a;
+    a.kind = Kind::kReverse;
+    a.n0 = e;
+    a.n1 = e + 1;
+    a.clearAdjDeps = true;
+    return a;
+  }
+  static CheckpointAction toWork(std::int64_t n, CheckpointStorage from, bool move) {
+    CheckpointAction a;
+    a.kind = move ? Kind::kMove : Kind::kCopy;
+    a.n0 = a.n1 = n;
+    a.from = from;
+    a.to = CheckpointStorage::kWork;
+    return a;
+  }
+  static CheckpointAction marker(Kind kind) {
+    CheckpointAction a;
+    a.kind = kind;
+    return a;
+  }
 };
 
 /// The action stream of `spec` for N = `steps` fixed steps, collected (openCheckpointStream() in

@@ -78,38 +78,10 @@ namespace {
 
 using Kind = CheckpointAction::Kind;
 
-CheckpointAction forward(std::int64_t n0, std::int64_t n1, bool ics, bool adjDeps,
-                         CheckpointStorage storage) {
-  CheckpointAction a;
-  a.kind = Kind::kForward;
-  a.n0 = n0;
-  a.n1 = n1;
-  a.writeIcs = ics;
-  a.writeAdjDeps = adjDeps;
-  a.storage = storage;
-  return a;
-}
-CheckpointAction reverseStep(std::int64_t e) {
-  CheckpointAction a;
-  a.kind = Kind::kReverse;
-  a.n1 = e + 1;
-  a.n0 = e;
-  a.clearAdjDeps = true;
-  return a;
-}
-CheckpointAction toWork(std::int64_t n, CheckpointStorage from, bool move) {
-  CheckpointAction a;
-  a.kind = move ? Kind::kMove : Kind::kCopy;
-  a.n0 = a.n1 = n;
-  a.from = from;
-  a.to = CheckpointStorage::kWork;
-  return a;
-}
-CheckpointAction marker(Kind kind) {
-  CheckpointAction a;
-  a.kind = kind;
-  return a;
-}
+constexpr auto forward = &CheckpointAction::forward;
+constexpr auto reverseStep = &CheckpointAction::reverseStep;
+constexpr auto toWork = &CheckpointAction::toWork;
+constexpr auto marker = &CheckpointAction::marker;
 
 // Streams whose actions come in small batches: doNext hands out the queue, refilling it by refill().
 class BatchedStream : public CheckpointStream {

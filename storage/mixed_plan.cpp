@@ -89,26 +89,7 @@ void forEachAction(const Plan& plan, const std::function<void(const CheckpointAc
   const std::int64_t steps = plan.steps(), units = plan.units();
   const auto forward = [&out](std::int64_t n0, std::int64_t n1, bool ics, bool adjDeps,
                               CheckpointStorage where) {
-    CheckpointAction a;
-    a.kind = Kind::kForward;
-    a.n0 = n0;
-    a.n1 = n1;
-    a.writeIcs = ics;
-    a.writeAdjDeps = adjDeps;
-    a.storage = where;
-    out(a);
-  };
-  const auto simple = [&out](Kind kind, std::int64_t n0, std::int64_t n1) {
-    CheckpointAction a;
-    a.kind = kind;
-    a.n0 = n0;
-    a.n1 = n1;
-    if (kind == Kind::kReverse) a.clearAdjDeps = true;
-    if (kind == Kind::kCopy || kind == Kind::kMove) {
-      a.from = CheckpointStorage::kRam;
-      a.to = CheckpointStorage::kWork;
-    }
-    out(a);
+    out(CheckpointAction::forward(n0, n1, ics, adjDeps, where));
   };
   // The units held, in the order they were written: each is the first decision of a subproblem still
   // open, so the latest is the one the adjoint reaches next (a stack).
@@ -147,8 +128,8 @@ void forEachAction(const Plan& plan, const std::function<void(const CheckpointAc
       }
       assert(static_cast<std::int64_t>(held.size()) <= units);
     }
-    if (reversed == 0) simple(Kind::kEndForward, 0, 0);
-    simple(Kind::kReverse, steps - reversed - 1, steps - reversed);
+    if (reversed == 0) out(CheckpointAction::marker(Kind::kEndForward));
+    out(CheckpointAction::reverseStep(steps - reversed - 1));
     ++reversed;
     if (reversed == steps) break;
     // The latest unit: adjoint data of the step now reversed (used once, released), or a state from which
@@ -159,11 +140,11 @@ void forEachAction(const Plan& plan, const std::function<void(const CheckpointAc
     const bool keep =
         top.kind == Plan::Kind::kState && plan.step(steps - reversed - top.step, free).kind == top.kind;
     if (!keep) held.pop_back();
-    simple(keep ? Kind::kCopy : Kind::kMove, top.step, top.step);
+    out(CheckpointAction::toWork(top.step, CheckpointStorage::kRam, !keep));
     n = top.kind == Plan::Kind::kState ? top.step : top.step + 1;
   }
   assert(held.empty());
-  simple(Kind::kEndReverse, 0, 0);
+  out(CheckpointAction::marker(Kind::kEndReverse));
 }
 
 std::vector<CheckpointAction> actions(const Plan& plan) {
