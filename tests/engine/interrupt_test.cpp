@@ -7,20 +7,17 @@
 #include <hindsight/engine/interrupt.h>
 #include <hindsight/problems/classic/classic_problems.h>
 
+#include "support/counting_poll.h"
+
 #include <gtest/gtest.h>
 
 namespace hindsight {
 namespace {
 
-int polls = 0;
-int throwAfter = -1;
-
-struct Stop {};
-
-void countingPoll() {
-  ++polls;
-  if (throwAfter >= 0 && polls > throwAfter) throw Stop{};
-}
+using testing::countingPoll;
+using testing::polls;
+using testing::Stop;
+using testing::throwAfter;
 
 class Interrupt : public ::testing::Test {
  protected:

@@ -6,6 +6,7 @@
 #include <hindsight/storage/multilevel_storage.h>
 #include <hindsight/storage/overlapped_io.h>
 #include "support/allocation_counting.h"
+#include "support/counting_poll.h"
 #include "support/storage_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -234,13 +235,10 @@ TEST(OverlapModel, RecordAndRestoreAllocateNoMoreWithOverlapThanWithout) {
             allocations[0] + 4);  // the event list growing to its few entries (measured: 1 and 2)
 }
 
-int polls = 0;
-int throwAfter = -1;
-struct Stop {};
-void countingPoll() {
-  ++polls;
-  if (throwAfter >= 0 && polls > throwAfter) throw Stop{};
-}
+using testing::countingPoll;
+using testing::polls;
+using testing::Stop;
+using testing::throwAfter;
 
 TEST(OverlapModel, AnInterruptAnywhereLeavesNoThreadNoFileAndTheSameBitsNext) {
   Pendulum problem;
