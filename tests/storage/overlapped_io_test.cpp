@@ -136,15 +136,21 @@ TEST(OverlapModel, HiddenDiskSecondsEqualTheClosedFormOfTheLeavesPlan) {
       0.0);
 }
 
-TEST(OverlapModel, ARunPredictsWhatHindsightSchedulePredicts) {
-  // The run's predictedSeconds() and the registry's prediction subtract the same hidden seconds.
-  Pendulum problem;
-  ScratchDirectory dir;
+// The pendulum's disk-bound two-level case: 800 B of RAM, 1 MiB of disk in `dir`, costs 1:1:2:2.
+MultilevelStorage::Options pendulumOnDisk(const ScratchDirectory& dir) {
   MultilevelStorage::Options options;
   options.ramBytes = 800;
   options.diskBytes = 1 << 20;
   options.directory = dir.path();
   options.costs = ScheduleCosts{1, 1, 2, 2};
+  return options;
+}
+
+TEST(OverlapModel, ARunPredictsWhatHindsightSchedulePredicts) {
+  // The run's predictedSeconds() and the registry's prediction subtract the same hidden seconds.
+  Pendulum problem;
+  ScratchDirectory dir;
+  MultilevelStorage::Options options = pendulumOnDisk(dir);
   MultilevelStorage storage(options);
   computeGradient(problem, pendulumParameters(), fixedStepRk4(), storage);
   ASSERT_TRUE(storage.usesPlan());
@@ -162,11 +168,7 @@ TEST(OverlapModel, WritesThatReachTheDeviceKeepTheBitsWithAndWithoutOverlap) {
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
   for (const bool overlap : {false, true}) {
     ScratchDirectory dir;
-    MultilevelStorage::Options options;
-    options.ramBytes = 800;
-    options.diskBytes = 1 << 20;
-    options.directory = dir.path();
-    options.costs = ScheduleCosts{1, 1, 2, 2};
+    MultilevelStorage::Options options = pendulumOnDisk(dir);
     options.overlap = overlap;
     options.syncWrites = true;
     MultilevelStorage storage(options);
@@ -244,11 +246,7 @@ TEST(OverlapModel, AnInterruptAnywhereLeavesNoThreadNoFileAndTheSameBitsNext) {
   Pendulum problem;
   const GradientResult reference = fullReference(problem, pendulumParameters(), fixedStepRk4());
   ScratchDirectory dir;
-  MultilevelStorage::Options options;
-  options.ramBytes = 800;
-  options.diskBytes = 1 << 20;
-  options.directory = dir.path();
-  options.costs = ScheduleCosts{1, 1, 2, 2};
+  MultilevelStorage::Options options = pendulumOnDisk(dir);
   MultilevelStorage storage(options);
   polls = 0;
   throwAfter = -1;
