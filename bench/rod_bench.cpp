@@ -33,9 +33,9 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
 #include "bench_support.h"
+#include "support/slider_crank.h"
 
 #include <benchmark/benchmark.h>
 

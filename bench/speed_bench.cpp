@@ -8,7 +8,7 @@
 //     psi2 without its gradient ("esl"), the sum, and the forward sweep alone for scale.
 //  2. (forward + backward) / forward CPU per integrator on the 200 x 12 rod (invariants of x0), median
 //     of 3, with full:stages=1 for rk4 (the backward sweep then recomputes no stage).
-//  3. the closed-form slider-crank (problems/rod/slider_crank.h, the reference) against the default path,
+//  3. the closed-form slider-crank (tests/support/slider_crank.h, the reference) against the default path,
 //     the same slider-crank described (problems/mechanism/mechanism_problem.h), on the default
 //     configuration: CPU of the discrete adjoint (forward + backward), median of 3, the largest
 //     difference of dpsi1/dp, and the CPU of the default configuration's whole evaluation (PistonRod:
@@ -26,8 +26,8 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/storage_factory.h>
+#include "support/slider_crank.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -53,7 +53,7 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-/// The closed-form slider-crank (problems/rod/slider_crank.h): the reference of the mechanism table.
+/// The closed-form slider-crank (tests/support/slider_crank.h): the reference of the mechanism table.
 rod::SliderCrankProblem closedFormOf(const rod::RodConfig& rc, int columns) {
   rod::CrankMotion crank;
   crank.radius = rc.crankRadius;

@@ -118,7 +118,7 @@ PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request
   // The mechanism whose flexible member the rod is: the configuration's description, or without one
   // the paper's slider-crank described by the same builder (mechanism::sliderCrank), so that every
   // mechanism takes one path (problems/mechanism/mechanism_problem.h). The closed form of the
-  // slider-crank (problems/rod/slider_crank.h) is the tests' independent reference for it.
+  // slider-crank (tests/support/slider_crank.h) is the tests' independent reference for it.
   mechanism::Mechanism described =
       config_.mechanism ? *config_.mechanism
                         : mechanism::sliderCrank(rc.crankRadius, rc.length, rc.crankSpeed, rc.rampTime);

@@ -16,8 +16,8 @@ void DriverLaw::at(double t, double& s, double& sDot, double& sDdot) const {
     sDdot = 0.0;
     return;
   }
-  // The same operations as rod::CrankMotion::at (problems/rod/slider_crank.cpp), so that the
-  // slider-crank description reproduces the built-in model's bits of the crank angle.
+  // rod::CrankMotion::at (problems/rod/crank_motion.h) evaluates this law too, so the described, the
+  // full-order and the tests' closed-form slider-crank see the crank angle's same bits.
   if (t < rampTime) {
     const double tau = t / rampTime;
     const double twoPi = 2.0 * M_PI;

@@ -140,8 +140,8 @@ std::string toString(DriverLaw::Kind kind);
 
 /// The slider-crank of docs/design.md §2 with the guide through the crank pivot: a massless crank of
 /// radius r driven by the cycloidal ramp, the member from the crank pin (A) to the slider (B), the
-/// slider of the given mass on a prismatic joint along x. With sliderMass = 0 this is the built-in
-/// model (problems/rod/slider_crank.h).
+/// slider of the given mass on a prismatic joint along x. With sliderMass = 0 this is the tests'
+/// closed-form model (tests/support/slider_crank.h).
 Mechanism sliderCrank(double crankRadius, double length, double speed, double rampTime,
                       double sliderMass = 0.0);
 

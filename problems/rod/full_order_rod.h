@@ -60,9 +60,9 @@
 #pragma once
 
 #include <hindsight/engine/adjoint.h>
+#include <hindsight/problems/rod/crank_motion.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/rod_config.h>
-#include <hindsight/problems/rod/slider_crank.h>
 
 #include <Eigen/SparseCholesky>
 

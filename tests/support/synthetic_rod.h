@@ -5,7 +5,7 @@
 // computed straight from the docs/design.md §3 table, so the test does not share code with the model.
 #pragma once
 
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include <random>
 

@@ -30,8 +30,8 @@ struct View {
   double c2(int i) const { return p[c2Offset() + i]; }
   double a0(int i) const { return p[a0Offset() + i]; }
   double ct(int i, int j) const { return p[ctOffset() + i + n * j]; }
-  // M_ee enters through its symmetric part, as in problems/rod/slider_crank.cpp: the reduced mass
-  // matrix must be symmetric, and the gradient splits evenly between (i, j) and (j, i).
+  // M_ee enters through its symmetric part, as in the tests' closed form (tests/support/slider_crank.cpp):
+  // the reduced mass matrix must be symmetric, and the gradient splits evenly between (i, j) and (j, i).
   double mee(int i, int j) const { return 0.5 * (p[meeOffset() + i + n * j] + p[meeOffset() + j + n * i]); }
   /// M_ee^xy, the modal mass the rotation about z sees (J_w and h; docs/design.md, "The solid member in
   /// the mechanism"): M_ee for a plate, its own block for a spatial member. Symmetric part, as mee().

@@ -334,7 +334,9 @@ struct System {
     const int i = rowFirst[r];
     T* jrow = B.jac.data() + i;  // row i of the column-major m x nz matrix: stride m
     const int mm = m;
-    Pt<T> a, b;
+    // Value-initialised: a caller that passes quadratic = false never reads Q, but where GCC inlines this
+    // into such a caller (constraint_solve.cpp) it cannot see that and warns.
+    Pt<T> a{}, b{};
     switch (row.kind) {
       case Row::Revolute: {
         point(row.p1, B, quadratic, c, cd, zero, a);

@@ -87,7 +87,7 @@ TEST(MechanismConfig, BadDescriptionsAreNamed) {
 TEST(MechanismConfig, TheSliderCrankExampleIsTheDefaultConfigurationBitForBit) {
   // One path: without a mechanism section the piston rod describes the paper's slider-crank with
   // mechanism::sliderCrank, and examples/mechanisms/slider_crank.json is that description written out, so
-  // the two give the same bits. The independent route is the closed form (problems/rod/slider_crank.h),
+  // the two give the same bits. The independent route is the closed form (tests/support/slider_crank.h),
   // held to the description term by term and over a simulation and its adjoint in
   // tests/problems/mechanism/mechanism_problem_test.cpp.
   Config byDefault;

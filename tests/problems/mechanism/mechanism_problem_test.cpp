@@ -1,4 +1,4 @@
-// The described slider-crank against the built-in model (problems/rod/slider_crank.h, itself checked
+// The described slider-crank against the closed form (tests/support/slider_crank.h, itself checked
 // against Lagrange's equations of the nodal kinetic energy), and every derivative of the generic
 // mechanism equations against finite differences, on a synthetic member (tests/support/synthetic_rod.h).
 #include <hindsight/problems/mechanism/mechanism_problem.h>
@@ -10,7 +10,7 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/engine/gradient_checker.h>
 #include <hindsight/engine/integrator.h>
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include "support/allocation_counting.h"
 #include "support/synthetic_rod.h"

@@ -9,7 +9,7 @@
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/modal_reduction.h>
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include <gtest/gtest.h>
 

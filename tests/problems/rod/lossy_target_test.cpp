@@ -5,7 +5,7 @@
 // bench/RESULTS.md; the piston rod's own default path (generalized-alpha) and rk4 at the end, with the
 // calibration the application gives lossy:target (S = 0.3, problems/app/piston_rod.cpp).
 #include <hindsight/problems/app/piston_rod.h>
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>

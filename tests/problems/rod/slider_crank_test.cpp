@@ -1,6 +1,6 @@
 // The reduced slider-crank equations against Lagrange's equations built from the nodal kinetic
 // energy, and every derivative the adjoint uses against finite differences.
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include <hindsight/engine/adjoint.h>
 #include <hindsight/engine/full_storage.h>

@@ -8,10 +8,10 @@
 #include <hindsight/engine/integrator.h>
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/problems/rod/full_order_rod.h>
-#include <hindsight/problems/rod/slider_crank.h>
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/allocation_counting.h"
+#include "support/slider_crank.h"
 #include "support/synthetic_rod.h"
 
 #include <gtest/gtest.h>

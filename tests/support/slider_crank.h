@@ -11,10 +11,12 @@
 // This is d'Alembert's principle projected with delta beta = beta_q delta q; tests compare it with
 // Lagrange's equations built from the nodal kinetic energy.
 //
-// Its role: the closed-form reference. The piston rod runs the same slider-crank through the general
-// mechanism path (mechanism::sliderCrank and problems/mechanism/mechanism_problem.h), so that every
-// mechanism takes one path; this class is the independent route the tests hold that path to (term by
-// term, over a simulation and its adjoint) and the benchmarks compare its cost with.
+// Its role: the closed-form reference, test code and not part of the library (docs/design.md §10). The
+// piston rod runs the same slider-crank through the general mechanism path (mechanism::sliderCrank and
+// problems/mechanism/mechanism_problem.h), so that every mechanism takes one path; this class is the
+// independent route the tests hold that path to (term by term, over a simulation and its adjoint), and
+// the benchmarks' reference problem (bench/speed_bench.cpp, bench/rod_bench.cpp). It is built once, as
+// the static library hindsight_slider_crank_reference, which those test and benchmark programs link.
 //
 // The parameters p are the inertia invariants of the rod (SliderCrankLayout), so the engine's dpsi/dp
 // is what the design chain (problems/rod/design_gradient.h) turns into dpsi/dx. The objective is
@@ -28,20 +30,11 @@
 #pragma once
 
 #include <hindsight/engine/second_order_problem.h>
+#include <hindsight/problems/rod/crank_motion.h>
 
 #include <cmath>
 
 namespace hindsight::rod {
-
-/// The prescribed crank: phi' = Omega (tau - sin(2 pi tau) / (2 pi)), tau = t / T, for t <= T (so
-/// phi''(0) = phi''(T) = 0), then phi' = Omega; phi(0) = 0. Units: m, rad, s.
-struct CrankMotion {
-  double radius = 0.15;
-  double omega = 10.0 * M_PI;
-  double rampTime = 2.0;
-  /// Angle, angular velocity and acceleration at time t.
-  void at(double t, double& phi, double& phiDot, double& phiDdot) const;
-};
 
 /// Offsets of the invariants in the parameter vector p, for n modes (the same order as
 /// rod::InvariantLayout of problems/rod/invariants.h, which packs them; a test checks they agree):

@@ -1,4 +1,4 @@
-#include <hindsight/problems/rod/slider_crank.h>
+#include "support/slider_crank.h"
 
 #include <hindsight/engine/deterministic_math.h>
 
@@ -223,22 +223,6 @@ const CrankState& crankOf(const CrankMotion& crank, double t, RodWorkspace& w) {
 }
 
 }  // namespace
-
-void CrankMotion::at(double t, double& phi, double& phiDot, double& phiDdot) const {
-  if (t < rampTime) {
-    const double tau = t / rampTime;
-    const double twoPi = 2.0 * M_PI;
-    double sine, cosine;
-    dmath::sincos(twoPi * tau, &sine, &cosine);
-    phiDot = omega * (tau - sine / twoPi);
-    phiDdot = omega / rampTime * (1.0 - cosine);
-    phi = omega * rampTime * (tau * tau / 2.0 + (cosine - 1.0) / (twoPi * twoPi));
-  } else {
-    phiDot = omega;
-    phiDdot = 0.0;
-    phi = omega * rampTime / 2.0 + omega * (t - rampTime);
-  }
-}
 
 SliderCrankProblem::SliderCrankProblem(int modeCount, double rodLength, const CrankMotion& crank)
     : length_(rodLength), crank_(crank) {
