@@ -4,6 +4,7 @@
 // std::invalid_argument. Any other exception (a JSON library error, std::out_of_range, bad_alloc)
 // would escape the CLI's error handling as an internal error instead of exit code 2 with the field.
 #include "fuzz/fuzz_support.h"
+#include "support/storage_fixtures.h"
 
 #include <hindsight/problems/app/config.h>
 
@@ -155,7 +156,8 @@ TEST(ConfigFuzz, MutatedJsonFiles) {
   const auto seeds = fuzz::seedFiles("config_");
   const auto words = dictionary();
   fuzz::Mutator mutator(fuzz::seed(1));
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_config.json";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_fuzz_config.json";
   for (int k = 0; k < fuzz::cases(1500); ++k) {
     const std::string text = mutator.mutate(mutator.pick(seeds), words, 6);
     fuzz::writeBytes(path, text);

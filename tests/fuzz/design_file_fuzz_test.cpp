@@ -2,6 +2,7 @@
 // for any file it must either return a design of the configuration's size with every value in
 // [designLowerBound, 1], or throw std::invalid_argument naming the file (the CLI's exit code 2).
 #include "fuzz/hdf5_fuzz.h"
+#include "support/storage_fixtures.h"
 
 #include <hindsight/problems/rod/design_io.h>
 
@@ -41,7 +42,8 @@ TEST(DesignFileFuzz, RandomObjects) {
   const rod::RodConfig config = coarse();
   const std::vector<hsize_t> shape = {static_cast<hsize_t>(config.elementsThroughHeight),
                                       static_cast<hsize_t>(config.elementsAlongLength)};
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_design.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_fuzz_design.h5";
   fuzz::Mutator mutator(fuzz::seed(21));
   for (int k = 0; k < fuzz::cases(300); ++k) {
     const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
@@ -69,8 +71,9 @@ TEST(DesignFileFuzz, RandomObjects) {
 // A good design file cut short or with damaged bytes.
 TEST(DesignFileFuzz, DamagedBytes) {
   const rod::RodConfig config = coarse();
-  const std::string good = ::testing::TempDir() + "/hindsight_fuzz_design_good.h5";
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_design_damaged.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string good = scratch.path() + "/hindsight_fuzz_design_good.h5";
+  const std::string path = scratch.path() + "/hindsight_fuzz_design_damaged.h5";
   writeDesignFields(good, config, {{"x", Vector::Constant(config.designCount(), 0.5)}}, 1.0);
   const std::string bytes = fuzz::readText(good);
   ASSERT_GT(bytes.size(), 8u);

@@ -9,6 +9,7 @@
 // constant-speed driver).
 #include "fuzz/fuzz_support.h"
 #include "support/run_cli.h"
+#include "support/storage_fixtures.h"
 
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/app/config.h>
@@ -248,7 +249,8 @@ TEST(MechanismFuzz, MutatedJsonFiles) {
   const auto texts = fuzz::seedFiles("mechanism_");
   const auto words = dictionary();
   fuzz::Mutator mutator(fuzz::seed(21));
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_mechanism.json";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_fuzz_mechanism.json";
   int accepted = 0;
   for (int k = 0; k < fuzz::cases(1200); ++k) {
     const std::string text = mutator.mutate(mutator.pick(texts), words, 5);
@@ -685,7 +687,8 @@ TEST(MechanismFuzz, AbsurdDriverSpeedsFailFastByName) {
 // The command-line tool: a refused description exits 2 with the same message on stderr, an accepted
 // one 0 with psi1 (a handful of processes; the properties above are in-process).
 TEST(MechanismFuzz, CliExitsTwoNamingTheFault) {
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_mechanism_cli.json";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_fuzz_mechanism_cli.json";
   fuzz::Mutator mutator(fuzz::seed(24));
   int refused = 0;
   for (int k = 0; k < 200 && refused < 4; ++k) {

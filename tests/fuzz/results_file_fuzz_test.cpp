@@ -5,6 +5,7 @@
 // datasets confirm it, never throw another type.
 #include "fuzz/hdf5_fuzz.h"
 #include "support/file_checks.h"
+#include "support/storage_fixtures.h"
 
 #include <hindsight/problems/topopt/results_file.h>
 
@@ -90,8 +91,9 @@ const std::vector<std::string>& rootAttributes() {
 TEST(ResultsFileFuzz, DamagedObjects) {
   const fuzz::QuietHdf5 quiet;
   const ResultsData data = sample();
-  const std::string good = ::testing::TempDir() + "/hindsight_fuzz_results_good.h5";
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_results.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string good = scratch.path() + "/hindsight_fuzz_results_good.h5";
+  const std::string path = scratch.path() + "/hindsight_fuzz_results.h5";
   writeResultsFile(good, data);
   const std::string bytes = fuzz::readText(good);
   expectResultsOrStorageError(good, "the good file");
@@ -157,8 +159,9 @@ TEST(ResultsFileFuzz, DamagedObjects) {
 
 // A good file cut short or with damaged bytes.
 TEST(ResultsFileFuzz, DamagedBytes) {
-  const std::string good = ::testing::TempDir() + "/hindsight_fuzz_results_good.h5";
-  const std::string path = ::testing::TempDir() + "/hindsight_fuzz_results_bytes.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string good = scratch.path() + "/hindsight_fuzz_results_good.h5";
+  const std::string path = scratch.path() + "/hindsight_fuzz_results_bytes.h5";
   writeResultsFile(good, sample());
   const std::string bytes = fuzz::readText(good);
   fuzz::Mutator mutator(fuzz::seed(32));

@@ -7,11 +7,14 @@
 
 #include <fstream>
 
+#include "support/storage_fixtures.h"
+
 namespace hindsight {
 namespace {
 
 TEST(ConfigEdgeInput, NumbersBeyondDoubleAreInvalidArguments) {
-  const std::string path = ::testing::TempDir() + "/hindsight_overflow.json";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_overflow.json";
   std::ofstream(path) << R"({"rod": {"length": 1e400}})";
   try {
     readConfigFile(path);

@@ -4,6 +4,8 @@
 
 #include <fstream>
 
+#include "support/storage_fixtures.h"
+
 namespace hindsight {
 namespace {
 
@@ -176,7 +178,8 @@ TEST(Config, ChoicesAreEnumsWithTheirJsonNames) {
 TEST(Config, UnreadableOrMalformedFilesAreNamed) {
   EXPECT_NE(errorOf([] { readConfigFile("/nonexistent/config.json"); }).find("/nonexistent/config.json"),
             std::string::npos);
-  const std::string path = ::testing::TempDir() + "/broken.json";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/broken.json";
   std::ofstream(path) << "{ \"rod\": ";
   EXPECT_NE(errorOf([&] { readConfigFile(path); }).find("not valid JSON"), std::string::npos);
 }

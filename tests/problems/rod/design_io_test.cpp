@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "support/storage_fixtures.h"
+
 namespace hindsight {
 namespace {
 
@@ -22,7 +24,8 @@ TEST(DesignIo, RoundTripAndLayoutMatchTheFeModel) {
   const rod::RodConfig config = coarse();
   Vector x(config.designCount());
   for (Eigen::Index d = 0; d < x.size(); ++d) x(d) = 0.01 + 0.9 * d / x.size();
-  const std::string path = ::testing::TempDir() + "/design.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/design.h5";
   writeDesignFields(path, config, {{"x", x}}, 1.0);
   EXPECT_EQ(readDesignFile(path, config), x);
   // Grid cell (row j, column i) holds the design variable of FeModel element i * ny + j.
@@ -38,7 +41,8 @@ TEST(DesignIo, RoundTripAndLayoutMatchTheFeModel) {
 
 TEST(DesignIo, BadFilesAreNamed) {
   const rod::RodConfig config = coarse();
-  const std::string path = ::testing::TempDir() + "/bad_design.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/bad_design.h5";
   Vector x = Vector::Constant(config.designCount(), 0.5);
   x(5) = 0.001;
   writeDesignFields(path, config, {{"x", x}}, 1.0);
@@ -61,7 +65,8 @@ TEST(DesignIo, BadFilesAreNamed) {
 // silently. NaN densities are refused like any value outside [designLowerBound, 1].
 TEST(DesignIo, InterfaceColumnsOtherThanOneAndNanAreRefusedNamingTheElement) {
   const rod::RodConfig config = coarse();
-  const std::string path = ::testing::TempDir() + "/interface_design.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/interface_design.h5";
   const Vector x = Vector::Constant(config.designCount(), 0.5);
   const auto messageOf = [&] {
     try {

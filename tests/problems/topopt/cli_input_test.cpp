@@ -2,6 +2,7 @@
 // parse errors of CLI11 exit 2 like every input error; --threads 0; --set and flags applied before
 // the checks across fields (their order does not matter); evaluate refuses a configuration with
 // scenarios instead of ignoring them; --resume with another configuration names every difference.
+#include "support/fresh_directory.h"
 #include "support/run_cli.h"
 
 #include <gtest/gtest.h>
@@ -21,9 +22,9 @@ namespace fs = std::filesystem;
 using testing::CliResult;
 using testing::runCli;
 
-std::string freshDirectory(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/hindsight_cli_input_" + name;
-  fs::remove_all(dir);
+// A fresh, existing folder for one test (tests/support/fresh_directory.h removes it at the end).
+std::string freshFolder(const std::string& name) {
+  const std::string dir = testing::freshDirectory("cli_input_" + name);
   fs::create_directories(dir);
   return dir;
 }
@@ -64,7 +65,7 @@ TEST(CliInput, SettingsAreCheckedTogetherWhateverTheirOrder) {
 }
 
 TEST(CliInput, EvaluateRefusesScenariosInsteadOfIgnoringThem) {
-  const std::string dir = freshDirectory("scenarios");
+  const std::string dir = freshFolder("scenarios");
   std::ofstream(dir + "/s.json") << R"({"scenarios": [{"name": "a"}, {"name": "b", "crankSpeed": 20}]})";
   const CliResult result = runCli("evaluate --config " + dir + "/s.json");
   EXPECT_EQ(result.exitCode, 2) << result.output;
@@ -82,7 +83,7 @@ TEST(CliInput, EvaluateRefusesScenariosInsteadOfIgnoringThem) {
 }
 
 TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
-  const std::string dir = freshDirectory("resume");
+  const std::string dir = freshFolder("resume");
   const std::string tiny =
       R"("rod": {"elementsAlongLength": 8, "elementsThroughHeight": 2, "modeCount": 2, "endTime": 0.02,
                  "rampTime": 0.01, "eslSamples": 4}, "simulation": {"step": 1e-3})";
@@ -144,7 +145,7 @@ TEST(CliInput, ResumeWithAnotherConfigurationNamesEveryDifference) {
   EXPECT_FALSE(fs::exists(dir + "/broken.png"));
 }
 TEST(CliInput, AFileSizeLimitIsAReportedStorageFailure) {
-  const std::string dir = freshDirectory("ulimit");
+  const std::string dir = freshFolder("ulimit");
   // 4 KiB (ulimit -f counts 512-byte blocks in POSIX sh): the results file does not fit.
   const std::string command =
       "sh -c 'ulimit -f 8; exec " + std::string(HINDSIGHT_CLI_PATH) +

@@ -9,6 +9,7 @@
 #include "support/run_cli.h"
 
 #include "support/file_checks.h"
+#include "support/fresh_directory.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -51,14 +52,7 @@ Config coarseConfig(const std::string& objective = "psi1", int iterations = 8) {
   return config;
 }
 
-// A fresh, empty directory per test under the system temporary directory.
-std::string freshDirectory(const std::string& name) {
-  const fs::path path =
-      fs::temp_directory_path() / ("hindsight_optimizer_test_" + std::to_string(::getpid())) / name;
-  fs::remove_all(path);
-  fs::create_directories(path.parent_path());
-  return path.string();
-}
+using testing::freshDirectory;
 
 bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 // Whether a temporary file of the atomic write of `path` (PATH.tmp-PID-N) is left in its directory.

@@ -3,6 +3,7 @@
 // StorageError without leaving files behind.
 #include <hindsight/problems/topopt/pictures.h>
 #include "support/file_checks.h"
+#include "support/fresh_directory.h"
 
 #include <gtest/gtest.h>
 #include <png.h>
@@ -23,11 +24,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh, empty directory per test.
+// A fresh, empty directory per test (tests/support/fresh_directory.h removes it at the end).
 fs::path TestDirectory() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(::testing::TempDir()) / "hindsight_pictures" / info->name();
-  fs::remove_all(dir);
+  const fs::path dir = testing::freshDirectory(std::string("pictures/") + info->name());
   fs::create_directories(dir);
   return dir;
 }

@@ -12,6 +12,8 @@
 #include <climits>
 #include <ostream>
 
+#include "support/storage_fixtures.h"
+
 namespace hindsight {
 namespace {
 
@@ -40,7 +42,8 @@ void setIntAttribute(const std::string& path, const char* name, int value) {
 }
 
 TEST(ResultsFileDamage, ClaimedSizesAreCheckedBeforeAllocating) {
-  const std::string path = ::testing::TempDir() + "/hindsight_claimed_sizes.h5";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  const std::string path = scratch.path() + "/hindsight_claimed_sizes.h5";
   const struct {
     const char* attribute;
     int value;
@@ -81,7 +84,8 @@ TEST(ResultsFileFingerprint, StoredAndRecomputedFromTheConfiguration) {
   config.simulation.step = 1e-3;
   config.optimization.iterations = 1;
   OptimizationRunOptions options;
-  options.outputDirectory = ::testing::TempDir() + "/hindsight_fingerprint_run";
+  const testing::ScratchDirectory scratch;  // removed with what the test wrote
+  options.outputDirectory = scratch.path() + "/hindsight_fingerprint_run";
   options.force = true;
   {
     OptimizationRun run(config, options);
