@@ -56,7 +56,7 @@
 // halfway back to the previous, successfully evaluated design x_{k-1} (kept in the MMA state as
 // xold1), up to maxBacktracks times; the record counts the halvings. Deterministic, so restart stays
 // bit-identical. It keeps a run alive; it does not make the standard MMA move limit 0.5 a good choice for
-// this problem (optimization.moveLimit 0.1-0.2 descends steadily on it).
+// this problem (optimization.moveLimit 0.1-0.2 descends steadily on it; the default is 0.2).
 //
 // Opt-in additions: GCMMA, the frequency guard, projection (defaults keep every bit of the runs above):
 //  * optimization.method = gcmma: the update is GCMMA (problems/topopt/gcmma.h) instead of MMA; its

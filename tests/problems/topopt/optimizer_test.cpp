@@ -234,6 +234,7 @@ TEST(TopologyOptimizer, DivergedSimulationIsBacktrackedTowardThePreviousDesign) 
   // The paper's MMA with its move limit 0.5 overshoots into a soft design in the first steps (the
   // default adaptive move limit halves after such a step and may never reach one).
   config.optimization.method = "mma";
+  config.optimization.moveLimit = 0.5;
   TopologyOptimizer optimizer(config);
   std::vector<IterationRecord> history;
   Vector failing;

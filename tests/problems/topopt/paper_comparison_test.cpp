@@ -12,11 +12,13 @@
 namespace hindsight {
 namespace {
 
-// The paper's own method, as the README names it: MMA with asymptotes no closer than 0.01, 50 updates,
-// no stopping rule (the default, mma-adaptive to its stopping rule, is bench/headline.py's subject).
+// The paper's own method, as the README names it: MMA with the move limit 0.5 and asymptotes no closer
+// than 0.01, 50 updates, no stopping rule (the default, mma-adaptive to its stopping rule, is
+// bench/headline.py's subject).
 Config paperConfig() {
   Config config;
   config.optimization.method = "mma";
+  config.optimization.moveLimit = 0.5;
   config.optimization.minAsymptoteDistance = 0.01;
   config.optimization.kktTolerance = 0.0;
   config.optimization.iterations = 50;
