@@ -349,6 +349,7 @@ std::int64_t Executor::recordForward(std::int64_t n, bool* isRecord) {
   const std::int64_t index = push(n, record);
   checkpoints_.back().filled = record;
   if (n == 0) tasks_.push_back(Task{index, chainLength_, chainUnits_, true, -1});
+  lastStored_ = Stored{true, record, record, chainLength_, chainUnits_};
   // The next checkpoint of the chain: the sweep interval starting here.
   const std::int64_t k = chainLength_ >= 2 ? plan_->decision(true, record, chainLength_, chainUnits_) : 0;
   if (k == 0) {
@@ -363,6 +364,42 @@ std::int64_t Executor::recordForward(std::int64_t n, bool* isRecord) {
   }
   *isRecord = record;
   return checkpoints_.back().ref;
+}
+
+Executor::AnchorUse Executor::lastStoredUse() const {
+  // restoreStep's treatment of an anchor, step by step: the left part of a split keeps the anchor and its
+  // units; only the advances from the anchor and its record's capture matter here.
+  AnchorUse use;
+  bool record = lastStored_.record, filled = lastStored_.filled;
+  std::int64_t length = lastStored_.length, units = lastStored_.units;
+  if (lastStored_.sweep && length >= 2) {
+    const std::int64_t k = plan_->decision(true, record, length, units);
+    if (k == 0) {
+      use.advances = length - 1;
+      length = 1;
+    } else {
+      length = k < 0 ? -k : k;  // the left part, a replay interval
+    }
+  }
+  while (length >= 2) {
+    const std::int64_t k = plan_->decision(false, record, length, units);
+    if (k == Plan::kUpgradeAnchor) {
+      record = true;
+      filled = false;
+      units -= plan_->recordUnits() - 1;
+      continue;
+    }
+    // The first advance from a record captures its stage values.
+    if (record) filled = true;
+    if (k == 0) {
+      use.advances += length - 1;
+      break;
+    }
+    ++use.advances;
+    length = k < 0 ? -k : k;
+  }
+  use.filledAtDelivery = record && filled;
+  return use;
 }
 
 // ---- Simulation without states ----
@@ -810,7 +847,7 @@ void CamsCheckpointing::predict(const TrajectoryStorage& storage, const StorageS
         " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
   }
   const std::int64_t units = strategy.usableUnits(stateBytes, online);
-  const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+  const std::int64_t recordUnits = recordUnitsOfStages(stages);
   cams::PlanCounts c;
   if (online) {
     // Online placement, each interval reversed by the optimal plan.
@@ -852,8 +889,7 @@ void CamsCheckpointing::writeActions(const TrajectoryStorage& storage, const Sto
   // none for one stage.
   const std::int64_t units = cams.usableUnits(request.stateBytes, false);
   std::vector<cams::Action> actions;
-  const std::int64_t recordUnits =
-      request.stages > 1 ? request.stages : std::numeric_limits<std::int32_t>::max();
+  const std::int64_t recordUnits = recordUnitsOfStages(request.stages);
   cams::simulate(cams::Plan(request.steps, units, recordUnits), &actions);
   for (const cams::Action& a : actions) {
     switch (a.kind) {

@@ -185,6 +185,17 @@ class Executor {
   void restoreStep(std::int64_t e, Visitor& visitor);
   std::int64_t heldUnits() const { return top_; }
 
+  /// How the checkpoint stored last (by recordForward, or reported to the visitor's store) is used until
+  /// it is delivered: the advances from it (each reads its state) and whether its step's stage values are
+  /// held then. Read from the plan's decisions for the interval it anchors, without running it: the action
+  /// stream (storage/checkpoint_actions.cpp) must know at a store whether the state is read back at all,
+  /// and at each read whether it is the last.
+  struct AnchorUse {
+    std::int64_t advances = 0;
+    bool filledAtDelivery = false;
+  };
+  AnchorUse lastStoredUse() const;
+
  private:
   struct Checkpoint {
     std::int64_t position;
@@ -235,6 +246,11 @@ class Executor {
   // Forward sweep: the chain of the sweep interval.
   std::int64_t chainLength_ = 0, chainUnits_ = 0, chainPosition_ = 0, nextForward_ = 0;
   bool nextForwardRecord_ = false;
+  // The interval the checkpoint stored last anchors first (lastStoredUse).
+  struct Stored {
+    bool sweep = false, record = false, filled = false;
+    std::int64_t length = 0, units = 0;
+  } lastStored_;
 };
 
 template <typename Visitor>
@@ -309,6 +325,7 @@ void Executor::restoreStep(std::int64_t e, Visitor& visitor) {
     } else {
       advanceFrom(left.anchor, anchor.position + offset, visitor);
       right.anchor = push(anchor.position + offset, record);
+      lastStored_ = Stored{false, record, false, right.length, right.units};
       visitor.store(checkpoints_.back().ref, anchor.position + offset, record);
     }
     tasks_.push_back(right);
@@ -334,6 +351,11 @@ class CamsCheckpointing final : public TrajectoryStorage {
   /// units; the online mode (online=1) is refused, its placement not being a fixed plan.
   static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
                            const PredictionRequest& request, std::ostream& out);
+  /// The record units of the plans predict and writeActions make for an explicit Runge-Kutta method of
+  /// `stages` stages: the state and S - 1 stage states; none (more than any budget) for one stage.
+  static std::int64_t recordUnitsOfStages(int stages) {
+    return stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+  }
 
   std::string spec() const override;
   bool isExact() const override { return true; }

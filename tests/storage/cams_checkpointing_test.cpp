@@ -15,6 +15,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <map>
+#include <random>
 
 namespace hindsight {
 namespace {
@@ -169,6 +171,59 @@ TEST(CamsPlan, ActionStreamReplaysTheCounts) {
   }
   EXPECT_EQ(advanced, counts.recomputedSteps);
   EXPECT_EQ(delivered, 40);
+}
+
+// Executor::lastStoredUse reads a checkpoint's future from the plan's decisions (the action stream counts
+// its reads by it): here the executor runs and every anchor's advances and held stage values at its
+// delivery are counted and compared with what was read when it was stored.
+TEST(CamsPlan, LastStoredUseIsWhatTheExecutorDoesWithTheCheckpoint) {
+  struct Visitor {
+    cams::Executor& executor;
+    std::map<std::int64_t, std::pair<cams::Executor::AnchorUse, std::int64_t>> byRef;  // read, counted
+    std::int64_t loaded = -1, stored = 0, delivered = 0;
+    void add(std::int64_t ref) {
+      EXPECT_EQ(byRef.count(ref), 0u);  // a unit is reused only after its checkpoint was delivered
+      byRef[ref] = {executor.lastStoredUse(), 0};
+      ++stored;
+    }
+    void store(std::int64_t ref, std::int64_t, bool) { add(ref); }
+    void upgrade(std::int64_t, std::int64_t) {}
+    void capture(std::int64_t, std::int64_t) {}
+    void load(std::int64_t ref) { loaded = ref; }
+    void advance(std::int64_t, std::int64_t) {
+      if (loaded >= 0) ++byRef.at(loaded).second;  // one advance from the checkpoint per load
+      loaded = -1;
+    }
+    void deliver(std::int64_t, std::int64_t ref, bool filled) {
+      loaded = -1;
+      if (ref < 0) return;  // a position replayed without a checkpoint of its own
+      const auto it = byRef.find(ref);
+      ASSERT_NE(it, byRef.end());
+      EXPECT_EQ(it->second.second, it->second.first.advances);
+      EXPECT_EQ(filled, it->second.first.filledAtDelivery);
+      byRef.erase(it);
+      ++delivered;
+    }
+  };
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 300; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(1, trial < 200 ? 60 : 700)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 25)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    SCOPED_TRACE("N = " + std::to_string(n) + ", M = " + std::to_string(m) + ", w = " + std::to_string(w));
+    const cams::Plan plan(n, m, w);
+    cams::Executor executor;
+    executor.reset(&plan);
+    Visitor visitor{executor, {}};
+    for (std::int64_t k = 0; k < n; ++k) {
+      bool record = false;
+      const std::int64_t ref = executor.recordForward(k, &record);
+      if (ref >= 0) visitor.add(ref);
+    }
+    for (std::int64_t e = n - 1; e >= 0; --e) executor.restoreStep(e, visitor);
+    EXPECT_TRUE(visitor.byRef.empty());
+    EXPECT_EQ(visitor.delivered, visitor.stored);
+  }
 }
 
 TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {

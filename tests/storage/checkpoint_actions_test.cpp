@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
@@ -194,6 +195,43 @@ TEST(CheckpointActions, FullAndDiskStreamsWithoutNEndWhereTheHostFinalizes) {
   EXPECT_THROW(full->finalize(1), std::logic_error);  // the forward is at step 0
   EXPECT_THROW(openCheckpointStream("binomial:checkpoints=3", kUnknownSteps, 16, 4, nullptr),
                std::invalid_argument);
+}
+
+// cams' stream drives its plan's executor as the host consumes it and counts each checkpoint's reads when
+// it is stored (cams::Executor::lastStoredUse); the whole plan translated at once, with a first pass that
+// counts the reads, is the reference: the same actions, one for one, on random plans with and without
+// records, and a valid stream with the prediction's recomputation.
+TEST(CheckpointActions, CamsStreamIsTheWholePlansTranslationActionForAction) {
+  std::mt19937_64 rng(5);
+  for (int trial = 0; trial < 200; ++trial) {
+    const std::int64_t steps = std::uniform_int_distribution<std::int64_t>(1, trial < 150 ? 50 : 800)(rng);
+    const std::int64_t checkpoints = std::uniform_int_distribution<std::int64_t>(1, 40)(rng);
+    const int stages = std::uniform_int_distribution<int>(1, 6)(rng);
+    const std::string spec = "cams:checkpoints=" + std::to_string(checkpoints);
+    SCOPED_TRACE(spec + ", N = " + std::to_string(steps) + ", stages " + std::to_string(stages));
+    const std::vector<CheckpointAction> eager = translateCheckpointPlan(spec, steps, 16, stages, nullptr);
+    const std::unique_ptr<CheckpointStream> stream = openCheckpointStream(spec, steps, 16, stages, nullptr);
+    CheckpointStreamChecker checker(steps);
+    CheckpointAction a;
+    std::size_t i = 0;
+    for (; stream->next(&a); ++i) {
+      ASSERT_LT(i, eager.size()) << a.text();
+      ASSERT_EQ(a.text(), eager[i].text()) << "action " << i;
+      checker.take(a);
+    }
+    EXPECT_EQ(i, eager.size());
+    const CheckpointStreamCounts c = checker.finish();
+    const SchedulePrediction p = predictSchedule(spec, steps, 16, stages, nullptr);
+    EXPECT_EQ(c.recomputedSteps, p.recomputedSteps);
+    EXPECT_EQ(c.adjointReruns, p.adjointRecomputations);
+  }
+  // Beyond the plan's tables the stream is refused before its first action, naming the limit.
+  try {
+    openCheckpointStream("cams:checkpoints=100", 1'000'000, 16, 4, nullptr);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("12500000 table entries"), std::string::npos) << e.what();
+  }
 }
 
 // The stream's state is checkpoint_schedules' n (where the forward is) and r (adjoint steps taken).
