@@ -322,6 +322,7 @@ void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64
   units = std::min(units, plan->memoryUnits());  // more cannot help
   reserve(std::min(units, length));
   checkpoints_.push_back(Checkpoint{position, ref, false, false});
+  lastStored_ = Stored{false, false, false, length, units};
   top_ = ref + 1;
   limit_ = top_ + units;
   tasks_.push_back(Task{0, length, units, false, -1});
@@ -470,8 +471,8 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 
 // ---- Online mode ----
 
-const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
-                               std::int64_t recordUnits) {
+std::int64_t onlineIntervalPlanSteps(std::int64_t longest, std::int64_t memoryUnits,
+                                     std::int64_t recordUnits) {
   const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
   // The longest interval, up to kMaxIntervalPlanSteps, whose plan is within Plan::kMaxTableEntries (it uses
   // min(units, (l + 1) w) units); longer ones are reversed by revolve.
@@ -488,7 +489,13 @@ const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longe
     else
       hi = mid - 1;
   }
-  const std::int64_t length = lo;
+  return lo;
+}
+
+const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
+                               std::int64_t recordUnits) {
+  const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
+  const std::int64_t length = onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
   if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
       cached->memoryUnits() < std::min(units, (length + 1) * recordUnits)) {
     cached = std::make_unique<Plan>(length, units, recordUnits);

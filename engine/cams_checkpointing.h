@@ -142,7 +142,11 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 /// 3 s with 11 units (bench/RESULTS.md, "Stage-aware storage"). Revolve is that plan without records (the
 /// file comment); the longer intervals give up only what records would save.
 constexpr std::int64_t kMaxIntervalPlanSteps = std::int64_t{1} << 15;
-/// The plan for intervals up to `longest` steps (at most what kMaxIntervalPlanSteps allows) with M - 1
+/// The longest interval the online mode reverses by its plan, for intervals up to `longest` steps and M
+/// units: at most `longest`, kMaxIntervalPlanSteps and what Plan::kMaxTableEntries allows with M - 1 units.
+std::int64_t onlineIntervalPlanSteps(std::int64_t longest, std::int64_t memoryUnits,
+                                     std::int64_t recordUnits);
+/// The plan for intervals up to `longest` steps (at most onlineIntervalPlanSteps) with M - 1
 /// units, reusing `cached` when it covers them (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits);

@@ -644,12 +644,28 @@ namespace {
 // plan. Memory: the plan's tables and O(checkpoints) of translation. The events are the ones
 // CamsCheckpointing::writeActions prints (cams::simulate's actions: consecutive advances merged, no loads),
 // so the stream is translateCheckpointPlan's action for action (tests/storage/checkpoint_actions_test.cpp).
+//
+// online=1 with N known: the forward run writes the checkpoints the online placement holds when the run
+// ends (OnlinePlacement::simulate, O(N) time and O(c) memory before the first action; the ones it would
+// have thinned away are never written), x_{N-1} stays the working state, and each interval is reversed by
+// the interval plan as cams::simulateOnline does -- the plan made when the forward run ends, the first
+// Reverse waiting for it. Intervals longer than that plan (revolve's, whose slots this translation does
+// not express) are refused when the stream is opened.
 class CamsPlanStream final : public CheckpointStream {
  public:
   CamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan)
       : CheckpointStream(steps), plan_(std::move(plan)), translator_(steps, &usage_, true) {
     executor_.reset(plan_.get());
   }
+  CamsPlanStream(std::int64_t steps, std::vector<std::int64_t> positions, std::int64_t memoryUnits,
+                 std::int64_t recordUnits)
+      : CheckpointStream(steps),
+        online_(true),
+        positions_(std::move(positions)),
+        versions_(positions_.size(), -1),
+        memoryUnits_(memoryUnits),
+        recordUnits_(recordUnits),
+        translator_(steps, &usage_, true) {}
 
  private:
   struct Visitor {
@@ -702,13 +718,57 @@ class CamsPlanStream final : public CheckpointStream {
                                false});
   }
 
+  // online: the placement's checkpoint `index`, stored in the forward run; its reads are counted when its
+  // interval begins (the plan does not exist before), until then it is only known to be read (every
+  // interval's anchor is: advanced from, or delivered by a load).
+  void storeOnline(std::size_t index) {
+    versions_[index] = translator_.nextVersion();
+    usage_.loads[versions_[index]] = 1;
+    translator_.feed(PlanEvent{PlanEvent::Kind::kStore, CheckpointStorage::kRam,
+                               "at " + std::to_string(positions_[index]), positions_[index], 0, false});
+  }
+  void restoreOnline(std::int64_t e, Visitor& visitor) {
+    if (e == maxN_ - 1) {  // the working state: the forward run's last step writes its adjoint data
+      translator_.feed(PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", e, e, false});
+      return;
+    }
+    if (!plan_) {
+      const std::int64_t longest = internal::OnlinePlacement::longestInterval(positions_, maxN_);
+      cams::onlineIntervalPlan(plan_, longest, memoryUnits_, recordUnits_);
+      executor_.reserve(std::min(memoryUnits_, longest + 1));
+    }
+    if (e < interval_.start) {
+      // As cams::simulateOnline: interval j's checkpoint in unit j, the units above it free.
+      interval_ = internal::OnlinePlacement::intervalOf(positions_, maxN_, e, interval_.index);
+      executor_.beginInterval(plan_.get(), interval_.start, interval_.index, interval_.length,
+                              memoryUnits_ - interval_.index - 1);
+      const cams::Executor::AnchorUse use = executor_.lastStoredUse();
+      usage_.loads[versions_[static_cast<std::size_t>(interval_.index)]] =
+          use.advances + (use.filledAtDelivery ? 0 : 1);
+    }
+    executor_.restoreStep(e, visitor);
+  }
+
   bool doNext(CheckpointAction* action) override {
     std::deque<CheckpointAction>& out = translator_.actions();
     while (out.empty()) {
-      if (forward_ < maxN_) {
+      if (forward_ < maxN_ && online_) {
+        // Straight to the next held position (the forward run is cut only where it writes).
+        if (nextPosition_ < positions_.size()) {
+          forward_ = positions_[nextPosition_];
+          storeOnline(nextPosition_++);
+          ++forward_;
+        } else {
+          forward_ = maxN_;
+        }
+      } else if (forward_ < maxN_) {
         bool record = false;
         if (executor_.recordForward(forward_, &record) >= 0) store(forward_, record, /*forwardSweep=*/true);
         ++forward_;
+      } else if (restore_ >= 0 && online_) {
+        Visitor visitor{*this};
+        restoreOnline(restore_--, visitor);
+        flushAdvance();
       } else if (restore_ >= 0) {
         Visitor visitor{*this};
         executor_.restoreStep(restore_--, visitor);
@@ -725,6 +785,11 @@ class CamsPlanStream final : public CheckpointStream {
     return true;
   }
 
+  bool online_ = false;
+  std::vector<std::int64_t> positions_, versions_;  // online: the held positions, their checkpoints' versions
+  std::size_t nextPosition_ = 0;
+  std::int64_t memoryUnits_ = 0, recordUnits_ = 0;
+  internal::OnlinePlacement::Interval interval_{static_cast<std::int64_t>(positions_.size()), maxN_, 0};
   std::unique_ptr<cams::Plan> plan_;
   cams::Executor executor_;
   Translator::Usage usage_;
@@ -738,6 +803,28 @@ class CamsPlanStream final : public CheckpointStream {
 
 std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan) {
   return std::make_unique<CamsPlanStream>(steps, std::move(plan));
+}
+
+std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
+                                                       std::int64_t recordUnits) {
+  if (steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "cams with online=1 streams steps up to " + std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24: its placement is walked step by step before the first action); steps = " +
+        std::to_string(steps));
+  }
+  std::vector<std::int64_t> positions =
+      internal::OnlinePlacement::simulate(steps, memoryUnits - 1, nullptr, nullptr);
+  const std::int64_t longest = internal::OnlinePlacement::longestInterval(positions, steps);
+  const std::int64_t planned = cams::onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
+  if (longest > planned) {
+    throw std::invalid_argument(
+        "cams with online=1: the placement of " + std::to_string(steps) + " steps has an interval of " +
+        std::to_string(longest) + " steps, beyond the " + std::to_string(planned) +
+        " its plan reverses (longer ones are revolve's, which the action stream does not translate); "
+        "raise cams.checkpoints/cams.budget or drop online=1");
+  }
+  return std::make_unique<CamsPlanStream>(steps, std::move(positions), memoryUnits, recordUnits);
 }
 
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,

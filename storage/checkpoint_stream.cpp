@@ -272,6 +272,8 @@ class StoredStream final : public CheckpointStream {
 
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
 std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan);
+std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
+                                                       std::int64_t recordUnits);
 
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specText, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
@@ -330,21 +332,17 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
   if (name == "cams") {
     // Every check of the plan: the spec and the sizes (at one step: the prediction at N would build the
     // plan a second time), the units of the budget, then the plan at N (refused beyond
-    // cams::Plan::kMaxTableEntries table entries), built once before the first action.
+    // cams::Plan::kMaxTableEntries table entries), built once before the first action; online=1 places
+    // its checkpoints first (O(N)) and plans its intervals when the forward run ends.
     if (steps < 1 || steps > kMaxScheduleSteps) predictSchedule(specText, steps, stateBytes, stages, costs);
     predictSchedule(specText, 1, stateBytes, stages, costs);
     const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
     const auto& strategy = dynamic_cast<const CamsCheckpointing&>(*storage);
-    if (strategy.onlineRequested()) {
-      throw std::invalid_argument(
-          "cams with online=1 has no action stream: its placement thins checkpoints during the forward run "
-          "(docs/guides/switching_from_checkpoint_schedules.md); drop online=1 (the optimal plan, its tables "
-          "N (M + 1) <= " +
-          std::to_string(cams::Plan::kMaxTableEntries) + " entries) or use binomial");
-    }
-    return openCamsPlanStream(steps,
-                              std::make_unique<cams::Plan>(steps, strategy.usableUnits(stateBytes, false),
-                                                           CamsCheckpointing::recordUnitsOfStages(stages)));
+    const bool online = strategy.onlineRequested();
+    const std::int64_t units = strategy.usableUnits(stateBytes, online);
+    const std::int64_t recordUnits = CamsCheckpointing::recordUnitsOfStages(stages);
+    if (online) return openCamsOnlineStream(steps, units, recordUnits);
+    return openCamsPlanStream(steps, std::make_unique<cams::Plan>(steps, units, recordUnits));
   }
   if (name == "mixed") {
     predictSchedule(specText, 1, stateBytes, stages, costs);  // the spec's keys and sizes checked

@@ -67,6 +67,7 @@ def run(actions, steps, a=0.3, schedule=None):
 
 
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
+                                         ("cams:checkpoints=3,online=1", 1), ("cams:checkpoints=6,online=1", 4),
                                          ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4),
                                          ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
@@ -117,6 +118,7 @@ def _families(rng):
     return [("full", 1, None, 0), ("disk:dir=unused", 4, 0, None),
             (f"binomial:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),
             (f"cams:checkpoints={c}", rng.choice([1, 4]), None, 0),
+            (f"cams:checkpoints={c},online=1", rng.choice([1, 4]), None, 0),
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
              ram, disk),
             (f"mixed:checkpoints={c}", 1, c, 0)]  # c units: restart states and adjoint data alike
@@ -270,7 +272,8 @@ def _their_validity_test():
     return cs, module.test_validity
 
 
-@pytest.mark.parametrize("family", ["full", "binomial", "cams", "multilevel", "full without N", "disk without N"])
+@pytest.mark.parametrize("family", ["full", "binomial", "cams", "cams online", "multilevel", "full without N",
+                                    "disk without N"])
 def test_checkpoint_schedules_own_host_runs_every_family(family):
     cs, test_validity = _their_validity_test()
     from hindsight.checkpoint_schedules import Schedule
@@ -286,8 +289,10 @@ def test_checkpoint_schedules_own_host_runs_every_family(family):
                     {cs.StorageType.RAM: 0 if disk else n, cs.StorageType.DISK: n if disk else 0}, 1)
         if family == "binomial":
             return Schedule(f"binomial:checkpoints={s}", n), {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: 0}, 1
-        if family == "cams":
-            return Schedule(f"cams:checkpoints={s}", n, stages=4), {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1
+        if family.startswith("cams"):
+            online = ",online=1" if family.endswith("online") else ""
+            return (Schedule(f"cams:checkpoints={s}{online}", n, stages=4),
+                    {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1)
         return (Schedule(f"multilevel:ram={16 * (s + 1)},disk={16 * n},costs=1:1:0.5:0.5", n, state_bytes=16),
                 {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: n}, 1)
 
