@@ -154,7 +154,16 @@ Plan Plan::exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t
   return plan;
 }
 
-void Plan::build(bool exhaustiveSearch) {
+Plan Plan::replayOnly(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits) {
+  Plan plan;
+  plan.steps_ = steps;
+  plan.units_ = memoryUnits;
+  plan.recordUnits_ = recordUnits;
+  plan.build(false, false);
+  return plan;
+}
+
+void Plan::build(bool exhaustiveSearch, bool sweepTables) {
   if (steps_ < 1 || units_ < 1 || recordUnits_ < 1) {
     throw std::invalid_argument("cams plan: steps = " + std::to_string(steps_) +
                                 ", memory units = " + std::to_string(units_) +
@@ -171,12 +180,13 @@ void Plan::build(bool exhaustiveSearch) {
   }
   const std::int64_t w = recordUnits_;
   const auto row = static_cast<std::size_t>(N + 1);
-  for (auto* table : {&decisions_[0], &decisions_[1], &decisions_[2], &decisions_[3]})
-    table->assign(row * static_cast<std::size_t>(M + 1), 0);
+  const int tables = sweepTables ? 4 : 2;  // replay tables first: 2 * sweep + record
+  for (int table = 0; table < tables; ++table)
+    decisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
   // Values: only rows m, m - 1, m - (w - 1) and m - w are read, so a ring of min(w, M) + 1 rows.
   const std::int64_t ring = std::min(w, M) + 1;
   std::vector<std::int64_t> values[4];
-  for (auto& v : values) v.assign(row * static_cast<std::size_t>(ring), 0);
+  for (int table = 0; table < tables; ++table) values[table].assign(row * static_cast<std::size_t>(ring), 0);
   // Table index: 2 * sweep + record (the anchor's kind).
   const auto V = [&](int table, std::int64_t m, std::int64_t l) -> std::int64_t& {
     return values[table][static_cast<std::size_t>(m % ring) * row + static_cast<std::size_t>(l)];
@@ -191,7 +201,7 @@ void Plan::build(bool exhaustiveSearch) {
     return minorants[static_cast<std::size_t>(table * ring + m % ring)];
   };
   for (std::int64_t m = 0; m <= M; ++m) {
-    for (int table = 0; table < 4; ++table) {
+    for (int table = 0; table < tables; ++table) {
       V(table, m, 0) = 0;
       V(table, m, 1) = 1;
       Mn(table, m).reset();
@@ -209,7 +219,7 @@ void Plan::build(bool exhaustiveSearch) {
       // in Python) must not wait for it. One atomic load when nothing is installed.
       if ((l & 255) == 0) pollInterrupt();
       l0 = l - 1;
-      for (int sweep = 0; sweep <= 1; ++sweep) {
+      for (int sweep = 0; sweep < tables / 2; ++sweep) {
         // sweep = 0: replay interval (advancing to a checkpoint costs its steps); 1: the forward sweep runs
         // through the interval (advancing is free, its checkpoints are stored on the way).
         const int own = sweep == 1 ? kSweep : kReplay;
@@ -256,17 +266,18 @@ void Plan::build(bool exhaustiveSearch) {
       }
     }
     // Row m is complete; the top-level optimum needs rows M - 1 and M - w, read before they are overwritten.
+    if (!sweepTables) continue;
     if (m == M - 1) stateAnchor = N + V(kSweep + kState, m, N);
     if (m == M - w) recordAnchor = N + V(kSweep + kRecord, m, N) - 1;
   }
   // x_0 held as a state, or as a record (its stage values come free with the forward sweep's step 0).
-  anchorIsRecord_ = recordAnchor < stateAnchor;
-  optimum_ = std::min(stateAnchor, recordAnchor);
+  anchorIsRecord_ = sweepTables && recordAnchor < stateAnchor;
+  optimum_ = sweepTables ? std::min(stateAnchor, recordAnchor) : -1;
   units_ = M;
 }
 
 std::int64_t Plan::decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const {
-  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_);
+  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_ && !decisions_[(sweep ? 2 : 0)].empty());
   const auto index =
       static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
   return decisions_[(sweep ? 2 : 0) + (recordAnchor ? 1 : 0)][index];
@@ -498,7 +509,7 @@ const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longe
   const std::int64_t length = onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
   if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
       cached->memoryUnits() < std::min(units, (length + 1) * recordUnits)) {
-    cached = std::make_unique<Plan>(length, units, recordUnits);
+    cached = std::make_unique<Plan>(Plan::replayOnly(length, units, recordUnits));
   }
   return *cached;
 }

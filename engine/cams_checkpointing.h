@@ -103,6 +103,11 @@ class Plan {
   Plan(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
   /// The same plan from the exhaustive O(l) search over every split (for tests; small N only).
   static Plan exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+  /// The replay tables alone (decision(false, ...)): what the online mode's intervals read, each reversed
+  /// from a checkpoint the forward run stored, with no sweep running through it. They do not depend on the
+  /// sweep tables, so they are the full plan's, at half its time and memory; optimalStepEvaluations() and
+  /// anchorIsRecord() are not computed (-1, false) and recordForward cannot run on it.
+  static Plan replayOnly(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
 
   std::int64_t steps() const { return steps_; }
   /// The units the plan uses: min(M, (N + 1) w) (more cannot help).
@@ -118,7 +123,7 @@ class Plan {
 
  private:
   Plan() = default;
-  void build(bool exhaustiveSearch);
+  void build(bool exhaustiveSearch, bool sweepTables = true);
   std::int64_t steps_ = 0, units_ = 0, recordUnits_ = 0, optimum_ = 0;
   bool anchorIsRecord_ = false;
   // Per (sweep, anchor kind) a table, row m holding l = 0..N; decisions as int32 (N < 2^31 is checked).

@@ -226,6 +226,27 @@ TEST(CamsPlan, LastStoredUseIsWhatTheExecutorDoesWithTheCheckpoint) {
   }
 }
 
+// The online mode's interval plans build the replay tables alone: every decision is the full plan's.
+TEST(CamsPlan, ReplayOnlyPlanHasTheFullPlansReplayDecisions) {
+  std::mt19937_64 rng(13);
+  for (int trial = 0; trial < 60; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(1, 400)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 30)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    const cams::Plan full(n, m, w), replay = cams::Plan::replayOnly(n, m, w);
+    ASSERT_EQ(replay.memoryUnits(), full.memoryUnits());
+    EXPECT_EQ(replay.optimalStepEvaluations(), -1);
+    for (std::int64_t u = 0; u <= full.memoryUnits(); ++u) {
+      for (std::int64_t l = 1; l <= n; ++l) {
+        for (bool record : {false, true}) {
+          ASSERT_EQ(replay.decision(false, record, l, u), full.decision(false, record, l, u))
+              << "N = " << n << ", M = " << m << ", w = " << w << ", l = " << l << ", m = " << u;
+        }
+      }
+    }
+  }
+}
+
 TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {
   EXPECT_THROW(cams::Plan(0, 3, 1), std::invalid_argument);
   EXPECT_THROW(cams::Plan(10, 0, 1), std::invalid_argument);
