@@ -176,7 +176,8 @@ void Plan::build(bool exhaustiveSearch, bool sweepTables) {
     throw std::invalid_argument("cams: the plan for " + std::to_string(N) + " steps and " +
                                 std::to_string(M) + " state units needs more than " +
                                 std::to_string(kMaxTableEntries) +
-                                " table entries; lower cams.budget/cams.checkpoints or use binomial");
+                                " table entries; add online=1 (online placement, each interval reversed "
+                                "optimally), lower cams.budget/cams.checkpoints or use binomial");
   }
   const std::int64_t w = recordUnits_;
   const auto row = static_cast<std::size_t>(N + 1);
