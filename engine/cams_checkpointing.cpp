@@ -71,12 +71,22 @@ struct LowerBound {
   const Minorant& b;
   /// ceil(h(k)), exactly.
   std::int64_t ceiling(std::int64_t k) const {
-    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
-    const Wide den = static_cast<Wide>(sa.dx) * sb.dx;
-    const Wide num =
-        static_cast<Wide>(s * k + c) * den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
+    Wide num, den;
+    fraction(k, &num, &den);
     const Wide q = num / den;  // truncated towards zero; den > 0
     return static_cast<std::int64_t>(q * den < num ? q + 1 : q);
+  }
+  /// ceil(h(k)) < value, exactly and without a division: h(k) <= value - 1.
+  bool below(std::int64_t k, std::int64_t value) const {
+    Wide num, den;
+    fraction(k, &num, &den);
+    return num <= static_cast<Wide>(value - 1) * den;
+  }
+  /// h(k) = num / den, den > 0.
+  void fraction(std::int64_t k, Wide* num, Wide* den) const {
+    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
+    *den = static_cast<Wide>(sa.dx) * sb.dx;
+    *num = static_cast<Wide>(s * k + c) * *den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
   }
   /// h(k + 1) >= h(k), exactly (k + 1 <= the last x of a).
   bool risesAfter(std::int64_t k) const {
@@ -108,11 +118,36 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
   for (std::int64_t k : {guess, guess + 1, l - 1}) {
     if (k >= 1 && k < l) consider(k);
   }
-  // h's minimum: the first k with h(k + 1) >= h(k) (h convex).
+  // h's minimum: the first k with h(k + 1) >= h(k) (h convex: false, then true; l - 1 if none in
+  // [1, l - 2]). Bracketed from the guess outwards in doubling steps, then bisected: the k a bisection
+  // over [1, l - 1] finds, in fewer evaluations (the minimum moves little from one l to the next).
   std::int64_t lo = 1, hi = l - 1;
+  const auto rises = [&](std::int64_t k) { return h.risesAfter(k); };
+  const std::int64_t start = std::min(std::max(guess, lo), hi);
+  if (start < hi && !rises(start)) {
+    lo = start + 1;
+    for (std::int64_t step = 1; lo + step - 1 < hi; step *= 2) {
+      const std::int64_t k = lo + step - 1;
+      if (rises(k)) {
+        hi = k;
+        break;
+      }
+      lo = k + 1;
+    }
+  } else {
+    hi = start;
+    for (std::int64_t step = 1; hi - step >= lo; step *= 2) {
+      const std::int64_t k = hi - step;
+      if (!rises(k)) {
+        lo = k + 1;
+        break;
+      }
+      hi = k;
+    }
+  }
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (h.risesAfter(mid))
+    if (rises(mid))
       hi = mid;
     else
       lo = mid + 1;
@@ -120,17 +155,26 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
   const std::int64_t kMin = lo;
   const std::int64_t floorValue = h.ceiling(kMin);
   if (floorValue >= best) return {bestK, best};
-  // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin).
+  // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin; kMin's is):
+  // bracketed down from kMin in doubling steps, then bisected.
   lo = 1, hi = kMin;
+  for (std::int64_t step = 1; hi - step >= lo; step *= 2) {
+    const std::int64_t k = hi - step;
+    if (!h.below(k, best)) {
+      lo = k + 1;
+      break;
+    }
+    hi = k;
+  }
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (h.ceiling(mid) < best)
+    if (h.below(mid, best))
       hi = mid;
     else
       lo = mid + 1;
   }
   for (std::int64_t k = lo; k < l; ++k) {
-    if (k > kMin && h.ceiling(k) >= best) break;  // bounds rise from kMin on
+    if (k > kMin && !h.below(k, best)) break;  // bounds rise from kMin on
     const std::int64_t value = g(k);
     if (value < best) best = value, bestK = k;
     if (best == floorValue) break;

@@ -104,6 +104,22 @@ TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearch) {
   }
 }
 
+// The split search brackets h's minimum from the previous length's split and compares bounds without
+// dividing: on random plans the result is still the exhaustive search's optimum, and the executor
+// attains it.
+TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearchOnRandomPlans) {
+  std::mt19937_64 rng(17);
+  for (int trial = 0; trial < 40; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(2, 500)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 40)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    const cams::Plan fast(n, m, w);
+    EXPECT_EQ(fast.optimalStepEvaluations(), cams::Plan::exhaustive(n, m, w).optimalStepEvaluations())
+        << "N = " << n << ", M = " << m << ", w = " << w;
+    EXPECT_EQ(cams::simulate(fast).stepEvaluations(), fast.optimalStepEvaluations());
+  }
+}
+
 TEST(CamsPlan, WithoutRecordsItIsBinomialOverTheSameSlots) {
   // binomial:checkpoints=C holds C + 1 states and reverses by revolve over all of them (positions 0..N,
   // engine/binomial_checkpointing.h), the optimum of the game of charged states; its cost in steps is
