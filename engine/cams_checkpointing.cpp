@@ -226,8 +226,13 @@ void Plan::build(bool exhaustiveSearch, bool sweepTables) {
   const std::int64_t w = recordUnits_;
   const auto row = static_cast<std::size_t>(N + 1);
   const int tables = sweepTables ? 4 : 2;  // replay tables first: 2 * sweep + record
-  for (int table = 0; table < tables; ++table)
-    decisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
+  narrow_ = N <= kMaxNarrowSteps;
+  for (int table = 0; table < tables; ++table) {
+    if (narrow_)
+      narrowDecisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
+    else
+      decisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
+  }
   // Values: only rows m, m - 1, m - (w - 1) and m - w are read, so a ring of min(w, M) + 1 rows.
   const std::int64_t ring = std::min(w, M) + 1;
   std::vector<std::int64_t> values[4];
@@ -256,7 +261,7 @@ void Plan::build(bool exhaustiveSearch, bool sweepTables) {
     const std::size_t base = static_cast<std::size_t>(m) * row;
     // The split of the interval one step shorter seeds the search.
     const auto guess = [&](int table) {
-      const std::int32_t d = decisions_[table][base + static_cast<std::size_t>(l0)];
+      const std::int32_t d = storedDecision(table, base + static_cast<std::size_t>(l0));
       return d == kUpgradeAnchor ? std::int64_t{0} : std::abs(static_cast<std::int64_t>(d));
     };
     for (std::int64_t l = 2; l <= N; ++l) {
@@ -306,7 +311,7 @@ void Plan::build(bool exhaustiveSearch, bool sweepTables) {
           }
           V(own + t, m, l) = best;
           Mn(own + t, m).push(l, best);
-          decisions_[own + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
+          storeDecision(own + t, base + static_cast<std::size_t>(l), decision);
         }
       }
     }
@@ -322,10 +327,11 @@ void Plan::build(bool exhaustiveSearch, bool sweepTables) {
 }
 
 std::int64_t Plan::decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const {
-  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_ && !decisions_[(sweep ? 2 : 0)].empty());
+  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_ &&
+         !(narrow_ ? narrowDecisions_ : decisions_)[sweep ? 2 : 0].empty());
   const auto index =
       static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
-  return decisions_[(sweep ? 2 : 0) + (recordAnchor ? 1 : 0)][index];
+  return storedDecision((sweep ? 2 : 0) + (recordAnchor ? 1 : 0), index);
 }
 
 // ---- Executor ----

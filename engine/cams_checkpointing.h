@@ -128,6 +128,25 @@ class Plan {
   bool anchorIsRecord_ = false;
   // Per (sweep, anchor kind) a table, row m holding l = 0..N; decisions as int32 (N < 2^31 is checked).
   std::vector<std::int32_t> decisions_[4];
+  // The same as int16 when every decision fits (N <= 2^15: offsets below 2^15, kUpgradeAnchor kept as
+  // INT16_MIN): half the memory of the online mode's interval plans (2^15 steps at most) and of short
+  // exact plans.
+  static constexpr std::int64_t kMaxNarrowSteps = std::int64_t{1} << 15;
+  std::vector<std::int16_t> narrowDecisions_[4];
+  bool narrow_ = false;
+  std::int32_t storedDecision(int table, std::size_t index) const {
+    if (!narrow_) return decisions_[table][index];
+    const std::int16_t d = narrowDecisions_[table][index];
+    return d == std::numeric_limits<std::int16_t>::min() ? kUpgradeAnchor : d;
+  }
+  void storeDecision(int table, std::size_t index, std::int64_t decision) {
+    if (!narrow_) {
+      decisions_[table][index] = static_cast<std::int32_t>(decision);
+    } else {
+      narrowDecisions_[table][index] = decision == kUpgradeAnchor ? std::numeric_limits<std::int16_t>::min()
+                                                                  : static_cast<std::int16_t>(decision);
+    }
+  }
 };
 
 /// Runs the plan without states: counts, and optionally the action stream.

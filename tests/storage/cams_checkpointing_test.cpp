@@ -263,6 +263,26 @@ TEST(CamsPlan, ReplayOnlyPlanHasTheFullPlansReplayDecisions) {
   }
 }
 
+// Plans of up to 2^15 steps keep their decisions as int16, longer ones as int32; a row does not depend on
+// the plan's N, so both hold the same decisions where they overlap, and the longer one attains its optimum.
+TEST(CamsPlan, NarrowAndWideDecisionTablesAgree) {
+  for (std::int64_t w : std::initializer_list<std::int64_t>{2, 4}) {
+    const std::int64_t narrowSteps = std::int64_t{1} << 15;
+    const cams::Plan narrow(narrowSteps, 4, w), wide(narrowSteps + 1000, 4, w);
+    for (std::int64_t m = 0; m <= 4; ++m) {
+      for (std::int64_t l = 1; l <= narrowSteps; ++l) {
+        for (int table = 0; table < 4; ++table) {
+          ASSERT_EQ(narrow.decision(table >= 2, table % 2 == 1, l, m),
+                    wide.decision(table >= 2, table % 2 == 1, l, m))
+              << "l = " << l << ", m = " << m << ", w = " << w;
+        }
+      }
+    }
+    EXPECT_EQ(cams::simulate(wide).stepEvaluations(), wide.optimalStepEvaluations());
+    EXPECT_EQ(cams::simulate(narrow).stepEvaluations(), narrow.optimalStepEvaluations());
+  }
+}
+
 TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {
   EXPECT_THROW(cams::Plan(0, 3, 1), std::invalid_argument);
   EXPECT_THROW(cams::Plan(10, 0, 1), std::invalid_argument);
