@@ -35,17 +35,19 @@
 // k-searches are exact: the rows are not convex in l (a record serves two steps, so parity shows), but each
 // row stays within a few units of its greatest convex minorant, kept as the row grows; the minorants give a
 // convex lower bound of the cost in k (computed exactly, in 128-bit integer arithmetic: a rounded bound could
-// prune the optimum), so only the k whose bound is below the best found so far (one interval, found by
-// bisection) are evaluated. Planning time is O(N M) searches, each scanning the flat part of that interval:
-// measured 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M = 1001 (bench/RESULTS.md). Tests check the
-// result against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
+// prune the optimum), so only the k whose bound is below the best found so far (one interval, bracketed
+// from the previous length's split and bisected) are evaluated. Planning time is O(N M) searches, each
+// scanning the flat part of that interval: measured 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M =
+// 1001 (bench/RESULTS.md). Tests check the result against the exhaustive O(l) search and against brute-force
+// enumeration of all schedules for small N.
 //
 // Memory: the checkpoints form a stack; the strategy allocates M units once in begin() and charges
 // them with holdBytes(): offline at most (N + 1) w units; the online mode, where N is unknown, at most
 // 10^6 + 1 units, all at begin() (a budget of B bytes allocates min(B, 10^6 + 1 states)). The plan
-// tables (16 bytes per (l, m) pair for l <= N, m <= M, plus the values of w + 1 rows while they are
-// built) are planning data, not trajectory data, and are not charged; begin() refuses
-// N (M + 1) > kMaxTableEntries with a message naming online=1.
+// tables (16 bytes per (l, m) pair for l <= N, m <= M, 8 for N <= 2^15; the online mode's interval plans
+// half of that, replay tables only; plus the values of w + 1 rows while they are built) are planning data,
+// not trajectory data, and are not charged; begin() refuses N (M + 1) > kMaxTableEntries with a message
+// naming online=1.
 //
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
 // the online mode below (checkpoints placed as `online` places them, each interval reversed by the
