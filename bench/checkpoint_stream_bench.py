@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Time to the first action, time to drain and peak memory of hindsight.checkpoint_schedule's streams
-(docs/guides/checkpoint_schedule.md): each case runs in a fresh interpreter, which reports its resident
-memory before opening the stream (the module loaded), after the first action and at the end (peak,
-getrusage's ru_maxrss). The results go to bench/RESULTS.md ("Checkpoint action streams").
+(docs/guides/checkpoint_schedule.md), every family at N = 10^6 where it streams that N: each case runs in a
+fresh interpreter, which reports its resident memory before opening the stream (the module loaded), after
+the first action and at the end (peak, getrusage's ru_maxrss), and the CPU seconds of the whole stream. A
+family that refuses the N says why (the first line of its error). The results go to bench/RESULTS.md
+("Checkpoint action streams").
 
     PYTHONPATH=build/python /usr/bin/python3 bench/checkpoint_stream_bench.py [--steps 1000000]
 """
@@ -21,8 +23,12 @@ def rss_mb():
     with open("/proc/self/status") as f:
         return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
 before = rss_mb()
-t0 = time.perf_counter()
-schedule = hindsight.checkpoint_schedule(spec, steps=steps, state_bytes=8)
+t0, c0 = time.perf_counter(), time.process_time()
+try:
+    schedule = hindsight.checkpoint_schedule(spec, steps=steps, state_bytes=8)
+except ValueError as error:
+    print(json.dumps({"refused": str(error).splitlines()[0], "seconds": time.perf_counter() - t0}))
+    sys.exit(0)
 first = next(schedule)
 t1 = time.perf_counter()
 after_first = rss_mb()
@@ -31,10 +37,15 @@ if drain:
     for _ in schedule:
         actions += 1
 t2 = time.perf_counter()
-print(json.dumps({"first_ms": 1e3 * (t1 - t0), "drain_s": t2 - t0, "actions": actions,
-                  "rss_before_mb": before, "rss_first_mb": after_first,
+print(json.dumps({"first_ms": 1e3 * (t1 - t0), "drain_s": t2 - t0, "cpu_s": time.process_time() - c0,
+                  "actions": actions, "rss_before_mb": before, "rss_first_mb": after_first,
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
+
+# cams' exact plan has tables of N (M + 1) entries, at most cams::Plan::kMaxTableEntries
+# (engine/cams_checkpointing.h): checkpoints=100 holds M = 101 units, so its largest N is this.
+CAMS_MAX_TABLE_ENTRIES = 12_500_000
+CAMS_LARGEST_N = CAMS_MAX_TABLE_ENTRIES // 102 - 1
 
 
 def main():
@@ -42,20 +53,26 @@ def main():
     parser.add_argument("--steps", type=int, default=1_000_000)
     args = parser.parse_args()
     multilevel = "multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5"  # 20 RAM states of 8 bytes, a large disk
-    cases = [("binomial:checkpoints=100", args.steps, True), ("binomial:checkpoints=10", args.steps, True),
-             ("full", args.steps, True), ("disk:dir=unused", args.steps, True), (multilevel, args.steps, True),
-             ("binomial:checkpoints=100", 1 << 40, False), (multilevel, 100_000_000, False),
-             ("cams:checkpoints=100", 10_000, True)]
+    n = args.steps
+    cases = [("binomial:checkpoints=100", n, True), ("binomial:checkpoints=10", n, True),
+             ("full", n, True), ("disk:dir=unused", n, True), (multilevel, n, True),
+             ("cams:checkpoints=100,online=1", n, True), ("online:checkpoints=100", n, True),
+             ("cams:checkpoints=100", n, True), ("cams:checkpoints=100", 10_000, True),
+             ("cams:checkpoints=100", CAMS_LARGEST_N, True),
+             ("binomial:checkpoints=100", 1 << 40, False), (multilevel, 100_000_000, False)]
     print(f"# {platform.node()}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; python {platform.python_version()}")
-    print("| spec | N | first action | whole stream | actions | RSS before / after first / peak |")
+    print("| spec | N | first action | whole stream (CPU) | actions | RSS before / after first / peak |")
     print("|---|---|---|---|---|---|")
     for spec, steps, drain in cases:
         out = subprocess.run([sys.executable, "-c", CASE, spec, str(steps), "1" if drain else "0"],
                              check=True, capture_output=True, text=True).stdout
         r = json.loads(out)
-        whole = f"{r['drain_s']:.2f} s" if drain else "(not drained)"
+        if "refused" in r:
+            print(f"| `{spec}` | {steps:,} | refused in {1e3 * r['seconds']:.1f} ms: {r['refused']} | | | |")
+            continue
+        whole = f"{r['drain_s']:.2f} s ({r['cpu_s']:.2f} s)" if drain else "(not drained)"
         print(f"| `{spec}` | {steps:,} | {r['first_ms']:.2f} ms | {whole} | {r['actions']:,} | "
-              f"{r['rss_before_mb']:.0f} / {r['rss_first_mb']:.0f} / {r['peak_rss_mb']:.0f} MB |")
+              f"{r['rss_before_mb']:.0f} / {r['rss_first_mb']:.0f} / {r['peak_rss_mb']:.0f} MB |", flush=True)
 
 
 if __name__ == "__main__":

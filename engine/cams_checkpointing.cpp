@@ -71,12 +71,22 @@ struct LowerBound {
   const Minorant& b;
   /// ceil(h(k)), exactly.
   std::int64_t ceiling(std::int64_t k) const {
-    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
-    const Wide den = static_cast<Wide>(sa.dx) * sb.dx;
-    const Wide num =
-        static_cast<Wide>(s * k + c) * den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
+    Wide num, den;
+    fraction(k, &num, &den);
     const Wide q = num / den;  // truncated towards zero; den > 0
     return static_cast<std::int64_t>(q * den < num ? q + 1 : q);
+  }
+  /// ceil(h(k)) < value, exactly and without a division: h(k) <= value - 1.
+  bool below(std::int64_t k, std::int64_t value) const {
+    Wide num, den;
+    fraction(k, &num, &den);
+    return num <= static_cast<Wide>(value - 1) * den;
+  }
+  /// h(k) = num / den, den > 0.
+  void fraction(std::int64_t k, Wide* num, Wide* den) const {
+    const Minorant::Segment sa = a.segment(k), sb = b.segment(l - k);
+    *den = static_cast<Wide>(sa.dx) * sb.dx;
+    *num = static_cast<Wide>(s * k + c) * *den + sa.numerator(k) * sb.dx + sb.numerator(l - k) * sa.dx;
   }
   /// h(k + 1) >= h(k), exactly (k + 1 <= the last x of a).
   bool risesAfter(std::int64_t k) const {
@@ -108,11 +118,36 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
   for (std::int64_t k : {guess, guess + 1, l - 1}) {
     if (k >= 1 && k < l) consider(k);
   }
-  // h's minimum: the first k with h(k + 1) >= h(k) (h convex).
+  // h's minimum: the first k with h(k + 1) >= h(k) (h convex: false, then true; l - 1 if none in
+  // [1, l - 2]). Bracketed from the guess outwards in doubling steps, then bisected: the k a bisection
+  // over [1, l - 1] finds, in fewer evaluations (the minimum moves little from one l to the next).
   std::int64_t lo = 1, hi = l - 1;
+  const auto rises = [&](std::int64_t k) { return h.risesAfter(k); };
+  const std::int64_t start = std::min(std::max(guess, lo), hi);
+  if (start < hi && !rises(start)) {
+    lo = start + 1;
+    for (std::int64_t step = 1; lo + step - 1 < hi; step *= 2) {
+      const std::int64_t k = lo + step - 1;
+      if (rises(k)) {
+        hi = k;
+        break;
+      }
+      lo = k + 1;
+    }
+  } else {
+    hi = start;
+    for (std::int64_t step = 1; hi - step >= lo; step *= 2) {
+      const std::int64_t k = hi - step;
+      if (!rises(k)) {
+        lo = k + 1;
+        break;
+      }
+      hi = k;
+    }
+  }
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (h.risesAfter(mid))
+    if (rises(mid))
       hi = mid;
     else
       lo = mid + 1;
@@ -120,17 +155,26 @@ std::pair<std::int64_t, std::int64_t> minimize(std::int64_t l, bool exhaustive, 
   const std::int64_t kMin = lo;
   const std::int64_t floorValue = h.ceiling(kMin);
   if (floorValue >= best) return {bestK, best};
-  // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin).
+  // The first k <= kMin whose bound is below the incumbent (bounds fall towards kMin; kMin's is):
+  // bracketed down from kMin in doubling steps, then bisected.
   lo = 1, hi = kMin;
+  for (std::int64_t step = 1; hi - step >= lo; step *= 2) {
+    const std::int64_t k = hi - step;
+    if (!h.below(k, best)) {
+      lo = k + 1;
+      break;
+    }
+    hi = k;
+  }
   while (lo < hi) {
     const std::int64_t mid = lo + (hi - lo) / 2;
-    if (h.ceiling(mid) < best)
+    if (h.below(mid, best))
       hi = mid;
     else
       lo = mid + 1;
   }
   for (std::int64_t k = lo; k < l; ++k) {
-    if (k > kMin && h.ceiling(k) >= best) break;  // bounds rise from kMin on
+    if (k > kMin && !h.below(k, best)) break;  // bounds rise from kMin on
     const std::int64_t value = g(k);
     if (value < best) best = value, bestK = k;
     if (best == floorValue) break;
@@ -154,7 +198,16 @@ Plan Plan::exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t
   return plan;
 }
 
-void Plan::build(bool exhaustiveSearch) {
+Plan Plan::replayOnly(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits) {
+  Plan plan;
+  plan.steps_ = steps;
+  plan.units_ = memoryUnits;
+  plan.recordUnits_ = recordUnits;
+  plan.build(false, false);
+  return plan;
+}
+
+void Plan::build(bool exhaustiveSearch, bool sweepTables) {
   if (steps_ < 1 || units_ < 1 || recordUnits_ < 1) {
     throw std::invalid_argument("cams plan: steps = " + std::to_string(steps_) +
                                 ", memory units = " + std::to_string(units_) +
@@ -167,16 +220,23 @@ void Plan::build(bool exhaustiveSearch) {
     throw std::invalid_argument("cams: the plan for " + std::to_string(N) + " steps and " +
                                 std::to_string(M) + " state units needs more than " +
                                 std::to_string(kMaxTableEntries) +
-                                " table entries; lower cams.budget/cams.checkpoints or use binomial");
+                                " table entries; add online=1 (online placement, each interval reversed "
+                                "optimally), lower cams.budget/cams.checkpoints or use binomial");
   }
   const std::int64_t w = recordUnits_;
   const auto row = static_cast<std::size_t>(N + 1);
-  for (auto* table : {&decisions_[0], &decisions_[1], &decisions_[2], &decisions_[3]})
-    table->assign(row * static_cast<std::size_t>(M + 1), 0);
+  const int tables = sweepTables ? 4 : 2;  // replay tables first: 2 * sweep + record
+  narrow_ = N <= kMaxNarrowSteps;
+  for (int table = 0; table < tables; ++table) {
+    if (narrow_)
+      narrowDecisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
+    else
+      decisions_[table].assign(row * static_cast<std::size_t>(M + 1), 0);
+  }
   // Values: only rows m, m - 1, m - (w - 1) and m - w are read, so a ring of min(w, M) + 1 rows.
   const std::int64_t ring = std::min(w, M) + 1;
   std::vector<std::int64_t> values[4];
-  for (auto& v : values) v.assign(row * static_cast<std::size_t>(ring), 0);
+  for (int table = 0; table < tables; ++table) values[table].assign(row * static_cast<std::size_t>(ring), 0);
   // Table index: 2 * sweep + record (the anchor's kind).
   const auto V = [&](int table, std::int64_t m, std::int64_t l) -> std::int64_t& {
     return values[table][static_cast<std::size_t>(m % ring) * row + static_cast<std::size_t>(l)];
@@ -191,7 +251,7 @@ void Plan::build(bool exhaustiveSearch) {
     return minorants[static_cast<std::size_t>(table * ring + m % ring)];
   };
   for (std::int64_t m = 0; m <= M; ++m) {
-    for (int table = 0; table < 4; ++table) {
+    for (int table = 0; table < tables; ++table) {
       V(table, m, 0) = 0;
       V(table, m, 1) = 1;
       Mn(table, m).reset();
@@ -201,7 +261,7 @@ void Plan::build(bool exhaustiveSearch) {
     const std::size_t base = static_cast<std::size_t>(m) * row;
     // The split of the interval one step shorter seeds the search.
     const auto guess = [&](int table) {
-      const std::int32_t d = decisions_[table][base + static_cast<std::size_t>(l0)];
+      const std::int32_t d = storedDecision(table, base + static_cast<std::size_t>(l0));
       return d == kUpgradeAnchor ? std::int64_t{0} : std::abs(static_cast<std::int64_t>(d));
     };
     for (std::int64_t l = 2; l <= N; ++l) {
@@ -209,7 +269,7 @@ void Plan::build(bool exhaustiveSearch) {
       // in Python) must not wait for it. One atomic load when nothing is installed.
       if ((l & 255) == 0) pollInterrupt();
       l0 = l - 1;
-      for (int sweep = 0; sweep <= 1; ++sweep) {
+      for (int sweep = 0; sweep < tables / 2; ++sweep) {
         // sweep = 0: replay interval (advancing to a checkpoint costs its steps); 1: the forward sweep runs
         // through the interval (advancing is free, its checkpoints are stored on the way).
         const int own = sweep == 1 ? kSweep : kReplay;
@@ -251,25 +311,27 @@ void Plan::build(bool exhaustiveSearch) {
           }
           V(own + t, m, l) = best;
           Mn(own + t, m).push(l, best);
-          decisions_[own + t][base + static_cast<std::size_t>(l)] = static_cast<std::int32_t>(decision);
+          storeDecision(own + t, base + static_cast<std::size_t>(l), decision);
         }
       }
     }
     // Row m is complete; the top-level optimum needs rows M - 1 and M - w, read before they are overwritten.
+    if (!sweepTables) continue;
     if (m == M - 1) stateAnchor = N + V(kSweep + kState, m, N);
     if (m == M - w) recordAnchor = N + V(kSweep + kRecord, m, N) - 1;
   }
   // x_0 held as a state, or as a record (its stage values come free with the forward sweep's step 0).
-  anchorIsRecord_ = recordAnchor < stateAnchor;
-  optimum_ = std::min(stateAnchor, recordAnchor);
+  anchorIsRecord_ = sweepTables && recordAnchor < stateAnchor;
+  optimum_ = sweepTables ? std::min(stateAnchor, recordAnchor) : -1;
   units_ = M;
 }
 
 std::int64_t Plan::decision(bool sweep, bool recordAnchor, std::int64_t l, std::int64_t m) const {
-  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_);
+  assert(l >= 1 && l <= steps_ && m >= 0 && m <= units_ &&
+         !(narrow_ ? narrowDecisions_ : decisions_)[sweep ? 2 : 0].empty());
   const auto index =
       static_cast<std::size_t>(m) * static_cast<std::size_t>(steps_ + 1) + static_cast<std::size_t>(l);
-  return decisions_[(sweep ? 2 : 0) + (recordAnchor ? 1 : 0)][index];
+  return storedDecision((sweep ? 2 : 0) + (recordAnchor ? 1 : 0), index);
 }
 
 // ---- Executor ----
@@ -322,6 +384,7 @@ void Executor::beginInterval(const Plan* plan, std::int64_t position, std::int64
   units = std::min(units, plan->memoryUnits());  // more cannot help
   reserve(std::min(units, length));
   checkpoints_.push_back(Checkpoint{position, ref, false, false});
+  lastStored_ = Stored{false, false, false, length, units};
   top_ = ref + 1;
   limit_ = top_ + units;
   tasks_.push_back(Task{0, length, units, false, -1});
@@ -349,6 +412,7 @@ std::int64_t Executor::recordForward(std::int64_t n, bool* isRecord) {
   const std::int64_t index = push(n, record);
   checkpoints_.back().filled = record;
   if (n == 0) tasks_.push_back(Task{index, chainLength_, chainUnits_, true, -1});
+  lastStored_ = Stored{true, record, record, chainLength_, chainUnits_};
   // The next checkpoint of the chain: the sweep interval starting here.
   const std::int64_t k = chainLength_ >= 2 ? plan_->decision(true, record, chainLength_, chainUnits_) : 0;
   if (k == 0) {
@@ -363,6 +427,42 @@ std::int64_t Executor::recordForward(std::int64_t n, bool* isRecord) {
   }
   *isRecord = record;
   return checkpoints_.back().ref;
+}
+
+Executor::AnchorUse Executor::lastStoredUse() const {
+  // restoreStep's treatment of an anchor, step by step: the left part of a split keeps the anchor and its
+  // units; only the advances from the anchor and its record's capture matter here.
+  AnchorUse use;
+  bool record = lastStored_.record, filled = lastStored_.filled;
+  std::int64_t length = lastStored_.length, units = lastStored_.units;
+  if (lastStored_.sweep && length >= 2) {
+    const std::int64_t k = plan_->decision(true, record, length, units);
+    if (k == 0) {
+      use.advances = length - 1;
+      length = 1;
+    } else {
+      length = k < 0 ? -k : k;  // the left part, a replay interval
+    }
+  }
+  while (length >= 2) {
+    const std::int64_t k = plan_->decision(false, record, length, units);
+    if (k == Plan::kUpgradeAnchor) {
+      record = true;
+      filled = false;
+      units -= plan_->recordUnits() - 1;
+      continue;
+    }
+    // The first advance from a record captures its stage values.
+    if (record) filled = true;
+    if (k == 0) {
+      use.advances += length - 1;
+      break;
+    }
+    ++use.advances;
+    length = k < 0 ? -k : k;
+  }
+  use.filledAtDelivery = record && filled;
+  return use;
 }
 
 // ---- Simulation without states ----
@@ -433,8 +533,8 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions) {
 
 // ---- Online mode ----
 
-const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
-                               std::int64_t recordUnits) {
+std::int64_t onlineIntervalPlanSteps(std::int64_t longest, std::int64_t memoryUnits,
+                                     std::int64_t recordUnits) {
   const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
   // The longest interval, up to kMaxIntervalPlanSteps, whose plan is within Plan::kMaxTableEntries (it uses
   // min(units, (l + 1) w) units); longer ones are reversed by revolve.
@@ -451,10 +551,16 @@ const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longe
     else
       hi = mid - 1;
   }
-  const std::int64_t length = lo;
+  return lo;
+}
+
+const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
+                               std::int64_t recordUnits) {
+  const std::int64_t units = std::max<std::int64_t>(memoryUnits - 1, 1);
+  const std::int64_t length = onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
   if (!cached || cached->steps() < length || cached->recordUnits() != recordUnits ||
       cached->memoryUnits() < std::min(units, (length + 1) * recordUnits)) {
-    cached = std::make_unique<Plan>(length, units, recordUnits);
+    cached = std::make_unique<Plan>(Plan::replayOnly(length, units, recordUnits));
   }
   return *cached;
 }
@@ -810,7 +916,7 @@ void CamsCheckpointing::predict(const TrajectoryStorage& storage, const StorageS
         " (2^24; its placement is simulated step by step); --steps = " + std::to_string(steps));
   }
   const std::int64_t units = strategy.usableUnits(stateBytes, online);
-  const std::int64_t recordUnits = stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+  const std::int64_t recordUnits = recordUnitsOfStages(stages);
   cams::PlanCounts c;
   if (online) {
     // Online placement, each interval reversed by the optimal plan.
@@ -852,8 +958,7 @@ void CamsCheckpointing::writeActions(const TrajectoryStorage& storage, const Sto
   // none for one stage.
   const std::int64_t units = cams.usableUnits(request.stateBytes, false);
   std::vector<cams::Action> actions;
-  const std::int64_t recordUnits =
-      request.stages > 1 ? request.stages : std::numeric_limits<std::int32_t>::max();
+  const std::int64_t recordUnits = recordUnitsOfStages(request.stages);
   cams::simulate(cams::Plan(request.steps, units, recordUnits), &actions);
   for (const cams::Action& a : actions) {
     switch (a.kind) {

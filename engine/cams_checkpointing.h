@@ -35,17 +35,19 @@
 // k-searches are exact: the rows are not convex in l (a record serves two steps, so parity shows), but each
 // row stays within a few units of its greatest convex minorant, kept as the row grows; the minorants give a
 // convex lower bound of the cost in k (computed exactly, in 128-bit integer arithmetic: a rounded bound could
-// prune the optimum), so only the k whose bound is below the best found so far (one interval, found by
-// bisection) are evaluated. Planning time is O(N M) searches, each scanning the flat part of that interval:
-// measured 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M = 1001 (bench/RESULTS.md). Tests check the
-// result against the exhaustive O(l) search and against brute-force enumeration of all schedules for small N.
+// prune the optimum), so only the k whose bound is below the best found so far (one interval, bracketed
+// from the previous length's split and bisected) are evaluated. Planning time is O(N M) searches, each
+// scanning the flat part of that interval: measured 2.8 s for N = 3e4, M = 11 and 8.6 s for N = 4096, M =
+// 1001 (bench/RESULTS.md). Tests check the result against the exhaustive O(l) search and against brute-force
+// enumeration of all schedules for small N.
 //
 // Memory: the checkpoints form a stack; the strategy allocates M units once in begin() and charges
 // them with holdBytes(): offline at most (N + 1) w units; the online mode, where N is unknown, at most
 // 10^6 + 1 units, all at begin() (a budget of B bytes allocates min(B, 10^6 + 1 states)). The plan
-// tables (16 bytes per (l, m) pair for l <= N, m <= M, plus the values of w + 1 rows while they are
-// built) are planning data, not trajectory data, and are not charged; begin() refuses
-// N (M + 1) > kMaxTableEntries with a message naming online=1.
+// tables (16 bytes per (l, m) pair for l <= N, m <= M, 8 for N <= 2^15; the online mode's interval plans
+// half of that, replay tables only; plus the values of w + 1 rows while they are built) are planning data,
+// not trajectory data, and are not charged; begin() refuses N (M + 1) > kMaxTableEntries with a message
+// naming online=1.
 //
 // Adaptive steps (TrajectoryInfo.stepCount unknown) or the key online=1: the online mode, see
 // the online mode below (checkpoints placed as `online` places them, each interval reversed by the
@@ -103,6 +105,11 @@ class Plan {
   Plan(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
   /// The same plan from the exhaustive O(l) search over every split (for tests; small N only).
   static Plan exhaustive(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
+  /// The replay tables alone (decision(false, ...)): what the online mode's intervals read, each reversed
+  /// from a checkpoint the forward run stored, with no sweep running through it. They do not depend on the
+  /// sweep tables, so they are the full plan's, at half its time and memory; optimalStepEvaluations() and
+  /// anchorIsRecord() are not computed (-1, false) and recordForward cannot run on it.
+  static Plan replayOnly(std::int64_t steps, std::int64_t memoryUnits, std::int64_t recordUnits);
 
   std::int64_t steps() const { return steps_; }
   /// The units the plan uses: min(M, (N + 1) w) (more cannot help).
@@ -118,11 +125,30 @@ class Plan {
 
  private:
   Plan() = default;
-  void build(bool exhaustiveSearch);
+  void build(bool exhaustiveSearch, bool sweepTables = true);
   std::int64_t steps_ = 0, units_ = 0, recordUnits_ = 0, optimum_ = 0;
   bool anchorIsRecord_ = false;
   // Per (sweep, anchor kind) a table, row m holding l = 0..N; decisions as int32 (N < 2^31 is checked).
   std::vector<std::int32_t> decisions_[4];
+  // The same as int16 when every decision fits (N <= 2^15: offsets below 2^15, kUpgradeAnchor kept as
+  // INT16_MIN): half the memory of the online mode's interval plans (2^15 steps at most) and of short
+  // exact plans.
+  static constexpr std::int64_t kMaxNarrowSteps = std::int64_t{1} << 15;
+  std::vector<std::int16_t> narrowDecisions_[4];
+  bool narrow_ = false;
+  std::int32_t storedDecision(int table, std::size_t index) const {
+    if (!narrow_) return decisions_[table][index];
+    const std::int16_t d = narrowDecisions_[table][index];
+    return d == std::numeric_limits<std::int16_t>::min() ? kUpgradeAnchor : d;
+  }
+  void storeDecision(int table, std::size_t index, std::int64_t decision) {
+    if (!narrow_) {
+      decisions_[table][index] = static_cast<std::int32_t>(decision);
+    } else {
+      narrowDecisions_[table][index] = decision == kUpgradeAnchor ? std::numeric_limits<std::int16_t>::min()
+                                                                  : static_cast<std::int16_t>(decision);
+    }
+  }
 };
 
 /// Runs the plan without states: counts, and optionally the action stream.
@@ -142,7 +168,11 @@ PlanCounts simulate(const Plan& plan, std::vector<Action>* actions = nullptr);
 /// 3 s with 11 units (bench/RESULTS.md, "Stage-aware storage"). Revolve is that plan without records (the
 /// file comment); the longer intervals give up only what records would save.
 constexpr std::int64_t kMaxIntervalPlanSteps = std::int64_t{1} << 15;
-/// The plan for intervals up to `longest` steps (at most what kMaxIntervalPlanSteps allows) with M - 1
+/// The longest interval the online mode reverses by its plan, for intervals up to `longest` steps and M
+/// units: at most `longest`, kMaxIntervalPlanSteps and what Plan::kMaxTableEntries allows with M - 1 units.
+std::int64_t onlineIntervalPlanSteps(std::int64_t longest, std::int64_t memoryUnits,
+                                     std::int64_t recordUnits);
+/// The plan for intervals up to `longest` steps (at most onlineIntervalPlanSteps) with M - 1
 /// units, reusing `cached` when it covers them (the rows of a plan do not depend on its N).
 const Plan& onlineIntervalPlan(std::unique_ptr<Plan>& cached, std::int64_t longest, std::int64_t memoryUnits,
                                std::int64_t recordUnits);
@@ -184,6 +214,17 @@ class Executor {
   template <typename Visitor>
   void restoreStep(std::int64_t e, Visitor& visitor);
   std::int64_t heldUnits() const { return top_; }
+
+  /// How the checkpoint stored last (by recordForward, or reported to the visitor's store) is used until
+  /// it is delivered: the advances from it (each reads its state) and whether its step's stage values are
+  /// held then. Read from the plan's decisions for the interval it anchors, without running it: the action
+  /// stream (storage/checkpoint_actions.cpp) must know at a store whether the state is read back at all,
+  /// and at each read whether it is the last.
+  struct AnchorUse {
+    std::int64_t advances = 0;
+    bool filledAtDelivery = false;
+  };
+  AnchorUse lastStoredUse() const;
 
  private:
   struct Checkpoint {
@@ -235,6 +276,11 @@ class Executor {
   // Forward sweep: the chain of the sweep interval.
   std::int64_t chainLength_ = 0, chainUnits_ = 0, chainPosition_ = 0, nextForward_ = 0;
   bool nextForwardRecord_ = false;
+  // The interval the checkpoint stored last anchors first (lastStoredUse).
+  struct Stored {
+    bool sweep = false, record = false, filled = false;
+    std::int64_t length = 0, units = 0;
+  } lastStored_;
 };
 
 template <typename Visitor>
@@ -309,6 +355,7 @@ void Executor::restoreStep(std::int64_t e, Visitor& visitor) {
     } else {
       advanceFrom(left.anchor, anchor.position + offset, visitor);
       right.anchor = push(anchor.position + offset, record);
+      lastStored_ = Stored{false, record, false, right.length, right.units};
       visitor.store(checkpoints_.back().ref, anchor.position + offset, record);
     }
     tasks_.push_back(right);
@@ -334,6 +381,11 @@ class CamsCheckpointing final : public TrajectoryStorage {
   /// units; the online mode (online=1) is refused, its placement not being a fixed plan.
   static void writeActions(const TrajectoryStorage& storage, const StorageSpec& spec,
                            const PredictionRequest& request, std::ostream& out);
+  /// The record units of the plans predict and writeActions make for an explicit Runge-Kutta method of
+  /// `stages` stages: the state and S - 1 stage states; none (more than any budget) for one stage.
+  static std::int64_t recordUnitsOfStages(int stages) {
+    return stages > 1 ? stages : std::numeric_limits<std::int32_t>::max();
+  }
 
   std::string spec() const override;
   bool isExact() const override { return true; }

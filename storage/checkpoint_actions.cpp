@@ -1,5 +1,6 @@
 #include <hindsight/storage/checkpoint_actions.h>
 
+#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/storage/checkpoint_stream.h>
 
@@ -209,6 +210,8 @@ class Translator {
 
   /// The actions made so far (the caller takes them out).
   std::deque<CheckpointAction>& actions() { return actions_; }
+  /// The version the next new checkpoint gets (the counted way's Usage is keyed by it).
+  std::int64_t nextVersion() const { return nextVersion_; }
 
  private:
   using Kind = CheckpointAction::Kind;
@@ -337,8 +340,19 @@ class Translator {
     if (usage_ == nullptr) return !toWork || c.position == expected_;  // the stack way (class comment)
     std::int64_t& seen = usage_->seen[c.version];
     ++seen;
-    if (!emit_) ++usage_->loads[c.version];
-    return emit_ && seen == usage_->loads[c.version];
+    if (!emit_) {
+      ++usage_->loads[c.version];
+      return false;
+    }
+    const auto loads = usage_->loads.find(c.version);
+    if (loads == usage_->loads.end() || seen > loads->second)
+      throw std::logic_error("checkpointSchedule: x_" + std::to_string(c.position) +
+                             " is read more often than counted");
+    if (seen < loads->second) return false;
+    // The last read: nothing asks about this version again (the lazy stream keeps O(checkpoints) entries).
+    usage_->seen.erase(c.version);
+    usage_->loads.erase(loads);
+    return true;
   }
 
   void copyBetween(const Content& c, CheckpointStorage to) {
@@ -486,6 +500,14 @@ class Translator {
     reverse(e);
     current_ = -1;  // the adjoint step consumes the state at hand
     // A checkpoint at e is of no use any more (restores go down); its data is released by its last load.
+    // The counted way keys slots by position: forget e's, so that what is kept stays O(checkpoints).
+    if (usage_ != nullptr) {
+      for (auto range = byPosition_.equal_range(e); range.first != range.second;) {
+        slots_.erase(range.first->second);
+        range.first = byPosition_.erase(range.first);
+      }
+      wantAdjDeps_.erase(e);
+    }
   }
 
   std::int64_t steps_;
@@ -507,7 +529,7 @@ class Translator {
 
 }  // namespace
 
-// cams' whole plan, translated the counted way (storage/checkpoint_stream.cpp hands it out).
+// A plan's whole text translated the counted way (the reference of the cams stream, CamsPlanStream).
 std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
                                                       std::int64_t stateBytes, int stages,
                                                       const ScheduleCosts* costs) {
@@ -612,6 +634,197 @@ class TwoLevelPlanStream final : public CheckpointStream {
 
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan) {
   return std::make_unique<TwoLevelPlanStream>(steps, std::move(plan));
+}
+
+namespace {
+
+// cams' stream: its plan's executor (cams::Executor, the one a run drives) is driven as the host consumes
+// the actions and its events are translated the counted way, each checkpoint's reads counted when it is
+// stored from the plan's decisions (Executor::lastStoredUse) instead of by a first pass over the whole
+// plan. Memory: the plan's tables and O(checkpoints) of translation. The events are the ones
+// CamsCheckpointing::writeActions prints (cams::simulate's actions: consecutive advances merged, no loads),
+// so the stream is translateCheckpointPlan's action for action (tests/storage/checkpoint_actions_test.cpp).
+//
+// online=1 with N known: the forward run writes the checkpoints the online placement holds when the run
+// ends (OnlinePlacement::simulate, O(N) time and O(c) memory before the first action; the ones it would
+// have thinned away are never written), x_{N-1} stays the working state, and each interval is reversed by
+// the interval plan as cams::simulateOnline does -- the plan made when the forward run ends, the first
+// Reverse waiting for it. Intervals longer than that plan (revolve's, whose slots this translation does
+// not express) are refused when the stream is opened.
+class CamsPlanStream final : public CheckpointStream {
+ public:
+  CamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan)
+      : CheckpointStream(steps), plan_(std::move(plan)), translator_(steps, &usage_, true) {
+    executor_.reset(plan_.get());
+  }
+  CamsPlanStream(std::int64_t steps, std::vector<std::int64_t> positions, std::int64_t memoryUnits,
+                 std::int64_t recordUnits)
+      : CheckpointStream(steps),
+        online_(true),
+        positions_(std::move(positions)),
+        versions_(positions_.size(), -1),
+        memoryUnits_(memoryUnits),
+        recordUnits_(recordUnits),
+        translator_(steps, &usage_, true) {}
+
+ private:
+  struct Visitor {
+    CamsPlanStream& s;
+    void load(std::int64_t) {}  // cams names no loads: the translation reads the state where it is needed
+    void capture(std::int64_t, std::int64_t) {}
+    void advance(std::int64_t from, std::int64_t to) {
+      if (s.advance_.second == from && s.advance_.first < from) {
+        s.advance_.second = to;
+        return;
+      }
+      s.flushAdvance();
+      s.advance_ = {from, to};
+    }
+    void upgrade(std::int64_t, std::int64_t position) {
+      // The anchor grows into a record: the same checkpoint, whose reads were counted when it was stored.
+      s.flushAdvance();
+      s.translator_.feed(PlanEvent{PlanEvent::Kind::kStoreRecord, CheckpointStorage::kRam,
+                                   "at " + std::to_string(position), position, 0, false});
+    }
+    void store(std::int64_t, std::int64_t position, bool record) {
+      s.flushAdvance();
+      s.store(position, record, /*forwardSweep=*/false);
+    }
+    void deliver(std::int64_t position, std::int64_t, bool filled) {
+      s.flushAdvance();
+      s.translator_.feed(
+          PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", position, position, filled});
+    }
+  };
+
+  void flushAdvance() {
+    if (advance_.first >= advance_.second) return;
+    translator_.feed(PlanEvent{PlanEvent::Kind::kAdvance, CheckpointStorage::kWork, "", advance_.first,
+                               advance_.second, false});
+    advance_ = {0, 0};
+  }
+
+  // A new checkpoint: the translation reads its state at every advance from it and at its delivery unless
+  // its stage values are held then, except the first read after a store in the backward sweep (the state
+  // is still at hand) and x_{N-1} kept by the forward sweep (its delivery is the forward run's last step).
+  void store(std::int64_t position, bool record, bool forwardSweep) {
+    const cams::Executor::AnchorUse use = executor_.lastStoredUse();
+    const std::int64_t reads = forwardSweep && position == maxN_ - 1
+                                   ? 0
+                                   : use.advances + (use.filledAtDelivery ? 0 : 1) - (forwardSweep ? 0 : 1);
+    if (reads > 0) usage_.loads[translator_.nextVersion()] = reads;
+    translator_.feed(PlanEvent{record ? PlanEvent::Kind::kStoreRecord : PlanEvent::Kind::kStore,
+                               CheckpointStorage::kRam, "at " + std::to_string(position), position, 0,
+                               false});
+  }
+
+  // online: the placement's checkpoint `index`, stored in the forward run; its reads are counted when its
+  // interval begins (the plan does not exist before), until then it is only known to be read (every
+  // interval's anchor is: advanced from, or delivered by a load).
+  void storeOnline(std::size_t index) {
+    versions_[index] = translator_.nextVersion();
+    usage_.loads[versions_[index]] = 1;
+    translator_.feed(PlanEvent{PlanEvent::Kind::kStore, CheckpointStorage::kRam,
+                               "at " + std::to_string(positions_[index]), positions_[index], 0, false});
+  }
+  void restoreOnline(std::int64_t e, Visitor& visitor) {
+    if (e == maxN_ - 1) {  // the working state: the forward run's last step writes its adjoint data
+      translator_.feed(PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", e, e, false});
+      return;
+    }
+    if (!plan_) {
+      const std::int64_t longest = internal::OnlinePlacement::longestInterval(positions_, maxN_);
+      cams::onlineIntervalPlan(plan_, longest, memoryUnits_, recordUnits_);
+      executor_.reserve(std::min(memoryUnits_, longest + 1));
+    }
+    if (e < interval_.start) {
+      // As cams::simulateOnline: interval j's checkpoint in unit j, the units above it free.
+      interval_ = internal::OnlinePlacement::intervalOf(positions_, maxN_, e, interval_.index);
+      executor_.beginInterval(plan_.get(), interval_.start, interval_.index, interval_.length,
+                              memoryUnits_ - interval_.index - 1);
+      const cams::Executor::AnchorUse use = executor_.lastStoredUse();
+      usage_.loads[versions_[static_cast<std::size_t>(interval_.index)]] =
+          use.advances + (use.filledAtDelivery ? 0 : 1);
+    }
+    executor_.restoreStep(e, visitor);
+  }
+
+  bool doNext(CheckpointAction* action) override {
+    std::deque<CheckpointAction>& out = translator_.actions();
+    while (out.empty()) {
+      if (forward_ < maxN_ && online_) {
+        // Straight to the next held position (the forward run is cut only where it writes).
+        if (nextPosition_ < positions_.size()) {
+          forward_ = positions_[nextPosition_];
+          storeOnline(nextPosition_++);
+          ++forward_;
+        } else {
+          forward_ = maxN_;
+        }
+      } else if (forward_ < maxN_) {
+        bool record = false;
+        if (executor_.recordForward(forward_, &record) >= 0) store(forward_, record, /*forwardSweep=*/true);
+        ++forward_;
+      } else if (restore_ >= 0 && online_) {
+        Visitor visitor{*this};
+        restoreOnline(restore_--, visitor);
+        flushAdvance();
+      } else if (restore_ >= 0) {
+        Visitor visitor{*this};
+        executor_.restoreStep(restore_--, visitor);
+        flushAdvance();
+      } else if (!finished_) {
+        translator_.finish();
+        finished_ = true;
+      } else {
+        return false;
+      }
+    }
+    *action = out.front();
+    out.pop_front();
+    return true;
+  }
+
+  bool online_ = false;
+  std::vector<std::int64_t> positions_, versions_;  // online: the held positions, their checkpoints' versions
+  std::size_t nextPosition_ = 0;
+  std::int64_t memoryUnits_ = 0, recordUnits_ = 0;
+  internal::OnlinePlacement::Interval interval_{static_cast<std::int64_t>(positions_.size()), maxN_, 0};
+  std::unique_ptr<cams::Plan> plan_;
+  cams::Executor executor_;
+  Translator::Usage usage_;
+  Translator translator_;
+  std::pair<std::int64_t, std::int64_t> advance_{0, 0};  // consecutive advances, merged
+  std::int64_t forward_ = 0, restore_ = maxN_ - 1;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan) {
+  return std::make_unique<CamsPlanStream>(steps, std::move(plan));
+}
+
+std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
+                                                       std::int64_t recordUnits) {
+  if (steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "cams with online=1 streams steps up to " + std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24: its placement is walked step by step before the first action); steps = " +
+        std::to_string(steps));
+  }
+  std::vector<std::int64_t> positions =
+      internal::OnlinePlacement::simulate(steps, memoryUnits - 1, nullptr, nullptr);
+  const std::int64_t longest = internal::OnlinePlacement::longestInterval(positions, steps);
+  const std::int64_t planned = cams::onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
+  if (longest > planned) {
+    throw std::invalid_argument(
+        "cams with online=1: the placement of " + std::to_string(steps) + " steps has an interval of " +
+        std::to_string(longest) + " steps, beyond the " + std::to_string(planned) +
+        " its plan reverses (longer ones are revolve's, which the action stream does not translate); "
+        "raise cams.checkpoints/cams.budget or drop online=1");
+  }
+  return std::make_unique<CamsPlanStream>(steps, std::move(positions), memoryUnits, recordUnits);
 }
 
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,

@@ -16,7 +16,7 @@
 // Every stream keeps checkpoint_schedules' contract (docs/guides/checkpoint_schedule.md, "The
 // contract"): restart data is written by the Forward that leaves a state and covers the steps it runs;
 // Copy/Move need an empty WORK and never copy from WORK; a Reverse reads its adjoint data from WORK only;
-// Move is not a kind of Copy. binomial, full, disk and multilevel streams are generated as they are
+// Move is not a kind of Copy. binomial, full, disk, multilevel and cams streams are generated as they are
 // consumed (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself
 // executes (the actions `hindsight schedule --actions` prints, from the same plan code as a run):
 //   a checkpoint store is writeIcs on the Forward that leaves the state, or a Copy/Move between storages
@@ -102,6 +102,14 @@ struct CheckpointAction {
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,
                                                  std::int64_t stateBytes, int stages,
                                                  const ScheduleCosts* costs);
+
+/// The whole plan of `spec` translated at once from the text writeScheduleActions prints (`hindsight
+/// schedule --actions`), the counted way: a first pass counts every checkpoint's reads. The cams stream
+/// is made as it is consumed instead (openCheckpointStream) and must equal this, action for action
+/// (tests/storage/checkpoint_actions_test.cpp); for strategies without actions it throws their refusal.
+std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
+                                                      std::int64_t stateBytes, int stages,
+                                                      const ScheduleCosts* costs);
 
 /// Counts of a stream, as a host executing it would see them (tests and docs).
 struct CheckpointStreamCounts {

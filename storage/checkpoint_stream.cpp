@@ -1,6 +1,7 @@
 #include <hindsight/storage/checkpoint_stream.h>
 
 #include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/storage/mixed_plan.h>
 #include <hindsight/storage/multilevel_storage.h>
@@ -251,7 +252,7 @@ class BinomialStream final : public BatchedStream {
   bool pendingStore_ = false;
 };
 
-// cams and multilevel: the whole translated plan, handed out in order.
+// mixed: the whole translated plan, handed out in order.
 class StoredStream final : public CheckpointStream {
  public:
   StoredStream(std::int64_t steps, std::vector<CheckpointAction> actions)
@@ -267,14 +268,12 @@ class StoredStream final : public CheckpointStream {
   std::size_t next_ = 0;
 };
 
-constexpr std::int64_t kMaxTranslatedSteps = std::int64_t{1} << 24;  // writeScheduleActions' limit
-
 }  // namespace
 
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
-std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, std::int64_t steps,
-                                                      std::int64_t stateBytes, int stages,
-                                                      const ScheduleCosts* costs);
+std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan);
+std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
+                                                       std::int64_t recordUnits);
 
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specText, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
@@ -330,19 +329,30 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
         steps,
         MultilevelStorage::fixedStepPlan(*storage, PredictionRequest{steps, stateBytes, stages, costs, 0}));
   }
+  if (name == "cams") {
+    // Every check of the plan: the spec and the sizes (at one step: the prediction at N would build the
+    // plan a second time), the units of the budget, then the plan at N (refused beyond
+    // cams::Plan::kMaxTableEntries table entries), built once before the first action; online=1 places
+    // its checkpoints first (O(N)) and plans its intervals when the forward run ends.
+    if (steps < 1 || steps > kMaxScheduleSteps) predictSchedule(specText, steps, stateBytes, stages, costs);
+    predictSchedule(specText, 1, stateBytes, stages, costs);
+    const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
+    const auto& strategy = dynamic_cast<const CamsCheckpointing&>(*storage);
+    const bool online = strategy.onlineRequested();
+    const std::int64_t units = strategy.usableUnits(stateBytes, online);
+    const std::int64_t recordUnits = CamsCheckpointing::recordUnitsOfStages(stages);
+    if (online) return openCamsOnlineStream(steps, units, recordUnits);
+    return openCamsPlanStream(steps, std::make_unique<cams::Plan>(steps, units, recordUnits));
+  }
   if (name == "mixed") {
     predictSchedule(specText, 1, stateBytes, stages, costs);  // the spec's keys and sizes checked
     const std::int64_t units = spec.integer("checkpoints", 0, 1, MixedPlanStorage::kMaxCheckpoints);
     return std::make_unique<StoredStream>(steps, mixed::actions(mixed::Plan(steps, units)));
   }
-  if (steps > kMaxTranslatedSteps) {
-    throw std::invalid_argument(
-        "the " + name + " action stream translates the whole plan first, for steps up to " +
-        std::to_string(kMaxTranslatedSteps) + " (2^24); steps = " + std::to_string(steps) +
-        " (binomial, full and disk streams have no such limit)");
-  }
-  return std::make_unique<StoredStream>(steps,
-                                        translateCheckpointPlan(specText, steps, stateBytes, stages, costs));
+  // Every strategy with a fixed plan is streamed above; the others' rows say why they have none
+  // (writeScheduleActions refuses them; the reason does not depend on N, so one step is asked).
+  translateCheckpointPlan(specText, 1, stateBytes, stages, costs);
+  throw std::logic_error("openCheckpointStream: " + name + " writes actions but has no stream here");
 }
 
 }  // namespace hindsight

@@ -3,13 +3,13 @@
 // (n, r, max_n, is_exhausted, finalize). docs/guides/checkpoint_schedule.md states the contract every
 // stream keeps; python/tests/stream_contract.py checks it.
 //
-// binomial, full, disk and multilevel are generated lazily: memory O(checkpoints) whatever N (binomial
-// drives engine/binomial_checkpointing.h's BinomialSchedule, multilevel its TwoLevelPlan
-// (MultilevelStorage::fixedStepPlan), the state machines their runs use, so the stream recomputes exactly
-// what a run recomputes); the first action comes after the plan is chosen (binomial: O(checkpoints);
-// multilevel: TwoLevelPlan::choose, 0.13 s at N = 10^6, bench/checkpoint_stream_bench.py). cams
-// translates its whole plan (N <= 2^24) when the stream is opened and then hands it out action by action:
-// its plan is a dynamic programme over N whose tables are O(N M) anyway.
+// binomial, full, disk, multilevel and cams are generated lazily: memory O(checkpoints) besides the plan
+// (binomial drives engine/binomial_checkpointing.h's BinomialSchedule, multilevel its TwoLevelPlan
+// (MultilevelStorage::fixedStepPlan), cams its plan's cams::Executor, the state machines their runs use, so
+// the stream recomputes exactly what a run recomputes); the first action comes after the plan is made
+// (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.13 s at N = 10^6; cams: its dynamic
+// programme over N, tables of N (M + 1) entries, seconds at N = 10^4: bench/checkpoint_stream_bench.py).
+// mixed translates its whole plan when the stream is opened and then hands it out action by action.
 #pragma once
 
 #include <hindsight/storage/checkpoint_actions.h>
@@ -62,7 +62,7 @@ class CheckpointStream {
 };
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
-/// (storage/schedule.h): full, disk, binomial, multilevel (any N its plan supports) and cams (N <= 2^24).
+/// (storage/schedule.h): full, disk, binomial, multilevel and cams (any N their plans support) and mixed.
 /// steps = kUnknownSteps: N is unknown until the host calls finalize() (full and disk, which keep every
 /// state and so discard nothing: the forward run writes each step's restart data, as checkpoint_schedules'
 /// SingleMemoryStorageSchedule/SingleDiskStorageSchedule do for an unknown N).

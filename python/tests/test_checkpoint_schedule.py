@@ -67,6 +67,7 @@ def run(actions, steps, a=0.3, schedule=None):
 
 
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
+                                         ("cams:checkpoints=3,online=1", 1), ("cams:checkpoints=6,online=1", 4),
                                          ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4),
                                          ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
@@ -117,6 +118,7 @@ def _families(rng):
     return [("full", 1, None, 0), ("disk:dir=unused", 4, 0, None),
             (f"binomial:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),
             (f"cams:checkpoints={c}", rng.choice([1, 4]), None, 0),
+            (f"cams:checkpoints={c},online=1", rng.choice([1, 4]), None, 0),
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
              ram, disk),
             (f"mixed:checkpoints={c}", 1, c, 0)]  # c units: restart states and adjoint data alike
@@ -205,7 +207,8 @@ def test_streams_are_made_as_they_are_consumed():
     assert first[0] == Forward(0, first[0].n1, True, False, StorageType.RAM) and first[1].n0 == first[0].n1
     full = hindsight.checkpoint_schedule("full", steps=100_000_000)  # 800 MB of states, within full's budget
     assert next(full) == Forward(0, 1, True, False, StorageType.RAM)
-    with pytest.raises(ValueError, match=r"steps up to 16777216.*steps = 16777217"):
+    # cams' exact plan has tables of N (M + 1) entries: beyond them it is refused before any action.
+    with pytest.raises(ValueError, match=r"16777217 steps and 4 state units needs more than 12500000 table"):
         hindsight.checkpoint_schedule("cams:checkpoints=3", steps=(1 << 24) + 1)
     # multilevel drives its plan as the host goes: beyond 2^24 steps, its leaves on disk first.
     multilevel = hindsight.checkpoint_schedule("multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5",
@@ -269,7 +272,8 @@ def _their_validity_test():
     return cs, module.test_validity
 
 
-@pytest.mark.parametrize("family", ["full", "binomial", "cams", "multilevel", "full without N", "disk without N"])
+@pytest.mark.parametrize("family", ["full", "binomial", "cams", "cams online", "multilevel", "full without N",
+                                    "disk without N"])
 def test_checkpoint_schedules_own_host_runs_every_family(family):
     cs, test_validity = _their_validity_test()
     from hindsight.checkpoint_schedules import Schedule
@@ -285,8 +289,10 @@ def test_checkpoint_schedules_own_host_runs_every_family(family):
                     {cs.StorageType.RAM: 0 if disk else n, cs.StorageType.DISK: n if disk else 0}, 1)
         if family == "binomial":
             return Schedule(f"binomial:checkpoints={s}", n), {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: 0}, 1
-        if family == "cams":
-            return Schedule(f"cams:checkpoints={s}", n, stages=4), {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1
+        if family.startswith("cams"):
+            online = ",online=1" if family.endswith("online") else ""
+            return (Schedule(f"cams:checkpoints={s}{online}", n, stages=4),
+                    {cs.StorageType.RAM: n, cs.StorageType.DISK: 0}, 1)
         return (Schedule(f"multilevel:ram={16 * (s + 1)},disk={16 * n},costs=1:1:0.5:0.5", n, state_bytes=16),
                 {cs.StorageType.RAM: s + 1, cs.StorageType.DISK: n}, 1)
 

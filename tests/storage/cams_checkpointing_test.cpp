@@ -15,6 +15,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <map>
+#include <random>
 
 namespace hindsight {
 namespace {
@@ -102,6 +104,22 @@ TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearch) {
   }
 }
 
+// The split search brackets h's minimum from the previous length's split and compares bounds without
+// dividing: on random plans the result is still the exhaustive search's optimum, and the executor
+// attains it.
+TEST(CamsPlan, FastSplitSearchEqualsExhaustiveSearchOnRandomPlans) {
+  std::mt19937_64 rng(17);
+  for (int trial = 0; trial < 40; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(2, 500)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 40)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    const cams::Plan fast(n, m, w);
+    EXPECT_EQ(fast.optimalStepEvaluations(), cams::Plan::exhaustive(n, m, w).optimalStepEvaluations())
+        << "N = " << n << ", M = " << m << ", w = " << w;
+    EXPECT_EQ(cams::simulate(fast).stepEvaluations(), fast.optimalStepEvaluations());
+  }
+}
+
 TEST(CamsPlan, WithoutRecordsItIsBinomialOverTheSameSlots) {
   // binomial:checkpoints=C holds C + 1 states and reverses by revolve over all of them (positions 0..N,
   // engine/binomial_checkpointing.h), the optimum of the game of charged states; its cost in steps is
@@ -169,6 +187,100 @@ TEST(CamsPlan, ActionStreamReplaysTheCounts) {
   }
   EXPECT_EQ(advanced, counts.recomputedSteps);
   EXPECT_EQ(delivered, 40);
+}
+
+// Executor::lastStoredUse reads a checkpoint's future from the plan's decisions (the action stream counts
+// its reads by it): here the executor runs and every anchor's advances and held stage values at its
+// delivery are counted and compared with what was read when it was stored.
+TEST(CamsPlan, LastStoredUseIsWhatTheExecutorDoesWithTheCheckpoint) {
+  struct Visitor {
+    cams::Executor& executor;
+    std::map<std::int64_t, std::pair<cams::Executor::AnchorUse, std::int64_t>> byRef;  // read, counted
+    std::int64_t loaded = -1, stored = 0, delivered = 0;
+    void add(std::int64_t ref) {
+      EXPECT_EQ(byRef.count(ref), 0u);  // a unit is reused only after its checkpoint was delivered
+      byRef[ref] = {executor.lastStoredUse(), 0};
+      ++stored;
+    }
+    void store(std::int64_t ref, std::int64_t, bool) { add(ref); }
+    void upgrade(std::int64_t, std::int64_t) {}
+    void capture(std::int64_t, std::int64_t) {}
+    void load(std::int64_t ref) { loaded = ref; }
+    void advance(std::int64_t, std::int64_t) {
+      if (loaded >= 0) ++byRef.at(loaded).second;  // one advance from the checkpoint per load
+      loaded = -1;
+    }
+    void deliver(std::int64_t, std::int64_t ref, bool filled) {
+      loaded = -1;
+      if (ref < 0) return;  // a position replayed without a checkpoint of its own
+      const auto it = byRef.find(ref);
+      ASSERT_NE(it, byRef.end());
+      EXPECT_EQ(it->second.second, it->second.first.advances);
+      EXPECT_EQ(filled, it->second.first.filledAtDelivery);
+      byRef.erase(it);
+      ++delivered;
+    }
+  };
+  std::mt19937_64 rng(11);
+  for (int trial = 0; trial < 300; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(1, trial < 200 ? 60 : 700)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 25)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    SCOPED_TRACE("N = " + std::to_string(n) + ", M = " + std::to_string(m) + ", w = " + std::to_string(w));
+    const cams::Plan plan(n, m, w);
+    cams::Executor executor;
+    executor.reset(&plan);
+    Visitor visitor{executor, {}};
+    for (std::int64_t k = 0; k < n; ++k) {
+      bool record = false;
+      const std::int64_t ref = executor.recordForward(k, &record);
+      if (ref >= 0) visitor.add(ref);
+    }
+    for (std::int64_t e = n - 1; e >= 0; --e) executor.restoreStep(e, visitor);
+    EXPECT_TRUE(visitor.byRef.empty());
+    EXPECT_EQ(visitor.delivered, visitor.stored);
+  }
+}
+
+// The online mode's interval plans build the replay tables alone: every decision is the full plan's.
+TEST(CamsPlan, ReplayOnlyPlanHasTheFullPlansReplayDecisions) {
+  std::mt19937_64 rng(13);
+  for (int trial = 0; trial < 60; ++trial) {
+    const std::int64_t n = std::uniform_int_distribution<std::int64_t>(1, 400)(rng);
+    const std::int64_t m = std::uniform_int_distribution<std::int64_t>(1, 30)(rng);
+    const std::int64_t w = std::initializer_list<std::int64_t>{1, 2, 3, 4, 6, kNoRecords}.begin()[trial % 6];
+    const cams::Plan full(n, m, w), replay = cams::Plan::replayOnly(n, m, w);
+    ASSERT_EQ(replay.memoryUnits(), full.memoryUnits());
+    EXPECT_EQ(replay.optimalStepEvaluations(), -1);
+    for (std::int64_t u = 0; u <= full.memoryUnits(); ++u) {
+      for (std::int64_t l = 1; l <= n; ++l) {
+        for (bool record : {false, true}) {
+          ASSERT_EQ(replay.decision(false, record, l, u), full.decision(false, record, l, u))
+              << "N = " << n << ", M = " << m << ", w = " << w << ", l = " << l << ", m = " << u;
+        }
+      }
+    }
+  }
+}
+
+// Plans of up to 2^15 steps keep their decisions as int16, longer ones as int32; a row does not depend on
+// the plan's N, so both hold the same decisions where they overlap, and the longer one attains its optimum.
+TEST(CamsPlan, NarrowAndWideDecisionTablesAgree) {
+  for (std::int64_t w : std::initializer_list<std::int64_t>{2, 4}) {
+    const std::int64_t narrowSteps = std::int64_t{1} << 15;
+    const cams::Plan narrow(narrowSteps, 4, w), wide(narrowSteps + 1000, 4, w);
+    for (std::int64_t m = 0; m <= 4; ++m) {
+      for (std::int64_t l = 1; l <= narrowSteps; ++l) {
+        for (int table = 0; table < 4; ++table) {
+          ASSERT_EQ(narrow.decision(table >= 2, table % 2 == 1, l, m),
+                    wide.decision(table >= 2, table % 2 == 1, l, m))
+              << "l = " << l << ", m = " << m << ", w = " << w;
+        }
+      }
+    }
+    EXPECT_EQ(cams::simulate(wide).stepEvaluations(), wide.optimalStepEvaluations());
+    EXPECT_EQ(cams::simulate(narrow).stepEvaluations(), narrow.optimalStepEvaluations());
+  }
 }
 
 TEST(CamsPlan, BadInputIsRejectedWithTheFieldNamed) {
