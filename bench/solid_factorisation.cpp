@@ -6,7 +6,12 @@
 // fixture: each phase runs once (the factorisations take seconds) and prints CPU and wall seconds, the
 // factor's nonzeros and the process's peak resident memory.
 //
-// Usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS(simplicial,cholmod) MODES
+// CHOLMOD's simplicial LDL^T (cholmod-simplicial: CHOLMOD's ordering choice; cholmod-simplicial-metis:
+// METIS forced) calls no BLAS, so unlike the supernodal factorisation its bits do not depend on the BLAS
+// the system selects: the bit-safe way to METIS's smaller fill (bench/RESULTS.md, "The solid's gradient").
+//
+// Usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS MODES, SOLVERS a comma-separated list of
+// simplicial, cholmod, cholmod-simplicial, cholmod-simplicial-metis
 #include <hindsight/problems/rod/solid_model.h>
 
 #include <Spectra/MatOp/SparseSymMatProd.h>
@@ -93,7 +98,8 @@ void eigenSolve(const SparseMatrix& stiffness, const SparseMatrix& mass, int mod
 
 int main(int argc, char** argv) {
   if (argc != 7) {
-    std::cerr << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS(simplicial,cholmod) MODES\n";
+    std::cerr << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) "
+                 "SOLVERS(simplicial,cholmod,cholmod-simplicial,cholmod-simplicial-metis) MODES\n";
     return 2;
   }
   hindsight::rod::RodConfig config;
@@ -102,7 +108,8 @@ int main(int argc, char** argv) {
   hindsight::rod::SolidMeshOptions options;
   options.elementsThroughThickness = std::stoi(argv[3]);
   options.midPlaneSymmetry = std::string(argv[4]) == "1";
-  const std::string solvers = argv[5];
+  const std::string solvers = "," + std::string(argv[5]) + ",";
+  auto asked = [&](const std::string& name) { return solvers.find("," + name + ",") != std::string::npos; };
   const int modes = std::stoi(argv[6]);
   const int designs = hindsight::rod::SolidModel::designCountOf(config, options);
 
@@ -125,7 +132,7 @@ int main(int argc, char** argv) {
   std::printf("elements %d (designs %d), free DOFs %ld, nonzeros of K %ld\n", model.elementCount(), designs,
               long(stiffness.rows()), long(stiffness.nonZeros()));
 
-  if (solvers.find("simplicial") != std::string::npos) {
+  if (asked("simplicial")) {
     Eigen::SimplicialLDLT<SparseMatrix> factor;
     clock = Clock();
     factor.compute(stiffness);
@@ -135,7 +142,22 @@ int main(int argc, char** argv) {
     if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT");
   }
 #ifdef HINDSIGHT_WITH_CHOLMOD
-  if (solvers.find("cholmod") != std::string::npos) {
+  for (const bool metis : {false, true}) {
+    if (!asked(metis ? "cholmod-simplicial-metis" : "cholmod-simplicial")) continue;
+    Eigen::CholmodSimplicialLDLT<SparseMatrix> factor;
+    if (metis) {
+      factor.cholmod().nmethods = 1;
+      factor.cholmod().method[0].ordering = CHOLMOD_METIS;
+    }
+    clock = Clock();
+    factor.compute(stiffness);
+    clock.report(metis ? "CHOLMOD simplicial LDL^T, METIS" : "CHOLMOD simplicial LDL^T");
+    const cholmod_common& common = factor.cholmod();
+    std::printf("  info %d, ordering %d (0 natural, 1 given, 2 AMD, 3 METIS, 4 NESDIS), L nonzeros %.0f\n",
+                int(factor.info()), int(common.method[common.selected].ordering), common.lnz);
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "CHOLMOD simplicial");
+  }
+  if (asked("cholmod")) {
     Eigen::CholmodSupernodalLLT<SparseMatrix> factor;
     clock = Clock();
     factor.compute(stiffness);
@@ -146,7 +168,7 @@ int main(int argc, char** argv) {
     if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "CHOLMOD supernodal");
   }
 #else
-  if (solvers.find("cholmod") != std::string::npos)
+  if (solvers.find(",cholmod") != std::string::npos)
     std::printf("built without CHOLMOD (libsuitesparse-dev)\n");
 #endif
   return 0;

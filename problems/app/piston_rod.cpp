@@ -126,6 +126,7 @@ PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request
   auto mechanismProblem =
       std::make_unique<mechanism::MechanismProblem>(described, basis.columnCount(), invariants.spatial());
   const int modalOffset = mechanismProblem->freeCount();  // q within the minimal coordinates
+  const mechanism::MechanismProblem& mechanismModel = *mechanismProblem;
   const std::unique_ptr<SecondOrderProblem> problemPointer = std::move(mechanismProblem);
   const SecondOrderProblem& problem = *problemPointer;
   const IntegratorOptions options = integratorOptions();
@@ -141,9 +142,24 @@ PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request
     throw std::invalid_argument(
         "psi2 needs fixed steps (simulation.adaptive = false): its load times must be grid points");
   }
-  const StateObserver observer = [&](std::int64_t step, double, ConstVectorRef z) {
+  // The member's pose for request.motion: the full coordinates z(t, y) from the mechanism's position
+  // solve, in a workspace of its own (the simulation's workspaces and bits are untouched).
+  std::unique_ptr<ProblemWorkspace> motionWorkspace;
+  Vector coordinates, coordinateRates;
+  if (request.motion) {
+    motionWorkspace = mechanismModel.createModelWorkspaceFor(p);
+    coordinates.resize(mechanismModel.fullCoordinateCount());
+    coordinateRates.resize(mechanismModel.fullCoordinateCount());
+  }
+  const StateObserver observer = [&](std::int64_t step, double t, ConstVectorRef z) {
     if (stride > 0 && step > 0 && step % stride == 0 && step / stride <= samples) {
       sampled.col(step / stride - 1) = z.segment(modalOffset, n);
+    }
+    if (request.motion) {
+      const int m = mechanismModel.coordinateCount();
+      mechanismModel.coordinates(t, z.head(m), z.segment(m, m), p, coordinates, coordinateRates,
+                                 motionWorkspace.get());
+      request.motion(t, coordinates.segment(mechanismModel.memberOffset(), 3), z.segment(modalOffset, n));
     }
   };
 

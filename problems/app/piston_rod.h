@@ -9,6 +9,7 @@
 #include <hindsight/engine/stopwatch.h>
 #include <hindsight/problems/app/config.h>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,10 +51,17 @@ class PistonRod {
   /// The uniform initial design x0.
   Vector initialDesign() const;
 
+  /// The member's motion at one step of the forward sweep: t, its frame's pose (x, y, beta) in the global
+  /// plane and its modal coordinates q (the columns of PistonRodEvaluation::modes).
+  using MotionObserver = std::function<void(double t, ConstVectorRef pose, ConstVectorRef q)>;
+
   struct Request {
     bool psi1Gradient = true;
     bool psi2 = true;
     bool psi2Gradient = true;
+    /// Called at every step of the forward sweep (t = t0 included) when set; the pose comes from the
+    /// mechanism's position solve in a workspace of its own, so the run's results keep their bits.
+    MotionObserver motion;
   };
   /// Throws std::invalid_argument for a design of wrong size or out of bounds (naming the index),
   /// NumericalError for a failed simulation, std::runtime_error for a failed eigen solve.

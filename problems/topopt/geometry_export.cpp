@@ -361,21 +361,42 @@ TriangleMesh voxelSurface(const BoxDensityField& field, double iso) {
 void writeDensityVtu(const std::string& path, const BoxDensityField& field) {
   checkBoxField(field);
   const int nx = field.nx, ny = field.ny, nz = field.layers();
-  const long points = static_cast<long>(nx + 1) * (ny + 1) * (nz + 1);
+  Matrix points(3, static_cast<Eigen::Index>(nx + 1) * (ny + 1) * (nz + 1));
+  Eigen::Index column = 0;
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int k = 0; k <= nz; ++k, ++column)
+        points.col(column) << i * field.cellWidthMm, j * field.cellHeightMm, k * field.cellDepthMm;
+    }
+  }
+  writeDensityVtu(path, field, points, {});
+}
+
+void writeDensityVtu(const std::string& path, const BoxDensityField& field, ConstMatrixRef points,
+                     const std::vector<std::pair<std::string, Matrix>>& pointVectors) {
+  checkBoxField(field);
+  const int nx = field.nx, ny = field.ny, nz = field.layers();
+  const long pointCount = static_cast<long>(nx + 1) * (ny + 1) * (nz + 1);
   const long cells = static_cast<long>(nx) * ny * nz;
+  auto checkPoints = [&](const Matrix& m, const std::string& name) {
+    if (m.rows() != 3 || m.cols() != pointCount)
+      throw std::invalid_argument("writeDensityVtu: " + name + " is " + std::to_string(m.rows()) + " x " +
+                                  std::to_string(m.cols()) + ", expected 3 x " + std::to_string(pointCount) +
+                                  " (the grid's points)");
+  };
+  checkPoints(points, "points");
+  for (const auto& [name, values] : pointVectors) checkPoints(values, "point vector '" + name + "'");
   auto point = [&](int i, int j, int k) { return (static_cast<long>(i) * (ny + 1) + j) * (nz + 1) + k; };
+  auto appendVectors = [](std::string& text, const Matrix& m) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c)
+      text += formatNumber(m(0, c)) + " " + formatNumber(m(1, c)) + " " + formatNumber(m(2, c)) + "\n";
+  };
   std::string text =
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" "
       "byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"" +
-      std::to_string(points) + "\" NumberOfCells=\"" + std::to_string(cells) + "\">\n";
+      std::to_string(pointCount) + "\" NumberOfCells=\"" + std::to_string(cells) + "\">\n";
   text += "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
-  for (int i = 0; i <= nx; ++i) {
-    for (int j = 0; j <= ny; ++j) {
-      for (int k = 0; k <= nz; ++k)
-        text += formatNumber(i * field.cellWidthMm) + " " + formatNumber(j * field.cellHeightMm) + " " +
-                formatNumber(k * field.cellDepthMm) + "\n";
-    }
-  }
+  appendVectors(text, points);
   text +=
       "</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" "
       "format=\"ascii\">\n";
@@ -395,8 +416,19 @@ void writeDensityVtu(const std::string& path, const BoxDensityField& field) {
   for (long c = 1; c <= cells; ++c) text += std::to_string(8 * c) + "\n";
   text += "</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
   for (long c = 0; c < cells; ++c) text += "12\n";
+  text += "</DataArray>\n</Cells>\n";
+  if (!pointVectors.empty()) {
+    text += "<PointData Vectors=\"" + pointVectors.front().first + "\">\n";
+    for (const auto& [name, values] : pointVectors) {
+      text +=
+          "<DataArray type=\"Float64\" Name=\"" + name + "\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+      appendVectors(text, values);
+      text += "</DataArray>\n";
+    }
+    text += "</PointData>\n";
+  }
   text +=
-      "</DataArray>\n</Cells>\n<CellData Scalars=\"density\">\n<DataArray type=\"Float64\" "
+      "<CellData Scalars=\"density\">\n<DataArray type=\"Float64\" "
       "Name=\"density\" format=\"ascii\">\n";
   for (int i = 0; i < nx; ++i) {
     for (int j = 0; j < ny; ++j) {

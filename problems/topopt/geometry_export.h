@@ -30,6 +30,7 @@
 
 #include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hindsight {
@@ -95,6 +96,12 @@ TriangleMesh voxelSurface(const BoxDensityField& field, double iso);
 /// The densities as a VTK XML unstructured grid (.vtu, ASCII) of hexahedra with the cell field
 /// "density": ParaView opens it. The whole body (mirrored with symmetry), mm.
 void writeDensityVtu(const std::string& path, const BoxDensityField& field);
+/// The same grid and densities with its points at `points` (3 x (nx + 1)(ny + 1)(layers() + 1), column
+/// (i (ny + 1) + j)(layers() + 1) + layer) and the point vectors `pointVectors` (name, 3 x points each;
+/// the first is the active one): the deformed member of solid_motion_export.h. Throws
+/// std::invalid_argument for a matrix of another size.
+void writeDensityVtu(const std::string& path, const BoxDensityField& field, ConstMatrixRef points,
+                     const std::vector<std::pair<std::string, Matrix>>& pointVectors);
 /// STEM.stl (voxelSurface at iso) and STEM.vtu of the solid's field. Returns the paths.
 std::vector<std::string> exportSolidGeometry(const std::string& stem, const BoxDensityField& field,
                                              double iso);

@@ -331,11 +331,7 @@ IterationRecord TopologyOptimizer::step() {
   request.psi2Gradient = update && !usePsi1;
   IterationRecord record;
   record.iteration = state_.iteration;
-  // The final evaluation of a run that reached the iteration cap is that of its best feasible design
-  // (the class comment); without projection the model of x_k* is the one it was evaluated with.
-  const bool toBest =
-      stoppingRuleOn() && !update && state_.bestDesign.size() > 0 && settings.projectionBeta == 0.0;
-  Vector design = toBest ? state_.bestDesign : state_.design;
+  Vector design = designToEvaluate(state_);
   std::optional<ScenarioResults> evaluated;
   while (!evaluated) {
     try {
@@ -405,6 +401,15 @@ IterationRecord TopologyOptimizer::step() {
   lastDesign_ = std::move(design);
   record.totalSeconds = stepTimer.seconds();
   return record;
+}
+
+Vector TopologyOptimizer::designToEvaluate(const OptimizerState& state) const {
+  // The final evaluation of a run that reached the iteration cap is that of its best feasible design
+  // (the class comment); without projection the model of x_k* is the one it was evaluated with.
+  const OptimizationSettings& settings = config().optimization;
+  const bool toBest = stoppingRuleOn() && state.iteration >= settings.iterations &&
+                      state.bestDesign.size() > 0 && settings.projectionBeta == 0.0;
+  return toBest ? state.bestDesign : state.design;
 }
 
 bool TopologyOptimizer::stoppingRuleOn() const {

@@ -235,6 +235,11 @@ class TopologyOptimizer final {
   /// The same on the solid's box grid in millimetres, for the STL and VTU writers (geometry_export.h).
   BoxDensityField solidField(ConstVectorRef design, int iteration) const;
 
+  /// The design variables step() evaluates from `state` (before any backtracking): x_k, or, for the
+  /// final evaluation of a run that reached optimization.iterations, its best feasible design. Of a
+  /// finished run's stored state: the final design, which export draws.
+  Vector designToEvaluate(const OptimizerState& state) const;
+
   /// What the model sees in iteration k for design variables x: the filtered design, projected when
   /// optimization.projectionBeta > 0 (with the beta of iteration k); one entry per design variable.
   Vector modelDesign(ConstVectorRef design, int iteration) const;
