@@ -7,7 +7,7 @@
 // drives engine/binomial_checkpointing.h's BinomialSchedule, multilevel its TwoLevelPlan
 // (MultilevelStorage::fixedStepPlan), the state machines their runs use, so the stream recomputes exactly
 // what a run recomputes); the first action comes after the plan is chosen (binomial: O(checkpoints);
-// multilevel: TwoLevelPlan::choose, 0.13 s at N = 10^6, bench/checkpoint_stream_bench.py). cams
+// multilevel: TwoLevelPlan::choose, 0.03 s at N = 10^6, bench/checkpoint_stream_bench.py). cams
 // translates its whole plan (N <= 2^24) when the stream is opened and then hands it out action by action:
 // its plan is a dynamic programme over N whose tables are O(N M) anyway.
 #pragma once
