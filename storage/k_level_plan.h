@@ -1,12 +1,13 @@
 // The optimal stack schedule on K storage levels: RAM (level 0, copies free) and any number of slower
 // levels, each with its slots, write and read costs -- the model of H-Revolve (Herrmann & Pallez 2020,
 // "H-Revolve: a framework for adjoint computation on synchronous hierarchical platforms", ACM TOMS 46(2))
-// with bounded levels, in the game of storage/schedule.h. K = 2 is TwoLevelPlan::dynamic's programme
-// (the tests compare the two); this class is its generalisation to K levels and the exact reference the
-// planners for large N are checked against.
+// with bounded levels, in the game of storage/schedule.h. With K = 2 it plans the two-level form too
+// (TwoLevelPlan's stack schedules are optimal() and choose()'s, whose tests compare them with a brute-force
+// search and an independent recursion); it is the exact reference the planners for large N are checked
+// against.
 //
-// Recurrences (storage/schedule.cpp writes them for two levels). A segment of l states x_p..x_e whose first
-// state is held at level L, with the free slots f = (f_0, ..., f_{K-1}) besides it:
+// Recurrences. A segment of l states x_p..x_e whose first state is held at level L, with the free slots
+// f = (f_0, ..., f_{K-1}) besides it:
 //   F_L(l, f) = r_L + G_L(l, f)                       (load x_p; r_0 = 0)
 //   G_L(1, f) = 0
 //   G_L(l, f) = min of                                 (x_p at hand, l >= 2)
