@@ -47,7 +47,8 @@
 //               structure with moves, the lengths 1..4096 exact and longer ones on a geometric grid, the
 //               disk's slots capped so that its tables stay within KLevelPlan::kMaxGradedCells (within
 //               1 % of the full search wherever it was measured; docs/theory/storage.md). Considered for
-//               N <= kMaxSimulatedSteps (its counts are a walk of the plan).
+//               N <= kMaxSimulatedSteps (its counts are a walk of the plan) and R + D + 2 <= 256
+//               (kMaxGradedColumns in storage/schedule.cpp: larger disks are the families' case).
 //   Both stack plans are KLevelPlan::choose's, the planner of the K-level form, so a spec with one level
 //   below RAM plans alike in either form.
 // choose() returns the cheapest plan it evaluated; where the best leaves plan attains the game's lower
