@@ -7,7 +7,7 @@
 // (binomial drives engine/binomial_checkpointing.h's BinomialSchedule, multilevel its TwoLevelPlan
 // (MultilevelStorage::fixedStepPlan), cams its plan's cams::Executor, the state machines their runs use, so
 // the stream recomputes exactly what a run recomputes); the first action comes after the plan is made
-// (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.13 s at N = 10^6; cams: its dynamic
+// (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.03 s at N = 10^6; cams: its dynamic
 // programme over N, tables of N (M + 1) entries, seconds at N = 10^4: bench/checkpoint_stream_bench.py).
 // mixed translates its whole plan when the stream is opened and then hands it out action by action.
 #pragma once

@@ -22,7 +22,11 @@ struct KLevelPlan::Tables {
     std::int8_t action;
     std::int8_t level;
   };
-  std::vector<Entry> backward, plain, forward;  // backward/plain: [l][L][cell], forward: [l][cell]
+  // backward: [l][L][cell], forward: [l][cell]. The values without moves (G') are kept for the length at
+  // hand only: after a move the executor reads `backward`, which equals them there (a move back, or on to
+  // a third level, is never strictly cheaper than the move just made: w_k + G'_k <= w_i + G'_i for the
+  // level k chosen and any other i, and w >= 0).
+  std::vector<Entry> backward, forward;
   std::size_t at(std::int64_t l, int level, std::int64_t cell) const {
     return static_cast<std::size_t>((l * levels + level) * cells + cell);
   }
@@ -102,8 +106,12 @@ KLevelPlan KLevelPlan::optimal(std::int64_t steps, std::int64_t ramSlots,
   constexpr double kInfinity = std::numeric_limits<double>::infinity();
   const std::size_t size = static_cast<std::size_t>((steps + 1) * t.levels * t.cells);
   t.backward.assign(size, Tables::Entry{kInfinity, 0, kDone, 0});
-  t.plain.assign(size, Tables::Entry{kInfinity, 0, kDone, 0});
   t.forward.assign(static_cast<std::size_t>((steps + 1) * t.cells), Tables::Entry{kInfinity, 0, 0, 0});
+  std::vector<Tables::Entry> plain(static_cast<std::size_t>(t.levels * t.cells));  // G' at length l
+  const auto plainAt = [&](int level, std::int64_t cell) -> Tables::Entry& {
+    return plain[static_cast<std::size_t>(level * t.cells + cell)];
+  };
+  std::vector<std::int64_t> freeSlots(capacity.size());  // of the cell at hand, per level
   const double uf = forwardStep;
   const auto loaded = [&](int level, std::int64_t l, std::int64_t cell) {  // F_L
     return read[level] + t.backward[t.at(l, level, cell)].cost;
@@ -111,6 +119,7 @@ KLevelPlan KLevelPlan::optimal(std::int64_t steps, std::int64_t ramSlots,
   for (std::int64_t l = 1; l <= steps; ++l) {
     pollInterrupt();
     for (std::int64_t cell = 0; cell < t.cells; ++cell) {
+      for (int k = 0; k < t.levels; ++k) freeSlots[static_cast<std::size_t>(k)] = t.freeAt(cell, k);
       for (int level = 0; level < t.levels; ++level) {
         Tables::Entry best{l == 1 ? 0.0 : kInfinity, 0, static_cast<std::int8_t>(l == 1 ? kDone : kNone), 0};
         if (l >= 2) {
@@ -118,24 +127,25 @@ KLevelPlan KLevelPlan::optimal(std::int64_t steps, std::int64_t ramSlots,
           for (std::int64_t j = 1; j <= l - 2; ++j) {
             const double lower = static_cast<double>(j) * uf + loaded(level, j, cell);
             for (int k = 0; k < t.levels; ++k) {
-              if (t.freeAt(cell, k) < 1) continue;
+              if (freeSlots[static_cast<std::size_t>(k)] < 1) continue;
               const double cost = lower + write[k] + t.backward[t.at(l - j, k, cell - t.stride[k])].cost;
               if (cost < best.cost)
                 best = {cost, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(k)};
             }
           }
         }
-        t.plain[t.at(l, level, cell)] = best;
+        plainAt(level, cell) = best;
       }
     }
     for (std::int64_t cell = 0; cell < t.cells; ++cell) {
+      for (int k = 0; k < t.levels; ++k) freeSlots[static_cast<std::size_t>(k)] = t.freeAt(cell, k);
       for (int level = 0; level < t.levels; ++level) {
-        Tables::Entry best = t.plain[t.at(l, level, cell)];
-        if (l >= 2 && t.freeAt(cell, level) < t.capacity[level]) {
+        Tables::Entry best = plainAt(level, cell);
+        if (l >= 2 && freeSlots[static_cast<std::size_t>(level)] < t.capacity[level]) {
           for (int k = 0; k < t.levels; ++k) {
-            if (k == level || t.freeAt(cell, k) < 1) continue;
+            if (k == level || freeSlots[static_cast<std::size_t>(k)] < 1) continue;
             const std::int64_t moved = cell - t.stride[k] + t.stride[level];
-            const double cost = write[k] + t.plain[t.at(l, k, moved)].cost;
+            const double cost = write[k] + plainAt(k, moved).cost;
             if (cost < best.cost) best = {cost, 0, kMove, static_cast<std::int8_t>(k)};
           }
         }
@@ -394,7 +404,8 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
   const double k = static_cast<double>(capacity.size());
   double work = static_cast<double>(steps) * static_cast<double>(steps) * k * k;
   for (std::int64_t c : capacity) work *= static_cast<double>(c + 1);
-  if (work <= static_cast<double>(kChooseExactWork)) return optimal(steps, ramSlots, levels, forwardStep);
+  const std::int64_t exactWork = capacity.size() == 2 ? kMaxWork : kChooseExactWork;
+  if (work <= static_cast<double>(exactWork)) return optimal(steps, ramSlots, levels, forwardStep);
   // The largest cap c on every level's slots with rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
   const std::int64_t columns = kMaxGradedCells / gradedRows(steps);
   const auto columnsWith = [&](std::int64_t cap) {
@@ -430,6 +441,8 @@ std::int64_t KLevelPlan::gradedRows(std::int64_t steps) {
   return rows;
 }
 
+bool KLevelPlan::onGrid() const { return hierarchical_ && hierarchical_->exact < steps_; }
+
 std::string KLevelPlan::describe() const {
   std::string slots;
   for (std::size_t k = 1; k < peak_.size(); ++k) slots += (k > 1 ? ", " : "") + std::to_string(peak_[k]);
@@ -437,7 +450,7 @@ std::string KLevelPlan::describe() const {
                            slots + " on the levels below, slots reused";
   if (tables_)
     return "optimal " + std::to_string(levelCount()) + "-level stack schedule (dynamic programme)" + used;
-  const bool grid = hierarchical_->exact < steps_;
+  const bool grid = onGrid();
   return "hierarchical " + std::to_string(levelCount()) +
          "-level stack schedule (H-Revolve's structure with moves" +
          (grid ? ", lengths beyond " + std::to_string(hierarchical_->exact) + " on a geometric grid"
@@ -474,7 +487,7 @@ KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
   return Decision{e.action, e.action, e.distance};
 }
 
-KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length, bool moved) const {
+KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length) const {
   if (hierarchical_) {
     const HierarchicalTables& t = *hierarchical_;
     const std::int64_t m = free_[static_cast<std::size_t>(level)];
@@ -490,7 +503,7 @@ KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length
   }
   std::int64_t cell = 0;
   for (int k = 0; k < levelCount(); ++k) cell += free_[static_cast<std::size_t>(k)] * tables_->stride[k];
-  const Tables::Entry& e = (moved ? tables_->plain : tables_->backward)[tables_->at(length, level, cell)];
+  const Tables::Entry& e = tables_->backward[tables_->at(length, level, cell)];
   return Decision{e.action, e.level, e.distance};
 }
 

@@ -1,12 +1,13 @@
 // The optimal stack schedule on K storage levels: RAM (level 0, copies free) and any number of slower
 // levels, each with its slots, write and read costs -- the model of H-Revolve (Herrmann & Pallez 2020,
 // "H-Revolve: a framework for adjoint computation on synchronous hierarchical platforms", ACM TOMS 46(2))
-// with bounded levels, in the game of storage/schedule.h. K = 2 is TwoLevelPlan::dynamic's programme
-// (the tests compare the two); this class is its generalisation to K levels and the exact reference the
-// planners for large N are checked against.
+// with bounded levels, in the game of storage/schedule.h. With K = 2 it plans the two-level form too
+// (TwoLevelPlan's stack schedules are optimal() and choose()'s, whose tests compare them with a brute-force
+// search and an independent recursion); it is the exact reference the planners for large N are checked
+// against.
 //
-// Recurrences (storage/schedule.cpp writes them for two levels). A segment of l states x_p..x_e whose first
-// state is held at level L, with the free slots f = (f_0, ..., f_{K-1}) besides it:
+// Recurrences. A segment of l states x_p..x_e whose first state is held at level L, with the free slots
+// f = (f_0, ..., f_{K-1}) besides it:
 //   F_L(l, f) = r_L + G_L(l, f)                       (load x_p; r_0 = 0)
 //   G_L(1, f) = 0
 //   G_L(l, f) = min of                                 (x_p at hand, l >= 2)
@@ -88,9 +89,11 @@ class KLevelPlan {
   static KLevelPlan graded(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
 
-  /// The plan a `multilevel` spec with K levels runs: optimal() where its work is at most kChooseExactWork,
-  /// else graded() (with each level's slots capped so that its tables stay within kMaxGradedCells). Same
-  /// arguments and errors as optimal().
+  /// The plan a `multilevel` spec runs, with K levels or two (TwoLevelPlan::choose's stack schedule):
+  /// optimal() where its work is at most kChooseExactWork -- for two levels kMaxWork, the limit the
+  /// two-level programme always had (N^2 (R + 1)(D + 1) <= 2^28, 2-3 s) --, else graded() (with each
+  /// level's slots capped so that its tables stay within kMaxGradedCells). Same arguments and errors as
+  /// optimal().
   static constexpr std::int64_t kChooseExactWork = std::int64_t{1} << 26;
   static KLevelPlan choose(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
@@ -105,6 +108,10 @@ class KLevelPlan {
     double cost = 0.0;
   };
   const Counts& counts() const { return counts_; }
+  /// Whether the plan is optimal()'s (else H-Revolve's structure: hierarchical() or graded()).
+  bool exact() const { return tables_ != nullptr; }
+  /// Whether graded()'s geometric grid of lengths plans the longer segments.
+  bool onGrid() const;
   /// The programme's optimum H(N, slots); counts().cost equals it (the executor follows its decisions).
   double optimum() const { return optimum_; }
   int levelCount() const { return static_cast<int>(capacity_.size()); }
@@ -135,9 +142,7 @@ class KLevelPlan {
   };
   enum : int { kDone = 0, kNone = 1, kStore = 2, kMove = 3 };
   Decision forwardDecision(std::int64_t length) const;
-  /// `moved`: the held state has just moved levels, so the decision without moves (the value the move was
-  /// priced with).
-  Decision backwardDecision(int level, std::int64_t length, bool moved) const;
+  Decision backwardDecision(int level, std::int64_t length) const;
   std::int64_t takeSlot(int level);
   void releaseSlot(const Held& held);
   Counts walk();
@@ -180,7 +185,6 @@ void KLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
 template <typename Visitor>
 void KLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
   bool atHand = false;  // whether the state at hand is the top checkpoint's
-  bool moved = false;
   for (;;) {
     const Held top = held_.back();
     const std::int64_t length = e - top.position + 1;
@@ -191,8 +195,7 @@ void KLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
       held_.pop_back();
       return;
     }
-    const Decision decision = backwardDecision(top.level, length, moved);
-    moved = false;
+    const Decision decision = backwardDecision(top.level, length);
     if (decision.action == kNone) {
       visitor.advance(top.position, e);
       return;
@@ -202,7 +205,6 @@ void KLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
       visitor.store(decision.level, slot);
       releaseSlot(top);
       held_.back() = Held{top.position, decision.level, slot};
-      moved = true;
       continue;
     }
     visitor.advance(top.position, top.position + decision.distance);

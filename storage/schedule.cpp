@@ -82,6 +82,11 @@ std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
 // Replaying x_{N-1} is evaluated while the first sweep has at most this many pushes to walk through;
 // beyond, the working state is used (with that many slots one more slot changes little).
 constexpr std::int64_t kMaxReplayWalk = 4096;
+// Beyond the dynamic programme, the graded stack plan is computed while R + D + 2 (R, D at most N) is at
+// most this: where many slots stay free its split search falls back to every length (minutes at N = 2000
+// with 50 RAM and 2000 disk states at 1:1:2:2, where the families tie), and such disks are the families'
+// case.
+constexpr std::int64_t kMaxGradedColumns = 256;
 // Every length of the last leaf is tried up to this N.
 constexpr std::int64_t kExhaustiveLastLeaf = 2048;
 
@@ -168,38 +173,7 @@ TwoLevelPlan TwoLevelPlan::allSlots(std::int64_t steps, std::int64_t ramSlots, s
   return plan;
 }
 
-// ---- the dynamic programme (kDynamic) ----
-//
-// For a segment of l states x_p..x_e (l = e - p + 1) whose first state is a checkpoint at level L, with
-// m RAM and d disk slots free besides it:
-//   F_L(l, m, d)  = r_L + G_L(l, m, d)        (load x_p: r_RAM = 0, r_disk = rd),
-//   G_L(1, m, d)  = 0                          (x_e = x_p is at hand; its slot is freed),
-//   G_L(l, m, d)  = min of                     (x_p at hand, l >= 2)
-//     (l - 1) uf + F_L(l - 1, m, d)                                   advance to x_e, consume it;
-//     j uf + G_RAM(l - j, m - 1, d) + F_L(j, m, d),     1 <= j <= l-2   store x_{p+j} in RAM;
-//     j uf + wd + G_disk(l - j, m, d - 1) + F_L(j, m, d), 1 <= j <= l-2 store it on disk;
-//     G_RAM(l, m - 1, d + 1)            (L = disk: keep x_p in RAM instead, its disk slot freed)
-//     wd + G_disk(l, m + 1, d - 1)      (L = RAM: move x_p to disk, its RAM slot freed).
-// The forward sweep at x_p (nothing stored from p on, advancing free), m and d slots free:
-//   H(l, m, d) = min over L of w_L + min( F_L(l, m', d'),  min_{1<=j<=l-1} H(l - j, m', d') + F_L(j, m', d')
-//   )
-// with w_RAM = 0, w_disk = wd and (m', d') the slots left after storing x_p at L; F_L(l, ...) there
-// stores nothing more in the forward sweep (the later states are replayed from x_p). The game's cost
-// is H(N, R, D). Moving a checkpoint there and back is never cheaper, so applying the two moves to the
-// values without moves is exact. O(N^2 R D) time, O(N R D) memory.
-struct TwoLevelPlan::DynamicTables {
-  std::int64_t steps = 0, ram = 0, disk = 0;
-  struct Entry {
-    double cost;
-    std::int32_t distance;
-    std::int8_t action;
-  };
-  std::vector<Entry> backward[2];  // G_L, L = 0 RAM, 1 disk
-  std::vector<Entry> forward;      // H; action = level index
-  std::size_t index(std::int64_t l, std::int64_t m, std::int64_t d) const {
-    return static_cast<std::size_t>((l * (ram + 1) + m) * (disk + 1) + d);
-  }
-};
+// ---- the stack schedules (kDynamic, kHierarchical): KLevelPlan with RAM and disk ----
 
 bool TwoLevelPlan::dynamicAffordable(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots) {
   if (steps < 1 || ramSlots < 0 || diskSlots < 0) return false;
@@ -207,6 +181,25 @@ bool TwoLevelPlan::dynamicAffordable(std::int64_t steps, std::int64_t ramSlots, 
   const auto r = static_cast<UnsignedInt128>(std::min(ramSlots, steps) + 1);
   const auto d = static_cast<UnsignedInt128>(std::min(diskSlots, steps) + 1);
   return n * n * r * d <= static_cast<UnsignedInt128>(kMaxDynamicWork);
+}
+
+TwoLevelPlan TwoLevelPlan::fromStack(KLevelPlan stack) {
+  TwoLevelPlan plan;
+  plan.kind_ = stack.exact() ? Kind::kDynamic : Kind::kHierarchical;
+  plan.steps_ = stack.steps();
+  plan.ramSlotsUsed_ = stack.slotsUsed()[0];
+  plan.diskSlotsUsed_ = stack.slotsUsed()[1];
+  // The counts of the walk KLevelPlan made (the pass a run executes).
+  const KLevelPlan::Counts& c = stack.counts();
+  plan.counts_.recomputedSteps = c.recomputedSteps;
+  plan.counts_.statesStored = c.forwardStores;
+  plan.counts_.ramWrites = c.writes[0];
+  plan.counts_.ramReads = c.reads[0];
+  plan.counts_.diskWrites = c.writes[1];
+  plan.counts_.diskReads = c.reads[1];
+  stack.rewind();
+  plan.stack_ = std::move(stack);
+  return plan;
 }
 
 TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
@@ -220,123 +213,30 @@ TwoLevelPlan TwoLevelPlan::dynamic(std::int64_t steps, std::int64_t ramSlots, st
     throw std::invalid_argument("two-level plan 'dynamic': " + std::to_string(ramSlots) + " RAM and " +
                                 std::to_string(diskSlots) + " disk slots cannot reverse N >= 2 steps");
   }
-  auto tables = std::make_shared<DynamicTables>();
-  DynamicTables& t = *tables;
-  t.steps = steps;
-  t.ram = std::min(ramSlots, steps);  // more slots than states are never used
-  t.disk = std::min(diskSlots, steps);
-  const std::size_t size = t.index(steps + 1, 0, 0);
-  constexpr double kInfinity = std::numeric_limits<double>::infinity();
-  for (auto& table : t.backward) table.assign(size, DynamicTables::Entry{kInfinity, 0, kDone});
-  t.forward.assign(size, DynamicTables::Entry{kInfinity, 0, 0});
-  const double uf = costs.forwardStep, wd = costs.diskWrite, rd = costs.diskRead;
-  const double read[2] = {0.0, rd}, write[2] = {0.0, wd};
-  const auto loaded = [&](int level, std::int64_t l, std::int64_t m, std::int64_t d) {  // F_L
-    return read[level] + t.backward[level][t.index(l, m, d)].cost;
-  };
-  std::vector<DynamicTables::Entry> plain[2];  // G_L at one l before the moves
-  for (auto& row : plain) row.resize(static_cast<std::size_t>((t.ram + 1) * (t.disk + 1)));
-  const auto cell = [&](std::int64_t m, std::int64_t d) {
-    return static_cast<std::size_t>(m * (t.disk + 1) + d);
-  };
-  for (std::int64_t l = 1; l <= steps; ++l) {
-    pollInterrupt();
-    for (std::int64_t m = 0; m <= t.ram; ++m) {
-      for (std::int64_t d = 0; d <= t.disk; ++d) {
-        for (int level = 0; level < 2; ++level) {
-          DynamicTables::Entry best{l == 1 ? 0.0 : kInfinity, 0,
-                                    static_cast<std::int8_t>(l == 1 ? kDone : kNone)};
-          if (l >= 2) {
-            best.cost = static_cast<double>(l - 1) * uf + loaded(level, l - 1, m, d);
-            for (std::int64_t j = 1; j <= l - 2; ++j) {
-              const double lower = static_cast<double>(j) * uf + loaded(level, j, m, d);
-              if (m >= 1) {
-                const double cost = lower + t.backward[0][t.index(l - j, m - 1, d)].cost;
-                if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), kStoreRam};
-              }
-              if (d >= 1) {
-                const double cost = lower + wd + t.backward[1][t.index(l - j, m, d - 1)].cost;
-                if (cost < best.cost) best = {cost, static_cast<std::int32_t>(j), kStoreDisk};
-              }
-            }
-          }
-          plain[level][cell(m, d)] = best;
-        }
-      }
-    }
-    for (std::int64_t m = 0; m <= t.ram; ++m) {
-      for (std::int64_t d = 0; d <= t.disk; ++d) {
-        DynamicTables::Entry ram = plain[0][cell(m, d)], disk = plain[1][cell(m, d)];
-        if (l >= 2 && d >= 1 && m + 1 <= t.ram && wd + plain[1][cell(m + 1, d - 1)].cost < ram.cost)
-          ram = {wd + plain[1][cell(m + 1, d - 1)].cost, 0, kMove};
-        if (l >= 2 && m >= 1 && d + 1 <= t.disk && plain[0][cell(m - 1, d + 1)].cost < disk.cost)
-          disk = {plain[0][cell(m - 1, d + 1)].cost, 0, kMove};
-        t.backward[0][t.index(l, m, d)] = ram;
-        t.backward[1][t.index(l, m, d)] = disk;
-      }
-    }
-    for (std::int64_t m = 0; m <= t.ram; ++m) {
-      for (std::int64_t d = 0; d <= t.disk; ++d) {
-        DynamicTables::Entry best{kInfinity, 0, 0};
-        for (int level = 0; level < 2; ++level) {
-          const std::int64_t m2 = level == 0 ? m - 1 : m, d2 = level == 1 ? d - 1 : d;
-          if (m2 < 0 || d2 < 0) continue;
-          double cost = write[level] + loaded(level, l, m2, d2);
-          if (cost < best.cost) best = {cost, 0, static_cast<std::int8_t>(level)};
-          for (std::int64_t j = 1; j <= l - 1; ++j) {
-            cost = write[level] + t.forward[t.index(l - j, m2, d2)].cost + loaded(level, j, m2, d2);
-            if (cost < best.cost)
-              best = {cost, static_cast<std::int32_t>(j), static_cast<std::int8_t>(level)};
-          }
-        }
-        t.forward[t.index(l, m, d)] = best;
-      }
-    }
-  }
-  if (!(t.forward[t.index(steps, t.ram, t.disk)].cost < kInfinity)) {
-    throw std::invalid_argument("two-level plan 'dynamic': no schedule for N = " + std::to_string(steps));
-  }
-  TwoLevelPlan plan;
-  plan.kind_ = Kind::kDynamic;
-  plan.steps_ = steps;
-  plan.ramSlots_ = t.ram;
-  plan.dynamic_ = std::move(tables);
-  plan.counts_ = plan.walk();  // also the slots in use at the most (takeSlot)
-  plan.ramSlotsUsed_ = plan.peakRam_;
-  plan.diskSlotsUsed_ = plan.peakDisk_;
-  return plan;
+  return fromStack(KLevelPlan::optimal(
+      steps, ramSlots, {StorageLevelCosts{diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep));
 }
 
-TwoLevelPlan::Decision TwoLevelPlan::forwardDecision(std::int64_t length) const {
-  const DynamicTables::Entry& e = dynamic_->forward[dynamic_->index(length, freeRam_, freeDisk_)];
-  return Decision{e.action, e.distance};
-}
-
-TwoLevelPlan::Decision TwoLevelPlan::backwardDecision(StorageLevel level, std::int64_t length) const {
-  const DynamicTables::Entry& e =
-      dynamic_->backward[level == StorageLevel::kRam ? 0 : 1][dynamic_->index(length, freeRam_, freeDisk_)];
-  return Decision{e.action, e.distance};
-}
-
-std::int64_t TwoLevelPlan::takeSlot(StorageLevel level) {
-  // The lowest free slot, so that the slots in use at the most are 0..peak-1.
-  std::vector<char>& busy = level == StorageLevel::kRam ? ramBusy_ : diskBusy_;
-  std::size_t slot = 0;
-  while (busy[slot]) ++slot;
-  busy[slot] = 1;
-  --(level == StorageLevel::kRam ? freeRam_ : freeDisk_);
-  std::int64_t& peak = level == StorageLevel::kRam ? peakRam_ : peakDisk_;
-  peak = std::max(peak, static_cast<std::int64_t>(slot) + 1);
-  return static_cast<std::int64_t>(slot);
-}
-
-void TwoLevelPlan::releaseSlot(const Held& held) {
-  (held.level == StorageLevel::kRam ? ramBusy_ : diskBusy_)[static_cast<std::size_t>(held.slot)] = 0;
-  ++(held.level == StorageLevel::kRam ? freeRam_ : freeDisk_);
+double TwoLevelPlan::lowerBound(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                const ScheduleCosts& costs) {
+  const std::int64_t afterRam = std::max<std::int64_t>(0, steps - std::max<std::int64_t>(0, ramSlots));
+  const std::int64_t onDisk = std::min(std::max<std::int64_t>(0, diskSlots), afterRam);
+  return costs.forwardStep * static_cast<double>(afterRam - onDisk) +
+         std::min(costs.forwardStep, costs.diskWrite + costs.diskRead) * static_cast<double>(onDisk);
 }
 
 TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
                                   const ScheduleCosts& costs) {
+  return cheapest(steps, ramSlots, diskSlots, costs, true);
+}
+
+TwoLevelPlan TwoLevelPlan::families(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                    const ScheduleCosts& costs) {
+  return cheapest(steps, ramSlots, diskSlots, costs, false);
+}
+
+TwoLevelPlan TwoLevelPlan::cheapest(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                                    const ScheduleCosts& costs, bool stack) {
   if (steps < 1)
     throw std::invalid_argument("two-level plan: N = " + std::to_string(steps) + " must be >= 1");
   if (steps >= 2 && (ramSlots < 1 || ramSlots + diskSlots < 2)) {
@@ -429,28 +329,18 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
       }
     }
   }
-  // The dynamic programme is the optimum over stack schedules, which include both families; it is
-  // compared with them anyway (ties keep the family, whose counts are also in closed form).
+  // A leaves plan at the game's lower bound is optimal: nothing else can be cheaper (ties keep the family).
+  if (bestLeaves > 0 && bestCost <= lowerBound(steps, ramSlots, diskSlots, costs))
+    return leaves(steps, ramSlots, bestLeaves, bestLast, bestReplay);
+  // The stack schedule (KLevelPlan::choose: the dynamic programme, the optimum over stack schedules, which
+  // include both families, where it is affordable; else H-Revolve's structure on graded()'s grid, counted by
+  // a walk) is compared with the families anyway (ties keep the family, whose counts are in closed form).
   std::optional<TwoLevelPlan> optimal;
-  if (dynamicAffordable(steps, ramSlots, diskSlots)) {
-    optimal = dynamic(steps, ramSlots, diskSlots, costs);
-  } else {
-    const UnsignedInt128 cells =
-        static_cast<UnsignedInt128>(steps) *
-        static_cast<UnsignedInt128>(std::min(ramSlots, steps) + std::min(diskSlots, steps) + 2);
-    if (ramSlots >= 1 && cells <= static_cast<UnsignedInt128>(kMaxHierarchicalCells)) {
-      TwoLevelPlan plan;
-      plan.kind_ = Kind::kHierarchical;
-      plan.steps_ = steps;
-      plan.ramSlots_ = std::min(ramSlots, steps);
-      plan.hierarchical_ = KLevelPlan::hierarchical(
-          steps, ramSlots, {StorageLevelCosts{diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep,
-          kHierarchicalWindow);
-      plan.ramSlotsUsed_ = plan.hierarchical_->slotsUsed()[0];
-      plan.diskSlotsUsed_ = plan.hierarchical_->slotsUsed()[1];
-      plan.counts_ = plan.walk();
-      optimal = std::move(plan);
-    }
+  const std::int64_t columns = std::min(ramSlots, steps) + std::min(diskSlots, steps) + 2;
+  if (stack && (dynamicAffordable(steps, ramSlots, diskSlots) ||
+                (ramSlots >= 1 && steps <= kMaxSimulatedSteps && columns <= kMaxGradedColumns))) {
+    optimal = fromStack(KLevelPlan::choose(
+        steps, ramSlots, {StorageLevelCosts{diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep));
   }
   const auto better = [&](TwoLevelPlan plan) {
     if (optimal && optimal->counts().cost(costs) < plan.counts().cost(costs)) return std::move(*optimal);
@@ -474,8 +364,11 @@ TwoLevelPlan TwoLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots, std
 
 std::string TwoLevelPlan::describe() const {
   if (kind_ == Kind::kHierarchical) {
-    return "hierarchical two-level stack schedule (H-Revolve's structure with moves): up to " +
-           std::to_string(ramSlotsUsed_) + " RAM and " + std::to_string(diskSlotsUsed_) +
+    return std::string("hierarchical two-level stack schedule (H-Revolve's structure with moves") +
+           (stack_->onGrid() ? ", lengths beyond " + std::to_string(KLevelPlan::kGradedExactLengths) +
+                                   " on a geometric grid"
+                             : std::string()) +
+           "): up to " + std::to_string(ramSlotsUsed_) + " RAM and " + std::to_string(diskSlotsUsed_) +
            " disk states, slots reused";
   }
   if (kind_ == Kind::kDynamic) {
@@ -566,16 +459,7 @@ TwoLevelPlan::Counts TwoLevelPlan::walk() {
 
 void TwoLevelPlan::rewind() {
   currentLeaf_ = -1;
-  if (kind_ == Kind::kHierarchical) hierarchical_->rewind();
-  if (kind_ == Kind::kDynamic) {
-    held_.clear();
-    held_.reserve(static_cast<std::size_t>(dynamic_->ram + dynamic_->disk + 1));
-    ramBusy_.assign(static_cast<std::size_t>(dynamic_->ram), 0);
-    diskBusy_.assign(static_cast<std::size_t>(dynamic_->disk), 0);
-    freeRam_ = dynamic_->ram;
-    freeDisk_ = dynamic_->disk;
-    nextStore_ = 0;
-  }
+  if (stack_) stack_->rewind();
 }
 
 // ---- predictions ----

@@ -38,17 +38,22 @@
 //   dynamic     the optimum over the schedules that keep their checkpoints as a stack (each segment
 //               [p, e] is reversed from the checkpoint at p, which stays until the segment is done):
 //               the dynamic programme of H-Revolve (Herrmann & Pallez 2020) for two levels with bounded
-//               RAM and disk, written for this game (TwoLevelPlan::dynamic below). Disk slots are
-//               reused as soon as their segment is done, states may be written to disk in the backward
-//               sweep, and a checkpoint at hand may move between the levels. Computed when
-//               N^2 (R + 1)(D + 1) <= kMaxDynamicWork (R, D the slots, at most N each); beyond, only the
-//               two families above are considered.
-//   hierarchical  beyond the dynamic programme's limit: KLevelPlan::hierarchical (storage/k_level_plan.h)
-//               with RAM and disk, H-Revolve's structure with moves, its splits searched within
-//               kHierarchicalWindow of the previous length's best; computed while N (R + D + 2) <=
-//               kMaxHierarchicalCells (its tables' memory), equal to the dynamic programme on every ordered
-//               case tested.
-// choose() returns the cheapest plan it evaluated. The tests compare it with a brute-force search over
+//               RAM and disk, written for this game -- KLevelPlan::optimal (storage/k_level_plan.h) with
+//               one level below RAM. Disk slots are reused as soon as their segment is done, states may
+//               be written to disk in the backward sweep, and a checkpoint at hand may move between the
+//               levels. Computed when N^2 (R + 1)(D + 1) <= kMaxDynamicWork (R, D the slots, at most N
+//               each).
+//   hierarchical  beyond the dynamic programme's limit: KLevelPlan::graded with RAM and disk, H-Revolve's
+//               structure with moves, the lengths 1..4096 exact and longer ones on a geometric grid, the
+//               disk's slots capped so that its tables stay within KLevelPlan::kMaxGradedCells (within
+//               1 % of the full search wherever it was measured; docs/theory/storage.md). Considered for
+//               N <= kMaxSimulatedSteps (its counts are a walk of the plan) and R + D + 2 <= 256
+//               (kMaxGradedColumns in storage/schedule.cpp: larger disks are the families' case).
+//   Both stack plans are KLevelPlan::choose's, the planner of the K-level form, so a spec with one level
+//   below RAM plans alike in either form.
+// choose() returns the cheapest plan it evaluated; where the best leaves plan attains the game's lower
+// bound (lowerBound()) it is optimal and nothing else is evaluated (a large disk: one 2^24-step walk and a
+// graded programme saved). The tests compare it with a brute-force search over
 // every schedule of the game (N <= 7: equal in every case tried) and, for larger N, the dynamic
 // programme with an independent memoised recursion of the same recurrences -- see docs/theory/storage.md,
 // "Two-level schedules".
@@ -93,16 +98,18 @@ class TwoLevelPlan {
  public:
   enum class Kind { kLeaves, kAllSlots, kDynamic, kHierarchical };
   static constexpr std::int64_t kMaxSimulatedSteps = std::int64_t{1} << 24;
-  /// The dynamic programme is solved when N^2 (R + 1)(D + 1) is at most this (about a second).
+  /// The dynamic programme is solved when N^2 (R + 1)(D + 1) is at most this (2-3 s; KLevelPlan::kMaxWork
+  /// for two levels).
   static constexpr std::int64_t kMaxDynamicWork = std::int64_t{1} << 28;
-  /// kHierarchical: table cells N (R + D + 2) at most (32 bytes each: 32 MiB) and the split window.
-  static constexpr std::int64_t kMaxHierarchicalCells = std::int64_t{1} << 20;
-  static constexpr std::int64_t kHierarchicalWindow = 16;
 
   /// The cheapest plan under `costs`. Throws std::invalid_argument when the slots cannot reverse N
   /// steps (N >= 2 needs ramSlots >= 2, or ramSlots == 1 and a disk slot).
   static TwoLevelPlan choose(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
                              const ScheduleCosts& costs);
+  /// The cheapest of the closed-form families alone (leaves, allSlots), as choose() compares them with the
+  /// stack schedule (what choose() returned beyond the tables' limits before graded() planned there).
+  static TwoLevelPlan families(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                               const ScheduleCosts& costs);
   /// replayLast: no working state; the first restore replays x_{N-1} from the top checkpoint, which
   /// frees a slot for revolve (better when slots are few: the game does not get x_{N-1} for free).
   static TwoLevelPlan leaves(std::int64_t steps, std::int64_t ramSlots, std::int64_t leafCount,
@@ -116,6 +123,12 @@ class TwoLevelPlan {
                               const ScheduleCosts& costs);
   /// Whether dynamic() is within kMaxDynamicWork for these sizes.
   static bool dynamicAffordable(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots);
+  /// A lower bound on every schedule's cost: of the N states the backward sweep consumes, at most R come
+  /// free (held in RAM when the forward sweep ends), at most D more without a recomputed step (held on
+  /// disk then: written and read, wd + rd), every other one ends an advance (uf):
+  ///   uf max(0, N - R - D) + min(uf, wd + rd) min(D, max(0, N - R)).
+  static double lowerBound(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                           const ScheduleCosts& costs);
 
   Kind kind() const { return kind_; }
   std::int64_t steps() const { return steps_; }
@@ -158,17 +171,12 @@ class TwoLevelPlan {
   std::int64_t leafSlots(std::int64_t leaf) const;
   Counts countLeaves() const;
 
-  // kDynamic: the tables of the dynamic programme (shared by copies of the plan) and the executor's
-  // checkpoint stack and slot occupancy.
-  struct DynamicTables;
-  struct Held {
-    std::int64_t position;
-    StorageLevel level;
-    std::int64_t slot;
-  };
-  std::shared_ptr<const DynamicTables> dynamic_;
-  // kHierarchical: KLevelPlan::hierarchical with two levels (storage/k_level_plan.h) and its executor.
-  std::optional<KLevelPlan> hierarchical_;  // by value: each copy of the plan executes on its own
+  // kDynamic and kHierarchical: the KLevelPlan with RAM and disk (storage/k_level_plan.h), by value: each
+  // copy of the plan executes on its own (the tables are shared).
+  std::optional<KLevelPlan> stack_;
+  static TwoLevelPlan fromStack(KLevelPlan stack);
+  static TwoLevelPlan cheapest(std::int64_t steps, std::int64_t ramSlots, std::int64_t diskSlots,
+                               const ScheduleCosts& costs, bool stack);
   template <typename Visitor>
   struct LevelAdapter {
     Visitor& visitor;
@@ -177,25 +185,6 @@ class TwoLevelPlan {
     void load(int index, std::int64_t slot) { visitor.load(level(index), slot); }
     void advance(std::int64_t from, std::int64_t to) { visitor.advance(from, to); }
   };
-  std::vector<Held> held_;
-  std::vector<char> ramBusy_, diskBusy_;
-  std::int64_t freeRam_ = 0, freeDisk_ = 0, nextStore_ = -1;
-  std::int64_t peakRam_ = 0, peakDisk_ = 0;  // slots in use at the most (set while counting)
-  std::int64_t takeSlot(StorageLevel level);
-  void releaseSlot(const Held& held);
-  // The decisions: the forward sweep's at a stored position n (level and distance to the next store, 0:
-  // none), the backward sweep's for a segment of `length` states from a checkpoint at hand at `level`.
-  struct Decision {
-    int action;  // kDone, kNone, kStoreRam, kStoreDisk, kMove (backward); the level index (forward)
-    std::int64_t distance;
-  };
-  enum : int { kDone = 0, kNone = 1, kStoreRam = 2, kStoreDisk = 3, kMove = 4 };
-  Decision forwardDecision(std::int64_t length) const;
-  Decision backwardDecision(StorageLevel level, std::int64_t length) const;
-  template <typename Visitor>
-  void dynamicRecord(std::int64_t n, Visitor& visitor);
-  template <typename Visitor>
-  void dynamicRestore(std::int64_t e, Visitor& visitor);
 
   // Maps BinomialSchedule's slots and relative positions onto levels and grid points.
   template <typename Visitor>
@@ -249,59 +238,10 @@ class TwoLevelPlan {
 };
 
 template <typename Visitor>
-void TwoLevelPlan::dynamicRecord(std::int64_t n, Visitor& visitor) {
-  if (n != nextStore_) return;
-  const Decision decision = forwardDecision(steps_ - n);
-  const StorageLevel level = decision.action == 0 ? StorageLevel::kRam : StorageLevel::kDisk;
-  const std::int64_t slot = takeSlot(level);
-  visitor.store(level, slot);
-  held_.push_back(Held{n, level, slot});
-  nextStore_ = decision.distance > 0 ? n + decision.distance : -1;
-}
-
-template <typename Visitor>
-void TwoLevelPlan::dynamicRestore(std::int64_t e, Visitor& visitor) {
-  bool atHand = false;  // whether the state at hand is the top checkpoint's
-  for (;;) {
-    const Held top = held_.back();
-    const std::int64_t length = e - top.position + 1;
-    if (!atHand) visitor.load(top.level, top.slot);
-    atHand = true;
-    if (length == 1) {
-      releaseSlot(top);
-      held_.pop_back();
-      return;
-    }
-    const Decision decision = backwardDecision(top.level, length);
-    if (decision.action == kNone) {
-      visitor.advance(top.position, e);
-      return;
-    }
-    if (decision.action == kMove) {
-      const StorageLevel other = top.level == StorageLevel::kRam ? StorageLevel::kDisk : StorageLevel::kRam;
-      const std::int64_t slot = takeSlot(other);
-      visitor.store(other, slot);
-      releaseSlot(top);
-      held_.back() = Held{top.position, other, slot};
-      continue;
-    }
-    const StorageLevel level = decision.action == kStoreRam ? StorageLevel::kRam : StorageLevel::kDisk;
-    visitor.advance(top.position, top.position + decision.distance);
-    const std::int64_t slot = takeSlot(level);
-    visitor.store(level, slot);
-    held_.push_back(Held{top.position + decision.distance, level, slot});
-  }
-}
-
-template <typename Visitor>
 void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
-  if (kind_ == Kind::kHierarchical) {
+  if (stack_) {
     LevelAdapter<Visitor> adapter{visitor};
-    hierarchical_->recordForward(n, adapter);
-    return;
-  }
-  if (kind_ == Kind::kDynamic) {
-    dynamicRecord(n, visitor);
+    stack_->recordForward(n, adapter);
     return;
   }
   if (kind_ == Kind::kAllSlots) {
@@ -338,13 +278,9 @@ void TwoLevelPlan::recordForward(std::int64_t n, Visitor& visitor) {
 
 template <typename Visitor>
 void TwoLevelPlan::restoreStep(std::int64_t e, Visitor& visitor) {
-  if (kind_ == Kind::kHierarchical) {
+  if (stack_) {
     LevelAdapter<Visitor> adapter{visitor};
-    hierarchical_->restoreStep(e, adapter);
-    return;
-  }
-  if (kind_ == Kind::kDynamic) {
-    dynamicRestore(e, visitor);
+    stack_->restoreStep(e, adapter);
     return;
   }
   if (kind_ == Kind::kAllSlots) {

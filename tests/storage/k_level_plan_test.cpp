@@ -12,6 +12,7 @@
 #include <functional>
 #include <queue>
 #include <random>
+#include <tuple>
 #include <unordered_map>
 
 namespace hindsight {
@@ -158,7 +159,11 @@ TEST(KLevelPlan, ThreeLevelsEqualTheBruteForceOptimumOverAllSchedules) {
   }
 }
 
-TEST(KLevelPlan, TwoLevelsEqualTheTwoLevelProgrammeOnRandomCases) {
+// Two levels are TwoLevelPlan::dynamic (which runs optimal() with one level below RAM; its tests compare it
+// with the brute force and an independent recursion, tests/storage/schedule_test.cpp). Here, random costs:
+// the walked plan costs the optimum, stays within the slots, and its stream is valid; TwoLevelPlan::choose
+// plans with KLevelPlan::choose (the same counts beyond the dynamic programme too).
+TEST(KLevelPlan, TwoLevelsOnRandomCasesCostTheirOptimumAndAreTheTwoLevelPlans) {
   std::mt19937 rng(20261129);
   for (int trial = 0; trial < 60; ++trial) {
     const std::int64_t steps = std::uniform_int_distribution<std::int64_t>(1, 70)(rng);
@@ -168,14 +173,23 @@ TEST(KLevelPlan, TwoLevelsEqualTheTwoLevelProgrammeOnRandomCases) {
     const double read = std::uniform_int_distribution<int>(0, 12)(rng) / 4.0;
     SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
                  std::to_string(disk) + " wd " + std::to_string(write) + " rd " + std::to_string(read));
-    const ScheduleCosts costs{1, 1, write, read};
-    const TwoLevelPlan two = TwoLevelPlan::dynamic(steps, ram, disk, costs);
     KLevelPlan plan = KLevelPlan::optimal(steps, ram, {StorageLevelCosts{disk, write, read}}, 1.0);
-    EXPECT_NEAR(plan.optimum(), two.counts().cost(costs), 1e-9);
     EXPECT_NEAR(plan.counts().cost, plan.optimum(), 1e-9);
     EXPECT_LE(plan.slotsUsed()[0], ram);
     EXPECT_LE(plan.slotsUsed()[1], disk);
     expectValidStream(plan, {ram, disk});
+  }
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  for (const auto& [steps, ram, disk] : std::vector<std::tuple<std::int64_t, std::int64_t, std::int64_t>>{
+           {1000, 6, 20}, {3000, 4, 40}, {20000, 8, 40}}) {
+    SCOPED_TRACE("N " + std::to_string(steps));
+    const TwoLevelPlan two = TwoLevelPlan::choose(steps, ram, disk, half);
+    const KLevelPlan k = KLevelPlan::choose(steps, ram, {StorageLevelCosts{disk, 0.5, 0.5}}, 1.0);
+    EXPECT_NE(two.kind(), TwoLevelPlan::Kind::kLeaves) << two.describe();
+    EXPECT_EQ(two.kind() == TwoLevelPlan::Kind::kDynamic, k.exact());
+    EXPECT_EQ(two.counts().recomputedSteps, k.counts().recomputedSteps);
+    EXPECT_EQ(two.counts().diskWrites, k.counts().writes[1]);
+    EXPECT_EQ(two.counts().diskReads, k.counts().reads[1]);
   }
 }
 

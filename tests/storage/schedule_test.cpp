@@ -330,7 +330,9 @@ TEST(TwoLevelPlan, DynamicProgrammeEqualsTheBruteForceOptimumOverAllSchedules) {
           SCOPED_TRACE("N " + std::to_string(steps) + " ram " + std::to_string(ram) + " disk " +
                        std::to_string(disk) + " costs " + c.text());
           const TwoLevelPlan plan = TwoLevelPlan::dynamic(steps, ram, disk, c);
-          EXPECT_NEAR(plan.counts().cost(c), bruteForceOptimum(steps, ram, disk, c), 1e-12);
+          const double optimum = bruteForceOptimum(steps, ram, disk, c);
+          EXPECT_NEAR(plan.counts().cost(c), optimum, 1e-12);
+          EXPECT_LE(TwoLevelPlan::lowerBound(steps, ram, disk, c), optimum + 1e-12);
           EXPECT_LE(plan.ramSlotsUsed(), ram);
           EXPECT_LE(plan.diskSlotsUsed(), disk);
         }
@@ -573,6 +575,68 @@ TEST(SchedulePrediction, HierarchicalPlanBeyondTheDynamicProgrammeEqualsItsRun) 
   EXPECT_EQ(p.diskReads, multilevel->diskReads());
   EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
   EXPECT_LE(multilevel->plan().diskSlotsUsed(), 40);
+  EXPECT_EQ(dir.entryCount(), 0u);
+}
+
+// Where the disk holds a state per leaf of RAM's length, leaves reach the game's lower bound: optimal, and
+// choose() stops there (the action stream's spec: 20 RAM and 131 072 disk states at N = 10^6 costs
+// N - 20); the bound is below every schedule's cost (the brute force above).
+TEST(TwoLevelPlan, LeavesAtTheLowerBoundAreOptimalAndEndTheSearch) {
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  const TwoLevelPlan plan = TwoLevelPlan::choose(1000000, 20, 131072, half);
+  EXPECT_EQ(plan.kind(), TwoLevelPlan::Kind::kLeaves) << plan.describe();
+  EXPECT_DOUBLE_EQ(plan.counts().cost(half), 999980.0);
+  EXPECT_DOUBLE_EQ(TwoLevelPlan::lowerBound(1000000, 20, 131072, half), 999980.0);
+  // Dear disk: the bound is revolve's N - R, reached by nothing once N exceeds the slots.
+  const ScheduleCosts dear{1, 1, 2, 2};
+  EXPECT_DOUBLE_EQ(TwoLevelPlan::lowerBound(100, 4, 50, dear), 96.0);
+  EXPECT_GT(TwoLevelPlan::choose(100, 4, 50, dear).counts().cost(dear), 96.0);
+}
+
+// Beyond the old limits of the exact tables (N (R + D + 2) > 2^20) the two-level plan is KLevelPlan's
+// graded programme: the rod's 6000 steps with 2 RAM and 204 disk states at 1:1:2:2 cost 16 352 (12 308
+// recomputed steps) where the families cost 25 568 (24 752), equal to the hierarchical programme over every
+// length (the reference, 1 s); at N = 10^5 and 10^6 with 8 RAM and 40 disk states at 1:1:0.5:0.5 never
+// above the families either (289 814 and 3 836 760 against 334 259 and 4 177 889.5; the windowed
+// reference at 10^5, 6 min, also 289 814: docs/theory/storage.md). On the pendulum (N = 8000, beyond the
+// grid's 4096 exact lengths) the prediction equals the run counter by counter with a bitwise gradient.
+TEST(SchedulePrediction, GradedTwoLevelPlanBeyondTheTablesIsWithinOnePercentAndEqualsItsRun) {
+  const ScheduleCosts rod{1, 1, 2, 2};
+  const TwoLevelPlan plan = TwoLevelPlan::choose(6000, 2, 204, rod);
+  EXPECT_EQ(plan.kind(), TwoLevelPlan::Kind::kHierarchical) << plan.describe();
+  EXPECT_NE(plan.describe().find("geometric grid"), std::string::npos) << plan.describe();
+  const double reference =
+      KLevelPlan::hierarchical(6000, 2, {StorageLevelCosts{204, 2, 2}}, 1.0, KLevelPlan::kGradedWindow)
+          .counts()
+          .cost;
+  EXPECT_LE(plan.counts().cost(rod), 1.01 * reference);
+  const TwoLevelPlan families = TwoLevelPlan::families(6000, 2, 204, rod);
+  EXPECT_DOUBLE_EQ(families.counts().cost(rod), 25568.0);
+  EXPECT_LT(plan.counts().cost(rod), 0.7 * families.counts().cost(rod));
+  const ScheduleCosts half{1, 1, 0.5, 0.5};
+  for (std::int64_t steps : {100000, 1000000}) {
+    const TwoLevelPlan large = TwoLevelPlan::choose(steps, 8, 40, half);
+    EXPECT_EQ(large.kind(), TwoLevelPlan::Kind::kHierarchical) << large.describe();
+    EXPECT_LT(large.counts().cost(half),
+              0.95 * TwoLevelPlan::families(steps, 8, 40, half).counts().cost(half));
+    EXPECT_LE(large.ramSlotsUsed(), 8);
+    EXPECT_LE(large.diskSlotsUsed(), 40);
+  }
+  Pendulum problem;
+  IntegratorOptions options = fixedStepRk4();
+  options.step /= 4;
+  const GradientResult reference8000 = fullReference(problem, pendulumParameters(), options);
+  ASSERT_EQ(reference8000.summary.steps, 8000);
+  ScratchDirectory dir;
+  const auto [p, storage] = expectPredictionEqualsRun(
+      "multilevel:ram=64,disk=640,costs=1:1:0.5:0.5,dir=" + dir.path(), options, reference8000, half);
+  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+  ASSERT_NE(multilevel, nullptr);
+  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
+  EXPECT_NE(p.plan.find("geometric grid"), std::string::npos) << p.plan;
+  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
+  EXPECT_EQ(p.diskReads, multilevel->diskReads());
+  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
   EXPECT_EQ(dir.entryCount(), 0u);
 }
 
