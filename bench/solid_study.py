@@ -180,9 +180,10 @@ def study(args):
     nx, ny, nz = args.mesh
     mesh = ["--set", "rod.elementsAlongLength=%d" % nx, "--set", "rod.elementsThroughHeight=%d" % ny,
             "--set", "rod.elementsThroughThickness=%d" % nz, "--set", "rod.midPlaneSymmetry=true"]
-    threads = ["--threads", str(args.threads)]
+    # --set SETTING for every run (e.g. optimization.moveLimit=0.5, the default before it became 0.2).
+    threads = ["--threads", str(args.threads)] + [word for setting in args.set for word in ("--set", setting)]
     out = dict(mesh=[nx, ny, nz], symmetry=True, iterations=args.iterations, threads=args.threads,
-               load_before=uptime())
+               settings=args.set, load_before=uptime())
     cli = args.hindsight
     t, stdout = timed([cli, "evaluate", "--json", "--gradient", os.path.join(args.dir, "gradient_x0.h5"), "--force"]
                       + mesh + threads, os.path.join(args.dir, "evaluate.log"))
@@ -236,6 +237,8 @@ def main():
     b.add_argument("--stations", type=int, default=9)
     b.add_argument("--png", default=None)
     b.add_argument("--hindsight", default=DEFAULT_CLI)
+    b.add_argument("--set", action="append", default=[], metavar="SETTING",
+                   help="a configuration setting for every run, as hindsight's --set")
     args = parser.parse_args()
     if args.command == "sections":
         if args.stations < 1:
