@@ -1,6 +1,7 @@
 // Where the online strategies keep checkpoints while the number of steps is unknown.
 //
-// CostPlacement (`online`): documented with its guarantee in engine/online_checkpointing.h.
+// TwoHorizonPlacement (`online` in a run whose caller's working state holds x_{N-1}) and CostPlacement
+// (`online` without it): documented with their guarantees in engine/online_checkpointing.h.
 // OnlinePlacement (`cams` with adaptive steps or online=1): the last recorded state is the working
 // state; when the next record arrives it becomes a candidate if its position is a multiple of the
 // spacing d; checkpoints are all multiples of d among the candidates, at most c while d = 1 and at most
@@ -15,6 +16,212 @@
 #include <vector>
 
 namespace hindsight::internal {
+
+__extension__ typedef __int128 PlacementCost;
+
+/// T(L, s): revolve's forward steps over an interval of L positions with s slots, its first sweep
+/// included (engine/binomial_checkpointing.h); what an online placement's interval costs once N is known.
+inline PlacementCost intervalForwardSteps(std::int64_t length, std::int64_t slots) {
+  if (length <= 1) return 0;
+  if (slots == 1) return static_cast<PlacementCost>(length) * static_cast<PlacementCost>(length - 1) / 2;
+  return static_cast<PlacementCost>(revolve::optimalForwardSteps(length, slots));
+}
+
+/// `online`'s placement in a run of the engine, whose caller's working state holds x_{N-1}
+/// (TrajectoryInfo::workingStateHoldsLast): the c + 1 slots all hold checkpoints, positions
+/// p_0 = 0 < p_1 < ... < p_m (m <= c), and interval i (p_i to p_{i+1}, the last one to N - 1) is
+/// reversed later by revolve with c + 1 - i slots: sum_i T(L_i, c + 1 - i) recomputed steps. The record
+/// of x_k is stored at once or not (N is unknown). Two-horizon rule (bench/online_working_state.py, the
+/// reference and the measurements): among keeping the placement, storing x_k in a free slot and replacing
+/// p_j (j >= 1) by it, take the one whose worse ratio (2N + count) / (2N + binomial's count at the same
+/// memory), were the run to end at N = k + 1 or N = k + 2, is least (ties: keep, then a free slot, then
+/// the least j). A store costs the same at both horizons (the new last interval has 0 or 1 steps); only
+/// the last interval changes between stores, so a record costs O(1) evaluations of T and a replacement
+/// O(m) (a store into a free slot O(1): the tables grow by one interval).
+class TwoHorizonPlacement {
+ public:
+  static constexpr std::int64_t kSkipped = -2;   ///< offer(): x_k is not stored
+  static constexpr std::int64_t kAppended = -1;  ///< offer(): stored without dropping a checkpoint
+
+  /// A new forward sweep with c checkpoints (c + 1 slots); x_0 is held in slot 0 from record 0 on.
+  void reset(std::int64_t checkpoints) {
+    checkpoints_ = checkpoints;
+    // No allocation while recording, up to 2^16 slots (a budget-derived c can be far larger than N).
+    const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints + 1, 1 << 16));
+    positions_.reserve(reserve);
+    own_.reserve(reserve);
+    grow_.reserve(reserve);
+    suffix_.reserve(reserve + 1);
+    positions_.assign(1, 0);
+    own_.clear();
+    grow_.clear();
+    prefix_ = 0;
+    innerBest_ = 0;
+    innerIndex_ = -1;
+  }
+  /// The held positions, increasing; position i is in slot i.
+  const std::vector<std::int64_t>& positions() const { return positions_; }
+
+  /// The record of x_k, k >= 1 (records in order): kSkipped, kAppended (k is now the last position) or
+  /// the index j of the dropped checkpoint (positions j + 1.. moved down by one, k appended).
+  std::int64_t offer(std::int64_t k) {
+    const std::int64_t c = checkpoints_;
+    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
+    const std::int64_t last = k - positions_.back();  // the last interval were the run to end at k + 1
+    const PlacementCost keepNow = prefix_ + intervalForwardSteps(last, c + 1 - m);
+    const PlacementCost keepNext = prefix_ + intervalForwardSteps(last + 1, c + 1 - m);
+    bool storing = false;
+    PlacementCost store = 0;
+    std::int64_t index = kAppended;
+    if (m < c) {
+      store = keepNow;  // the old last interval ends at k with its c + 1 - m slots
+      storing = true;
+    }
+    if (innerIndex_ >= 1) {  // p_j dropped, 1 <= j < m: the old last interval gains a slot
+      const PlacementCost value = innerBest_ + intervalForwardSteps(last, c + 2 - m);
+      if (!storing || value < store) {
+        store = value;
+        index = innerIndex_;
+        storing = true;
+      }
+    }
+    if (m >= 1) {  // p_m dropped: the last two intervals merge
+      const std::int64_t merged =
+          positions_[static_cast<std::size_t>(m)] - positions_[static_cast<std::size_t>(m - 1)] + last;
+      const PlacementCost value =
+          prefix_ - own_[static_cast<std::size_t>(m - 1)] + intervalForwardSteps(merged, c + 2 - m);
+      if (!storing || value < store) {
+        store = value;
+        index = m;
+        storing = true;
+      }
+    }
+    if (!storing) return kSkipped;
+    const UnsignedInt128 nowLimit = binomialLimit(k + 1), nextLimit = binomialLimit(k + 2);
+    const Ratio keepScore = worse(ratio(keepNow, k + 1, nowLimit), ratio(keepNext, k + 2, nextLimit));
+    const Ratio storeScore = worse(ratio(store, k + 1, nowLimit), ratio(store, k + 2, nextLimit));
+    if (!less(storeScore, keepScore)) return kSkipped;
+    if (index == kAppended) {
+      append(k);
+    } else {
+      positions_.erase(positions_.begin() + index);
+      positions_.push_back(k);
+      rebuild();
+    }
+    return index;
+  }
+
+  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
+  /// positions at its end; *stores counts the checkpoint writes (x_0 included), *peak the most positions
+  /// held at once (both optional).
+  static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores,
+                                            std::int64_t* peak) {
+    TwoHorizonPlacement placement;
+    placement.reset(c);
+    std::int64_t written = 1, most = 1;
+    for (std::int64_t k = 1; k < steps; ++k) {
+      if (placement.offer(k) == kSkipped) continue;
+      ++written;
+      most = std::max(most, static_cast<std::int64_t>(placement.positions_.size()));
+    }
+    if (stores != nullptr) *stores = written;
+    if (peak != nullptr) *peak = most;
+    return placement.positions_;
+  }
+
+ private:
+  struct Ratio {
+    UnsignedInt128 numerator, denominator;
+  };
+  // 2N + binomial's recomputed steps at the same memory (min(c + 1, N - 1) slots, the working state
+  // holding x_{N-1}: T(N, S) - (N - 1)), N >= 2.
+  UnsignedInt128 binomialLimit(std::int64_t steps) const {
+    const std::int64_t slots = std::min(checkpoints_ + 1, steps - 1);
+    return 2 * static_cast<UnsignedInt128>(steps) + revolve::workingStateRecomputedSteps(steps, slots);
+  }
+  static Ratio ratio(PlacementCost cost, std::int64_t steps, UnsignedInt128 limit) {
+    return Ratio{2 * static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(cost), limit};
+  }
+  // a/b < c/d exactly, without products (Euclid's continued fraction expansion of both).
+  static bool less(Ratio x, Ratio y) {
+    UnsignedInt128 a = x.numerator, b = x.denominator, c = y.numerator, d = y.denominator;
+    for (;;) {
+      const UnsignedInt128 qa = a / b, qc = c / d;
+      if (qa != qc) return qa < qc;
+      a -= qa * b;
+      c -= qc * d;
+      if (a == 0 || c == 0) return a == 0 && c != 0;
+      // a/b < c/d with both in (0, 1) exactly when d/c < b/a.
+      const UnsignedInt128 na = d, nb = c, nc = b, nd = a;
+      a = na;
+      b = nb;
+      c = nc;
+      d = nd;
+    }
+  }
+  static Ratio worse(Ratio x, Ratio y) { return less(x, y) ? y : x; }
+
+  // k stored in a free slot: the old last interval (m) gets its tables; every inner candidate's total
+  // grows by its own cost and by its gain of a slot (it lies after each candidate's merge), and p_m
+  // becomes a candidate itself. O(1).
+  void append(std::int64_t k) {
+    const std::int64_t c = checkpoints_;
+    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
+    const std::int64_t length = k - positions_.back();
+    const PlacementCost own = intervalForwardSteps(length, c + 1 - m);
+    const PlacementCost grow = intervalForwardSteps(length, c + 2 - m) - own;
+    positions_.push_back(k);
+    own_.push_back(own);
+    grow_.push_back(grow);
+    prefix_ += own;
+    if (innerIndex_ >= 1) innerBest_ += own + grow;
+    if (m >= 1)
+      consider(m, prefix_ - own_[static_cast<std::size_t>(m - 1)] - own +
+                      intervalForwardSteps(k - positions_[static_cast<std::size_t>(m - 1)], c + 2 - m));
+  }
+  // The inner candidate j with its total (without the last interval's part) is the best so far when it
+  // is strictly below it (ties: the least j, the order of consideration).
+  void consider(std::int64_t j, PlacementCost total) {
+    if (innerIndex_ < 0 || total < innerBest_) {
+      innerBest_ = total;
+      innerIndex_ = j;
+    }
+  }
+  // The tables from scratch, O(m): own_[i] = T(L_i, c + 1 - i) and grow_[i] = T(L_i, c + 2 - i) -
+  // own_[i] for the intervals 0..m-1 (the last one, m, changes every record), their sum prefix_, and the
+  // best drop of p_j, 1 <= j < m: its total without the last interval's part.
+  void rebuild() {
+    const std::int64_t c = checkpoints_;
+    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
+    own_.clear();
+    grow_.clear();
+    prefix_ = 0;
+    for (std::int64_t i = 0; i < m; ++i) {
+      const std::int64_t length =
+          positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
+      own_.push_back(intervalForwardSteps(length, c + 1 - i));
+      grow_.push_back(intervalForwardSteps(length, c + 2 - i) - own_.back());
+      prefix_ += own_.back();
+    }
+    suffix_.assign(static_cast<std::size_t>(m + 1), 0);  // suffix_[i] = sum of grow_[i..m-1]
+    for (std::int64_t i = m - 1; i >= 0; --i)
+      suffix_[static_cast<std::size_t>(i)] =
+          suffix_[static_cast<std::size_t>(i + 1)] + grow_[static_cast<std::size_t>(i)];
+    innerIndex_ = -1;
+    for (std::int64_t j = 1; j < m; ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      consider(j, prefix_ - own_[u - 1] - own_[u] +
+                      intervalForwardSteps(positions_[u + 1] - positions_[u - 1], c + 2 - j) +
+                      suffix_[u + 1]);
+    }
+  }
+
+  std::int64_t checkpoints_ = 1;
+  std::vector<std::int64_t> positions_{0};
+  std::vector<PlacementCost> own_, grow_, suffix_;
+  PlacementCost prefix_ = 0, innerBest_ = 0;
+  std::int64_t innerIndex_ = -1;
+};
 
 /// `online`'s placement (the rules and what is known of them: engine/online_checkpointing.h). Once c
 /// checkpoints are held, each record offers the previous working state q; the intervals L_i between the
@@ -119,7 +326,7 @@ class CostPlacement {
   }
 
  private:
-  __extension__ typedef __int128 Cost;
+  typedef PlacementCost Cost;
 
   // Drops checkpoint j and appends q (marked final or not).
   void drop(std::int64_t j, std::int64_t q, bool final) {
@@ -153,9 +360,7 @@ class CostPlacement {
     return kSkipped;
   }
   static Cost revolveSteps(std::int64_t length, std::int64_t slots) {
-    if (length <= 1) return 0;
-    if (slots == 1) return static_cast<Cost>(length) * static_cast<Cost>(length - 1) / 2;
-    return static_cast<Cost>(revolve::optimalForwardSteps(length, slots));
+    return intervalForwardSteps(length, slots);
   }
   // With c checkpoints held: the intervals 0..c-2 (the last one changes every record), their costs
   // own_[i] = T(L_i, c + 1 - i) and grow_[i] = T(L_i, c + 2 - i) - own_[i] (one slot more, as when an
