@@ -66,14 +66,14 @@
 //    1.04 for c >= 11, 1.005 for c >= 37; no bound is proven there, and for c = 22 and 25..36 the cost
 //    rule is up to 0.6 % above T(N, c) - (N - 1) at some N > beta(c, 3).
 //    c = 1: T(N - 1, 2) exactly.
-// Cost of the rules: O(1) evaluations of T per record; O(m) per replacement and O(1) per store into a
-// free slot (two-horizon rule); O(c) per replacement (cost rule), O(c) per candidate taken, about every
-// sixth record (six-step rule). No allocation per step (the tables are reserved at begin()).
-// Memory: c + 1 states: with the working state c + 1 checkpoint slots, without it at most c checkpoints
-// plus the strategy's copy (whose memory is slot c of the backward sweep); slots are allocated on first
-// use and charged with holdBytes(); it never exceeds the budget. counters().statesStored counts the
-// checkpoint writes of the forward sweep (x_0 included), without the working state plus the final copy
-// of x_{N-1} (the copy made at every step is not counted).
+// Cost of the rules: O(1) evaluations of T per record; O(m - j) per replacement of p_j and O(1) per store
+// into a free slot (two-horizon rule); O(c) per replacement (cost rule), O(c) per candidate taken, about
+// every sixth record (six-step rule). No allocation per step (the tables are reserved at begin()). Memory: c
+// + 1 states: with the working state c + 1 checkpoint slots, without it at most c checkpoints plus the
+// strategy's copy (whose memory is slot c of the backward sweep); slots are allocated on first use and
+// charged with holdBytes(); it never exceeds the budget. counters().statesStored counts the checkpoint writes
+// of the forward sweep (x_0 included), without the working state plus the final copy of x_{N-1} (the copy
+// made at every step is not counted).
 //
 // Preconditions: none on N (works for fixed and adaptive steps). Throws std::invalid_argument from
 // begin() when c < 1 or (c + 1) states do not fit in the budget, naming online.checkpoints/online.budget.

@@ -36,8 +36,8 @@ inline PlacementCost intervalForwardSteps(std::int64_t length, std::int64_t slot
 /// p_j (j >= 1) by it, take the one whose worse ratio (2N + count) / (2N + binomial's count at the same
 /// memory), were the run to end at N = k + 1 or N = k + 2, is least (ties: keep, then a free slot, then
 /// the least j). A store costs the same at both horizons (the new last interval has 0 or 1 steps); only
-/// the last interval changes between stores, so a record costs O(1) evaluations of T and a replacement
-/// O(m) (a store into a free slot O(1): the tables grow by one interval).
+/// the last interval changes between stores, so a record costs O(1) evaluations of T, a store into a
+/// free slot O(1) and the replacement of p_j O(m - j) (the tables of the intervals from j - 1 on).
 class TwoHorizonPlacement {
  public:
   static constexpr std::int64_t kSkipped = -2;   ///< offer(): x_k is not stored
@@ -47,17 +47,13 @@ class TwoHorizonPlacement {
   void reset(std::int64_t checkpoints) {
     checkpoints_ = checkpoints;
     // No allocation while recording, up to 2^16 slots (a budget-derived c can be far larger than N).
-    const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints + 1, 1 << 16));
+    const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints + 2, 1 << 16));
+    for (std::vector<PlacementCost>* table : {&own_, &wide_, &ownPrefix_, &widePrefix_, &bestKey_})
+      table->reserve(reserve);
     positions_.reserve(reserve);
-    own_.reserve(reserve);
-    grow_.reserve(reserve);
-    suffix_.reserve(reserve + 1);
+    bestIndex_.reserve(reserve);
     positions_.assign(1, 0);
-    own_.clear();
-    grow_.clear();
-    prefix_ = 0;
-    innerBest_ = 0;
-    innerIndex_ = -1;
+    extend(0);
   }
   /// The held positions, increasing; position i is in slot i.
   const std::vector<std::int64_t>& positions() const { return positions_; }
@@ -68,8 +64,9 @@ class TwoHorizonPlacement {
     const std::int64_t c = checkpoints_;
     const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
     const std::int64_t last = k - positions_.back();  // the last interval were the run to end at k + 1
-    const PlacementCost keepNow = prefix_ + intervalForwardSteps(last, c + 1 - m);
-    const PlacementCost keepNext = prefix_ + intervalForwardSteps(last + 1, c + 1 - m);
+    const PlacementCost prefix = ownPrefix_.back();   // the intervals before the last one
+    const PlacementCost keepNow = prefix + intervalForwardSteps(last, c + 1 - m);
+    const PlacementCost keepNext = prefix + intervalForwardSteps(last + 1, c + 1 - m);
     bool storing = false;
     PlacementCost store = 0;
     std::int64_t index = kAppended;
@@ -77,11 +74,12 @@ class TwoHorizonPlacement {
       store = keepNow;  // the old last interval ends at k with its c + 1 - m slots
       storing = true;
     }
-    if (innerIndex_ >= 1) {  // p_j dropped, 1 <= j < m: the old last interval gains a slot
-      const PlacementCost value = innerBest_ + intervalForwardSteps(last, c + 2 - m);
+    if (m >= 2) {  // p_j dropped, 1 <= j < m: the intervals after j gain a slot, the last one too
+      const PlacementCost value =
+          bestKey_.back() + widePrefix_.back() + intervalForwardSteps(last, c + 2 - m);
       if (!storing || value < store) {
         store = value;
-        index = innerIndex_;
+        index = bestIndex_.back();
         storing = true;
       }
     }
@@ -89,7 +87,7 @@ class TwoHorizonPlacement {
       const std::int64_t merged =
           positions_[static_cast<std::size_t>(m)] - positions_[static_cast<std::size_t>(m - 1)] + last;
       const PlacementCost value =
-          prefix_ - own_[static_cast<std::size_t>(m - 1)] + intervalForwardSteps(merged, c + 2 - m);
+          prefix - own_[static_cast<std::size_t>(m - 1)] + intervalForwardSteps(merged, c + 2 - m);
       if (!storing || value < store) {
         store = value;
         index = m;
@@ -101,13 +99,13 @@ class TwoHorizonPlacement {
     const Ratio keepScore = worse(ratio(keepNow, k + 1, nowLimit), ratio(keepNext, k + 2, nextLimit));
     const Ratio storeScore = worse(ratio(store, k + 1, nowLimit), ratio(store, k + 2, nextLimit));
     if (!less(storeScore, keepScore)) return kSkipped;
-    if (index == kAppended) {
-      append(k);
-    } else {
+    std::int64_t from = m;  // the first interval whose tables change
+    if (index != kAppended) {
       positions_.erase(positions_.begin() + index);
-      positions_.push_back(k);
-      rebuild();
+      from = index - 1;
     }
+    positions_.push_back(k);
+    extend(from);
     return index;
   }
 
@@ -161,66 +159,46 @@ class TwoHorizonPlacement {
   }
   static Ratio worse(Ratio x, Ratio y) { return less(x, y) ? y : x; }
 
-  // k stored in a free slot: the old last interval (m) gets its tables; every inner candidate's total
-  // grows by its own cost and by its gain of a slot (it lies after each candidate's merge), and p_m
-  // becomes a candidate itself. O(1).
-  void append(std::int64_t k) {
+  // The tables of the intervals 0..m-1 (the last one, m, changes every record) from interval `from` on;
+  // those before it are kept. With W_i = T(L_i, c + 2 - i) (interval i with one slot more, as when a
+  // checkpoint before it is dropped), dropping p_j (1 <= j < m) costs, without the last interval's part,
+  //   sum_{i < j-1} own_i + T(p_{j+1} - p_{j-1}, c + 2 - j) + sum_{j < i < m} W_i = key_j + sum_{i < m} W_i,
+  // key_j = ownPrefix_[j - 1] + T(p_{j+1} - p_{j-1}, c + 2 - j) - widePrefix_[j + 1], which depends on
+  // the intervals up to j only; bestKey_/bestIndex_[j] hold the least key_1..key_j (the least index at
+  // ties). A store into a free slot (from = m - 1 of the new m) costs O(1), dropping p_j O(m - j).
+  void extend(std::int64_t from) {
     const std::int64_t c = checkpoints_;
     const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
-    const std::int64_t length = k - positions_.back();
-    const PlacementCost own = intervalForwardSteps(length, c + 1 - m);
-    const PlacementCost grow = intervalForwardSteps(length, c + 2 - m) - own;
-    positions_.push_back(k);
-    own_.push_back(own);
-    grow_.push_back(grow);
-    prefix_ += own;
-    if (innerIndex_ >= 1) innerBest_ += own + grow;
-    if (m >= 1)
-      consider(m, prefix_ - own_[static_cast<std::size_t>(m - 1)] - own +
-                      intervalForwardSteps(k - positions_[static_cast<std::size_t>(m - 1)], c + 2 - m));
-  }
-  // The inner candidate j with its total (without the last interval's part) is the best so far when it
-  // is strictly below it (ties: the least j, the order of consideration).
-  void consider(std::int64_t j, PlacementCost total) {
-    if (innerIndex_ < 0 || total < innerBest_) {
-      innerBest_ = total;
-      innerIndex_ = j;
-    }
-  }
-  // The tables from scratch, O(m): own_[i] = T(L_i, c + 1 - i) and grow_[i] = T(L_i, c + 2 - i) -
-  // own_[i] for the intervals 0..m-1 (the last one, m, changes every record), their sum prefix_, and the
-  // best drop of p_j, 1 <= j < m: its total without the last interval's part.
-  void rebuild() {
-    const std::int64_t c = checkpoints_;
-    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
-    own_.clear();
-    grow_.clear();
-    prefix_ = 0;
-    for (std::int64_t i = 0; i < m; ++i) {
-      const std::int64_t length =
-          positions_[static_cast<std::size_t>(i + 1)] - positions_[static_cast<std::size_t>(i)];
+    const auto keep = static_cast<std::size_t>(from);
+    own_.resize(keep);
+    wide_.resize(keep);
+    ownPrefix_.resize(keep + 1, 0);
+    widePrefix_.resize(keep + 1, 0);
+    bestKey_.resize(std::max<std::size_t>(keep, 1), 0);  // entry 0 unused: p_0 is never dropped
+    bestIndex_.resize(std::max<std::size_t>(keep, 1), -1);
+    for (std::int64_t i = from; i < m; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const std::int64_t length = positions_[u + 1] - positions_[u];
       own_.push_back(intervalForwardSteps(length, c + 1 - i));
-      grow_.push_back(intervalForwardSteps(length, c + 2 - i) - own_.back());
-      prefix_ += own_.back();
+      wide_.push_back(intervalForwardSteps(length, c + 2 - i));
+      ownPrefix_.push_back(ownPrefix_.back() + own_.back());
+      widePrefix_.push_back(widePrefix_.back() + wide_.back());
     }
-    suffix_.assign(static_cast<std::size_t>(m + 1), 0);  // suffix_[i] = sum of grow_[i..m-1]
-    for (std::int64_t i = m - 1; i >= 0; --i)
-      suffix_[static_cast<std::size_t>(i)] =
-          suffix_[static_cast<std::size_t>(i + 1)] + grow_[static_cast<std::size_t>(i)];
-    innerIndex_ = -1;
-    for (std::int64_t j = 1; j < m; ++j) {
+    for (std::int64_t j = std::max<std::int64_t>(from, 1); j < m; ++j) {
       const auto u = static_cast<std::size_t>(j);
-      consider(j, prefix_ - own_[u - 1] - own_[u] +
-                      intervalForwardSteps(positions_[u + 1] - positions_[u - 1], c + 2 - j) +
-                      suffix_[u + 1]);
+      const PlacementCost key = ownPrefix_[u - 1] +
+                                intervalForwardSteps(positions_[u + 1] - positions_[u - 1], c + 2 - j) -
+                                widePrefix_[u + 1];
+      const bool better = j == 1 || key < bestKey_.back();
+      bestKey_.push_back(better ? key : bestKey_.back());
+      bestIndex_.push_back(better ? j : bestIndex_.back());
     }
   }
 
   std::int64_t checkpoints_ = 1;
   std::vector<std::int64_t> positions_{0};
-  std::vector<PlacementCost> own_, grow_, suffix_;
-  PlacementCost prefix_ = 0, innerBest_ = 0;
-  std::int64_t innerIndex_ = -1;
+  std::vector<PlacementCost> own_, wide_, ownPrefix_, widePrefix_, bestKey_;
+  std::vector<std::int64_t> bestIndex_;
 };
 
 /// `online`'s placement (the rules and what is known of them: engine/online_checkpointing.h). Once c
