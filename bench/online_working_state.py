@@ -25,7 +25,9 @@ Measured (this script): --first 1 -> 6: with C = 1 (x_0 and one other state) no 
 between 1.0869 and 1.0879. The rule, --rule 100000 (every N <= 10^5, 40 s): C = 1: 7/6 at N = 5 (the least
 possible); C = 2: 1.0909 (N = 20); C = 3: 1.0625; C = 4: 1.0556; C = 5: 1.0649; C = 6..12: 1.052 down to
 1.033; never above Stumm & Walther's count. At C = 2, N = 32 it recomputes 63 steps (binomial 62; online
-without the working state 85), at C = 1, N = 14: 23 (binomial 23; online without it 32).
+without the working state 85), at C = 1, N = 14: 23 (binomial 23; online without it 32). The engine's
+`online` plays this rule (engine/online_placement.h, TwoHorizonPlacement; tests/storage/
+online_checkpointing_test.cpp compares its counts with this script's).
 """
 import argparse
 import sys

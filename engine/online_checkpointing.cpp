@@ -1,5 +1,7 @@
 #include <hindsight/engine/online_checkpointing.h>
 
+#include <hindsight/engine/interrupt.h>
+
 #include <algorithm>
 #include <cstring>
 #include <stdexcept>
@@ -33,9 +35,12 @@ std::string OnlineCheckpointing::spec() const {
   return text;
 }
 
-UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c) {
+UnsignedInt128 OnlineCheckpointing::predictedForwardSteps(std::int64_t steps, std::int64_t c,
+                                                          bool workingStateHoldsLast) {
   if (steps <= 1) return 0;
-  const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, nullptr);
+  const std::vector<std::int64_t> positions =
+      workingStateHoldsLast ? internal::TwoHorizonPlacement::simulate(steps, c, nullptr, nullptr)
+                            : internal::CostPlacement::simulate(steps, c, nullptr);
   return forwardStepsOf(positions, steps, c);
 }
 
@@ -45,7 +50,9 @@ UnsignedInt128 OnlineCheckpointing::forwardStepsOf(const std::vector<std::int64_
   const auto held = static_cast<std::int64_t>(positions.size());
   for (std::int64_t j = 0; j < held; ++j) {
     const std::int64_t end = j + 1 < held ? positions[static_cast<std::size_t>(j + 1)] : steps - 1;
-    total += revolve::optimalForwardSteps(end - positions[static_cast<std::size_t>(j)], c + 1 - j);
+    // (an interval may be empty: with the caller's working state the last position can be N - 1)
+    total += static_cast<UnsignedInt128>(
+        internal::intervalForwardSteps(end - positions[static_cast<std::size_t>(j)], c + 1 - j));
   }
   return total;
 }
@@ -54,18 +61,19 @@ void OnlineCheckpointing::releaseAll() {
   if (heldBytes_ > 0) releaseBytes(heldBytes_);
   heldBytes_ = 0;
   slots_.clear();
-  working_.reset();
+  workingCopy_.reset();
   workingValid_ = false;
   recomputedStages_.reset(0);
 }
 
 double* OnlineCheckpointing::slot(std::int64_t index) {
-  // Slot c is the working state's memory: free for the backward sweep once x_{N-1} is consumed.
-  if (index == activeCheckpoints_) {
-    assert(!workingValid_ && working_);
-    return working_.get();
+  // Without the caller's working state, slot c is the strategy's own copy of x_{N-1}: free for the
+  // backward sweep once x_{N-1} is consumed. With it, slots 0..c all hold checkpoints.
+  if (!working_ && index == activeCheckpoints_) {
+    assert(!workingValid_ && workingCopy_);
+    return workingCopy_.get();
   }
-  assert(index < activeCheckpoints_);
+  assert(index <= activeCheckpoints_);
   while (static_cast<std::int64_t>(slots_.size()) <= index) slots_.emplace_back();
   auto& memory = slots_[static_cast<std::size_t>(index)];
   if (!memory) {
@@ -97,40 +105,61 @@ void OnlineCheckpointing::doBegin() {
   releaseAll();
   const std::int64_t recordBytes = info().stepDataSize > 0 ? 2 * stepDataBytes() : 0;  // recomputedStages_
   activeCheckpoints_ = checkpointsFor(stateBytes(), recordBytes);
-  placement_.reset(activeCheckpoints_);
-  slots_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(activeCheckpoints_, 1 << 16)));
-  holdBytes(stateBytes() + recordBytes);
-  heldBytes_ += stateBytes() + recordBytes;
+  working_ = info().workingStateHoldsLast;
+  // With the caller's working state the c + 1 slots all hold checkpoints (TwoHorizonPlacement); without
+  // it one of them is the strategy's own copy of the last recorded state (CostPlacement).
+  slots_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(activeCheckpoints_ + 1, 1 << 16)));
+  holdBytes(recordBytes);
+  heldBytes_ += recordBytes;
+  if (working_) {
+    twoHorizon_.reset(activeCheckpoints_);
+  } else {
+    placement_.reset(activeCheckpoints_);
+    holdBytes(stateBytes());
+    heldBytes_ += stateBytes();
+    workingCopy_.reset(new double[static_cast<std::size_t>(info().stateSize)]);
+  }
   recomputedStages_.reset(info().stepDataSize);
-  working_.reset(new double[static_cast<std::size_t>(info().stateSize)]);
 }
 
 void OnlineCheckpointing::doRecord(std::int64_t step, double, ConstVectorRef z, ConstVectorRef) {
-  // The working state holds the last recorded state; it becomes a checkpoint candidate only when the
+  if (working_) {
+    // x_k is stored at once or not: the caller's working state will hold x_{N-1} whatever N is.
+    const std::int64_t dropped =
+        step == 0 ? internal::TwoHorizonPlacement::kAppended : twoHorizon_.offer(step);
+    if (dropped != internal::TwoHorizonPlacement::kSkipped)
+      keep(dropped, static_cast<std::int64_t>(twoHorizon_.positions().size()), z.data());
+    return;
+  }
+  // The strategy's copy holds the last recorded state; it becomes a checkpoint candidate only when the
   // next record shows that it was not the last one (so N <= c + 1 states fit without thinning).
   if (workingValid_) commitWorkingState(step);
-  std::memcpy(working_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
+  std::memcpy(workingCopy_.get(), z.data(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
   workingValid_ = true;
 }
 
 void OnlineCheckpointing::commitWorkingState(std::int64_t step) {
   const std::int64_t dropped = placement_.offer(step);
   if (dropped == internal::CostPlacement::kSkipped) return;
-  const auto held = static_cast<std::int64_t>(placement_.positions().size());
+  keep(dropped, static_cast<std::int64_t>(placement_.positions().size()), workingCopy_.get());
+}
+
+void OnlineCheckpointing::keep(std::int64_t dropped, std::int64_t held, const double* state) {
   if (dropped >= 0) {
     // Slot i holds positions()[i]: the dropped checkpoint's memory moves to the end (pointers only).
     std::rotate(slots_.begin() + dropped, slots_.begin() + dropped + 1, slots_.begin() + held);
   }
-  std::memcpy(slot(held - 1), working_.get(), static_cast<std::size_t>(info().stateSize) * sizeof(double));
+  std::memcpy(slot(held - 1), state, static_cast<std::size_t>(info().stateSize) * sizeof(double));
   ++mutableCounters().statesStored;
 }
 
 void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
-  ++mutableCounters().statesStored;  // x_{N-1}, kept as the working state (binomial counts it alike)
+  // Without the caller's working state x_{N-1} is kept in the strategy's copy (binomial counts it alike).
+  if (!working_) ++mutableCounters().statesStored;
   // Interval j is reversed with min(c + 1 - j, its length) slots at the most: reserved now, so that the
-  // backward sweep allocates nothing (slots 0..c-1 are allocated once c checkpoints are held, and
-  // shorter placements have intervals of one step, which store nothing; slot c is the working state's).
-  const std::vector<std::int64_t>& positions = placement_.positions();
+  // backward sweep allocates nothing (the slots are allocated once c + 1 positions are held, c with the
+  // strategy's copy, and shorter placements have intervals of one step, which store nothing).
+  const std::vector<std::int64_t>& positions = working_ ? twoHorizon_.positions() : placement_.positions();
   std::int64_t deepest = 1;
   for (std::size_t j = 0; j < positions.size(); ++j) {
     const std::int64_t end = j + 1 < positions.size() ? positions[j + 1] : stepCount() - 1;
@@ -138,7 +167,7 @@ void OnlineCheckpointing::doFinish(double, ConstVectorRef, ConstVectorRef) {
                        std::min(activeCheckpoints_ + 1 - static_cast<std::int64_t>(j), end - positions[j]));
   }
   reversal_.reserve(deepest);
-  reversal_.reset(&placement_.positions(), stepCount(), activeCheckpoints_);  // N - 1: the working state
+  reversal_.reset(&positions, stepCount(), activeCheckpoints_);  // N - 1: the working state
 }
 
 void OnlineCheckpointing::doRecordStepData(std::int64_t step, ConstVectorRef data) {
@@ -156,10 +185,12 @@ bool OnlineCheckpointing::doRestoreStepData(std::int64_t step, VectorRef data) {
 
 void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
   const auto bytes = static_cast<std::size_t>(info().stateSize) * sizeof(double);
-  if (workingValid_) {
-    assert(step == stepCount() - 1);
-    std::memcpy(z.data(), working_.get(), bytes);
-    workingValid_ = false;  // its memory is now slot c of the intervals' reversal (slot())
+  if (step == stepCount() - 1) {
+    // x_{N-1}: z holds it already (the caller's working state), or the strategy's copy does.
+    if (!working_) {
+      std::memcpy(z.data(), workingCopy_.get(), bytes);
+      workingValid_ = false;  // its memory is now slot c of the intervals' reversal (slot())
+    }
     if (step == 0 && !recomputedStages_.active()) releaseAll();  // else restoreStepData(0) follows
     return;
   }
@@ -188,8 +219,9 @@ void OnlineCheckpointing::doRestore(std::int64_t step, VectorRef z) {
 
 void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                   const PredictionRequest& request, SchedulePrediction& p) {
-  // OnlineCheckpointing for N fixed steps: its placement (internal::CostPlacement), then each interval
-  // j reversed by BinomialSchedule with c + 1 - j slots; recomputed steps in closed form
+  // OnlineCheckpointing for N fixed steps in a run of computeGradient (the caller's working state holds
+  // x_{N-1}): its placement (internal::TwoHorizonPlacement), then each interval j reversed by
+  // BinomialSchedule with c + 1 - j slots; recomputed steps in closed form
   // (predictedForwardSteps, tested against runs), the rest by running the schedules without states.
   const auto& online = dynamic_cast<const OnlineCheckpointing&>(storage);
   const std::int64_t steps = request.steps, stateBytes = request.stateBytes;
@@ -207,21 +239,21 @@ void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const Storag
                                               "online: bytes of two step records")
                  : 0;
   const std::int64_t c = online.checkpointsFor(stateBytes, recordBytes);
-  std::int64_t forwardStores = 0;
-  const std::vector<std::int64_t> positions = internal::CostPlacement::simulate(steps, c, &forwardStores);
+  std::int64_t forwardStores = 0, peakSlots = 0;
+  const std::vector<std::int64_t> positions =
+      internal::TwoHorizonPlacement::simulate(steps, c, &forwardStores, &peakSlots);
   p.plan = "online placement (" + std::to_string(positions.size()) + " held), revolve per interval, " +
-           std::to_string(c) + " checkpoints + working state" +
+           std::to_string(c + 1) + " slots (x_{N-1} the working state)" +
            (keepStages ? ", stages of the last recomputed step kept" : "");
   p.recomputedSteps = prediction::checkedCount(
       OnlineCheckpointing::forwardStepsOf(positions, steps, c) - static_cast<UnsignedInt128>(steps - 1),
       "recomputed steps");
-  p.statesStored = forwardStores + 1;  // and x_{N-1}, the working state
+  p.statesStored = forwardStores;  // x_0 included; x_{N-1} is the caller's working state
   p.ramReads = steps;
-  // Slots are allocated on first use and kept: beyond c + 1 steps the forward sweep uses all c (it keeps
-  // every candidate while d = 1), else the N - 1 positions 0..N-2, and intervals of one step store nothing.
+  // Slots are allocated on first use and kept; the backward sweep uses no slot the forward sweep left
+  // unused (it fills all c + 1 before N exceeds c + 1, and intervals of one step store nothing).
   p.peakRamBytes = prediction::checkedCount(
-      static_cast<UnsignedInt128>(std::min(c, std::max<std::int64_t>(steps - 1, 0)) + 1) *
-              static_cast<UnsignedInt128>(stateBytes) +
+      static_cast<UnsignedInt128>(peakSlots) * static_cast<UnsignedInt128>(stateBytes) +
           static_cast<UnsignedInt128>(recordBytes),
       "peak RAM bytes");
   p.ramWrites = -1;
@@ -258,12 +290,13 @@ void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const Storag
     internal::OnlineReversal reversal;  // the strategy's own backward sweep, with a counting visitor
     reversal.reset(&positions, steps, c);
     for (std::int64_t e = steps - 2; e >= 0; --e) {
+      if ((e & 0xffff) == 0) pollInterrupt();  // up to 2^24 steps (engine/interrupt.h)
       sim.offset = reversal.enter(e).start;
       if (keepStages) sim.stages.beginRestore(e);
       reversal.restoreStep(e, sim);
       if (keepStages && sim.stages.restore(e, data)) ++served;
     }
-    p.ramWrites = forwardStores + sim.stores + 1;
+    p.ramWrites = forwardStores + sim.stores;
     if (keepStages) {
       p.stepDataStored = sim.stepDataStored;
       p.stepDataRestored = served;

@@ -1,6 +1,7 @@
 // Where the online strategies keep checkpoints while the number of steps is unknown.
 //
-// CostPlacement (`online`): documented with its guarantee in engine/online_checkpointing.h.
+// TwoHorizonPlacement (`online` in a run whose caller's working state holds x_{N-1}) and CostPlacement
+// (`online` without it): documented with their guarantees in engine/online_checkpointing.h.
 // OnlinePlacement (`cams` with adaptive steps or online=1): the last recorded state is the working
 // state; when the next record arrives it becomes a candidate if its position is a multiple of the
 // spacing d; checkpoints are all multiples of d among the candidates, at most c while d = 1 and at most
@@ -15,6 +16,190 @@
 #include <vector>
 
 namespace hindsight::internal {
+
+__extension__ typedef __int128 PlacementCost;
+
+/// T(L, s): revolve's forward steps over an interval of L positions with s slots, its first sweep
+/// included (engine/binomial_checkpointing.h); what an online placement's interval costs once N is known.
+inline PlacementCost intervalForwardSteps(std::int64_t length, std::int64_t slots) {
+  if (length <= 1) return 0;
+  if (slots == 1) return static_cast<PlacementCost>(length) * static_cast<PlacementCost>(length - 1) / 2;
+  return static_cast<PlacementCost>(revolve::optimalForwardSteps(length, slots));
+}
+
+/// `online`'s placement in a run of the engine, whose caller's working state holds x_{N-1}
+/// (TrajectoryInfo::workingStateHoldsLast): the c + 1 slots all hold checkpoints, positions
+/// p_0 = 0 < p_1 < ... < p_m (m <= c), and interval i (p_i to p_{i+1}, the last one to N - 1) is
+/// reversed later by revolve with c + 1 - i slots: sum_i T(L_i, c + 1 - i) recomputed steps. The record
+/// of x_k is stored at once or not (N is unknown). Two-horizon rule (bench/online_working_state.py, the
+/// reference and the measurements): among keeping the placement, storing x_k in a free slot and replacing
+/// p_j (j >= 1) by it, take the one whose worse ratio (2N + count) / (2N + binomial's count at the same
+/// memory), were the run to end at N = k + 1 or N = k + 2, is least (ties: keep, then a free slot, then
+/// the least j). A store costs the same at both horizons (the new last interval has 0 or 1 steps); only
+/// the last interval changes between stores, so a record costs O(1) evaluations of T, a store into a
+/// free slot O(1) and the replacement of p_j O(m - j) (the tables of the intervals from j - 1 on).
+class TwoHorizonPlacement {
+ public:
+  static constexpr std::int64_t kSkipped = -2;   ///< offer(): x_k is not stored
+  static constexpr std::int64_t kAppended = -1;  ///< offer(): stored without dropping a checkpoint
+
+  /// A new forward sweep with c checkpoints (c + 1 slots); x_0 is held in slot 0 from record 0 on.
+  void reset(std::int64_t checkpoints) {
+    checkpoints_ = checkpoints;
+    // No allocation while recording, up to 2^16 slots (a budget-derived c can be far larger than N).
+    const auto reserve = static_cast<std::size_t>(std::min<std::int64_t>(checkpoints + 2, 1 << 16));
+    for (std::vector<PlacementCost>* table : {&own_, &wide_, &ownPrefix_, &widePrefix_, &bestKey_})
+      table->reserve(reserve);
+    positions_.reserve(reserve);
+    bestIndex_.reserve(reserve);
+    positions_.assign(1, 0);
+    extend(0);
+  }
+  /// The held positions, increasing; position i is in slot i.
+  const std::vector<std::int64_t>& positions() const { return positions_; }
+
+  /// The record of x_k, k >= 1 (records in order): kSkipped, kAppended (k is now the last position) or
+  /// the index j of the dropped checkpoint (positions j + 1.. moved down by one, k appended).
+  std::int64_t offer(std::int64_t k) {
+    const std::int64_t c = checkpoints_;
+    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
+    const std::int64_t last = k - positions_.back();  // the last interval were the run to end at k + 1
+    const PlacementCost prefix = ownPrefix_.back();   // the intervals before the last one
+    const PlacementCost keepNow = prefix + intervalForwardSteps(last, c + 1 - m);
+    const PlacementCost keepNext = prefix + intervalForwardSteps(last + 1, c + 1 - m);
+    bool storing = false;
+    PlacementCost store = 0;
+    std::int64_t index = kAppended;
+    if (m < c) {
+      store = keepNow;  // the old last interval ends at k with its c + 1 - m slots
+      storing = true;
+    }
+    if (m >= 2) {  // p_j dropped, 1 <= j < m: the intervals after j gain a slot, the last one too
+      const PlacementCost value =
+          bestKey_.back() + widePrefix_.back() + intervalForwardSteps(last, c + 2 - m);
+      if (!storing || value < store) {
+        store = value;
+        index = bestIndex_.back();
+        storing = true;
+      }
+    }
+    if (m >= 1) {  // p_m dropped: the last two intervals merge
+      const std::int64_t merged =
+          positions_[static_cast<std::size_t>(m)] - positions_[static_cast<std::size_t>(m - 1)] + last;
+      const PlacementCost value =
+          prefix - own_[static_cast<std::size_t>(m - 1)] + intervalForwardSteps(merged, c + 2 - m);
+      if (!storing || value < store) {
+        store = value;
+        index = m;
+        storing = true;
+      }
+    }
+    if (!storing) return kSkipped;
+    const UnsignedInt128 nowLimit = binomialLimit(k + 1), nextLimit = binomialLimit(k + 2);
+    const Ratio keepScore = worse(ratio(keepNow, k + 1, nowLimit), ratio(keepNext, k + 2, nextLimit));
+    const Ratio storeScore = worse(ratio(store, k + 1, nowLimit), ratio(store, k + 2, nextLimit));
+    if (!less(storeScore, keepScore)) return kSkipped;
+    std::int64_t from = m;  // the first interval whose tables change
+    if (index != kAppended) {
+      positions_.erase(positions_.begin() + index);
+      from = index - 1;
+    }
+    positions_.push_back(k);
+    extend(from);
+    return index;
+  }
+
+  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
+  /// positions at its end; *stores counts the checkpoint writes (x_0 included), *peak the most positions
+  /// held at once (both optional).
+  static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores,
+                                            std::int64_t* peak) {
+    TwoHorizonPlacement placement;
+    placement.reset(c);
+    std::int64_t written = 1, most = 1;
+    for (std::int64_t k = 1; k < steps; ++k) {
+      if (placement.offer(k) == kSkipped) continue;
+      ++written;
+      most = std::max(most, static_cast<std::int64_t>(placement.positions_.size()));
+    }
+    if (stores != nullptr) *stores = written;
+    if (peak != nullptr) *peak = most;
+    return placement.positions_;
+  }
+
+ private:
+  struct Ratio {
+    UnsignedInt128 numerator, denominator;
+  };
+  // 2N + binomial's recomputed steps at the same memory (min(c + 1, N - 1) slots, the working state
+  // holding x_{N-1}: T(N, S) - (N - 1)), N >= 2.
+  UnsignedInt128 binomialLimit(std::int64_t steps) const {
+    const std::int64_t slots = std::min(checkpoints_ + 1, steps - 1);
+    return 2 * static_cast<UnsignedInt128>(steps) + revolve::workingStateRecomputedSteps(steps, slots);
+  }
+  static Ratio ratio(PlacementCost cost, std::int64_t steps, UnsignedInt128 limit) {
+    return Ratio{2 * static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(cost), limit};
+  }
+  // a/b < c/d exactly, without products (Euclid's continued fraction expansion of both).
+  static bool less(Ratio x, Ratio y) {
+    UnsignedInt128 a = x.numerator, b = x.denominator, c = y.numerator, d = y.denominator;
+    for (;;) {
+      const UnsignedInt128 qa = a / b, qc = c / d;
+      if (qa != qc) return qa < qc;
+      a -= qa * b;
+      c -= qc * d;
+      if (a == 0 || c == 0) return a == 0 && c != 0;
+      // a/b < c/d with both in (0, 1) exactly when d/c < b/a.
+      const UnsignedInt128 na = d, nb = c, nc = b, nd = a;
+      a = na;
+      b = nb;
+      c = nc;
+      d = nd;
+    }
+  }
+  static Ratio worse(Ratio x, Ratio y) { return less(x, y) ? y : x; }
+
+  // The tables of the intervals 0..m-1 (the last one, m, changes every record) from interval `from` on;
+  // those before it are kept. With W_i = T(L_i, c + 2 - i) (interval i with one slot more, as when a
+  // checkpoint before it is dropped), dropping p_j (1 <= j < m) costs, without the last interval's part,
+  //   sum_{i < j-1} own_i + T(p_{j+1} - p_{j-1}, c + 2 - j) + sum_{j < i < m} W_i = key_j + sum_{i < m} W_i,
+  // key_j = ownPrefix_[j - 1] + T(p_{j+1} - p_{j-1}, c + 2 - j) - widePrefix_[j + 1], which depends on
+  // the intervals up to j only; bestKey_/bestIndex_[j] hold the least key_1..key_j (the least index at
+  // ties). A store into a free slot (from = m - 1 of the new m) costs O(1), dropping p_j O(m - j).
+  void extend(std::int64_t from) {
+    const std::int64_t c = checkpoints_;
+    const auto m = static_cast<std::int64_t>(positions_.size()) - 1;
+    const auto keep = static_cast<std::size_t>(from);
+    own_.resize(keep);
+    wide_.resize(keep);
+    ownPrefix_.resize(keep + 1, 0);
+    widePrefix_.resize(keep + 1, 0);
+    bestKey_.resize(std::max<std::size_t>(keep, 1), 0);  // entry 0 unused: p_0 is never dropped
+    bestIndex_.resize(std::max<std::size_t>(keep, 1), -1);
+    for (std::int64_t i = from; i < m; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const std::int64_t length = positions_[u + 1] - positions_[u];
+      own_.push_back(intervalForwardSteps(length, c + 1 - i));
+      wide_.push_back(intervalForwardSteps(length, c + 2 - i));
+      ownPrefix_.push_back(ownPrefix_.back() + own_.back());
+      widePrefix_.push_back(widePrefix_.back() + wide_.back());
+    }
+    for (std::int64_t j = std::max<std::int64_t>(from, 1); j < m; ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      const PlacementCost key = ownPrefix_[u - 1] +
+                                intervalForwardSteps(positions_[u + 1] - positions_[u - 1], c + 2 - j) -
+                                widePrefix_[u + 1];
+      const bool better = j == 1 || key < bestKey_.back();
+      bestKey_.push_back(better ? key : bestKey_.back());
+      bestIndex_.push_back(better ? j : bestIndex_.back());
+    }
+  }
+
+  std::int64_t checkpoints_ = 1;
+  std::vector<std::int64_t> positions_{0};
+  std::vector<PlacementCost> own_, wide_, ownPrefix_, widePrefix_, bestKey_;
+  std::vector<std::int64_t> bestIndex_;
+};
 
 /// `online`'s placement (the rules and what is known of them: engine/online_checkpointing.h). Once c
 /// checkpoints are held, each record offers the previous working state q; the intervals L_i between the
@@ -119,7 +304,7 @@ class CostPlacement {
   }
 
  private:
-  __extension__ typedef __int128 Cost;
+  typedef PlacementCost Cost;
 
   // Drops checkpoint j and appends q (marked final or not).
   void drop(std::int64_t j, std::int64_t q, bool final) {
@@ -153,9 +338,7 @@ class CostPlacement {
     return kSkipped;
   }
   static Cost revolveSteps(std::int64_t length, std::int64_t slots) {
-    if (length <= 1) return 0;
-    if (slots == 1) return static_cast<Cost>(length) * static_cast<Cost>(length - 1) / 2;
-    return static_cast<Cost>(revolve::optimalForwardSteps(length, slots));
+    return intervalForwardSteps(length, slots);
   }
   // With c checkpoints held: the intervals 0..c-2 (the last one changes every record), their costs
   // own_[i] = T(L_i, c + 1 - i) and grow_[i] = T(L_i, c + 2 - i) - own_[i] (one slot more, as when an

@@ -282,12 +282,17 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
   const std::string& name = spec.name();
   if (steps == kUnknownSteps) {
     if (name != "full" && name != "disk") {
+      // Why online and cams online=1 cannot be streams without N (docs/guides/checkpoint_schedule.md,
+      // "An unknown N"): a checkpoint's restart data covers the steps up to the next checkpoint of the
+      // forward run, and a bounded online placement drops checkpoints, merging two intervals.
       throw std::invalid_argument(
           "steps unknown: only full and disk streams are made without N (they discard no checkpoint); " +
           name +
-          " needs N (online and cams online=1 discard checkpoints during the forward run, which "
-          "checkpoint_schedules' contract cannot express: "
-          "docs/guides/switching_from_checkpoint_schedules.md)");
+          " needs N: with a bounded number of checkpoints and N unknown, online and cams online=1 drop a "
+          "checkpoint during the forward run, after which the checkpoint before it must restart steps its "
+          "restart data does not cover (the Forward that wrote it ended at the dropped one), which "
+          "checkpoint_schedules' contract refuses (docs/guides/checkpoint_schedule.md, \"An unknown N\"); "
+          "with N known, binomial is the stream for the same memory");
     }
   }
   if (name == "binomial" || name == "full" || name == "disk") {

@@ -107,8 +107,11 @@ def test_streams_without_n_end_where_the_host_finalizes(spec):
     next(schedule), next(schedule)
     with pytest.raises(RuntimeError, match="forward is at step 2"):
         schedule.finalize(3)
-    with pytest.raises(ValueError, match="only full and disk"):
-        hindsight.checkpoint_schedule("online:checkpoints=3", steps=None)
+    for spec in ("online:checkpoints=3", "cams:checkpoints=3,online=1"):
+        # A bounded online placement drops checkpoints, which leaves the one before short of restart data.
+        with pytest.raises(ValueError, match="only full and disk") as error:
+            hindsight.checkpoint_schedule(spec, steps=None)
+        assert "restart data does not cover" in str(error.value) and "--" not in str(error.value)
 
 
 def _families(rng):

@@ -960,7 +960,7 @@ TEST(SchedulePrediction, OnlineAgreesExactlyWithRealRuns) {
   // The placement is simulated step by step: N = 10^6 is predicted, N = 10^9 refused with the limit.
   const SchedulePrediction big = predictSchedule("online:checkpoints=100", 1'000'000, 16, 4, &costs);
   EXPECT_EQ(big.recomputedSteps + 999'999,
-            static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000, 100)));
+            static_cast<std::int64_t>(OnlineCheckpointing::predictedForwardSteps(1'000'000, 100, true)));
   EXPECT_THROW(predictSchedule("online:checkpoints=100", 1'000'000'000, 16, 4, &costs),
                std::invalid_argument);
   EXPECT_THROW(predictSchedule("online:checkpoints=100,stages=1", 1'000'000'000, 16, 4, &costs),

@@ -56,13 +56,15 @@ void recordForward(TrajectoryStorage& storage, CosineMap& map, const std::vector
 }
 
 /// Runs the protocol with the given stepCount in TrajectoryInfo (-1: unknown) and returns the number
-/// of heap allocations made during the backward sweep; every restored state is compared exactly.
-long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t announcedSteps) {
+/// of heap allocations made during the backward sweep; every restored state is compared exactly. With
+/// workingStateHoldsLast, z holds x_{N-1} at the first restore, as computeGradient's working state does.
+long runProtocol(TrajectoryStorage& storage, std::int64_t steps, std::int64_t announcedSteps,
+                 bool workingStateHoldsLast = false) {
   const int size = 5;
   const std::vector<Vector> states = trajectory(steps, size);
   CosineMap map;
-  recordForward(storage, map, states, announcedSteps);
-  Vector z(size);
+  recordForward(storage, map, states, announcedSteps, workingStateHoldsLast);
+  Vector z = workingStateHoldsLast ? states[static_cast<std::size_t>(steps - 1)] : Vector(size);
   testing::AllocationCounter counter;
   bool allEqual = true;
   for (std::int64_t n = steps - 1; n >= 0; --n) {
@@ -127,19 +129,23 @@ TEST(StorageProtocol, BinomialLeavesTheLastStateToTheWorkingState) {
 }
 
 TEST(StorageProtocol, OnlineRestoresExactStatesWithNoStepCountAnnounced) {
-  for (const std::int64_t c : {1, 2, 3, 7, 30}) {
-    for (const std::int64_t steps : {1, 2, 5, 100, 777}) {
-      OnlineCheckpointing storage(c);
-      const long allocations = runProtocol(storage, steps, -1);
-      // Online allocates a slot on its first use; beyond c + 1 steps the forward sweep has used all c
-      // (it keeps every candidate while d = 1), so the backward sweep allocates nothing.
-      if (steps > c + 1 && testing::AllocationCounter::available())
-        EXPECT_EQ(allocations, 0) << c << " " << steps;
-      EXPECT_EQ(
-          revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
-          revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c)))
-          << "c = " << c << ", N = " << steps;
-      EXPECT_LE(storage.counters().peakBytesInMemory, (c + 1) * 5 * 8);
+  // Without the caller's working state (the cost rule, one slot the strategy's copy of the last record)
+  // and with it (the two-horizon rule, c + 1 checkpoint slots).
+  for (const bool working : {false, true}) {
+    for (const std::int64_t c : {1, 2, 3, 7, 30}) {
+      for (const std::int64_t steps : {1, 2, 5, 100, 777}) {
+        OnlineCheckpointing storage(c);
+        const long allocations = runProtocol(storage, steps, -1, working);
+        // Online allocates a slot on its first use; beyond c + 1 steps the forward sweep has used all of
+        // them (it keeps every record while slots are free), so the backward sweep allocates nothing.
+        if (steps > c + 1 && testing::AllocationCounter::available())
+          EXPECT_EQ(allocations, 0) << c << " " << steps;
+        EXPECT_EQ(
+            revolve::toString(static_cast<UnsignedInt128>(steps - 1 + storage.counters().recomputedSteps)),
+            revolve::toString(OnlineCheckpointing::predictedForwardSteps(steps, c, working)))
+            << "c = " << c << ", N = " << steps << ", working " << working;
+        EXPECT_LE(storage.counters().peakBytesInMemory, (c + 1) * 5 * 8);
+      }
     }
   }
 }
