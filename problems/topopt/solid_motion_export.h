@@ -58,9 +58,9 @@ double defaultMagnification(double largestDisplacementM, double rodLengthM);
 /// The scale factor as it appears in names: "100", "2e+06", "0.5" (%g).
 std::string magnificationLabel(double scale);
 
-/// Writes DIRECTORY (created; an existing one is replaced only with `overwrite`) with motion_x<s>.pvd and
-/// frame_<k>.vtu, k = 0000..., each frame the field's densities as cell data on solidFramePoints and the
-/// point field displacement_x<s>; the .pvd's timesteps are motion.times. Written in a temporary directory
+/// Writes DIRECTORY (created; an existing one is replaced only with `overwrite`) with motion_x\<s\>.pvd and
+/// frame_\<k\>.vtu, k = 0000..., each frame the field's densities as cell data on solidFramePoints and the
+/// point field displacement_x\<s\>; the .pvd's timesteps are motion.times. Written in a temporary directory
 /// next to DIRECTORY and renamed: DIRECTORY is absent or complete. Returns the .pvd's path. Throws
 /// std::invalid_argument for scale <= 0 or an existing DIRECTORY without `overwrite`, StorageError for a
 /// failed write.
