@@ -264,6 +264,57 @@ TEST(CheckpointActions, CamsOnlineStreamRecomputesWhatTheOnlineModePredicts) {
   }
 }
 
+// Every family's whole stream, as it is consumed, pinned by a hash of its actions' text (FNV-1a, 64 bits)
+// and their count: a change of the code that drives the streams must leave every action sequence as it
+// was. The hashes were recorded from the streams as they were before their drivers were shared; a
+// deliberate change of a plan records them again (the failure prints the new value).
+TEST(CheckpointActions, EveryFamilysStreamIsTheRecordedSequence) {
+  ScratchDirectory dir;
+  const ScheduleCosts costs{1.0, 1.0, 0.5, 0.5};
+  struct Case {
+    std::string spec;
+    std::int64_t steps;
+    int stages;
+    std::string hash;
+  };
+  const std::vector<Case> cases = {
+      {"full", 1, 1, "5384ec9951d523fc 4"},
+      {"full", 37, 4, "5f4beefa213c0561 148"},
+      {"disk:dir=" + dir.path(), 37, 4, "d7d8cfc18e4079b 148"},
+      {"binomial:checkpoints=1", 10, 1, "b6a3f496167ed59a 40"},
+      {"binomial:checkpoints=3", 257, 4, "776121e37347b7df 1028"},
+      {"binomial:checkpoints=20", 1000, 4, "69e615001a5b9c67 4000"},
+      {"multilevel:ram=48,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(), 100, 4, "b8e80601c461a03c 425"},
+      {"multilevel:ram=48,disk=64,costs=1:1:0:0,dir=" + dir.path(), 31, 1, "f433e028ffc2a779 126"},
+      {"multilevel:ram=96,disk=1MiB,costs=1:1:100:100,dir=" + dir.path(), 100, 4, "70ec292b7e884f4b 402"},
+      {"multilevel:ram=160,disk=1MiB,costs=1:1:0.5:0.5,dir=" + dir.path(), 2000, 4, "be2c78c3527384e9 8181"},
+      {"cams:checkpoints=1", 10, 1, "36bf7cd50c59321a 42"},
+      {"cams:checkpoints=3", 100, 4, "a28403aabfe87ba1 401"},
+      {"cams:checkpoints=8", 257, 6, "a5100c207db3e7de 1010"},
+      {"cams:checkpoints=3,online=1", 60, 4, "5a574b1b5d088d89 239"},
+      {"cams:checkpoints=10,online=1", 3000, 5, "d1c6427b81a1abf7 11643"},
+      {"mixed:checkpoints=4", 30, 1, "5ab17cc44f7acd8c 101"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.spec + ", N = " + std::to_string(c.steps) + ", stages " + std::to_string(c.stages));
+    const std::unique_ptr<CheckpointStream> stream =
+        openCheckpointStream(c.spec, c.steps, 16, c.stages, &costs);
+    std::uint64_t hash = 14695981039346656037ULL;
+    std::size_t count = 0;
+    CheckpointAction a;
+    while (stream->next(&a)) {
+      for (const char ch : a.text() + "\n") {
+        hash ^= static_cast<unsigned char>(ch);
+        hash *= 1099511628211ULL;
+      }
+      ++count;
+    }
+    std::ostringstream hex;
+    hex << std::hex << hash << " " << std::dec << count;
+    EXPECT_EQ(hex.str(), c.hash);
+  }
+}
+
 // The stream's state is checkpoint_schedules' n (where the forward is) and r (adjoint steps taken).
 TEST(CheckpointActions, StreamStateFollowsTheActions) {
   for (const std::string spec : {"binomial:checkpoints=3", "cams:checkpoints=3", "full"}) {
