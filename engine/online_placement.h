@@ -27,6 +27,37 @@ inline PlacementCost intervalForwardSteps(std::int64_t length, std::int64_t slot
   return static_cast<PlacementCost>(revolve::optimalForwardSteps(length, slots));
 }
 
+/// simulatePlacement()'s offer of a record when the placement's offer(step) takes it: true unless it
+/// answers kSkipped.
+struct OfferRecord {
+  template <typename Placement>
+  bool operator()(Placement& placement, std::int64_t step) const {
+    return placement.offer(step) != Placement::kSkipped;
+  }
+};
+
+/// The placement of a whole forward sweep of N steps with c checkpoints, without states (the one
+/// simulation of every online placement below): the records 1..N-1 offered in order through
+/// offer(placement, step), true when the placement writes a checkpoint; returns the held positions at the
+/// end. *stores counts the checkpoint writes, those held from reset() on (TwoHorizonPlacement's x_0)
+/// included; *peak the most positions held at once (both optional).
+template <typename Placement, typename Offer = OfferRecord>
+std::vector<std::int64_t> simulatePlacement(std::int64_t steps, std::int64_t c, std::int64_t* stores,
+                                            std::int64_t* peak, Offer offer = Offer()) {
+  Placement placement;
+  placement.reset(c);
+  const auto held = [&placement] { return static_cast<std::int64_t>(placement.positions().size()); };
+  std::int64_t written = held(), most = held();
+  for (std::int64_t step = 1; step < steps; ++step) {
+    if (!offer(placement, step)) continue;
+    ++written;
+    most = std::max(most, held());
+  }
+  if (stores != nullptr) *stores = written;
+  if (peak != nullptr) *peak = most;
+  return placement.positions();
+}
+
 /// `online`'s placement in a run of the engine, whose caller's working state holds x_{N-1}
 /// (TrajectoryInfo::workingStateHoldsLast): the c + 1 slots all hold checkpoints, positions
 /// p_0 = 0 < p_1 < ... < p_m (m <= c), and interval i (p_i to p_{i+1}, the last one to N - 1) is
@@ -109,22 +140,10 @@ class TwoHorizonPlacement {
     return index;
   }
 
-  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
-  /// positions at its end; *stores counts the checkpoint writes (x_0 included), *peak the most positions
-  /// held at once (both optional).
+  /// simulatePlacement() of this placement (*stores with x_0).
   static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores,
                                             std::int64_t* peak) {
-    TwoHorizonPlacement placement;
-    placement.reset(c);
-    std::int64_t written = 1, most = 1;
-    for (std::int64_t k = 1; k < steps; ++k) {
-      if (placement.offer(k) == kSkipped) continue;
-      ++written;
-      most = std::max(most, static_cast<std::int64_t>(placement.positions_.size()));
-    }
-    if (stores != nullptr) *stores = written;
-    if (peak != nullptr) *peak = most;
-    return placement.positions_;
+    return simulatePlacement<TwoHorizonPlacement>(steps, c, stores, peak);
   }
 
  private:
@@ -291,16 +310,9 @@ class CostPlacement {
     return index;
   }
 
-  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
-  /// positions at its end; *stores (optional) counts the checkpoint writes.
+  /// simulatePlacement() of this placement.
   static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores) {
-    CostPlacement placement;
-    placement.reset(c);
-    std::int64_t written = 0;
-    for (std::int64_t step = 1; step < steps; ++step)
-      if (placement.offer(step) != kSkipped) ++written;
-    if (stores != nullptr) *stores = written;
-    return placement.positions_;
+    return simulatePlacement<CostPlacement>(steps, c, stores, nullptr);
   }
 
  private:
@@ -393,24 +405,14 @@ class OnlinePlacement {
     return spacing;
   }
 
-  /// The placement of a whole forward sweep of N steps with c checkpoints, without states: the held
-  /// positions at its end; *stores counts the checkpoint writes, *peak the most checkpoints held at once
-  /// (both optional).
+  /// simulatePlacement() of this placement: the record of `step` offers the working state x_{step-1}.
   static std::vector<std::int64_t> simulate(std::int64_t steps, std::int64_t c, std::int64_t* stores,
                                             std::int64_t* peak) {
-    OnlinePlacement placement;
-    placement.reset(c);
-    std::int64_t written = 0, most = 0;
-    for (std::int64_t step = 1; step < steps; ++step) {
-      if (placement.isCandidate(step - 1) &&
-          placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0) {
-        ++written;
-        most = std::max(most, static_cast<std::int64_t>(placement.positions().size()));
-      }
-    }
-    if (stores != nullptr) *stores = written;
-    if (peak != nullptr) *peak = most;
-    return placement.positions();
+    return simulatePlacement<OnlinePlacement>(
+        steps, c, stores, peak, [](OnlinePlacement& placement, std::int64_t step) {
+          return placement.isCandidate(step - 1) &&
+                 placement.commit(step - 1, [](std::int64_t, std::int64_t) {}) >= 0;
+        });
   }
 
   /// An interval of the backward sweep: from held position `start` (index `index`) over `length` steps, to

@@ -124,9 +124,10 @@ std::vector<PlanEvent> parsePlan(const std::string& text) {
   return events;
 }
 
-// The translation of a plan's events, fed one at a time (feed(), then finish()); the actions come out in
-// actions(). It must know, when a state is stored, whether it is loaded later (its restart data is written
-// only then) and, at each load, whether it is the state's last (a Move then, else a Copy). Two ways:
+// The translation of a plan's events, fed one at a time (feed(), then finish()); the actions are appended
+// to the caller's queue. It must know, when a state is stored, whether it is loaded later (its restart data
+// is written only then) and, at each load, whether it is the state's last (a Move then, else a Copy). Two
+// ways:
 //  * counted (cams): the translation runs twice over the whole plan; the first pass counts the loads of
 //    every stored state (Usage), the second emits with that knowledge;
 //  * stack (multilevel, made as consumed): the plan keeps its checkpoints as a stack, each until its own
@@ -143,8 +144,9 @@ class Translator {
     std::map<std::int64_t, std::int64_t> seen;   // version -> loads emitted so far (second pass)
   };
 
-  /// usage: the counted way (emit: the second pass); null: the stack way.
-  Translator(std::int64_t steps, Usage* usage, bool emit) : steps_(steps), usage_(usage), emit_(emit) {}
+  /// usage: the counted way (emit: the second pass); null: the stack way. The actions go to `out`.
+  Translator(std::int64_t steps, Usage* usage, bool emit, std::deque<CheckpointAction>& out)
+      : steps_(steps), usage_(usage), emit_(emit), actions_(out) {}
 
   void feed(const PlanEvent& ev) {
     if (phase_ == Phase::kForward) {
@@ -208,8 +210,6 @@ class Translator {
     out(Kind::kEndReverse);
   }
 
-  /// The actions made so far (the caller takes them out).
-  std::deque<CheckpointAction>& actions() { return actions_; }
   /// The version the next new checkpoint gets (the counted way's Usage is keyed by it).
   std::int64_t nextVersion() const { return nextVersion_; }
 
@@ -513,7 +513,7 @@ class Translator {
   std::int64_t steps_;
   Usage* usage_;
   bool emit_;
-  std::deque<CheckpointAction> actions_;
+  std::deque<CheckpointAction>& actions_;
   Phase phase_ = Phase::kForward;
   std::int64_t recorded_ = 0, expected_ = 0;
   bool replays_ = false;  // the restore of x_{N-1} does more than load it
@@ -548,26 +548,49 @@ std::vector<CheckpointAction> translateCheckpointPlan(const std::string& spec, s
   Translator::Usage usage;
   for (bool emit : {false, true}) {
     usage.seen.clear();
-    Translator translator(steps, &usage, emit);
+    std::deque<CheckpointAction> actions;
+    Translator translator(steps, &usage, emit, actions);
     for (const PlanEvent& ev : events) translator.feed(ev);
     translator.finish();
-    if (emit) {
-      std::deque<CheckpointAction>& actions = translator.actions();
-      return std::vector<CheckpointAction>(actions.begin(), actions.end());
-    }
+    if (emit) return std::vector<CheckpointAction>(actions.begin(), actions.end());
   }
   return {};
 }
 
 namespace {
 
+// A stream that drives a plan as the host consumes it and translates the plan's events as they come
+// (multilevel's and cams' streams): each refill feeds the plan's next step to the translation, whose
+// actions land in queue_, and the translation ends (EndReverse) once the plan has no step left.
+class TranslatedPlanStream : public BatchedCheckpointStream {
+ protected:
+  /// counted: the translation's counted way, with usage_ (cams); else the stack way (multilevel).
+  TranslatedPlanStream(std::int64_t steps, bool counted)
+      : BatchedCheckpointStream(steps), translator_(steps, counted ? &usage_ : nullptr, true, queue_) {}
+  /// Feeds the plan's next step (a record of the forward sweep, a restore of the backward sweep) to
+  /// translator_; false when there is none left.
+  virtual bool feedNext() = 0;
+  Translator::Usage usage_;
+  Translator translator_;
+
+ private:
+  bool refill() final {
+    if (feedNext()) return true;
+    if (finished_) return false;
+    translator_.finish();
+    finished_ = true;
+    return true;
+  }
+  bool finished_ = false;
+};
+
 // multilevel's stream: its TwoLevelPlan (MultilevelStorage::fixedStepPlan, the plan a run executes) is
 // driven as the host consumes the actions -- the forward sweep record by record, then the backward sweep
 // restore by restore -- and translated the stack way. Memory: the plan and the slots' contents.
-class TwoLevelPlanStream final : public CheckpointStream {
+class TwoLevelPlanStream final : public TranslatedPlanStream {
  public:
   TwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan)
-      : CheckpointStream(steps), plan_(std::move(plan)), translator_(steps, nullptr, true) {
+      : TranslatedPlanStream(steps, /*counted=*/false), plan_(std::move(plan)) {
     plan_.rewind();
   }
 
@@ -599,35 +622,25 @@ class TwoLevelPlanStream final : public CheckpointStream {
     }
   };
 
-  bool doNext(CheckpointAction* action) override {
-    std::deque<CheckpointAction>& out = translator_.actions();
-    while (out.empty()) {
-      Visitor visitor{*this};
-      if (forward_ < maxN_) {
-        record_ = forward_;  // fed before the record's first store, if any
-        plan_.recordForward(forward_++, visitor);
-        record_ = -1;
-      } else if (restore_ >= 0) {
-        plan_.restoreStep(restore_, visitor);
-        translator_.feed(
-            PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", restore_, restore_, false});
-        --restore_;
-      } else if (!finished_) {
-        translator_.finish();
-        finished_ = true;
-      } else {
-        return false;
-      }
+  bool feedNext() override {
+    Visitor visitor{*this};
+    if (forward_ < maxN_) {
+      record_ = forward_;  // fed before the record's first store, if any
+      plan_.recordForward(forward_++, visitor);
+      record_ = -1;
+    } else if (restore_ >= 0) {
+      plan_.restoreStep(restore_, visitor);
+      translator_.feed(
+          PlanEvent{PlanEvent::Kind::kDeliver, CheckpointStorage::kWork, "", restore_, restore_, false});
+      --restore_;
+    } else {
+      return false;
     }
-    *action = out.front();
-    out.pop_front();
     return true;
   }
 
   TwoLevelPlan plan_;
-  Translator translator_;
   std::int64_t forward_ = 0, restore_ = maxN_ - 1, record_ = -1;
-  bool finished_ = false;
 };
 
 }  // namespace
@@ -651,21 +664,20 @@ namespace {
 // the interval plan as cams::simulateOnline does -- the plan made when the forward run ends, the first
 // Reverse waiting for it. Intervals longer than that plan (revolve's, whose slots this translation does
 // not express) are refused when the stream is opened.
-class CamsPlanStream final : public CheckpointStream {
+class CamsPlanStream final : public TranslatedPlanStream {
  public:
   CamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan)
-      : CheckpointStream(steps), plan_(std::move(plan)), translator_(steps, &usage_, true) {
+      : TranslatedPlanStream(steps, /*counted=*/true), plan_(std::move(plan)) {
     executor_.reset(plan_.get());
   }
   CamsPlanStream(std::int64_t steps, std::vector<std::int64_t> positions, std::int64_t memoryUnits,
                  std::int64_t recordUnits)
-      : CheckpointStream(steps),
+      : TranslatedPlanStream(steps, /*counted=*/true),
         online_(true),
         positions_(std::move(positions)),
         versions_(positions_.size(), -1),
         memoryUnits_(memoryUnits),
-        recordUnits_(recordUnits),
-        translator_(steps, &usage_, true) {}
+        recordUnits_(recordUnits) {}
 
  private:
   struct Visitor {
@@ -749,39 +761,31 @@ class CamsPlanStream final : public CheckpointStream {
     executor_.restoreStep(e, visitor);
   }
 
-  bool doNext(CheckpointAction* action) override {
-    std::deque<CheckpointAction>& out = translator_.actions();
-    while (out.empty()) {
-      if (forward_ < maxN_ && online_) {
-        // Straight to the next held position (the forward run is cut only where it writes).
-        if (nextPosition_ < positions_.size()) {
-          forward_ = positions_[nextPosition_];
-          storeOnline(nextPosition_++);
-          ++forward_;
-        } else {
-          forward_ = maxN_;
-        }
-      } else if (forward_ < maxN_) {
-        bool record = false;
-        if (executor_.recordForward(forward_, &record) >= 0) store(forward_, record, /*forwardSweep=*/true);
+  bool feedNext() override {
+    if (forward_ < maxN_ && online_) {
+      // Straight to the next held position (the forward run is cut only where it writes).
+      if (nextPosition_ < positions_.size()) {
+        forward_ = positions_[nextPosition_];
+        storeOnline(nextPosition_++);
         ++forward_;
-      } else if (restore_ >= 0 && online_) {
-        Visitor visitor{*this};
-        restoreOnline(restore_--, visitor);
-        flushAdvance();
-      } else if (restore_ >= 0) {
-        Visitor visitor{*this};
-        executor_.restoreStep(restore_--, visitor);
-        flushAdvance();
-      } else if (!finished_) {
-        translator_.finish();
-        finished_ = true;
       } else {
-        return false;
+        forward_ = maxN_;
       }
+    } else if (forward_ < maxN_) {
+      bool record = false;
+      if (executor_.recordForward(forward_, &record) >= 0) store(forward_, record, /*forwardSweep=*/true);
+      ++forward_;
+    } else if (restore_ >= 0 && online_) {
+      Visitor visitor{*this};
+      restoreOnline(restore_--, visitor);
+      flushAdvance();
+    } else if (restore_ >= 0) {
+      Visitor visitor{*this};
+      executor_.restoreStep(restore_--, visitor);
+      flushAdvance();
+    } else {
+      return false;
     }
-    *action = out.front();
-    out.pop_front();
     return true;
   }
 
@@ -792,11 +796,8 @@ class CamsPlanStream final : public CheckpointStream {
   internal::OnlinePlacement::Interval interval_{static_cast<std::int64_t>(positions_.size()), maxN_, 0};
   std::unique_ptr<cams::Plan> plan_;
   cams::Executor executor_;
-  Translator::Usage usage_;
-  Translator translator_;
   std::pair<std::int64_t, std::int64_t> advance_{0, 0};  // consecutive advances, merged
   std::int64_t forward_ = 0, restore_ = maxN_ - 1;
-  bool finished_ = false;
 };
 
 }  // namespace

@@ -65,6 +65,15 @@ bool CheckpointStream::next(CheckpointAction* action) {
   return true;
 }
 
+bool BatchedCheckpointStream::doNext(CheckpointAction* action) {
+  while (queue_.empty()) {
+    if (!refill()) return false;
+  }
+  *action = queue_.front();
+  queue_.pop_front();
+  return true;
+}
+
 void CheckpointStream::finalize(std::int64_t n) {
   if (n < 1) throw std::logic_error("finalize(" + std::to_string(n) + "): n must be >= 1");
   if (maxN_ < 0 ? n_ != n : (n != maxN_ || n_ != n)) {
@@ -84,32 +93,15 @@ constexpr auto reverseStep = &CheckpointAction::reverseStep;
 constexpr auto toWork = &CheckpointAction::toWork;
 constexpr auto marker = &CheckpointAction::marker;
 
-// Streams whose actions come in small batches: doNext hands out the queue, refilling it by refill().
-class BatchedStream : public CheckpointStream {
- protected:
-  explicit BatchedStream(std::int64_t steps) : CheckpointStream(steps) {}
-  /// Appends the next actions to queue_; false when there are none left.
-  virtual bool refill() = 0;
-  bool doNext(CheckpointAction* action) final {
-    while (queue_.empty()) {
-      if (!refill()) return false;
-    }
-    *action = queue_.front();
-    queue_.pop_front();
-    return true;
-  }
-  std::deque<CheckpointAction> queue_;
-};
-
 // full and disk keep every state x_0..x_{N-2} (x_{N-1} is the working state when the forward run ends): the
 // forward run writes each as restart data of its own step, and the adjoint of step e re-runs it from x_e
 // (the stage values hindsight's own adjoint step recomputes). No step is recomputed otherwise. With N
 // unknown (kUnknownSteps), the forward run writes x_{N-1} too, one step at a time until finalize(); its
 // reverse then starts, like every other, from that checkpoint.
-class EveryStateStream final : public BatchedStream {
+class EveryStateStream final : public BatchedCheckpointStream {
  public:
   EveryStateStream(std::int64_t steps, CheckpointStorage level)
-      : BatchedStream(steps), level_(level), unknown_(steps < 0) {}
+      : BatchedCheckpointStream(steps), level_(level), unknown_(steps < 0) {}
 
  private:
   bool refill() override {
@@ -157,9 +149,9 @@ class EveryStateStream final : public BatchedStream {
 // the adjoint at or below that end, as the contract asks. The load of a checkpoint at the position being
 // reversed is its last (the schedule pops it): a Move; every other load a Copy. x_{N-1} is WORK: the
 // forward run's last step writes its adjoint data there, as in checkpoint_schedules.
-class BinomialStream final : public BatchedStream {
+class BinomialStream final : public BatchedCheckpointStream {
  public:
-  BinomialStream(std::int64_t steps, std::int64_t checkpoints) : BatchedStream(steps) {
+  BinomialStream(std::int64_t steps, std::int64_t checkpoints) : BatchedCheckpointStream(steps) {
     schedule_.reset(BinomialCheckpointing::planLength(steps, true),
                     BinomialCheckpointing::slotsFor(steps, checkpoints, true), true);
     stack_.push_back(0);

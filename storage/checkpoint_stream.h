@@ -15,6 +15,7 @@
 #include <hindsight/storage/checkpoint_actions.h>
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <set>
 #include <string>
@@ -59,6 +60,19 @@ class CheckpointStream {
   // disk, which hold N - 1 checkpoints.
   std::int64_t restart_ = 0;
   std::set<std::pair<int, std::int64_t>> adjointOnly_;
+};
+
+/// The driver of every lazily generated stream (binomial, full, disk, multilevel, cams): the strategy's
+/// state machine appends the actions of its next step to queue_ (refill()), which doNext hands out in
+/// order, refilling it whenever it is empty; memory is one step's actions besides the strategy's state.
+class BatchedCheckpointStream : public CheckpointStream {
+ protected:
+  explicit BatchedCheckpointStream(std::int64_t maxN) : CheckpointStream(maxN) {}
+  /// Appends the actions of the strategy's next step to queue_ (none, when the step writes nothing);
+  /// false when there is no step left.
+  virtual bool refill() = 0;
+  bool doNext(CheckpointAction* action) final;
+  std::deque<CheckpointAction> queue_;
 };
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
