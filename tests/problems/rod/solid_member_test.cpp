@@ -12,6 +12,7 @@
 #include <hindsight/problems/topopt/geometry_export.h>
 #include <hindsight/storage/hdf5.h>
 
+#include "support/coarse_solid.h"
 #include "support/run_cli.h"
 
 #include <gtest/gtest.h>
@@ -28,17 +29,7 @@
 namespace hindsight {
 namespace {
 
-Config coarseConfig(int elementsThroughThickness) {
-  Config config;
-  config.rod.elementsAlongLength = 12;
-  config.rod.elementsThroughHeight = 4;
-  config.rod.elementsThroughThickness = elementsThroughThickness;
-  config.rod.modeCount = 4;
-  config.rod.endTime = 1.0;
-  config.rod.rampTime = 1.0;
-  config.simulation.step = 2e-4;
-  return config;
-}
+using testing::coarseSolidConfig;
 
 /// The plate's design extruded through the solid's nz layers (design index d nz + k of the solid).
 Vector extruded(const Vector& plate, int layers) {
@@ -70,9 +61,9 @@ TEST(SolidMember, ItsRigidPartIsThePlates) {
   // The rigid limit of the mechanism (a member that does not deform) sees m, m c and J0 alone; the solid
   // of any layering and with symmetry has the plate's, so the rigid motion is the plate's.
   for (const bool symmetry : {false, true}) {
-    Config config = coarseConfig(symmetry ? 1 : 3);
+    Config config = coarseSolidConfig(symmetry ? 1 : 3);
     config.rod.midPlaneSymmetry = symmetry;
-    Config plateConfig = coarseConfig(0);
+    Config plateConfig = coarseSolidConfig(0);
     const Vector plateDesign = randomDesign(plateConfig.rod.designCount(), 3);
     const rod::FeModel plate(plateConfig.rod, plateDesign);
     const rod::SolidMember solid(config.rod, extruded(plateDesign, config.rod.elementsThroughThickness));
@@ -95,9 +86,9 @@ TEST(SolidMember, ItsRigidPartIsThePlates) {
 // bending (its parasitic shear), the enhanced element does not, so the solid is softer and its psi1
 // larger; that difference is the plate's discretisation error on this 12 x 4 mesh, measured here.
 TEST(SolidMember, OneLayerWithoutPoissonReproducesThePlatesPsi1) {
-  Config plateConfig = coarseConfig(0);
+  Config plateConfig = coarseSolidConfig(0);
   plateConfig.rod.poissonRatio = 0.0;
-  Config solidConfig = coarseConfig(1);
+  Config solidConfig = coarseSolidConfig(1);
   solidConfig.rod.poissonRatio = 0.0;
   solidConfig.rod.midPlaneSymmetry = true;
   const Vector plateDesign = randomDesign(plateConfig.rod.designCount(), 5);
@@ -134,7 +125,7 @@ TEST(SolidMember, OneLayerWithoutPoissonReproducesThePlatesPsi1) {
 // missing term (the M_ee^xy block, the mean of B's axis, the z components of X) changes a component by
 // far more than the tolerance (measured: the differences' error is below ~1e-7 relative).
 TEST(SolidMember, Psi1GradientMatchesFiniteDifferences) {
-  Config config = coarseConfig(2);
+  Config config = coarseSolidConfig(2);
   config.rod.modeCount = 6;
   const PistonRod rod{config};
   const Vector x = randomDesign(rod.designCount(), 7);

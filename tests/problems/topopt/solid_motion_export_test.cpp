@@ -7,6 +7,7 @@
 #include <hindsight/problems/app/piston_rod.h>
 #include <hindsight/problems/topopt/results_file.h>
 
+#include "support/coarse_solid.h"
 #include "support/run_cli.h"
 
 #include <gtest/gtest.h>
@@ -108,19 +109,6 @@ TEST(SolidMotionExport, TheDefaultMagnificationIsOneTwoOrFiveTimesAPowerOfTen) {
   EXPECT_EQ(magnificationLabel(5e6), "5e+06");
 }
 
-Config coarseSolid() {
-  Config config;
-  config.rod.elementsAlongLength = 12;
-  config.rod.elementsThroughHeight = 4;
-  config.rod.elementsThroughThickness = 2;
-  config.rod.midPlaneSymmetry = true;
-  config.rod.modeCount = 4;
-  config.rod.endTime = 1.0;
-  config.rod.rampTime = 1.0;
-  config.simulation.step = 2e-4;
-  return config;
-}
-
 BoxDensityField fieldOf(const Config& config, ConstVectorRef values) {
   BoxDensityField field;
   field.nx = config.rod.elementsAlongLength;
@@ -135,7 +123,7 @@ BoxDensityField fieldOf(const Config& config, ConstVectorRef values) {
 }
 
 TEST(SolidMotionExport, TheRecordedMotionIsTheRunsAndKeepsTheJointsOnTheirPaths) {
-  const Config config = coarseSolid();
+  const Config config = testing::coarseSolidConfig(2, /*midPlaneSymmetry=*/true);
   const PistonRod rod(config);
   const Vector design = rod.initialDesign();
   const MemberMotion motion = recordMemberMotion(rod, design, 5);
@@ -170,7 +158,7 @@ std::string slurp(const fs::path& path) {
 }
 
 TEST(SolidMotionExport, TheTimeSeriesReadsBackWithItsSizesAndTimes) {
-  const Config config = coarseSolid();
+  const Config config = testing::coarseSolidConfig(2, /*midPlaneSymmetry=*/true);
   const PistonRod rod(config);
   const MemberMotion motion = recordMemberMotion(rod, rod.initialDesign(), 3);
   const BoxDensityField field = fieldOf(config, Vector::LinSpaced(12 * 4 * 2, 0.2, 1.0));
