@@ -678,41 +678,40 @@ void stateProduct(const View& P, const Matrix& mee, const ProductScalars& k, Con
   }
 }
 
+// The residual's products with mu from one evaluation of the frame scalars, which both need: the state's
+// into *outQ, *outV and the parameters' added to *gradient, each when given (residualStateVjp,
+// addResidualParameterVjp and the fused residualVjps).
+void residualProducts(const SliderCrankLayout& layout, const CrankMotion& crank, double length, double t,
+                      ConstVectorRef q, ConstVectorRef v, ConstVectorRef a, ConstVectorRef p,
+                      ConstVectorRef mu, VectorRef* outQ, VectorRef* outV, VectorRef* gradient,
+                      RodWorkspace& w) {
+  const View P(layout, p);
+  const Matrix& mee = meeOf(P, w);
+  // F = mu . r depends on b nonlinearly only through the channels c = b q, c' = b q' and b a; their
+  // partials and the frame scalars are the state product's too.
+  const ProductScalars k = productScalars(P, mee, crankOf(crank, t, w), crank.radius, length, q, v, a, mu, w);
+  if (outQ != nullptr) stateProduct(P, mee, k, v, a, mu, *outQ, *outV, w);
+  if (gradient != nullptr) parameterProduct(layout, k, q, v, a, mu, *gradient, w);
+}
+
 }  // namespace
 
 void SliderCrankProblem::addResidualParameterVjp(double t, ConstVectorRef q, ConstVectorRef v,
                                                  ConstVectorRef a, ConstVectorRef p, ConstVectorRef mu,
                                                  VectorRef out, ProblemWorkspace* ws) const {
-  auto& w = workspaceOf(ws);
-  const View P(layout_, p);
-  // F = mu . r depends on b nonlinearly only through the channels c = b q, c' = b q' and b a; their
-  // partials and the frame scalars come from the same helper as the state product.
-  const ProductScalars k =
-      productScalars(P, meeOf(P, w), crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
-  parameterProduct(layout_, k, q, v, a, mu, out, w);
+  residualProducts(layout_, crank_, length_, t, q, v, a, p, mu, nullptr, nullptr, &out, workspaceOf(ws));
 }
 
 void SliderCrankProblem::residualStateVjp(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
                                           ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
                                           ProblemWorkspace* ws) const {
-  auto& w = workspaceOf(ws);
-  const View P(layout_, p);
-  const Matrix& mee = meeOf(P, w);
-  const ProductScalars k =
-      productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
-  stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
+  residualProducts(layout_, crank_, length_, t, q, v, a, p, mu, &outQ, &outV, nullptr, workspaceOf(ws));
 }
 
 void SliderCrankProblem::residualVjps(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
                                       ConstVectorRef p, ConstVectorRef mu, VectorRef outQ, VectorRef outV,
                                       VectorRef gradient, ProblemWorkspace* ws) const {
-  auto& w = workspaceOf(ws);
-  const View P(layout_, p);
-  const Matrix& mee = meeOf(P, w);
-  const ProductScalars k =
-      productScalars(P, mee, crankOf(crank_, t, w), crank_.radius, length_, q, v, a, mu, w);
-  stateProduct(P, mee, k, v, a, mu, outQ, outV, w);
-  parameterProduct(layout_, k, q, v, a, mu, gradient, w);
+  residualProducts(layout_, crank_, length_, t, q, v, a, p, mu, &outQ, &outV, &gradient, workspaceOf(ws));
 }
 
 void SliderCrankProblem::residualJacobians(double t, ConstVectorRef q, ConstVectorRef v, ConstVectorRef a,
