@@ -3,13 +3,14 @@
 #include <hindsight/problems/rod/solid_member.h>
 #include <hindsight/problems/rod/subtree_ldlt.h>
 
+#include "support/random_design.h"
+
 #include <gtest/gtest.h>
 #include <metis.h>
 #include <Eigen/MetisSupport>
 #include <Eigen/SparseCholesky>
 
 #include <cstring>
-#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -24,19 +25,11 @@ bool sameBits(const double* a, const double* b, Eigen::Index count) {
   return std::memcmp(a, b, sizeof(double) * static_cast<std::size_t>(count)) == 0;
 }
 
-Vector randomDesign(const RodConfig& config, unsigned seed) {
-  std::mt19937 generator(seed);
-  std::uniform_real_distribution<double> uniform(0.01, 1.0);
-  Vector design(config.designCount());
-  for (auto& x : design) x = uniform(generator);
-  return design;
-}
-
 FeModel randomModel(int along, int through, unsigned seed) {
   RodConfig config;
   config.elementsAlongLength = along;
   config.elementsThroughHeight = through;
-  return FeModel(config, randomDesign(config, seed));
+  return FeModel(config, hindsight::testing::randomRodDesign(config, seed));
 }
 
 // Half of a solid bar (mid-plane symmetry), the member whose K is factorised in METIS's ordering.
@@ -46,7 +39,7 @@ SolidMember randomSolid(int along, int through, int thickness, unsigned seed) {
   config.elementsThroughHeight = through;
   config.elementsThroughThickness = thickness;
   config.midPlaneSymmetry = true;
-  return SolidMember(config, randomDesign(config, seed));
+  return SolidMember(config, hindsight::testing::randomRodDesign(config, seed));
 }
 
 // Both sweeps are Eigen's serial results bit for bit, for every partition of the elimination tree (the
