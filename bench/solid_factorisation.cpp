@@ -9,10 +9,13 @@
 // CHOLMOD's simplicial LDL^T (cholmod-simplicial: CHOLMOD's ordering choice; cholmod-simplicial-metis:
 // METIS forced) calls no BLAS, so unlike the supernodal factorisation its bits do not depend on the BLAS
 // the system selects: the bit-safe way to METIS's smaller fill (bench/RESULTS.md, "The solid's gradient").
+// simplicial-metis is the production's factorisation of the solid: Eigen's SimplicialLDLT in METIS's
+// ordering (rod::SubtreeParallelLdlt with FillOrdering::Metis, problems/rod/subtree_ldlt.h).
 //
 // Usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS MODES, SOLVERS a comma-separated list of
-// simplicial, cholmod, cholmod-simplicial, cholmod-simplicial-metis
+// simplicial, simplicial-metis, cholmod, cholmod-simplicial, cholmod-simplicial-metis
 #include <hindsight/problems/rod/solid_model.h>
+#include <hindsight/problems/rod/subtree_ldlt.h>
 
 #include <Spectra/MatOp/SparseSymMatProd.h>
 #include <Spectra/SymGEigsShiftSolver.h>
@@ -98,8 +101,9 @@ void eigenSolve(const SparseMatrix& stiffness, const SparseMatrix& mass, int mod
 
 int main(int argc, char** argv) {
   if (argc != 7) {
-    std::cerr << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) "
-                 "SOLVERS(simplicial,cholmod,cholmod-simplicial,cholmod-simplicial-metis) MODES\n";
+    std::cerr
+        << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) "
+           "SOLVERS(simplicial,simplicial-metis,cholmod,cholmod-simplicial,cholmod-simplicial-metis) MODES\n";
     return 2;
   }
   hindsight::rod::RodConfig config;
@@ -140,6 +144,15 @@ int main(int argc, char** argv) {
     std::printf("  info %d, L nonzeros %ld\n", int(factor.info()),
                 long(factor.matrixL().nestedExpression().nonZeros()));
     if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT");
+  }
+  if (asked("simplicial-metis")) {
+    hindsight::rod::SubtreeParallelLdlt factor({}, hindsight::rod::FillOrdering::Metis);
+    clock = Clock();
+    factor.compute(stiffness);
+    clock.report("SimplicialLDLT (METIS) of K");
+    std::printf("  info %d, L nonzeros %ld\n", int(factor.info()),
+                long(factor.matrixL().nestedExpression().nonZeros()));
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT, METIS");
   }
 #ifdef HINDSIGHT_WITH_CHOLMOD
   for (const bool metis : {false, true}) {

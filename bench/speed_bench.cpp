@@ -92,7 +92,7 @@ void phaseTable(int largest) {
 
     double start = cpuSeconds();
     const rod::FeModel model(rc, x);
-    const rod::StiffnessFactorization stiffness(model.stiffness());
+    const rod::StiffnessFactorization stiffness(model.stiffness(), rod::stiffnessOrdering(model));
     const rod::ModalBasis basis =
         rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), stiffness);
     const rod::InertiaInvariants invariants = rod::computeInvariants(model, basis);
@@ -286,7 +286,7 @@ void sweepTable(int largest) {
     const Config config = meshConfig(m);
     const PistonRod piston(config);
     const rod::FeModel model(config.rod, piston.initialDesign());
-    const rod::StiffnessFactorization k(model.stiffness());
+    const rod::StiffnessFactorization k(model.stiffness(), rod::stiffnessOrdering(model));
     const rod::SubtreeParallelLdlt& ldlt = k.solver();
     const Vector b = Vector::LinSpaced(k.size(), 1.0, 2.0);
     double forward = 1e30, eigen = 1e30, subtrees = 1e30;

@@ -96,7 +96,7 @@ PistonRodEvaluation PistonRod::evaluateMember(const Member& model, const Request
   std::unique_ptr<rod::StiffnessFactorization>& stiffnessPointer = kept.factorization;
   const rod::ModalBasis basis = [&] {
     try {
-      stiffnessPointer = stiffness_->take(model.stiffness());
+      stiffnessPointer = stiffness_->take(model.stiffness(), rod::stiffnessOrdering(model));
       return rod::computeModalBasis(model, rod::ModalReductionOptions::fromConfig(rc), *stiffnessPointer);
     } catch (const NumericalError&) {
       throw;

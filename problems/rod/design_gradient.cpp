@@ -559,7 +559,7 @@ DesignGradientResult designGradientOf(const Member& model, const ModalBasis& bas
                                       ConstVectorRef invariantGradient, const DesignGradientOptions& options,
                                       const DesignGradientExtras& extras) {
   checkBasis(model, basis);
-  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  const StiffnessFactorization stiffnessFactorization(model.stiffness(), stiffnessOrdering(model));
   return designGradientOf(model, basis, invariantGradient, options, extras, stiffnessFactorization);
 }
 

@@ -55,7 +55,7 @@ EslResult evaluateEsl(const FeModel& model, ConstMatrixRef loads, double endTime
   checkEslArguments(model, loads, endTime);
   std::unique_ptr<StiffnessFactorization> factorization;
   try {
-    factorization = std::make_unique<StiffnessFactorization>(model.stiffness());
+    factorization = std::make_unique<StiffnessFactorization>(model.stiffness(), stiffnessOrdering(model));
   } catch (const std::runtime_error&) {
     throw std::runtime_error("evaluateEsl: the constrained stiffness matrix is not positive definite");
   }

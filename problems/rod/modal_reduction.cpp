@@ -93,8 +93,8 @@ class TransformedPencil {
 
 }  // namespace
 
-StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness)
-    : solver_(stiffness),
+StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness, FillOrdering ordering)
+    : solver_(stiffness, SubtreeSchedule{}, ordering),
       size_(stiffness.rows()),
       outer_(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + stiffness.outerSize() + 1),
       inner_(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + stiffness.nonZeros()) {
@@ -122,7 +122,8 @@ void StiffnessFactorization::refactorize(const SparseMatrix& stiffness) {
   checkPositiveDefinite();
 }
 
-std::unique_ptr<StiffnessFactorization> StiffnessFactorizationPool::take(const SparseMatrix& stiffness) {
+std::unique_ptr<StiffnessFactorization> StiffnessFactorizationPool::take(const SparseMatrix& stiffness,
+                                                                         FillOrdering ordering) {
   std::unique_ptr<StiffnessFactorization> kept;
   {
     const std::lock_guard<std::mutex> lock(mutex_);
@@ -131,11 +132,11 @@ std::unique_ptr<StiffnessFactorization> StiffnessFactorizationPool::take(const S
       kept_.pop_back();
     }
   }
-  if (kept && kept->samePattern(stiffness)) {
+  if (kept && kept->solver().ordering() == ordering && kept->samePattern(stiffness)) {
     kept->refactorize(stiffness);
     return kept;
   }
-  return std::make_unique<StiffnessFactorization>(stiffness);
+  return std::make_unique<StiffnessFactorization>(stiffness, ordering);
 }
 
 void StiffnessFactorizationPool::give(std::unique_ptr<StiffnessFactorization> factorization) {
@@ -406,11 +407,11 @@ Matrix elementwiseStiffnessForm(const SolidMember& model, ConstMatrixRef xFull) 
 }
 
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options) {
-  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  const StiffnessFactorization stiffnessFactorization(model.stiffness(), stiffnessOrdering(model));
   return computeModalBasisOf(model, options, stiffnessFactorization);
 }
 ModalBasis computeModalBasis(const SolidMember& model, const ModalReductionOptions& options) {
-  const StiffnessFactorization stiffnessFactorization(model.stiffness());
+  const StiffnessFactorization stiffnessFactorization(model.stiffness(), stiffnessOrdering(model));
   return computeModalBasisOf(model, options, stiffnessFactorization);
 }
 ModalBasis computeModalBasis(const FeModel& model, const ModalReductionOptions& options,

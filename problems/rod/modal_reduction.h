@@ -98,7 +98,15 @@ Matrix compensatedResidual(ConstMatrixRef b, const SparseMatrix& a, ConstMatrixR
 Matrix elementwiseStiffnessForm(const FeModel& model, ConstMatrixRef xFull);
 Matrix elementwiseStiffnessForm(const SolidMember& model, ConstMatrixRef xFull);
 
-/// One sparse LDL^T factorisation of the constrained stiffness K of a design (AMD ordering), shared by
+/// The fill-reducing ordering of each member's factorisation of K. The plate keeps AMD: its ordering is
+/// part of the recorded bits of the default configuration (tests/reproducibility/record.json). The solid
+/// takes METIS's nested dissection: on its slender 3-D bars L has 28-35 % fewer nonzeros and the
+/// factorisation, the eigen-solve and the chain's solves are the gradient's cost (bench/RESULTS.md,
+/// "The solid's gradient"). Every StiffnessFactorization of a member is made with its ordering.
+constexpr FillOrdering stiffnessOrdering(const FeModel&) { return FillOrdering::Amd; }
+constexpr FillOrdering stiffnessOrdering(const SolidMember&) { return FillOrdering::Metis; }
+
+/// One sparse LDL^T factorisation of the constrained stiffness K of a design (stiffnessOrdering), shared by
 /// everything that solves with K: the eigen-solve (Lanczos on its transformed pencil), the refinement, the
 /// inertia-relief modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run
 /// time by the system (Debian alternatives), which would make the bits depend on the machine. Its
@@ -107,13 +115,13 @@ Matrix elementwiseStiffnessForm(const SolidMember& model, ConstMatrixRef xFull);
 class StiffnessFactorization {
  public:
   /// Throws std::runtime_error when K is not positive definite (a zero or negative pivot).
-  explicit StiffnessFactorization(const SparseMatrix& stiffness);
+  StiffnessFactorization(const SparseMatrix& stiffness, FillOrdering ordering);
   StiffnessFactorization(const StiffnessFactorization&) = delete;
   StiffnessFactorization& operator=(const StiffnessFactorization&) = delete;
   /// Whether `stiffness` has the sparsity pattern this factorisation was analysed for (the same mesh and
   /// supports: the FE assembly scatters every design into the mesh's pattern).
   bool samePattern(const SparseMatrix& stiffness) const;
-  /// Factorises another K of the same pattern with the symbolic analysis of the construction (the AMD
+  /// Factorises another K of the same pattern with the symbolic analysis of the construction (the
   /// ordering, the elimination tree and the column counts depend on the pattern alone): the factor is
   /// bitwise the one a new object computes, without the analysis (0.6 s of 4.3 s at 1600 x 96).
   /// Throws std::invalid_argument for another pattern and std::runtime_error as the constructor.
@@ -150,7 +158,7 @@ class StiffnessFactorization {
 /// get their own object. What a design computes does not depend on whether its factorisation was kept.
 class StiffnessFactorizationPool {
  public:
-  std::unique_ptr<StiffnessFactorization> take(const SparseMatrix& stiffness);
+  std::unique_ptr<StiffnessFactorization> take(const SparseMatrix& stiffness, FillOrdering ordering);
   void give(std::unique_ptr<StiffnessFactorization> factorization);
   /// Kept objects (tests).
   std::size_t size() const;

@@ -1,6 +1,7 @@
-// Eigen's SimplicialLDLT (AMD ordering, lower triangle) with its triangular sweeps on row-major blocks
-// of right-hand sides, and the back-substitution L^-T run on independent subtrees of the elimination
-// tree in parallel, bitwise equal to Eigen's serial sweep for any number of threads.
+// Eigen's SimplicialLDLT (lower triangle; AMD's ordering or METIS's nested dissection) with its
+// triangular sweeps on row-major blocks of right-hand sides, and the back-substitution L^-T run on
+// independent subtrees of the elimination tree in parallel, bitwise equal to Eigen's serial sweep for any
+// number of threads.
 //
 // Why by hand: the eigen-solve's Lanczos iteration solves with K's factor one vector at a time, and at
 // production meshes (1600 x 96: a 300 MB factor) those sweeps are a serial step of every design. The
@@ -29,6 +30,25 @@
 namespace hindsight {
 namespace rod {
 
+/// The fill-reducing ordering of the factorisation. Both are deterministic functions of the pattern
+/// (METIS with its fixed seed), so the bits of the factor do not depend on the machine; they differ from
+/// each other, so a member's choice is part of its recorded bits (modal_reduction.h, stiffnessOrdering).
+enum class FillOrdering {
+  /// Eigen's approximate minimum degree (Eigen::AMDOrdering): Eigen's own SimplicialLDLT, bit for bit.
+  Amd,
+  /// METIS 5's nested dissection (METIS_NodeND, default options): on the slender 3-D bars of the solid
+  /// member 28-35 % fewer nonzeros in L than AMD, and its separators split the elimination tree into
+  /// large independent subtrees (bench/RESULTS.md, "The solid's gradient").
+  Metis,
+};
+
+/// METIS_NodeND's ordering of the symmetric matrix whose lower triangle `lower` holds (the diagonal and
+/// the upper triangle are not read), as Eigen's ordering functors return it: the permutation from the
+/// new order to the old (row i of P A P^T is row indices()(i) of A). Throws std::runtime_error when
+/// METIS fails (out of memory) rather than fall back to another ordering, which would change the bits.
+Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> metisOrdering(
+    const Eigen::SparseMatrix<double>& lower);
+
 /// How the elimination tree is shared out for the parallel back-substitution. The partition decides
 /// only which rows run at the same time, never a bit of the result.
 struct SubtreeSchedule {
@@ -41,10 +61,12 @@ struct SubtreeSchedule {
 class SubtreeParallelLdlt : public Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> {
  public:
   using SparseMatrix = Eigen::SparseMatrix<double>;
-  explicit SubtreeParallelLdlt(SubtreeSchedule options = {}) : options_(options) {}
+  explicit SubtreeParallelLdlt(SubtreeSchedule options = {}, FillOrdering ordering = FillOrdering::Amd)
+      : options_(options), ordering_(ordering) {}
   /// analyzePattern(a) and factorize(a) (Eigen's).
-  explicit SubtreeParallelLdlt(const SparseMatrix& a, SubtreeSchedule options = {});
-  /// Eigen's ordering and symbolic analysis, then the schedule of the subtrees.
+  explicit SubtreeParallelLdlt(const SparseMatrix& a, SubtreeSchedule options = {},
+                               FillOrdering ordering = FillOrdering::Amd);
+  /// The ordering and Eigen's symbolic analysis, then the schedule of the subtrees.
   void analyzePattern(const SparseMatrix& a);
   void compute(const SparseMatrix& a) {
     analyzePattern(a);
@@ -60,6 +82,7 @@ class SubtreeParallelLdlt : public Eigen::SimplicialLDLT<Eigen::SparseMatrix<dou
   /// Share of the sweep's entries in the parallel subtrees (0 when the tree was not split: a small
   /// matrix or one thread): for the benchmarks and tests.
   double parallelShare() const { return parallelShare_; }
+  FillOrdering ordering() const { return ordering_; }
 
  private:
   template <int Columns>
@@ -68,6 +91,7 @@ class SubtreeParallelLdlt : public Eigen::SimplicialLDLT<Eigen::SparseMatrix<dou
   void backward(double* x, Eigen::Index columns, bool parallel) const;
 
   SubtreeSchedule options_;
+  FillOrdering ordering_ = FillOrdering::Amd;
   // Rows of each group in increasing index (the groups run in parallel, each in decreasing index) and
   // the rows above them (run first, in decreasing index).
   std::vector<std::vector<int>> groups_;
