@@ -87,12 +87,20 @@ class KLevelPlan {
     std::int64_t spacingDivisor;
   };
   /// The grids choose() plans on, finest first: graded()'s, then coarser ones, for slots that graded()'s
-  /// tables cannot hold (rows at N = 10^6: about 5 500, 2 500, 1 200, 590, 340, 220, 115, 60). Coarser rows
-  /// lose little: at N = 10^6 with 8 RAM and 1 000 disk slots (1:1:2:2) every grid's plan is within 0.12 %
-  /// of graded()'s, and with 2 000 - 20 000 disk slots the coarse ones agree within 0.03 %
-  /// (docs/theory/storage.md, "K levels for any N").
-  static constexpr GradedGrid kGradedGrids[] = {
-      {kGradedExactLengths, 256}, {1024, 256}, {512, 128}, {256, 64}, {128, 32}, {64, 16}, {32, 8}, {16, 4}};
+  /// tables cannot hold. At N = 10^6 they have about 5 500, 2 760, 1 470, 780, 420, 220, 120, 67 and 38 rows,
+  /// and hold R + D + 2 <= 381 ... 55 188 slots within kMaxGradedCells. Coarser rows lose little: at
+  /// N = 10^6 with 8 RAM and 1 000 disk slots (1:1:2:2) every grid's plan down to {64, 16} is within
+  /// 0.12 % of graded()'s, with 2 RAM and 50 000 disk slots {32, 8}, {16, 4} and {8, 2} within 0.0001 %
+  /// of each other ({4, 1}: 1.9 % dearer); docs/theory/storage.md, "Large disks".
+  static constexpr GradedGrid kGradedGrids[] = {{kGradedExactLengths, 256},
+                                                {1024, 256},
+                                                {512, 128},
+                                                {256, 64},
+                                                {128, 32},
+                                                {64, 16},
+                                                {32, 8},
+                                                {16, 4},
+                                                {8, 2}};
   /// Rows of the tables on `grid` for N steps (the exact lengths, the grid and length 0).
   static std::int64_t gradedRows(std::int64_t steps, GradedGrid grid = kGradedGrids[0]);
   /// graded()'s table entries at the most (32 bytes each: 64 MiB); choose() plans on the finest grid of
