@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 
@@ -259,21 +260,37 @@ struct KLevelPlan::HierarchicalTables {
       best.cost = static_cast<double>(l - 1) * uf + read[kk] + backwardCost(l - 1, k, m);
     else if (k == 0 && m == 0)
       best.cost = 0.5 * static_cast<double>(l - 1) * static_cast<double>(l) * uf;
+    double bestSplit = kInfinity;  // the cheapest store, chosen or not
+    std::int32_t split = 0;
     for (std::int64_t row = first; row <= last; ++row) {
       const std::int64_t j = lengths[static_cast<std::size_t>(row)];
       const double left = static_cast<double>(j) * uf + read[kk] + backwardCost(j, k, m);
+      double value = kInfinity;
+      int level = -1;
       if (m >= 1) {
-        const double value = left + write[kk] + backwardCost(l - j, k, m - 1);
-        if (value < best.cost)
-          best = {value, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(k)};
+        value = left + write[kk] + backwardCost(l - j, k, m - 1);
+        level = k;
       }
-      const auto [store, level] = storeBelow(k, l - j);
-      if (level >= 0 && left + store < best.cost)
-        best = {left + store, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(level)};
+      const auto [store, below] = storeBelow(k, l - j);
+      if (below >= 0 && left + store < value) {
+        value = left + store;
+        level = below;
+      }
+      if (level >= 0 && value < bestSplit) {
+        bestSplit = value;
+        split = static_cast<std::int32_t>(j);
+      }
+      if (value < best.cost)
+        best = {value, static_cast<std::int32_t>(j), kStore, static_cast<std::int8_t>(level)};
     }
     // Move x_p to a faster level and reverse the whole segment from there (one read instead of many).
     const auto [store, level] = storeBelow(k, l);
     if (level >= 0 && store < best.cost) best = {store, 0, kMove, static_cast<std::int8_t>(level)};
+    // An advance or a move keeps the cheapest split as its distance (the executor reads a distance for a
+    // store only): the next length's window centres on it, where a distance of 0 would search every
+    // length (many free slots with a cheap move to RAM: minutes at N = 1000 with 50 RAM and 1000 disk
+    // slots before).
+    if (best.action != kStore) best.distance = split;
     return best;
   }
   /// W_k(l, m) without the faster levels' W_{k-1}(l, s_{k-1}), splits as backwardEntry's.
@@ -311,9 +328,15 @@ KLevelPlan KLevelPlan::hierarchical(std::int64_t steps, std::int64_t ramSlots,
 }
 
 KLevelPlan KLevelPlan::graded(std::int64_t steps, std::int64_t ramSlots,
-                              const std::vector<StorageLevelCosts>& levels, double forwardStep) {
-  return solveHierarchical(steps, ramSlots, levels, forwardStep, kGradedWindow, kGradedExactLengths,
-                           kGradedSpacing);
+                              const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                              GradedGrid grid) {
+  if (grid.exactLengths < 1 || grid.spacingDivisor < 1) {
+    throw std::invalid_argument("K-level plan (graded): the grid's exact lengths (" +
+                                std::to_string(grid.exactLengths) + ") and spacing divisor (" +
+                                std::to_string(grid.spacingDivisor) + ") must be >= 1");
+  }
+  return solveHierarchical(steps, ramSlots, levels, forwardStep, kGradedWindow, grid.exactLengths,
+                           1.0 / static_cast<double>(grid.spacingDivisor));
 }
 
 KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
@@ -406,35 +429,41 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
   for (std::int64_t c : capacity) work *= static_cast<double>(c + 1);
   const std::int64_t exactWork = capacity.size() == 2 ? kMaxWork : kChooseExactWork;
   if (work <= static_cast<double>(exactWork)) return optimal(steps, ramSlots, levels, forwardStep);
-  // The largest cap c on every level's slots with rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
-  const std::int64_t columns = kMaxGradedCells / gradedRows(steps);
   const auto columnsWith = [&](std::int64_t cap) {
     std::int64_t sum = 0;
     for (std::int64_t c : capacity) sum += std::min(c, cap) + 1;
     return sum;
   };
-  std::int64_t cap = steps;
-  if (columnsWith(cap) > columns) {
-    std::int64_t low = 1, high = steps;  // columnsWith(low) fits: K levels of 2 columns each
-    while (low < high) {
-      const std::int64_t middle = low + (high - low + 1) / 2;
-      if (columnsWith(middle) <= columns)
-        low = middle;
-      else
-        high = middle - 1;
-    }
-    cap = low;
+  // The finest grid whose tables hold every slot: where many slots are free, rows are what can be spared
+  // (docs/theory/storage.md, "K levels for any N": the coarse grids' plans are within 0.12 % of the finest
+  // one's where both were computed), and fewer slots than given would cost more.
+  for (const GradedGrid& grid : kGradedGrids) {
+    if (gradedRows(steps, grid) * columnsWith(steps) <= kMaxGradedCells)
+      return graded(steps, ramSlots, levels, forwardStep, grid);
   }
+  // Beyond the coarsest grid: the largest cap c on every level's slots with
+  // rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
+  const GradedGrid coarsest = kGradedGrids[std::size(kGradedGrids) - 1];
+  const std::int64_t columns = kMaxGradedCells / gradedRows(steps, coarsest);
+  std::int64_t low = 1, high = steps;  // columnsWith(low) fits: K levels of 2 columns each
+  while (low < high) {
+    const std::int64_t middle = low + (high - low + 1) / 2;
+    if (columnsWith(middle) <= columns)
+      low = middle;
+    else
+      high = middle - 1;
+  }
+  const std::int64_t cap = low;
   std::vector<StorageLevelCosts> capped = levels;
   for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
-  return graded(steps, std::min(ramSlots, cap), capped, forwardStep);
+  return graded(steps, std::min(ramSlots, cap), capped, forwardStep, coarsest);
 }
 
-std::int64_t KLevelPlan::gradedRows(std::int64_t steps) {
-  std::int64_t rows = std::min(steps, kGradedExactLengths) + 1, length = rows - 1;
+std::int64_t KLevelPlan::gradedRows(std::int64_t steps, GradedGrid grid) {
+  std::int64_t rows = std::min(steps, grid.exactLengths) + 1, length = rows - 1;
+  const double spacing = 1.0 / static_cast<double>(grid.spacingDivisor);
   while (length < steps) {  // as solveHierarchical's grid
-    const auto next =
-        static_cast<std::int64_t>(std::ceil(static_cast<double>(length) * (1.0 + kGradedSpacing)));
+    const auto next = static_cast<std::int64_t>(std::ceil(static_cast<double>(length) * (1.0 + spacing)));
     length = std::min(steps, std::max(next, length + 1));
     ++rows;
   }
@@ -442,6 +471,8 @@ std::int64_t KLevelPlan::gradedRows(std::int64_t steps) {
 }
 
 bool KLevelPlan::onGrid() const { return hierarchical_ && hierarchical_->exact < steps_; }
+
+std::int64_t KLevelPlan::exactLengths() const { return hierarchical_ ? hierarchical_->exact : steps_; }
 
 std::string KLevelPlan::describe() const {
   std::string slots;

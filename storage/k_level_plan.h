@@ -81,19 +81,41 @@ class KLevelPlan {
   static constexpr std::int64_t kGradedExactLengths = 4096;
   static constexpr double kGradedSpacing = 1.0 / 256;
   static constexpr std::int64_t kGradedWindow = 16;
-  /// Rows of graded()'s tables for N steps (the exact lengths, the grid and length 0).
-  static std::int64_t gradedRows(std::int64_t steps);
-  /// graded()'s table entries at the most (32 bytes each: 64 MiB); choose() plans with fewer slots of the
-  /// largest levels beyond (a plan with fewer slots is one of the plans with more).
+  /// A grid of lengths: every length 1..exactLengths, beyond each at least 1/spacingDivisor further.
+  struct GradedGrid {
+    std::int64_t exactLengths;
+    std::int64_t spacingDivisor;
+  };
+  /// The grids choose() plans on, finest first: graded()'s, then coarser ones, for slots that graded()'s
+  /// tables cannot hold. At N = 10^6 they have about 5 500, 2 760, 1 470, 780, 420, 220, 120, 67 and 38 rows,
+  /// and hold R + D + 2 <= 381 ... 55 188 slots within kMaxGradedCells. Coarser rows lose little: at
+  /// N = 10^6 with 8 RAM and 1 000 disk slots (1:1:2:2) every grid's plan down to {128, 32} is within
+  /// 0.12 % of graded()'s, with 2 RAM and 50 000 disk slots {32, 8}, {16, 4} and {8, 2} within 0.0001 %
+  /// of each other ({4, 1}: 1.9 % dearer); docs/theory/storage.md, "Large disks".
+  static constexpr GradedGrid kGradedGrids[] = {{kGradedExactLengths, 256},
+                                                {1024, 256},
+                                                {512, 128},
+                                                {256, 64},
+                                                {128, 32},
+                                                {64, 16},
+                                                {32, 8},
+                                                {16, 4},
+                                                {8, 2}};
+  /// Rows of the tables on `grid` for N steps (the exact lengths, the grid and length 0).
+  static std::int64_t gradedRows(std::int64_t steps, GradedGrid grid = kGradedGrids[0]);
+  /// graded()'s table entries at the most (32 bytes each: 64 MiB); choose() plans on the finest grid of
+  /// kGradedGrids whose tables hold every slot within this, and only beyond the coarsest one with fewer
+  /// slots of the largest levels (a plan with fewer slots is one of the plans with more).
   static constexpr std::int64_t kMaxGradedCells = std::int64_t{1} << 21;
   static KLevelPlan graded(std::int64_t steps, std::int64_t ramSlots,
-                           const std::vector<StorageLevelCosts>& levels, double forwardStep);
+                           const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                           GradedGrid grid = kGradedGrids[0]);
 
   /// The plan a `multilevel` spec runs, with K levels or two (TwoLevelPlan::choose's stack schedule):
   /// optimal() where its work is at most kChooseExactWork -- for two levels kMaxWork, the limit the
-  /// two-level programme always had (N^2 (R + 1)(D + 1) <= 2^28, 2-3 s) --, else graded() (with each
-  /// level's slots capped so that its tables stay within kMaxGradedCells). Same arguments and errors as
-  /// optimal().
+  /// two-level programme always had (N^2 (R + 1)(D + 1) <= 2^28, 2-3 s) --, else graded() on the finest
+  /// grid of kGradedGrids whose tables hold every slot within kMaxGradedCells (beyond the coarsest, with
+  /// each level's slots capped so that they fit). Same arguments and errors as optimal().
   static constexpr std::int64_t kChooseExactWork = std::int64_t{1} << 26;
   static KLevelPlan choose(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
@@ -112,6 +134,9 @@ class KLevelPlan {
   bool exact() const { return tables_ != nullptr; }
   /// Whether graded()'s geometric grid of lengths plans the longer segments.
   bool onGrid() const;
+  /// The lengths planned exactly (1..exactLengths()): N for optimal() and hierarchical(), the grid's for
+  /// graded().
+  std::int64_t exactLengths() const;
   /// The programme's optimum H(N, slots); counts().cost equals it (the executor follows its decisions).
   double optimum() const { return optimum_; }
   int levelCount() const { return static_cast<int>(capacity_.size()); }

@@ -82,11 +82,6 @@ std::int64_t revolveSteps(std::int64_t length, std::int64_t slots) {
 // Replaying x_{N-1} is evaluated while the first sweep has at most this many pushes to walk through;
 // beyond, the working state is used (with that many slots one more slot changes little).
 constexpr std::int64_t kMaxReplayWalk = 4096;
-// Beyond the dynamic programme, the graded stack plan is computed while R + D + 2 (R, D at most N) is at
-// most this: where many slots stay free its split search falls back to every length (minutes at N = 2000
-// with 50 RAM and 2000 disk states at 1:1:2:2, where the families tie), and such disks are the families'
-// case.
-constexpr std::int64_t kMaxGradedColumns = 256;
 // Every length of the last leaf is tried up to this N.
 constexpr std::int64_t kExhaustiveLastLeaf = 2048;
 
@@ -336,9 +331,8 @@ TwoLevelPlan TwoLevelPlan::cheapest(std::int64_t steps, std::int64_t ramSlots, s
   // include both families, where it is affordable; else H-Revolve's structure on graded()'s grid, counted by
   // a walk) is compared with the families anyway (ties keep the family, whose counts are in closed form).
   std::optional<TwoLevelPlan> optimal;
-  const std::int64_t columns = std::min(ramSlots, steps) + std::min(diskSlots, steps) + 2;
-  if (stack && (dynamicAffordable(steps, ramSlots, diskSlots) ||
-                (ramSlots >= 1 && steps <= kMaxSimulatedSteps && columns <= kMaxGradedColumns))) {
+  if (stack &&
+      (dynamicAffordable(steps, ramSlots, diskSlots) || (ramSlots >= 1 && steps <= kMaxSimulatedSteps))) {
     optimal = fromStack(KLevelPlan::choose(
         steps, ramSlots, {StorageLevelCosts{diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep));
   }
@@ -365,9 +359,9 @@ TwoLevelPlan TwoLevelPlan::cheapest(std::int64_t steps, std::int64_t ramSlots, s
 std::string TwoLevelPlan::describe() const {
   if (kind_ == Kind::kHierarchical) {
     return std::string("hierarchical two-level stack schedule (H-Revolve's structure with moves") +
-           (stack_->onGrid() ? ", lengths beyond " + std::to_string(KLevelPlan::kGradedExactLengths) +
-                                   " on a geometric grid"
-                             : std::string()) +
+           (stack_->onGrid()
+                ? ", lengths beyond " + std::to_string(stack_->exactLengths()) + " on a geometric grid"
+                : std::string()) +
            "): up to " + std::to_string(ramSlotsUsed_) + " RAM and " + std::to_string(diskSlotsUsed_) +
            " disk states, slots reused";
   }

@@ -44,11 +44,13 @@
 //               levels. Computed when N^2 (R + 1)(D + 1) <= kMaxDynamicWork (R, D the slots, at most N
 //               each).
 //   hierarchical  beyond the dynamic programme's limit: KLevelPlan::graded with RAM and disk, H-Revolve's
-//               structure with moves, the lengths 1..4096 exact and longer ones on a geometric grid, the
-//               disk's slots capped so that its tables stay within KLevelPlan::kMaxGradedCells (within
-//               1 % of the full search wherever it was measured; docs/theory/storage.md). Considered for
-//               N <= kMaxSimulatedSteps (its counts are a walk of the plan) and R + D + 2 <= 256
-//               (kMaxGradedColumns in storage/schedule.cpp: larger disks are the families' case).
+//               structure with moves, the lengths 1..4096 exact and longer ones on a geometric grid; where
+//               its tables cannot hold every slot within KLevelPlan::kMaxGradedCells, a coarser grid of
+//               lengths (KLevelPlan::kGradedGrids) with every slot, and only beyond the coarsest grid
+//               fewer disk slots (within 1 % of the full search, of the dynamic programme and of the finest
+//               grid with every slot wherever they were measured, also for disks of N slots;
+//               docs/theory/storage.md, "Large disks"). Considered for N <= kMaxSimulatedSteps (its
+//               counts are a walk of the plan), for any number of slots.
 //   Both stack plans are KLevelPlan::choose's, the planner of the K-level form, so a spec with one level
 //   below RAM plans alike in either form.
 // choose() returns the cheapest plan it evaluated; where the best leaves plan attains the game's lower

@@ -401,6 +401,35 @@ TEST(KLevelPlan, GradedStaysWithinOnePercentOfTheProgrammeOverEveryLength) {
   EXPECT_NEAR(large.optimum(), large.counts().cost, 1e-3 * large.optimum());
 }
 
+// Many free slots (R + D + 2 > 256, where the two-level form kept the closed-form families before): graded()
+// equals the exact optimum over stack schedules with every state on disk allowed (N = 260, a disk of N
+// slots, dear, cheap-to-read and write-dear disks; the families are 5 % above it at 3:0.5). Where the
+// finest grid's tables cannot hold every slot, choose() plans on a coarser grid with all of them (N = 6000,
+// 2 RAM and 600 disk slots: exact lengths 1024) and costs what graded() costs with every slot on the finest
+// grid (13 184, equal; docs/theory/storage.md, "Large disks").
+TEST(KLevelPlan, GradedWithManyFreeSlotsIsTheOptimumAndCoarseGridsKeepEverySlot) {
+  for (const RandomCase& c : std::vector<RandomCase>{{260, 2, {{260, 2, 2}}},
+                                                     {260, 2, {{260, 3, 0.5}}},
+                                                     {260, 4, {{260, 5, 5}}},
+                                                     {260, 4, {{255, 0.5, 0.5}}}}) {
+    SCOPED_TRACE(c.name());
+    KLevelPlan graded = KLevelPlan::graded(c.steps, c.ram, c.levels, 1.0);
+    const double optimum = KLevelPlan::optimal(c.steps, c.ram, c.levels, 1.0).optimum();
+    EXPECT_LE(graded.counts().cost, 1.01 * optimum);
+    EXPECT_GE(graded.counts().cost, optimum * (1 - 1e-12));
+    expectValidStream(graded, c.capacity());
+  }
+  const std::vector<StorageLevelCosts> disk{{600, 2, 2}};
+  ASSERT_GT(KLevelPlan::gradedRows(6000) * (2 + 600 + 2), KLevelPlan::kMaxGradedCells);
+  KLevelPlan chosen = KLevelPlan::choose(6000, 2, disk, 1.0);
+  EXPECT_EQ(chosen.exactLengths(), 1024);
+  EXPECT_EQ(chosen.slotsUsed()[1], 600);
+  const double finest = KLevelPlan::graded(6000, 2, disk, 1.0).counts().cost;
+  EXPECT_DOUBLE_EQ(finest, 13184.0);
+  EXPECT_LE(chosen.counts().cost, 1.01 * finest);
+  expectValidStream(chosen, {2, 600});
+}
+
 // Long (ctest label "long", tests/CMakeLists.txt): the full split search at N = 10^4 (O(N^2 sum(s_k + 1)),
 // a minute on two cores) as the reference of graded() and of the windowed search.
 TEST(KLevelPlanLong, DISABLED_GradedStaysWithinOnePercentOfTheFullSearchAtTenThousandSteps) {

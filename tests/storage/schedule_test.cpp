@@ -640,6 +640,44 @@ TEST(SchedulePrediction, GradedTwoLevelPlanBeyondTheTablesIsWithinOnePercentAndE
   EXPECT_EQ(dir.entryCount(), 0u);
 }
 
+// Disks of many slots (R + D + 2 > 256, the families' case before): the graded plan with every slot, at
+// N = 10^4 with 2 RAM and 300 disk states at 1:1:2:2 27 584 against the families' 45 888, at N = 10^6 with
+// 8 RAM and 1000 disk states 2 312 908 against 4 287 004 (planned in 3 s; docs/theory/storage.md, "Large
+// disks"); on the pendulum (N = 8000, 2 RAM and 600 disk states: a coarser grid of lengths holds every
+// slot) the prediction equals the run counter by counter with a bitwise gradient.
+TEST(SchedulePrediction, LargeDisksPlanWithEverySlotAndEqualTheirRun) {
+  const ScheduleCosts dear{1, 1, 2, 2};
+  const TwoLevelPlan plan = TwoLevelPlan::choose(10000, 2, 300, dear);
+  EXPECT_EQ(plan.kind(), TwoLevelPlan::Kind::kHierarchical) << plan.describe();
+  EXPECT_EQ(plan.diskSlotsUsed(), 300);
+  EXPECT_LT(plan.counts().cost(dear), 0.65 * TwoLevelPlan::families(10000, 2, 300, dear).counts().cost(dear));
+  const TwoLevelPlan large = TwoLevelPlan::choose(1000000, 8, 1000, dear);
+  EXPECT_EQ(large.kind(), TwoLevelPlan::Kind::kHierarchical) << large.describe();
+  EXPECT_EQ(large.diskSlotsUsed(), 1000);
+  EXPECT_LT(large.counts().cost(dear),
+            0.6 * TwoLevelPlan::families(1000000, 8, 1000, dear).counts().cost(dear));
+  Pendulum problem;
+  IntegratorOptions options = fixedStepRk4();
+  options.step /= 4;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  ASSERT_EQ(reference.summary.steps, 8000);
+  ScratchDirectory dir;
+  const auto [p, storage] = expectPredictionEqualsRun(
+      "multilevel:ram=32,disk=9600,costs=1:1:2:2,dir=" + dir.path(), options, reference, dear);
+  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
+  ASSERT_NE(multilevel, nullptr);
+  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
+  EXPECT_NE(p.plan.find("lengths beyond 1024"), std::string::npos) << p.plan;
+  EXPECT_EQ(multilevel->plan().diskSlotsUsed(), 600) << p.plan;
+  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
+  EXPECT_EQ(p.diskReads, multilevel->diskReads());
+  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+  // The plan's synchronous part (scheduleCost is net of the overlapped I/O): the graded plan on the finest
+  // grid with every slot costs the same.
+  EXPECT_DOUBLE_EQ(multilevel->plan().counts().cost(dear), 19184.0);
+  EXPECT_EQ(dir.entryCount(), 0u);
+}
+
 // Three levels from the spec's levels= (the issue's RAM 3, SSD 10, HDD 200 states with 16-byte states, and a
 // dearer hierarchy): the prediction equals the run on the pendulum (N = 2000) counter by counter, each
 // level's writes and reads too, with a bitwise gradient; with measured costs the run is exact too; the
