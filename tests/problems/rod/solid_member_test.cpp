@@ -173,7 +173,7 @@ bool sameBits(const Vector& a, const Vector& b) {
 // another matrix (a permutation applied the wrong way round) would make the eigen-solve's operator
 // another one and its eigenpairs wrong.
 TEST(SolidMember, TheMetisOrderedFactorGivesAmdsEigenpairsAndPsi1ToRoundOff) {
-  Config config = coarseConfig(4);
+  Config config = coarseSolidConfig(4);
   config.rod.elementsAlongLength = 24;
   config.rod.elementsThroughHeight = 6;
   config.rod.midPlaneSymmetry = true;
@@ -211,7 +211,7 @@ TEST(SolidMember, TheMetisOrderedFactorGivesAmdsEigenpairsAndPsi1ToRoundOff) {
 // subtrees of its elimination tree in parallel; the gradient of psi1, psi2 and its gradient are the same
 // bits on one and two threads (the factor, the eigen-solve, ESL and the chain all solve with it).
 TEST(SolidMember, TheGradientHasTheSameBitsForAnyThreadCount) {
-  Config config = coarseConfig(4);
+  Config config = coarseSolidConfig(4);
   config.rod.elementsAlongLength = 110;
   config.rod.elementsThroughHeight = 10;
   config.rod.midPlaneSymmetry = true;
