@@ -476,6 +476,48 @@ PredictedRun expectPredictionEqualsRun(const std::string& spec, const Integrator
   return {p, std::move(storage)};
 }
 
+// expectPredictionEqualsRun for a multilevel spec whose plan is H-Revolve's hierarchical one: the disk's
+// writes and reads and the plan's cost against the run's as well. `storage` is the run's multilevel
+// storage (null, with the failure recorded, if the spec made none).
+struct HierarchicalRun {
+  PredictedRun run;
+  const MultilevelStorage* storage;
+};
+HierarchicalRun expectHierarchicalPredictionEqualsRun(const std::string& spec,
+                                                      const IntegratorOptions& options,
+                                                      const GradientResult& reference,
+                                                      const ScheduleCosts& costs) {
+  PredictedRun run = expectPredictionEqualsRun(spec, options, reference, costs);
+  const auto* multilevel = dynamic_cast<const MultilevelStorage*>(run.storage.get());
+  EXPECT_NE(multilevel, nullptr) << spec;
+  if (multilevel != nullptr) {
+    const SchedulePrediction& p = run.prediction;
+    EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
+    EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
+    EXPECT_EQ(p.diskReads, multilevel->diskReads());
+    EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+  }
+  return {std::move(run), multilevel};
+}
+
+// expectHierarchicalPredictionEqualsRun on the pendulum at 8000 rk4 steps (a quarter of fixedStepRk4's
+// step: beyond the graded grid's exact lengths), `spec` in a scratch folder that the run leaves empty; the
+// plan's description names `planNote`.
+HierarchicalRun expectLongPendulumRunEqualsPrediction(const std::string& spec, const ScheduleCosts& costs,
+                                                      const std::string& planNote) {
+  Pendulum problem;
+  IntegratorOptions options = fixedStepRk4();
+  options.step /= 4;
+  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
+  EXPECT_EQ(reference.summary.steps, 8000);
+  ScratchDirectory dir;
+  HierarchicalRun run =
+      expectHierarchicalPredictionEqualsRun(spec + ",dir=" + dir.path(), options, reference, costs);
+  EXPECT_NE(run.run.prediction.plan.find(planNote), std::string::npos) << run.run.prediction.plan;
+  EXPECT_EQ(dir.entryCount(), 0u);
+  return run;
+}
+
 // The prediction against a real run of the pendulum (rk4, N = 2000 fixed steps, 16-byte states).
 TEST(SchedulePrediction, AgreesExactlyWithRealRuns) {
   Pendulum problem;
@@ -566,15 +608,10 @@ TEST(SchedulePrediction, HierarchicalPlanBeyondTheDynamicProgrammeEqualsItsRun) 
   const GradientResult reference = fullReference(problem, pendulumParameters(), options);
   ASSERT_FALSE(TwoLevelPlan::dynamicAffordable(reference.summary.steps, 4, 40));
   ScratchDirectory dir;
-  const auto [p, storage] = expectPredictionEqualsRun(
+  const HierarchicalRun run = expectHierarchicalPredictionEqualsRun(
       "multilevel:ram=64,disk=640,costs=1:1:0.5:0.5,dir=" + dir.path(), options, reference, half);
-  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
-  ASSERT_NE(multilevel, nullptr);
-  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
-  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
-  EXPECT_EQ(p.diskReads, multilevel->diskReads());
-  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
-  EXPECT_LE(multilevel->plan().diskSlotsUsed(), 40);
+  ASSERT_NE(run.storage, nullptr);
+  EXPECT_LE(run.storage->plan().diskSlotsUsed(), 40);
   EXPECT_EQ(dir.entryCount(), 0u);
 }
 
@@ -622,22 +659,8 @@ TEST(SchedulePrediction, GradedTwoLevelPlanBeyondTheTablesIsWithinOnePercentAndE
     EXPECT_LE(large.ramSlotsUsed(), 8);
     EXPECT_LE(large.diskSlotsUsed(), 40);
   }
-  Pendulum problem;
-  IntegratorOptions options = fixedStepRk4();
-  options.step /= 4;
-  const GradientResult reference8000 = fullReference(problem, pendulumParameters(), options);
-  ASSERT_EQ(reference8000.summary.steps, 8000);
-  ScratchDirectory dir;
-  const auto [p, storage] = expectPredictionEqualsRun(
-      "multilevel:ram=64,disk=640,costs=1:1:0.5:0.5,dir=" + dir.path(), options, reference8000, half);
-  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
-  ASSERT_NE(multilevel, nullptr);
-  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
-  EXPECT_NE(p.plan.find("geometric grid"), std::string::npos) << p.plan;
-  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
-  EXPECT_EQ(p.diskReads, multilevel->diskReads());
-  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
-  EXPECT_EQ(dir.entryCount(), 0u);
+  expectLongPendulumRunEqualsPrediction("multilevel:ram=64,disk=640,costs=1:1:0.5:0.5", half,
+                                        "geometric grid");
 }
 
 // Disks of many slots (R + D + 2 > 256, the families' case before): the graded plan with every slot, at
@@ -656,26 +679,13 @@ TEST(SchedulePrediction, LargeDisksPlanWithEverySlotAndEqualTheirRun) {
   EXPECT_EQ(large.diskSlotsUsed(), 1000);
   EXPECT_LT(large.counts().cost(dear),
             0.6 * TwoLevelPlan::families(1000000, 8, 1000, dear).counts().cost(dear));
-  Pendulum problem;
-  IntegratorOptions options = fixedStepRk4();
-  options.step /= 4;
-  const GradientResult reference = fullReference(problem, pendulumParameters(), options);
-  ASSERT_EQ(reference.summary.steps, 8000);
-  ScratchDirectory dir;
-  const auto [p, storage] = expectPredictionEqualsRun(
-      "multilevel:ram=32,disk=9600,costs=1:1:2:2,dir=" + dir.path(), options, reference, dear);
-  auto* multilevel = dynamic_cast<MultilevelStorage*>(storage.get());
-  ASSERT_NE(multilevel, nullptr);
-  EXPECT_EQ(multilevel->plan().kind(), TwoLevelPlan::Kind::kHierarchical) << p.plan;
-  EXPECT_NE(p.plan.find("lengths beyond 1024"), std::string::npos) << p.plan;
-  EXPECT_EQ(multilevel->plan().diskSlotsUsed(), 600) << p.plan;
-  EXPECT_EQ(p.diskWrites, multilevel->diskWrites());
-  EXPECT_EQ(p.diskReads, multilevel->diskReads());
-  EXPECT_DOUBLE_EQ(p.scheduleCost, multilevel->predictedSeconds());
+  const HierarchicalRun run = expectLongPendulumRunEqualsPrediction(
+      "multilevel:ram=32,disk=9600,costs=1:1:2:2", dear, "lengths beyond 1024");
+  ASSERT_NE(run.storage, nullptr);
+  EXPECT_EQ(run.storage->plan().diskSlotsUsed(), 600) << run.run.prediction.plan;
   // The plan's synchronous part (scheduleCost is net of the overlapped I/O): the graded plan on the finest
   // grid with every slot costs the same.
-  EXPECT_DOUBLE_EQ(multilevel->plan().counts().cost(dear), 19184.0);
-  EXPECT_EQ(dir.entryCount(), 0u);
+  EXPECT_DOUBLE_EQ(run.storage->plan().counts().cost(dear), 19184.0);
 }
 
 // Three levels from the spec's levels= (the RAM 3, SSD 10, HDD 200 states with 16-byte states, and a
