@@ -1,14 +1,11 @@
 #include <hindsight/engine/generalized_alpha.h>
 
+#include <hindsight/engine/step_controller.h>
+
 #include <cmath>
 #include <limits>
 
 namespace hindsight {
-namespace {
-
-double infNorm(ConstVectorRef v) { return v.size() == 0 ? 0.0 : v.cwiseAbs().maxCoeff(); }
-
-}  // namespace
 
 GeneralizedAlphaIntegrator::Coefficients GeneralizedAlphaIntegrator::coefficients(IntegratorMethod method,
                                                                                   double rhoInfinity) {

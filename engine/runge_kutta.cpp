@@ -29,8 +29,6 @@ ButcherTableau makeTableau(const std::string& name, std::initializer_list<std::i
   return t;
 }
 
-double infNorm(ConstVectorRef v) { return v.size() == 0 ? 0.0 : v.cwiseAbs().maxCoeff(); }
-
 }  // namespace
 
 bool ButcherTableau::isExplicit() const {

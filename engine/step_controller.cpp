@@ -9,6 +9,8 @@
 
 namespace hindsight {
 
+double infNorm(ConstVectorRef v) { return v.size() == 0 ? 0.0 : v.cwiseAbs().maxCoeff(); }
+
 double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1, double relativeTolerance,
                        double absoluteTolerance) {
   double sum = 0.0;

@@ -29,6 +29,9 @@ double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y
 /// rtol_i and atol_i equal to scalars it gives the scalar version's bits (same operations, same order).
 double weightedRmsNorm(ConstVectorRef error, ConstVectorRef y0, ConstVectorRef y1,
                        ConstVectorRef relativeTolerances, ConstVectorRef absoluteTolerances);
+/// max_i |v_i| (0 for an empty vector): the measure of the implicit integrators' Newton corrections
+/// (engine/runge_kutta.cpp, engine/generalized_alpha.cpp).
+double infNorm(ConstVectorRef v);
 
 /// Per-component tolerances as options give them (an empty vector: use the scalar). The first entry
 /// that is not positive and finite, as "FIELD[i] = value must be positive and finite"; empty when all

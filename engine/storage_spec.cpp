@@ -3,6 +3,8 @@
 #include <hindsight/engine/trajectory_storage.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <stdexcept>
 
@@ -116,6 +118,15 @@ void StorageSpec::requireKeysIn(const std::vector<std::string>& validKeys) const
                                   (validKeys.empty() ? std::string("(none)") : join(validKeys)));
     }
   }
+}
+
+std::string shortestText(double value) {
+  char text[32];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(text, sizeof text, "%.*g", precision, value);
+    if (std::strtod(text, nullptr) == value) break;
+  }
+  return text;
 }
 
 }  // namespace hindsight

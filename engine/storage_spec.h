@@ -35,4 +35,8 @@ class StorageSpec {
   std::map<std::string, std::string> values_;
 };
 
+/// The shortest text that reads back as `value` ("1e-06", "0.25"): a spec's number written back into a
+/// spec or a message.
+std::string shortestText(double value);
+
 }  // namespace hindsight

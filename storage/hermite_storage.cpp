@@ -1,26 +1,15 @@
 #include <hindsight/storage/hermite_storage.h>
 
+#include <hindsight/engine/storage_spec.h>
 #include <hindsight/storage/lossy_storage.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <sstream>
 
 namespace hindsight {
-namespace {
-std::string shortest(double value) {  // the shortest text that reads back as `value`
-  char text[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(text, sizeof text, "%.*g", precision, value);
-    if (std::strtod(text, nullptr) == value) break;
-  }
-  return text;
-}
-}  // namespace
 
 HermiteStorage::HermiteStorage(std::int64_t every, std::int64_t budgetBytes, double tolerance)
     : TrajectoryStorage(budgetBytes), every_(every), tolerance_(tolerance) {
@@ -43,7 +32,7 @@ std::unique_ptr<TrajectoryStorage> HermiteStorage::create(const StorageSpec& spe
 std::string HermiteStorage::spec() const {
   std::string text = "hermite:every=" + std::to_string(every_);
   if (budgetBytes() != kDefaultBudget) text += ",budget=" + std::to_string(budgetBytes());
-  if (tolerance_ != kDefaultTolerance) text += ",tolerance=" + shortest(tolerance_);
+  if (tolerance_ != kDefaultTolerance) text += ",tolerance=" + shortestText(tolerance_);
   return text;
 }
 

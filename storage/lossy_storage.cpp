@@ -1,6 +1,7 @@
 #include <hindsight/storage/lossy_storage.h>
 
 #include <hindsight/engine/deterministic_math.h>
+#include <hindsight/engine/storage_spec.h>
 
 #include <zfp.h>
 #include <zstd.h>
@@ -14,15 +15,6 @@ namespace hindsight {
 namespace {
 
 constexpr int kZstdLevel = 3;
-
-std::string shortest(double value) {
-  char text[32];
-  for (int precision = 1; precision <= 17; ++precision) {
-    std::snprintf(text, sizeof text, "%.*g", precision, value);
-    if (std::strtod(text, nullptr) == value) break;
-  }
-  return text;
-}
 
 // RAII for the ZFP objects of one (de)compression.
 struct ZfpRun {
@@ -55,14 +47,14 @@ bool LossyStorage::Options::IsValid(std::string* error) const {
   if (lossless && codec != Codec::kTime) {
     message = "packed: lossless coding is the time codec's";
   } else if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
-    message = "lossy.tolerance = " + shortest(tolerance) + " must be a positive number";
+    message = "lossy.tolerance = " + shortestText(tolerance) + " must be a positive number";
   } else if ((codec == Codec::kRound || codec == Codec::kTime) && tolerance > 0.5) {
-    message = "lossy.tolerance = " + shortest(tolerance) +
+    message = "lossy.tolerance = " + shortestText(tolerance) +
               " must be in (0, 0.5] for codec=" + (codec == Codec::kRound ? "round" : "time") + " (relative)";
   } else if (target != 0.0 && !(target >= kMinTarget && target <= kMaxTarget)) {
-    message = "lossy.target = " + shortest(target) + " must be in [1e-14, 0.1]";
+    message = "lossy.target = " + shortestText(target) + " must be in [1e-14, 0.1]";
   } else if (sensitivity != 0.0 && !(sensitivity >= kMinSensitivity && sensitivity <= kMaxSensitivity)) {
-    message = "lossy.sensitivity = " + shortest(sensitivity) + " must be in [0.001, 1000]";
+    message = "lossy.sensitivity = " + shortestText(sensitivity) + " must be in [0.001, 1000]";
   } else if (sensitivity != 0.0 && target == 0.0) {
     message = "lossy.sensitivity goes with target=T (it sets the tolerance T / sensitivity)";
   } else if (budgetBytes <= 0) {
@@ -130,15 +122,15 @@ std::string LossyStorage::spec() const {
       text += separator + std::string("block=") + std::to_string(options_.blockStates);
     return text;
   }
-  std::string text = options_.target > 0.0 ? "lossy:target=" + shortest(options_.target)
+  std::string text = options_.target > 0.0 ? "lossy:target=" + shortestText(options_.target)
                                            : std::string("lossy:codec=") +
                                                  (options_.codec == Codec::kZfp     ? "zfp"
                                                   : options_.codec == Codec::kRound ? "round"
                                                                                     : "time") +
-                                                 ",tolerance=" + shortest(options_.tolerance);
+                                                 ",tolerance=" + shortestText(options_.tolerance);
   // A calibrated factor is part of what the run did: the spec says it (and gives it back when parsed).
   if (options_.target > 0.0 && sensitivity() != kGradientSensitivity)
-    text += ",sensitivity=" + shortest(sensitivity());
+    text += ",sensitivity=" + shortestText(sensitivity());
   if (options_.budgetBytes != kDefaultBudget) text += ",budget=" + std::to_string(options_.budgetBytes);
   if (options_.blockStates > 0) text += ",block=" + std::to_string(options_.blockStates);
   return text;
@@ -151,7 +143,7 @@ double LossyStorage::sensitivity() const {
 
 void LossyStorage::calibrate(double sensitivity) {
   if (!(sensitivity >= kMinSensitivity && sensitivity <= kMaxSensitivity))
-    throw std::invalid_argument("lossy: a calibrated sensitivity of " + shortest(sensitivity) +
+    throw std::invalid_argument("lossy: a calibrated sensitivity of " + shortestText(sensitivity) +
                                 " is outside [0.001, 1000]");
   if (options_.target <= 0.0) return;  // the expert codecs keep their own tolerance and estimate
   calibrated_ = sensitivity;
