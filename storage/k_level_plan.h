@@ -73,13 +73,13 @@ class KLevelPlan {
 
   /// H-Revolve's structure for any N (up to 10^6 in seconds): hierarchical()'s programme with the window
   /// kGradedWindow over the lengths 1..kGradedExactLengths and, beyond, over a geometric grid of lengths
-  /// (each at least kGradedSpacing times the previous one further), values between the grid's lengths
+  /// (each at least 1/kGradedSpacingDivisor of the previous one further), values between the grid's lengths
   /// interpolated linearly; the executor evaluates the recurrence for a length between grid points when
-  /// it meets one (every grid length a split). Tables O((kGradedExactLengths + ln(N) / kGradedSpacing)
+  /// it meets one (every grid length a split). Tables O((kGradedExactLengths + ln(N) kGradedSpacingDivisor)
   /// sum_k (s_k + 1)). A heuristic: the tests measure it against the full search (docs/theory/storage.md,
   /// "K storage levels"). For N <= kGradedExactLengths it is hierarchical(..., kGradedWindow).
   static constexpr std::int64_t kGradedExactLengths = 4096;
-  static constexpr double kGradedSpacing = 1.0 / 256;
+  static constexpr std::int64_t kGradedSpacingDivisor = 256;
   static constexpr std::int64_t kGradedWindow = 16;
   /// A grid of lengths: every length 1..exactLengths, beyond each at least 1/spacingDivisor further.
   struct GradedGrid {
@@ -92,7 +92,7 @@ class KLevelPlan {
   /// N = 10^6 with 8 RAM and 1 000 disk slots (1:1:2:2) every grid's plan down to {128, 32} is within
   /// 0.12 % of graded()'s, with 2 RAM and 50 000 disk slots {32, 8}, {16, 4} and {8, 2} within 0.0001 %
   /// of each other ({4, 1}: 1.9 % dearer); docs/theory/storage.md, "Large disks".
-  static constexpr GradedGrid kGradedGrids[] = {{kGradedExactLengths, 256},
+  static constexpr GradedGrid kGradedGrids[] = {{kGradedExactLengths, kGradedSpacingDivisor},
                                                 {1024, 256},
                                                 {512, 128},
                                                 {256, 64},
