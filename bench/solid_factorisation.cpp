@@ -136,23 +136,22 @@ int main(int argc, char** argv) {
   std::printf("elements %d (designs %d), free DOFs %ld, nonzeros of K %ld\n", model.elementCount(), designs,
               long(stiffness.rows()), long(stiffness.nonZeros()));
 
-  if (asked("simplicial")) {
-    Eigen::SimplicialLDLT<SparseMatrix> factor;
+  // Eigen's simplicial factorisation in one ordering: its time, its fill and the eigen-solve with it.
+  const auto simplicial = [&](auto& factor, const char* phase, const char* solver) {
     clock = Clock();
     factor.compute(stiffness);
-    clock.report("SimplicialLDLT (AMD) of K");
+    clock.report(phase);
     std::printf("  info %d, L nonzeros %ld\n", int(factor.info()),
                 long(factor.matrixL().nestedExpression().nonZeros()));
-    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT");
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, solver);
+  };
+  if (asked("simplicial")) {
+    Eigen::SimplicialLDLT<SparseMatrix> factor;
+    simplicial(factor, "SimplicialLDLT (AMD) of K", "SimplicialLDLT");
   }
   if (asked("simplicial-metis")) {
     hindsight::rod::SubtreeParallelLdlt factor({}, hindsight::rod::FillOrdering::Metis);
-    clock = Clock();
-    factor.compute(stiffness);
-    clock.report("SimplicialLDLT (METIS) of K");
-    std::printf("  info %d, L nonzeros %ld\n", int(factor.info()),
-                long(factor.matrixL().nestedExpression().nonZeros()));
-    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "SimplicialLDLT, METIS");
+    simplicial(factor, "SimplicialLDLT (METIS) of K", "SimplicialLDLT, METIS");
   }
 #ifdef HINDSIGHT_WITH_CHOLMOD
   for (const bool metis : {false, true}) {
