@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <stdexcept>
@@ -339,19 +340,17 @@ KLevelPlan KLevelPlan::graded(std::int64_t steps, std::int64_t ramSlots,
                            1.0 / static_cast<double>(grid.spacingDivisor));
 }
 
-KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
-                                         const std::vector<StorageLevelCosts>& levels, double forwardStep,
-                                         std::int64_t window, std::int64_t exactLengths, double spacing) {
-  std::vector<std::int64_t> capacity;
-  std::vector<double> write, read;
-  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+std::shared_ptr<KLevelPlan::HierarchicalTables> KLevelPlan::hierarchicalTables(
+    std::int64_t steps, const std::vector<std::int64_t>& capacity, const std::vector<double>& write,
+    const std::vector<double>& read, double uf, std::int64_t window, std::int64_t exactLengths,
+    double spacing) {
   auto tables = std::make_shared<HierarchicalTables>();
   HierarchicalTables& t = *tables;
   t.steps = steps;
   t.capacity = capacity;
   t.write = write;
   t.read = read;
-  t.uf = forwardStep;
+  t.uf = uf;
   t.window = window;
   t.exact = std::min(steps, exactLengths);
   for (std::int64_t l = 0; l <= t.exact; ++l) t.lengths.push_back(l);
@@ -406,7 +405,19 @@ KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlo
     }
   }
   t.backwardDone = t.forwardDone = {t.rows(), 0};
-  const int top = levelCount - 1;
+  return tables;
+}
+
+KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
+                                         const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                         std::int64_t window, std::int64_t exactLengths, double spacing) {
+  std::vector<std::int64_t> capacity;
+  std::vector<double> write, read;
+  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+  std::shared_ptr<HierarchicalTables> tables =
+      hierarchicalTables(steps, capacity, write, read, forwardStep, window, exactLengths, spacing);
+  const HierarchicalTables& t = *tables;
+  const int top = static_cast<int>(capacity.size()) - 1;
   const double optimum = t.forward[t.at(t.rows() - 1, top, capacity[static_cast<std::size_t>(top)])].cost;
   if (!(optimum < HierarchicalTables::kInfinity))
     throw std::invalid_argument("K-level plan (hierarchical): no schedule for N = " + std::to_string(steps));
@@ -414,6 +425,105 @@ KLevelPlan KLevelPlan::solveHierarchical(std::int64_t steps, std::int64_t ramSlo
   plan.steps_ = steps;
   plan.capacity_ = capacity;
   plan.optimum_ = optimum;
+  plan.hierarchical_ = std::move(tables);
+  plan.finish(forwardStep, write, read);
+  return plan;
+}
+
+namespace {
+
+// The largest cap c on every level's slots whose columns sum(min(s_k, c) + 1) are at most `columns` (at
+// least 1: K levels of two columns each always fit where choose() and segmented() call it).
+std::int64_t slotCap(const std::vector<std::int64_t>& capacity, std::int64_t columns) {
+  const auto columnsWith = [&](std::int64_t cap) {
+    std::int64_t sum = 0;
+    for (std::int64_t c : capacity) sum += std::min(c, cap) + 1;
+    return sum;
+  };
+  std::int64_t low = 1, high = std::max<std::int64_t>(1, *std::max_element(capacity.begin(), capacity.end()));
+  while (low < high) {
+    const std::int64_t middle = low + (high - low + 1) / 2;
+    if (columnsWith(middle) <= columns)
+      low = middle;
+    else
+      high = middle - 1;
+  }
+  return low;
+}
+
+}  // namespace
+
+KLevelPlan KLevelPlan::segmented(std::int64_t steps, std::int64_t ramSlots,
+                                 const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                                 std::int64_t maxLength) {
+  std::vector<std::int64_t> capacity;
+  std::vector<double> write, read;
+  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+  if (maxLength < 1 || maxLength > kGradedExactLengths) {
+    throw std::invalid_argument("K-level plan (segmented): the longest segment (" +
+                                std::to_string(maxLength) + ") must be in [1, " +
+                                std::to_string(kGradedExactLengths) + "]");
+  }
+  const std::int64_t longest = std::min(steps, maxLength);
+  const std::int64_t cap = slotCap(capacity, kMaxGradedCells / (longest + 1));
+  std::vector<std::int64_t> capped = capacity;
+  for (std::int64_t& c : capped) c = std::min(c, cap);
+  std::shared_ptr<HierarchicalTables> tables =
+      hierarchicalTables(longest, capped, write, read, forwardStep, kGradedWindow, longest, 0.0);
+  const HierarchicalTables& t = *tables;
+  const int top = static_cast<int>(capacity.size()) - 1;
+  const std::size_t topIndex = static_cast<std::size_t>(top);
+  const std::int64_t slots = capacity[topIndex], topCap = capped[topIndex];
+  const double store = write[topIndex] + read[topIndex];  // a segment's first state: written, read once
+  const auto reversal = [&](std::int64_t l, std::int64_t c) { return t.backward[t.at(l, top, c)].cost; };
+  const auto sweep = [&](std::int64_t l, std::int64_t c) {
+    return l == 0 ? 0.0 : t.forward[t.at(l, top, c)].cost;
+  };
+  double best = HierarchicalTables::kInfinity;
+  Segments chosen;
+  const auto evaluate = [&](std::int64_t count, std::int64_t tail) {
+    const std::int64_t rest = steps - tail;
+    const std::int64_t base = rest / count, longer = rest % count;
+    if (base < 1 || base + (longer > 0 ? 1 : 0) > longest || count > slots) return;
+    const std::int64_t c = std::min(topCap, slots - count);
+    double cost = static_cast<double>(count) * store +
+                  static_cast<double>(count - longer) * reversal(base, c) + sweep(tail, c);
+    if (longer > 0) cost += static_cast<double>(longer) * reversal(base + 1, c);
+    if (cost < best) {
+      best = cost;
+      chosen = Segments{count, base, longer, tail};
+    }
+  };
+  for (std::int64_t tail = 0; tail <= longest && tail < steps; ++tail) {
+    pollInterrupt();
+    const std::int64_t rest = steps - tail;
+    // Every count where the segments' free slots are fewer than the tables hold, else the ends of the
+    // intervals of equal base (the cost is linear in count there).
+    const std::int64_t most = std::min(rest, slots);
+    const std::int64_t plain = std::min(most, slots - topCap);  // counts with c = topCap
+    for (std::int64_t count = std::max<std::int64_t>(1, (rest + longest - 1) / longest); count <= plain;) {
+      const std::int64_t end = std::min(plain, rest / (rest / count));
+      evaluate(count, tail);
+      if (end != count) evaluate(end, tail);
+      count = end + 1;
+    }
+    for (std::int64_t count = std::max<std::int64_t>(1, plain + 1); count <= most; ++count)
+      evaluate(count, tail);
+  }
+  if (steps <= longest) {  // the programme alone
+    const double alone = sweep(steps, topCap);
+    if (alone < best) {
+      best = alone;
+      chosen = Segments{};
+    }
+  }
+  if (!(best < HierarchicalTables::kInfinity))
+    throw std::invalid_argument("K-level plan (segmented): no schedule for N = " + std::to_string(steps));
+  KLevelPlan plan;
+  plan.steps_ = steps;
+  plan.capacity_ = capacity;
+  plan.optimum_ = best;
+  plan.segments_ = chosen;
   plan.hierarchical_ = std::move(tables);
   plan.finish(forwardStep, write, read);
   return plan;
@@ -429,34 +539,28 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
   for (std::int64_t c : capacity) work *= static_cast<double>(c + 1);
   const std::int64_t exactWork = capacity.size() == 2 ? kMaxWork : kChooseExactWork;
   if (work <= static_cast<double>(exactWork)) return optimal(steps, ramSlots, levels, forwardStep);
-  const auto columnsWith = [&](std::int64_t cap) {
-    std::int64_t sum = 0;
-    for (std::int64_t c : capacity) sum += std::min(c, cap) + 1;
-    return sum;
-  };
-  // The finest grid whose tables hold every slot: where many slots are free, rows are what can be spared
-  // (docs/theory/storage.md, "K levels for any N": the coarse grids' plans are within 0.12 % of the finest
-  // one's where both were computed), and fewer slots than given would cost more.
-  for (const GradedGrid& grid : kGradedGrids) {
-    if (gradedRows(steps, grid) * columnsWith(steps) <= kMaxGradedCells)
-      return graded(steps, ramSlots, levels, forwardStep, grid);
-  }
-  // Beyond the coarsest grid: the largest cap c on every level's slots with
-  // rows * sum(min(s_k, c) + 1) <= kMaxGradedCells.
-  const GradedGrid coarsest = kGradedGrids[std::size(kGradedGrids) - 1];
-  const std::int64_t columns = kMaxGradedCells / gradedRows(steps, coarsest);
-  std::int64_t low = 1, high = steps;  // columnsWith(low) fits: K levels of 2 columns each
-  while (low < high) {
-    const std::int64_t middle = low + (high - low + 1) / 2;
-    if (columnsWith(middle) <= columns)
-      low = middle;
-    else
-      high = middle - 1;
-  }
-  const std::int64_t cap = low;
-  std::vector<StorageLevelCosts> capped = levels;
-  for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
-  return graded(steps, std::min(ramSlots, cap), capped, forwardStep, coarsest);
+  std::int64_t columns = 0;
+  for (std::int64_t c : capacity) columns += c + 1;
+  if (gradedRows(steps) * columns <= kMaxGradedCells) return graded(steps, ramSlots, levels, forwardStep);
+  // Where the finest grid cannot hold every slot: the finest of the coarser grids that can (where many
+  // slots are free, rows are what can be spared: docs/theory/storage.md, "Large disks", the coarse grids'
+  // plans are within 0.12 % of the finest one's where both were computed), beyond the coarsest that grid
+  // with each level's slots capped so that they fit (a plan with fewer slots is one of the plans with
+  // more); and segmented(), which keeps every slot of the slowest level for the forward sweep's stores.
+  // The cheaper walk is the plan.
+  KLevelPlan grid = [&] {
+    for (const GradedGrid& g : kGradedGrids) {
+      if (gradedRows(steps, g) * columns <= kMaxGradedCells)
+        return graded(steps, ramSlots, levels, forwardStep, g);
+    }
+    const GradedGrid coarsest = kGradedGrids[std::size(kGradedGrids) - 1];
+    const std::int64_t cap = slotCap(capacity, kMaxGradedCells / gradedRows(steps, coarsest));
+    std::vector<StorageLevelCosts> capped = levels;
+    for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
+    return graded(steps, std::min(ramSlots, cap), capped, forwardStep, coarsest);
+  }();
+  KLevelPlan segments = segmented(steps, ramSlots, levels, forwardStep);
+  return segments.counts().cost < grid.counts().cost ? segments : grid;
 }
 
 std::int64_t KLevelPlan::gradedRows(std::int64_t steps, GradedGrid grid) {
@@ -481,6 +585,14 @@ std::string KLevelPlan::describe() const {
                            slots + " on the levels below, slots reused";
   if (tables_)
     return "optimal " + std::to_string(levelCount()) + "-level stack schedule (dynamic programme)" + used;
+  const Segments& s = segments_;
+  if (s.count > 0) {
+    return "segmented " + std::to_string(levelCount()) + "-level stack schedule (" + std::to_string(s.count) +
+           " forward stores on the slowest level, " + std::to_string(s.base) +
+           (s.longer > 0 ? "-" + std::to_string(s.base + 1) : std::string()) + " steps apart, then " +
+           std::to_string(s.tail) + " steps; each segment reversed by H-Revolve's structure with moves)" +
+           used;
+  }
   const bool grid = onGrid();
   return "hierarchical " + std::to_string(levelCount()) +
          "-level stack schedule (H-Revolve's structure with moves" +
@@ -489,14 +601,27 @@ std::string KLevelPlan::describe() const {
          ")" + used;
 }
 
+std::int64_t KLevelPlan::column(int level, std::int64_t free) const {
+  return std::min(free, hierarchical_->capacity[static_cast<std::size_t>(level)]);
+}
+
 KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
+  const Segments& s = segments_;
+  if (s.count > 0 && length > s.tail) {
+    // segmented()'s stores at the slowest level, the longer segments first; the tail is the tables'.
+    const std::int64_t n = steps_ - length, longPart = s.longer * (s.base + 1);
+    const std::int64_t segment = n < longPart ? n / (s.base + 1) : s.longer + (n - longPart) / s.base;
+    const std::int64_t distance =
+        segment == s.count - 1 && s.tail == 0 ? 0 : (segment < s.longer ? s.base + 1 : s.base);
+    return Decision{levelCount() - 1, levelCount() - 1, distance};
+  }
   if (hierarchical_) {
     // The forward sweep stores on the level of its last store or a faster one (K - 1 at first).
     const HierarchicalTables& t = *hierarchical_;
     const int level = held_.empty() ? levelCount() - 1 : held_.back().level;
     const std::int64_t row = t.rowOf(length);
     if (t.lengths[static_cast<std::size_t>(row)] == length) {
-      const auto& e = t.forward[t.at(row, level, free_[static_cast<std::size_t>(level)])];
+      const auto& e = t.forward[t.at(row, level, column(level, free_[static_cast<std::size_t>(level)]))];
       return Decision{e.level, e.level, e.distance};
     }
     // Between the rows of a graded grid: the recurrence evaluated for this length, the splits searched as
@@ -504,8 +629,8 @@ KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
     const std::int64_t below = t.lengths[static_cast<std::size_t>(row)];
     HierarchicalTables::Entry best{HierarchicalTables::kInfinity, 0, 0, 0};
     for (int k = level; k >= 0; --k) {
-      const std::int64_t m =
-          k == level ? free_[static_cast<std::size_t>(level)] : capacity_[static_cast<std::size_t>(k)];
+      const std::int64_t m = column(
+          k, k == level ? free_[static_cast<std::size_t>(level)] : capacity_[static_cast<std::size_t>(k)]);
       const auto [first, last] = t.splits(length, below, t.forward[t.at(row, k, m)].distance, length - 1);
       const HierarchicalTables::Entry e = t.forwardEntry(length, k, m, first, last);
       if (e.cost < best.cost) best = e;
@@ -521,7 +646,7 @@ KLevelPlan::Decision KLevelPlan::forwardDecision(std::int64_t length) const {
 KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length) const {
   if (hierarchical_) {
     const HierarchicalTables& t = *hierarchical_;
-    const std::int64_t m = free_[static_cast<std::size_t>(level)];
+    const std::int64_t m = column(level, free_[static_cast<std::size_t>(level)]);
     const std::int64_t row = t.rowOf(length);
     if (t.lengths[static_cast<std::size_t>(row)] == length) {
       const auto& e = t.backward[t.at(row, level, m)];
@@ -539,27 +664,40 @@ KLevelPlan::Decision KLevelPlan::backwardDecision(int level, std::int64_t length
 }
 
 std::int64_t KLevelPlan::takeSlot(int level) {
-  // The lowest free slot, so that the slots in use at the most are 0..peak-1.
-  std::vector<char>& busy = busy_[static_cast<std::size_t>(level)];
-  std::size_t slot = 0;
-  while (busy[slot]) ++slot;
-  busy[slot] = 1;
-  --free_[static_cast<std::size_t>(level)];
-  std::int64_t& peak = peak_[static_cast<std::size_t>(level)];
-  peak = std::max(peak, static_cast<std::int64_t>(slot) + 1);
-  return static_cast<std::int64_t>(slot);
+  // The lowest free slot, so that the slots in use at the most are 0..peak-1: the least released one (a
+  // min-heap; every released slot is below the first never used), else the first never used. O(log D)
+  // where a scan was O(D) (segmented() holds up to D slots of a level at once).
+  const std::size_t k = static_cast<std::size_t>(level);
+  std::vector<std::int64_t>& released = released_[k];
+  std::int64_t slot = unused_[k];
+  if (!released.empty()) {
+    std::pop_heap(released.begin(), released.end(), std::greater<>());
+    slot = released.back();
+    released.pop_back();
+  } else {
+    ++unused_[k];
+  }
+  --free_[k];
+  peak_[k] = std::max(peak_[k], slot + 1);
+  return slot;
 }
 
 void KLevelPlan::releaseSlot(const Held& held) {
-  busy_[static_cast<std::size_t>(held.level)][static_cast<std::size_t>(held.slot)] = 0;
-  ++free_[static_cast<std::size_t>(held.level)];
+  const std::size_t k = static_cast<std::size_t>(held.level);
+  released_[k].push_back(held.slot);  // within the capacity reserved by rewind(): no allocation
+  std::push_heap(released_[k].begin(), released_[k].end(), std::greater<>());
+  ++free_[k];
 }
 
 void KLevelPlan::rewind() {
   const std::size_t levels = capacity_.size();
   held_.clear();
-  busy_.assign(levels, {});
-  for (std::size_t k = 0; k < levels; ++k) busy_[k].assign(static_cast<std::size_t>(capacity_[k]), 0);
+  released_.resize(levels);
+  for (std::size_t k = 0; k < levels; ++k) {
+    released_[k].clear();
+    released_[k].reserve(static_cast<std::size_t>(capacity_[k]));
+  }
+  unused_.assign(levels, 0);
   free_ = capacity_;
   nextStore_ = 0;
 }

@@ -111,11 +111,35 @@ class KLevelPlan {
                            const std::vector<StorageLevelCosts>& levels, double forwardStep,
                            GradedGrid grid = kGradedGrids[0]);
 
+  /// Large slowest levels (more slots than graded()'s tables hold): the forward sweep stores `count` states
+  /// at the slowest level K - 1 at equal spacing (segments of base or base + 1 states, the longer ones
+  /// first), each segment is reversed from its first state by hierarchical()'s programme over the lengths
+  /// 1..maxLength with every level's free slots capped at what tables of maxLength rows hold within
+  /// kMaxGradedCells, and the last `tail` states (0..maxLength) are that programme's forward sweep with the
+  /// slowest level's slots left over. Its cost in closed form over the programme's values:
+  ///   count (w + r) + (count - q) E(base, c) + q E(base + 1, c) + W(tail, c),  c = min(cap, D - count),
+  /// E and W of the slowest level (storage/k_level_plan.h's recurrences), q = (N - tail) mod count,
+  /// minimised over count and tail (for a tail, the cost is linear in count wherever base is constant,
+  /// so the ends of those O(sqrt N) intervals are the candidates). The executor reads the tables at
+  /// min(free slots, cap): a segment may use more free slots than planned, never fewer (so the run costs at
+  /// most optimum(); counts() is the walk, what a run does). For N <= maxLength it is also allowed to be
+  /// the programme alone (count 0). docs/theory/storage.md, "Large disks". Same arguments and errors as
+  /// optimal(); maxLength in [1, kGradedExactLengths].
+  static KLevelPlan segmented(std::int64_t steps, std::int64_t ramSlots,
+                              const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                              std::int64_t maxLength = kGradedExactLengths);
+  /// segmented()'s forward stores at the slowest level before its tail (0: not a segmented plan).
+  struct Segments {
+    std::int64_t count = 0, base = 0, longer = 0, tail = 0;
+  };
+  const Segments& segments() const { return segments_; }
+
   /// The plan a `multilevel` spec runs, with K levels or two (TwoLevelPlan::choose's stack schedule):
   /// optimal() where its work is at most kChooseExactWork -- for two levels kMaxWork, the limit the
   /// two-level programme always had (N^2 (R + 1)(D + 1) <= 2^28, 2-3 s) --, else graded() on the finest
-  /// grid of kGradedGrids whose tables hold every slot within kMaxGradedCells (beyond the coarsest, with
-  /// each level's slots capped so that they fit). Same arguments and errors as optimal().
+  /// grid of kGradedGrids whose tables hold every slot within kMaxGradedCells; where the finest grid cannot
+  /// hold every slot, the cheaper (walked cost) of that (a coarser grid, or beyond the coarsest each level's
+  /// slots capped so that they fit) and segmented(). Same arguments and errors as optimal().
   static constexpr std::int64_t kChooseExactWork = std::int64_t{1} << 26;
   static KLevelPlan choose(std::int64_t steps, std::int64_t ramSlots,
                            const std::vector<StorageLevelCosts>& levels, double forwardStep);
@@ -177,6 +201,15 @@ class KLevelPlan {
   static KLevelPlan solveHierarchical(std::int64_t steps, std::int64_t ramSlots,
                                       const std::vector<StorageLevelCosts>& levels, double forwardStep,
                                       std::int64_t window, std::int64_t exactLengths, double spacing);
+  /// The tables of solveHierarchical() for the lengths up to `steps` and the slots `capacity` (checked).
+  static std::shared_ptr<HierarchicalTables> hierarchicalTables(std::int64_t steps,
+                                                                const std::vector<std::int64_t>& capacity,
+                                                                const std::vector<double>& write,
+                                                                const std::vector<double>& read, double uf,
+                                                                std::int64_t window,
+                                                                std::int64_t exactLengths, double spacing);
+  /// The tables' column for `free` slots of `level` (they may hold fewer slots than the level: segmented()).
+  std::int64_t column(int level, std::int64_t free) const;
   std::shared_ptr<const Tables> tables_;
   std::shared_ptr<const HierarchicalTables> hierarchical_;
   /// Checks the arguments of optimal() and hierarchical(); fills capacity (RAM first, each at most N),
@@ -187,13 +220,14 @@ class KLevelPlan {
                              std::vector<double>& read);
   void finish(double uf, const std::vector<double>& write, const std::vector<double>& read);
   std::int64_t steps_ = 0;
+  Segments segments_;
   std::vector<std::int64_t> capacity_;
   double optimum_ = 0.0;
   Counts counts_;
   // The executor's state.
   std::vector<Held> held_;
-  std::vector<std::vector<char>> busy_;
-  std::vector<std::int64_t> free_, peak_;
+  std::vector<std::vector<std::int64_t>> released_;  // per level: a min-heap of the released slots
+  std::vector<std::int64_t> unused_, free_, peak_;   // unused_: the first slot never taken
   std::int64_t nextStore_ = -1;
 };
 

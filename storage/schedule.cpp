@@ -357,6 +357,7 @@ TwoLevelPlan TwoLevelPlan::cheapest(std::int64_t steps, std::int64_t ramSlots, s
 }
 
 std::string TwoLevelPlan::describe() const {
+  if (kind_ == Kind::kHierarchical && stack_->segments().count > 0) return stack_->describe();
   if (kind_ == Kind::kHierarchical) {
     return std::string("hierarchical two-level stack schedule (H-Revolve's structure with moves") +
            (stack_->onGrid()
