@@ -500,16 +500,16 @@ HierarchicalRun expectHierarchicalPredictionEqualsRun(const std::string& spec,
   return {std::move(run), multilevel};
 }
 
-// expectHierarchicalPredictionEqualsRun on the pendulum at 8000 rk4 steps (a quarter of fixedStepRk4's
-// step: beyond the graded grid's exact lengths), `spec` in a scratch folder that the run leaves empty; the
-// plan's description names `planNote`.
+// expectHierarchicalPredictionEqualsRun on the pendulum at 2000 * stepDivisor rk4 steps (fixedStepRk4's step
+// divided; 4: 8000 steps, beyond the graded grid's exact lengths), `spec` in a scratch folder that the run
+// leaves empty; the plan's description names `planNote`.
 HierarchicalRun expectLongPendulumRunEqualsPrediction(const std::string& spec, const ScheduleCosts& costs,
-                                                      const std::string& planNote) {
+                                                      const std::string& planNote, int stepDivisor = 4) {
   Pendulum problem;
   IntegratorOptions options = fixedStepRk4();
-  options.step /= 4;
+  options.step /= stepDivisor;
   const GradientResult reference = fullReference(problem, pendulumParameters(), options);
-  EXPECT_EQ(reference.summary.steps, 8000);
+  EXPECT_EQ(reference.summary.steps, 2000 * stepDivisor);
   ScratchDirectory dir;
   HierarchicalRun run =
       expectHierarchicalPredictionEqualsRun(spec + ",dir=" + dir.path(), options, reference, costs);
@@ -686,6 +686,22 @@ TEST(SchedulePrediction, LargeDisksPlanWithEverySlotAndEqualTheirRun) {
   // The plan's synchronous part (scheduleCost is net of the overlapped I/O): the graded plan on the finest
   // grid with every slot costs the same.
   EXPECT_DOUBLE_EQ(run.storage->plan().counts().cost(dear), 19184.0);
+}
+
+// A disk of more slots than any grid's tables hold (N = 500 000, 2 RAM and 80 000 disk states of 16 bytes at
+// 1:1:2:2; the coarsest grid holds 56 676 disk slots at this N): the segmented plan (79 546 forward stores
+// 6-7 steps apart, each segment reversed with both RAM slots while its first state stays on disk, and a tail
+// of 4095 steps) costs 1 019 076 where the families' leaves cost 1 019 984 and the grid with its slots capped
+// 1 091 607 (what KLevelPlan::choose returned before; docs/theory/storage.md, "Large disks"); on the pendulum
+// the prediction equals the run counter by counter with a bitwise gradient.
+TEST(SchedulePrediction, SegmentedPlanOnAHugeDiskEqualsItsRun) {
+  const ScheduleCosts dear{1, 1, 2, 2};
+  EXPECT_DOUBLE_EQ(TwoLevelPlan::families(500000, 2, 80000, dear).counts().cost(dear), 1019984.0);
+  const HierarchicalRun run = expectLongPendulumRunEqualsPrediction(
+      "multilevel:ram=32,disk=1280000,costs=1:1:2:2", dear, "segmented", 250);
+  ASSERT_NE(run.storage, nullptr);
+  EXPECT_DOUBLE_EQ(run.storage->plan().counts().cost(dear), 1019076.0) << run.run.prediction.plan;
+  EXPECT_EQ(run.storage->plan().diskSlotsUsed(), 80000) << run.run.prediction.plan;
 }
 
 // Three levels from the spec's levels= (the RAM 3, SSD 10, HDD 200 states with 16-byte states, and a
