@@ -88,7 +88,8 @@ class KLevelPlan {
   };
   /// The grids choose() plans on, finest first: graded()'s, then coarser ones, for slots that graded()'s
   /// tables cannot hold. At N = 10^6 they have about 5 500, 2 760, 1 470, 780, 420, 220, 120, 67 and 38 rows,
-  /// and hold R + D + 2 <= 381 ... 55 188 slots within kMaxGradedCells. Coarser rows lose little: at
+  /// and hold R + D + 2 <= 381 ... 55 188 slots within kMaxGradedCells (beyond, choose() also tries
+  /// segmented()). Coarser rows lose little: at
   /// N = 10^6 with 8 RAM and 1 000 disk slots (1:1:2:2) every grid's plan down to {128, 32} is within
   /// 0.12 % of graded()'s, with 2 RAM and 50 000 disk slots {32, 8}, {16, 4} and {8, 2} within 0.0001 %
   /// of each other ({4, 1}: 1.9 % dearer); docs/theory/storage.md, "Large disks".

@@ -47,9 +47,11 @@
 //               structure with moves, the lengths 1..4096 exact and longer ones on a geometric grid; where
 //               its tables cannot hold every slot within KLevelPlan::kMaxGradedCells, a coarser grid of
 //               lengths (KLevelPlan::kGradedGrids) with every slot, and only beyond the coarsest grid
-//               fewer disk slots (within 1 % of the full search, of the dynamic programme and of the finest
-//               grid with every slot wherever they were measured, also for disks of N slots;
-//               docs/theory/storage.md, "Large disks"). Considered for N <= kMaxSimulatedSteps (its
+//               fewer disk slots -- or, where cheaper, KLevelPlan::segmented: forward stores on nearly every
+//               disk slot at equal spacing, each segment reversed by the programme over short lengths (within
+//               1 % of the full search, of the dynamic programme and of the finest grid with every slot
+//               wherever they were measured, also for disks of N slots; docs/theory/storage.md, "Large
+//               disks"). Considered for N <= kMaxSimulatedSteps (its
 //               counts are a walk of the plan), for any number of slots.
 //   Both stack plans are KLevelPlan::choose's, the planner of the K-level form, so a spec with one level
 //   below RAM plans alike in either form.
