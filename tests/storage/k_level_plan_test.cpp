@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <functional>
 #include <queue>
 #include <random>
@@ -455,6 +456,29 @@ TEST(KLevelPlan, SegmentedPlansAreTheOptimumOverStackSchedules) {
     }
   }
   EXPECT_EQ(equal, cases - 1);
+}
+
+// Three levels (RAM, an SSD of 1 or 3 slots, a disk of 15 or 40), the segments on the slowest level at most
+// 30 states long (so at least three at N = 90), three cost models, one with a write-dear disk: the segmented
+// family is the exact optimum over stack schedules in all 24 cases.
+TEST(KLevelPlan, SegmentedPlansOnThreeLevelsAreTheOptimum) {
+  using Costs = std::array<double, 4>;  // SSD write, read, disk write, read
+  for (std::int64_t ram : {1, 2}) {
+    for (std::int64_t ssd : {1, 3}) {
+      for (std::int64_t disk : {15, 40}) {
+        for (const Costs& c : {Costs{1, 1, 2, 2}, Costs{0.5, 0.5, 1, 1}, Costs{0.25, 1, 3, 0.5}}) {
+          const RandomCase k{90, ram, {{ssd, c[0], c[1]}, {disk, c[2], c[3]}}};
+          SCOPED_TRACE(k.name());
+          KLevelPlan plan = KLevelPlan::segmented(k.steps, k.ram, k.levels, 1.0, 30);
+          const double optimum = KLevelPlan::optimal(k.steps, k.ram, k.levels, 1.0).optimum();
+          EXPECT_GE(plan.segments().count, 3);
+          EXPECT_NEAR(plan.counts().cost, optimum, 1e-9 * optimum);
+          EXPECT_NEAR(plan.optimum(), optimum, 1e-9 * optimum);
+          expectValidStream(plan, k.capacity());
+        }
+      }
+    }
+  }
 }
 
 // Where no grid's tables hold every disk slot (N = 10^6, 2 RAM and 100 000 disk states at 1:1:2:2) choose()
