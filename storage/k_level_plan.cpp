@@ -518,7 +518,9 @@ KLevelPlan KLevelPlan::segmented(std::int64_t steps, std::int64_t ramSlots,
     }
   }
   if (!(best < HierarchicalTables::kInfinity))
-    throw std::invalid_argument("K-level plan (segmented): no schedule for N = " + std::to_string(steps));
+    throw std::invalid_argument("K-level plan (segmented): no schedule for N = " + std::to_string(steps) +
+                                " in segments and a tail of at most " + std::to_string(longest) +
+                                " steps on " + std::to_string(slots) + " slots of the slowest level");
   KLevelPlan plan;
   plan.steps_ = steps;
   plan.capacity_ = capacity;
@@ -559,6 +561,10 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
     for (StorageLevelCosts& level : capped) level.slots = std::min(level.slots, cap);
     return graded(steps, std::min(ramSlots, cap), capped, forwardStep, coarsest);
   }();
+  // segmented() covers N with at most D segments and a tail, each at most kGradedExactLengths states long,
+  // D the slowest level's slots below RAM: with fewer it has no schedule (many RAM slots, a small disk).
+  const double reach = (static_cast<double>(capacity.back()) + 1) * static_cast<double>(kGradedExactLengths);
+  if (capacity.size() < 2 || reach < static_cast<double>(steps)) return grid;
   KLevelPlan segments = segmented(steps, ramSlots, levels, forwardStep);
   return segments.counts().cost < grid.counts().cost ? segments : grid;
 }

@@ -486,7 +486,8 @@ TEST(KLevelPlan, SegmentedPlansOnThreeLevelsAreTheOptimum) {
 // slots while its first state stays on disk, 2 199 984 -- what graded() with every slot on the 16 / 1/4 grid
 // costs (214 MB of tables, measured once: docs/theory/storage.md), 14 % below the coarsest grid with its
 // slots capped at 55 184 (2 558 513, what choose() returned before) and 8.3 % below the families' leaves (2
-// 400 001, what the two-level form ran).
+// 400 001, what the two-level form ran). Where the disk is too small for segments, choose() keeps the grid
+// plan and segmented() refuses naming the sizes.
 TEST(KLevelPlan, ChooseKeepsEverySlotOfALargeDiskBySegments) {
   const std::vector<StorageLevelCosts> disk{{100000, 2, 2}};
   KLevelPlan chosen = KLevelPlan::choose(1000000, 2, disk, 1.0);
@@ -496,6 +497,24 @@ TEST(KLevelPlan, ChooseKeepsEverySlotOfALargeDiskBySegments) {
   EXPECT_EQ(chosen.slotsUsed()[1], 100000);
   EXPECT_NE(chosen.describe().find("segmented"), std::string::npos);
   expectValidStream(chosen, {2, 100000});
+  // Many RAM slots and a disk too small for segments of at most 4096 states (2 slots at N = 20 000): the
+  // grid plan, no refusal.
+  const KLevelPlan ram = KLevelPlan::choose(20000, 3000, {{2, 2, 2}}, 1.0);
+  EXPECT_EQ(ram.segments().count, 0);
+  EXPECT_EQ(ram.exactLengths(), 256) << ram.describe();
+  try {
+    KLevelPlan::segmented(20000, 3000, {{2, 2, 2}}, 1.0);
+    ADD_FAILURE() << "segmented() planned 20 000 steps on 2 disk slots";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at most 4096 steps on 2 slots"), std::string::npos) << e.what();
+  }
+  try {
+    KLevelPlan::segmented(100, 2, {{10, 1, 1}}, 1.0, 0);
+    ADD_FAILURE() << "segmented() took segments of at most 0 states";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("longest segment (0) must be in [1, 4096]"), std::string::npos)
+        << e.what();
+  }
 }
 
 // Long (ctest label "long", tests/CMakeLists.txt): the full split search at N = 10^4 (O(N^2 sum(s_k + 1)),
