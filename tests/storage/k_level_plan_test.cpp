@@ -485,9 +485,9 @@ TEST(KLevelPlan, SegmentedPlansOnThreeLevelsAreTheOptimum) {
 // plans the segmented family: 100 000 forward stores 9-10 steps apart, each segment reversed with both RAM
 // slots while its first state stays on disk, 2 199 984 -- what graded() with every slot on the 16 / 1/4 grid
 // costs (214 MB of tables, measured once: docs/theory/storage.md), 14 % below the coarsest grid with its
-// slots capped at 55 184 (2 558 513, what choose() returned before) and 8.3 % below the families' leaves (2
-// 400 001, what the two-level form ran). Where the disk is too small for segments, choose() keeps the grid
-// plan and segmented() refuses naming the sizes.
+// slots capped at 55 184 (2 558 513, what choose() returned before) and 8.3 % below the families' leaves
+// (2 400 001, what the two-level form ran). Where the disk is too small for segments, choose() keeps the
+// grid plan and segmented() refuses naming the sizes.
 TEST(KLevelPlan, ChooseKeepsEverySlotOfALargeDiskBySegments) {
   const std::vector<StorageLevelCosts> disk{{100000, 2, 2}};
   KLevelPlan chosen = KLevelPlan::choose(1000000, 2, disk, 1.0);
