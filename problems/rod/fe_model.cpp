@@ -137,7 +137,39 @@ Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full, int components) {
   return result;
 }
 
-FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(config), simp_(config) {
+double DesignedMesh::elementDesignValue(int element) const {
+  const int d = elementToDesign(element);
+  return d < 0 ? 1.0 : design_(d);
+}
+
+void DesignedMesh::placeDesign(ConstVectorRef design, int layers) {
+  const int nx = config_.elementsAlongLength, ny = config_.elementsThroughHeight;
+  design_ = design;
+  elementCount_ = nx * ny * layers;
+  elementToDesign_.assign(static_cast<std::size_t>(elementCount_), -1);
+  designToElement_.resize(static_cast<std::size_t>(design_.size()));
+  for (int i = 1; i < nx - 1; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < layers; ++k) {
+        const int d = ((i - 1) * ny + j) * layers + k;
+        const int e = (i * ny + j) * layers + k;
+        designToElement_[static_cast<std::size_t>(d)] = e;
+        elementToDesign_[static_cast<std::size_t>(e)] = d;
+      }
+    }
+  }
+}
+
+double DesignedMesh::volumeFraction() const {
+  const int solidElements = elementCount_ - designCount();
+  return (solidElements + design_.sum()) / elementCount_;
+}
+
+Vector DesignedMesh::volumeFractionGradient() const {
+  return Vector::Constant(designCount(), 1.0 / elementCount_);
+}
+
+FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : DesignedMesh(config) {
   config_.validate();
   if (config_.isSolid())
     throw std::invalid_argument(
@@ -152,20 +184,8 @@ FeModel::FeModel(const RodConfig& config, ConstVectorRef design) : config_(confi
     throw std::invalid_argument(message.str());
   }
   requireDesignInRange("FeModel", design, config_.designLowerBound);
-  design_ = design;
+  placeDesign(design, 1);
   nodeCount_ = (nx + 1) * (ny + 1);
-  elementCount_ = nx * ny;
-
-  elementToDesign_.assign(elementCount_, -1);
-  designToElement_.resize(design_.size());
-  for (int i = 1; i < nx - 1; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      const int d = (i - 1) * ny + j;
-      const int e = i * ny + j;
-      designToElement_[d] = e;
-      elementToDesign_[e] = d;
-    }
-  }
 
   const double width = config_.length / nx;
   const double height = config_.height / ny;
@@ -201,11 +221,6 @@ std::array<int, 8> FeModel::elementDofs(int element) const {
     dofs[2 * a + 1] = 2 * nodes[a] + 1;
   }
   return dofs;
-}
-
-double FeModel::elementDesignValue(int element) const {
-  const int d = elementToDesign_[element];
-  return d < 0 ? 1.0 : design_(d);
 }
 
 int FeModel::jointANode() const { return nodeIndex(0, config_.elementsThroughHeight / 2); }
@@ -356,15 +371,6 @@ Matrix SupportedDofs::extendColumnsToFull(ConstMatrixRef free) const {
   Matrix result = Matrix::Zero(dofCount(), free.cols());
   for (int k = 0; k < freeDofCount(); ++k) result.row(freeToFull_[k]) = free.row(k);
   return result;
-}
-
-double FeModel::volumeFraction() const {
-  const int solidElements = elementCount_ - designCount();
-  return (solidElements + design_.sum()) / elementCount_;
-}
-
-Vector FeModel::volumeFractionGradient() const {
-  return Vector::Constant(designCount(), 1.0 / elementCount_);
 }
 
 }  // namespace rod

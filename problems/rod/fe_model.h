@@ -30,7 +30,6 @@
 namespace hindsight {
 namespace rod {
 
-using SparseMatrix = Eigen::SparseMatrix<double>;
 using ElementMatrix = Eigen::Matrix<double, 8, 8>;
 using ElementVector = Eigen::Matrix<double, 8, 1>;
 
@@ -71,8 +70,45 @@ Matrix rotateNodewiseTransposedColumns(ConstMatrixRef full, int components = 2);
 /// [designLowerBound, 1] or not finite: the one check of every member model's design (plate and solid).
 void requireDesignInRange(const char* who, ConstVectorRef design, double designLowerBound);
 
+/// The design bookkeeping of the plate (FeModel) and the solid (SolidModel): the configuration, its SIMP
+/// law, the design and the maps between design variables and elements. Both meshes number element
+/// (i, j, k) (i ny + j) nz + k, the plate with nz = 1, and make the elements of the inner columns
+/// 1 <= i <= nx - 2 the design variables in that order: d = ((i - 1) ny + j) nz + k.
+class DesignedMesh {
+ public:
+  const RodConfig& config() const { return config_; }
+  const SimpLaw& simp() const { return simp_; }
+  const Vector& design() const { return design_; }
+
+  int elementCount() const { return elementCount_; }
+  int designCount() const { return static_cast<int>(design_.size()); }
+  /// Element index of design variable d, and design index of an element (-1 for the solid end columns).
+  int designToElement(int designIndex) const {
+    return designToElement_[static_cast<std::size_t>(designIndex)];
+  }
+  int elementToDesign(int element) const { return elementToDesign_[static_cast<std::size_t>(element)]; }
+  /// Design value of an element (1 for the solid end columns).
+  double elementDesignValue(int element) const;
+
+  /// V(x)/V0 over all elements (the solid end columns count with x = 1; all elements have equal size),
+  /// and its gradient (constant 1 / elementCount).
+  double volumeFraction() const;
+  Vector volumeFractionGradient() const;
+
+ protected:
+  explicit DesignedMesh(const RodConfig& config) : config_(config), simp_(config) {}
+  /// Takes `design`, already checked, and numbers the nx ny layers elements as above.
+  void placeDesign(ConstVectorRef design, int layers);
+
+  RodConfig config_;
+  SimpLaw simp_;
+  Vector design_;
+  int elementCount_ = 0;
+  std::vector<int> designToElement_, elementToDesign_;
+};
+
 /// The plate member (problems/rod/member.h); its free-DOF map is the pinned (A) / roller (B) support's.
-class FeModel : public SupportedDofs {
+class FeModel : public DesignedMesh, public MemberMatrices<ElementMatrix> {
  public:
   static constexpr int kComponents = 2;
   static constexpr int kElementDofs = 8;
@@ -85,41 +121,11 @@ class FeModel : public SupportedDofs {
   /// non-finite entries or entries outside [designLowerBound, 1] (naming the index and the value).
   FeModel(const RodConfig& config, ConstVectorRef design);
 
-  const RodConfig& config() const { return config_; }
-  const SimpLaw& simp() const { return simp_; }
-  const Vector& design() const { return design_; }
-
   int nodeCount() const { return nodeCount_; }
-  int elementCount() const { return elementCount_; }
-  int designCount() const { return static_cast<int>(design_.size()); }
 
   int nodeIndex(int i, int j) const { return i * (config_.elementsThroughHeight + 1) + j; }
   /// Full DOF indices of an element, local node order as documented at the top of the file.
   std::array<int, 8> elementDofs(int element) const;
-  /// Element index of design variable d.
-  int designToElement(int designIndex) const { return designToElement_[designIndex]; }
-  /// Design index of an element, -1 for the solid end columns.
-  int elementToDesign(int element) const { return elementToDesign_[element]; }
-  /// Design value of an element (1 for the solid end columns).
-  double elementDesignValue(int element) const;
-
-  /// Ke0: element stiffness for E = 1 (all elements are identical rectangles).
-  const ElementMatrix& unitStiffness() const { return unitStiffness_; }
-  /// Me0: element consistent mass for rho = 1.
-  const ElementMatrix& unitMass() const { return unitMass_; }
-
-  /// Unconstrained K [N/m] and M [kg] on all DOFs.
-  const SparseMatrix& stiffnessFull() const { return stiffnessFull_; }
-  const SparseMatrix& massFull() const { return massFull_; }
-  /// K and M restricted to the free DOFs of the pinned (A) / roller (B) support.
-  const SparseMatrix& stiffness() const { return stiffness_; }
-  const SparseMatrix& mass() const { return mass_; }
-
-  /// Nodal reference coordinates X as a full DOF vector [m].
-  const Vector& referenceCoordinates() const { return referenceCoordinates_; }
-  /// Unit translations e_x, e_y as full DOF vectors.
-  const Vector& unitTranslationX() const { return unitTranslationX_; }
-  const Vector& unitTranslationY() const { return unitTranslationY_; }
 
   int jointANode() const;
   int jointBNode() const;
@@ -129,25 +135,10 @@ class FeModel : public SupportedDofs {
   /// The member interface's B (member.h): the one node's u_x.
   std::vector<int> jointBAxialDofs() const { return {jointBAxialDof()}; }
 
-  /// V(x)/V0 over all elements (solid columns count with x = 1; all elements have equal area).
-  double volumeFraction() const;
-  /// d(V/V0)/dx_d for every design variable (constant 1 / elementCount).
-  Vector volumeFractionGradient() const;
-
  private:
   void assemble();
 
-  RodConfig config_;
-  SimpLaw simp_;
-  Vector design_;
   int nodeCount_ = 0;
-  int elementCount_ = 0;
-  std::vector<int> designToElement_;
-  std::vector<int> elementToDesign_;
-  ElementMatrix unitStiffness_;
-  ElementMatrix unitMass_;
-  SparseMatrix stiffnessFull_, massFull_, stiffness_, mass_;
-  Vector referenceCoordinates_, unitTranslationX_, unitTranslationY_;
 };
 
 }  // namespace rod

@@ -16,6 +16,7 @@
 //   elementDofs(e) -> std::array<int, kElementDofs>, unitStiffness(), unitMass() (E = 1, rho = 1)
 //   stiffnessFull(), massFull() (all DOFs), stiffness(), mass() (the free DOFs of its supports)
 //   the free-DOF map of SupportedDofs below (dofCount(), freeDofCount(), restrict/extend)
+//   (MemberMatrices below stores the matrices, vectors and the free-DOF map for both models)
 //   referenceCoordinates(), unitTranslationX(), unitTranslationY(): full vectors of the positions and
 //     translations in the plane of motion (a solid's z components are zero: the rotation about z does
 //     not see them)
@@ -26,10 +27,14 @@
 
 #include <hindsight/engine/types.h>
 
+#include <Eigen/SparseCore>
+
 #include <vector>
 
 namespace hindsight {
 namespace rod {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
 
 /// The DOFs of a supported member: which are free (not held at zero by a support) and the maps between
 /// vectors on all DOFs ("full") and on the free DOFs, in increasing full-DOF order.
@@ -52,6 +57,33 @@ class SupportedDofs {
 
  private:
   std::vector<int> freeToFull_, fullToFree_;
+};
+
+/// What both member models store of the interface above, filled in by their constructors: the free-DOF
+/// map, the unit element matrices, K and M on all DOFs and on the free DOFs, and the vectors of the plane
+/// of motion. ElementMatrixType is the model's fixed-size element matrix (8 x 8 or 24 x 24).
+template <typename ElementMatrixType>
+class MemberMatrices : public SupportedDofs {
+ public:
+  /// Ke0 (E = 1) and Me0 (rho = 1): every element of the mesh is the same rectangle or box.
+  const ElementMatrixType& unitStiffness() const { return unitStiffness_; }
+  const ElementMatrixType& unitMass() const { return unitMass_; }
+  /// K [N/m] and M [kg] on all DOFs, unconstrained.
+  const SparseMatrix& stiffnessFull() const { return stiffnessFull_; }
+  const SparseMatrix& massFull() const { return massFull_; }
+  /// K and M restricted to the free DOFs of the supports.
+  const SparseMatrix& stiffness() const { return stiffness_; }
+  const SparseMatrix& mass() const { return mass_; }
+  /// Nodal reference coordinates X [m] and the unit translations e_x, e_y as full DOF vectors (in the
+  /// plane of motion: a solid's z components are zero).
+  const Vector& referenceCoordinates() const { return referenceCoordinates_; }
+  const Vector& unitTranslationX() const { return unitTranslationX_; }
+  const Vector& unitTranslationY() const { return unitTranslationY_; }
+
+ protected:
+  ElementMatrixType unitStiffness_, unitMass_;
+  SparseMatrix stiffnessFull_, massFull_, stiffness_, mass_;
+  Vector referenceCoordinates_, unitTranslationX_, unitTranslationY_;
 };
 
 }  // namespace rod

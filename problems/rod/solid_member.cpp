@@ -35,7 +35,7 @@ std::vector<int> supportedDofs(const SolidModel& solid) {
 }  // namespace
 
 SolidMember::SolidMember(const RodConfig& config, ConstVectorRef design, HexFormulation formulation)
-    : SupportedDofs(), solid_(config, solidMeshOptions(config, formulation), design) {
+    : solid_(config, solidMeshOptions(config, formulation), design) {
   symmetryFactor_ = config.midPlaneSymmetry ? 2.0 : 1.0;
   unitStiffness_ = symmetryFactor_ * solid_.unitStiffness();
   unitMass_ = symmetryFactor_ * solid_.unitMass();

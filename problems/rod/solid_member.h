@@ -33,7 +33,7 @@ namespace rod {
 
 using HexElementVector = Eigen::Matrix<double, 24, 1>;
 
-class SolidMember : public SupportedDofs {
+class SolidMember : public MemberMatrices<HexElementMatrix> {
  public:
   static constexpr int kComponents = 3;
   static constexpr int kElementDofs = 24;
@@ -61,18 +61,8 @@ class SolidMember : public SupportedDofs {
   /// 2 for the half model of mid-plane symmetry, else 1: K, M and the element matrices are the
   /// SolidModel's times this.
   double symmetryFactor() const { return symmetryFactor_; }
-  const HexElementMatrix& unitStiffness() const { return unitStiffness_; }
-  const HexElementMatrix& unitMass() const { return unitMass_; }
-  const SparseMatrix& stiffnessFull() const { return stiffnessFull_; }
-  const SparseMatrix& massFull() const { return massFull_; }
-  /// On the free DOFs of the supports.
-  const SparseMatrix& stiffness() const { return stiffness_; }
-  const SparseMatrix& mass() const { return mass_; }
+  // MemberMatrices holds K, M, the element matrices and the vectors; referenceCoordinates() is (x, y, 0).
 
-  /// (x, y, 0) of every node, and the unit translations along x and y (member.h: the plane of motion).
-  const Vector& referenceCoordinates() const { return referenceCoordinates_; }
-  const Vector& unitTranslationX() const { return unitTranslationX_; }
-  const Vector& unitTranslationY() const { return unitTranslationY_; }
   /// u_x of every node of B's axis.
   std::vector<int> jointBAxialDofs() const;
 
@@ -82,9 +72,6 @@ class SolidMember : public SupportedDofs {
  private:
   SolidModel solid_;
   double symmetryFactor_ = 1.0;
-  HexElementMatrix unitStiffness_, unitMass_;
-  SparseMatrix stiffnessFull_, massFull_, stiffness_, mass_;
-  Vector referenceCoordinates_, unitTranslationX_, unitTranslationY_;
 };
 
 /// The solid's mesh options of a configuration (elementsThroughThickness, midPlaneSymmetry).

@@ -154,7 +154,7 @@ int SolidModel::designCountOf(const RodConfig& config, const SolidMeshOptions& o
 }
 
 SolidModel::SolidModel(const RodConfig& config, const SolidMeshOptions& options, ConstVectorRef design)
-    : config_(config), options_(options), simp_(config) {
+    : DesignedMesh(config), options_(options) {
   config_.validate();
   options_.validate();
   const int nx = config_.elementsAlongLength, ny = config_.elementsThroughHeight;
@@ -167,22 +167,8 @@ SolidModel::SolidModel(const RodConfig& config, const SolidMeshOptions& options,
     throw std::invalid_argument(message.str());
   }
   requireDesignInRange("SolidModel", design, config_.designLowerBound);
-  design_ = design;
+  placeDesign(design, nz);
   nodeCount_ = (nx + 1) * (ny + 1) * (nz + 1);
-  elementCount_ = nx * ny * nz;
-
-  elementToDesign_.assign(static_cast<std::size_t>(elementCount_), -1);
-  designToElement_.resize(static_cast<std::size_t>(design_.size()));
-  for (int i = 1; i < nx - 1; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      for (int k = 0; k < nz; ++k) {
-        const int d = ((i - 1) * ny + j) * nz + k;
-        const int e = elementIndex(i, j, k);
-        designToElement_[static_cast<std::size_t>(d)] = e;
-        elementToDesign_[static_cast<std::size_t>(e)] = d;
-      }
-    }
-  }
 
   const double wx = elementWidthX(), wy = elementWidthY(), wz = elementWidthZ();
   unitStiffness_ = hexUnitStiffness(wx, wy, wz, config_.poissonRatio, options_.formulation);
@@ -229,11 +215,6 @@ std::array<int, 24> SolidModel::elementDofs(int element) const {
     for (int c = 0; c < 3; ++c) dofs[static_cast<std::size_t>(3 * a + c)] = 3 * nodes[a] + c;
   }
   return dofs;
-}
-
-double SolidModel::elementDesignValue(int element) const {
-  const int d = elementToDesign_[static_cast<std::size_t>(element)];
-  return d < 0 ? 1.0 : design_(d);
 }
 
 std::vector<int> SolidModel::jointANodes() const {
@@ -293,15 +274,6 @@ HexElementMatrix SolidModel::massDerivative(int designIndex) const {
                                 " must lie in [0, " + std::to_string(designCount() - 1) + "]");
   }
   return simp_.densityDerivative(design_(designIndex)) * unitMass_;
-}
-
-double SolidModel::volumeFraction() const {
-  const int solidElements = elementCount_ - designCount();
-  return (solidElements + design_.sum()) / elementCount_;
-}
-
-Vector SolidModel::volumeFractionGradient() const {
-  return Vector::Constant(designCount(), 1.0 / elementCount_);
 }
 
 SparseMatrix removeDofs(const SparseMatrix& matrix, const std::vector<int>& fixedDofs) {

@@ -75,7 +75,7 @@ HexElementMatrix hexUnitStiffness(double widthX, double widthY, double widthZ, d
 /// Consistent mass of the same element with rho = 1 (2 x 2 x 2 Gauss, exact). Units: m^3.
 HexElementMatrix hexUnitConsistentMass(double widthX, double widthY, double widthZ);
 
-class SolidModel {
+class SolidModel : public DesignedMesh {
  public:
   /// Builds the mesh and the assembled sparse K, M on all DOFs for `design`, which has designCount()
   /// entries in [designLowerBound, 1]. The plate's rules apply to config (RodConfig::validate: nx >= 3,
@@ -83,18 +83,13 @@ class SolidModel {
   /// design of wrong size, non-finite entries or entries outside [designLowerBound, 1] (naming the index).
   SolidModel(const RodConfig& config, const SolidMeshOptions& options, ConstVectorRef design);
 
-  const RodConfig& config() const { return config_; }
   const SolidMeshOptions& options() const { return options_; }
-  const SimpLaw& simp() const { return simp_; }
-  const Vector& design() const { return design_; }
 
   int elementsAlongLength() const { return config_.elementsAlongLength; }
   int elementsThroughHeight() const { return config_.elementsThroughHeight; }
   int elementsThroughThickness() const { return options_.elementsThroughThickness; }
   int nodeCount() const { return nodeCount_; }
   int dofCount() const { return 3 * nodeCount_; }
-  int elementCount() const { return elementCount_; }
-  int designCount() const { return static_cast<int>(design_.size()); }
   /// Designs of the solid: (nx - 2) ny nz.
   static int designCountOf(const RodConfig& config, const SolidMeshOptions& options);
 
@@ -106,11 +101,6 @@ class SolidModel {
   }
   /// Full DOF indices of an element, local node order as documented at the top of the file.
   std::array<int, 24> elementDofs(int element) const;
-  /// Element index of design variable d, and design index of an element (-1 for the solid end columns).
-  int designToElement(int designIndex) const { return designToElement_[designIndex]; }
-  int elementToDesign(int element) const { return elementToDesign_[element]; }
-  /// Design value of an element (1 for the solid end columns).
-  double elementDesignValue(int element) const;
 
   /// Element widths [m]: L / nx, H / ny, and t / nz (t / (2 nz) with mid-plane symmetry).
   double elementWidthX() const;
@@ -140,21 +130,11 @@ class SolidModel {
   std::vector<int> jointANodes() const;
   std::vector<int> jointBNodes() const;
 
-  /// V(x)/V0 over all elements (solid end columns count with x = 1; all elements have equal volume), and
-  /// its gradient (constant 1 / elementCount).
-  double volumeFraction() const;
-  Vector volumeFractionGradient() const;
-
  private:
   void assemble();
 
-  RodConfig config_;
   SolidMeshOptions options_;
-  SimpLaw simp_;
-  Vector design_;
   int nodeCount_ = 0;
-  int elementCount_ = 0;
-  std::vector<int> designToElement_, elementToDesign_;
   HexElementMatrix unitStiffness_, unitMass_;
   SparseMatrix stiffness_, mass_;
   Vector referenceCoordinates_;

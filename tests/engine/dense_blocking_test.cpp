@@ -5,12 +5,12 @@
 #include <hindsight/engine/dense_blocking.h>
 
 #include "support/run_cli.h"
+#include "support/same_bits.h"
 
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
 
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <random>
 #include <stdexcept>
@@ -19,6 +19,8 @@
 namespace hindsight {
 namespace {
 
+using testing::sameBits;
+
 Eigen::MatrixXd seeded(int rows, int cols, unsigned seed) {
   std::mt19937_64 generator(seed);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
@@ -26,11 +28,6 @@ Eigen::MatrixXd seeded(int rows, int cols, unsigned seed) {
   for (Eigen::Index j = 0; j < m.cols(); ++j)
     for (Eigen::Index i = 0; i < m.rows(); ++i) m(i, j) = uniform(generator);
   return m;
-}
-
-bool sameBits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
 }
 
 TEST(DenseBlocking, ThePinnedSizesHoldInAProgramThatNeverNamesThem) {

@@ -160,7 +160,7 @@ TEST(ConfigFuzz, MutatedJsonFiles) {
   const std::string path = scratch.path() + "/hindsight_fuzz_config.json";
   for (int k = 0; k < fuzz::cases(1500); ++k) {
     const std::string text = mutator.mutate(mutator.pick(seeds), words, 6);
-    fuzz::writeBytes(path, text);
+    fuzz::writeText(path, text);
     expectConfigOrInvalidArgument([&] { return readConfigFile(path); }, text);
     if (HasFailure()) return;  // the first failing input is the useful one
   }

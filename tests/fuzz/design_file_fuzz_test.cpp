@@ -80,7 +80,7 @@ TEST(DesignFileFuzz, DamagedBytes) {
   fuzz::Mutator mutator(fuzz::seed(22));
   for (int k = 0; k < fuzz::cases(250); ++k) {
     const std::string damaged = fuzz::damageBytes(mutator, bytes);
-    fuzz::writeBytes(path, damaged);
+    fuzz::writeText(path, damaged);
     expectDesignOrInvalidArgument(
         path, config, "case " + std::to_string(k) + " (" + std::to_string(damaged.size()) + " bytes)");
     if (HasFailure()) return;

@@ -7,6 +7,8 @@
 // where an out-of-bounds read that happens not to crash is still reported.
 #pragma once
 
+#include "support/text_files.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -39,17 +41,8 @@ inline std::uint64_t seed(std::uint64_t salt) {
   return base * 0x9E3779B97F4A7C15ull + salt;
 }
 
-inline std::string readText(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
-
-inline void writeBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using testing::readText;
+using testing::writeText;
 
 /// The seed files seeds/PREFIX* in name order (the order must not depend on the file system).
 inline std::vector<std::string> seedFiles(const std::string& prefix) {

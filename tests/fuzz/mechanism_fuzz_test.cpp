@@ -254,7 +254,7 @@ TEST(MechanismFuzz, MutatedJsonFiles) {
   int accepted = 0;
   for (int k = 0; k < fuzz::cases(1200); ++k) {
     const std::string text = mutator.mutate(mutator.pick(texts), words, 5);
-    fuzz::writeBytes(path, text);
+    fuzz::writeText(path, text);
     // Each accepted description is evaluated: a mutation that still parses changes a number or a name.
     const Outcome outcome = expectConfigOrInvalidArgument([&] { return readConfigFile(path); }, text, true);
     accepted += outcome.accepted ? 1 : 0;
@@ -700,7 +700,7 @@ TEST(MechanismFuzz, CliExitsTwoNamingTheFault) {
     std::advance(it, static_cast<long>(mutator.below(element.size())));
     element[it.key()] = mutator.pick(values);
     // The file as the tool reads it (a NaN is written as null).
-    fuzz::writeBytes(path, input.dump(-1, ' ', false, json::error_handler_t::replace));
+    fuzz::writeText(path, input.dump(-1, ' ', false, json::error_handler_t::replace));
     std::string message;
     try {
       readConfigFile(path);

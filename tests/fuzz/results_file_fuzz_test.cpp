@@ -99,7 +99,7 @@ TEST(ResultsFileFuzz, DamagedObjects) {
   expectResultsOrStorageError(good, "the good file");
   fuzz::Mutator mutator(fuzz::seed(31));
   for (int k = 0; k < fuzz::cases(400); ++k) {
-    fuzz::writeBytes(path, bytes);
+    fuzz::writeText(path, bytes);
     const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     ASSERT_GE(file, 0);
     std::string what = "case " + std::to_string(k) + ":";
@@ -167,7 +167,7 @@ TEST(ResultsFileFuzz, DamagedBytes) {
   fuzz::Mutator mutator(fuzz::seed(32));
   for (int k = 0; k < fuzz::cases(400); ++k) {
     const std::string damaged = fuzz::damageBytes(mutator, bytes);
-    fuzz::writeBytes(path, damaged);
+    fuzz::writeText(path, damaged);
     expectResultsOrStorageError(
         path, "case " + std::to_string(k) + " (" + std::to_string(damaged.size()) + " bytes)");
     if (HasFailure()) return;

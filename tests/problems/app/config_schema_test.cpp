@@ -5,7 +5,9 @@
 #include <hindsight/problems/app/config.h>
 #include <hindsight/problems/app/config_schema.h>
 
+#include "support/engine_fixtures.h"
 #include "support/run_cli.h"
+#include "support/text_files.h"
 
 #include <gtest/gtest.h>
 
@@ -22,6 +24,8 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::invalidArgumentMessage;
+using testing::readText;
 
 const fs::path kSource = HINDSIGHT_SOURCE_DIR;
 constexpr const char* kBegin = "<!-- config-fields: generated from problems/app/config_schema.h -->\n";
@@ -30,22 +34,6 @@ constexpr const char* kEnd = "<!-- config-fields: end -->\n";
 bool regenerate() {
   const char* value = std::getenv("HINDSIGHT_REGENERATE");
   return value != nullptr && std::string(value) == "1";
-}
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "<no std::invalid_argument>";
 }
 
 std::string textOf(double x) {
@@ -130,7 +118,7 @@ TEST(ConfigSchema, ReaderEnforcesEveryRowsRangeAndNamesIt) {
     }
     for (const std::string& text : refused) {
       Config config;
-      const std::string message = errorOf([&] {
+      const std::string message = invalidArgumentMessage([&] {
         // validate = false: only the row's own check may refuse it
         applySetting(config, f.key + "=" + text, /*validate=*/false);
       });
@@ -158,11 +146,11 @@ TEST(ConfigSchema, AllowedValuesAreShownAsTheMessagesSayThem) {
   EXPECT_EQ(findConfigField("optimization.moveLimit").allowed(), "(0, 1]");
   EXPECT_EQ(findConfigField("rod.length").allowed(), "(0, inf]");
   EXPECT_EQ(findConfigField("simulation.adjoint").allowed(), "discrete, continuous, cvodes");
-  EXPECT_EQ(errorOf([] {
+  EXPECT_EQ(invalidArgumentMessage([] {
               findConfigField("rod.modes");
             }).rfind("config field 'rod.modes' is unknown; fields of 'rod': ", 0),
             0u);
-  EXPECT_EQ(errorOf([] { findConfigField("solver.step"); }),
+  EXPECT_EQ(invalidArgumentMessage([] { findConfigField("solver.step"); }),
             "config section 'solver' is unknown; sections: rod, simulation, optimization");
 }
 

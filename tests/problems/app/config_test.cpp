@@ -4,19 +4,13 @@
 
 #include <fstream>
 
+#include "support/engine_fixtures.h"
 #include "support/storage_fixtures.h"
 
 namespace hindsight {
 namespace {
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "<no std::invalid_argument>";
-}
+using testing::invalidArgumentMessage;
 
 TEST(Config, DefaultsRoundTripThroughJsonAndHoldEverySpecNumber) {
   const Config defaults;
@@ -40,29 +34,34 @@ TEST(Config, DefaultsRoundTripThroughJsonAndHoldEverySpecNumber) {
 TEST(Config, UnknownFieldsWrongTypesAndRangesAreNamed) {
   auto json = toJson(Config{});
   json["rod"]["modeCounts"] = 3;
-  const auto unknown = errorOf([&] { configFromJson(json); });
+  const auto unknown = invalidArgumentMessage([&] { configFromJson(json); });
   EXPECT_NE(unknown.find("'rod.modeCounts' is unknown"), std::string::npos) << unknown;
   EXPECT_NE(unknown.find("modeCount"), std::string::npos) << unknown;
 
   json = toJson(Config{});
   json["rod"]["modeCount"] = "ten";
-  EXPECT_NE(errorOf([&] { configFromJson(json); }).find("'rod.modeCount' = \"ten\" must be an integer"),
+  EXPECT_NE(invalidArgumentMessage([&] {
+              configFromJson(json);
+            }).find("'rod.modeCount' = \"ten\" must be an integer"),
             std::string::npos);
   json["rod"]["modeCount"] = 0;
-  const auto range = errorOf([&] { configFromJson(json); });
+  const auto range = invalidArgumentMessage([&] { configFromJson(json); });
   EXPECT_NE(range.find("'rod.modeCount' = 0 is outside the allowed range [1, 40]"), std::string::npos)
       << range;
 
   json = toJson(Config{});
   json["optimization"]["volumeFraction"] = 1.0;
-  EXPECT_NE(errorOf([&] { configFromJson(json); }).find("optimization.volumeFraction"), std::string::npos);
+  EXPECT_NE(invalidArgumentMessage([&] { configFromJson(json); }).find("optimization.volumeFraction"),
+            std::string::npos);
   json = toJson(Config{});
   json["simulation"]["adjoint"] = "backwards";
-  EXPECT_NE(errorOf([&] { configFromJson(json); }).find("discrete, continuous, cvodes"), std::string::npos);
+  EXPECT_NE(invalidArgumentMessage([&] { configFromJson(json); }).find("discrete, continuous, cvodes"),
+            std::string::npos);
   json = toJson(Config{});
   json["simulation"]["storage"] = "full:every=2";
-  EXPECT_NE(errorOf([&] { configFromJson(json); }).find("unknown key 'every'"), std::string::npos);
-  EXPECT_NE(errorOf([&] {
+  EXPECT_NE(invalidArgumentMessage([&] { configFromJson(json); }).find("unknown key 'every'"),
+            std::string::npos);
+  EXPECT_NE(invalidArgumentMessage([&] {
               configFromJson(nlohmann::json{{"model", {}}});
             }).find("section 'model' is unknown"),
             std::string::npos);
@@ -76,14 +75,15 @@ TEST(Config, SetAssignmentsAreCheckedLikeTheFile) {
   EXPECT_EQ(config.rod.modeCount, 12);
   EXPECT_EQ(config.simulation.integrator, "trbdf2");
   EXPECT_EQ(config.optimization.volumeFraction, 0.4);
-  EXPECT_NE(errorOf([&] { applySetting(config, "modeCount=3"); }).find("section.field=value"),
+  EXPECT_NE(invalidArgumentMessage([&] { applySetting(config, "modeCount=3"); }).find("section.field=value"),
             std::string::npos);
-  EXPECT_NE(errorOf([&] { applySetting(config, "simulation.integrator=euler"); }).find("rk4"),
+  EXPECT_NE(invalidArgumentMessage([&] { applySetting(config, "simulation.integrator=euler"); }).find("rk4"),
             std::string::npos);
-  EXPECT_NE(errorOf([&] { applySetting(config, "rod.poissonRatio=0.7"); }).find("rod.poissonRatio"),
-            std::string::npos);
+  EXPECT_NE(
+      invalidArgumentMessage([&] { applySetting(config, "rod.poissonRatio=0.7"); }).find("rod.poissonRatio"),
+      std::string::npos);
   applySetting(config, "simulation.integrator=generalized-alpha");
-  EXPECT_NE(errorOf([&] {
+  EXPECT_NE(invalidArgumentMessage([&] {
               applySetting(config, "simulation.rhoInfinity=1.5");
             }).find("'simulation.rhoInfinity' = 1.5 is outside the allowed range [0, 1]"),
             std::string::npos);
@@ -92,19 +92,20 @@ TEST(Config, SetAssignmentsAreCheckedLikeTheFile) {
 // {"extra": {}} used to be accepted (an empty unknown section was never looked up), {"rod": 5} was
 // reported as the unknown field 'rod.', and 1e-400 was reported as the 0.0 it parses to.
 TEST(Config, SectionsAreCheckedByNameAndShapeAndValuesAreReportedAsWritten) {
-  const auto extra = errorOf([] { configFromJson(nlohmann::json::parse(R"({"extra": {}})")); });
+  const auto extra =
+      invalidArgumentMessage([] { configFromJson(nlohmann::json::parse(R"({"extra": {}})")); });
   EXPECT_NE(extra.find("section 'extra' is unknown; sections: rod, simulation, optimization"),
             std::string::npos)
       << extra;
-  const auto scalar = errorOf([] { configFromJson(nlohmann::json::parse(R"({"rod": 5})")); });
+  const auto scalar = invalidArgumentMessage([] { configFromJson(nlohmann::json::parse(R"({"rod": 5})")); });
   EXPECT_NE(scalar.find("section 'rod' = 5 must be a JSON object"), std::string::npos) << scalar;
   Config config;
-  const auto tiny = errorOf([&] { applySetting(config, "simulation.step=1e-400"); });
+  const auto tiny = invalidArgumentMessage([&] { applySetting(config, "simulation.step=1e-400"); });
   EXPECT_NE(tiny.find("'simulation.step' = 1e-400 is outside the range of a double (it underflows to 0)"),
             std::string::npos)
       << tiny;
   EXPECT_NE(tiny.find("(0, 1]"), std::string::npos) << tiny;
-  const auto huge = errorOf([&] { applySetting(config, "rod.length=1e400"); });
+  const auto huge = invalidArgumentMessage([&] { applySetting(config, "rod.length=1e400"); });
   EXPECT_NE(huge.find("'rod.length' = 1e400 is outside the range of a double (it overflows)"),
             std::string::npos)
       << huge;
@@ -138,7 +139,7 @@ TEST(Config, FlagsAreCheckedAsTheirFieldsAndNamed) {
       {"--storage", "simulation.storage", "5", "unknown storage strategy"},
   };
   for (const auto& c : cases) {
-    const auto message = errorOf([&] { applyFlag(config, c.flag, c.key, c.text); });
+    const auto message = invalidArgumentMessage([&] { applyFlag(config, c.flag, c.key, c.text); });
     EXPECT_NE(message.find(c.message), std::string::npos) << c.flag << " " << c.text << ": " << message;
   }
   EXPECT_EQ(config.optimization.moveLimit, 0.1);
@@ -171,20 +172,23 @@ TEST(Config, ChoicesAreEnumsWithTheirJsonNames) {
   for (const char* name : {"reduced", "full"}) EXPECT_EQ(toString(parseRodModel(name)), name);
   for (const char* name : {"adjoint-nelson", "nelson"})
     EXPECT_EQ(toString(parseEigenvectorRoute(name)), name);
-  EXPECT_NE(errorOf([] { parseObjective("psi3"); }).find("optimization.objective"), std::string::npos);
-  EXPECT_NE(errorOf([&] {
+  EXPECT_NE(invalidArgumentMessage([] { parseObjective("psi3"); }).find("optimization.objective"),
+            std::string::npos);
+  EXPECT_NE(invalidArgumentMessage([&] {
               applySetting(config, "optimization.objective=psi3");
             }).find("must be one of: psi1, psi2"),
             std::string::npos);
 }
 
 TEST(Config, UnreadableOrMalformedFilesAreNamed) {
-  EXPECT_NE(errorOf([] { readConfigFile("/nonexistent/config.json"); }).find("/nonexistent/config.json"),
+  EXPECT_NE(invalidArgumentMessage([] {
+              readConfigFile("/nonexistent/config.json");
+            }).find("/nonexistent/config.json"),
             std::string::npos);
   const testing::ScratchDirectory scratch;  // removed with what the test wrote
   const std::string path = scratch.path() + "/broken.json";
   std::ofstream(path) << "{ \"rod\": ";
-  EXPECT_NE(errorOf([&] { readConfigFile(path); }).find("not valid JSON"), std::string::npos);
+  EXPECT_NE(invalidArgumentMessage([&] { readConfigFile(path); }).find("not valid JSON"), std::string::npos);
 }
 
 }  // namespace

@@ -7,6 +7,8 @@
 #include <hindsight/engine/integrator.h>
 #include <hindsight/problems/classic/heat_equation.h>
 
+#include "support/random_design.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -14,12 +16,7 @@
 namespace hindsight {
 namespace {
 
-Vector randomVector(int n, std::mt19937& generator, double low = -1.0, double high = 1.0) {
-  std::uniform_real_distribution<double> distribution(low, high);
-  Vector v(n);
-  for (int i = 0; i < n; ++i) v(i) = distribution(generator);
-  return v;
-}
+using testing::randomVector;
 
 TEST(TridiagonalLu, SolvesWithTheMatrixAndItsTransposeOnANonSymmetricMatrix) {
   std::mt19937 generator(42);

@@ -1,13 +1,13 @@
 #include <hindsight/problems/rod/compensated_kernels.h>
 
 #include "support/run_cli.h"
+#include "support/same_bits.h"
 
 #include <gtest/gtest.h>
 #include <Eigen/Sparse>
 
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <random>
@@ -19,9 +19,7 @@ namespace hindsight {
 namespace rod {
 namespace {
 
-bool sameBits(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
-}
+using testing::sameBits;
 
 // Entries spread over many decades with both signs, as a stiffness contrast of 1e5 and modes give them.
 double spread(std::mt19937_64& generator) {

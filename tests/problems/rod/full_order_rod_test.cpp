@@ -15,6 +15,7 @@
 #include <hindsight/problems/rod/modal_reduction.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/allocation_counting.h"
+#include "support/random_design.h"
 
 #include <gtest/gtest.h>
 
@@ -26,12 +27,7 @@
 namespace hindsight::rod {
 namespace {
 
-Vector randomVector(Eigen::Index n, std::mt19937& generator, double low = -1.0, double high = 1.0) {
-  std::uniform_real_distribution<double> distribution(low, high);
-  Vector v(n);
-  for (Eigen::Index i = 0; i < n; ++i) v(i) = distribution(generator);
-  return v;
-}
+using testing::randomVector;
 
 RodConfig coarseRod(int nx = 10, int ny = 2) {
   RodConfig config;

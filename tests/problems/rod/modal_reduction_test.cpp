@@ -1,16 +1,19 @@
 #include <hindsight/problems/rod/modal_reduction.h>
 
+#include "support/same_bits.h"
+
 #include <gtest/gtest.h>
 #include <Eigen/SparseCholesky>
 
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 
 namespace hindsight {
 namespace rod {
 namespace {
+
+using testing::sameBits;
 
 // Share of a mode's kinetic energy in u_x (1 for a pure axial mode, ~0 for a slender bending mode).
 double axialShare(const FeModel& model, const ModalBasis& basis, int mode) {
@@ -235,9 +238,6 @@ TEST(ModalReduction, CompensatedKernelsAreBitwiseTheirFmaForm) {
       }
       return Matrix(0.5 * (form + form.transpose()));
     };
-    auto bitwise = [](const Matrix& a, const Matrix& b) {
-      return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
-    };
     Matrix x = basis.modesFree;
     Matrix xFull = basis.modesFull;
     for (int pass = 0; pass < 2; ++pass) {
@@ -248,9 +248,9 @@ TEST(ModalReduction, CompensatedKernelsAreBitwiseTheirFmaForm) {
       }
       const Matrix b = model.stiffness() * x;
       EXPECT_TRUE(
-          bitwise(compensatedResidual(b, model.stiffness(), x), residualByFma(b, model.stiffness(), x)))
+          sameBits(compensatedResidual(b, model.stiffness(), x), residualByFma(b, model.stiffness(), x)))
           << "pass " << pass;
-      EXPECT_TRUE(bitwise(elementwiseStiffnessForm(model, xFull), formByFma(xFull))) << "pass " << pass;
+      EXPECT_TRUE(sameBits(elementwiseStiffnessForm(model, xFull), formByFma(xFull))) << "pass " << pass;
     }
   }
 }

@@ -11,17 +11,19 @@
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 #include "support/allocation_counting.h"
+#include "support/same_bits.h"
 #include "support/slider_crank.h"
 #include "support/synthetic_rod.h"
 
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <filesystem>
 #include <random>
 
 namespace hindsight::rod {
 namespace {
+
+using testing::sameBits;
 
 void expectBitwiseLikeFull(const Problem& problem, const Vector& p, const IntegratorOptions& options,
                            const std::vector<std::string>& specs) {
@@ -34,10 +36,7 @@ void expectBitwiseLikeFull(const Problem& problem, const Vector& p, const Integr
     storage->setVerifyRestores(true);
     const GradientResult result = computeGradient(problem, p, options, *storage);
     EXPECT_EQ(result.objective, reference.objective);
-    ASSERT_EQ(result.gradient.size(), reference.gradient.size());
-    EXPECT_EQ(std::memcmp(result.gradient.data(), reference.gradient.data(),
-                          sizeof(double) * static_cast<std::size_t>(result.gradient.size())),
-              0);
+    EXPECT_TRUE(sameBits(result.gradient, reference.gradient));
     EXPECT_LE(storage->counters().peakBytesInMemory, storage->budgetBytes());
     EXPECT_GT(storage->counters().stepDataRestored, 0);
     if (spec.find("stages=1") != std::string::npos &&
@@ -80,9 +79,7 @@ TEST(StageAwareStorage, ReducedRodCamsNeedsFewerRhsThanBinomialAtTheSameBytes) {
     const GradientResult r = computeGradient(problem, p, options, *cams);
     EXPECT_LT(r.summary.rhsEvaluations, b.summary.rhsEvaluations) << c;
     EXPECT_LE(cams->counters().peakBytesInMemory, binomial->counters().peakBytesInMemory) << c;
-    EXPECT_EQ(std::memcmp(r.gradient.data(), b.gradient.data(),
-                          sizeof(double) * static_cast<std::size_t>(p.size())),
-              0);
+    EXPECT_TRUE(sameBits(r.gradient, b.gradient));
   }
 }
 
@@ -108,9 +105,7 @@ TEST(StageAwareStorage, ReducedRodStagesAsPredicted) {
     const auto storage = createStorage(spec);
     storage->setVerifyRestores(true);
     const GradientResult result = computeGradient(problem, p, options, *storage);
-    EXPECT_EQ(std::memcmp(result.gradient.data(), reference.gradient.data(),
-                          sizeof(double) * static_cast<std::size_t>(p.size())),
-              0);
+    EXPECT_TRUE(sameBits(result.gradient, reference.gradient));
     const SchedulePrediction predicted =
         predictSchedule(spec, result.summary.steps, stateBytes, 4, nullptr, stageBytes);
     EXPECT_EQ(predicted.recomputedSteps, result.summary.recomputedSteps);
@@ -154,11 +149,6 @@ TEST(StageAwareStorage, RobertsonAdaptiveStagesAreTheAcceptedStepsStages) {
   expectBitwiseLikeFull(problem, Robertson::nominalParameters(), options,
                         {"full:stages=1", "disk:dir=" + tmp + ",chunk=5,stages=1", "cams:checkpoints=5",
                          "cams:checkpoints=30"});
-}
-
-bool sameBits(ConstVectorRef a, ConstVectorRef b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
 }
 
 // The rhs data of a SecondOrderProblem (engine/second_order_problem.h): a workspace restored from the data
@@ -216,8 +206,7 @@ TEST(StageAwareStorage, RestoredRhsDataGiveTheProductsOfAnEvaluatedRhs) {
       EXPECT_TRUE(sameBits(gradient[k], gradient[0]));
       EXPECT_TRUE(sameBits(stateOnly[k], stateOnly[0]));
       EXPECT_TRUE(sameBits(parameterOnly[k], parameterOnly[0]));
-      EXPECT_TRUE(sameBits(Eigen::Map<const Vector>(jacobian[k].data(), n * n),
-                           Eigen::Map<const Vector>(jacobian[0].data(), n * n)));
+      EXPECT_TRUE(sameBits(jacobian[k], jacobian[0]));
     }
     // The products are not trivially equal: the point matters.
     EXPECT_GT(state[0].norm(), 0.0);

@@ -4,13 +4,13 @@
 #include <hindsight/problems/rod/subtree_ldlt.h>
 
 #include "support/random_design.h"
+#include "support/same_bits.h"
 
 #include <gtest/gtest.h>
 #include <metis.h>
 #include <Eigen/MetisSupport>
 #include <Eigen/SparseCholesky>
 
-#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -19,11 +19,9 @@ namespace hindsight {
 namespace rod {
 namespace {
 
-using RowBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using testing::sameBits;
 
-bool sameBits(const double* a, const double* b, Eigen::Index count) {
-  return std::memcmp(a, b, sizeof(double) * static_cast<std::size_t>(count)) == 0;
-}
+using RowBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 FeModel randomModel(int along, int through, unsigned seed) {
   RodConfig config;
@@ -89,13 +87,13 @@ void expectEigensBits(const SparseMatrix& k, const SparseMatrix& other, SubtreeS
         };
         solveL(expected);
         const Vector gotForward = forward.col(c);
-        EXPECT_TRUE(sameBits(expected.data(), gotForward.data(), expected.size()))
+        EXPECT_TRUE(sameBits(expected, gotForward))
             << where << ": L^-1, max difference " << (expected - gotForward).cwiseAbs().maxCoeff();
         expected = rhs.col(c);
         solveU(expected);
         for (const RowBlock* block : {&backward, &serial}) {
           const Vector got = block->col(c);
-          EXPECT_TRUE(sameBits(expected.data(), got.data(), expected.size()))
+          EXPECT_TRUE(sameBits(expected, got))
               << where << ": L^-T " << (block == &backward ? "on the subtrees" : "serial")
               << ", max difference " << (expected - got).cwiseAbs().maxCoeff();
         }

@@ -5,12 +5,12 @@
 // argument checking.
 #include <hindsight/problems/topopt/gcmma.h>
 
+#include "support/same_bits.h"
 #include "support/svanberg_problems.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstring>
 #include <functional>
 #include <iostream>
 #include <stdexcept>
@@ -18,6 +18,8 @@
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 using Problem = testing::OptimizationProblem;
 using testing::CantileverBeam;
@@ -226,10 +228,9 @@ TEST(Gcmma, RestoredStateContinuesBitIdentically) {
   Gcmma resumed(p.n, p.m);
   resumed.restore(stored);
   const History again = RunGcmma(p, 6, 0.0, resumed, head.x);
-  ASSERT_EQ(tail.x.size(), again.x.size());
-  EXPECT_EQ(std::memcmp(tail.x.data(), again.x.data(), sizeof(double) * tail.x.size()), 0);
+  EXPECT_TRUE(sameBits(tail.x, again.x));
   EXPECT_EQ(tail.inner, again.inner);
-  EXPECT_EQ(std::memcmp(first.state().low.data(), resumed.state().low.data(), sizeof(double) * 3), 0);
+  EXPECT_TRUE(sameBits(first.state().low, resumed.state().low));
 }
 
 TEST(Gcmma, BadOptionsThrowNamingTheField) {

@@ -7,6 +7,8 @@
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/hdf5.h>
 
+#include "support/text_files.h"
+
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
@@ -25,6 +27,8 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::readText;
+using testing::writeText;
 
 const fs::path kSource = HINDSIGHT_SOURCE_DIR;
 constexpr const char* kBegin = "<!-- history-columns: generated from problems/topopt/history_schema.h -->\n";
@@ -33,18 +37,6 @@ constexpr const char* kEnd = "<!-- history-columns: end -->\n";
 bool regenerate() {
   const char* value = std::getenv("HINDSIGHT_REGENERATE");
   return value != nullptr && std::string(value) == "1";
-}
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void writeText(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
 }
 
 // A results file with distinct values in every history column.

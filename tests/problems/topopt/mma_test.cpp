@@ -3,13 +3,13 @@
 #include <hindsight/problems/topopt/mma.h>
 
 #include "support/allocation_counting.h"
+#include "support/same_bits.h"
 #include "support/svanberg_problems.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <functional>
 #include <iostream>
 #include <stdexcept>
@@ -18,6 +18,8 @@
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 using Problem = testing::OptimizationProblem;
 using testing::CantileverBeam;
@@ -342,10 +344,6 @@ TEST(Mma, IteratesStayInsideBoundsAndMoveLimits) {
   }
 }
 
-bool SameBits(const Vector& a, const Vector& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
-}
-
 TEST(Mma, RestoredStateContinuesBitIdentically) {
   const Problem p = TwoSpheres();
   constexpr int kSplit = 5;
@@ -376,16 +374,16 @@ TEST(Mma, RestoredStateContinuesBitIdentically) {
   EXPECT_EQ(resumed.state().iteration, kSplit);
   Vector xResumed = xSaved;
   for (int k = kSplit; k < kTotal; ++k) step(resumed, xResumed);
-  EXPECT_TRUE(SameBits(x, xResumed)) << (x - xResumed).transpose();
-  EXPECT_TRUE(SameBits(uninterrupted.state().low, resumed.state().low));
-  EXPECT_TRUE(SameBits(uninterrupted.state().upp, resumed.state().upp));
+  EXPECT_TRUE(sameBits(x, xResumed)) << (x - xResumed).transpose();
+  EXPECT_TRUE(sameBits(uninterrupted.state().low, resumed.state().low));
+  EXPECT_TRUE(sameBits(uninterrupted.state().upp, resumed.state().upp));
   EXPECT_EQ(uninterrupted.state().iteration, resumed.state().iteration);
 
   // Without the state the continuation differs: the comparison above can fail.
   Mma fresh(p.n, p.m);
   Vector xFresh = xSaved;
   for (int k = kSplit; k < kTotal; ++k) step(fresh, xFresh);
-  EXPECT_FALSE(SameBits(x, xFresh));
+  EXPECT_FALSE(sameBits(x, xFresh));
 }
 
 TEST(Mma, UpdateAllocatesNothing) {

@@ -10,6 +10,7 @@
 
 #include "support/file_checks.h"
 #include "support/fresh_directory.h"
+#include "support/same_bits.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -21,7 +22,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -33,6 +33,8 @@
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 namespace fs = std::filesystem;
 
@@ -54,7 +56,6 @@ Config coarseConfig(const std::string& objective = "psi1", int iterations = 8) {
 
 using testing::freshDirectory;
 
-bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 // Whether a temporary file of the atomic write of `path` (PATH.tmp-PID-N) is left in its directory.
 bool hasTemporaries(const std::string& path) {
   const std::string prefix = fs::path(path).filename().string() + ".tmp-";
@@ -62,9 +63,6 @@ bool hasTemporaries(const std::string& path) {
     if (entry.path().filename().string().rfind(prefix, 0) == 0) return true;
   }
   return false;
-}
-bool sameBits(const Vector& a, const Vector& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
 }
 
 // Everything but the wall-clock seconds must agree bit for bit.
@@ -97,9 +95,7 @@ void expectSameResults(const ResultsData& a, const ResultsData& b) {
   EXPECT_EQ(a.state.refining, b.state.refining);
   EXPECT_EQ(a.finalModes.rows(), b.finalModes.rows());
   EXPECT_EQ(a.finalModes.cols(), b.finalModes.cols());
-  EXPECT_TRUE(a.finalModes.size() == b.finalModes.size() &&
-              std::memcmp(a.finalModes.data(), b.finalModes.data(), sizeof(double) * a.finalModes.size()) ==
-                  0);
+  EXPECT_TRUE(sameBits(a.finalModes, b.finalModes));
   EXPECT_EQ(a.configurationJson, b.configurationJson);
 }
 

@@ -14,17 +14,20 @@
 #include <hindsight/problems/topopt/scenario_objective.h>
 #include <hindsight/problems/topopt/topology_optimizer.h>
 
+#include "support/same_bits.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/SparseCholesky>
 
 #include <unistd.h>
-#include <cstring>
 #include <filesystem>
 #include <sstream>
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -61,11 +64,6 @@ std::string errorOf(const json& in) {
   }
   return "no error";
 }
-
-bool sameBits(const Vector& a, const Vector& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
-}
-bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 TEST(Scenarios, ReadWithOmittedFieldsFromTheRodAndWrittenBack) {
   const Config config = scenarioConfig("max", 3);
