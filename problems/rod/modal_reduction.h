@@ -112,7 +112,8 @@ constexpr FillOrdering stiffnessOrdering(const SolidMember&) { return FillOrderi
 /// inertia-relief modes and ESL (esl.h). The plate's (AMD) is Eigen's SimplicialLDLT with its
 /// back-substitutions on the subtrees of the elimination tree in parallel, Eigen's bits
 /// (SubtreeParallelLdlt, subtree_ldlt.h); the solid's (METIS) is hindsight's supernodal LDL^T
-/// (SupernodalLdlt, supernodal_ldlt.h), 4-5 x faster on the solid's bars (bench/RESULTS.md). Neither is
+/// (SupernodalLdlt, supernodal_ldlt.h), its numeric factorisation 9 x the simplicial one's speed at
+/// 200 x 12 x 8 (bench/RESULTS.md, "The supernodal factor"). Neither is
 /// CHOLMOD: CHOLMOD's BLAS is picked at run time by the system (Debian alternatives), which would make the
 /// bits depend on the machine.
 class StiffnessFactorization {
