@@ -15,8 +15,59 @@ namespace {
 // product per panel. A fixed number: it decides where the sums are rounded.
 constexpr int kSupernodalPanel = 32;
 
-using SupernodeBlock = Eigen::Map<Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
 using ConstSupernodeBlock = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+
+// The general products of the numeric factorisation, dst = lhs rhs or dst -= lhs rhs (column-major,
+// strided), by Eigen's own dispatch for `dst.noalias() = / -= lhs * rhs` (Eigen 3.4,
+// Eigen/src/Core/products/GeneralMatrixMatrix.h: the coefficient-based product for tiny sizes, the
+// matrix-vector product for one row or column, else the blocked product with the blocking Eigen computes
+// from the pinned cache sizes), except that the blocked product packs into `packA` and `packB` (sized by
+// analyzePattern) instead of buffers Eigen would take from the heap above 128 KB. The same kernels and
+// blocking: no bit depends on where the buffers are.
+using SupernodeBlocking =
+    Eigen::internal::gemm_blocking_space<Eigen::ColMajor, double, double, Eigen::Dynamic, Eigen::Dynamic,
+                                         Eigen::Dynamic, 1, false>;
+
+bool supernodeProductIsBlocked(Eigen::Index rows, Eigen::Index cols, Eigen::Index depth) {
+  return rows > 1 && cols > 1 && depth > 0 && depth + rows + cols >= EIGEN_GEMM_TO_COEFFBASED_THRESHOLD;
+}
+
+struct PreallocatedBlocking : SupernodeBlocking {
+  PreallocatedBlocking(Eigen::Index rows, Eigen::Index cols, Eigen::Index depth, double* packA, double* packB)
+      : SupernodeBlocking(rows, cols, depth, 1, true) {
+    this->m_blockA = packA;
+    this->m_blockB = packB;
+  }
+  ~PreallocatedBlocking() {
+    this->m_blockA = nullptr;  // the workspace's: not for Eigen's destructor to free
+    this->m_blockB = nullptr;
+  }
+  PreallocatedBlocking(const PreallocatedBlocking&) = delete;
+  PreallocatedBlocking& operator=(const PreallocatedBlocking&) = delete;
+};
+
+void supernodeProduct(Eigen::Index rows, Eigen::Index cols, Eigen::Index depth, const double* lhs,
+                      Eigen::Index lhsStride, const double* rhs, Eigen::Index rhsStride, double* dst,
+                      Eigen::Index dstStride, bool subtract, double* packA, double* packB) {
+  using Strided = Eigen::OuterStride<>;
+  Eigen::Map<Eigen::MatrixXd, 0, Strided> out(dst, rows, cols, Strided(dstStride));
+  if (!supernodeProductIsBlocked(rows, cols, depth)) {
+    const Eigen::Map<const Eigen::MatrixXd, 0, Strided> left(lhs, rows, depth, Strided(lhsStride));
+    const Eigen::Map<const Eigen::MatrixXd, 0, Strided> right(rhs, depth, cols, Strided(rhsStride));
+    if (subtract)
+      out.noalias() -= left * right;
+    else
+      out.noalias() = left * right;
+    return;
+  }
+  if (!subtract) out.setZero();
+  PreallocatedBlocking blocking(rows, cols, depth, packA, packB);
+  Eigen::internal::general_matrix_matrix_product<Eigen::Index, double, Eigen::ColMajor, false, double,
+                                                 Eigen::ColMajor, false, Eigen::ColMajor,
+                                                 1>::run(rows, cols, depth, lhs, lhsStride, rhs, rhsStride,
+                                                         dst, 1, dstStride, subtract ? -1.0 : 1.0, blocking,
+                                                         nullptr);
+}
 
 // Entries of the lower trapezoid of a dense supernode block.
 std::int64_t supernodeTrapezoid(std::int64_t columns, std::int64_t rows) {
@@ -217,6 +268,21 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
   // The updates each supernode receives: descendant d reaches supernode t through its rows in t's columns,
   // a contiguous run of d's sorted rows. Filled in increasing d, so each list is in increasing d.
   std::int64_t scaledSize = static_cast<std::int64_t>(kSupernodalPanel) * n, productSize = 0;
+  // The blocked products' packing buffers: the largest Eigen's blocking asks for over all products.
+  std::int64_t packASize = 0, packBSize = 0;
+  const auto packSize = [&](Eigen::Index rows, Eigen::Index cols, Eigen::Index depth) {
+    if (!supernodeProductIsBlocked(rows, cols, depth)) return;
+    const SupernodeBlocking blocking(rows, cols, depth, 1, true);
+    packASize = std::max<std::int64_t>(packASize, blocking.mc() * blocking.kc());
+    packBSize = std::max<std::int64_t>(packBSize, blocking.kc() * blocking.nc());
+  };
+  for (int s = 0; s < supernodes; ++s) {
+    const int columns = first_[s + 1] - first_[s], rows = rowStart_[s + 1] - rowStart_[s];
+    for (int panel = 0; panel + kSupernodalPanel < columns; panel += kSupernodalPanel) {
+      const int panelEnd = panel + kSupernodalPanel;
+      packSize(rows - panelEnd, columns - panelEnd, panelEnd - panel);
+    }
+  }
   {
     std::vector<std::int64_t> perTarget(static_cast<std::size_t>(supernodes) + 1, 0);
     int widest = 0;
@@ -244,6 +310,7 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
         const std::int64_t width = end - begin, height = rowStart_[d + 1] - rowStart_[d] - begin;
         scaledSize = std::max(scaledSize, own * width);
         productSize = std::max(productSize, height * width);
+        packSize(height, width, own);
       }
     }
   }
@@ -272,6 +339,8 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
     work.relative.assign(static_cast<std::size_t>(tallest), 0);
     work.scaled.resize(scaledSize);
     work.product.resize(productSize);
+    work.packA.resize(packASize);
+    work.packB.resize(packBSize);
   }
 }
 
@@ -297,9 +366,8 @@ void SupernodalLdlt::factorizeSupernode(int s, const double* values, Workspace& 
     Eigen::Map<Eigen::MatrixXd> scaled(work.scaled.data(), dColumns, width);
     const ConstSupernodeBlock reach(dBlock + update.begin, width, dColumns, Eigen::OuterStride<>(dRows));
     scaled.noalias() = d_.segment(first_[d], dColumns).asDiagonal() * reach.transpose();
-    Eigen::Map<Eigen::MatrixXd> product(work.product.data(), height, width);
-    const ConstSupernodeBlock below(dBlock + update.begin, height, dColumns, Eigen::OuterStride<>(dRows));
-    product.noalias() = below * scaled;
+    supernodeProduct(height, width, dColumns, dBlock + update.begin, dRows, work.scaled.data(), dColumns,
+                     work.product.data(), height, false, work.packA.data(), work.packB.data());
     for (int q = 0; q < height; ++q) work.relative[q] = work.position[dRowList[update.begin + q]];
     for (int c = 0; c < width; ++c) {
       double* target = block + static_cast<std::int64_t>(dRowList[update.begin + c] - begin) * rows;
@@ -332,11 +400,10 @@ void SupernodalLdlt::factorizeSupernode(int s, const double* values, Workspace& 
     const ConstSupernodeBlock reach(block + static_cast<std::int64_t>(panel) * rows + panelEnd, right, width,
                                     Eigen::OuterStride<>(rows));
     scaled.noalias() = d_.segment(begin + panel, width).asDiagonal() * reach.transpose();
-    const ConstSupernodeBlock left(block + static_cast<std::int64_t>(panel) * rows + panelEnd,
-                                   rows - panelEnd, width, Eigen::OuterStride<>(rows));
-    SupernodeBlock trailing(block + static_cast<std::int64_t>(panelEnd) * rows + panelEnd, rows - panelEnd,
-                            right, Eigen::OuterStride<>(rows));
-    trailing.noalias() -= left * scaled;
+    supernodeProduct(rows - panelEnd, right, width,
+                     block + static_cast<std::int64_t>(panel) * rows + panelEnd, rows, work.scaled.data(),
+                     width, block + static_cast<std::int64_t>(panelEnd) * rows + panelEnd, rows, true,
+                     work.packA.data(), work.packB.data());
   }
 }
 

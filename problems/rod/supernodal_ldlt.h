@@ -33,9 +33,9 @@
 //   number of columns (plain loops, no product whose blocking depends on the block's width), so a block
 //   solve is bitwise the column-by-column one.
 //
-// The numeric phase allocates nothing: the blocks, the assembly map and the per-group workspaces are
-// made by analyzePattern. (Eigen's dense products take their packing buffers on the stack below 128 KB
-// and from the heap above, as for every large Eigen product in hindsight.)
+// The numeric phase allocates nothing: the blocks, the assembly map and the per-group workspaces (with the
+// packing buffers of the blocked products, which Eigen would take from the heap above 128 KB) are made by
+// analyzePattern.
 #pragma once
 
 #include <hindsight/problems/rod/subtree_ldlt.h>
@@ -115,6 +115,7 @@ class SupernodalLdlt {
     std::vector<int> position;        // row -> position in the current supernode's rows
     std::vector<int> relative;        // a descendant's rows -> positions in the current supernode's block
     Eigen::VectorXd scaled, product;  // D L^T of a panel or a descendant, and a descendant's update
+    Eigen::VectorXd packA, packB;     // the blocked products' packing buffers (Eigen's blocking)
     bool failed = false;
   };
   void factorizeSupernode(int s, const double* values, Workspace& work);

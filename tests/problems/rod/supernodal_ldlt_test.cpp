@@ -167,12 +167,12 @@ TEST(SupernodalLdlt, SolidStiffnessFactorizationHasTheSameBitsOnOneAndTwoThreads
   EXPECT_TRUE(solutions[0] == solutions[1]);
 }
 
-// The numeric factorisation and the sweeps allocate nothing (the blocks, maps and workspaces are made by
-// analyzePattern); serial here, since the thread pool's tasks are allocated by TBB. Eigen's products take
-// their packing buffers from the heap above 128 KB, which this coarse bar's blocks stay below.
+// The numeric factorisation and the sweeps allocate nothing (the blocks, maps and workspaces, with the
+// blocked products' packing buffers, are made by analyzePattern); serial here, since the thread pool's
+// tasks are allocated by TBB. On this bar Eigen's products would take 4 packing buffers from the heap.
 TEST(SupernodalLdlt, FactorizeAndSweepsAllocateNothing) {
   if (!hindsight::testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counting unavailable";
-  const SolidMember model = randomSolid(16, 4, 2, 9), other = randomSolid(16, 4, 2, 10);
+  const SolidMember model = randomSolid(30, 6, 4, 9), other = randomSolid(30, 6, 4, 10);
   SupernodalLdlt factor(withGroups(1));
   factor.compute(model.stiffness());
   RowBlock x = Matrix::Random(model.freeDofCount(), 4);
