@@ -5,6 +5,7 @@
 
 #include "support/allocation_counting.h"
 #include "support/random_design.h"
+#include "support/random_solid.h"
 
 #include <gtest/gtest.h>
 #include <Eigen/SparseCholesky>
@@ -25,16 +26,7 @@ bool sameBits(const double* a, const double* b, Eigen::Index count) {
   return std::memcmp(a, b, sizeof(double) * static_cast<std::size_t>(count)) == 0;
 }
 
-// Half of a solid bar (mid-plane symmetry), the member whose K the supernodal factor serves, with a random
-// design of stiffness contrast ~1e5.
-SolidMember randomSolid(int along, int through, int thickness, unsigned seed) {
-  RodConfig config;
-  config.elementsAlongLength = along;
-  config.elementsThroughHeight = through;
-  config.elementsThroughThickness = thickness;
-  config.midPlaneSymmetry = true;
-  return SolidMember(config, hindsight::testing::randomRodDesign(config, seed));
-}
+using hindsight::testing::randomSolidHalf;
 
 SupernodalOptions withGroups(int groups) {
   SupernodalOptions options;
@@ -102,7 +94,7 @@ TEST(SupernodalLdlt, IsEigensLdltInMetissOrderingToRoundOff) {
 // groups factorised and back-substituted in parallel), on the analysed matrix and a refactorised one; a
 // block of right-hand sides gives each column's one-column bits.
 TEST(SupernodalLdlt, SameBitsForEveryPartitionAndBlockWidth) {
-  const SolidMember model = randomSolid(40, 6, 4, 5), other = randomSolid(40, 6, 4, 6);
+  const SolidMember model = randomSolidHalf(40, 6, 4, 5), other = randomSolidHalf(40, 6, 4, 6);
   SupernodalLdlt reference(withGroups(1));
   reference.compute(model.stiffness());
   ASSERT_EQ(reference.info(), Eigen::Success);
@@ -139,13 +131,13 @@ TEST(SupernodalLdlt, SameBitsForEveryPartitionAndBlockWidth) {
       }
     }
   }
-  EXPECT_THROW(reference.factorize(randomSolid(41, 6, 4, 5).stiffness()), std::invalid_argument);
+  EXPECT_THROW(reference.factorize(randomSolidHalf(41, 6, 4, 5).stiffness()), std::invalid_argument);
 }
 
 // The default partition follows the threads parallelFor may use at analysis time; the stiffness
 // factorisation of the solid is the supernodal one and gives the same bits on one and two threads.
 TEST(SupernodalLdlt, SolidStiffnessFactorizationHasTheSameBitsOnOneAndTwoThreads) {
-  const SolidMember model = randomSolid(110, 10, 4, 7);
+  const SolidMember model = randomSolidHalf(110, 10, 4, 7);
   ASSERT_EQ(stiffnessOrdering(model), FillOrdering::Metis);
   ASSERT_GT(model.freeDofCount(), SupernodalOptions{}.smallest);
   const Matrix rhs = Matrix::Random(model.freeDofCount(), 2);
@@ -172,7 +164,7 @@ TEST(SupernodalLdlt, SolidStiffnessFactorizationHasTheSameBitsOnOneAndTwoThreads
 // tasks are allocated by TBB. On this bar Eigen's products would take 4 packing buffers from the heap.
 TEST(SupernodalLdlt, FactorizeAndSweepsAllocateNothing) {
   if (!hindsight::testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counting unavailable";
-  const SolidMember model = randomSolid(30, 6, 4, 9), other = randomSolid(30, 6, 4, 10);
+  const SolidMember model = randomSolidHalf(30, 6, 4, 9), other = randomSolidHalf(30, 6, 4, 10);
   SupernodalLdlt factor(withGroups(1));
   factor.compute(model.stiffness());
   RowBlock x = Matrix::Random(model.freeDofCount(), 4);
@@ -187,7 +179,7 @@ TEST(SupernodalLdlt, FactorizeAndSweepsAllocateNothing) {
 // LDL^T without pivoting factorises an indefinite matrix too; the stiffness factorisation refuses one
 // (a negative pivot), naming positive definiteness.
 TEST(SupernodalLdlt, AnIndefiniteStiffnessIsRefused) {
-  const SolidMember model = randomSolid(12, 4, 2, 11);
+  const SolidMember model = randomSolidHalf(12, 4, 2, 11);
   const SparseMatrix negative = -model.stiffness();
   try {
     const StiffnessFactorization factorization(negative, FillOrdering::Metis);
