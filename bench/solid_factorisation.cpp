@@ -10,12 +10,17 @@
 // METIS forced) calls no BLAS, so unlike the supernodal factorisation its bits do not depend on the BLAS
 // the system selects: the bit-safe way to METIS's smaller fill (bench/RESULTS.md, "The solid's gradient").
 // simplicial-metis is the production's factorisation of the solid: Eigen's SimplicialLDLT in METIS's
-// ordering (rod::SubtreeParallelLdlt with FillOrdering::Metis, problems/rod/subtree_ldlt.h).
+// ordering (rod::SubtreeParallelLdlt with FillOrdering::Metis, problems/rod/subtree_ldlt.h) until
+// supernodal replaced it: hindsight's own supernodal LDL^T in METIS's ordering (rod::SupernodalLdlt,
+// problems/rod/supernodal_ldlt.h, dense blocks through Eigen's products: the same bits on every machine),
+// timed as analysis + factorisation, a second numeric factorisation (what each design of an optimisation
+// pays) and one solve.
 //
 // Usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) SOLVERS MODES, SOLVERS a comma-separated list of
-// simplicial, simplicial-metis, cholmod, cholmod-simplicial, cholmod-simplicial-metis
+// simplicial, simplicial-metis, supernodal, cholmod, cholmod-simplicial, cholmod-simplicial-metis
 #include <hindsight/problems/rod/solid_model.h>
 #include <hindsight/problems/rod/subtree_ldlt.h>
+#include <hindsight/problems/rod/supernodal_ldlt.h>
 
 #include <Spectra/MatOp/SparseSymMatProd.h>
 #include <Spectra/SymGEigsShiftSolver.h>
@@ -101,9 +106,9 @@ void eigenSolve(const SparseMatrix& stiffness, const SparseMatrix& mass, int mod
 
 int main(int argc, char** argv) {
   if (argc != 7) {
-    std::cerr
-        << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) "
-           "SOLVERS(simplicial,simplicial-metis,cholmod,cholmod-simplicial,cholmod-simplicial-metis) MODES\n";
+    std::cerr << "usage: solid_factorisation NX NY NZ SYMMETRIC(0|1) "
+                 "SOLVERS(simplicial,simplicial-metis,supernodal,cholmod,cholmod-simplicial,cholmod-"
+                 "simplicial-metis) MODES\n";
     return 2;
   }
   hindsight::rod::RodConfig config;
@@ -152,6 +157,22 @@ int main(int argc, char** argv) {
   if (asked("simplicial-metis")) {
     hindsight::rod::SubtreeParallelLdlt factor({}, hindsight::rod::FillOrdering::Metis);
     simplicial(factor, "SimplicialLDLT (METIS) of K", "SimplicialLDLT, METIS");
+  }
+  if (asked("supernodal")) {
+    hindsight::rod::SupernodalLdlt factor;
+    clock = Clock();
+    factor.compute(stiffness);
+    clock.report("supernodal LDL^T (METIS) of K");
+    std::printf("  info %d, supernodes %d, L entries stored %lld, share in parallel subtrees %.2f\n",
+                int(factor.info()), factor.supernodeCount(), static_cast<long long>(factor.storedNonZeros()),
+                factor.parallelShare());
+    clock = Clock();
+    factor.factorize(stiffness);
+    clock.report("  numeric factorisation again");
+    clock = Clock();
+    const Eigen::MatrixXd x = factor.solve(Vector::Ones(stiffness.rows()));
+    clock.report("  one solve");
+    if (modes > 0) eigenSolve(stiffness, mass, modes, factor, "supernodal");
   }
 #ifdef HINDSIGHT_WITH_CHOLMOD
   for (const bool metis : {false, true}) {

@@ -61,19 +61,18 @@ class TransformedPencil {
  public:
   using Scalar = double;
   TransformedPencil(const StiffnessFactorization& k, const SparseMatrix& mass)
-      : k_(k), mass_(mass), scale_(k.solver().vectorD().cwiseSqrt().cwiseInverse()), work_(k.size()) {}
+      : k_(k), mass_(mass), scale_(k.vectorD().cwiseSqrt().cwiseInverse()), work_(k.size()) {}
   Eigen::Index rows() const { return k_.size(); }
   Eigen::Index cols() const { return k_.size(); }
   void perform_op(const Scalar* in, Scalar* out) const {
-    const auto& ldlt = k_.solver();
     Eigen::Map<Vector> y(out, k_.size());
-    // The back-substitution is Eigen's matrixU().solveInPlace() on the subtrees in parallel (the same
-    // bits); the forward sweep is Eigen's own.
+    // For the plate the back-substitution is Eigen's matrixU().solveInPlace() on the subtrees in parallel
+    // and the forward sweep Eigen's matrixL().solveInPlace(), bit for bit (subtree_ldlt.h).
     work_ = scale_.cwiseProduct(Eigen::Map<const Vector>(in, k_.size()));
-    ldlt.backwardSweep(work_.data(), 1, true);
-    y.noalias() = mass_ * (ldlt.permutationPinv() * work_);
-    work_ = ldlt.permutationP() * y;
-    ldlt.matrixL().solveInPlace(work_);
+    k_.backwardSweep(work_.data(), 1, true);
+    y.noalias() = mass_ * (k_.permutationPinv() * work_);
+    work_ = k_.permutationP() * y;
+    k_.forwardSweep(work_.data(), 1);
     y = scale_.cwiseProduct(work_);
   }
   /// phi = P^T L^{-T} D^{-1/2} y: one back-substitution sweep over the factor for all columns (bitwise
@@ -94,17 +93,70 @@ class TransformedPencil {
 }  // namespace
 
 StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness, FillOrdering ordering)
-    : solver_(stiffness, SubtreeSchedule{}, ordering),
+    : ordering_(ordering),
+      simplicial_(SubtreeSchedule{}, ordering),
       size_(stiffness.rows()),
       outer_(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + stiffness.outerSize() + 1),
       inner_(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + stiffness.nonZeros()) {
   assert(stiffness.isCompressed());
+  if (ordering_ == FillOrdering::Metis)
+    supernodal_.compute(stiffness);
+  else
+    simplicial_.compute(stiffness);
   checkPositiveDefinite();
+}
+
+const SubtreeParallelLdlt& StiffnessFactorization::solver() const {
+  if (ordering_ != FillOrdering::Amd)
+    throw std::logic_error("StiffnessFactorization::solver: a METIS-ordered factor is supernodal()");
+  return simplicial_;
+}
+
+const SupernodalLdlt& StiffnessFactorization::supernodal() const {
+  if (ordering_ != FillOrdering::Metis)
+    throw std::logic_error("StiffnessFactorization::supernodal: an AMD-ordered factor is solver()");
+  return supernodal_;
+}
+
+const StiffnessFactorization::Permutation& StiffnessFactorization::permutationP() const {
+  return ordering_ == FillOrdering::Metis ? supernodal_.permutationP() : simplicial_.permutationP();
+}
+
+const StiffnessFactorization::Permutation& StiffnessFactorization::permutationPinv() const {
+  return ordering_ == FillOrdering::Metis ? supernodal_.permutationPinv() : simplicial_.permutationPinv();
+}
+
+Vector StiffnessFactorization::vectorD() const {
+  return ordering_ == FillOrdering::Metis ? supernodal_.vectorD() : simplicial_.vectorD();
+}
+
+void StiffnessFactorization::forwardSweep(double* x, Eigen::Index columns) const {
+  if (ordering_ == FillOrdering::Metis)
+    supernodal_.forwardSweep(x, columns);
+  else
+    simplicial_.forwardSweep(x, columns);
+}
+
+void StiffnessFactorization::backwardSweep(double* x, Eigen::Index columns, bool parallel) const {
+  if (ordering_ == FillOrdering::Metis)
+    supernodal_.backwardSweep(x, columns, parallel);
+  else
+    simplicial_.backwardSweep(x, columns, parallel);
+}
+
+double StiffnessFactorization::parallelShare() const {
+  return ordering_ == FillOrdering::Metis ? supernodal_.parallelShare() : simplicial_.parallelShare();
+}
+
+Matrix StiffnessFactorization::solve(ConstMatrixRef b) const {
+  return ordering_ == FillOrdering::Metis ? supernodal_.solve(b) : Matrix(simplicial_.solve(b));
 }
 
 void StiffnessFactorization::checkPositiveDefinite() const {
   // LDL^T succeeds for indefinite matrices too: positive definiteness is a positive D.
-  if (solver_.info() != Eigen::Success || !(solver_.vectorD().minCoeff() > 0.0))
+  const Eigen::ComputationInfo info =
+      ordering_ == FillOrdering::Metis ? supernodal_.info() : simplicial_.info();
+  if (info != Eigen::Success || !(vectorD().minCoeff() > 0.0))
     throw std::runtime_error("the constrained stiffness matrix is not positive definite");
 }
 
@@ -118,7 +170,10 @@ bool StiffnessFactorization::samePattern(const SparseMatrix& stiffness) const {
 void StiffnessFactorization::refactorize(const SparseMatrix& stiffness) {
   if (!samePattern(stiffness))
     throw std::invalid_argument("refactorize: the stiffness matrix has another sparsity pattern");
-  solver_.factorize(stiffness);
+  if (ordering_ == FillOrdering::Metis)
+    supernodal_.factorize(stiffness);
+  else
+    simplicial_.factorize(stiffness);
   checkPositiveDefinite();
 }
 
@@ -132,7 +187,7 @@ std::unique_ptr<StiffnessFactorization> StiffnessFactorizationPool::take(const S
       kept_.pop_back();
     }
   }
-  if (kept && kept->solver().ordering() == ordering && kept->samePattern(stiffness)) {
+  if (kept && kept->ordering() == ordering && kept->samePattern(stiffness)) {
     kept->refactorize(stiffness);
     return kept;
   }
@@ -160,25 +215,18 @@ void StiffnessFactorization::prepareBlock(const char* method, const RowBlock& bl
 
 void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) const {
   prepareBlock("solveInPlace", block, scratch);
-  const Eigen::Index columns = block.cols();
-  // Eigen's SimplicialLDLT::solve, column by column: x = P b; L x = x (unit lower, column-oriented);
-  // x = D^-1 x as (1 / d_i) x_i; L^T x = x (row-oriented dot products in storage order); P^-1 x. L is
-  // stored without its unit diagonal, rows increasing within a column.
-  scratch.noalias() = solver_.permutationP() * block;
-  solver_.forwardSweep(scratch.data(), columns);
-  const Vector& d = solver_.vectorD();
-  for (Eigen::Index i = 0; i < size_; ++i) scratch.row(i) *= 1.0 / d(i);
-  solver_.backwardSweep(scratch.data(), columns, false);
-  block.noalias() = solver_.permutationPinv() * scratch;
+  if (ordering_ == FillOrdering::Metis)
+    detail::ldltSolveInPlace(supernodal_, block, scratch);
+  else
+    detail::ldltSolveInPlace(simplicial_, block, scratch);
 }
 
 void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const {
   prepareBlock("backSubstituteInPlace", block, scratch);
-  const Eigen::Index columns = block.cols();
-  // solver().matrixU().solveInPlace() column by column (row i of L^T: tmp -= l x_r in storage order),
-  // then P^-1.
-  solver_.backwardSweep(block.data(), columns, true);
-  scratch.noalias() = solver_.permutationPinv() * block;
+  // L^-T on all columns (for the plate solver().matrixU().solveInPlace() column by column, bitwise), then
+  // P^-1.
+  backwardSweep(block.data(), block.cols(), true);
+  scratch.noalias() = permutationPinv() * block;
   block.swap(scratch);
 }
 
@@ -376,7 +424,7 @@ ModalBasis computeModalBasisOf(const Member& model, const ModalReductionOptions&
     const Vector loads[3] = {massFull * model.unitTranslationX(), massFull * model.unitTranslationY(),
                              massFull * rotateNodewise(model.referenceCoordinates(), Member::kComponents)};
     for (int r = 0; r < 3; ++r) {
-      Vector mode = factorization.solver().solve(model.restrictToFree(loads[r]));
+      Vector mode = factorization.solve(model.restrictToFree(loads[r]));
       for (int pass = 0; pass < 2; ++pass) {
         for (int j = 0; j < n + r; ++j) {
           const Vector column = basis.modesFree.col(j);

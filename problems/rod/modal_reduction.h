@@ -21,6 +21,7 @@
 #include <hindsight/engine/types.h>
 #include <hindsight/problems/rod/fe_model.h>
 #include <hindsight/problems/rod/subtree_ldlt.h>
+#include <hindsight/problems/rod/supernodal_ldlt.h>
 
 #include <Eigen/SparseCholesky>
 #include <memory>
@@ -108,12 +109,16 @@ constexpr FillOrdering stiffnessOrdering(const SolidMember&) { return FillOrderi
 
 /// One sparse LDL^T factorisation of the constrained stiffness K of a design (stiffnessOrdering), shared by
 /// everything that solves with K: the eigen-solve (Lanczos on its transformed pencil), the refinement, the
-/// inertia-relief modes and ESL (esl.h). Eigen's own solver, not CHOLMOD: CHOLMOD's BLAS is picked at run
-/// time by the system (Debian alternatives), which would make the bits depend on the machine. Its
-/// back-substitutions run on the subtrees of the elimination tree in parallel with Eigen's bits
-/// (SubtreeParallelLdlt, subtree_ldlt.h).
+/// inertia-relief modes and ESL (esl.h). The plate's (AMD) is Eigen's SimplicialLDLT with its
+/// back-substitutions on the subtrees of the elimination tree in parallel, Eigen's bits
+/// (SubtreeParallelLdlt, subtree_ldlt.h); the solid's (METIS) is hindsight's supernodal LDL^T
+/// (SupernodalLdlt, supernodal_ldlt.h), its numeric factorisation 9 x the simplicial one's speed at
+/// 200 x 12 x 8 (bench/RESULTS.md, "The supernodal factor"). Neither is
+/// CHOLMOD: CHOLMOD's BLAS is picked at run time by the system (Debian alternatives), which would make the
+/// bits depend on the machine.
 class StiffnessFactorization {
  public:
+  using Permutation = Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>;
   /// Throws std::runtime_error when K is not positive definite (a zero or negative pivot).
   StiffnessFactorization(const SparseMatrix& stiffness, FillOrdering ordering);
   StiffnessFactorization(const StiffnessFactorization&) = delete;
@@ -126,10 +131,24 @@ class StiffnessFactorization {
   /// bitwise the one a new object computes, without the analysis (0.6 s of 4.3 s at 1600 x 96).
   /// Throws std::invalid_argument for another pattern and std::runtime_error as the constructor.
   void refactorize(const SparseMatrix& stiffness);
-  const SubtreeParallelLdlt& solver() const { return solver_; }
+  FillOrdering ordering() const { return ordering_; }
+  /// The simplicial factor (FillOrdering::Amd); std::logic_error for the supernodal one.
+  const SubtreeParallelLdlt& solver() const;
+  /// The supernodal factor (FillOrdering::Metis); std::logic_error for the simplicial one.
+  const SupernodalLdlt& supernodal() const;
   Eigen::Index size() const { return size_; }
+  /// P K P^T = L D L^T: P, P^-1 and D of whichever factor.
+  const Permutation& permutationP() const;
+  const Permutation& permutationPinv() const;
+  Vector vectorD() const;
+  /// L^-1 and L^-T in place on right-hand sides stored by rows in the permuted order (the factor's
+  /// forwardSweep and backwardSweep).
+  void forwardSweep(double* x, Eigen::Index columns) const;
+  void backwardSweep(double* x, Eigen::Index columns, bool parallel) const;
+  /// Share of the back-substitution's work on parallel subtrees (tests, benchmarks).
+  double parallelShare() const;
   /// K^-1 B.
-  Matrix solve(ConstMatrixRef b) const { return solver_.solve(b); }
+  Matrix solve(ConstMatrixRef b) const;
   /// Right-hand sides stored by rows (one row per DOF, one column per right-hand side).
   using RowBlock = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   /// K^-1 B in place for the columns of `block`, bitwise equal to solve() column by column: the same
@@ -137,8 +156,8 @@ class StiffnessFactorization {
   /// all columns, where a column-by-column solve streams the whole factor (60 MB at 800 x 48) once per
   /// column and is bound by memory bandwidth. `scratch` is resized on first use only.
   void solveInPlace(RowBlock& block, RowBlock& scratch) const;
-  /// P^T L^{-T} B in place, the back-substitution alone (solver().matrixU().solveInPlace() and then
-  /// permutationPinv() column by column, bitwise), in one sweep over the factor for all columns.
+  /// P^T L^{-T} B in place, the back-substitution alone (for the plate solver().matrixU().solveInPlace()
+  /// and then permutationPinv() column by column, bitwise), in one sweep over the factor for all columns.
   void backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const;
 
  private:
@@ -146,7 +165,9 @@ class StiffnessFactorization {
   /// Refuses a block without size() rows (std::invalid_argument naming `method`); sizes scratch to it.
   void prepareBlock(const char* method, const RowBlock& block, RowBlock& scratch) const;
 
-  SubtreeParallelLdlt solver_;
+  FillOrdering ordering_;
+  SubtreeParallelLdlt simplicial_;
+  SupernodalLdlt supernodal_;
   Eigen::Index size_ = 0;
   // The pattern the symbolic analysis is for (outer starts and row indices of K).
   std::vector<int> outer_, inner_;

@@ -84,28 +84,39 @@ void SubtreeParallelLdlt::analyzePattern(const SparseMatrix& a) {
   if (threads < 2 || n < options_.smallest) return;  // no groups: the sweeps run serially
   // Work per row: the entries of its column of L (the analysis's counts) and one.
   const int* lp = m_matrix.outerIndexPtr();
-  std::vector<double> subtree(static_cast<std::size_t>(n), 0.0);
-  for (int i = 0; i < n; ++i) {
-    subtree[i] += lp[i + 1] - lp[i] + 1.0;
-    if (m_parent[i] >= 0) subtree[m_parent[i]] += subtree[i];
-  }
+  std::vector<double> work(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) work[i] = lp[i + 1] - lp[i] + 1.0;
+  SubtreePartition partition =
+      partitionSubtrees(std::vector<int>(m_parent.data(), m_parent.data() + n), work, threads);
+  groups_ = std::move(partition.groups);
+  top_ = std::move(partition.top);
+  parallelShare_ = partition.parallelShare;
+}
+
+SubtreePartition partitionSubtrees(const std::vector<int>& parent, const std::vector<double>& work,
+                                   int threads) {
+  SubtreePartition result;
+  const int n = static_cast<int>(parent.size());
+  if (threads < 2 || n == 0) return result;
+  std::vector<double> subtree(work);
+  for (int i = 0; i < n; ++i)
+    if (parent[i] >= 0) subtree[parent[i]] += subtree[i];
   std::vector<int> childStart(static_cast<std::size_t>(n) + 1, 0), children(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i)
-    if (m_parent[i] >= 0) ++childStart[m_parent[i] + 1];
+    if (parent[i] >= 0) ++childStart[parent[i] + 1];
   for (int i = 0; i < n; ++i) childStart[i + 1] += childStart[i];
   {
     std::vector<int> fill(childStart.begin(), childStart.end() - 1);
     for (int i = 0; i < n; ++i)
-      if (m_parent[i] >= 0) children[fill[m_parent[i]]++] = i;
+      if (parent[i] >= 0) children[fill[parent[i]]++] = i;
   }
   // Split the heaviest subtree (its root joins the top) until every subtree holds at most 1/(8 T) of
-  // the work, so that T groups can be balanced. Ties go by index: the schedule is a function of the
-  // pattern and T alone.
+  // the work, so that T groups can be balanced.
   using Entry = std::pair<double, int>;
   std::priority_queue<Entry> heap;
   double total = 0.0;
   for (int i = 0; i < n; ++i)
-    if (m_parent[i] < 0) {
+    if (parent[i] < 0) {
       heap.push({subtree[i], i});
       total += subtree[i];
     }
@@ -122,25 +133,27 @@ void SubtreeParallelLdlt::analyzePattern(const SparseMatrix& a) {
   std::vector<int> owner(static_cast<std::size_t>(n), -1);
   double parallel = 0.0;
   for (; !heap.empty(); heap.pop()) {
-    const auto [work, r] = heap.top();
+    const auto [subtreeWork, r] = heap.top();
     const auto g = std::min_element(load.begin(), load.end()) - load.begin();
-    load[g] += work;
+    load[g] += subtreeWork;
     owner[r] = static_cast<int>(g);
-    parallel += work;
+    parallel += subtreeWork;
   }
   // The other nodes of a subtree follow its root (parents have larger indices).
   for (int i = n - 1; i >= 0; --i)
-    if (!isTop[i] && owner[i] < 0) owner[i] = owner[m_parent[i]];
-  groups_.assign(static_cast<std::size_t>(threads), {});
+    if (!isTop[i] && owner[i] < 0) owner[i] = owner[parent[i]];
+  result.groups.assign(static_cast<std::size_t>(threads), {});
   for (int i = 0; i < n; ++i) {
     if (isTop[i])
-      top_.push_back(i);
+      result.top.push_back(i);
     else
-      groups_[owner[i]].push_back(i);
+      result.groups[owner[i]].push_back(i);
   }
-  groups_.erase(std::remove_if(groups_.begin(), groups_.end(), [](const auto& g) { return g.empty(); }),
-                groups_.end());
-  parallelShare_ = total > 0.0 ? parallel / total : 0.0;
+  result.groups.erase(
+      std::remove_if(result.groups.begin(), result.groups.end(), [](const auto& g) { return g.empty(); }),
+      result.groups.end());
+  result.parallelShare = total > 0.0 ? parallel / total : 0.0;
+  return result;
 }
 
 template <int Columns>
@@ -187,44 +200,14 @@ void SubtreeParallelLdlt::backward(double* x, Eigen::Index runtimeColumns, bool 
   });
 }
 
-namespace {
-
-// Columns as a template parameter where it is small, so that the loop over the columns is unrolled:
-// with a run-time count of 2-10 the loop's set-up costs more than its arithmetic.
-template <class Call>
-void byColumns(Eigen::Index columns, Call&& call) {
-  switch (columns) {
-    case 1:
-      return call(std::integral_constant<int, 1>());
-    case 2:
-      return call(std::integral_constant<int, 2>());
-    case 3:
-      return call(std::integral_constant<int, 3>());
-    case 4:
-      return call(std::integral_constant<int, 4>());
-    case 5:
-      return call(std::integral_constant<int, 5>());
-    case 6:
-      return call(std::integral_constant<int, 6>());
-    case 7:
-      return call(std::integral_constant<int, 7>());
-    case 8:
-      return call(std::integral_constant<int, 8>());
-    default:
-      return call(std::integral_constant<int, 0>());
-  }
-}
-
-}  // namespace
-
 void SubtreeParallelLdlt::forwardSweep(double* x, Eigen::Index columns) const {
   eigen_assert(m_factorizationIsOk && m_info == Eigen::Success);
-  byColumns(columns, [&](auto c) { forward<decltype(c)::value>(x, columns); });
+  detail::byColumns(columns, [&](auto c) { forward<decltype(c)::value>(x, columns); });
 }
 
 void SubtreeParallelLdlt::backwardSweep(double* x, Eigen::Index columns, bool parallel) const {
   eigen_assert(m_factorizationIsOk && m_info == Eigen::Success);
-  byColumns(columns, [&](auto c) { backward<decltype(c)::value>(x, columns, parallel); });
+  detail::byColumns(columns, [&](auto c) { backward<decltype(c)::value>(x, columns, parallel); });
 }
 
 }  // namespace rod

@@ -25,6 +25,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
+#include <type_traits>
 #include <vector>
 
 namespace hindsight {
@@ -57,6 +58,71 @@ struct SubtreeSchedule {
   /// Below this order a sweep takes well under a millisecond and runs serially.
   int smallest = 16384;
 };
+
+/// Disjoint subtrees of a forest shared out over groups that run in parallel, and the nodes above them.
+/// Used by the simplicial factor's back-substitution (rows) and by the supernodal factor (supernodes,
+/// supernodal_ldlt.h): a node's descendants are in its own group or, for a top node, anywhere.
+struct SubtreePartition {
+  /// Nodes of each group in increasing index (non-empty groups only).
+  std::vector<std::vector<int>> groups;
+  /// The nodes above the subtrees, in increasing index.
+  std::vector<int> top;
+  /// Share of the work in the groups (0 when the forest was not split).
+  double parallelShare = 0.0;
+};
+
+/// Splits the heaviest subtree (its root joins the top) until every subtree holds at most 1/(8 T) of the
+/// total work, then shares the subtrees out onto T = `threads` groups, longest first. `parent[i]` > i or
+/// -1 (a root); `work[i]` >= 0 is node i's own work. Ties go by index, so the partition is a function of
+/// the forest, the work and T alone; it decides which nodes run at the same time, never a bit of a result.
+SubtreePartition partitionSubtrees(const std::vector<int>& parent, const std::vector<double>& work,
+                                   int threads);
+
+namespace detail {
+
+/// Calls call(std::integral_constant<int, C>()) with C = columns for 1..8 (so that loops over the
+/// columns of a block of right-hand sides unroll: with a run-time count of 2-10 a loop's set-up costs more
+/// than its arithmetic), C = 0 (run-time count) otherwise.
+template <class Call>
+void byColumns(Eigen::Index columns, Call&& call) {
+  switch (columns) {
+    case 1:
+      return call(std::integral_constant<int, 1>());
+    case 2:
+      return call(std::integral_constant<int, 2>());
+    case 3:
+      return call(std::integral_constant<int, 3>());
+    case 4:
+      return call(std::integral_constant<int, 4>());
+    case 5:
+      return call(std::integral_constant<int, 5>());
+    case 6:
+      return call(std::integral_constant<int, 6>());
+    case 7:
+      return call(std::integral_constant<int, 7>());
+    case 8:
+      return call(std::integral_constant<int, 8>());
+    default:
+      return call(std::integral_constant<int, 0>());
+  }
+}
+
+/// L D L^T's solve in place on right-hand sides stored by rows (one row per unknown, `scratch` sized to
+/// `block`): x = P b; x = L^-1 x; x_i = (1 / d_i) x_i; x = L^-T x; b = P^-1 x -- Eigen's
+/// SimplicialLDLT::solve column by column, bitwise, for a factor with Eigen's sweeps (SubtreeParallelLdlt),
+/// and the same steps for the supernodal factor (supernodal_ldlt.h).
+template <class Factor, class RowBlock>
+void ldltSolveInPlace(const Factor& factor, RowBlock& block, RowBlock& scratch) {
+  const Eigen::Index columns = block.cols();
+  scratch.noalias() = factor.permutationP() * block;
+  factor.forwardSweep(scratch.data(), columns);
+  const auto& d = factor.vectorD();
+  for (Eigen::Index i = 0; i < block.rows(); ++i) scratch.row(i) *= 1.0 / d(i);
+  factor.backwardSweep(scratch.data(), columns, false);
+  block.noalias() = factor.permutationPinv() * scratch;
+}
+
+}  // namespace detail
 
 class SubtreeParallelLdlt : public Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> {
  public:

@@ -180,9 +180,7 @@ TEST(SolidMember, TheMetisOrderedFactorGivesAmdsEigenpairsAndPsi1ToRoundOff) {
   const rod::StiffnessFactorization metis(solid.stiffness(), rod::FillOrdering::Metis);
   const rod::StiffnessFactorization amd(solid.stiffness(), rod::FillOrdering::Amd);
   // Two different orderings, or the test would compare a factor with itself.
-  ASSERT_TRUE(
-      (metis.solver().permutationP().indices().array() != amd.solver().permutationP().indices().array())
-          .any());
+  ASSERT_TRUE((metis.permutationP().indices().array() != amd.permutationP().indices().array()).any());
   const rod::ModalBasis withMetis = rod::computeModalBasis(solid, options, metis);
   const rod::ModalBasis withAmd = rod::computeModalBasis(solid, options, amd);
   // The solid's own path (its factorisation made inside) is the METIS one, bit for bit.
@@ -204,9 +202,10 @@ TEST(SolidMember, TheMetisOrderedFactorGivesAmdsEigenpairsAndPsi1ToRoundOff) {
   EXPECT_LE(psi, 1e-12);
 }
 
-// Above SubtreeSchedule::smallest free DOFs the back-substitutions of the METIS-ordered factor run on the
-// subtrees of its elimination tree in parallel; the gradient of psi1, psi2 and its gradient are the same
-// bits on one and two threads (the factor, the eigen-solve, ESL and the chain all solve with it).
+// Above SupernodalOptions::smallest free DOFs the solid's supernodal factorisation and its
+// back-substitutions run on the subtrees of its supernodal tree in parallel; the gradient of psi1, psi2
+// and its gradient are the same bits on one and two threads (the factor, the eigen-solve, ESL and the
+// chain all solve with it).
 TEST(SolidMember, TheGradientHasTheSameBitsForAnyThreadCount) {
   Config config = coarseSolidConfig(4);
   config.rod.elementsAlongLength = 110;
@@ -215,18 +214,16 @@ TEST(SolidMember, TheGradientHasTheSameBitsForAnyThreadCount) {
   const Vector x = randomDesign(config.rod.designCount(), 13);
   {
     const rod::SolidMember solid(config.rod, x);
-    ASSERT_GT(solid.freeDofCount(), rod::SubtreeSchedule{}.smallest);
+    ASSERT_GT(solid.freeDofCount(), rod::SupernodalOptions{}.smallest);
   }
   if (!threadsSupported() || availableThreads() < 2) GTEST_SKIP() << "one thread only on this machine";
   std::vector<PistonRodEvaluation> results;
   for (const int threads : {1, 2}) {
     const ThreadLimit limit(threads);
     if (threads == 2) {
-      // The parallel sweep runs: the METIS tree is split into subtrees.
+      // The parallel factorisation and sweep run: the supernodal tree is split into subtrees.
       const rod::SolidMember solid(config.rod, x);
-      EXPECT_GT(rod::StiffnessFactorization(solid.stiffness(), rod::stiffnessOrdering(solid))
-                    .solver()
-                    .parallelShare(),
+      EXPECT_GT(rod::StiffnessFactorization(solid.stiffness(), rod::stiffnessOrdering(solid)).parallelShare(),
                 0.5);
     }
     results.push_back(PistonRod(config).evaluate(x, PistonRod::Request{}));

@@ -4,6 +4,7 @@
 #include <hindsight/problems/rod/subtree_ldlt.h>
 
 #include "support/random_design.h"
+#include "support/random_solid.h"
 #include "support/same_bits.h"
 
 #include <gtest/gtest.h>
@@ -30,15 +31,7 @@ FeModel randomModel(int along, int through, unsigned seed) {
   return FeModel(config, hindsight::testing::randomRodDesign(config, seed));
 }
 
-// Half of a solid bar (mid-plane symmetry), the member whose K is factorised in METIS's ordering.
-SolidMember randomSolid(int along, int through, int thickness, unsigned seed) {
-  RodConfig config;
-  config.elementsAlongLength = along;
-  config.elementsThroughHeight = through;
-  config.elementsThroughThickness = thickness;
-  config.midPlaneSymmetry = true;
-  return SolidMember(config, hindsight::testing::randomRodDesign(config, seed));
-}
+using hindsight::testing::randomSolidHalf;
 
 // Both sweeps are Eigen's serial results bit for bit, for every partition of the elimination tree (the
 // schedule decides only which rows run at the same time), on the factor of the analysed design and on a
@@ -113,7 +106,7 @@ TEST(SubtreeParallelLdlt, SweepsAreEigensBitsForEveryPartition) {
 }
 
 TEST(SubtreeParallelLdlt, MetisOrderedSweepsAreEigensBitsForEveryPartition) {
-  const SolidMember model = randomSolid(30, 6, 4, 3), other = randomSolid(30, 6, 4, 4);
+  const SolidMember model = randomSolidHalf(30, 6, 4, 3), other = randomSolidHalf(30, 6, 4, 4);
   for (const int groups : {1, 2, 3, 5}) {
     SubtreeSchedule options;
     options.groups = groups;
@@ -129,7 +122,7 @@ TEST(SubtreeParallelLdlt, MetisOrderingIsMetisNodeNdOfTheSymmetricPattern) {
   // a second call and for other values). (Fewer nonzeros in L than AMD's is not a property of every
   // mesh: on this 30 x 6 x 4 half METIS leaves 414 k against AMD's 394 k; on the production bars it
   // leaves 28-35 % fewer, bench/RESULTS.md.)
-  const SolidMember model = randomSolid(30, 6, 4, 5), other = randomSolid(30, 6, 4, 6);
+  const SolidMember model = randomSolidHalf(30, 6, 4, 5), other = randomSolidHalf(30, 6, 4, 6);
   const SparseMatrix& k = model.stiffness();
   const auto ours = metisOrdering(k);
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> eigens;
