@@ -99,10 +99,7 @@ StiffnessFactorization::StiffnessFactorization(const SparseMatrix& stiffness, Fi
       outer_(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + stiffness.outerSize() + 1),
       inner_(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + stiffness.nonZeros()) {
   assert(stiffness.isCompressed());
-  if (ordering_ == FillOrdering::Metis)
-    supernodal_.compute(stiffness);
-  else
-    simplicial_.compute(stiffness);
+  withFactor([&](auto& factor) { factor.compute(stiffness); });
   checkPositiveDefinite();
 }
 
@@ -119,43 +116,36 @@ const SupernodalLdlt& StiffnessFactorization::supernodal() const {
 }
 
 const StiffnessFactorization::Permutation& StiffnessFactorization::permutationP() const {
-  return ordering_ == FillOrdering::Metis ? supernodal_.permutationP() : simplicial_.permutationP();
+  return withFactor([](const auto& factor) -> const Permutation& { return factor.permutationP(); });
 }
 
 const StiffnessFactorization::Permutation& StiffnessFactorization::permutationPinv() const {
-  return ordering_ == FillOrdering::Metis ? supernodal_.permutationPinv() : simplicial_.permutationPinv();
+  return withFactor([](const auto& factor) -> const Permutation& { return factor.permutationPinv(); });
 }
 
 Vector StiffnessFactorization::vectorD() const {
-  return ordering_ == FillOrdering::Metis ? supernodal_.vectorD() : simplicial_.vectorD();
+  return withFactor([](const auto& factor) -> Vector { return factor.vectorD(); });
 }
 
 void StiffnessFactorization::forwardSweep(double* x, Eigen::Index columns) const {
-  if (ordering_ == FillOrdering::Metis)
-    supernodal_.forwardSweep(x, columns);
-  else
-    simplicial_.forwardSweep(x, columns);
+  withFactor([&](const auto& factor) { factor.forwardSweep(x, columns); });
 }
 
 void StiffnessFactorization::backwardSweep(double* x, Eigen::Index columns, bool parallel) const {
-  if (ordering_ == FillOrdering::Metis)
-    supernodal_.backwardSweep(x, columns, parallel);
-  else
-    simplicial_.backwardSweep(x, columns, parallel);
+  withFactor([&](const auto& factor) { factor.backwardSweep(x, columns, parallel); });
 }
 
 double StiffnessFactorization::parallelShare() const {
-  return ordering_ == FillOrdering::Metis ? supernodal_.parallelShare() : simplicial_.parallelShare();
+  return withFactor([](const auto& factor) { return factor.parallelShare(); });
 }
 
 Matrix StiffnessFactorization::solve(ConstMatrixRef b) const {
-  return ordering_ == FillOrdering::Metis ? supernodal_.solve(b) : Matrix(simplicial_.solve(b));
+  return withFactor([&](const auto& factor) -> Matrix { return factor.solve(b); });
 }
 
 void StiffnessFactorization::checkPositiveDefinite() const {
   // LDL^T succeeds for indefinite matrices too: positive definiteness is a positive D.
-  const Eigen::ComputationInfo info =
-      ordering_ == FillOrdering::Metis ? supernodal_.info() : simplicial_.info();
+  const Eigen::ComputationInfo info = withFactor([](const auto& factor) { return factor.info(); });
   if (info != Eigen::Success || !(vectorD().minCoeff() > 0.0))
     throw std::runtime_error("the constrained stiffness matrix is not positive definite");
 }
@@ -170,10 +160,7 @@ bool StiffnessFactorization::samePattern(const SparseMatrix& stiffness) const {
 void StiffnessFactorization::refactorize(const SparseMatrix& stiffness) {
   if (!samePattern(stiffness))
     throw std::invalid_argument("refactorize: the stiffness matrix has another sparsity pattern");
-  if (ordering_ == FillOrdering::Metis)
-    supernodal_.factorize(stiffness);
-  else
-    simplicial_.factorize(stiffness);
+  withFactor([&](auto& factor) { factor.factorize(stiffness); });
   checkPositiveDefinite();
 }
 
@@ -215,10 +202,7 @@ void StiffnessFactorization::prepareBlock(const char* method, const RowBlock& bl
 
 void StiffnessFactorization::solveInPlace(RowBlock& block, RowBlock& scratch) const {
   prepareBlock("solveInPlace", block, scratch);
-  if (ordering_ == FillOrdering::Metis)
-    detail::ldltSolveInPlace(supernodal_, block, scratch);
-  else
-    detail::ldltSolveInPlace(simplicial_, block, scratch);
+  withFactor([&](const auto& factor) { detail::ldltSolveInPlace(factor, block, scratch); });
 }
 
 void StiffnessFactorization::backSubstituteInPlace(RowBlock& block, RowBlock& scratch) const {

@@ -164,6 +164,16 @@ class StiffnessFactorization {
   void checkPositiveDefinite() const;
   /// Refuses a block without size() rows (std::invalid_argument naming `method`); sizes scratch to it.
   void prepareBlock(const char* method, const RowBlock& block, RowBlock& scratch) const;
+  /// call(factor) on the live factor: the supernodal one for FillOrdering::Metis, the simplicial one
+  /// otherwise (both have the same interface: compute, factorize, info, P, P^-1, D, the sweeps).
+  template <class Call>
+  decltype(auto) withFactor(Call&& call) const {
+    return ordering_ == FillOrdering::Metis ? call(supernodal_) : call(simplicial_);
+  }
+  template <class Call>
+  decltype(auto) withFactor(Call&& call) {
+    return ordering_ == FillOrdering::Metis ? call(supernodal_) : call(simplicial_);
+  }
 
   FillOrdering ordering_;
   SubtreeParallelLdlt simplicial_;
