@@ -5,13 +5,12 @@
 #include <hindsight/storage/storage_docs.h>
 #include <hindsight/storage/storage_factory.h>
 
+#include "support/generated_text.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 namespace hindsight {
 namespace {
@@ -55,32 +54,11 @@ TEST(StorageDocs, KeysOfAnUnknownStrategyNameTheKnownOnes) {
 }
 
 TEST(StorageDocs, DocumentationTableIsGeneratedFromTheRows) {
-  const std::filesystem::path path =
-      std::filesystem::path(HINDSIGHT_SOURCE_DIR) / "docs/guides/storage_strategies.md";
-  constexpr const char* kBegin =
-      "<!-- storage-strategies: generated from the registry's rows (storage/storage_docs.h) -->\n";
-  constexpr const char* kEnd = "<!-- storage-strategies: end -->\n";
-  std::string text;
-  {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    text = buffer.str();
-  }
-  const std::size_t begin = text.find(kBegin);
-  std::size_t end = text.find(kEnd);
-  ASSERT_NE(begin, std::string::npos) << path << " lacks the marker " << kBegin;
-  ASSERT_NE(end, std::string::npos) << path << " lacks the marker " << kEnd;
-  ASSERT_LT(begin, end);
-  const std::size_t from = begin + std::string(kBegin).size();
-  const char* regenerate = std::getenv("HINDSIGHT_REGENERATE");
-  if (regenerate != nullptr && std::string(regenerate) == "1") {
-    text.replace(from, end - from, storageStrategiesMarkdown());
-    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
-    end = text.find(kEnd);
-  }
-  EXPECT_EQ(text.substr(from, end - from), storageStrategiesMarkdown())
-      << path << ": the table of strategies differs from the registry's rows; regenerate (file header)";
+  EXPECT_TRUE(testing::generatedSectionMatches(
+      std::filesystem::path(HINDSIGHT_SOURCE_DIR) / "docs/guides/storage_strategies.md",
+      "<!-- storage-strategies: generated from the registry's rows (storage/storage_docs.h) -->\n",
+      "<!-- storage-strategies: end -->\n", storageStrategiesMarkdown(),
+      "the registry's rows (storage/storage_docs.h)"));
 }
 
 }  // namespace

@@ -6,15 +6,13 @@
 #include <hindsight/problems/app/config_schema.h>
 
 #include "support/engine_fixtures.h"
+#include "support/generated_text.h"
 #include "support/run_cli.h"
-#include "support/text_files.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -24,17 +22,12 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::generatedSectionMatches;
 using testing::invalidArgumentMessage;
-using testing::readText;
 
 const fs::path kSource = HINDSIGHT_SOURCE_DIR;
 constexpr const char* kBegin = "<!-- config-fields: generated from problems/app/config_schema.h -->\n";
 constexpr const char* kEnd = "<!-- config-fields: end -->\n";
-
-bool regenerate() {
-  const char* value = std::getenv("HINDSIGHT_REGENERATE");
-  return value != nullptr && std::string(value) == "1";
-}
 
 std::string textOf(double x) {
   std::ostringstream out;
@@ -44,22 +37,8 @@ std::string textOf(double x) {
 }
 
 TEST(ConfigSchema, DocumentationTableIsGeneratedFromTheTable) {
-  const fs::path path = kSource / "docs/reference/cli.md";
-  std::string text = readText(path);
-  const std::size_t begin = text.find(kBegin);
-  std::size_t end = text.find(kEnd);
-  ASSERT_NE(begin, std::string::npos) << path << " lacks the marker " << kBegin;
-  ASSERT_NE(end, std::string::npos) << path << " lacks the marker " << kEnd;
-  ASSERT_LT(begin, end);
-  const std::size_t from = begin + std::string(kBegin).size();
-  if (regenerate()) {
-    text.replace(from, end - from, configFieldsMarkdown());
-    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
-    end = text.find(kEnd);
-  }
-  EXPECT_EQ(text.substr(from, end - from), configFieldsMarkdown())
-      << path << " differs from the configuration's table; regenerate with HINDSIGHT_REGENERATE=1 "
-      << "app_tests --gtest_filter=ConfigSchema.* (problems/app/config_schema.h)";
+  EXPECT_TRUE(generatedSectionMatches(kSource / "docs/reference/cli.md", kBegin, kEnd, configFieldsMarkdown(),
+                                      "the configuration's table (problems/app/config_schema.h)"));
 }
 
 // The table names exactly the fields the configuration writes: a member added to Config without a row

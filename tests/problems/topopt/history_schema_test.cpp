@@ -7,18 +7,15 @@
 #include <hindsight/problems/topopt/results_file.h>
 #include <hindsight/storage/hdf5.h>
 
-#include "support/text_files.h"
+#include "support/generated_text.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <set>
-#include <sstream>
 #include <string>
 
 #include <unistd.h>
@@ -27,17 +24,12 @@ namespace hindsight {
 namespace {
 
 namespace fs = std::filesystem;
-using testing::readText;
-using testing::writeText;
+using testing::generatedFileMatches;
+using testing::generatedSectionMatches;
 
 const fs::path kSource = HINDSIGHT_SOURCE_DIR;
 constexpr const char* kBegin = "<!-- history-columns: generated from problems/topopt/history_schema.h -->\n";
 constexpr const char* kEnd = "<!-- history-columns: end -->\n";
-
-bool regenerate() {
-  const char* value = std::getenv("HINDSIGHT_REGENERATE");
-  return value != nullptr && std::string(value) == "1";
-}
 
 // A results file with distinct values in every history column.
 ResultsData fixture() {
@@ -81,28 +73,14 @@ fs::path scratch(const std::string& name) {
 }
 
 TEST(HistorySchema, JsonFileIsGeneratedFromTheTable) {
-  const fs::path path = kSource / "problems/topopt/history_columns.json";
-  if (regenerate()) writeText(path, historyColumnsJson());
-  EXPECT_EQ(readText(path), historyColumnsJson())
-      << path << " differs from the schema; regenerate with HINDSIGHT_REGENERATE=1 (file header)";
+  EXPECT_TRUE(generatedFileMatches(kSource / "problems/topopt/history_columns.json", historyColumnsJson(),
+                                   "the history's schema (problems/topopt/history_schema.h)"));
 }
 
 TEST(HistorySchema, DocumentationTableIsGeneratedFromTheTable) {
-  const fs::path path = kSource / "docs/guides/results_files.md";
-  std::string text = readText(path);
-  const std::size_t begin = text.find(kBegin);
-  std::size_t end = text.find(kEnd);
-  ASSERT_NE(begin, std::string::npos) << path << " lacks the marker " << kBegin;
-  ASSERT_NE(end, std::string::npos) << path << " lacks the marker " << kEnd;
-  ASSERT_LT(begin, end);
-  const std::size_t from = begin + std::string(kBegin).size();
-  if (regenerate()) {
-    text.replace(from, end - from, historyColumnsMarkdown());
-    writeText(path, text);
-    end = text.find(kEnd);
-  }
-  EXPECT_EQ(text.substr(from, end - from), historyColumnsMarkdown())
-      << path << ": the table of history columns differs from the schema; regenerate (file header)";
+  EXPECT_TRUE(generatedSectionMatches(kSource / "docs/guides/results_files.md", kBegin, kEnd,
+                                      historyColumnsMarkdown(),
+                                      "the history's schema (problems/topopt/history_schema.h)"));
 }
 
 TEST(HistorySchema, NamesAreUniqueAndMembersSet) {
