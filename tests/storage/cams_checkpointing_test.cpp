@@ -12,14 +12,17 @@
 #include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 
+#include "support/same_bits.h"
+
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <map>
 #include <random>
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 constexpr int kNoRecords = 1000000;
 
@@ -311,7 +314,7 @@ TEST(CamsCheckpointing, RealRunMatchesThePlanAndFullBitwiseWithFewerRhsThanBinom
     auto storage = createStorage("cams:checkpoints=" + std::to_string(c));
     storage->setVerifyRestores(true);
     const GradientResult r = computeGradient(problem, p, options, *storage);
-    EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+    EXPECT_TRUE(sameBits(r.gradient.data(), reference.gradient.data(), 4));
     EXPECT_EQ(r.objective, reference.objective);
     // C = 2: three units hold no record of four, so cams plays the game of charged states, R(N, 3), while
     // binomial leaves x_{N-1} to the engine's working state: revolve with 3 snapshots, r(N + 1, 3) - 1 = 16
@@ -389,7 +392,7 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
     // Twice: the second run reuses the interval plan.
     for (int run = 0; run < 2; ++run) {
       const GradientResult r = computeGradient(problem, p, options, *storage);
-      EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+      EXPECT_TRUE(sameBits(r.gradient.data(), reference.gradient.data(), 4));
       EXPECT_EQ(r.objective, reference.objective);
       EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
       const cams::PlanCounts counts = cams::simulateOnline(1000, c + 1, 4);
@@ -414,7 +417,7 @@ TEST(CamsOnline, RealRunMatchesTheSimulationAndFullBitwiseFixedAndAdaptive) {
   storage->setVerifyRestores(true);
   const GradientResult r = computeGradient(problem, p, options, *storage);
   EXPECT_TRUE(dynamic_cast<const CamsCheckpointing&>(*storage).onlineRun());
-  EXPECT_EQ(std::memcmp(r.gradient.data(), adaptiveReference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_TRUE(sameBits(r.gradient.data(), adaptiveReference.gradient.data(), 4));
   EXPECT_GT(storage->counters().recomputedSteps, 0);
 }
 
@@ -435,7 +438,7 @@ TEST(CamsOnline, IntervalsBeyondThePlansTablesAreReversedByRevolveExactly) {
   const GradientResult reference = computeGradient(problem, p, options, full);
   auto storage = createStorage("cams:checkpoints=10,online=1");
   const GradientResult r = computeGradient(problem, p, options, *storage);
-  EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_TRUE(sameBits(r.gradient.data(), reference.gradient.data(), 4));
   EXPECT_EQ(storage->counters().recomputedSteps, counts.recomputedSteps);
   EXPECT_EQ(r.summary.rhsEvaluations, 4 * counts.stepEvaluations());
   EXPECT_LE(storage->counters().peakBytesInMemory, (c + 1) * 4 * 8);
@@ -474,7 +477,7 @@ TEST(CamsOnline, OneStateIsNotEnoughAndTooLargeOfflinePlansPointToOnline) {
   FullStorage full;
   const GradientResult reference = computeGradient(problem, p, options, full);
   const GradientResult r = computeGradient(problem, p, options, *large);
-  EXPECT_EQ(std::memcmp(r.gradient.data(), reference.gradient.data(), sizeof(double) * 4), 0);
+  EXPECT_TRUE(sameBits(r.gradient.data(), reference.gradient.data(), 4));
   EXPECT_EQ(large->counters().peakBytesInMemory,
             (CamsCheckpointing::kMaxCheckpoints + 1) * 8 * problem.stateSize());
 }

@@ -24,6 +24,7 @@ using testing::bitwiseEqual;
 using testing::fixedStepRk4;
 using testing::fullReference;
 using testing::pendulumParameters;
+using testing::sameBits;
 using testing::ScratchDirectory;
 
 DiskStorage::Options diskOptions(const std::string& directory, std::int64_t chunk = 64) {
@@ -180,7 +181,7 @@ TEST(DiskStorage, KeptFileIsSelfDescribingAndHoldsTheTrajectoryBitForBit) {
   std::vector<double> stored(static_cast<std::size_t>(dims[0] * dims[1]));
   ASSERT_GE(H5Dread(states, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data()), 0);
   ASSERT_EQ(stored.size(), observed.size());
-  EXPECT_EQ(std::memcmp(stored.data(), observed.data(), stored.size() * 8), 0);
+  EXPECT_TRUE(sameBits(stored.data(), observed.data(), static_cast<Eigen::Index>(stored.size())));
 
   const hid_t times = H5Dopen2(file, "times", H5P_DEFAULT);
   ASSERT_GE(times, 0);
@@ -238,7 +239,8 @@ TEST(DiskStorage, StoredChunksAreStandardZstdFramesOfShuffledStates) {
     }
     const std::size_t first = static_cast<std::size_t>(chunk) * chunkValues;
     const std::size_t count = std::min(chunkValues, observed.size() - first);
-    EXPECT_EQ(std::memcmp(values.data(), observed.data() + first, count * 8), 0) << "chunk " << chunk;
+    EXPECT_TRUE(sameBits(values.data(), observed.data() + first, static_cast<Eigen::Index>(count)))
+        << "chunk " << chunk;
   }
   H5Dclose(states);
   H5Fclose(file);
@@ -333,7 +335,7 @@ TEST(DiskStorage, TimeCodecFileHoldsTheTrajectoryBitForBitInFewerBytes) {
     }
     std::vector<double> stored(observed.size());
     ASSERT_GE(H5Dread(states, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, stored.data()), 0);
-    EXPECT_EQ(std::memcmp(stored.data(), observed.data(), stored.size() * 8), 0);
+    EXPECT_TRUE(sameBits(stored.data(), observed.data(), static_cast<Eigen::Index>(stored.size())));
     const hid_t times = H5Dopen2(file, "times", H5P_DEFAULT);
     std::vector<double> storedTimes(result.times.size());
     ASSERT_GE(H5Dread(times, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, storedTimes.data()), 0);

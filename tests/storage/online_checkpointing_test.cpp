@@ -12,15 +12,18 @@
 #include <hindsight/problems/classic/classic_problems.h>
 #include <hindsight/storage/storage_factory.h>
 
+#include "support/same_bits.h"
+
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <iostream>
 #include <set>
 #include <vector>
 
 namespace hindsight {
 namespace {
+
+using testing::sameBits;
 
 using revolve::toString;
 
@@ -430,9 +433,7 @@ IntegratorOptions pendulumOptions(double t1, double h) {
 void expectBitwiseEqual(const GradientResult& a, const GradientResult& b) {
   EXPECT_EQ(a.objective, b.objective);
   ASSERT_EQ(a.gradient.size(), b.gradient.size());
-  EXPECT_EQ(std::memcmp(a.gradient.data(), b.gradient.data(),
-                        sizeof(double) * static_cast<std::size_t>(a.gradient.size())),
-            0);
+  EXPECT_TRUE(sameBits(a.gradient, b.gradient));
 }
 
 class OnlineOnPendulum : public ::testing::TestWithParam<std::int64_t> {};

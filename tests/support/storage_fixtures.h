@@ -6,6 +6,8 @@
 #include <hindsight/engine/full_storage.h>
 #include <hindsight/problems/classic/classic_problems.h>
 
+#include "support/same_bits.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -75,10 +77,8 @@ inline ::testing::AssertionResult bitwiseEqual(const GradientResult& a, const Gr
   if (a.gradient.size() != b.gradient.size()) return ::testing::AssertionFailure() << "gradient sizes differ";
   if (std::memcmp(&a.objective, &b.objective, sizeof(double)) != 0)
     return ::testing::AssertionFailure() << "psi differs: " << a.objective << " vs " << b.objective;
-  if (std::memcmp(a.gradient.data(), b.gradient.data(), sizeof(double) * a.gradient.size()) != 0) {
-    return ::testing::AssertionFailure()
-           << "gradients differ: " << a.gradient.transpose() << " vs " << b.gradient.transpose();
-  }
+  if (::testing::AssertionResult gradients = sameBits(a.gradient, b.gradient); !gradients)
+    return ::testing::AssertionFailure() << "gradients differ: " << gradients.message();
   if (a.times != b.times) return ::testing::AssertionFailure() << "time grids differ";
   return ::testing::AssertionSuccess();
 }
