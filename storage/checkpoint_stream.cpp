@@ -276,12 +276,12 @@ class BinomialStream final : public BatchedCheckpointStream {
 // Move(p, RAM, NONE) before the Forward that writes the new one (at most c + 1 held). Memory O(c).
 class OnlineStateStream final : public BatchedCheckpointStream {
  public:
-  // A Forward advances at most this many steps (a placement that stored nothing for longer would
-  // otherwise make the host wait for the probe).
-  static constexpr std::int64_t kMaxForward = std::int64_t{1} << 20;
-
-  explicit OnlineStateStream(std::int64_t checkpoints)
-      : BatchedCheckpointStream(kUnknownSteps), c_(checkpoints) {
+  // maxForward: a Forward advances at most this many steps; the next one then starts from a state that
+  // is not stored (writeIcs false). The probe of a record is O(1), so this bounds the wait for an action
+  // (openCheckpointStream: 2^20; with one checkpoint the gaps between stores grow like sqrt(N): 3 997
+  // steps at N = 2 * 10^6).
+  OnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward)
+      : BatchedCheckpointStream(kUnknownSteps), c_(checkpoints), maxForward_(maxForward) {
     placement_.reset(c_);
     probe_.reset(c_);
     stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 1, 1 << 16)));
@@ -337,7 +337,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       std::int64_t k = at_ + 1;
       for (;; ++k) {
         dropped_ = probe_.offer(k);
-        if (dropped_ != Placement::kSkipped || k - at_ >= kMaxForward) break;
+        if (dropped_ != Placement::kSkipped || k - at_ >= maxForward_) break;
       }
       accepted_ = dropped_ != Placement::kSkipped;
       queue_.push_back(
@@ -386,7 +386,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
 
   enum class Phase { kForward, kReverse, kDone };
   Phase phase_ = Phase::kForward;
-  std::int64_t c_;
+  std::int64_t c_, maxForward_;
   Placement placement_, probe_;
   std::int64_t dropped_ = Placement::kSkipped;  // the probe's decision at at_
   bool accepted_ = false;                       // the probe stored the record at at_
@@ -417,6 +417,10 @@ class StoredStream final : public CheckpointStream {
 
 }  // namespace
 
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward) {
+  return std::make_unique<OnlineStateStream>(checkpoints, maxForward);
+}
+
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
 std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan);
 std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
@@ -437,7 +441,7 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
           "online.stages = 1 keeps stage values by a rule of its own, which the action stream does not "
           "express; use online without stages=1");
     }
-    return std::make_unique<OnlineStateStream>(online.checkpointsFor(stateBytes, 0));
+    return openOnlineStateStream(online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
   }
   if (steps == kUnknownSteps && name != "full" && name != "disk") {
     // Why the others need N (docs/guides/checkpoint_schedule.md, "An unknown N"): the fixed plans are

@@ -98,4 +98,8 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, 
                                                        std::int64_t stateBytes, int stages,
                                                        const ScheduleCosts* costs);
 
+/// online's stream without N for c checkpoints (openCheckpointStream's, which caps a Forward at 2^20
+/// steps), with each Forward capped at `maxForward` >= 1 steps: tests reach the cap with it.
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward);
+
 }  // namespace hindsight

@@ -203,8 +203,11 @@ TEST(CheckpointActions, FullAndDiskStreamsWithoutNEndWhereTheHostFinalizes) {
 // online's prediction for N + 1 steps counts (the host's WORK holds x_N as an engine run of N + 1 steps
 // holds its working state).
 CheckpointStreamCounts runOnlineWithoutN(const std::string& spec, std::int64_t checkpoints,
-                                         std::int64_t steps, std::vector<CheckpointAction>* actions) {
-  const std::unique_ptr<CheckpointStream> stream = openCheckpointStream(spec, kUnknownSteps, 16, 4, nullptr);
+                                         std::int64_t steps, std::vector<CheckpointAction>* actions,
+                                         std::int64_t maxForward = 0) {
+  const std::unique_ptr<CheckpointStream> stream =
+      maxForward > 0 ? openOnlineStateStream(checkpoints, maxForward)
+                     : openCheckpointStream(spec, kUnknownSteps, 16, 4, nullptr);
   EXPECT_EQ(stream->restartData(), RestartData::kState);
   CheckpointStreamChecker checker(steps, RestartData::kState);
   CheckpointAction a;
@@ -251,6 +254,23 @@ TEST(CheckpointActions, OnlineStreamWithoutNRecomputesThePredictionOfOneStepMore
     }
   }
   EXPECT_TRUE(intervalRuleBroken);
+  // Forwards cut short of the next store (the cap, 2^20 steps in the stream a host opens) start from a
+  // state that is not stored: the same placement and count.
+  for (const std::int64_t c : {1, 2, 5})
+    for (std::int64_t steps = 1; steps <= 120; ++steps)
+      for (const std::int64_t cap : {1, 2, 3}) {
+        SCOPED_TRACE("c = " + std::to_string(c) + ", N = " + std::to_string(steps) + ", cap " +
+                     std::to_string(cap));
+        std::vector<CheckpointAction> actions;
+        const CheckpointStreamCounts counts = runOnlineWithoutN("", c, steps, &actions, cap);
+        EXPECT_EQ(counts.recomputedSteps,
+                  predictSchedule("online:checkpoints=" + std::to_string(c), steps + 1, 16, 4, nullptr)
+                      .recomputedSteps);
+        for (const CheckpointAction& a : actions) {
+          if (a.kind == CheckpointAction::Kind::kEndForward) break;
+          if (a.kind == CheckpointAction::Kind::kForward) EXPECT_LE(a.n1 - a.n0, cap) << a.text();
+        }
+      }
 }
 
 TEST(CheckpointActions, OnlineStreamWithoutNRefusesAWrongFinalize) {
