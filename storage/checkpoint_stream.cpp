@@ -270,10 +270,12 @@ class BinomialStream final : public BatchedCheckpointStream {
 // the records x_1..x_n offered in order, each interval reversed by revolve with c + 1 - i slots
 // (internal::OnlineReversal) -- and recomputes exactly what online's prediction for n + 1 steps counts.
 // A record's decision depends on its step alone, not on N, and a record that is not stored leaves the
-// placement as it was: so each Forward runs from the last stored state to the next record the placement
-// stores, found by offering the records ahead to a copy of it (probe_); that copy becomes the placement
-// only when the host goes on past that record without finalizing. A dropped checkpoint is released by
-// Move(p, RAM, NONE) before the Forward that writes the new one (at most c + 1 held). Memory O(c).
+// placement as it was: so each Forward runs from the last stored state to the next record k the placement
+// stores, found by offering the records ahead. The placement takes k at once; the stream's own list of
+// the positions (positions_) follows it, O(1) per store into a free slot and O(m - j) per replacement of
+// p_j, as the placement's tables do, and is put back (p_j reinserted, k removed) if the host finalizes
+// before k. When the host goes on past k, the dropped checkpoint is released by Move(p_j, RAM, NONE)
+// before the Forward that writes x_k (at most c + 1 held). Memory O(c).
 class OnlineStateStream final : public BatchedCheckpointStream {
  public:
   // maxForward: a Forward advances at most this many steps; the next one then starts from a state that
@@ -283,7 +285,8 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   OnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward)
       : BatchedCheckpointStream(kUnknownSteps), c_(checkpoints), maxForward_(maxForward) {
     placement_.reset(c_);
-    probe_.reset(c_);
+    positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 2, 1 << 16)));
+    positions_.assign(1, 0);
     stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 1, 1 << 16)));
   }
   RestartData restartData() const override { return RestartData::kState; }
@@ -318,28 +321,25 @@ class OnlineStateStream final : public BatchedCheckpointStream {
     }
   };
 
-  // The probed record's decision becomes the placement's: the dropped checkpoint is released.
-  void acceptProbe() {
-    if (dropped_ >= 0)
-      queue_.push_back(CheckpointAction::release(placement_.positions()[static_cast<std::size_t>(dropped_)],
-                                                 CheckpointStorage::kRam));
-    placement_ = probe_;  // the vectors' capacity is reserved: no allocation
-    accepted_ = false;
-  }
-
   bool refill() override {
     if (phase_ == Phase::kForward && maxN_ < 0) {
-      if (accepted_) {
-        acceptProbe();
+      if (accepted_) {  // the host went on past the stored record: x_{at_} is written next
+        if (dropped_ >= 0)
+          queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+        accepted_ = false;
         storeAt_ = true;
       }
-      probe_ = placement_;
       std::int64_t k = at_ + 1;
       for (;; ++k) {
-        dropped_ = probe_.offer(k);
+        dropped_ = placement_.offer(k);
         if (dropped_ != Placement::kSkipped || k - at_ >= maxForward_) break;
       }
       accepted_ = dropped_ != Placement::kSkipped;
+      if (dropped_ >= 0) {
+        droppedPosition_ = positions_[static_cast<std::size_t>(dropped_)];
+        positions_.erase(positions_.begin() + dropped_);
+      }
+      if (accepted_) positions_.push_back(k);
       queue_.push_back(
           forward(at_, k, storeAt_, false, storeAt_ ? CheckpointStorage::kRam : CheckpointStorage::kWork));
       storeAt_ = false;
@@ -347,13 +347,19 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       return true;
     }
     if (phase_ == Phase::kForward) {
-      // finalize(n), n0 < n <= at_: the records up to n - 1 were not stored (at_ is the first the probe
-      // stores); x_n is offered too, as an engine run of n + 1 steps offers its working state, and when
-      // the probe stored it its decision is the placement's (x_n itself is not needed and not written).
+      // finalize(n), n0 < n <= at_: the records up to n - 1 were not stored (at_ is the first the
+      // placement stores); x_n is offered too, as an engine run of n + 1 steps offers its working state,
+      // so when at_ = n its decision stands (x_n itself is not needed and not written) and p_j is
+      // released; before it, the placement is put back. (placement_ is not used after this.)
       const std::int64_t n = maxN_;
-      if (accepted_ && n == at_) acceptProbe();
+      if (accepted_ && n == at_ && dropped_ >= 0) {
+        queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+      } else if (accepted_ && n < at_) {
+        positions_.pop_back();
+        if (dropped_ >= 0) positions_.insert(positions_.begin() + dropped_, droppedPosition_);
+      }
+      accepted_ = false;
       queue_.push_back(marker(Kind::kEndForward));
-      positions_ = placement_.positions();
       reversal_.reserve(c_ + 1);
       reversal_.reset(&positions_, n + 1, c_);
       restoring_ = n - 1;
@@ -387,12 +393,13 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   enum class Phase { kForward, kReverse, kDone };
   Phase phase_ = Phase::kForward;
   std::int64_t c_, maxForward_;
-  Placement placement_, probe_;
-  std::int64_t dropped_ = Placement::kSkipped;  // the probe's decision at at_
-  bool accepted_ = false;                       // the probe stored the record at at_
+  Placement placement_;
+  std::int64_t dropped_ = Placement::kSkipped;  // the placement's decision at at_ (an index before it)
+  std::int64_t droppedPosition_ = -1;           // the checkpoint it dropped there
+  bool accepted_ = false;                       // the placement stored the record at at_
   bool storeAt_ = true;  // the next Forward writes x_{at_} (x_0 is held from the start)
   std::int64_t at_ = 0;
-  std::vector<std::int64_t> positions_;  // the placement when the forward run ended
+  std::vector<std::int64_t> positions_;  // the placement's positions, as the host holds them
   internal::OnlineReversal reversal_;
   std::vector<std::int64_t> stack_;  // revolve's slots in the current interval: their positions
   std::int64_t intervalStart_ = -1, restoring_ = -1;
