@@ -197,8 +197,9 @@ class CheckpointSchedule:
 
     def finalize(self, n):
         """The forward run ends at step n (checkpoint_schedules' finalize): for a stream opened with
-        steps=None, n becomes N (the forward must be at step n); otherwise n must be N and the forward
-        there. RuntimeError otherwise, as there."""
+        steps=None, n becomes N, once, and the host stops at n inside the last Forward yielded
+        (n0 < n <= n1); otherwise n must be N and the forward there. RuntimeError otherwise (a second call
+        without N, n behind that Forward's start or beyond its end), as there."""
         if n < 1:
             raise ValueError(f"finalize: n must be positive, not {n}")
         self._stream.finalize(n)
