@@ -8,7 +8,8 @@
 #     J(kappa) = sum_{k=1..N} dt * (h/2) |u_k|^2
 # by its own discrete adjoint, reversing the run by the actions of hindsight.checkpoint_schedule
 # (docs/guides/checkpoint_schedule.md): Forward, Reverse, Copy, Move, EndForward, EndReverse, with storage
-# RAM, DISK (files in a scratch directory) or WORK. Every strategy must give the gradient of "full"
+# RAM, DISK (files in a scratch directory) or WORK; "online" is also run as a host that decides N itself
+# (steps=None, finalize inside a Forward, state checkpoints). Every strategy must give the gradient of "full"
 # bit for bit (recomputed steps repeat the same arithmetic), and "full" must agree with central finite
 # differences.
 #
@@ -62,10 +63,14 @@ class Host:
     """Runs a schedule's actions under checkpoint_schedules' contract: a checkpoint (RAM, or DISK in .npz
     files) holds what one Forward wrote -- the state it started from (restart data) and/or the states its
     steps' adjoints need -- and WORK holds the state being advanced and the adjoint data of the steps
-    reversed next. Counts the steps it advances."""
+    reversed next. Counts the steps it advances. schedule: a stream opened with steps=None; the host ends
+    its forward run at step `stop`, inside a Forward, and calls schedule.finalize(stop). Its restart data is
+    the state itself, so it also runs streams of state checkpoints (restart_data == "state"), whose
+    Move(n, RAM, NONE) releases a checkpoint."""
 
-    def __init__(self, model, kappa, directory):
+    def __init__(self, model, kappa, directory, schedule=None, stop=None):
         self.model, self.kappa, self.directory = model, kappa, directory
+        self.schedule, self.stop = schedule, stop
         self.stored = {StorageType.RAM: {}, StorageType.DISK: {}}
         self.work_deps = {}  # step -> u_k, for the Reverse that follows
         self.n, self.u = 0, model.u0.copy()  # WORK: the state at the start of step n
@@ -97,7 +102,9 @@ class Host:
     def forward(self, a):
         assert self.n == a.n0, f"{a}: WORK holds the start of step {self.n}"
         start, deps = self.u.copy(), {}
-        for k in range(a.n0, a.n1):
+        deciding = self.schedule is not None and self.schedule.max_n is None
+        end = min(a.n1, self.stop) if deciding else a.n1  # the host's own forward run ends at `stop`
+        for k in range(a.n0, end):
             if a.write_adj_deps:
                 deps[k] = self.u.copy()  # this adjoint needs u_k only
             self.u = self.model.step(self.u, self.kappa)
@@ -109,7 +116,9 @@ class Host:
             self.work_deps = {}
         else:
             self.work_deps = deps
-        self.n = a.n1
+        self.n = end
+        if deciding and end == self.stop:
+            self.schedule.finalize(end)
 
     def end_forward(self, a):
         self.forward_done = True
@@ -127,7 +136,9 @@ class Host:
 
     def copy(self, a, release=False):
         ics, deps = self.get(a.from_storage, a.n, release)
-        if a.to_storage == StorageType.WORK:
+        if a.to_storage == StorageType.NONE:  # a release (state checkpoints only)
+            assert self.schedule is not None and self.schedule.restart_data == "state", a
+        elif a.to_storage == StorageType.WORK:
             self.work_deps = deps
             if ics is not None:
                 self.n, self.u = a.n, ics
@@ -144,11 +155,11 @@ class Host:
         raise RuntimeError("the schedule ended without EndReverse")
 
 
-def gradient(spec, model, kappa, stages=1):
+def gradient(spec, model, kappa, stages=1, unknown_n=False):
     with tempfile.TemporaryDirectory() as directory:
-        actions = hindsight.checkpoint_schedule(spec, steps=args.steps, state_bytes=8 * model.n, stages=stages,
-                                                costs="1:1:0.5:0.5")
-        host = Host(model, kappa, directory).run(actions)
+        actions = hindsight.checkpoint_schedule(spec, steps=None if unknown_n else args.steps,
+                                                state_bytes=8 * model.n, stages=stages, costs="1:1:0.5:0.5")
+        host = Host(model, kappa, directory, actions if unknown_n else None, args.steps).run(actions)
         leftover = sum(len(v) for v in host.stored.values()) + len(host.work_deps)
         return host.objective, host.gradient, host.advanced - args.steps, leftover
 
@@ -160,15 +171,16 @@ state = 8 * model.n
 strategies = [("full", 1), ("binomial:checkpoints=8", 1), ("cams:checkpoints=8", 1),
               ("cams:checkpoints=8", 4),  # step records of 4 state units: some adjoint steps need no re-run
               (f"multilevel:ram={4 * state},disk={16 * state},costs=1:1:0.5:0.5", 1),
-              ("disk:dir=" + tempfile.gettempdir(), 1)]
+              ("disk:dir=" + tempfile.gettempdir(), 1),
+              ("online:checkpoints=8", None)]  # steps=None: the host decides N, the checkpoints are states
 J_full, g_full, _, _ = gradient("full", model, kappa)
 print(f"{'strategy':<50} {'J':>14} {'dJ/dkappa':>22} {'extra steps':>12}")
 bitwise = True
 for spec, stages in strategies:
-    J, g, extra, leftover = gradient(spec, model, kappa, stages)
+    J, g, extra, leftover = gradient(spec, model, kappa, stages or 1, unknown_n=stages is None)
     same = J == J_full and g == g_full
     bitwise &= same
-    label = spec if stages == 1 else f"{spec} (records of {stages} units)"
+    label = spec if stages == 1 else f"{spec} (steps=None)" if stages is None else f"{spec} (records of {stages} units)"
     print(f"{label:<50} {J:14.10f} {g:22.17g} {extra:12d}  {'same bits' if same else 'DIFFERENT'}"
           f"{'' if leftover == 0 else f', {leftover} items left in storage'}")
 

@@ -1065,6 +1065,10 @@ PYBIND11_MODULE(_hindsight, m) {
       .def_property_readonly("r", &CheckpointStream::r)
       .def_property_readonly("max_n", &CheckpointStream::maxN)
       .def_property_readonly("is_exhausted", &CheckpointStream::isExhausted)
+      .def_property_readonly("restart_data",
+                             [](const CheckpointStream& stream) {
+                               return stream.restartData() == RestartData::kState ? "state" : "interval";
+                             })
       .def("finalize", &CheckpointStream::finalize);
   m.def("_open_checkpoint_stream", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
                                       int stages, const std::string& costs) {

@@ -856,7 +856,8 @@ void CheckpointStreamChecker::take(const CheckpointAction& a) {
       if (a.n1 > steps - reversed)
         fail("advances past the adjoint at step " + std::to_string(steps - reversed));
       workIcs = workAdjDeps = Range{0, 0};
-      const Range ics = a.writeIcs ? Range{a.n0, a.n1} : Range{0, 0};
+      // A state checkpoint (RestartData::kState) restarts every step from its own on.
+      const Range ics = a.writeIcs ? Range{a.n0, states ? steps : a.n1} : Range{0, 0};
       const Range adjDeps = a.writeAdjDeps ? Range{a.n0, a.n1} : Range{0, 0};
       if (checkpointStorage(a.storage)) {
         if (empty(ics) && empty(adjDeps)) fail("writes nothing to a checkpoint storage");
@@ -884,6 +885,11 @@ void CheckpointStreamChecker::take(const CheckpointAction& a) {
     case CheckpointAction::Kind::kCopy:
     case CheckpointAction::Kind::kMove: {
       if (!checkpointStorage(a.from)) fail("copies from a storage that holds no checkpoints");
+      if (states && a.kind == CheckpointAction::Kind::kMove && a.to == CheckpointStorage::kNone) {
+        // The release of a state checkpoint: it touches neither WORK nor the adjoint.
+        if (held[a.from].erase(a.n0) == 0) fail("no checkpoint at " + std::to_string(a.n0) + " there");
+        break;
+      }
       if (!checkpointStorage(a.to) && a.to != CheckpointStorage::kWork) fail("copies to no storage");
       if (!empty(workIcs) || !empty(workAdjDeps)) fail("WORK still holds data");
       const auto it = held[a.from].find(a.n0);
@@ -941,9 +947,9 @@ CheckpointStreamCounts CheckpointStreamChecker::finish() {
   return counts;
 }
 
-CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
-                                             std::int64_t steps) {
-  CheckpointStreamChecker checker(steps);
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions, std::int64_t steps,
+                                             RestartData restartData) {
+  CheckpointStreamChecker checker(steps, restartData);
   for (const CheckpointAction& a : actions) checker.take(a);
   return checker.finish();
 }

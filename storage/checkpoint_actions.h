@@ -16,7 +16,8 @@
 // Every stream keeps checkpoint_schedules' contract (docs/guides/checkpoint_schedule.md, "The
 // contract"): restart data is written by the Forward that leaves a state and covers the steps it runs;
 // Copy/Move need an empty WORK and never copy from WORK; a Reverse reads its adjoint data from WORK only;
-// Move is not a kind of Copy. binomial, full, disk, multilevel and cams streams are generated as they are
+// Move is not a kind of Copy (online without N relaxes the first rule for state checkpoints and declares
+// it: RestartData::kState). binomial, full, disk, multilevel and cams streams are generated as they are
 // consumed (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself
 // executes (the actions `hindsight schedule --actions` prints, from the same plan code as a run):
 //   a checkpoint store is writeIcs on the Forward that leaves the state, or a Copy/Move between storages
@@ -44,6 +45,13 @@ namespace hindsight {
 /// state being advanced (and the adjoint data of the step about to be reversed); NONE: released.
 enum class CheckpointStorage { kRam, kDisk, kWork, kNone };
 const char* checkpointStorageName(CheckpointStorage storage);  ///< "RAM", "DISK", "WORK", "NONE"
+
+/// What a checkpoint's restart data is. kInterval: checkpoint_schedules' rule -- the restart data written
+/// by Forward(n0, n1, writeIcs, ...) serves the steps n0..n1-1 only. kState: it is x_{n0} itself, which
+/// a host whose step is a function of the state alone advances any distance, and Move(n, RAM|DISK, NONE)
+/// releases a checkpoint (the relaxation docs/guides/checkpoint_schedule.md, "An unknown N", states;
+/// checkpoint_schedules' own classes refuse such a stream).
+enum class RestartData { kInterval, kState };
 
 struct CheckpointAction {
   enum class Kind { kForward, kReverse, kCopy, kMove, kEndForward, kEndReverse };
@@ -86,6 +94,12 @@ struct CheckpointAction {
     a.to = CheckpointStorage::kWork;
     return a;
   }
+  /// Move(n, from, NONE): the release of a state checkpoint (RestartData::kState streams only).
+  static CheckpointAction release(std::int64_t n, CheckpointStorage from) {
+    CheckpointAction a = toWork(n, from, true);
+    a.to = CheckpointStorage::kNone;
+    return a;
+  }
   static CheckpointAction marker(Kind kind) {
     CheckpointAction a;
     a.kind = kind;
@@ -123,10 +137,14 @@ struct CheckpointStreamCounts {
 
 /// checkCheckpointStream() one action at a time, for a stream that is counted as it is made (no vector of
 /// it): take() throws std::logic_error naming the action that breaks the contract, finish() when the stream
-/// ends without EndReverse or leaves checkpoints behind, else returns the counts.
+/// ends without EndReverse or leaves checkpoints behind, else returns the counts. restartData: the
+/// stream's declaration (CheckpointStream::restartData()); kState replaces the rule that restart data
+/// serves only the steps its Forward ran by "a state checkpoint restarts any distance" and accepts
+/// Move(n, RAM|DISK, NONE) as its release; every other rule stays.
 class CheckpointStreamChecker {
  public:
-  explicit CheckpointStreamChecker(std::int64_t steps) : steps(steps) {}
+  explicit CheckpointStreamChecker(std::int64_t steps, RestartData restartData = RestartData::kInterval)
+      : steps(steps), states(restartData == RestartData::kState) {}
   void take(const CheckpointAction& a);
   CheckpointStreamCounts finish();
 
@@ -136,6 +154,7 @@ class CheckpointStreamChecker {
     Range ics{0, 0}, adjDeps{0, 0};
   };
   std::int64_t steps;
+  bool states;
   CheckpointStreamCounts counts;
   std::int64_t at = 0, reversed = 0;  // at: the step of the WORK state, -1 none
   Range workIcs{0, 0}, workAdjDeps{0, 0};
@@ -147,7 +166,7 @@ class CheckpointStreamChecker {
 /// std::logic_error naming the action when the stream breaks the contract for N steps (the rules of
 /// docs/guides/checkpoint_schedule.md, "The contract"; python/tests/stream_contract.py states the same
 /// rules in Python), or leaves checkpoints behind at EndReverse.
-CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions,
-                                             std::int64_t steps);
+CheckpointStreamCounts checkCheckpointStream(const std::vector<CheckpointAction>& actions, std::int64_t steps,
+                                             RestartData restartData = RestartData::kInterval);
 
 }  // namespace hindsight

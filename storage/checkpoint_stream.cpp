@@ -2,6 +2,7 @@
 
 #include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/cams_checkpointing.h>
+#include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/engine/storage_spec.h>
 #include <hindsight/storage/mixed_plan.h>
 #include <hindsight/storage/multilevel_storage.h>
@@ -31,6 +32,7 @@ bool CheckpointStream::next(CheckpointAction* action) {
         else
           adjointOnly_.insert(key(action->storage, action->n0));
       }
+      forwardStart_ = action->n0;
       n_ = action->n1;
       break;
     case CheckpointAction::Kind::kReverse:
@@ -45,7 +47,9 @@ bool CheckpointStream::next(CheckpointAction* action) {
         else
           adjointOnly_.erase(key(action->from, action->n0));
       }
-      if (action->to == CheckpointStorage::kWork) {
+      if (action->to == CheckpointStorage::kNone) {
+        // A release (RestartData::kState streams only): the forward stays where it is.
+      } else if (action->to == CheckpointStorage::kWork) {
         // Adjoint data alone puts the forward nowhere; checkpoint_schedules' own schedules then report
         // the step after it, which is where the forward would stand.
         n_ = restart ? action->n0 : action->n0 + 1;
@@ -75,12 +79,27 @@ bool BatchedCheckpointStream::doNext(CheckpointAction* action) {
 }
 
 void CheckpointStream::finalize(std::int64_t n) {
-  if (n < 1) throw std::logic_error("finalize(" + std::to_string(n) + "): n must be >= 1");
-  if (maxN_ < 0 ? n_ != n : (n != maxN_ || n_ != n)) {
-    throw std::logic_error(
-        "finalize(" + std::to_string(n) + "): the forward is at step " + std::to_string(n_) +
-        (maxN_ < 0 ? std::string() : " and the stream is for N = " + std::to_string(maxN_)));
+  const std::string call = "finalize(" + std::to_string(n) + "): ";
+  if (n < 1) throw std::logic_error(call + "n must be >= 1");
+  if (openedWithoutN_ && maxN_ >= 0)
+    throw std::logic_error(call + "finalize was called already (N = " + std::to_string(maxN_) + ")");
+  if (maxN_ >= 0) {
+    if (n != maxN_ || n_ != n) {
+      throw std::logic_error(call + "the forward is at step " + std::to_string(n_) +
+                             " and the stream is for N = " + std::to_string(maxN_));
+    }
+    return;
   }
+  // The host stops inside the last Forward (checkpoint_schedules' finalize with max_n None): n0 < n <= n1.
+  if (n > n_ || n <= forwardStart_) {
+    throw std::logic_error(call + "the forward is at step " + std::to_string(n_) +
+                           (n <= forwardStart_ && n < n_
+                                ? ", and n is behind the start " + std::to_string(forwardStart_) +
+                                      " of its last Forward (n must be in (" + std::to_string(forwardStart_) +
+                                      ", " + std::to_string(n_) + "])"
+                                : std::string()));
+  }
+  n_ = n;
   maxN_ = n;
 }
 
@@ -244,6 +263,149 @@ class BinomialStream final : public BatchedCheckpointStream {
   bool pendingStore_ = false;
 };
 
+// online without N: the checkpoints are states (RestartData::kState), placed by online's
+// internal::TwoHorizonPlacement. When the host finalizes at n its WORK holds x_n, which the adjoint does not
+// need (the adjoint of step n - 1 starts from x_{n-1}), as the working state x_{N-1} of an engine run of
+// N = n + 1 steps: so the stream is that run's game (engine/online_checkpointing.h) -- c + 1 RAM slots,
+// the records x_1..x_n offered in order, each interval reversed by revolve with c + 1 - i slots
+// (internal::OnlineReversal) -- and recomputes exactly what online's prediction for n + 1 steps counts.
+// A record's decision depends on its step alone, not on N, and a record that is not stored leaves the
+// placement as it was: so each Forward runs from the last stored state to the next record k the placement
+// stores, found by offering the records ahead. The placement takes k at once; the stream's own list of
+// the positions (positions_) follows it, O(1) per store into a free slot and O(m - j) per replacement of
+// p_j, as the placement's tables do, and is put back (p_j reinserted, k removed) if the host finalizes
+// before k. When the host goes on past k, the dropped checkpoint is released by Move(p_j, RAM, NONE)
+// before the Forward that writes x_k (at most c + 1 held). Memory O(c).
+class OnlineStateStream final : public BatchedCheckpointStream {
+ public:
+  // maxForward: a Forward advances at most this many steps; the next one then starts from a state that
+  // is not stored (writeIcs false). The probe of a record is O(1), so this bounds the wait for an action
+  // (openCheckpointStream: 2^20; with one checkpoint the gaps between stores grow like sqrt(N): 3 997
+  // steps at N = 2 * 10^6).
+  OnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward)
+      : BatchedCheckpointStream(kUnknownSteps), c_(checkpoints), maxForward_(maxForward) {
+    placement_.reset(c_);
+    positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 2, 1 << 16)));
+    positions_.assign(1, 0);
+    stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 1, 1 << 16)));
+  }
+  RestartData restartData() const override { return RestartData::kState; }
+
+ private:
+  using Placement = internal::TwoHorizonPlacement;
+
+  struct Visitor {
+    OnlineStateStream& s;
+    std::int64_t start, e;  // the interval's first step; the step restored
+    void loadWorking() { throw std::logic_error("online stream: revolve used a working state"); }
+    void load(std::int64_t slot) {
+      const std::int64_t position = s.stack_[static_cast<std::size_t>(slot)];
+      const bool last = position == e;  // the schedule pops it
+      s.queue_.push_back(toWork(position, CheckpointStorage::kRam, last));
+      if (last) s.stack_.pop_back();
+      s.at_ = position;
+      s.pendingStore_ = false;
+    }
+    void advance(std::int64_t from, std::int64_t to) {
+      if (start + from != s.at_) throw std::logic_error("online stream: revolve advances from elsewhere");
+      s.queue_.push_back(forward(s.at_, start + to, s.pendingStore_, false,
+                                 s.pendingStore_ ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+      s.pendingStore_ = false;
+      s.at_ = start + to;
+    }
+    void store(std::int64_t slot) {
+      if (static_cast<std::size_t>(slot) != s.stack_.size())
+        throw std::logic_error("online stream: revolve's slots are not a stack");
+      s.stack_.push_back(s.at_);
+      s.pendingStore_ = true;
+    }
+  };
+
+  bool refill() override {
+    if (phase_ == Phase::kForward && maxN_ < 0) {
+      if (accepted_) {  // the host went on past the stored record: x_{at_} is written next
+        if (dropped_ >= 0)
+          queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+        accepted_ = false;
+        storeAt_ = true;
+      }
+      std::int64_t k = at_ + 1;
+      for (;; ++k) {
+        dropped_ = placement_.offer(k);
+        if (dropped_ != Placement::kSkipped || k - at_ >= maxForward_) break;
+      }
+      accepted_ = dropped_ != Placement::kSkipped;
+      if (dropped_ >= 0) {
+        droppedPosition_ = positions_[static_cast<std::size_t>(dropped_)];
+        positions_.erase(positions_.begin() + dropped_);
+      }
+      if (accepted_) positions_.push_back(k);
+      queue_.push_back(
+          forward(at_, k, storeAt_, false, storeAt_ ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+      storeAt_ = false;
+      at_ = k;
+      return true;
+    }
+    if (phase_ == Phase::kForward) {
+      // finalize(n), n0 < n <= at_: the records up to n - 1 were not stored (at_ is the first the
+      // placement stores); x_n is offered too, as an engine run of n + 1 steps offers its working state,
+      // so when at_ = n its decision stands (x_n itself is not needed and not written) and p_j is
+      // released; before it, the placement is put back. (placement_ is not used after this.)
+      const std::int64_t n = maxN_;
+      if (accepted_ && n == at_ && dropped_ >= 0) {
+        queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+      } else if (accepted_ && n < at_) {
+        positions_.pop_back();
+        if (dropped_ >= 0) positions_.insert(positions_.begin() + dropped_, droppedPosition_);
+      }
+      accepted_ = false;
+      queue_.push_back(marker(Kind::kEndForward));
+      reversal_.reserve(c_ + 1);
+      reversal_.reset(&positions_, n + 1, c_);
+      restoring_ = n - 1;
+      phase_ = Phase::kReverse;
+      return true;
+    }
+    if (restoring_ >= 0) {
+      const internal::OnlinePlacement::Interval& interval = reversal_.enter(restoring_);
+      if (interval.start != intervalStart_) {
+        intervalStart_ = interval.start;
+        stack_.assign(1, interval.start);  // revolve's slot 0: the interval's checkpoint
+      }
+      Visitor visitor{*this, interval.start, restoring_};
+      reversal_.restoreStep(restoring_, visitor);
+      if (at_ != restoring_ || pendingStore_)
+        throw std::logic_error("online stream: revolve missed its step");
+      queue_.push_back(forward(restoring_, restoring_ + 1, false, true, CheckpointStorage::kWork));
+      queue_.push_back(reverseStep(restoring_));
+      at_ = -1;
+      --restoring_;
+      return true;
+    }
+    if (phase_ == Phase::kReverse) {
+      queue_.push_back(marker(Kind::kEndReverse));
+      phase_ = Phase::kDone;
+      return true;
+    }
+    return false;
+  }
+
+  enum class Phase { kForward, kReverse, kDone };
+  Phase phase_ = Phase::kForward;
+  std::int64_t c_, maxForward_;
+  Placement placement_;
+  std::int64_t dropped_ = Placement::kSkipped;  // the placement's decision at at_ (an index before it)
+  std::int64_t droppedPosition_ = -1;           // the checkpoint it dropped there
+  bool accepted_ = false;                       // the placement stored the record at at_
+  bool storeAt_ = true;  // the next Forward writes x_{at_} (x_0 is held from the start)
+  std::int64_t at_ = 0;
+  std::vector<std::int64_t> positions_;  // the placement's positions, as the host holds them
+  internal::OnlineReversal reversal_;
+  std::vector<std::int64_t> stack_;  // revolve's slots in the current interval: their positions
+  std::int64_t intervalStart_ = -1, restoring_ = -1;
+  bool pendingStore_ = false;
+};
+
 // mixed: the whole translated plan, handed out in order.
 class StoredStream final : public CheckpointStream {
  public:
@@ -262,6 +424,10 @@ class StoredStream final : public CheckpointStream {
 
 }  // namespace
 
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward) {
+  return std::make_unique<OnlineStateStream>(checkpoints, maxForward);
+}
+
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
 std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::unique_ptr<cams::Plan> plan);
 std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
@@ -272,20 +438,33 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
                                                        const ScheduleCosts* costs) {
   const StorageSpec spec = StorageSpec::parse(specText);
   const std::string& name = spec.name();
-  if (steps == kUnknownSteps) {
-    if (name != "full" && name != "disk") {
-      // Why online and cams online=1 cannot be streams without N (docs/guides/checkpoint_schedule.md,
-      // "An unknown N"): a checkpoint's restart data covers the steps up to the next checkpoint of the
-      // forward run, and a bounded online placement drops checkpoints, merging two intervals.
+  if (steps == kUnknownSteps && name == "online") {
+    // Every check of the spec and the sizes (the prediction at two steps), then c as a run derives it.
+    predictSchedule(specText, 2, stateBytes, stages, costs);
+    const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
+    const auto& online = dynamic_cast<const OnlineCheckpointing&>(*storage);
+    if (online.keepsStages() && stages > 1) {
       throw std::invalid_argument(
-          "steps unknown: only full and disk streams are made without N (they discard no checkpoint); " +
-          name +
-          " needs N: with a bounded number of checkpoints and N unknown, online and cams online=1 drop a "
-          "checkpoint during the forward run, after which the checkpoint before it must restart steps its "
-          "restart data does not cover (the Forward that wrote it ended at the dropped one), which "
-          "checkpoint_schedules' contract refuses (docs/guides/checkpoint_schedule.md, \"An unknown N\"); "
-          "with N known, binomial is the stream for the same memory");
+          "online.stages = 1 keeps stage values by a rule of its own, which the action stream does not "
+          "express; use online without stages=1");
     }
+    return openOnlineStateStream(online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
+  }
+  if (steps == kUnknownSteps && name != "full" && name != "disk") {
+    // Why the others need N (docs/guides/checkpoint_schedule.md, "An unknown N"): the fixed plans are
+    // made for N, and cams' online mode drops checkpoints during the forward run, after which the
+    // checkpoint before a dropped one must restart steps its restart data does not cover; its interval
+    // plans are not translated for state checkpoints.
+    throw std::invalid_argument(
+        "steps unknown: only full, disk and online streams are made without N (full and disk discard no "
+        "checkpoint; online keeps states, restart_data = state); " +
+        name + " needs N" +
+        (name == "cams" ? ": with online=1 and N unknown it drops checkpoints during the forward run, after "
+                          "which the checkpoint before a dropped one must restart steps its restart data "
+                          "does not cover (the Forward that wrote it ended at the dropped one), which "
+                          "checkpoint_schedules' contract refuses (docs/guides/checkpoint_schedule.md, \"An "
+                          "unknown N\"); online is the stream for the same memory"
+                        : std::string(": its plan is made for N")));
   }
   if (name == "binomial" || name == "full" || name == "disk") {
     if (spec.has("stages") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1) {

@@ -10,6 +10,8 @@
 // (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.03 s at N = 10^6; cams: its dynamic
 // programme over N, tables of N (M + 1) entries, seconds at N = 10^4: bench/checkpoint_stream_bench.py).
 // mixed translates its whole plan when the stream is opened and then hands it out action by action.
+// online without N (openCheckpointStream with kUnknownSteps) keeps states as checkpoints
+// (RestartData::kState, docs/guides/checkpoint_schedule.md, "An unknown N"): memory O(checkpoints).
 #pragma once
 
 #include <hindsight/storage/checkpoint_actions.h>
@@ -38,22 +40,28 @@ class CheckpointStream {
   /// N, or -1 while it is unknown (a stream opened without N, before finalize()).
   std::int64_t maxN() const { return maxN_; }
   /// The forward run ends at step n (checkpoint_schedules' finalize): for a stream opened without N, n
-  /// becomes N, which needs the forward there (n() == n); for one with N, n must be N and the forward
-  /// there. Throws std::logic_error otherwise (checkpoint_schedules raises "Invalid checkpointing state").
+  /// becomes N, once, with n inside the last Forward handed out (n0 < n <= n1; the host stops there);
+  /// for one with N, n must be N and the forward there. Throws std::logic_error otherwise (a second call
+  /// on a stream opened without N, n behind the last Forward's start or ahead of its end;
+  /// checkpoint_schedules raises "Invalid checkpointing state").
   void finalize(std::int64_t n);
   /// EndReverse has been handed out.
   bool isExhausted() const { return exhausted_; }
-  /// Restart checkpoints (RAM and DISK) the host holds now, and the most it held at once.
+  /// Restart checkpoints (RAM and DISK) the host holds now.
   std::int64_t heldCheckpoints() const { return restart_; }
+  /// What the stream's checkpoints are (RestartData): kState only for online without N.
+  virtual RestartData restartData() const { return RestartData::kInterval; }
 
  protected:
-  explicit CheckpointStream(std::int64_t maxN) : maxN_(maxN) {}
+  explicit CheckpointStream(std::int64_t maxN) : maxN_(maxN), openedWithoutN_(maxN < 0) {}
   /// The next action of the strategy; false after EndReverse.
   virtual bool doNext(CheckpointAction* action) = 0;
   std::int64_t maxN_;
 
  private:
   std::int64_t n_ = 0, r_ = 0;
+  std::int64_t forwardStart_ = -1;  // n0 of the last Forward handed out
+  bool openedWithoutN_;
   bool exhausted_ = false;
   // Checkpoints holding restart data, counted; those holding adjoint data only (cams' records without
   // restart data), by (storage, step): a Copy/Move of any other to WORK moves n. O(1) memory for full and
@@ -77,13 +85,21 @@ class BatchedCheckpointStream : public CheckpointStream {
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
 /// (storage/schedule.h): full, disk, binomial, multilevel and cams (any N their plans support) and mixed.
-/// steps = kUnknownSteps: N is unknown until the host calls finalize() (full and disk, which keep every
-/// state and so discard nothing: the forward run writes each step's restart data, as checkpoint_schedules'
-/// SingleMemoryStorageSchedule/SingleDiskStorageSchedule do for an unknown N).
-/// Throws std::invalid_argument as checkpointSchedule() does, and for an unknown N with other strategies.
+/// steps = kUnknownSteps: N is unknown until the host calls finalize(): full and disk, which keep every
+/// state and so discard nothing (the forward run writes each step's restart data, as checkpoint_schedules'
+/// SingleMemoryStorageSchedule/SingleDiskStorageSchedule do for an unknown N), and online, whose
+/// checkpoints are states (RestartData::kState): at most c + 1 in RAM, placed as a run of N + 1 steps
+/// places them (internal::TwoHorizonPlacement: the host's WORK holds x_N when it finalizes, as the
+/// engine's working state holds x_{N-1}), so it recomputes what online's prediction for N + 1 steps
+/// counts. Throws std::invalid_argument as checkpointSchedule() does, and for an unknown N with other
+/// strategies.
 constexpr std::int64_t kUnknownSteps = -1;
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
                                                        const ScheduleCosts* costs);
+
+/// online's stream without N for c checkpoints (openCheckpointStream's, which caps a Forward at 2^20
+/// steps), with each Forward capped at `maxForward` >= 1 steps: tests reach the cap with it.
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward);
 
 }  // namespace hindsight

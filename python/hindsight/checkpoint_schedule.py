@@ -177,6 +177,15 @@ class CheckpointSchedule:
         return None if n < 0 else n
 
     @property
+    def restart_data(self):
+        """What a checkpoint's restart data is: "interval" (checkpoint_schedules' rule: the data written by
+        Forward(n0, n1, write_ics=True, ...) serves steps n0..n1-1 only) or "state" (online with
+        steps=None: it is the state at n0 itself, which the host may advance any distance, and
+        Move(n, storage, StorageType.NONE) releases a checkpoint). A host whose step is not a function
+        of the state alone must refuse "state" (docs/guides/checkpoint_schedule.md, "An unknown N")."""
+        return self._stream.restart_data
+
+    @property
     def is_exhausted(self):
         """EndReverse has been yielded: one adjoint run per schedule."""
         return self._stream.is_exhausted
@@ -188,10 +197,11 @@ class CheckpointSchedule:
 
     def finalize(self, n):
         """The forward run ends at step n (checkpoint_schedules' finalize): for a stream opened with
-        steps=None, n becomes N (the forward must be at step n); otherwise n must be N and the forward
-        there. RuntimeError otherwise, as there."""
+        steps=None, n becomes N, once, and the host stops at n inside the last Forward yielded
+        (n0 < n <= n1); otherwise n must be N and the forward there. RuntimeError otherwise (a second call
+        without N, n behind that Forward's start or beyond its end), as there."""
         if n < 1:
-            raise ValueError(f"n must be positive, not {n}")
+            raise ValueError(f"finalize: n must be positive, not {n}")
         self._stream.finalize(n)
 
     def uses_storage_type(self, storage_type):
@@ -212,8 +222,11 @@ def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     multilevel, cams; the same plan a run of the strategy executes; or mixed, checkpoint_schedules' Mixed
     plan, whose units hold a state or one step's adjoint data), as a CheckpointSchedule: an iterator
     of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
-    steps=None (full and disk): N is unknown; the forward run goes on step by step until the host calls
-    finalize(n) at step n, as with checkpoint_schedules' schedules of unknown length.
+    steps=None (full, disk and online): N is unknown; the host calls finalize(n) when its forward run
+    stops at step n inside a Forward, as with checkpoint_schedules' schedules of unknown length. full and
+    disk advance step by step; online keeps at most C + 1 states as checkpoints (restart_data ==
+    "state": a checkpoint restarts any distance, and Move(n, RAM, NONE) releases one) and recomputes
+    what hindsight.schedule(spec, n + 1) predicts (docs/guides/checkpoint_schedule.md, "An unknown N").
     Arguments and defaults are hindsight.schedule's: `state_bytes` sizes the budgets (a strategy given
     in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
     cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.

@@ -32,6 +32,10 @@ its adjoint data.
  7. (Stricter, unless allow_leftovers) no checkpoint is left when EndReverse comes.
  online=True: while the schedule's max_n is None, a Forward may run past N (the host stops at N and
  calls finalize(N)), as for checkpoint_schedules' schedules of unknown length.
+ 8. State checkpoints, only for a schedule that declares them (restart_data == "state", hindsight's online
+    stream without N): rule 1's restart range becomes every step from n0 on (the restart data is the state
+    x_{n0}, which the host advances any distance), and Move(n, RAM/DISK, NONE) releases the checkpoint at
+    n (it must exist; WORK and the adjoint are untouched). Every other rule stays.
 
 Run on checkpoint_schedules' own schedules (Revolve, HRevolve, MultistageCheckpointSchedule,
 MixedCheckpointSchedule, DiskRevolve, SingleMemoryStorageSchedule with a WORK limit of N,
@@ -60,6 +64,7 @@ def check_stream(schedule, steps, classes, ram_limit=None, disk_limit=None, work
     forward_done = reverse_done = False
     counts = {"actions": 0, "advanced": 0, "recomputed": 0, "adjoint_reruns": 0, "peak_ram": 0, "peak_disk": 0, "disk_writes": 0}
     state = hasattr(schedule, "n") and hasattr(schedule, "r")
+    states = getattr(schedule, "restart_data", "interval") == "state"  # rule 8
     if state and (schedule.n != 0 or schedule.r != 0):
         raise ContractError(f"a fresh schedule is at n = {schedule.n}, r = {schedule.r}")
     for action in schedule:
@@ -84,7 +89,7 @@ def check_stream(schedule, steps, classes, ram_limit=None, disk_limit=None, work
                 fail(f"advances past the adjoint (step {steps - r})")
             work_ics.clear()
             work_deps.clear()
-            ics = set(range(n0, n1)) if action.write_ics else set()
+            ics = set(range(n0, steps if states else n1)) if action.write_ics else set()
             deps = set(range(n0, n1)) if action.write_adj_deps else set()
             if action.storage in (RAM, DISK):
                 if not ics and not deps:
@@ -123,6 +128,10 @@ def check_stream(schedule, steps, classes, ram_limit=None, disk_limit=None, work
             r += action.n1 - action.n0
             if action.clear_adj_deps:
                 work_deps.clear()
+        elif (kind is Move and states and action.from_storage in (RAM, DISK)
+              and action.to_storage == NONE):  # rule 8: the release of a state checkpoint
+            if checkpoints[action.from_storage].pop(action.n, None) is None:
+                fail(f"no checkpoint at {action.n} in {action.from_storage!r}")
         elif kind is Copy or kind is Move:
             n, source, target = action.n, action.from_storage, action.to_storage
             if source not in (RAM, DISK):

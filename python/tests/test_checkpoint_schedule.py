@@ -21,7 +21,9 @@ OWN = types.SimpleNamespace(Forward=Forward, Reverse=Reverse, Copy=Copy, Move=Mo
 def run(actions, steps, a=0.3, schedule=None):
     """z_{k+1} = z_k + h (a z_k - z_k^2), J = sum_k h z_{k+1}^2, dJ/da by the discrete adjoint. WORK holds
     the state and the adjoint data of the steps reversed next, as the contract has it. schedule: a stream
-    opened without N; the host stops its forward run at `steps` and calls schedule.finalize(steps)."""
+    opened without N; the host stops its forward run at `steps`, inside a Forward, and calls
+    schedule.finalize(steps). The restart data it keeps is the state itself, so it also runs streams of
+    state checkpoints (restart_data == "state"), whose Move(n, RAM, NONE) releases a checkpoint."""
     h = 0.01
     stored = {}  # (storage, n) -> (state or None, {step: state} adjoint data)
     n, z, lam, dj, advanced, forward_done, objective = 0, 1.0, None, 0.0, 0, False, 0.0
@@ -31,19 +33,21 @@ def run(actions, steps, a=0.3, schedule=None):
             assert n == action.n0, action
             start, deps = z, {}
             for k in action:
+                if schedule is not None and k == steps and schedule.max_n is None:
+                    break  # the host's forward run ends at `steps`, inside this Forward
                 if action.write_adj_deps:
                     deps[k] = z
                 z = z + h * (a * z - z * z)
                 advanced += 1
+                n = k + 1
                 if not forward_done:
                     objective += h * z * z
             if action.storage == StorageType.WORK:
                 work_deps = deps
             else:
                 stored[(action.storage, action.n0)] = (start if action.write_ics else None, deps)
-            n = action.n1
             if schedule is not None and n == steps and schedule.max_n is None:
-                schedule.finalize(steps)  # the host's forward run ends here
+                schedule.finalize(steps)
         elif type(action) is EndForward:
             forward_done, lam = True, 2 * h * z
         elif type(action) is Reverse:
@@ -54,7 +58,9 @@ def run(actions, steps, a=0.3, schedule=None):
         elif type(action) in (Copy, Move):
             key = (action.from_storage, action.n)
             data = stored.pop(key) if type(action) is Move else stored[key]
-            if action.to_storage == StorageType.WORK:
+            if action.to_storage == StorageType.NONE:
+                assert schedule is not None and schedule.restart_data == "state", action  # a release
+            elif action.to_storage == StorageType.WORK:
                 state, work_deps = data[0], dict(data[1])
                 if state is not None:
                     z, n = state, action.n
@@ -104,14 +110,94 @@ def test_streams_without_n_end_where_the_host_finalizes(spec):
                               ram_limit=0 if disk else steps, disk_limit=steps if disk else 0)
         assert counts["recomputed"] == 0
     schedule = hindsight.checkpoint_schedule("full", steps=None)
+    assert schedule.restart_data == "interval"
     next(schedule), next(schedule)
     with pytest.raises(RuntimeError, match="forward is at step 2"):
         schedule.finalize(3)
-    for spec in ("online:checkpoints=3", "cams:checkpoints=3,online=1"):
-        # A bounded online placement drops checkpoints, which leaves the one before short of restart data.
-        with pytest.raises(ValueError, match="only full and disk") as error:
-            hindsight.checkpoint_schedule(spec, steps=None)
-        assert "restart data does not cover" in str(error.value) and "--" not in str(error.value)
+    # cams' online mode drops checkpoints, which leaves the one before short of restart data.
+    with pytest.raises(ValueError, match="only full, disk and online") as error:
+        hindsight.checkpoint_schedule("cams:checkpoints=3,online=1", steps=None)
+    assert "restart data does not cover" in str(error.value) and "--" not in str(error.value)
+    with pytest.raises(ValueError, match="steps unknown.*binomial needs N"):
+        hindsight.checkpoint_schedule("binomial:checkpoints=3", steps=None)
+
+
+def _online_without_n(c, steps):
+    """online:checkpoints=c without N, checked for N = steps (the checker finalizes where the forward
+    crosses it) with at most c + 1 RAM checkpoints; returns the counts."""
+    schedule = hindsight.checkpoint_schedule(f"online:checkpoints={c}", steps=None, state_bytes=16)
+    assert schedule.restart_data == "state" and schedule.max_n is None
+    try:
+        counts = check_stream(schedule, steps, OWN, online=True, ram_limit=c + 1, disk_limit=0)
+    except ContractError as error:
+        raise AssertionError(f"c = {c}, N = {steps}: {error}") from None
+    assert schedule.max_n == steps and schedule.is_exhausted
+    return counts
+
+
+def test_online_without_n_keeps_the_relaxed_contract_and_recomputes_the_prediction_of_one_step_more():
+    # The stream's forward prefix does not depend on N, so N = 1..200 finalizes at every step of every
+    # Forward up there. The host's WORK holds x_N at finalize, as an engine run of N + 1 steps holds its
+    # working state: the recomputation is hindsight.schedule's for N + 1 steps.
+    rng = random.Random(7)
+    cases = [(c, n) for c in (1, 2, 3, 5, 10) for n in range(1, 201)]
+    cases += [(rng.randint(1, 30), rng.randint(1, 2000)) for _ in range(12)]
+    for c, n in cases:
+        counts = _online_without_n(c, n)
+        p = hindsight.schedule(f"online:checkpoints={c}", n + 1, state_bytes=16)
+        assert counts["recomputed"] == p.recomputed_steps, (c, n)
+        assert counts["adjoint_reruns"] == n and counts["peak_ram"] <= c + 1, (c, n, counts)
+    # Without the declaration the checker applies checkpoint_schedules' rule 1, which these streams break.
+    class Undeclared:
+        def __init__(self, schedule):
+            self.schedule, self.finalize = schedule, schedule.finalize
+
+        def __iter__(self):
+            return iter(self.schedule)
+
+        max_n = property(lambda self: self.schedule.max_n)
+
+    with pytest.raises(ContractError, match="copies to no storage"):
+        check_stream(Undeclared(hindsight.checkpoint_schedule("online:checkpoints=2", steps=None)), 100, OWN,
+                     online=True)
+
+
+def test_online_without_n_gives_full_storages_gradient_bit_for_bit():
+    for c, steps in [(1, 1), (1, 2), (1, 30), (2, 7), (3, 60), (5, 157), (10, 400), (4, 1000)]:
+        reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
+        schedule = hindsight.checkpoint_schedule(f"online:checkpoints={c}", steps=None)
+        objective, gradient, extra, leftover = run(schedule, steps, schedule=schedule)
+        assert (objective, gradient) == reference[:2], (c, steps)
+        assert leftover == 0 and schedule.max_n == steps and schedule.is_exhausted
+        p = hindsight.schedule(f"online:checkpoints={c}", steps + 1, state_bytes=8)
+        assert extra == p.recomputed_steps + steps  # and one re-run per adjoint step
+
+
+def test_online_without_n_refuses_a_wrong_finalize_and_checkpoint_schedules_classes():
+    schedule = hindsight.checkpoint_schedule("online:checkpoints=2", steps=None)
+    action = next(schedule)
+    while type(action) is not Forward or len(action) < 2:
+        action = next(schedule)
+    with pytest.raises(RuntimeError, match="behind the start"):
+        schedule.finalize(action.n0)
+    with pytest.raises(RuntimeError, match=f"forward is at step {action.n1}"):
+        schedule.finalize(action.n1 + 1)
+    with pytest.raises(ValueError, match="finalize: n must be positive"):
+        schedule.finalize(0)
+    schedule.finalize(action.n0 + 1)
+    assert schedule.max_n == schedule.n == action.n0 + 1
+    with pytest.raises(RuntimeError, match="finalize was called already"):
+        schedule.finalize(action.n0 + 1)
+    with pytest.raises(ValueError, match="stages = 1"):
+        hindsight.checkpoint_schedule("online:checkpoints=2,stages=1", steps=None)
+    with pytest.raises(ValueError, match="online.checkpoints"):
+        hindsight.checkpoint_schedule("online:checkpoints=0", steps=None)
+    # checkpoint_schedules' own contract (rule 1) has no state checkpoints: its classes are refused.
+    from hindsight.checkpoint_schedules import Schedule
+    with pytest.raises(ValueError, match=r"serves steps n0\.\.n1-1 only") as error:
+        Schedule("online:checkpoints=3", None)
+    assert "steps=None" in str(error.value) and "restart_data == 'state'" in str(error.value)
+    assert Schedule("full", None).restart_data == "interval"
 
 
 def _families(rng):

@@ -197,6 +197,110 @@ TEST(CheckpointActions, FullAndDiskStreamsWithoutNEndWhereTheHostFinalizes) {
                std::invalid_argument);
 }
 
+// online without N keeps states as checkpoints (RestartData::kState): the host finalizes at N inside a
+// Forward (its prefix is the same for every N, so N = 1..300 finalizes at every step of every Forward up
+// there), the relaxed contract holds, at most c + 1 checkpoints are held, and the stream recomputes what
+// online's prediction for N + 1 steps counts (the host's WORK holds x_N as an engine run of N + 1 steps
+// holds its working state).
+CheckpointStreamCounts runOnlineWithoutN(const std::string& spec, std::int64_t checkpoints,
+                                         std::int64_t steps, std::vector<CheckpointAction>* actions,
+                                         std::int64_t maxForward = 0) {
+  const std::unique_ptr<CheckpointStream> stream =
+      maxForward > 0 ? openOnlineStateStream(checkpoints, maxForward)
+                     : openCheckpointStream(spec, kUnknownSteps, 16, 4, nullptr);
+  EXPECT_EQ(stream->restartData(), RestartData::kState);
+  CheckpointStreamChecker checker(steps, RestartData::kState);
+  CheckpointAction a;
+  std::int64_t mostHeld = 0;
+  while (stream->next(&a)) {
+    if (a.kind == CheckpointAction::Kind::kForward && stream->maxN() < 0 && a.n1 >= steps) {
+      a.n1 = steps;  // the host stops there
+      stream->finalize(steps);
+      EXPECT_EQ(stream->n(), steps);
+    }
+    checker.take(a);
+    if (actions != nullptr) actions->push_back(a);
+    mostHeld = std::max(mostHeld, stream->heldCheckpoints());
+  }
+  EXPECT_LE(mostHeld, checkpoints + 1);
+  EXPECT_EQ(stream->heldCheckpoints(), 0);
+  return checker.finish();
+}
+
+TEST(CheckpointActions, OnlineStreamWithoutNRecomputesThePredictionOfOneStepMore) {
+  std::mt19937_64 rng(11);
+  std::vector<std::pair<std::int64_t, std::int64_t>> cases;
+  for (const std::int64_t c : {1, 2, 3, 5, 10})
+    for (std::int64_t steps = 1; steps <= 300; ++steps) cases.emplace_back(c, steps);
+  for (int trial = 0; trial < 40; ++trial)
+    cases.emplace_back(std::uniform_int_distribution<std::int64_t>(1, 40)(rng),
+                       std::uniform_int_distribution<std::int64_t>(1, 5000)(rng));
+  bool intervalRuleBroken = false;
+  for (const auto& [c, steps] : cases) {
+    SCOPED_TRACE("c = " + std::to_string(c) + ", N = " + std::to_string(steps));
+    std::vector<CheckpointAction> actions;
+    const std::string spec = "online:checkpoints=" + std::to_string(c);
+    const CheckpointStreamCounts counts = runOnlineWithoutN(spec, c, steps, &actions);
+    const SchedulePrediction p = predictSchedule(spec, steps + 1, 16, 4, nullptr);
+    EXPECT_EQ(counts.recomputedSteps, p.recomputedSteps);
+    EXPECT_EQ(counts.forwardSteps, steps);
+    EXPECT_EQ(counts.adjointReruns, steps);  // x_N's step is re-run from x_{N-1} like every other
+    EXPECT_LE(counts.peakRamCheckpoints, c + 1);
+    // checkpoint_schedules' own rule 1 refuses these streams once a checkpoint is dropped.
+    try {
+      checkCheckpointStream(actions, steps);
+    } catch (const std::logic_error&) {
+      intervalRuleBroken = true;
+    }
+  }
+  EXPECT_TRUE(intervalRuleBroken);
+  // Forwards cut short of the next store (the cap, 2^20 steps in the stream a host opens) start from a
+  // state that is not stored: the same placement and count.
+  for (const std::int64_t c : {1, 2, 5})
+    for (std::int64_t steps = 1; steps <= 120; ++steps)
+      for (const std::int64_t cap : {1, 2, 3}) {
+        SCOPED_TRACE("c = " + std::to_string(c) + ", N = " + std::to_string(steps) + ", cap " +
+                     std::to_string(cap));
+        std::vector<CheckpointAction> actions;
+        const CheckpointStreamCounts counts = runOnlineWithoutN("", c, steps, &actions, cap);
+        EXPECT_EQ(counts.recomputedSteps,
+                  predictSchedule("online:checkpoints=" + std::to_string(c), steps + 1, 16, 4, nullptr)
+                      .recomputedSteps);
+        for (const CheckpointAction& a : actions) {
+          if (a.kind == CheckpointAction::Kind::kEndForward) break;
+          if (a.kind == CheckpointAction::Kind::kForward) EXPECT_LE(a.n1 - a.n0, cap) << a.text();
+        }
+      }
+}
+
+TEST(CheckpointActions, OnlineStreamWithoutNRefusesAWrongFinalize) {
+  const std::unique_ptr<CheckpointStream> stream =
+      openCheckpointStream("online:checkpoints=2", kUnknownSteps, 16, 4, nullptr);
+  CheckpointAction a;
+  // Up to a Forward of more than one step.
+  do {
+    ASSERT_TRUE(stream->next(&a));
+  } while (a.kind != CheckpointAction::Kind::kForward || a.n1 - a.n0 < 2);
+  EXPECT_THROW(stream->finalize(a.n0), std::logic_error);      // behind the Forward
+  EXPECT_THROW(stream->finalize(a.n1 + 1), std::logic_error);  // ahead of it
+  EXPECT_THROW(stream->finalize(0), std::logic_error);
+  stream->finalize(a.n0 + 1);
+  EXPECT_EQ(stream->maxN(), a.n0 + 1);
+  EXPECT_EQ(stream->n(), a.n0 + 1);
+  EXPECT_THROW(stream->finalize(a.n0 + 1), std::logic_error);  // twice
+  // Families without a stream for an unknown N, and online's stages=1.
+  EXPECT_THROW(openCheckpointStream("cams:checkpoints=3,online=1", kUnknownSteps, 16, 4, nullptr),
+               std::invalid_argument);
+  EXPECT_THROW(openCheckpointStream("online:checkpoints=3,stages=1", kUnknownSteps, 16, 4, nullptr),
+               std::invalid_argument);
+  EXPECT_THROW(openCheckpointStream("online:checkpoints=0", kUnknownSteps, 16, 4, nullptr),
+               std::invalid_argument);
+  // A budget of three states: two checkpoints and the working state, as in a run.
+  const CheckpointStreamCounts budget = runOnlineWithoutN("online:budget=48", 2, 100, nullptr);
+  EXPECT_EQ(budget.recomputedSteps,
+            predictSchedule("online:checkpoints=2", 101, 16, 4, nullptr).recomputedSteps);
+}
+
 // cams' stream drives its plan's executor as the host consumes it and counts each checkpoint's reads when
 // it is stored (cams::Executor::lastStoredUse); the whole plan translated at once, with a first pass that
 // counts the reads, is the reference: the same actions, one for one, on random plans with and without
