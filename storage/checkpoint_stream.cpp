@@ -143,8 +143,7 @@ class EveryStateStream final : public BatchedCheckpointStream {
       reverse_ = steps - 2;
     } else if (reverse_ >= 0) {
       queue_.push_back(toWork(reverse_, level_, true));
-      queue_.push_back(forward(reverse_, reverse_ + 1, false, true, CheckpointStorage::kWork));
-      queue_.push_back(reverseStep(reverse_));
+      queueAdjointStep(reverse_);
       --reverse_;
     } else if (!done_) {
       queue_.push_back(marker(Kind::kEndReverse));
@@ -234,8 +233,7 @@ class BinomialStream final : public BatchedCheckpointStream {
       Visitor visitor{*this};
       schedule_.restoreStep(restoring_, visitor);
       assert(at_ == restoring_);
-      queue_.push_back(forward(restoring_, restoring_ + 1, false, true, CheckpointStorage::kWork));
-      queue_.push_back(reverseStep(restoring_));
+      queueAdjointStep(restoring_);
       at_ = -1;
       --restoring_;
       return true;
@@ -376,8 +374,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       reversal_.restoreStep(restoring_, visitor);
       if (at_ != restoring_ || pendingStore_)
         throw std::logic_error("online stream: revolve missed its step");
-      queue_.push_back(forward(restoring_, restoring_ + 1, false, true, CheckpointStorage::kWork));
-      queue_.push_back(reverseStep(restoring_));
+      queueAdjointStep(restoring_);
       at_ = -1;
       --restoring_;
       return true;

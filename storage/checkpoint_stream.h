@@ -80,6 +80,12 @@ class BatchedCheckpointStream : public CheckpointStream {
   /// false when there is no step left.
   virtual bool refill() = 0;
   bool doNext(CheckpointAction* action) final;
+  /// Queues the adjoint of `step` once WORK holds x_step: the Forward that writes its adjoint data, then
+  /// its Reverse (every stream's backward sweep ends each step so).
+  void queueAdjointStep(std::int64_t step) {
+    queue_.push_back(CheckpointAction::forward(step, step + 1, false, true, CheckpointStorage::kWork));
+    queue_.push_back(CheckpointAction::reverseStep(step));
+  }
   std::deque<CheckpointAction> queue_;
 };
 
