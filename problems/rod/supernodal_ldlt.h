@@ -120,10 +120,11 @@ class SupernodalLdlt {
   };
   void factorizeSupernode(int s, const double* values, Workspace& work);
   void factorizeRange(const std::vector<int>& supernodes, const double* values, Workspace& work);
-  template <int Columns>
-  void forward(double* x, Eigen::Index columns) const;
-  template <int Columns>
-  void backwardSupernode(int s, double* x, Eigen::Index columns) const;
+  // One supernode of L^-1 or L^-T on a strip of C right-hand sides (supernodal_ldlt.cpp).
+  template <int C, bool Packed>
+  void forwardSupernode(int s, double* x, Eigen::Index stride) const;
+  template <int C, bool Packed>
+  void backwardSupernode(int s, double* x, Eigen::Index stride) const;
 
   SupernodalOptions options_;
   Eigen::Index n_ = 0;
