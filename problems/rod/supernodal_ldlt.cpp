@@ -436,10 +436,9 @@ namespace {
 // -ffp-contract=off): the same bits on every x86-64 CPU. The loops run over rows or columns, so the
 // compiler vectorises them without reordering a sum.
 constexpr int kSweepStrip = 8;
-// Rows below a supernode go through a contiguous buffer on the stack in chunks of this many rows (a fixed
-// number: the backward sweep's sums are rounded at chunk boundaries). The stack, not the factor, holds
-// the buffer because several threads may solve with one factor at once (design_gradient.cpp, esl.cpp).
-constexpr int kSweepChunk = 256;
+// The buffer of the rows below a supernode (kSupernodalSweepChunk rows) is on the stack, not in the factor,
+// because several threads may solve with one factor at once (design_gradient.cpp, esl.cpp).
+constexpr int kSweepChunk = kSupernodalSweepChunk;
 
 template <int C, bool Packed>
 Eigen::Index sweepStride(Eigen::Index stride) {
@@ -606,6 +605,13 @@ Eigen::MatrixXd SupernodalLdlt::solve(const Eigen::Ref<const Eigen::MatrixXd>& b
   RowBlock block = b, scratch(b.rows(), b.cols());
   detail::ldltSolveInPlace(*this, block, scratch);
   return block;
+}
+
+int SupernodalLdlt::tallestBelow() const {
+  int tallest = 0;
+  for (int s = 0; s < supernodeCount(); ++s)
+    tallest = std::max(tallest, rowStart_[s + 1] - rowStart_[s] - (first_[s + 1] - first_[s]));
+  return tallest;
 }
 
 std::int64_t SupernodalLdlt::storedNonZeros() const {
