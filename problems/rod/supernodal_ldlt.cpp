@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace hindsight {
 namespace rod {
@@ -74,6 +75,19 @@ std::int64_t supernodeTrapezoid(std::int64_t columns, std::int64_t rows) {
   return columns * rows - columns * (columns - 1) / 2;
 }
 
+// A counting sort into compressed storage: `items(emit)` calls emit(bucket, item) for every item, the
+// same items in the same order each time it is called (twice: to count, then to place). On return
+// items of bucket b are out[start[b] .. start[b + 1]) in the order emitted.
+template <class Start, class Item, class Items>
+void bucketSort(int buckets, Items&& items, std::vector<Start>& start, std::vector<Item>& out) {
+  start.assign(static_cast<std::size_t>(buckets) + 1, 0);
+  items([&](int bucket, const Item&) { ++start[bucket + 1]; });
+  for (int b = 0; b < buckets; ++b) start[b + 1] += start[b];
+  out.resize(static_cast<std::size_t>(start[buckets]));
+  std::vector<Start> fill(start.begin(), start.end() - 1);
+  items([&](int bucket, const Item& item) { out[fill[bucket]++] = item; });
+}
+
 }  // namespace
 
 void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
@@ -91,21 +105,18 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
   inner_.assign(inner, inner + a.nonZeros());
 
   // The strict upper triangle of P A P^T by columns (column k: rows i < k), from A's lower triangle.
-  std::vector<int> upperStart(static_cast<std::size_t>(n) + 1, 0);
-  for (int c = 0; c < n; ++c)
-    for (int p = outer[c]; p < outer[c + 1]; ++p)
-      if (inner[p] > c) ++upperStart[std::max(newOf[inner[p]], newOf[c]) + 1];
-  for (int k = 0; k < n; ++k) upperStart[k + 1] += upperStart[k];
-  std::vector<int> upperRows(static_cast<std::size_t>(upperStart[n]));
-  {
-    std::vector<int> fill(upperStart.begin(), upperStart.end() - 1);
-    for (int c = 0; c < n; ++c)
-      for (int p = outer[c]; p < outer[c + 1]; ++p)
-        if (inner[p] > c) {
-          const int i = newOf[inner[p]], j = newOf[c];
-          upperRows[fill[std::max(i, j)]++] = std::min(i, j);
-        }
-  }
+  std::vector<int> upperStart, upperRows;
+  bucketSort(
+      n,
+      [&](auto&& emit) {
+        for (int c = 0; c < n; ++c)
+          for (int p = outer[c]; p < outer[c + 1]; ++p)
+            if (inner[p] > c) {
+              const int i = newOf[inner[p]], j = newOf[c];
+              emit(std::max(i, j), std::min(i, j));
+            }
+      },
+      upperStart, upperRows);
   // The elimination tree (Liu's algorithm with path compression) and the column counts of L without the
   // diagonal (each row's subtree walked once: O(nnz(L))), Davis 2006 ch. 4.
   std::vector<int> parent(static_cast<std::size_t>(n), -1), ancestor(static_cast<std::size_t>(n), -1);
@@ -179,27 +190,23 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
   }
   // Rows of each supernode: its columns, then the union of A's rows below its columns and its children's
   // rows below its columns, increasing.
-  std::vector<int> childStart(static_cast<std::size_t>(supernodes) + 1, 0), children;
-  for (int s = 0; s < supernodes; ++s)
-    if (parent_[s] >= 0) ++childStart[parent_[s] + 1];
-  for (int s = 0; s < supernodes; ++s) childStart[s + 1] += childStart[s];
-  children.resize(static_cast<std::size_t>(childStart[supernodes]));
-  {
-    std::vector<int> fill(childStart.begin(), childStart.end() - 1);
-    for (int s = 0; s < supernodes; ++s)
-      if (parent_[s] >= 0) children[fill[parent_[s]]++] = s;
-  }
+  std::vector<int> childStart, children;
+  bucketSort(
+      supernodes,
+      [&](auto&& emit) {
+        for (int s = 0; s < supernodes; ++s)
+          if (parent_[s] >= 0) emit(parent_[s], s);
+      },
+      childStart, children);
   // The lower triangle of P A P^T by columns is the upper one by rows: row i of column k above.
-  std::vector<int> lowerStart(static_cast<std::size_t>(n) + 1, 0);
-  for (int k = 0; k < n; ++k)
-    for (int p = upperStart[k]; p < upperStart[k + 1]; ++p) ++lowerStart[upperRows[p] + 1];
-  for (int j = 0; j < n; ++j) lowerStart[j + 1] += lowerStart[j];
-  std::vector<int> lowerRows(static_cast<std::size_t>(lowerStart[n]));
-  {
-    std::vector<int> fill(lowerStart.begin(), lowerStart.end() - 1);
-    for (int k = 0; k < n; ++k)
-      for (int p = upperStart[k]; p < upperStart[k + 1]; ++p) lowerRows[fill[upperRows[p]]++] = k;
-  }
+  std::vector<int> lowerStart, lowerRows;
+  bucketSort(
+      n,
+      [&](auto&& emit) {
+        for (int k = 0; k < n; ++k)
+          for (int p = upperStart[k]; p < upperStart[k + 1]; ++p) emit(upperRows[p], k);
+      },
+      lowerStart, lowerRows);
   rowStart_.assign(1, 0);
   rows_.clear();
   {
@@ -232,33 +239,30 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
   values_.resize(blockStart_.back());
   d_.resize(n);
 
-  // Where each entry of A's lower triangle goes, grouped by supernode (in A's storage order within one).
+  // Where each entry of A's lower triangle goes, grouped by supernode (in A's storage order within one),
+  // supernode by supernode so that `position` holds one supernode's rows at a time.
   {
+    struct Entry {
+      int source, column;  // A's value index, and its column in A
+    };
+    std::vector<Entry> entries;
+    bucketSort(
+        supernodes,
+        [&](auto&& emit) {
+          for (int c = 0; c < n; ++c)
+            for (int p = outer[c]; p < outer[c + 1]; ++p)
+              if (inner[p] >= c) emit(superOf[std::min(newOf[inner[p]], newOf[c])], Entry{p, c});
+        },
+        assemblyStart_, entries);
+    assemblySource_.resize(entries.size());
+    assemblyTarget_.resize(entries.size());
     std::vector<int> position(static_cast<std::size_t>(n), -1);
-    std::vector<std::int64_t> perSupernode(static_cast<std::size_t>(supernodes) + 1, 0);
-    for (int c = 0; c < n; ++c)
-      for (int p = outer[c]; p < outer[c + 1]; ++p)
-        if (inner[p] >= c) ++perSupernode[superOf[std::min(newOf[inner[p]], newOf[c])] + 1];
-    for (int s = 0; s < supernodes; ++s) perSupernode[s + 1] += perSupernode[s];
-    assemblyStart_ = perSupernode;
-    assemblyTarget_.assign(static_cast<std::size_t>(perSupernode[supernodes]), 0);
-    assemblySource_.assign(static_cast<std::size_t>(perSupernode[supernodes]), 0);
-    std::vector<std::int64_t> fill(perSupernode.begin(), perSupernode.end() - 1);
-    // Supernode by supernode so that `position` holds one supernode's rows at a time: collect the entries
-    // of each supernode first.
-    std::vector<int> entryColumn(static_cast<std::size_t>(perSupernode[supernodes]));
-    for (int c = 0; c < n; ++c)
-      for (int p = outer[c]; p < outer[c + 1]; ++p)
-        if (inner[p] >= c) {
-          const std::int64_t k = fill[superOf[std::min(newOf[inner[p]], newOf[c])]]++;
-          assemblySource_[k] = p;
-          entryColumn[k] = c;
-        }
     for (int s = 0; s < supernodes; ++s) {
       const int rows = rowStart_[s + 1] - rowStart_[s];
       for (int q = 0; q < rows; ++q) position[rows_[rowStart_[s] + q]] = q;
       for (std::int64_t k = assemblyStart_[s]; k < assemblyStart_[s + 1]; ++k) {
-        const int i = newOf[inner[assemblySource_[k]]], j = newOf[entryColumn[k]];
+        assemblySource_[k] = entries[k].source;
+        const int i = newOf[inner[entries[k].source]], j = newOf[entries[k].column];
         const int row = std::max(i, j), column = std::min(i, j);
         assemblyTarget_[k] = static_cast<std::int64_t>(column - first_[s]) * rows + position[row];
       }
@@ -267,7 +271,7 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
 
   // The updates each supernode receives: descendant d reaches supernode t through its rows in t's columns,
   // a contiguous run of d's sorted rows. Filled in increasing d, so each list is in increasing d.
-  std::int64_t scaledSize = static_cast<std::int64_t>(kSupernodalPanel) * n, productSize = 0;
+  std::int64_t productSize = 0;
   // The blocked products' packing buffers: the largest Eigen's blocking asks for over all products.
   std::int64_t packASize = 0, packBSize = 0;
   const auto packSize = [&](Eigen::Index rows, Eigen::Index cols, Eigen::Index depth) {
@@ -283,36 +287,29 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
       packSize(rows - panelEnd, columns - panelEnd, panelEnd - panel);
     }
   }
-  {
-    std::vector<std::int64_t> perTarget(static_cast<std::size_t>(supernodes) + 1, 0);
-    int widest = 0;
-    for (int d = 0; d < supernodes; ++d) {
-      widest = std::max(widest, first_[d + 1] - first_[d]);
-      const int own = first_[d + 1] - first_[d];
-      for (int p = rowStart_[d] + own; p < rowStart_[d + 1];) {
-        const int t = superOf[rows_[p]];
-        ++perTarget[t + 1];
-        while (p < rowStart_[d + 1] && superOf[rows_[p]] == t) ++p;
-      }
-    }
-    scaledSize = static_cast<std::int64_t>(kSupernodalPanel) * widest;
-    for (int s = 0; s < supernodes; ++s) perTarget[s + 1] += perTarget[s];
-    updateStart_ = perTarget;
-    updates_.assign(static_cast<std::size_t>(perTarget[supernodes]), Update{});
-    std::vector<std::int64_t> fill(perTarget.begin(), perTarget.end() - 1);
-    for (int d = 0; d < supernodes; ++d) {
-      const int own = first_[d + 1] - first_[d];
-      for (int p = rowStart_[d] + own; p < rowStart_[d + 1];) {
-        const int t = superOf[rows_[p]], begin = p - rowStart_[d];
-        while (p < rowStart_[d + 1] && superOf[rows_[p]] == t) ++p;
-        const int end = p - rowStart_[d];
-        updates_[fill[t]++] = Update{d, begin, end};
-        const std::int64_t width = end - begin, height = rowStart_[d + 1] - rowStart_[d] - begin;
-        scaledSize = std::max(scaledSize, own * width);
-        productSize = std::max(productSize, height * width);
-        packSize(height, width, own);
-      }
-    }
+  bucketSort(
+      supernodes,
+      [&](auto&& emit) {
+        for (int d = 0; d < supernodes; ++d) {
+          const int own = first_[d + 1] - first_[d];
+          for (int p = rowStart_[d] + own; p < rowStart_[d + 1];) {
+            const int t = superOf[rows_[p]], begin = p - rowStart_[d];
+            while (p < rowStart_[d + 1] && superOf[rows_[p]] == t) ++p;
+            emit(t, Update{d, begin, p - rowStart_[d]});
+          }
+        }
+      },
+      updateStart_, updates_);
+  int widest = 0;
+  for (int d = 0; d < supernodes; ++d) widest = std::max(widest, first_[d + 1] - first_[d]);
+  std::int64_t scaledSize = static_cast<std::int64_t>(kSupernodalPanel) * widest;
+  for (const Update& update : updates_) {
+    const int d = update.descendant, own = first_[d + 1] - first_[d];
+    const std::int64_t width = update.end - update.begin,
+                       height = rowStart_[d + 1] - rowStart_[d] - update.begin;
+    scaledSize = std::max(scaledSize, own * width);
+    productSize = std::max(productSize, height * width);
+    packSize(height, width, own);
   }
 
   // The subtrees factorised in parallel; a supernode's work is about its columns' updates to others,
@@ -430,63 +427,170 @@ void SupernodalLdlt::factorize(const SparseMatrix& a) {
     if (work.failed) info_ = Eigen::NumericalIssue;
 }
 
-template <int Columns>
-void SupernodalLdlt::forward(double* x, Eigen::Index runtimeColumns) const {
-  const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
-  const int supernodes = supernodeCount();
-  for (int s = 0; s < supernodes; ++s) {
-    const int begin = first_[s], width = first_[s + 1] - begin;
-    const int rows = rowStart_[s + 1] - rowStart_[s];
-    const int* rowList = rows_.data() + rowStart_[s];
-    const double* block = values_.data() + blockStart_[s];
-    // Column by column: x_r -= L(r, j) x_j for the rows r below j, the supernode's own rows (contiguous)
-    // and those below it (scattered).
-    for (int j = 0; j < width; ++j) {
-      const double* __restrict column = block + static_cast<std::int64_t>(j) * rows;
-      const double* __restrict xj = x + static_cast<Eigen::Index>(begin + j) * columns;
-      for (int q = j + 1; q < rows; ++q) {
-        double* __restrict xr = x + static_cast<Eigen::Index>(rowList[q]) * columns;
-        const double l = column[q];
-        for (Eigen::Index c = 0; c < columns; ++c) xr[c] -= xj[c] * l;
-      }
-    }
-  }
+namespace {
+
+// The sweeps' kernels, on a strip of C <= kSweepStrip right-hand sides stored by rows with row stride
+// `stride` (x[i * stride + c]; Packed: stride == C, known to the compiler). Each column's arithmetic is
+// fixed by the loops below whatever C, the strip and the chunk of rows (a block solve is bitwise the
+// one-column solve), and is a sequence of SSE2 operations without contraction (CMakeLists.txt,
+// -ffp-contract=off): the same bits on every x86-64 CPU. The loops run over rows or columns, so the
+// compiler vectorises them without reordering a sum.
+constexpr int kSweepStrip = 8;
+// The buffer of the rows below a supernode (kSupernodalSweepChunk rows) is on the stack, not in the factor,
+// because several threads may solve with one factor at once (design_gradient.cpp, esl.cpp).
+constexpr int kSweepChunk = kSupernodalSweepChunk;
+
+template <int C, bool Packed>
+Eigen::Index sweepStride(Eigen::Index stride) {
+  return Packed ? C : stride;
 }
 
-template <int Columns>
-void SupernodalLdlt::backwardSupernode(int s, double* x, Eigen::Index runtimeColumns) const {
-  const Eigen::Index columns = Columns > 0 ? Columns : runtimeColumns;
+// out[c] -= sum_q l[q] g[q * stride + c] for q < n, in four partial sums over q = k mod 4 (increasing q),
+// added as (s0 + s1) + (s2 + s3): four independent chains instead of one, in an order fixed by the code.
+template <int C, bool Packed>
+inline void subtractDot(const double* __restrict l, const double* __restrict g, Eigen::Index runtimeStride,
+                        int n, double* __restrict out) {
+  const Eigen::Index stride = sweepStride<C, Packed>(runtimeStride);
+  double s0[C] = {}, s1[C] = {}, s2[C] = {}, s3[C] = {};
+  int q = 0;
+  for (; q + 4 <= n; q += 4) {
+    const double* g0 = g + q * stride;
+    for (int c = 0; c < C; ++c) {
+      s0[c] += l[q] * g0[c];
+      s1[c] += l[q + 1] * g0[stride + c];
+      s2[c] += l[q + 2] * g0[2 * stride + c];
+      s3[c] += l[q + 3] * g0[3 * stride + c];
+    }
+  }
+  double* tail[3] = {s0, s1, s2};
+  for (int k = 0; q < n; ++q, ++k)
+    for (int c = 0; c < C; ++c) tail[k][c] += l[q] * g[q * stride + c];
+  for (int c = 0; c < C; ++c) out[c] -= (s0[c] + s1[c]) + (s2[c] + s3[c]);
+}
+
+}  // namespace
+
+template <int C, bool Packed>
+void SupernodalLdlt::forwardSupernode(int s, double* x, Eigen::Index runtimeStride) const {
+  const Eigen::Index stride = sweepStride<C, Packed>(runtimeStride);
   const int begin = first_[s], width = first_[s + 1] - begin;
   const int rows = rowStart_[s + 1] - rowStart_[s];
   const int* rowList = rows_.data() + rowStart_[s];
   const double* block = values_.data() + blockStart_[s];
-  // Row j of L^T from the last column back: x_j -= L(r, j) x_r over the rows r below j, increasing.
-  for (int j = width - 1; j >= 0; --j) {
+  double* __restrict own = x + begin * stride;
+  // The unit lower triangle on the supernode's own rows (contiguous), column by column:
+  // x_q -= L(q, j) x_j for q > j.
+  for (int j = 0; j < width; ++j) {
     const double* __restrict column = block + static_cast<std::int64_t>(j) * rows;
-    double* __restrict xj = x + static_cast<Eigen::Index>(begin + j) * columns;
-    for (int q = j + 1; q < rows; ++q) {
-      const double* __restrict xr = x + static_cast<Eigen::Index>(rowList[q]) * columns;
-      const double l = column[q];
-      for (Eigen::Index c = 0; c < columns; ++c) xj[c] -= l * xr[c];
+    const double* xj = own + j * stride;
+    double xjc[C];
+    for (int c = 0; c < C; ++c) xjc[c] = xj[c];
+    for (int q = j + 1; q < width; ++q)
+      for (int c = 0; c < C; ++c) own[q * stride + c] -= column[q] * xjc[c];
+  }
+  // The rows below, a chunk at a time: y = L21 x_own (y_q = L(q, 0) x_0 + L(q, 1) x_1 + ..., in
+  // increasing column, four columns per pass over the chunk), then x_r -= y_r scattered once.
+  alignas(16) double y[kSweepChunk * C];
+  for (int first = width; first < rows; first += kSweepChunk) {
+    const int n = std::min(kSweepChunk, rows - first);
+    std::fill(y, y + n * C, 0.0);
+    int j = 0;
+    for (; j + 4 <= width; j += 4) {
+      const double* __restrict l0 = block + static_cast<std::int64_t>(j) * rows + first;
+      const double* __restrict l1 = l0 + rows, * __restrict l2 = l1 + rows, * __restrict l3 = l2 + rows;
+      double x0[C], x1[C], x2[C], x3[C];
+      for (int c = 0; c < C; ++c) {
+        x0[c] = own[j * stride + c];
+        x1[c] = own[(j + 1) * stride + c];
+        x2[c] = own[(j + 2) * stride + c];
+        x3[c] = own[(j + 3) * stride + c];
+      }
+      for (int q = 0; q < n; ++q)
+        for (int c = 0; c < C; ++c)
+          y[q * C + c] = (((y[q * C + c] + l0[q] * x0[c]) + l1[q] * x1[c]) + l2[q] * x2[c]) + l3[q] * x3[c];
+    }
+    for (; j < width; ++j) {
+      const double* __restrict l0 = block + static_cast<std::int64_t>(j) * rows + first;
+      double x0[C];
+      for (int c = 0; c < C; ++c) x0[c] = own[j * stride + c];
+      for (int q = 0; q < n; ++q)
+        for (int c = 0; c < C; ++c) y[q * C + c] += l0[q] * x0[c];
+    }
+    for (int q = 0; q < n; ++q) {
+      double* __restrict xr = x + static_cast<Eigen::Index>(rowList[first + q]) * stride;
+      for (int c = 0; c < C; ++c) xr[c] -= y[q * C + c];
     }
   }
 }
 
+template <int C, bool Packed>
+void SupernodalLdlt::backwardSupernode(int s, double* x, Eigen::Index runtimeStride) const {
+  const Eigen::Index stride = sweepStride<C, Packed>(runtimeStride);
+  const int begin = first_[s], width = first_[s + 1] - begin;
+  const int rows = rowStart_[s + 1] - rowStart_[s];
+  const int* rowList = rows_.data() + rowStart_[s];
+  const double* block = values_.data() + blockStart_[s];
+  double* own = x + begin * stride;
+  // The rows below, a chunk at a time: gathered once, then x_j -= L(chunk, j)^T x_chunk for every column j.
+  alignas(16) double g[kSweepChunk * C];
+  for (int first = width; first < rows; first += kSweepChunk) {
+    const int n = std::min(kSweepChunk, rows - first);
+    for (int q = 0; q < n; ++q) {
+      const double* xr = x + static_cast<Eigen::Index>(rowList[first + q]) * stride;
+      for (int c = 0; c < C; ++c) g[q * C + c] = xr[c];
+    }
+    for (int j = 0; j < width; ++j)
+      subtractDot<C, true>(block + static_cast<std::int64_t>(j) * rows + first, g, C, n, own + j * stride);
+  }
+  // The unit upper triangle L11^T on the own rows (contiguous), from the last row back.
+  for (int j = width - 2; j >= 0; --j)
+    subtractDot<C, Packed>(block + static_cast<std::int64_t>(j) * rows + j + 1, own + (j + 1) * stride,
+                           stride, width - j - 1, own + j * stride);
+}
+
+namespace {
+
+// call(std::integral_constant<int, C>, std::bool_constant<Packed>, first column) on strips of at most
+// kSweepStrip columns: one packed strip for up to kSweepStrip right-hand sides, else strips of the rows.
+template <class Call>
+void bySweepStrips(Eigen::Index columns, Call&& call) {
+  for (Eigen::Index first = 0; first < columns; first += kSweepStrip) {
+    const Eigen::Index width = std::min<Eigen::Index>(kSweepStrip, columns - first);
+    detail::byColumns(width, [&](auto c) {
+      constexpr int kC = decltype(c)::value;
+      if constexpr (kC > 0) {
+        if (columns <= kSweepStrip)
+          call(c, std::true_type(), first);
+        else
+          call(c, std::false_type(), first);
+      }
+    });
+  }
+}
+
+}  // namespace
+
 void SupernodalLdlt::forwardSweep(double* x, Eigen::Index columns) const {
   eigen_assert(info_ == Eigen::Success);
-  detail::byColumns(columns, [&](auto c) { forward<decltype(c)::value>(x, columns); });
+  // Serial: a supernode scatters into its ancestors, which may be in any group.
+  bySweepStrips(columns, [&](auto c, auto packed, Eigen::Index first) {
+    for (int s = 0; s < supernodeCount(); ++s)
+      forwardSupernode<decltype(c)::value, decltype(packed)::value>(s, x + first, columns);
+  });
 }
 
 void SupernodalLdlt::backwardSweep(double* x, Eigen::Index columns, bool parallel) const {
   eigen_assert(info_ == Eigen::Success);
-  detail::byColumns(columns, [&](auto c) {
-    constexpr int kColumns = decltype(c)::value;
+  bySweepStrips(columns, [&](auto c, auto packed, Eigen::Index first) {
+    constexpr int kC = decltype(c)::value;
+    constexpr bool kPacked = decltype(packed)::value;
+    double* strip = x + first;
     // The top first (it reads nothing below it), then each group's subtrees from their roots down.
     for (auto s = partition_.top.rbegin(); s != partition_.top.rend(); ++s)
-      backwardSupernode<kColumns>(*s, x, columns);
+      backwardSupernode<kC, kPacked>(*s, strip, columns);
     const auto group = [&](int g) {
       for (auto s = partition_.groups[g].rbegin(); s != partition_.groups[g].rend(); ++s)
-        backwardSupernode<kColumns>(*s, x, columns);
+        backwardSupernode<kC, kPacked>(*s, strip, columns);
     };
     const int groups = static_cast<int>(partition_.groups.size());
     if (parallel && groups > 1)
@@ -501,6 +605,13 @@ Eigen::MatrixXd SupernodalLdlt::solve(const Eigen::Ref<const Eigen::MatrixXd>& b
   RowBlock block = b, scratch(b.rows(), b.cols());
   detail::ldltSolveInPlace(*this, block, scratch);
   return block;
+}
+
+int SupernodalLdlt::tallestBelow() const {
+  int tallest = 0;
+  for (int s = 0; s < supernodeCount(); ++s)
+    tallest = std::max(tallest, rowStart_[s + 1] - rowStart_[s] - (first_[s + 1] - first_[s]));
+  return tallest;
 }
 
 std::int64_t SupernodalLdlt::storedNonZeros() const {

@@ -29,9 +29,15 @@
 //   independent subtrees of the supernodal tree are factorised in parallel (partitionSubtrees) and the
 //   bits do not depend on the partition, hence not on the thread count. The back-substitution runs on the
 //   subtrees too; the forward substitution scatters into ancestors and runs serially.
-// - Solves on blocks of right-hand sides stored by rows, each column's arithmetic the same whatever the
-//   number of columns (plain loops, no product whose blocking depends on the block's width), so a block
-//   solve is bitwise the column-by-column one.
+// - Solves on blocks of right-hand sides stored by rows, supernode by supernode: the unit triangle on the
+//   supernode's own rows (contiguous), and its rows below through a contiguous buffer, gathered or
+//   scattered once (forward: y = L21 x_own, then x_below -= y; backward: x_own -= L21^T x_below, each dot
+//   in four partial sums, then the triangle). Plain loops over rows and columns that the compiler
+//   vectorises without reordering a sum, each column's arithmetic the same whatever the number of columns
+//   (no product whose blocking depends on the block's width), so a block solve is bitwise the
+//   column-by-column one. The column-by-column sweeps before them loaded and stored each x_r once per
+//   column of L and ran the back-substitution as one chain of dependent subtractions; these take a solve
+//   at 200 x 12 x 8 from 0.15 to 0.09 s CPU (bench/RESULTS.md, "Supernodal sweeps").
 //
 // The numeric phase allocates nothing: the blocks, the assembly map and the per-group workspaces (with the
 // packing buffers of the blocked products, which Eigen would take from the heap above 128 KB) are made by
@@ -63,6 +69,10 @@ struct SupernodalOptions {
   int groups = 0;
   int smallest = 16384;
 };
+
+/// Rows below a supernode go through the sweeps' buffer (on the stack) in chunks of this many rows: a fixed
+/// number, since the back-substitution's sums are rounded at the chunks' boundaries.
+inline constexpr int kSupernodalSweepChunk = 256;
 
 class SupernodalLdlt {
  public:
@@ -105,6 +115,8 @@ class SupernodalLdlt {
   std::int64_t storedNonZeros() const;
   int supernodeCount() const { return static_cast<int>(first_.size()) - 1; }
   double parallelShare() const { return partition_.parallelShare; }
+  /// The most rows below one supernode's columns: for tests that the sweeps' chunks are exercised.
+  int tallestBelow() const;
 
  private:
   struct Update {
@@ -120,10 +132,11 @@ class SupernodalLdlt {
   };
   void factorizeSupernode(int s, const double* values, Workspace& work);
   void factorizeRange(const std::vector<int>& supernodes, const double* values, Workspace& work);
-  template <int Columns>
-  void forward(double* x, Eigen::Index columns) const;
-  template <int Columns>
-  void backwardSupernode(int s, double* x, Eigen::Index columns) const;
+  // One supernode of L^-1 or L^-T on a strip of C right-hand sides (supernodal_ldlt.cpp).
+  template <int C, bool Packed>
+  void forwardSupernode(int s, double* x, Eigen::Index stride) const;
+  template <int C, bool Packed>
+  void backwardSupernode(int s, double* x, Eigen::Index stride) const;
 
   SupernodalOptions options_;
   Eigen::Index n_ = 0;
