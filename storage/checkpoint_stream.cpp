@@ -280,8 +280,11 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   // is not stored (writeIcs false). The probe of a record is O(1), so this bounds the wait for an action
   // (openCheckpointStream: 2^20; with one checkpoint the gaps between stores grow like sqrt(N): 3 997
   // steps at N = 2 * 10^6).
-  OnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward)
-      : BatchedCheckpointStream(kUnknownSteps), c_(checkpoints), maxForward_(maxForward) {
+  // steps: N, or kUnknownSteps until the host calls finalize(). With N known the forward run is an engine
+  // run's: the records 1 .. N - 1 are offered, the last Forward writes step N - 1's adjoint data (x_{N-1}
+  // is the working state, never written) and the count is online's prediction for N itself.
+  OnlineStateStream(std::int64_t steps, std::int64_t checkpoints, std::int64_t maxForward)
+      : BatchedCheckpointStream(steps), c_(checkpoints), maxForward_(maxForward) {
     placement_.reset(c_);
     positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 2, 1 << 16)));
     positions_.assign(1, 0);
@@ -320,7 +323,8 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   };
 
   bool refill() override {
-    if (phase_ == Phase::kForward && maxN_ < 0) {
+    const bool known = !openedWithoutN();
+    if (phase_ == Phase::kForward && (maxN_ < 0 || (known && at_ < maxN_ - 1))) {
       if (accepted_) {  // the host went on past the stored record: x_{at_} is written next
         if (dropped_ >= 0)
           queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
@@ -330,7 +334,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       std::int64_t k = at_ + 1;
       for (;; ++k) {
         dropped_ = placement_.offer(k);
-        if (dropped_ != Placement::kSkipped || k - at_ >= maxForward_) break;
+        if (dropped_ != Placement::kSkipped || k - at_ >= maxForward_ || (known && k == maxN_ - 1)) break;
       }
       accepted_ = dropped_ != Placement::kSkipped;
       if (dropped_ >= 0) {
@@ -342,6 +346,24 @@ class OnlineStateStream final : public BatchedCheckpointStream {
           forward(at_, k, storeAt_, false, storeAt_ ? CheckpointStorage::kRam : CheckpointStorage::kWork));
       storeAt_ = false;
       at_ = k;
+      return true;
+    }
+    if (phase_ == Phase::kForward && known) {
+      // at_ = N - 1, the placement's decision on x_{N-1} taken (as the engine's working state it is held
+      // where a run holds it, and not written): step N - 1 runs with its adjoint data and is reversed at
+      // once, the rest by the intervals of a run of N steps.
+      const std::int64_t n = maxN_;
+      if (accepted_ && dropped_ >= 0)
+        queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+      accepted_ = false;
+      queue_.push_back(forward(at_, n, false, true, CheckpointStorage::kWork));
+      queue_.push_back(marker(Kind::kEndForward));
+      queue_.push_back(reverseStep(n - 1));
+      at_ = -1;
+      reversal_.reserve(c_ + 1);
+      reversal_.reset(&positions_, n, c_);
+      restoring_ = n - 2;
+      phase_ = Phase::kReverse;
       return true;
     }
     if (phase_ == Phase::kForward) {
@@ -421,8 +443,9 @@ class StoredStream final : public CheckpointStream {
 
 }  // namespace
 
-std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward) {
-  return std::make_unique<OnlineStateStream>(checkpoints, maxForward);
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t steps, std::int64_t checkpoints,
+                                                        std::int64_t maxForward) {
+  return std::make_unique<OnlineStateStream>(steps, checkpoints, maxForward);
 }
 
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
@@ -435,9 +458,10 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
                                                        const ScheduleCosts* costs) {
   const StorageSpec spec = StorageSpec::parse(specText);
   const std::string& name = spec.name();
-  if (steps == kUnknownSteps && name == "online") {
-    // Every check of the spec and the sizes (the prediction at two steps), then c as a run derives it.
-    predictSchedule(specText, 2, stateBytes, stages, costs);
+  if (name == "online") {
+    // Every check of the spec and the sizes (the prediction at two steps, or at N), then c as a run
+    // derives it.
+    predictSchedule(specText, steps == kUnknownSteps ? 2 : steps, stateBytes, stages, costs);
     const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
     const auto& online = dynamic_cast<const OnlineCheckpointing&>(*storage);
     if (online.keepsStages() && stages > 1) {
@@ -445,7 +469,7 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
           "online.stages = 1 keeps stage values by a rule of its own, which the action stream does not "
           "express; use online without stages=1");
     }
-    return openOnlineStateStream(online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
+    return openOnlineStateStream(steps, online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
   }
   if (steps == kUnknownSteps && name != "full" && name != "disk") {
     // Why the others need N (docs/guides/checkpoint_schedule.md, "An unknown N"): the fixed plans are

@@ -10,7 +10,7 @@
 // (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.03 s at N = 10^6; cams: its dynamic
 // programme over N, tables of N (M + 1) entries, seconds at N = 10^4: bench/checkpoint_stream_bench.py).
 // mixed translates its whole plan when the stream is opened and then hands it out action by action.
-// online without N (openCheckpointStream with kUnknownSteps) keeps states as checkpoints
+// online, with N or without (openCheckpointStream with kUnknownSteps), keeps states as checkpoints
 // (RestartData::kState, docs/guides/checkpoint_schedule.md, "An unknown N"): memory O(checkpoints).
 #pragma once
 
@@ -49,13 +49,16 @@ class CheckpointStream {
   bool isExhausted() const { return exhausted_; }
   /// Restart checkpoints (RAM and DISK) the host holds now.
   std::int64_t heldCheckpoints() const { return restart_; }
-  /// What the stream's checkpoints are (RestartData): kState only for online without N.
+  /// What the stream's checkpoints are (RestartData): kState for online (its placement drops checkpoints
+  /// during the forward run, with N known or not).
   virtual RestartData restartData() const { return RestartData::kInterval; }
 
  protected:
   explicit CheckpointStream(std::int64_t maxN) : maxN_(maxN), openedWithoutN_(maxN < 0) {}
   /// The next action of the strategy; false after EndReverse.
   virtual bool doNext(CheckpointAction* action) = 0;
+  /// Opened with steps = kUnknownSteps (N comes from finalize()).
+  bool openedWithoutN() const { return openedWithoutN_; }
   std::int64_t maxN_;
 
  private:
@@ -90,7 +93,8 @@ class BatchedCheckpointStream : public CheckpointStream {
 };
 
 /// The stream of `spec` for N = `steps` fixed steps, with the arguments and checks of predictSchedule
-/// (storage/schedule.h): full, disk, binomial, multilevel and cams (any N their plans support) and mixed.
+/// (storage/schedule.h): full, disk, binomial, multilevel and cams (any N their plans support), mixed,
+/// and online (state checkpoints, RestartData::kState: the placement and count of a run of N steps).
 /// steps = kUnknownSteps: N is unknown until the host calls finalize(): full and disk, which keep every
 /// state and so discard nothing (the forward run writes each step's restart data, as checkpoint_schedules'
 /// SingleMemoryStorageSchedule/SingleDiskStorageSchedule do for an unknown N), and online, whose
@@ -104,8 +108,10 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, 
                                                        std::int64_t stateBytes, int stages,
                                                        const ScheduleCosts* costs);
 
-/// online's stream without N for c checkpoints (openCheckpointStream's, which caps a Forward at 2^20
-/// steps), with each Forward capped at `maxForward` >= 1 steps: tests reach the cap with it.
-std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t checkpoints, std::int64_t maxForward);
+/// online's stream for N = `steps` (or kUnknownSteps) and c checkpoints (openCheckpointStream's, which
+/// caps a Forward at 2^20 steps), with each Forward capped at `maxForward` >= 1 steps: tests reach the
+/// cap with it.
+std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t steps, std::int64_t checkpoints,
+                                                        std::int64_t maxForward);
 
 }  // namespace hindsight

@@ -179,8 +179,8 @@ class CheckpointSchedule:
     @property
     def restart_data(self):
         """What a checkpoint's restart data is: "interval" (checkpoint_schedules' rule: the data written by
-        Forward(n0, n1, write_ics=True, ...) serves steps n0..n1-1 only) or "state" (online with
-        steps=None: it is the state at n0 itself, which the host may advance any distance, and
+        Forward(n0, n1, write_ics=True, ...) serves steps n0..n1-1 only) or "state" (online, with N
+        or without: it is the state at n0 itself, which the host may advance any distance, and
         Move(n, storage, StorageType.NONE) releases a checkpoint). A host whose step is not a function
         of the state alone must refuse "state" (docs/guides/checkpoint_schedule.md, "An unknown N")."""
         return self._stream.restart_data

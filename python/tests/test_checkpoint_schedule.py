@@ -20,9 +20,9 @@ OWN = types.SimpleNamespace(Forward=Forward, Reverse=Reverse, Copy=Copy, Move=Mo
 
 def run(actions, steps, a=0.3, schedule=None):
     """z_{k+1} = z_k + h (a z_k - z_k^2), J = sum_k h z_{k+1}^2, dJ/da by the discrete adjoint. WORK holds
-    the state and the adjoint data of the steps reversed next, as the contract has it. schedule: a stream
-    opened without N; the host stops its forward run at `steps`, inside a Forward, and calls
-    schedule.finalize(steps). The restart data it keeps is the state itself, so it also runs streams of
+    the state and the adjoint data of the steps reversed next, as the contract has it. schedule: the stream
+    (needed for state checkpoints' releases); one opened without N is finalized by the host, which stops
+    its forward run at `steps`, inside a Forward. The restart data it keeps is the state itself, so it also runs streams of
     state checkpoints (restart_data == "state"), whose Move(n, RAM, NONE) releases a checkpoint."""
     h = 0.01
     stored = {}  # (storage, n) -> (state or None, {step: state} adjoint data)
@@ -75,13 +75,16 @@ def run(actions, steps, a=0.3, schedule=None):
 @pytest.mark.parametrize("spec,stages", [("binomial:checkpoints=3", 1), ("cams:checkpoints=3", 1), ("cams:checkpoints=6", 4),
                                          ("cams:checkpoints=3,online=1", 1), ("cams:checkpoints=6,online=1", 4),
                                          ("full", 1), ("multilevel:ram=48,disk=64,costs=1:1:0:0", 4),
-                                         ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4)])
+                                         ("mixed:checkpoints=3", 1), ("mixed:checkpoints=11", 4),
+                                         ("online:checkpoints=3", 1), ("online:checkpoints=6", 4)])
 def test_gradient_equals_full_and_recomputation_equals_the_prediction(spec, stages):
     steps = 60
     reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
-    actions = list(hindsight.checkpoint_schedule(spec, steps=steps, state_bytes=16, stages=stages))
-    objective, gradient, extra, leftover = run(actions, steps)
+    stream = hindsight.checkpoint_schedule(spec, steps=steps, state_bytes=16, stages=stages)
+    actions = list(stream)
+    objective, gradient, extra, leftover = run(actions, steps, schedule=stream)  # N known: no finalize
     assert (objective, gradient) == reference[:2]
+    assert stream.restart_data == ("state" if spec.startswith("online") else "interval")
     assert leftover == 0  # Move and clear_adj_deps release everything by the end
     p = hindsight.schedule(spec, steps, state_bytes=16, stages=stages)
     # The host re-runs a step for each adjoint step without held data (hindsight's adjoint steps that
@@ -197,6 +200,11 @@ def test_online_without_n_refuses_a_wrong_finalize_and_checkpoint_schedules_clas
     with pytest.raises(ValueError, match=r"serves steps n0\.\.n1-1 only") as error:
         Schedule("online:checkpoints=3", None)
     assert "steps=None" in str(error.value) and "restart_data == 'state'" in str(error.value)
+    # With N known too: online's checkpoints are states either way.
+    assert hindsight.checkpoint_schedule("online:checkpoints=3", steps=50).restart_data == "state"
+    with pytest.raises(ValueError, match=r"serves steps n0\.\.n1-1 only") as error:
+        Schedule("online:checkpoints=3", 50)
+    assert "steps=50" in str(error.value) and "binomial" in str(error.value)
     assert Schedule("full", None).restart_data == "interval"
 
 
@@ -210,7 +218,8 @@ def _families(rng):
             (f"cams:checkpoints={c},online=1", rng.choice([1, 4]), None, 0),
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
              ram, disk),
-            (f"mixed:checkpoints={c}", 1, c, 0)]  # c units: restart states and adjoint data alike
+            (f"mixed:checkpoints={c}", 1, c, 0),  # c units: restart states and adjoint data alike
+            (f"online:checkpoints={c}", rng.choice([1, 4]), c + 1, 0)]  # state checkpoints (rule 8)
 
 
 def _sweep(ns, seed):
@@ -331,8 +340,8 @@ def test_actions_read_as_checkpoint_schedules():
 
 
 def test_bad_arguments_name_themselves():
-    with pytest.raises(ValueError, match="online"):
-        hindsight.checkpoint_schedule("online:checkpoints=3", steps=10)
+    with pytest.raises(ValueError, match="online.checkpoints"):
+        hindsight.checkpoint_schedule("online:checkpoints=0", steps=10)
     with pytest.raises(ValueError, match="steps"):
         hindsight.checkpoint_schedule("full", steps=0)
     with pytest.raises(TypeError, match="steps"):

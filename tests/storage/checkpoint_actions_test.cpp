@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -206,7 +207,7 @@ CheckpointStreamCounts runOnlineWithoutN(const std::string& spec, std::int64_t c
                                          std::int64_t steps, std::vector<CheckpointAction>* actions,
                                          std::int64_t maxForward = 0) {
   const std::unique_ptr<CheckpointStream> stream =
-      maxForward > 0 ? openOnlineStateStream(checkpoints, maxForward)
+      maxForward > 0 ? openOnlineStateStream(kUnknownSteps, checkpoints, maxForward)
                      : openCheckpointStream(spec, kUnknownSteps, 16, 4, nullptr);
   EXPECT_EQ(stream->restartData(), RestartData::kState);
   CheckpointStreamChecker checker(steps, RestartData::kState);
@@ -271,6 +272,42 @@ TEST(CheckpointActions, OnlineStreamWithoutNRecomputesThePredictionOfOneStepMore
           if (a.kind == CheckpointAction::Kind::kForward) EXPECT_LE(a.n1 - a.n0, cap) << a.text();
         }
       }
+}
+
+// online with N known: the stream of a run of N steps (the records 1 .. N - 1 offered, x_{N-1} the
+// working state), so it recomputes exactly online's prediction for N, holds at most c + 1 states and keeps
+// the relaxed contract; forwards cut short by a cap give the same count.
+TEST(CheckpointActions, OnlineStreamWithNRecomputesItsPrediction) {
+  std::mt19937_64 rng(13);
+  std::vector<std::array<std::int64_t, 3>> cases;  // c, N, cap (0: the stream a host opens)
+  for (const std::int64_t c : {1, 2, 3, 5, 10})
+    for (std::int64_t steps = 1; steps <= 200; ++steps) cases.push_back({c, steps, 0});
+  for (int trial = 0; trial < 40; ++trial)
+    cases.push_back({std::uniform_int_distribution<std::int64_t>(1, 40)(rng),
+                     std::uniform_int_distribution<std::int64_t>(1, 5000)(rng),
+                     std::uniform_int_distribution<std::int64_t>(0, 3)(rng)});
+  for (const auto& [c, steps, cap] : cases) {
+    SCOPED_TRACE("c = " + std::to_string(c) + ", N = " + std::to_string(steps) + ", cap " +
+                 std::to_string(cap));
+    const std::string spec = "online:checkpoints=" + std::to_string(c);
+    const std::unique_ptr<CheckpointStream> stream =
+        cap > 0 ? openOnlineStateStream(steps, c, cap) : openCheckpointStream(spec, steps, 16, 4, nullptr);
+    EXPECT_EQ(stream->restartData(), RestartData::kState);
+    CheckpointStreamChecker checker(steps, RestartData::kState);
+    CheckpointAction a;
+    std::int64_t mostHeld = 0;
+    while (stream->next(&a)) {
+      if (cap > 0 && a.kind == CheckpointAction::Kind::kForward && stream->r() == 0)
+        EXPECT_LE(a.n1 - a.n0, cap) << a.text();
+      checker.take(a);
+      mostHeld = std::max(mostHeld, stream->heldCheckpoints());
+    }
+    const CheckpointStreamCounts counts = checker.finish();
+    EXPECT_EQ(counts.recomputedSteps, predictSchedule(spec, steps, 16, 4, nullptr).recomputedSteps);
+    EXPECT_EQ(counts.forwardSteps, steps);
+    EXPECT_LE(mostHeld, c + 1);
+    EXPECT_EQ(stream->heldCheckpoints(), 0);
+  }
 }
 
 TEST(CheckpointActions, OnlineStreamWithoutNRefusesAWrongFinalize) {
@@ -496,7 +533,7 @@ TEST(CheckpointActions, RefusesWhatHasNoFixedPlanNamingIt) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(message("online:checkpoints=3").find("online"), std::string::npos);
+  EXPECT_EQ(message("online:checkpoints=3"), "no error");  // its stream of state checkpoints
   EXPECT_NE(message("binomial:checkpoints=3,stages=1").find("binomial.stages = 1"), std::string::npos);
   EXPECT_NE(message("lossy").find("lossy"), std::string::npos);
   EXPECT_NE(message("binomial:checkpoints=0").find("checkpoints"), std::string::npos);
