@@ -238,12 +238,7 @@ class BinomialStream final : public BatchedCheckpointStream {
       --restoring_;
       return true;
     }
-    if (phase_ == Phase::kReverse) {
-      queue_.push_back(marker(Kind::kEndReverse));
-      phase_ = Phase::kDone;
-      return true;
-    }
-    return false;
+    return queueEndReverse(phase_);
   }
 
   struct NullVisitor {
@@ -401,12 +396,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       --restoring_;
       return true;
     }
-    if (phase_ == Phase::kReverse) {
-      queue_.push_back(marker(Kind::kEndReverse));
-      phase_ = Phase::kDone;
-      return true;
-    }
-    return false;
+    return queueEndReverse(phase_);
   }
 
   enum class Phase { kForward, kReverse, kDone };

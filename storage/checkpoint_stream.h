@@ -89,6 +89,15 @@ class BatchedCheckpointStream : public CheckpointStream {
     queue_.push_back(CheckpointAction::forward(step, step + 1, false, true, CheckpointStorage::kWork));
     queue_.push_back(CheckpointAction::reverseStep(step));
   }
+  /// The last refill of a backward sweep driven step by step: queues EndReverse once while `phase` is
+  /// kReverse (then kDone); false ever after.
+  template <class Phase>
+  bool queueEndReverse(Phase& phase) {
+    if (phase != Phase::kReverse) return false;
+    queue_.push_back(CheckpointAction::marker(CheckpointAction::Kind::kEndReverse));
+    phase = Phase::kDone;
+    return true;
+  }
   std::deque<CheckpointAction> queue_;
 };
 
