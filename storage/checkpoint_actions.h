@@ -16,8 +16,8 @@
 // Every stream keeps checkpoint_schedules' contract (docs/guides/checkpoint_schedule.md, "The
 // contract"): restart data is written by the Forward that leaves a state and covers the steps it runs;
 // Copy/Move need an empty WORK and never copy from WORK; a Reverse reads its adjoint data from WORK only;
-// Move is not a kind of Copy (online without N relaxes the first rule for state checkpoints and declares
-// it: RestartData::kState). binomial, full, disk, multilevel and cams streams are generated as they are
+// Move is not a kind of Copy (online relaxes the first rule for state checkpoints and declares it:
+// RestartData::kState). binomial, full, disk, multilevel and cams streams are generated as they are
 // consumed (storage/checkpoint_stream.h); cams and multilevel translate the plan the strategy itself
 // executes (the actions `hindsight schedule --actions` prints, from the same plan code as a run):
 //   a checkpoint store is writeIcs on the Forward that leaves the state, or a Copy/Move between storages

@@ -256,8 +256,9 @@ class BinomialStream final : public BatchedCheckpointStream {
   bool pendingStore_ = false;
 };
 
-// online without N: the checkpoints are states (RestartData::kState), placed by online's
-// internal::TwoHorizonPlacement. When the host finalizes at n its WORK holds x_n, which the adjoint does not
+// online: the checkpoints are states (RestartData::kState), placed by online's
+// internal::TwoHorizonPlacement. With N known the stream is an engine run of N steps (the constructor's
+// comment); without it, when the host finalizes at n its WORK holds x_n, which the adjoint does not
 // need (the adjoint of step n - 1 starts from x_{n-1}), as the working state x_{N-1} of an engine run of
 // N = n + 1 steps: so the stream is that run's game (engine/online_checkpointing.h) -- c + 1 RAM slots,
 // the records x_1..x_n offered in order, each interval reversed by revolve with c + 1 - i slots
@@ -321,8 +322,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
     const bool known = !openedWithoutN();
     if (phase_ == Phase::kForward && (maxN_ < 0 || (known && at_ < maxN_ - 1))) {
       if (accepted_) {  // the host went on past the stored record: x_{at_} is written next
-        if (dropped_ >= 0)
-          queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+        releaseDropped();
         accepted_ = false;
         storeAt_ = true;
       }
@@ -348,17 +348,12 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       // where a run holds it, and not written): step N - 1 runs with its adjoint data and is reversed at
       // once, the rest by the intervals of a run of N steps.
       const std::int64_t n = maxN_;
-      if (accepted_ && dropped_ >= 0)
-        queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
-      accepted_ = false;
+      if (accepted_) releaseDropped();
       queue_.push_back(forward(at_, n, false, true, CheckpointStorage::kWork));
       queue_.push_back(marker(Kind::kEndForward));
       queue_.push_back(reverseStep(n - 1));
       at_ = -1;
-      reversal_.reserve(c_ + 1);
-      reversal_.reset(&positions_, n, c_);
-      restoring_ = n - 2;
-      phase_ = Phase::kReverse;
+      beginReverse(n, n - 2);
       return true;
     }
     if (phase_ == Phase::kForward) {
@@ -367,18 +362,14 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       // so when at_ = n its decision stands (x_n itself is not needed and not written) and p_j is
       // released; before it, the placement is put back. (placement_ is not used after this.)
       const std::int64_t n = maxN_;
-      if (accepted_ && n == at_ && dropped_ >= 0) {
-        queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+      if (accepted_ && n == at_) {
+        releaseDropped();
       } else if (accepted_ && n < at_) {
         positions_.pop_back();
         if (dropped_ >= 0) positions_.insert(positions_.begin() + dropped_, droppedPosition_);
       }
-      accepted_ = false;
       queue_.push_back(marker(Kind::kEndForward));
-      reversal_.reserve(c_ + 1);
-      reversal_.reset(&positions_, n + 1, c_);
-      restoring_ = n - 1;
-      phase_ = Phase::kReverse;
+      beginReverse(n + 1, n - 1);
       return true;
     }
     if (restoring_ >= 0) {
@@ -397,6 +388,20 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       return true;
     }
     return queueEndReverse(phase_);
+  }
+
+  // The checkpoint the placement dropped for the record at at_, once that record is kept.
+  void releaseDropped() {
+    if (dropped_ >= 0) queue_.push_back(CheckpointAction::release(droppedPosition_, CheckpointStorage::kRam));
+  }
+  // The forward run is over: the placement is final, and the backward sweep reverses the intervals of an
+  // engine run of `runSteps` steps from step `first` down.
+  void beginReverse(std::int64_t runSteps, std::int64_t first) {
+    accepted_ = false;
+    reversal_.reserve(c_ + 1);
+    reversal_.reset(&positions_, runSteps, c_);
+    restoring_ = first;
+    phase_ = Phase::kReverse;
   }
 
   enum class Phase { kForward, kReverse, kDone };
