@@ -167,6 +167,30 @@ struct DeflatedAdjoint {
   std::vector<int> iterations;  // per mode; -1 when solved directly
 };
 
+// y_rc += (s_c a_rj) x_jc for a block X of columns stored by rows, in one pass over A: for each column j of
+// A in increasing j, each column of X with the operations of Eigen's product of a column-major sparse
+// matrix with one vector (SparseDenseProduct.h: y_r += a_rj (alpha x_j), in increasing j); Eigen evaluates
+// w -= s (A p) as w += (s A)(-p) (ProductEvaluators.h, "Dense ?= scalar * Product"), which this is with
+// -p as X. So each column is bitwise Eigen's own product, whatever the block.
+void addScaledSparseProduct(const SparseMatrix& a, const StiffnessFactorization::RowBlock& x, const Vector& scales,
+                            StiffnessFactorization::RowBlock& y) {
+  const Eigen::Index width = x.cols();
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const double* values = a.valuePtr();
+  const int* nonZeros = a.innerNonZeroPtr();
+  const double* s = scales.data();
+  for (Eigen::Index j = 0; j < a.outerSize(); ++j) {
+    const double* xj = x.data() + j * width;
+    const int end = nonZeros ? outer[j] + nonZeros[j] : outer[j + 1];
+    for (int k = outer[j]; k < end; ++k) {
+      double* yr = y.data() + static_cast<Eigen::Index>(inner[k]) * width;
+      const double v = values[k];
+      for (Eigen::Index c = 0; c < width; ++c) yr[c] += (s[c] * v) * xj[c];
+    }
+  }
+}
+
 template <class Member>
 DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
                                    const StiffnessFactorization& stiffnessFactorization,
@@ -181,8 +205,10 @@ DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
   out.solutions.resize(rows, n);
   out.iterations.assign(static_cast<std::size_t>(n), 0);
 
-  // Two interleaved groups of modes (the slow high modes shared out), each its own block iteration.
-  const int groups = std::min(2, n);
+  // One interleaved group of modes per thread (the slow high modes shared out), each its own block
+  // iteration: a sweep streams the whole factor whatever its column count, so one thread does best with
+  // all modes in one block (every column's arithmetic is its own: the same bits for any grouping).
+  const int groups = std::max(1, std::min(parallelConcurrency(), n));
   parallelFor(groups, [&](int group) {
     std::vector<int> members;
     for (int i = group; i < n; i += groups) members.push_back(i);
@@ -190,15 +216,19 @@ DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
     Matrix x = Matrix::Zero(rows, count), r(rows, count), z(rows, count), p(rows, count), w(rows, count);
     Vector rho(count), initialNorm(count);
     std::vector<char> active(static_cast<std::size_t>(count), 1), failed(static_cast<std::size_t>(count), 0);
-    StiffnessFactorization::RowBlock block, scratch;
+    StiffnessFactorization::RowBlock block, scratch, operatorTimes;
+    Vector ones, shifts;
     std::vector<Eigen::Index> columns;
     columns.reserve(static_cast<std::size_t>(count));
     Vector coefficients(n);
-    // z = Q K^-1 r for the active columns.
-    auto precondition = [&]() {
+    auto activeColumns = [&]() {
       columns.clear();
       for (Eigen::Index c = 0; c < count; ++c)
         if (active[static_cast<std::size_t>(c)]) columns.push_back(c);
+    };
+    // z = Q K^-1 r for the active columns.
+    auto precondition = [&]() {
+      activeColumns();
       block.resize(rows, static_cast<Eigen::Index>(columns.size()));
       for (std::size_t k = 0; k < columns.size(); ++k)
         block.col(static_cast<Eigen::Index>(k)) = r.col(columns[k]);
@@ -223,13 +253,27 @@ DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
     }
     for (int iteration = 1; iteration <= iterationLimit; ++iteration) {
       bool any = false;
-      for (Eigen::Index c = 0; c < count; ++c) {
-        if (!active[static_cast<std::size_t>(c)]) continue;
+      // w = K p - lambda_i M p for every active column in one pass over K and one over M (each column
+      // bitwise Eigen's w = K p; w -= lambda_i (M p): addScaledSparseProduct).
+      activeColumns();
+      block.resize(rows, static_cast<Eigen::Index>(columns.size()));
+      for (std::size_t k = 0; k < columns.size(); ++k)
+        block.col(static_cast<Eigen::Index>(k)) = p.col(columns[k]);
+      const auto width = static_cast<Eigen::Index>(columns.size());
+      ones.setOnes(width);
+      shifts.resize(width);
+      for (Eigen::Index k = 0; k < width; ++k)
+        shifts(k) = basis.eigenvalues(members[static_cast<std::size_t>(columns[static_cast<std::size_t>(k)])]);
+      operatorTimes.setZero(rows, width);
+      addScaledSparseProduct(stiffness, block, ones, operatorTimes);
+      block = -block;
+      addScaledSparseProduct(mass, block, shifts, operatorTimes);
+      for (std::size_t k = 0; k < columns.size(); ++k) {
+        const Eigen::Index c = columns[k];
         const int i = members[static_cast<std::size_t>(c)];
         auto pc = p.col(c);
         auto wc = w.col(c);
-        wc.noalias() = stiffness * pc;
-        wc.noalias() -= basis.eigenvalues(i) * (mass * pc);
+        wc = operatorTimes.col(static_cast<Eigen::Index>(k));
         const double curvature = pc.dot(wc);
         if (!(curvature > 0.0 && std::isfinite(curvature) && rho(c) > 0.0)) {
           // Not positive definite on range(Q) after all (the modes are not the lowest, or a gap of ~1):
