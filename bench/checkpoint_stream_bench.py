@@ -4,7 +4,7 @@
 fresh interpreter, which reports its resident memory before opening the stream (the module loaded), after
 the first action and at the end (peak, getrusage's ru_maxrss), and the CPU seconds of the whole stream. A
 family that refuses the N says why (the first line of its error). Streams opened with steps=None (full,
-online) are finalized where a Forward reaches N, as a host stops there; for them the longest Forward before
+online, cams) are finalized where a Forward reaches N, as a host stops there; for them the longest Forward before
 finalize is reported too (how far the host runs on one action). The results go to bench/RESULTS.md
 ("Checkpoint action streams").
 
@@ -72,7 +72,7 @@ def main():
              ("full", n, True), ("disk:dir=unused", n, True), (multilevel, n, True),
              ("cams:checkpoints=100,online=1", n, True), ("online:checkpoints=100", n, True),
              ("full", f"none:{n}", True), ("online:checkpoints=100", f"none:{n}", True),
-             ("online:checkpoints=10", f"none:{n}", True),
+             ("online:checkpoints=10", f"none:{n}", True), ("cams:checkpoints=100,online=1", f"none:{n}", True),
              ("cams:checkpoints=100", n, True), ("cams:checkpoints=100", 10_000, True),
              ("cams:checkpoints=100", CAMS_LARGEST_N, True),
              ("binomial:checkpoints=100", 1 << 40, False), (multilevel, 100_000_000, False)]

@@ -172,7 +172,8 @@ strategies = [("full", 1), ("binomial:checkpoints=8", 1), ("cams:checkpoints=8",
               ("cams:checkpoints=8", 4),  # step records of 4 state units: some adjoint steps need no re-run
               (f"multilevel:ram={4 * state},disk={16 * state},costs=1:1:0.5:0.5", 1),
               ("disk:dir=" + tempfile.gettempdir(), 1),
-              ("online:checkpoints=8", None)]  # steps=None: the host decides N, the checkpoints are states
+              ("online:checkpoints=8", None),  # steps=None: the host decides N, the checkpoints are states
+              ("cams:checkpoints=8,online=1", None)]
 J_full, g_full, _, _ = gradient("full", model, kappa)
 print(f"{'strategy':<50} {'J':>14} {'dJ/dkappa':>22} {'extra steps':>12}")
 bitwise = True

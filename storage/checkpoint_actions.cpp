@@ -806,16 +806,9 @@ std::unique_ptr<CheckpointStream> openCamsPlanStream(std::int64_t steps, std::un
   return std::make_unique<CamsPlanStream>(steps, std::move(plan));
 }
 
-std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
-                                                       std::int64_t recordUnits) {
-  if (steps > prediction::kMaxWalkedSteps) {
-    throw std::invalid_argument(
-        "cams with online=1 streams steps up to " + std::to_string(prediction::kMaxWalkedSteps) +
-        " (2^24: its placement is walked step by step before the first action); steps = " +
-        std::to_string(steps));
-  }
-  std::vector<std::int64_t> positions =
-      internal::OnlinePlacement::simulate(steps, memoryUnits - 1, nullptr, nullptr);
+std::unique_ptr<CheckpointStream> openCamsOnlineStreamAt(std::int64_t steps,
+                                                         std::vector<std::int64_t> positions,
+                                                         std::int64_t memoryUnits, std::int64_t recordUnits) {
   const std::int64_t longest = internal::OnlinePlacement::longestInterval(positions, steps);
   const std::int64_t planned = cams::onlineIntervalPlanSteps(longest, memoryUnits, recordUnits);
   if (longest > planned) {
@@ -826,6 +819,19 @@ std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::
         "raise cams.checkpoints/cams.budget or drop online=1");
   }
   return std::make_unique<CamsPlanStream>(steps, std::move(positions), memoryUnits, recordUnits);
+}
+
+std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::int64_t memoryUnits,
+                                                       std::int64_t recordUnits) {
+  if (steps > prediction::kMaxWalkedSteps) {
+    throw std::invalid_argument(
+        "cams with online=1 streams steps up to " + std::to_string(prediction::kMaxWalkedSteps) +
+        " (2^24: its placement is walked step by step before the first action); steps = " +
+        std::to_string(steps));
+  }
+  return openCamsOnlineStreamAt(steps,
+                                internal::OnlinePlacement::simulate(steps, memoryUnits - 1, nullptr, nullptr),
+                                memoryUnits, recordUnits);
 }
 
 std::vector<CheckpointAction> checkpointSchedule(const std::string& spec, std::int64_t steps,

@@ -103,6 +103,12 @@ void CheckpointStream::finalize(std::int64_t n) {
   maxN_ = n;
 }
 
+// storage/checkpoint_actions.cpp: cams' stream of a run of `steps` steps in the online mode, its forward run
+// holding `positions` (the online placement's at the end).
+std::unique_ptr<CheckpointStream> openCamsOnlineStreamAt(std::int64_t steps,
+                                                         std::vector<std::int64_t> positions,
+                                                         std::int64_t memoryUnits, std::int64_t recordUnits);
+
 namespace {
 
 using Kind = CheckpointAction::Kind;
@@ -420,6 +426,102 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   bool pendingStore_ = false;
 };
 
+// cams without N (with online=1 or without it: a cams run whose step count is unknown uses the online mode
+// too): the checkpoints are states (RestartData::kState) placed by cams' online placement
+// (internal::OnlinePlacement, c = M - 1 of the M units) as the host goes. A run offers x_q, when q is a
+// multiple of the spacing d, at its record of step q + 1; so each Forward runs from one candidate to the
+// next (or as far as the cap), and the placement takes x_q when the host asks to go on from q -- it then
+// reaches q + 1, since finalize(n) needs n0 < n. The checkpoints a thinning drops are released then,
+// Move(p, RAM, NONE): at most c are held. When the host finalizes at n its WORK holds x_n, as the working
+// state of a cams run of n + 1 steps holds x_n (offered x_0 .. x_{n-1}, as here by then); the backward
+// sweep is that run's, each interval reversed by the interval plan as cams::simulateOnline does: the
+// stream of N = n + 1 steps with the same positions (openCamsOnlineStreamAt) without its forward run and
+// the reverse of step n (the working state's; the host does not need it). So it recomputes what cams'
+// online prediction for n + 1 steps counts. Intervals longer than the interval plan reverses are
+// revolve's in a run, which the translation does not express: the stream refuses to go on when the
+// spacing passes that length, before any checkpoint is released. Memory O(M) until the host finalizes.
+class CamsOnlineStateStream final : public BatchedCheckpointStream {
+ public:
+  // maxForward as OnlineStateStream's (the gaps between candidates double with every thinning).
+  CamsOnlineStateStream(std::int64_t memoryUnits, std::int64_t recordUnits, std::int64_t maxForward)
+      : BatchedCheckpointStream(kUnknownSteps),
+        units_(memoryUnits),
+        recordUnits_(recordUnits),
+        maxForward_(maxForward),
+        longestPlanned_(
+            cams::onlineIntervalPlanSteps(cams::kMaxIntervalPlanSteps, memoryUnits, recordUnits)) {
+    placement_.reset(units_ - 1);
+    held_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(units_, 1 << 16)));
+  }
+  RestartData restartData() const override { return RestartData::kState; }
+
+ private:
+  bool refill() override {
+    if (!reverse_ && maxN_ < 0) {
+      forwardOn();
+      return true;
+    }
+    CheckpointAction a;
+    if (!reverse_) {
+      // finalize(n): the backward sweep of a run of n + 1 steps, after its EndForward (passed on) and
+      // the reverse of step n (skipped with the actions before it).
+      reverse_ = openCamsOnlineStreamAt(maxN_ + 1, placement_.positions(), units_, recordUnits_);
+      while (reverse_->next(&a) && a.kind != Kind::kEndForward) {
+      }
+      queue_.push_back(a);
+      while (reverse_->next(&a) && !(a.kind == Kind::kReverse && a.n0 == maxN_)) {
+      }
+      return true;
+    }
+    if (!reverse_->next(&a)) return false;
+    queue_.push_back(a);
+    return true;
+  }
+
+  // The host goes on from at_: the placement's decision on x_{at_}, then the Forward to the next
+  // candidate.
+  void forwardOn() {
+    bool store = false;
+    if (placement_.isCandidate(at_)) {
+      const std::int64_t spacing = placement_.spacing();
+      const std::int64_t slot = placement_.commit(at_, [](std::int64_t, std::int64_t) {});
+      const std::vector<std::int64_t>& kept = placement_.positions();
+      if (placement_.spacing() != spacing) {
+        if (placement_.spacing() > longestPlanned_) {
+          throw std::invalid_argument(
+              "cams without N: at step " + std::to_string(at_) + " its online placement spaces the " +
+              "checkpoints " + std::to_string(placement_.spacing()) + " steps apart, beyond the " +
+              std::to_string(longestPlanned_) +
+              " steps its interval plan reverses (a run reverses longer intervals by revolve, which the "
+              "action stream does not translate); give N, or raise cams.checkpoints/cams.budget");
+        }
+        std::size_t k = 0;
+        for (const std::int64_t p : held_) {
+          if (k < kept.size() && kept[k] == p)
+            ++k;
+          else
+            queue_.push_back(CheckpointAction::release(p, CheckpointStorage::kRam));
+        }
+        held_.assign(kept.begin(), kept.end());
+      } else if (slot >= 0) {
+        held_.push_back(at_);
+      }
+      store = slot >= 0;
+    }
+    const std::int64_t spacing = placement_.spacing();
+    const std::int64_t next = std::min((at_ / spacing + 1) * spacing, at_ + maxForward_);
+    queue_.push_back(CheckpointAction::forward(at_, next, store, false,
+                                               store ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+    at_ = next;
+  }
+
+  std::int64_t units_, recordUnits_, maxForward_, longestPlanned_;
+  internal::OnlinePlacement placement_;
+  std::vector<std::int64_t> held_;  // the positions the host holds (the placement's before a thinning)
+  std::int64_t at_ = 0;
+  std::unique_ptr<CheckpointStream> reverse_;  // after finalize: the stream of n + 1 steps
+};
+
 // mixed: the whole translated plan, handed out in order.
 class StoredStream final : public CheckpointStream {
  public:
@@ -441,6 +543,12 @@ class StoredStream final : public CheckpointStream {
 std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t steps, std::int64_t checkpoints,
                                                         std::int64_t maxForward) {
   return std::make_unique<OnlineStateStream>(steps, checkpoints, maxForward);
+}
+
+std::unique_ptr<CheckpointStream> openCamsOnlineStateStream(std::int64_t memoryUnits,
+                                                            std::int64_t recordUnits,
+                                                            std::int64_t maxForward) {
+  return std::make_unique<CamsOnlineStateStream>(memoryUnits, recordUnits, maxForward);
 }
 
 std::unique_ptr<CheckpointStream> openTwoLevelPlanStream(std::int64_t steps, TwoLevelPlan plan);
@@ -466,21 +574,24 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
     }
     return openOnlineStateStream(steps, online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
   }
+  if (steps == kUnknownSteps && name == "cams") {
+    // Every check of the spec and the sizes (at one step), then the units as a run in the online mode
+    // derives them: a run with an unknown step count is in the online mode whether online=1 is given or
+    // not, and so is its stream.
+    predictSchedule(specText, 1, stateBytes, stages, costs);
+    const std::unique_ptr<TrajectoryStorage> storage = createFromRows(storageStrategies(), specText);
+    const auto& strategy = dynamic_cast<const CamsCheckpointing&>(*storage);
+    return openCamsOnlineStateStream(strategy.usableUnits(stateBytes, true),
+                                     CamsCheckpointing::recordUnitsOfStages(stages), std::int64_t{1} << 20);
+  }
   if (steps == kUnknownSteps && name != "full" && name != "disk") {
-    // Why the others need N (docs/guides/checkpoint_schedule.md, "An unknown N"): the fixed plans are
-    // made for N, and cams' online mode drops checkpoints during the forward run, after which the
-    // checkpoint before a dropped one must restart steps its restart data does not cover; its interval
-    // plans are not translated for state checkpoints.
+    // Why the others need N (docs/guides/checkpoint_schedule.md, "An unknown N"): their plans are made
+    // for N.
     throw std::invalid_argument(
-        "steps unknown: only full, disk and online streams are made without N (full and disk discard no "
-        "checkpoint; online keeps states, restart_data = state); " +
-        name + " needs N" +
-        (name == "cams" ? ": with online=1 and N unknown it drops checkpoints during the forward run, after "
-                          "which the checkpoint before a dropped one must restart steps its restart data "
-                          "does not cover (the Forward that wrote it ended at the dropped one), which "
-                          "checkpoint_schedules' contract refuses (docs/guides/checkpoint_schedule.md, \"An "
-                          "unknown N\"); online is the stream for the same memory"
-                        : std::string(": its plan is made for N")));
+        "steps unknown: only full, disk, online and cams streams are made without N "
+        "(full and disk discard no checkpoint; online and cams keep states, "
+        "restart_data = state); " +
+        name + " needs N: its plan is made for N");
   }
   if (name == "binomial" || name == "full" || name == "disk") {
     if (spec.has("stages") && spec.integer("stages", 0, 0, 1) == 1 && stages > 1) {

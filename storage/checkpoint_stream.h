@@ -10,8 +10,9 @@
 // (binomial: O(checkpoints); multilevel: TwoLevelPlan::choose, 0.03 s at N = 10^6; cams: its dynamic
 // programme over N, tables of N (M + 1) entries, seconds at N = 10^4: bench/checkpoint_stream_bench.py).
 // mixed translates its whole plan when the stream is opened and then hands it out action by action.
-// online, with N or without (openCheckpointStream with kUnknownSteps), keeps states as checkpoints
-// (RestartData::kState, docs/guides/checkpoint_schedule.md, "An unknown N"): memory O(checkpoints).
+// online, with N or without (openCheckpointStream with kUnknownSteps), and cams without N keep states as
+// checkpoints (RestartData::kState, docs/guides/checkpoint_schedule.md, "An unknown N"): memory
+// O(checkpoints) (cams: until finalize, then its interval plan).
 #pragma once
 
 #include <hindsight/storage/checkpoint_actions.h>
@@ -110,12 +111,21 @@ class BatchedCheckpointStream : public CheckpointStream {
 /// checkpoints are states (RestartData::kState): at most c + 1 in RAM, placed as a run of N + 1 steps
 /// places them (internal::TwoHorizonPlacement: the host's WORK holds x_N when it finalizes, as the
 /// engine's working state holds x_{N-1}), so it recomputes what online's prediction for N + 1 steps
-/// counts. Throws std::invalid_argument as checkpointSchedule() does, and for an unknown N with other
-/// strategies.
+/// counts; and cams (online=1 or not: its online mode), whose states are placed by its online placement
+/// with M - 1 checkpoints and whose backward sweep is a cams run's of N + 1 steps, so it recomputes what
+/// cams' online prediction for N + 1 steps counts. Throws std::invalid_argument as checkpointSchedule()
+/// does, and for an unknown N with other strategies.
 constexpr std::int64_t kUnknownSteps = -1;
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& spec, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
                                                        const ScheduleCosts* costs);
+
+/// cams' stream for an unknown N (openCheckpointStream's for cams with kUnknownSteps, which caps a Forward
+/// at 2^20 steps): M = memoryUnits units, records of recordUnits units, each Forward capped at
+/// `maxForward` >= 1 steps.
+std::unique_ptr<CheckpointStream> openCamsOnlineStateStream(std::int64_t memoryUnits,
+                                                            std::int64_t recordUnits,
+                                                            std::int64_t maxForward);
 
 /// online's stream for N = `steps` (or kUnknownSteps) and c checkpoints (openCheckpointStream's, which
 /// caps a Forward at 2^20 steps), with each Forward capped at `maxForward` >= 1 steps: tests reach the

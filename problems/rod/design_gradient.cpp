@@ -172,8 +172,8 @@ struct DeflatedAdjoint {
 // matrix with one vector (SparseDenseProduct.h: y_r += a_rj (alpha x_j), in increasing j); Eigen evaluates
 // w -= s (A p) as w += (s A)(-p) (ProductEvaluators.h, "Dense ?= scalar * Product"), which this is with
 // -p as X. So each column is bitwise Eigen's own product, whatever the block.
-void addScaledSparseProduct(const SparseMatrix& a, const StiffnessFactorization::RowBlock& x, const Vector& scales,
-                            StiffnessFactorization::RowBlock& y) {
+void addScaledSparseProduct(const SparseMatrix& a, const StiffnessFactorization::RowBlock& x,
+                            const Vector& scales, StiffnessFactorization::RowBlock& y) {
   const Eigen::Index width = x.cols();
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
@@ -263,7 +263,8 @@ DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
       ones.setOnes(width);
       shifts.resize(width);
       for (Eigen::Index k = 0; k < width; ++k)
-        shifts(k) = basis.eigenvalues(members[static_cast<std::size_t>(columns[static_cast<std::size_t>(k)])]);
+        shifts(k) =
+            basis.eigenvalues(members[static_cast<std::size_t>(columns[static_cast<std::size_t>(k)])]);
       operatorTimes.setZero(rows, width);
       addScaledSparseProduct(stiffness, block, ones, operatorTimes);
       block = -block;

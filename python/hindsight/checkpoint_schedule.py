@@ -222,11 +222,13 @@ def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     multilevel, cams; the same plan a run of the strategy executes; or mixed, checkpoint_schedules' Mixed
     plan, whose units hold a state or one step's adjoint data), as a CheckpointSchedule: an iterator
     of Forward, Reverse, Copy, Move, EndForward and EndReverse under checkpoint_schedules' contract.
-    steps=None (full, disk and online): N is unknown; the host calls finalize(n) when its forward run
-    stops at step n inside a Forward, as with checkpoint_schedules' schedules of unknown length. full and
-    disk advance step by step; online keeps at most C + 1 states as checkpoints (restart_data ==
-    "state": a checkpoint restarts any distance, and Move(n, RAM, NONE) releases one) and recomputes
-    what hindsight.schedule(spec, n + 1) predicts (docs/guides/checkpoint_schedule.md, "An unknown N").
+    steps=None (full, disk, online and cams): N is unknown; the host calls finalize(n) when its forward
+    run stops at step n inside a Forward, as with checkpoint_schedules' schedules of unknown length. full
+    and disk advance step by step; online keeps at most C + 1 states as checkpoints, cams (in its online
+    mode, online=1 or not, as a run of unknown length) at most M - 1 while the forward runs
+    (restart_data == "state": a checkpoint restarts any distance, and Move(n, RAM, NONE) releases one);
+    both recompute what hindsight.schedule(spec, n + 1) predicts (docs/guides/checkpoint_schedule.md, "An
+    unknown N").
     Arguments and defaults are hindsight.schedule's: `state_bytes` sizes the budgets (a strategy given
     in bytes: cams:budget=, multilevel:ram=); `stages` (4) is the right-hand sides per step, whose values
     cams may keep in step records; `costs` = "uf:ub:wd:rd" for multilevel without costs= in its spec.

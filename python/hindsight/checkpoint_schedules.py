@@ -30,8 +30,8 @@ def uses_checkpoint_schedules():
 def Schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """hindsight.checkpoint_schedule's stream (same arguments and defaults) made of classes()' actions:
     an iterator with n, r, max_n, is_exhausted, is_running, finalize and uses_storage_type, as
-    checkpoint_schedules' CheckpointSchedule has them. ValueError for online, whose checkpoints are
-    states (hindsight.checkpoint_schedule's restart_data == "state"), which checkpoint_schedules'
+    checkpoint_schedules' CheckpointSchedule has them. ValueError for online, and for cams with steps=None,
+    whose checkpoints are states (hindsight.checkpoint_schedule's restart_data == "state"), which checkpoint_schedules'
     contract does not allow."""
     schedule = _open(spec, steps, state_bytes, stages, costs, classes())
     if schedule.restart_data == "state":
@@ -40,8 +40,10 @@ def Schedule(spec, steps, state_bytes=8, stages=4, costs=None):
             "drops checkpoints during the forward run (Move(n, RAM, NONE), which no checkpoint_schedules "
             "schedule emits), after which the checkpoint before a dropped one must restart steps beyond "
             "the Forward that wrote it, while checkpoint_schedules' restart data written by Forward(n0, n1, "
-            "write_ics=True, ...) serves steps n0..n1-1 only. With N known, binomial:checkpoints=C is the "
-            "stream for the same memory; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
+            "write_ics=True, ...) serves steps n0..n1-1 only. "
+            + ("cams with N known streams in checkpoint_schedules' classes: give steps=N"
+               if spec.startswith("cams") else "With N known, binomial:checkpoints=C is the stream for the same memory")
+            + "; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
             "(restart_data == 'state'), with a host that can advance a state any distance")
     return schedule
 

@@ -117,12 +117,45 @@ def test_streams_without_n_end_where_the_host_finalizes(spec):
     next(schedule), next(schedule)
     with pytest.raises(RuntimeError, match="forward is at step 2"):
         schedule.finalize(3)
-    # cams' online mode drops checkpoints, which leaves the one before short of restart data.
-    with pytest.raises(ValueError, match="only full, disk and online") as error:
-        hindsight.checkpoint_schedule("cams:checkpoints=3,online=1", steps=None)
-    assert "restart data does not cover" in str(error.value) and "--" not in str(error.value)
-    with pytest.raises(ValueError, match="steps unknown.*binomial needs N"):
+    with pytest.raises(ValueError, match="steps unknown.*binomial needs N") as error:
         hindsight.checkpoint_schedule("binomial:checkpoints=3", steps=None)
+    assert "--" not in str(error.value)
+
+
+def test_cams_without_n_keeps_the_relaxed_contract_and_recomputes_the_prediction_of_one_step_more():
+    # cams' online mode as the host goes (restart_data == "state": its placement thins checkpoints with
+    # Move(n, RAM, NONE)); finalized at n it is a cams run of n + 1 steps in the online mode, whose
+    # working state is the host's x_n: at most M - 1 states while the forward runs, the recomputation and
+    # the adjoint re-runs of hindsight.schedule's prediction for n + 1 steps, full storage's gradient.
+    rng = random.Random(19)
+    cases = [(c, stages, n) for c in (1, 2, 5, 10) for stages in (1, 4) for n in range(1, 121)]
+    cases += [(rng.randint(1, 30), rng.randint(1, 4), rng.randint(1, 3000)) for _ in range(12)]
+    for c, stages, n in cases:
+        spec = f"cams:checkpoints={c},online=1"
+        schedule = hindsight.checkpoint_schedule(spec, steps=None, state_bytes=16, stages=stages)
+        assert schedule.restart_data == "state" and schedule.max_n is None
+        try:
+            counts = check_stream(schedule, n, OWN, online=True, ram_limit=c + 1, disk_limit=0)
+        except ContractError as error:
+            raise AssertionError(f"{spec}, stages {stages}, N = {n}: {error}") from None
+        p = hindsight.schedule(spec, n + 1, state_bytes=16, stages=stages)
+        assert counts["recomputed"] == p.recomputed_steps, (c, stages, n)
+        assert schedule.max_n == n and schedule.is_exhausted
+    for c, steps in [(1, 1), (1, 2), (1, 30), (2, 7), (3, 60), (5, 157), (10, 400)]:
+        reference = run(hindsight.checkpoint_schedule("full", steps=steps), steps)
+        for spec in (f"cams:checkpoints={c},online=1", f"cams:checkpoints={c}"):  # N unknown: online either way
+            schedule = hindsight.checkpoint_schedule(spec, steps=None)
+            objective, gradient, extra, leftover = run(schedule, steps, schedule=schedule)
+            assert (objective, gradient) == reference[:2], (spec, steps)
+            assert leftover == 0 and schedule.max_n == steps and schedule.is_exhausted
+            p = hindsight.schedule(f"cams:checkpoints={c},online=1", steps + 1, state_bytes=8)
+            # The run's adjoint re-runs include its last step n, which the host does not reverse.
+            assert extra == p.recomputed_steps + p.adjoint_stage_recomputations - 1, (spec, steps)
+    # checkpoint_schedules' classes need N for cams (its state checkpoints are outside their contract).
+    from hindsight.checkpoint_schedules import Schedule
+    with pytest.raises(ValueError, match="give steps=N") as error:
+        Schedule("cams:checkpoints=3", None)
+    assert "restart_data == 'state'" in str(error.value)
 
 
 def _online_without_n(c, steps):
@@ -219,7 +252,10 @@ def _families(rng):
             (f"multilevel:ram={16 * ram},disk={16 * disk},costs=1:1:{rng.choice([0, 0.5, 2])}:0.5", rng.choice([1, 4]),
              ram, disk),
             (f"mixed:checkpoints={c}", 1, c, 0),  # c units: restart states and adjoint data alike
-            (f"online:checkpoints={c}", rng.choice([1, 4]), c + 1, 0)]  # state checkpoints (rule 8)
+            (f"online:checkpoints={c}", rng.choice([1, 4]), c + 1, 0),  # state checkpoints (rule 8)
+            # N unknown (finalized where the forward reaches N): state checkpoints; the count of N + 1 steps
+            (f"online:checkpoints={c} steps=None", rng.choice([1, 4]), c + 1, 0),
+            (f"cams:checkpoints={c},online=1 steps=None", rng.choice([1, 4]), c + 1, 0)]
 
 
 def _sweep(ns, seed):
@@ -227,16 +263,20 @@ def _sweep(ns, seed):
     checked = 0
     for n in ns:
         for spec, stages, ram, disk in _families(rng):
+            unknown = spec.endswith(" steps=None")
+            spec = spec.removesuffix(" steps=None")
             try:
-                schedule = hindsight.checkpoint_schedule(spec, steps=n, state_bytes=16, stages=stages)
+                schedule = hindsight.checkpoint_schedule(spec, steps=None if unknown else n, state_bytes=16,
+                                                         stages=stages)
             except ValueError as error:
                 assert spec.startswith("multilevel"), error  # only too few slots for N steps
                 continue
             try:
-                counts = check_stream(schedule, n, OWN, ram_limit=ram, disk_limit=disk)
+                counts = check_stream(schedule, n, OWN, ram_limit=ram, disk_limit=disk, online=unknown)
             except ContractError as error:
-                raise AssertionError(f"{spec}, N = {n}, stages = {stages}: {error}") from None
-            p = hindsight.schedule(spec, n, state_bytes=16, stages=stages)
+                raise AssertionError(f"{spec}, N = {n}{' unknown' if unknown else ''}, stages = {stages}: "
+                                     f"{error}") from None
+            p = hindsight.schedule(spec, n + unknown, state_bytes=16, stages=stages)
             assert counts["recomputed"] == p.recomputed_steps, (spec, n, stages)
             if spec.startswith("multilevel"):
                 # At a write cost of 0 the plan may store a state on disk and in RAM at once and read

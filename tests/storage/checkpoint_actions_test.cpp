@@ -2,6 +2,7 @@
 // strategy on a grid of N and budgets (a host that tracks which step each piece of data belongs to
 // executes it), and it recomputes what the strategy's own prediction says.
 #include <hindsight/engine/binomial_checkpointing.h>
+#include <hindsight/engine/cams_checkpointing.h>
 #include <hindsight/storage/checkpoint_actions.h>
 #include <hindsight/storage/checkpoint_stream.h>
 #include <hindsight/storage/storage_factory.h>
@@ -310,6 +311,74 @@ TEST(CheckpointActions, OnlineStreamWithNRecomputesItsPrediction) {
   }
 }
 
+// cams without N keeps states as checkpoints, placed by its online placement as the host goes and thinned
+// by releases; finalized at n it is a cams run of n + 1 steps in the online mode after the forward run (the
+// host's WORK holds x_n as that run's working state does): it recomputes what cams' online prediction for
+// n + 1 steps counts, holds at most M - 1 checkpoints while the forward run goes, keeps the relaxed
+// contract and ends holding none. Forwards cut short by a cap give the same count.
+TEST(CheckpointActions, CamsStreamWithoutNRecomputesThePredictionOfOneStepMore) {
+  std::mt19937_64 rng(17);
+  std::vector<std::array<std::int64_t, 4>> cases;  // M, stages, N, cap (0: the stream a host opens)
+  for (const std::int64_t units : {2, 3, 4, 6, 11})
+    for (const std::int64_t stages : {1, 4})
+      for (std::int64_t steps = 1; steps <= 150; ++steps) cases.push_back({units, stages, steps, 0});
+  for (int trial = 0; trial < 40; ++trial)
+    cases.push_back({std::uniform_int_distribution<std::int64_t>(2, 40)(rng),
+                     std::uniform_int_distribution<std::int64_t>(1, 4)(rng),
+                     std::uniform_int_distribution<std::int64_t>(1, 5000)(rng),
+                     std::uniform_int_distribution<std::int64_t>(0, 3)(rng)});
+  bool released = false;
+  for (const auto& [units, stages, steps, cap] : cases) {
+    SCOPED_TRACE("M = " + std::to_string(units) + ", stages " + std::to_string(stages) +
+                 ", N = " + std::to_string(steps) + ", cap " + std::to_string(cap));
+    const std::string spec = "cams:checkpoints=" + std::to_string(units - 1) + ",online=1";
+    const int s = static_cast<int>(stages);
+    const std::unique_ptr<CheckpointStream> stream =
+        cap > 0 ? openCamsOnlineStateStream(units, CamsCheckpointing::recordUnitsOfStages(s), cap)
+                : openCheckpointStream(spec, kUnknownSteps, 16, s, nullptr);
+    ASSERT_EQ(stream->restartData(), RestartData::kState);
+    CheckpointStreamChecker checker(steps, RestartData::kState);
+    CheckpointAction a;
+    std::int64_t mostHeldForward = 0;
+    while (stream->next(&a)) {
+      if (a.kind == CheckpointAction::Kind::kForward && stream->maxN() < 0) {
+        if (cap > 0) EXPECT_LE(a.n1 - a.n0, cap) << a.text();
+        if (a.n1 >= steps) {
+          a.n1 = steps;  // the host stops there
+          stream->finalize(steps);
+          EXPECT_EQ(stream->n(), steps);
+        }
+      }
+      released = released || (a.kind == CheckpointAction::Kind::kMove && a.to == CheckpointStorage::kNone);
+      checker.take(a);
+      if (stream->maxN() < 0) mostHeldForward = std::max(mostHeldForward, stream->heldCheckpoints());
+    }
+    const CheckpointStreamCounts counts = checker.finish();
+    const SchedulePrediction p = predictSchedule(spec, steps + 1, 16, s, nullptr);
+    EXPECT_EQ(counts.recomputedSteps, p.recomputedSteps);
+    EXPECT_EQ(counts.forwardSteps, steps);
+    EXPECT_LE(mostHeldForward, units - 1);
+    EXPECT_EQ(stream->heldCheckpoints(), 0);
+  }
+  EXPECT_TRUE(released);
+  // Without online=1 the same stream (a cams run with an unknown step count is in the online mode).
+  const std::unique_ptr<CheckpointStream> plain =
+      openCheckpointStream("cams:checkpoints=3", kUnknownSteps, 16, 4, nullptr);
+  EXPECT_EQ(plain->restartData(), RestartData::kState);
+  // A spacing beyond what the interval plan reverses is refused before anything is released: one
+  // checkpoint and the working state (M = 2) double the spacing at every thinning.
+  const std::unique_ptr<CheckpointStream> far = openCamsOnlineStateStream(2, 2, std::int64_t{1} << 20);
+  CheckpointAction a;
+  std::int64_t reached = 0;
+  try {
+    while (far->next(&a)) reached = std::max(reached, a.n1);
+    ADD_FAILURE() << "no refusal";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("give N"), std::string::npos) << e.what();
+  }
+  EXPECT_GE(reached, cams::onlineIntervalPlanSteps(cams::kMaxIntervalPlanSteps, 2, 2));
+}
+
 TEST(CheckpointActions, OnlineStreamWithoutNRefusesAWrongFinalize) {
   const std::unique_ptr<CheckpointStream> stream =
       openCheckpointStream("online:checkpoints=2", kUnknownSteps, 16, 4, nullptr);
@@ -326,7 +395,9 @@ TEST(CheckpointActions, OnlineStreamWithoutNRefusesAWrongFinalize) {
   EXPECT_EQ(stream->n(), a.n0 + 1);
   EXPECT_THROW(stream->finalize(a.n0 + 1), std::logic_error);  // twice
   // Families without a stream for an unknown N, and online's stages=1.
-  EXPECT_THROW(openCheckpointStream("cams:checkpoints=3,online=1", kUnknownSteps, 16, 4, nullptr),
+  EXPECT_THROW(openCheckpointStream("multilevel:ram=3,disk=10", kUnknownSteps, 16, 4, nullptr),
+               std::invalid_argument);
+  EXPECT_THROW(openCheckpointStream("mixed:checkpoints=3", kUnknownSteps, 16, 4, nullptr),
                std::invalid_argument);
   EXPECT_THROW(openCheckpointStream("online:checkpoints=3,stages=1", kUnknownSteps, 16, 4, nullptr),
                std::invalid_argument);
