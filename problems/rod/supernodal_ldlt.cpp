@@ -342,10 +342,8 @@ void SupernodalLdlt::analyzePattern(const SparseMatrix& a) {
 }
 
 void SupernodalLdlt::factorizeSupernode(int s, const double* values, Workspace& work) {
-  const int begin = first_[s], columns = first_[s + 1] - begin;
-  const int rows = rowStart_[s + 1] - rowStart_[s];
-  const int* rowList = rows_.data() + rowStart_[s];
-  double* block = values_.data() + blockStart_[s];
+  const auto [begin, columns, rows, rowList, blockStart] = geometry(s);
+  double* block = values_.data() + blockStart;
   // Assemble A's entries.
   std::fill(block, block + static_cast<std::int64_t>(columns) * rows, 0.0);
   for (std::int64_t k = assemblyStart_[s]; k < assemblyStart_[s + 1]; ++k)
@@ -473,10 +471,8 @@ inline void subtractDot(const double* __restrict l, const double* __restrict g, 
 template <int C, bool Packed>
 void SupernodalLdlt::forwardSupernode(int s, double* x, Eigen::Index runtimeStride) const {
   const Eigen::Index stride = sweepStride<C, Packed>(runtimeStride);
-  const int begin = first_[s], width = first_[s + 1] - begin;
-  const int rows = rowStart_[s + 1] - rowStart_[s];
-  const int* rowList = rows_.data() + rowStart_[s];
-  const double* block = values_.data() + blockStart_[s];
+  const auto [begin, width, rows, rowList, blockStart] = geometry(s);
+  const double* block = values_.data() + blockStart;
   double* __restrict own = x + begin * stride;
   // The unit lower triangle on the supernode's own rows (contiguous), column by column:
   // x_q -= L(q, j) x_j for q > j.
@@ -526,10 +522,8 @@ void SupernodalLdlt::forwardSupernode(int s, double* x, Eigen::Index runtimeStri
 template <int C, bool Packed>
 void SupernodalLdlt::backwardSupernode(int s, double* x, Eigen::Index runtimeStride) const {
   const Eigen::Index stride = sweepStride<C, Packed>(runtimeStride);
-  const int begin = first_[s], width = first_[s + 1] - begin;
-  const int rows = rowStart_[s + 1] - rowStart_[s];
-  const int* rowList = rows_.data() + rowStart_[s];
-  const double* block = values_.data() + blockStart_[s];
+  const auto [begin, width, rows, rowList, blockStart] = geometry(s);
+  const double* block = values_.data() + blockStart;
   double* own = x + begin * stride;
   // The rows below, a chunk at a time: gathered once, then x_j -= L(chunk, j)^T x_chunk for every column j.
   alignas(16) double g[kSweepChunk * C];

@@ -123,6 +123,17 @@ class SupernodalLdlt {
     int descendant;  // supernode d
     int begin, end;  // d's rows in the target's columns: positions [begin, end) of d's row list
   };
+  // Supernode s as its kernels read it: its first column, its column count (width), its rows (its own
+  // columns first) and its column-major block, whose leading dimension is `rows`.
+  struct Geometry {
+    int begin, width, rows;
+    const int* rowList;
+    std::int64_t blockStart;
+  };
+  Geometry geometry(int s) const {
+    return Geometry{first_[s], first_[s + 1] - first_[s], rowStart_[s + 1] - rowStart_[s],
+                    rows_.data() + rowStart_[s], blockStart_[s]};
+  }
   struct Workspace {
     std::vector<int> position;        // row -> position in the current supernode's rows
     std::vector<int> relative;        // a descendant's rows -> positions in the current supernode's block
