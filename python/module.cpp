@@ -1071,11 +1071,12 @@ PYBIND11_MODULE(_hindsight, m) {
                              })
       .def("finalize", &CheckpointStream::finalize);
   m.def("_open_checkpoint_stream", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                      int stages, const std::string& costs) {
+                                      int stages, const std::string& costs, bool intervals) {
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
     const Simulating computing;  // the plan is chosen here (cams: all of it)
-    return openCheckpointStream(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr);
+    return openCheckpointStream(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr,
+                                intervals ? RestartData::kInterval : RestartData::kState);
   });
   m.def("storage_strategy_names", &storageStrategyNames,
         "Names of the storage strategies (the C++ factory's).");

@@ -285,14 +285,23 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   // steps: N, or kUnknownSteps until the host calls finalize(). With N known the forward run is an engine
   // run's: the records 1 .. N - 1 are offered, the last Forward writes step N - 1's adjoint data (x_{N-1}
   // is the working state, never written) and the count is online's prediction for N itself.
-  OnlineStateStream(std::int64_t steps, std::int64_t checkpoints, std::int64_t maxForward)
-      : BatchedCheckpointStream(steps), c_(checkpoints), maxForward_(maxForward) {
+  // intervals (N known only): the placement of the whole run is walked first (O(N)) and the forward run
+  // writes only the positions it holds at the end, each by the Forward that runs to the next one, so
+  // every checkpoint's restart data covers its interval: checkpoint_schedules' contract
+  // (RestartData::kInterval), the same reversal and count.
+  OnlineStateStream(std::int64_t steps, std::int64_t checkpoints, std::int64_t maxForward, bool intervals)
+      : BatchedCheckpointStream(steps), c_(checkpoints), maxForward_(maxForward), intervals_(intervals) {
+    if (intervals_ && steps < 1)
+      throw std::invalid_argument("online's stream within checkpoint_schedules' contract needs N");
     placement_.reset(c_);
     positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 2, 1 << 16)));
     positions_.assign(1, 0);
+    if (intervals_) positions_ = Placement::simulate(steps, c_, nullptr, nullptr);
     stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 1, 1 << 16)));
   }
-  RestartData restartData() const override { return RestartData::kState; }
+  RestartData restartData() const override {
+    return intervals_ ? RestartData::kInterval : RestartData::kState;
+  }
 
  private:
   using Placement = internal::TwoHorizonPlacement;
@@ -326,6 +335,16 @@ class OnlineStateStream final : public BatchedCheckpointStream {
 
   bool refill() override {
     const bool known = !openedWithoutN();
+    if (phase_ == Phase::kForward && intervals_ && at_ < maxN_ - 1) {
+      // To the next held position (x_{N-1}, held or not, is the working state and not written).
+      const auto next = std::upper_bound(positions_.begin(), positions_.end(), at_);
+      const std::int64_t k = next == positions_.end() ? maxN_ - 1 : std::min(*next, maxN_ - 1);
+      const bool held = std::binary_search(positions_.begin(), positions_.end(), at_);
+      queue_.push_back(
+          forward(at_, k, held, false, held ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+      at_ = k;
+      return true;
+    }
     if (phase_ == Phase::kForward && (maxN_ < 0 || (known && at_ < maxN_ - 1))) {
       if (accepted_) {  // the host went on past the stored record: x_{at_} is written next
         releaseDropped();
@@ -413,6 +432,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   enum class Phase { kForward, kReverse, kDone };
   Phase phase_ = Phase::kForward;
   std::int64_t c_, maxForward_;
+  bool intervals_;
   Placement placement_;
   std::int64_t dropped_ = Placement::kSkipped;  // the placement's decision at at_ (an index before it)
   std::int64_t droppedPosition_ = -1;           // the checkpoint it dropped there
@@ -541,8 +561,8 @@ class StoredStream final : public CheckpointStream {
 }  // namespace
 
 std::unique_ptr<CheckpointStream> openOnlineStateStream(std::int64_t steps, std::int64_t checkpoints,
-                                                        std::int64_t maxForward) {
-  return std::make_unique<OnlineStateStream>(steps, checkpoints, maxForward);
+                                                        std::int64_t maxForward, bool intervals) {
+  return std::make_unique<OnlineStateStream>(steps, checkpoints, maxForward, intervals);
 }
 
 std::unique_ptr<CheckpointStream> openCamsOnlineStateStream(std::int64_t memoryUnits,
@@ -558,7 +578,7 @@ std::unique_ptr<CheckpointStream> openCamsOnlineStream(std::int64_t steps, std::
 
 std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specText, std::int64_t steps,
                                                        std::int64_t stateBytes, int stages,
-                                                       const ScheduleCosts* costs) {
+                                                       const ScheduleCosts* costs, RestartData hostRestarts) {
   const StorageSpec spec = StorageSpec::parse(specText);
   const std::string& name = spec.name();
   if (name == "online") {
@@ -572,7 +592,8 @@ std::unique_ptr<CheckpointStream> openCheckpointStream(const std::string& specTe
           "online.stages = 1 keeps stage values by a rule of its own, which the action stream does not "
           "express; use online without stages=1");
     }
-    return openOnlineStateStream(steps, online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20);
+    return openOnlineStateStream(steps, online.checkpointsFor(stateBytes, 0), std::int64_t{1} << 20,
+                                 hostRestarts == RestartData::kInterval && steps != kUnknownSteps);
   }
   if (steps == kUnknownSteps && name == "cams") {
     // Every check of the spec and the sizes (at one step), then the units as a run in the online mode

@@ -129,12 +129,13 @@ class CheckpointSchedule:
     is_running, finalize, uses_storage_type). `classes` is the namespace whose action classes and
     StorageType it yields (hindsight's own, or checkpoint_schedules')."""
 
-    def __init__(self, spec, steps, state_bytes, stages, costs, classes):
+    def __init__(self, spec, steps, state_bytes, stages, costs, classes, intervals=False):
         from . import _in_python_words
         self.spec = spec
         self._classes = classes
         try:
-            self._stream = _hindsight._open_checkpoint_stream(spec, steps, state_bytes, stages, costs or "")
+            self._stream = _hindsight._open_checkpoint_stream(spec, steps, state_bytes, stages, costs or "",
+                                                              intervals)
         except ValueError as error:
             raise _in_python_words(error) from None
         self._storage = {name: getattr(classes.StorageType, name) for name in ("RAM", "DISK", "WORK", "NONE")}
@@ -238,7 +239,10 @@ def checkpoint_schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     return _open(spec, steps, state_bytes, stages, costs, _OWN)
 
 
-def _open(spec, steps, state_bytes, stages, costs, classes):
+def _open(spec, steps, state_bytes, stages, costs, classes, intervals=False):
+    """intervals: the host's restart data serves only the steps of the Forward that wrote it
+    (checkpoint_schedules' contract): online with N known then walks its placement first and writes only
+    the checkpoints it holds at the end (restart_data == "interval")."""
     from . import _schedule_integer
     if not isinstance(spec, str):
         raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
@@ -248,7 +252,7 @@ def _open(spec, steps, state_bytes, stages, costs, classes):
     stages = _schedule_integer("stages", stages, 1, 64)
     if costs is not None and not isinstance(costs, str):
         raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
-    return CheckpointSchedule(spec, steps, state_bytes, stages, costs, classes)
+    return CheckpointSchedule(spec, steps, state_bytes, stages, costs, classes, intervals)
 
 
 class _Classes:

@@ -30,10 +30,11 @@ def uses_checkpoint_schedules():
 def Schedule(spec, steps, state_bytes=8, stages=4, costs=None):
     """hindsight.checkpoint_schedule's stream (same arguments and defaults) made of classes()' actions:
     an iterator with n, r, max_n, is_exhausted, is_running, finalize and uses_storage_type, as
-    checkpoint_schedules' CheckpointSchedule has them. ValueError for online, and for cams with steps=None,
-    whose checkpoints are states (hindsight.checkpoint_schedule's restart_data == "state"), which checkpoint_schedules'
-    contract does not allow."""
-    schedule = _open(spec, steps, state_bytes, stages, costs, classes())
+    checkpoint_schedules' CheckpointSchedule has them, within its contract: online with N known walks its
+    placement first (O(N): 0.45-1.1 s of CPU at N = 10^6, C = 100) and writes only the checkpoints it holds at the end.
+    ValueError for online and cams with steps=None, whose checkpoints are states (restart_data ==
+    "state"), which checkpoint_schedules' contract does not allow."""
+    schedule = _open(spec, steps, state_bytes, stages, costs, classes(), intervals=True)
     if schedule.restart_data == "state":
         raise ValueError(
             f"steps={steps!r}: {spec!r} has no stream of checkpoint_schedules' classes. Its placement "
@@ -41,9 +42,7 @@ def Schedule(spec, steps, state_bytes=8, stages=4, costs=None):
             "schedule emits), after which the checkpoint before a dropped one must restart steps beyond "
             "the Forward that wrote it, while checkpoint_schedules' restart data written by Forward(n0, n1, "
             "write_ics=True, ...) serves steps n0..n1-1 only. "
-            + ("cams with N known streams in checkpoint_schedules' classes: give steps=N"
-               if spec.startswith("cams") else "With N known, binomial:checkpoints=C is the stream for the same memory")
-            + "; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
+            + "With N known it streams in checkpoint_schedules' classes: give steps=N; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
             "(restart_data == 'state'), with a host that can advance a state any distance")
     return schedule
 

@@ -308,6 +308,16 @@ TEST(CheckpointActions, OnlineStreamWithNRecomputesItsPrediction) {
     EXPECT_EQ(counts.forwardSteps, steps);
     EXPECT_LE(mostHeld, c + 1);
     EXPECT_EQ(stream->heldCheckpoints(), 0);
+    // For a host of checkpoint_schedules' contract: the placement walked first, only the checkpoints held at
+    // the end written; checkpoint_schedules' strict rule 1 holds and the count is the same.
+    const std::unique_ptr<CheckpointStream> strict =
+        openCheckpointStream(spec, steps, 16, 4, nullptr, RestartData::kInterval);
+    EXPECT_EQ(strict->restartData(), RestartData::kInterval);
+    std::vector<CheckpointAction> actions;
+    while (strict->next(&a)) actions.push_back(a);
+    const CheckpointStreamCounts strictCounts = checkCheckpointStream(actions, steps);
+    EXPECT_EQ(strictCounts.recomputedSteps, counts.recomputedSteps);
+    EXPECT_LE(strictCounts.peakRamCheckpoints, c + 1);
   }
 }
 
