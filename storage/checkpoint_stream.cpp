@@ -295,7 +295,7 @@ class OnlineStateStream final : public BatchedCheckpointStream {
       throw std::invalid_argument("online's stream within checkpoint_schedules' contract needs N");
     placement_.reset(c_);
     positions_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 2, 1 << 16)));
-    positions_.assign(1, 0);
+    positions_.assign(1, 0);  // into the reserved buffer: the state stream's stores allocate nothing
     if (intervals_) positions_ = Placement::simulate(steps, c_, nullptr, nullptr);
     stack_.reserve(static_cast<std::size_t>(std::min<std::int64_t>(c_ + 1, 1 << 16)));
   }
@@ -336,12 +336,11 @@ class OnlineStateStream final : public BatchedCheckpointStream {
   bool refill() override {
     const bool known = !openedWithoutN();
     if (phase_ == Phase::kForward && intervals_ && at_ < maxN_ - 1) {
-      // To the next held position (x_{N-1}, held or not, is the working state and not written).
+      // From a held position (x_0, then each Forward's end) to the next one, whose state the next Forward
+      // writes, or to x_{N-1}, which held or not is the working state and not written.
       const auto next = std::upper_bound(positions_.begin(), positions_.end(), at_);
       const std::int64_t k = next == positions_.end() ? maxN_ - 1 : std::min(*next, maxN_ - 1);
-      const bool held = std::binary_search(positions_.begin(), positions_.end(), at_);
-      queue_.push_back(
-          forward(at_, k, held, false, held ? CheckpointStorage::kRam : CheckpointStorage::kWork));
+      queue_.push_back(forward(at_, k, true, false, CheckpointStorage::kRam));
       at_ = k;
       return true;
     }

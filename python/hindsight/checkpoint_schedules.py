@@ -41,8 +41,8 @@ def Schedule(spec, steps, state_bytes=8, stages=4, costs=None):
             "drops checkpoints during the forward run (Move(n, RAM, NONE), which no checkpoint_schedules "
             "schedule emits), after which the checkpoint before a dropped one must restart steps beyond "
             "the Forward that wrote it, while checkpoint_schedules' restart data written by Forward(n0, n1, "
-            "write_ics=True, ...) serves steps n0..n1-1 only. "
-            + "With N known it streams in checkpoint_schedules' classes: give steps=N; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
+            "write_ics=True, ...) serves steps n0..n1-1 only. With N known it streams in checkpoint_schedules' "
+            "classes: give steps=N; or use hindsight.checkpoint_schedule(spec, steps), whose checkpoints are states "
             "(restart_data == 'state'), with a host that can advance a state any distance")
     return schedule
 
