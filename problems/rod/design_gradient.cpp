@@ -4,6 +4,7 @@
 #include <hindsight/problems/rod/invariants.h>
 #include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/solid_member.h>
+#include <hindsight/problems/rod/sparse_products.h>
 
 #include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
@@ -166,30 +167,6 @@ struct DeflatedAdjoint {
   Matrix solutions;
   std::vector<int> iterations;  // per mode; -1 when solved directly
 };
-
-// y_rc += (s_c a_rj) x_jc for a block X of columns stored by rows, in one pass over A: for each column j of
-// A in increasing j, each column of X with the operations of Eigen's product of a column-major sparse
-// matrix with one vector (SparseDenseProduct.h: y_r += a_rj (alpha x_j), in increasing j); Eigen evaluates
-// w -= s (A p) as w += (s A)(-p) (ProductEvaluators.h, "Dense ?= scalar * Product"), which this is with
-// -p as X. So each column is bitwise Eigen's own product, whatever the block.
-void addScaledSparseProduct(const SparseMatrix& a, const StiffnessFactorization::RowBlock& x,
-                            const Vector& scales, StiffnessFactorization::RowBlock& y) {
-  const Eigen::Index width = x.cols();
-  const int* outer = a.outerIndexPtr();
-  const int* inner = a.innerIndexPtr();
-  const double* values = a.valuePtr();
-  const int* nonZeros = a.innerNonZeroPtr();
-  const double* s = scales.data();
-  for (Eigen::Index j = 0; j < a.outerSize(); ++j) {
-    const double* xj = x.data() + j * width;
-    const int end = nonZeros ? outer[j] + nonZeros[j] : outer[j + 1];
-    for (int k = outer[j]; k < end; ++k) {
-      double* yr = y.data() + static_cast<Eigen::Index>(inner[k]) * width;
-      const double v = values[k];
-      for (Eigen::Index c = 0; c < width; ++c) yr[c] += (s[c] * v) * xj[c];
-    }
-  }
-}
 
 template <class Member>
 DeflatedAdjoint solveAdjointNelson(const Member& model, const ModalBasis& basis,
@@ -453,22 +430,23 @@ DesignGradientResult designGradientOf(const Member& model, const ModalBasis& bas
   });
 
   // dpsi/dphi_i as full-DOF columns, then restricted to the free DOFs.
-  const Matrix massModes = massFull * modes;
+  const Matrix massModes = sparseTimesDense(massFull, modes);
   Matrix modeGradientFull = massFull * model.unitTranslationX() * weights.c1.row(0) +
                             massFull * model.unitTranslationY() * weights.c1.row(1) +
                             (massFull * coordinates) * weights.c2.transpose() +
                             (massFull * rotatedCoordinates) * weights.a0.transpose() +
-                            (massFull * rotatedModesTransposed) * weights.cTilde.transpose() +
+                            sparseTimesDense(massFull, rotatedModesTransposed) * weights.cTilde.transpose() +
                             rotateNodewiseColumns(massModes, kComponents) * weights.cTilde +
                             massModes * (weights.mee + weights.mee.transpose()) +
-                            (stiffnessFull * modes) * (weights.kee + weights.kee.transpose());
+                            sparseTimesDense(stiffnessFull, modes) * (weights.kee + weights.kee.transpose());
   if constexpr (kComponents == 2) {
     modeGradientFull.row(model.jointBAxialDof()) += weights.b.transpose();
   } else {
     const std::vector<int> axis = model.jointBAxialDofs();
     for (int dof : axis)
       modeGradientFull.row(dof) += weights.b.transpose() / static_cast<double>(axis.size());
-    modeGradientFull += (massFull * planarModes) * (weights.meeRotation + weights.meeRotation.transpose());
+    modeGradientFull +=
+        sparseTimesDense(massFull, planarModes) * (weights.meeRotation + weights.meeRotation.transpose());
   }
   const Matrix modeGradient = model.restrictColumnsToFree(modeGradientFull);
 
@@ -480,7 +458,7 @@ DesignGradientResult designGradientOf(const Member& model, const ModalBasis& bas
   const bool adjointRoute = options.method == EigenvectorSensitivityMethod::AdjointNelson;
   DeflatedAdjoint adjoints;
   // M phi_i on the free DOFs, once for the right-hand sides, the deflation and the per-mode chain.
-  const Matrix massModesFree = mass * basis.modesFree;
+  const Matrix massModesFree = sparseTimesDense(mass, basis.modesFree);
   if (adjointRoute) {
     Matrix rightHandSides(model.freeDofCount(), n);
     for (int i = 0; i < n; ++i) {

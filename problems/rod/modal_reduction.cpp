@@ -3,6 +3,7 @@
 #include <hindsight/problems/rod/compensated_kernels.h>
 #include <hindsight/problems/rod/parallel.h>
 #include <hindsight/problems/rod/solid_member.h>
+#include <hindsight/problems/rod/sparse_products.h>
 
 #include <Spectra/SymEigsSolver.h>
 #include <Eigen/Eigenvalues>
@@ -334,7 +335,7 @@ ModalBasis computeModalBasisOf(const Member& model, const ModalReductionOptions&
     // error that changes erratically with the design; one sweep of iterative refinement with a
     // compensated residual makes S accurate to working precision, and S^T K S summed over elements keeps it.
     for (int step = 0; step < options.refinementSteps; ++step) {
-      const Matrix load = mass * vectors;
+      const Matrix load = sparseTimesDense(mass, vectors);
       // Each column's solve and compensated residual is its own arithmetic, in the same order in any
       // block: two fixed halves of the columns, in parallel when threads are available
       // (problems/rod/parallel.h), give the bits of one block for any thread count.
@@ -357,7 +358,7 @@ ModalBasis computeModalBasisOf(const Member& model, const ModalReductionOptions&
         subspace.col(j) /= std::sqrt(subspace.col(j).dot(mass * subspace.col(j)));
       const Matrix projectedStiffness =
           elementwiseStiffnessFormOf(model, model.extendColumnsToFull(subspace));
-      const Matrix projectedMass = subspace.transpose() * (mass * subspace);
+      const Matrix projectedMass = subspace.transpose() * sparseTimesDense(mass, subspace);
       const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> ritz(
           projectedStiffness, 0.5 * (projectedMass + projectedMass.transpose()));
       if (ritz.info() != Eigen::Success)

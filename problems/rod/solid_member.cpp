@@ -39,10 +39,11 @@ SolidMember::SolidMember(const RodConfig& config, ConstVectorRef design, HexForm
   symmetryFactor_ = config.midPlaneSymmetry ? 2.0 : 1.0;
   unitStiffness_ = symmetryFactor_ * solid_.unitStiffness();
   unitMass_ = symmetryFactor_ * solid_.unitMass();
-  stiffnessFull_ = symmetryFactor_ * solid_.stiffness();
-  massFull_ = symmetryFactor_ * solid_.mass();
-  stiffnessFull_.makeCompressed();
-  massFull_.makeCompressed();
+  solid_.releaseMatrices(stiffnessFull_, massFull_);
+  if (symmetryFactor_ != 1.0) {  // exact in floating point
+    stiffnessFull_ *= symmetryFactor_;
+    massFull_ *= symmetryFactor_;
+  }
   const std::vector<int> fixed = supportedDofs(solid_);
   static_cast<SupportedDofs&>(*this) = SupportedDofs(solid_.dofCount(), fixed);
   stiffness_ = removeDofs(stiffnessFull_, fixed);

@@ -46,6 +46,7 @@ class SolidMember : public MemberMatrices<HexElementMatrix> {
   SolidMember(const RodConfig& config, ConstVectorRef design,
               HexFormulation formulation = HexFormulation::incompatibleModes);
 
+  /// The hexahedral model; its K and M have moved to stiffnessFull() and massFull() (scaled there).
   const SolidModel& solid() const { return solid_; }
   const RodConfig& config() const { return solid_.config(); }
   const SimpLaw& simp() const { return solid_.simp(); }

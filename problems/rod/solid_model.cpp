@@ -8,9 +8,12 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace hindsight {
 namespace rod {
@@ -231,32 +234,103 @@ std::vector<int> SolidModel::jointBNodes() const {
   return nodes;
 }
 
-// Into a pattern reserved for the 81 DOFs (27 nodes x 3) a node can couple with; each entry sums its
-// elements' contributions in element order, so the bits do not depend on anything but the design.
-// No triplet list: at 50 000 elements it would hold 2 x 29 million triplets (0.9 GB).
+// Column by column into the pattern the box mesh fixes: node (i, j, k) couples with the nodes at most one
+// step away in each direction (each such pair shares an element), listed in increasing node index, three
+// rows each. Every entry sums its elements' contributions from 0 in increasing element order, as an
+// element-by-element assembly through coeffRef does, so K and M are that assembly's bits (tested against
+// it in tests/problems/rod/solid_model_test.cpp). Written out because coeffRef searches a column for each
+// of the 2 x 576 entries an element touches: 2.1 s CPU at 51 200 elements (bench/RESULTS.md, "The solid's
+// assembly"); a triplet list would hold 2 x 29 million triplets (0.9 GB).
 void SolidModel::assemble() {
+  const int nx = config_.elementsAlongLength, ny = config_.elementsThroughHeight;
+  const int nz = options_.elementsThroughThickness;
   const int dofs = dofCount();
-  stiffness_.resize(dofs, dofs);
-  mass_.resize(dofs, dofs);
-  stiffness_.reserve(Eigen::VectorXi::Constant(dofs, 81));
-  mass_.reserve(Eigen::VectorXi::Constant(dofs, 81));
-  for (int e = 0; e < elementCount_; ++e) {
-    const double x = elementDesignValue(e);
-    const double elementStiffness = simp_.stiffness(x);
-    const double elementDensity = simp_.density(x);
-    const std::array<int, 24> elementDofs = this->elementDofs(e);
-    for (int b = 0; b < 24; ++b) {
-      for (int a = 0; a < 24; ++a) {
-        stiffness_.coeffRef(elementDofs[static_cast<std::size_t>(a)],
-                            elementDofs[static_cast<std::size_t>(b)]) +=
-            elementStiffness * unitStiffness_(a, b);
-        mass_.coeffRef(elementDofs[static_cast<std::size_t>(a)], elementDofs[static_cast<std::size_t>(b)]) +=
-            elementDensity * unitMass_(a, b);
+  // Nodes within one step of i along an axis with n elements.
+  const auto reach = [](int i, int n) { return (i > 0 ? 1 : 0) + 1 + (i < n ? 1 : 0); };
+  std::vector<std::int64_t> starts(static_cast<std::size_t>(dofs) + 1, 0);
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int k = 0; k <= nz; ++k) {
+        const std::int64_t rows = 3 * reach(i, nx) * reach(j, ny) * reach(k, nz);
+        const std::size_t column = 3 * static_cast<std::size_t>(nodeIndex(i, j, k));
+        for (std::size_t c = 0; c < 3; ++c) starts[column + c + 1] = rows;
       }
     }
   }
-  stiffness_.makeCompressed();
-  mass_.makeCompressed();
+  for (std::size_t c = 0; c < starts.size() - 1; ++c) starts[c + 1] += starts[c];
+  const std::int64_t nonZeros = starts.back();
+  if (nonZeros > std::numeric_limits<int>::max())
+    throw std::invalid_argument("SolidModel: K would have " + std::to_string(nonZeros) +
+                                " nonzeros, more than a 32-bit sparse index can address");
+  for (SparseMatrix* matrix : {&stiffness_, &mass_}) {
+    matrix->resize(dofs, dofs);
+    matrix->resizeNonZeros(static_cast<Eigen::Index>(nonZeros));
+    for (int c = 0; c <= dofs; ++c)
+      matrix->outerIndexPtr()[c] = static_cast<int>(starts[static_cast<std::size_t>(c)]);
+  }
+  int* rowIndices = stiffness_.innerIndexPtr();
+  double* stiffnessValues = stiffness_.valuePtr();
+  double* massValues = mass_.valuePtr();
+  std::fill(stiffnessValues, stiffnessValues + nonZeros, 0.0);
+  std::fill(massValues, massValues + nonZeros, 0.0);
+  // The element's local nodes as offsets from its (i, j, k) corner, in elementDofs' order.
+  static constexpr int kCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                        {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int k = 0; k <= nz; ++k) {
+        const int node = nodeIndex(i, j, k);
+        // Neighbour (i + di, j + dj, k + dk) -> its place in the column's rows (-1: outside the mesh).
+        int slot[27];
+        int neighbours = 0;
+        for (int di = -1; di <= 1; ++di) {
+          for (int dj = -1; dj <= 1; ++dj) {
+            for (int dk = -1; dk <= 1; ++dk) {
+              const bool inside =
+                  i + di >= 0 && i + di <= nx && j + dj >= 0 && j + dj <= ny && k + dk >= 0 && k + dk <= nz;
+              const int place = (di + 1) * 9 + (dj + 1) * 3 + (dk + 1);
+              slot[place] = inside ? neighbours++ : -1;
+              if (!inside) continue;
+              const int neighbour = nodeIndex(i + di, j + dj, k + dk);
+              for (int c = 0; c < 3; ++c) {
+                int* rows =
+                    rowIndices + starts[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(c)];
+                for (int r = 0; r < 3; ++r) rows[3 * slot[place] + r] = 3 * neighbour + r;
+              }
+            }
+          }
+        }
+        // The elements around the node in increasing element index.
+        for (int ei = i - 1; ei <= i; ++ei) {
+          for (int ej = j - 1; ej <= j; ++ej) {
+            for (int ek = k - 1; ek <= k; ++ek) {
+              if (ei < 0 || ei >= nx || ej < 0 || ej >= ny || ek < 0 || ek >= nz) continue;
+              const double x = elementDesignValue(elementIndex(ei, ej, ek));
+              const double elementStiffness = simp_.stiffness(x);
+              const double elementDensity = simp_.density(x);
+              int own = 0;  // the node's local index in the element
+              while (kCorner[own][0] != i - ei || kCorner[own][1] != j - ej || kCorner[own][2] != k - ek)
+                ++own;
+              for (int a = 0; a < 8; ++a) {
+                const int place = (ei + kCorner[a][0] - i + 1) * 9 + (ej + kCorner[a][1] - j + 1) * 3 +
+                                  (ek + kCorner[a][2] - k + 1);
+                for (int c = 0; c < 3; ++c) {
+                  const std::int64_t at =
+                      starts[3 * static_cast<std::size_t>(node) + static_cast<std::size_t>(c)] +
+                      3 * slot[place];
+                  for (int r = 0; r < 3; ++r) {
+                    stiffnessValues[at + r] += elementStiffness * unitStiffness_(3 * a + r, 3 * own + c);
+                    massValues[at + r] += elementDensity * unitMass_(3 * a + r, 3 * own + c);
+                  }
+                }
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  std::copy(rowIndices, rowIndices + nonZeros, mass_.innerIndexPtr());
 }
 
 HexElementMatrix SolidModel::stiffnessDerivative(int designIndex) const {
@@ -289,18 +363,30 @@ SparseMatrix removeDofs(const SparseMatrix& matrix, const std::vector<int>& fixe
   }
   int kept = 0;
   for (int& entry : map) entry = entry < 0 ? -1 : kept++;
-  std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(static_cast<std::size_t>(matrix.nonZeros()));
+  // Straight into compressed storage: the kept rows and columns keep their order, so each column stays
+  // sorted (a triplet list sorted the same entries again: 0.7 s a matrix at 177 k DOFs).
+  Eigen::Index nonZeros = 0;
+  for (int column = 0; column < size; ++column) {
+    if (map[static_cast<std::size_t>(column)] < 0) continue;
+    for (SparseMatrix::InnerIterator it(matrix, column); it; ++it)
+      nonZeros += map[static_cast<std::size_t>(it.row())] >= 0 ? 1 : 0;
+  }
+  SparseMatrix result(kept, kept);
+  result.resizeNonZeros(nonZeros);
+  Eigen::Index at = 0;
+  result.outerIndexPtr()[0] = 0;
   for (int column = 0; column < size; ++column) {
     const int newColumn = map[static_cast<std::size_t>(column)];
     if (newColumn < 0) continue;
     for (SparseMatrix::InnerIterator it(matrix, column); it; ++it) {
       const int newRow = map[static_cast<std::size_t>(it.row())];
-      if (newRow >= 0) entries.emplace_back(newRow, newColumn, it.value());
+      if (newRow < 0) continue;
+      result.innerIndexPtr()[at] = newRow;
+      result.valuePtr()[at] = it.value();
+      ++at;
     }
+    result.outerIndexPtr()[newColumn + 1] = static_cast<int>(at);
   }
-  SparseMatrix result(kept, kept);
-  result.setFromTriplets(entries.begin(), entries.end());
   return result;
 }
 

@@ -14,6 +14,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hindsight {
@@ -222,6 +223,77 @@ TEST(SolidModel, FreeFreeHasExactlySixZeroEigenvaluesForAnyDesign) {
     for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(values(i)), 1e-11 * scale) << i;
     EXPECT_GT(values(6), 1e6 * std::abs(values(5)));
   }
+}
+
+// The assembly written column by column on the box mesh's pattern against the plain element loop it
+// replaced (coeffRef into every pair of an element's DOFs, elements in increasing order): the same
+// pattern and the same bits, for a varied design, with and without symmetry, on meshes whose every axis
+// has one element or more.
+TEST(SolidModel, AssemblyIsTheElementLoopBitForBit) {
+  struct Mesh {
+    int nx, ny, nz;
+    bool symmetric;
+  };
+  for (const Mesh mesh : {Mesh{3, 2, 1, false}, Mesh{5, 2, 3, true}, Mesh{4, 4, 2, false}}) {
+    const RodConfig config = rodConfig(mesh.nx, mesh.ny, 0.3);
+    SolidMeshOptions options;
+    options.elementsThroughThickness = mesh.nz;
+    options.midPlaneSymmetry = mesh.symmetric;
+    Vector design(SolidModel::designCountOf(config, options));
+    for (Eigen::Index d = 0; d < design.size(); ++d) design(d) = 0.05 + 0.9 * std::fmod(0.61 * d, 1.0);
+    const SolidModel model(config, options, design);
+    const int dofs = model.dofCount();
+    SparseMatrix stiffness(dofs, dofs), mass(dofs, dofs);
+    for (int e = 0; e < model.elementCount(); ++e) {
+      const double x = model.elementDesignValue(e);
+      const std::array<int, 24> elementDofs = model.elementDofs(e);
+      for (int b = 0; b < 24; ++b) {
+        for (int a = 0; a < 24; ++a) {
+          const int row = elementDofs[static_cast<std::size_t>(a)];
+          const int column = elementDofs[static_cast<std::size_t>(b)];
+          stiffness.coeffRef(row, column) += model.simp().stiffness(x) * model.unitStiffness()(a, b);
+          mass.coeffRef(row, column) += model.simp().density(x) * model.unitMass()(a, b);
+        }
+      }
+    }
+    stiffness.makeCompressed();
+    mass.makeCompressed();
+    for (const auto& [assembled, reference] :
+         {std::pair{&model.stiffness(), &stiffness}, std::pair{&model.mass(), &mass}}) {
+      ASSERT_EQ(assembled->nonZeros(), reference->nonZeros());
+      ASSERT_TRUE(std::equal(reference->outerIndexPtr(), reference->outerIndexPtr() + dofs + 1,
+                             assembled->outerIndexPtr()));
+      ASSERT_TRUE(std::equal(reference->innerIndexPtr(), reference->innerIndexPtr() + reference->nonZeros(),
+                             assembled->innerIndexPtr()));
+      for (Eigen::Index i = 0; i < reference->nonZeros(); ++i)
+        ASSERT_EQ(assembled->valuePtr()[i], reference->valuePtr()[i]) << "entry " << i;
+    }
+  }
+}
+
+// removeDofs keeps the other rows and columns in order with their values, the explicit zeros included.
+TEST(SolidModel, RemoveDofsKeepsTheRestInOrder) {
+  Eigen::MatrixXd dense(5, 5);
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; j < 5; ++j) dense(i, j) = (i + j) % 3 == 0 ? 0.0 : 1.0 + i + 10.0 * j;
+  SparseMatrix matrix = dense.sparseView();
+  matrix.coeffRef(4, 4) = 0.0;  // an explicit zero survives
+  matrix.makeCompressed();
+  const SparseMatrix reduced = removeDofs(matrix, {3, 1, 3});
+  const std::vector<int> kept = {0, 2, 4};
+  ASSERT_EQ(reduced.rows(), 3);
+  ASSERT_TRUE(reduced.isCompressed());
+  Eigen::Index expectedNonZeros = 0;
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) {
+      const auto source = static_cast<std::size_t>(r), target = static_cast<std::size_t>(c);
+      EXPECT_EQ(Eigen::MatrixXd(reduced)(r, c), Eigen::MatrixXd(matrix)(kept[source], kept[target]));
+    }
+    for (SparseMatrix::InnerIterator it(matrix, kept[static_cast<std::size_t>(c)]); it; ++it)
+      expectedNonZeros += (it.row() == 1 || it.row() == 3) ? 0 : 1;
+  }
+  EXPECT_EQ(reduced.nonZeros(), expectedNonZeros);
+  EXPECT_THROW(removeDofs(matrix, {5}), std::invalid_argument);
 }
 
 // A linear displacement field u = A X + c is reproduced exactly by the element, so a uniform body under it
