@@ -7,7 +7,7 @@ namespace hindsight {
 namespace rod {
 namespace {
 
-// The widths the members' products have (modes plus rigid columns, at most a few dozen) get a loop of
+// The widths the members' products have (modes plus rigid columns, up to kWidestFixed) get a loop of
 // fixed length, which the compiler unrolls and vectorises lane by lane (SSE2, no FMA contraction: each
 // y_rc is still one multiplication and one addition, rounded as Eigen's scalar loop rounds them).
 template <int W, class Op>
@@ -28,25 +28,18 @@ void forEachEntry(const SparseMatrix& a, const double* x, double* y, Eigen::Inde
   }
 }
 
-template <class Op>
+constexpr int kWidestFixed = 16;
+
+// forEachEntry with the width fixed at compile time for 1 ... kWidestFixed columns, else at run time.
+template <int W = 1, class Op>
 void dispatchWidth(const SparseMatrix& a, const double* x, double* y, Eigen::Index width, Op op) {
-  switch (width) {
-    case 1: return forEachEntry<1>(a, x, y, width, op);
-    case 2: return forEachEntry<2>(a, x, y, width, op);
-    case 3: return forEachEntry<3>(a, x, y, width, op);
-    case 4: return forEachEntry<4>(a, x, y, width, op);
-    case 5: return forEachEntry<5>(a, x, y, width, op);
-    case 6: return forEachEntry<6>(a, x, y, width, op);
-    case 7: return forEachEntry<7>(a, x, y, width, op);
-    case 8: return forEachEntry<8>(a, x, y, width, op);
-    case 9: return forEachEntry<9>(a, x, y, width, op);
-    case 10: return forEachEntry<10>(a, x, y, width, op);
-    case 11: return forEachEntry<11>(a, x, y, width, op);
-    case 12: return forEachEntry<12>(a, x, y, width, op);
-    case 13: return forEachEntry<13>(a, x, y, width, op);
-    case 14: return forEachEntry<14>(a, x, y, width, op);
-    case 16: return forEachEntry<16>(a, x, y, width, op);
-    default: return forEachEntry<0>(a, x, y, width, op);
+  if constexpr (W > kWidestFixed) {
+    forEachEntry<0>(a, x, y, width, op);
+  } else {
+    if (width == W)
+      forEachEntry<W>(a, x, y, width, op);
+    else
+      dispatchWidth<W + 1>(a, x, y, width, op);
   }
 }
 
