@@ -454,11 +454,12 @@ DesignGradientResult designGradientOf(const Member& model, const ModalBasis& bas
   // iteration); then the chain of every mode is independent: the modes run in parallel
   // (problems/rod/parallel.h), each writing its own contribution column, which are then added in mode
   // order, exactly the order of the serial loop -- bitwise equal for any thread count.
-  const SparseMatrix& mass = model.mass();
   const bool adjointRoute = options.method == EigenvectorSensitivityMethod::AdjointNelson;
   DeflatedAdjoint adjoints;
-  // M phi_i on the free DOFs, once for the right-hand sides, the deflation and the per-mode chain.
-  const Matrix massModesFree = sparseTimesDense(mass, basis.modesFree);
+  // M phi_i on the free DOFs, once for the right-hand sides, the deflation and the per-mode chain: the free
+  // rows of M_full Phi_full, bitwise M Phi_free (Phi_full is zero at the constrained DOFs, whose terms add
+  // +-0 to sums that start at +0, and removeDofs keeps the other terms in their order).
+  const Matrix massModesFree = model.restrictColumnsToFree(massModes);
   if (adjointRoute) {
     Matrix rightHandSides(model.freeDofCount(), n);
     for (int i = 0; i < n; ++i) {

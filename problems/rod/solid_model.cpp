@@ -240,7 +240,7 @@ std::vector<int> SolidModel::jointBNodes() const {
 // element-by-element assembly through coeffRef does, so K and M are that assembly's bits (tested against
 // it in tests/problems/rod/solid_model_test.cpp). Written out because coeffRef searches a column for each
 // of the 2 x 576 entries an element touches: 2.1 s CPU at 51 200 elements (bench/RESULTS.md, "The solid's
-// assembly"); a triplet list would hold 2 x 29 million triplets (0.9 GB).
+// assembly and sparse products"); a triplet list would hold 2 x 29 million triplets (0.9 GB).
 void SolidModel::assemble() {
   const int nx = config_.elementsAlongLength, ny = config_.elementsThroughHeight;
   const int nz = options_.elementsThroughThickness;
