@@ -122,9 +122,13 @@ InertiaInvariants computeInvariantsOf(const Member& model, const ModalBasis& bas
     for (int dof : axis) result.b += modes.row(dof).transpose();
     result.b /= static_cast<double>(axis.size());
     const Matrix planar = planarComponents(modes, kComponents);
-    // Eigen's nested form, kept: its bits differ from the same product through a named temporary here
-    // (measured: psi1 of the solid moved by 1 ulp), and the record keeps the nested form's.
-    result.meeRotation = planar.transpose() * (mass * planar);
+    // Written out as ((M Phi_xy)^T Phi_xy)^T: the nested Phi_xy^T (M Phi_xy) that gave the recorded psi1
+    // of the solid is, in this library's build, bitwise this transposed product, while a small program
+    // with the same types evaluates it as Phi_xy^T T (measured); the two GEMMs handle the edge rows and
+    // columns (n mod 4) in another order (bench/RESULTS.md, "The solid's assembly and sparse products").
+    const Matrix massPlanar = sparseTimesDense(mass, planar);
+    const Matrix transposedProduct = massPlanar.transpose() * planar;
+    result.meeRotation = transposedProduct.transpose();
   }
   return result;
 }

@@ -14,6 +14,8 @@ for bit, so whatever machine runs the test suite checks the claim "the same bits
 The quantities, in the order they are compared (the first that differs is named):
   hindsight evaluate --json --gradient g.h5      psi1(x0), psi2(x0), the ten frequencies, and a
                                                   SHA-256 of each gradient (dpsi1/dx, dpsi2/dx, dV/dx)
+  the same with the solid member (SOLID_FLAGS)    its psi1, psi2, frequencies and gradients' SHA-256
+                                                  (added later, on the machine named in solid_made_on)
   hindsight optimize --iterations 3              psi1 of each record, and a SHA-256 of every history
                                                   column, of the designs and of the optimizer's state
 With --python DIR (the build's python/ folder) the Python module's psi1(x0) is compared too: the module
@@ -36,6 +38,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_RECORD = os.path.join(HERE, "record.json")
 # Wall-clock columns are the machine's own, not results.
 TIMING_COLUMNS = ("evaluation_seconds", "mma_seconds", "total_seconds")
+# The solid member's coarse case (docs/tutorials/rod_as_solid.md), evaluated with gradients.
+SOLID_FLAGS = ("--set", "rod.elementsAlongLength=40", "--set", "rod.elementsThroughHeight=4",
+               "--set", "rod.elementsThroughThickness=2", "--set", "rod.midPlaneSymmetry=true")
 
 
 def cache_sizes():
@@ -102,6 +107,17 @@ def measure(hindsight, directory, env_extra=None, flags=(), python_dir=None):
     with h5py.File(gradient, "r") as f:
         for name in ("dpsi1_dx", "dpsi2_dx", "dvolume_dx"):
             out[f"sha256 {name}"] = digest(f[name][()])
+    # The solid member (40 x 4 x 2, mid-plane symmetry) has code of its own on the way to its bits: the
+    # supernodal factor with its blocked products, the 3-D invariants, the hexahedra's double-double
+    # kernels. Its flags come last, so that they win over any --set in `flags`.
+    solid_report = json.loads(run([hindsight, "evaluate", "--json", "--gradient", gradient, "--force", *flags,
+                                   *SOLID_FLAGS], env_extra, directory))
+    out["solid psi1(x0)"] = repr(solid_report["psi1"])
+    out["solid psi2(x0)"] = repr(solid_report["psi2"])
+    out["solid frequencies (Hz)"] = repr(solid_report["frequencies_hz"])
+    with h5py.File(gradient, "r") as f:
+        for name in ("dpsi1_dx", "dpsi2_dx", "dvolume_dx"):
+            out[f"solid sha256 {name}"] = digest(f[name][()])
     results = os.path.join(directory, "run")
     run([hindsight, "optimize", "--iterations", "3", "--out", results, "--force", *flags], env_extra, directory)
     with h5py.File(os.path.join(results, "results.h5"), "r") as f:
@@ -158,7 +174,7 @@ def main():
         if os.path.isfile(args.record):
             with open(args.record) as f:
                 previous = json.load(f)
-        document = {k: v for k, v in previous.items() if k not in ("made_on", "quantities")}
+        document = {k: v for k, v in previous.items() if k not in ("made_on", "solid_made_on", "quantities")}
         document["made_on"] = machine()
         document["quantities"] = measured
         with open(args.record + ".tmp", "w") as f:
