@@ -118,9 +118,10 @@ class SolidModel : public DesignedMesh {
   const SparseMatrix& mass() const { return mass_; }
   /// Moves K and M into `stiffness` and `mass`, leaving this model's empty: the member keeps them scaled
   /// by its symmetry factor, and a second copy of each is 150 MB at 51 200 elements.
+  /// (By swap: Eigen 3.4's SparseMatrix has no move assignment, and std::move would copy.)
   void releaseMatrices(SparseMatrix& stiffness, SparseMatrix& mass) {
-    stiffness = std::move(stiffness_);
-    mass = std::move(mass_);
+    stiffness.swap(stiffness_);
+    mass.swap(mass_);
     stiffness_ = SparseMatrix();
     mass_ = SparseMatrix();
   }
