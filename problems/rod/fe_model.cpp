@@ -260,14 +260,15 @@ void couplingPattern(int nx, int ny, const std::vector<int>& keep, int size, std
   }
 }
 
-/// A square sparse matrix with the given pattern and zero values.
-SparseMatrix withPattern(int size, const std::vector<int>& outer, const std::vector<int>& inner) {
-  SparseMatrix matrix(size, size);
+/// Makes `matrix` square with the given pattern and zero values, in place: assigning a returned
+/// SparseMatrix would copy it (Eigen 3.4's SparseMatrix has no move assignment).
+void setPattern(SparseMatrix& matrix, int size, const std::vector<int>& outer,
+                const std::vector<int>& inner) {
+  matrix.resize(size, size);
   matrix.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
   std::copy(outer.begin(), outer.end(), matrix.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), matrix.innerIndexPtr());
   std::fill(matrix.valuePtr(), matrix.valuePtr() + inner.size(), 0.0);
-  return matrix;
 }
 
 /// Position of `row` in column `column` of the pattern (present by construction: at most 18 rows).
@@ -294,10 +295,10 @@ void FeModel::assemble() {
   std::vector<int> fullOuter, fullInner, freeOuter, freeInner;
   couplingPattern(nx, ny, all, dofs, fullOuter, fullInner);
   couplingPattern(nx, ny, fullToFree(), free, freeOuter, freeInner);
-  stiffnessFull_ = withPattern(dofs, fullOuter, fullInner);
-  massFull_ = withPattern(dofs, fullOuter, fullInner);
-  stiffness_ = withPattern(free, freeOuter, freeInner);
-  mass_ = withPattern(free, freeOuter, freeInner);
+  setPattern(stiffnessFull_, dofs, fullOuter, fullInner);
+  setPattern(massFull_, dofs, fullOuter, fullInner);
+  setPattern(stiffness_, free, freeOuter, freeInner);
+  setPattern(mass_, free, freeOuter, freeInner);
   std::vector<char> fullSeen(fullInner.size(), 0), freeSeen(freeInner.size(), 0);
   auto add = [](SparseMatrix& stiffness, SparseMatrix& mass, std::vector<char>& seen, int slot, double k,
                 double m) {
