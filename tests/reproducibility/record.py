@@ -97,27 +97,27 @@ def measure(hindsight, directory, env_extra=None, flags=(), python_dir=None):
     env_extra = env_extra or {}
     os.makedirs(directory, exist_ok=True)
     out = {}
-    gradient = os.path.join(directory, "g.h5")
-    report = json.loads(run([hindsight, "evaluate", "--json", "--gradient", gradient, "--force", *flags],
-                            env_extra, directory))
-    out["psi1(x0)"] = repr(report["psi1"])
-    out["psi2(x0)"] = repr(report["psi2"])
-    out["first frequency (Hz)"] = repr(report["frequencies_hz"][0])
-    out["frequencies (Hz)"] = repr(report["frequencies_hz"])
-    with h5py.File(gradient, "r") as f:
-        for name in ("dpsi1_dx", "dpsi2_dx", "dvolume_dx"):
-            out[f"sha256 {name}"] = digest(f[name][()])
+
+    def evaluate(prefix, evaluate_flags):
+        """`hindsight evaluate --json --gradient`: psi1, psi2, the frequencies and each gradient's SHA-256,
+        named with `prefix`."""
+        gradient = os.path.join(directory, "g.h5")
+        report = json.loads(run([hindsight, "evaluate", "--json", "--gradient", gradient, "--force",
+                                 *evaluate_flags], env_extra, directory))
+        out[f"{prefix}psi1(x0)"] = repr(report["psi1"])
+        out[f"{prefix}psi2(x0)"] = repr(report["psi2"])
+        if not prefix:  # the plate's first frequency, named on its own since the record began
+            out["first frequency (Hz)"] = repr(report["frequencies_hz"][0])
+        out[f"{prefix}frequencies (Hz)"] = repr(report["frequencies_hz"])
+        with h5py.File(gradient, "r") as f:
+            for name in ("dpsi1_dx", "dpsi2_dx", "dvolume_dx"):
+                out[f"{prefix}sha256 {name}"] = digest(f[name][()])
+
+    evaluate("", flags)
     # The solid member (40 x 4 x 2, mid-plane symmetry) has code of its own on the way to its bits: the
     # supernodal factor with its blocked products, the 3-D invariants, the hexahedra's double-double
     # kernels. Its flags come last, so that they win over any --set in `flags`.
-    solid_report = json.loads(run([hindsight, "evaluate", "--json", "--gradient", gradient, "--force", *flags,
-                                   *SOLID_FLAGS], env_extra, directory))
-    out["solid psi1(x0)"] = repr(solid_report["psi1"])
-    out["solid psi2(x0)"] = repr(solid_report["psi2"])
-    out["solid frequencies (Hz)"] = repr(solid_report["frequencies_hz"])
-    with h5py.File(gradient, "r") as f:
-        for name in ("dpsi1_dx", "dpsi2_dx", "dvolume_dx"):
-            out[f"solid sha256 {name}"] = digest(f[name][()])
+    evaluate("solid ", (*flags, *SOLID_FLAGS))
     results = os.path.join(directory, "run")
     run([hindsight, "optimize", "--iterations", "3", "--out", results, "--force", *flags], env_extra, directory)
     with h5py.File(os.path.join(results, "results.h5"), "r") as f:
