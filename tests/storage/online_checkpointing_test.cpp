@@ -10,6 +10,7 @@
 #include <hindsight/engine/online_checkpointing.h>
 #include <hindsight/engine/online_placement.h>
 #include <hindsight/problems/classic/classic_problems.h>
+#include <hindsight/storage/schedule.h>
 #include <hindsight/storage/storage_factory.h>
 
 #include "support/same_bits.h"
@@ -419,6 +420,29 @@ TEST(OnlineCheckpointing, TwoHorizonRuleAsTheReferenceScriptWithinTenPercentOfBi
     EXPECT_EQ(worstAt, e.worstAt) << "c = " << c;
     EXPECT_EQ(sum, e.sum) << "c = " << c;
     EXPECT_EQ(hash, e.hash) << "c = " << c;
+  }
+}
+
+// `hindsight schedule` computes the guarantee's ratio for the N asked (the fractions of the test above:
+// the rule's worst cases for C = 1, 2, 3), so a user checks a case of any size the prediction covers.
+TEST(OnlineCheckpointing, ThePredictionStatesItsRatioToBinomial) {
+  const struct {
+    std::int64_t c, steps;
+    const char* binomial;
+    const char* ratio;
+  } cases[] = {{1, 5, "recomputes 2,", "= 1.1667"},
+               {2, 20, "recomputes 26,", "= 1.0909"},
+               {3, 7, "recomputes 2,", "= 1.0625"},
+               {2, 1, nullptr, nullptr}};
+  for (const auto& e : cases) {
+    const SchedulePrediction p =
+        predictSchedule("online:checkpoints=" + std::to_string(e.c), e.steps, 8, 1, nullptr);
+    if (e.ratio == nullptr) {
+      EXPECT_EQ(p.plan.find("work ratio"), std::string::npos) << p.plan;
+      continue;
+    }
+    EXPECT_NE(p.plan.find(std::string("binomial with N known ") + e.binomial), std::string::npos) << p.plan;
+    EXPECT_NE(p.plan.find(e.ratio), std::string::npos) << p.plan;
   }
 }
 
