@@ -10,6 +10,7 @@
 #include "commands.h"
 
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -34,6 +35,7 @@ struct ScheduleArgs {
   std::string costs;
   bool json = false;
   bool actions = false;
+  bool bound = false;
 };
 
 std::string count(std::int64_t value) {
@@ -54,8 +56,9 @@ int runSchedule(const ScheduleArgs& args) {
                          stageBytes);  // validates first
     return 0;
   }
+  if (args.bound && args.actions) throw std::invalid_argument("--bound and --actions: give one of them");
   const SchedulePrediction p =
-      predictSchedule(args.storage, steps, stateBytes, stages, costs.get(), stageBytes);
+      predictSchedule(args.storage, steps, stateBytes, stages, costs.get(), stageBytes, args.bound);
   if (args.json) {
     const nlohmann::json out = scheduleToJson(p, stateBytes);
     std::cout << out.dump(2) << '\n';
@@ -83,6 +86,16 @@ int runSchedule(const ScheduleArgs& args) {
             << (p.hiddenIoCost > 0.0 ? " - " + formatCost(p.hiddenIoCost) + " hidden by overlapped disk I/O"
                                      : std::string())
             << ")\n";
+  if (p.lowerBound >= 0.0) {
+    // The bound is on the synchronous schedule part; overlapped I/O is a saving on top of any schedule.
+    const double synchronous = p.scheduleCost + p.hiddenIoCost;
+    char gap[64];
+    std::snprintf(gap, sizeof gap, "%.3f %%", 100.0 * (synchronous - p.lowerBound) / p.lowerBound);
+    std::cout
+        << "lower bound:       " << std::setprecision(10) << p.lowerBound
+        << " (no schedule of H-Revolve's family on these levels has a smaller schedule part; this plan's, "
+        << synchronous << " without overlapped I/O, is " << gap << " above it)\n";
+  }
   if (!p.warning.empty()) std::cout << "warning:           " << p.warning << '\n';
   return 0;
 }
@@ -128,6 +141,10 @@ void registerSchedule(CLI::App& app) {
       "disk read of one state (default 1:1:0:0; multilevel plans by it unless its spec has costs=, as a "
       "run plans by costs= or, without it, by the costs it measures)");
   command->add_flag("--json", args->json, "machine-readable output");
+  command->add_flag("--bound", args->bound,
+                    "multilevel plans: also compute a lower bound on the optimum of H-Revolve's family of "
+                    "schedules on these levels and the plan's distance to it (seconds at N = 10^6; "
+                    "docs/theory/storage.md)");
   command->add_flag("--actions", args->actions,
                     "print the action stream (record/restore/store/load/advance)");
   commands().push_back({command, [args] { return guarded([&] { return runSchedule(*args); }); }});

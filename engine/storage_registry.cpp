@@ -177,6 +177,11 @@ SchedulePrediction predictFromRows(const std::vector<StorageStrategyRow>& rows, 
   p.forwardSteps = request.steps;
   if (request.costs != nullptr) p.costs = *request.costs;
   row.predict(*storage, spec, request, p);
+  if (request.lowerBound && p.lowerBound < 0.0) {
+    throw std::invalid_argument("--bound: '" + spec.name() +
+                                "' has no lower bound to compare with; it is computed for multilevel plans "
+                                "(H-Revolve's family of schedules on RAM and the levels below)");
+  }
   // An adjoint step evaluates its S stages unless it has them stored (cams records, stages=1): S rhs for
   // every forward, recomputed and stage-recomputing adjoint step. For cams, steps - stepDataRestored are
   // its adjoint recomputations; for the others it is the adjoint steps without stored stage values.

@@ -81,6 +81,9 @@ struct SchedulePrediction {
   /// Three or more levels: each level below RAM, its traffic and its own costs (diskWrites, diskReads and
   /// peakDiskBytes are their sums; costs.diskWrite and diskRead are unused). Empty otherwise.
   std::vector<LevelTraffic> levels;
+  /// Asked for (request.lowerBound; multilevel plans only): no schedule of H-Revolve's family on these levels
+  /// has a schedule part (without overlapped I/O) below this (KLevelPlan::lowerBound). -1: not computed.
+  double lowerBound = -1.0;
   /// Empty, or why this plan is a trap: its schedule cost exceeds a simple alternative's (named here, with
   /// its cost) by more than twice (docs/theory/storage.md, "No silent trap").
   std::string warning;
@@ -97,6 +100,8 @@ struct PredictionRequest {
   const ScheduleCosts* costs = nullptr;
   /// Problem::rhsDataSize() * 8 (a SecondOrderProblem with f coordinates: 8 (f + f (f + 1) / 2)); 0: none.
   std::int64_t stageDataBytes = 0;
+  /// Also bound the family's optimum from below (SchedulePrediction::lowerBound; seconds at N = 10^6).
+  bool lowerBound = false;
 };
 
 struct StorageKeyDoc {

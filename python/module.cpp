@@ -1028,7 +1028,7 @@ PYBIND11_MODULE(_hindsight, m) {
   });
   m.def("_storage_specs", &storageSpecs);
   m.def("_schedule", [](const std::string& spec, std::int64_t steps, std::int64_t stateBytes, int stages,
-                        const std::string& costs, bool actions, std::int64_t stageBytes) {
+                        const std::string& costs, bool actions, std::int64_t stageBytes, bool bound) {
     // The model-free prediction of `hindsight schedule` (storage/schedule.h): the same code and checks.
     std::optional<ScheduleCosts> parsed;
     if (!costs.empty()) parsed = ScheduleCosts::parse(costs, "costs");
@@ -1036,7 +1036,7 @@ PYBIND11_MODULE(_hindsight, m) {
     std::string stream;
     {
       const Simulating computing;  // a plan may take minutes: Ctrl-C interrupts it (engine/interrupt.h)
-      p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, stageBytes);
+      p = predictSchedule(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, stageBytes, bound);
       if (actions) {
         std::ostringstream out;
         writeScheduleActions(spec, steps, stateBytes, stages, parsed ? &*parsed : nullptr, out, stageBytes);

@@ -1,5 +1,6 @@
 #include <hindsight/storage/k_level_plan.h>
 
+#include <hindsight/engine/binomial_checkpointing.h>
 #include <hindsight/engine/interrupt.h>
 
 #include <algorithm>
@@ -736,6 +737,232 @@ KLevelPlan::Counts KLevelPlan::walk() {
   }
   rewind();
   return c;
+}
+
+// ---- a lower bound on the hierarchical family's optimum for any N ----
+//
+// docs/theory/storage.md, "A certificate for large N". Two facts carry it:
+// (1) E_k(l + d, m) >= E_k(l, m) + d uf for d >= 0: a schedule for l + d states, with the positions 1..d
+//     merged into position 0, is one for l states (an advance from position 0 saves d steps; a store at
+//     position 0 is dropped where it is at level k and is a move to a faster level elsewhere, both in the
+//     family); the same holds for W. So a value at a grid length bounds every length up to the next one.
+// (2) Unrolled, E_k(l, m) is a sum over parts: each store at distance j leaves a part of j states that is
+//     reversed later (j uf + r_k + w_next + E_k(j, m)) and the chain goes on from the stored state with
+//     one slot less at k, or at a faster level i with its s_i - 1 slots; it ends in a terminal (the
+//     advance, a move, or one state). The parts sum to l. Dualising that sum with a multiplier lambda
+//     (weak duality) gives, for every lambda, E_k(l, m) >= lambda l + V(k, m) with V a shortest path over
+//     the states (level, free slots), each edge the least (part - lambda j) over every part length -- no
+//     length dimension, so no rounding accumulates along the chain: each part's value is rounded to its
+//     grid length once.
+namespace {
+
+// The lower convex hull of points appended with increasing x; min over the points of y - lambda x. Written
+// here (Andrew's monotone chain, append-only, and a binary search): the packages we use (Eigen, CGAL is not
+// one) have no incremental hull with this query.
+class LowerHull {
+ public:
+  void add(double x, double y) {
+    if (!(y < std::numeric_limits<double>::infinity())) return;
+    while (!points_.empty() && points_.back().first == x) {
+      if (points_.back().second <= y) return;
+      points_.pop_back();
+    }
+    while (points_.size() >= 2) {
+      const auto& [x1, y1] = points_[points_.size() - 2];
+      const auto& [x2, y2] = points_.back();
+      // Drop the middle point unless it lies strictly below the chord from (x1, y1) to (x, y).
+      if ((y2 - y1) * (x - x1) < (y - y1) * (x2 - x1)) break;
+      points_.pop_back();
+    }
+    points_.emplace_back(x, y);
+  }
+  double minimum(double lambda) const {
+    if (points_.empty()) return std::numeric_limits<double>::infinity();
+    // y - lambda x is convex along the hull: the first point whose successor is not lower.
+    std::size_t low = 0, high = points_.size() - 1;
+    while (low < high) {
+      const std::size_t middle = (low + high) / 2;
+      const double here = points_[middle].second - lambda * points_[middle].first;
+      const double next = points_[middle + 1].second - lambda * points_[middle + 1].first;
+      if (next < here)
+        low = middle + 1;
+      else
+        high = middle;
+    }
+    return points_[low].second - lambda * points_[low].first;
+  }
+
+ private:
+  std::vector<std::pair<double, double>> points_;
+};
+
+}  // namespace
+
+KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t ramSlots,
+                                              const std::vector<StorageLevelCosts>& levels,
+                                              double forwardStep, GradedGrid grid) {
+  if (grid.exactLengths < 1 || grid.spacingDivisor < 1) {
+    throw std::invalid_argument("K-level lower bound: the grid's exact lengths (" +
+                                std::to_string(grid.exactLengths) + ") and spacing divisor (" +
+                                std::to_string(grid.spacingDivisor) + ") must be >= 1");
+  }
+  std::vector<std::int64_t> capacity;
+  std::vector<double> write, read;
+  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+  const double uf = forwardStep;
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  const int levelCount = static_cast<int>(capacity.size());
+  std::vector<std::int64_t> offset;
+  std::int64_t columns = 0;
+  for (std::int64_t c : capacity) {
+    offset.push_back(columns);
+    columns += c + 1;
+  }
+  const std::int64_t rows = gradedRows(steps, grid);
+  if (static_cast<double>(rows) * static_cast<double>(columns) > static_cast<double>(kMaxBoundCells)) {
+    throw std::invalid_argument("K-level lower bound: N = " + std::to_string(steps) + " with " +
+                                std::to_string(columns) + " slot counts needs " + std::to_string(rows) +
+                                " rows of them, more than " + std::to_string(kMaxBoundCells) + " entries");
+  }
+  // The exact lengths: hierarchical()'s full split search.
+  const std::int64_t exact = std::min(steps, grid.exactLengths);
+  std::shared_ptr<HierarchicalTables> tables =
+      hierarchicalTables(exact, capacity, write, read, uf, 0, exact, 0.0);
+  const HierarchicalTables& t = *tables;
+  LowerBound result;
+  result.exactLengths = exact;
+  result.rows = rows;
+  const auto column = [&](int k, std::int64_t m) {
+    return static_cast<std::size_t>(offset[static_cast<std::size_t>(k)] + m);
+  };
+  if (steps == exact) {
+    result.bound = t.forward[t.at(exact, levelCount - 1, capacity.back())].cost;
+    return result;
+  }
+  std::vector<std::int64_t> lengths;
+  for (std::int64_t l = 0; l <= exact; ++l) lengths.push_back(l);
+  const double spacing = 1.0 / static_cast<double>(grid.spacingDivisor);
+  while (lengths.back() < steps) {  // as gradedRows()
+    const auto next =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(lengths.back()) * (1.0 + spacing)));
+    lengths.push_back(std::min(steps, std::max(next, lengths.back() + 1)));
+  }
+  const std::size_t cols = static_cast<std::size_t>(columns);
+  std::vector<double> bound(lengths.size() * cols, kInfinity);  // [row][column]: E's lower bounds
+  for (std::int64_t row = 1; row <= exact; ++row) {
+    for (int k = 0; k < levelCount; ++k) {
+      for (std::int64_t m = 0; m <= capacity[static_cast<std::size_t>(k)]; ++m)
+        bound[static_cast<std::size_t>(row) * cols + column(k, m)] = t.backward[t.at(row, k, m)].cost;
+    }
+  }
+  tables.reset();
+  // The multipliers: geometric from uf/2 (a part's marginal cost is at least uf) to where no segment's is.
+  double dearest = uf;
+  for (int k = 1; k < levelCount; ++k)
+    dearest = std::max(dearest, write[static_cast<std::size_t>(k)] + read[static_cast<std::size_t>(k)]);
+  std::vector<double> multipliers;
+  for (double lambda = 0.5 * uf; lambda <= 64.0 * (uf + dearest); lambda *= kBoundMultiplierRatio)
+    multipliers.push_back(lambda);
+  // E_0(l, m): revolve's least number of forward steps T(l, m + 1) (docs/theory/storage.md: RAM alone is
+  // revolve), whose increments are the repetition number, nondecreasing in l.
+  const std::size_t ramColumns = static_cast<std::size_t>(capacity[0] + 1);
+  const auto revolveSteps = [uf](std::int64_t l, std::int64_t m) {
+    return static_cast<double>(revolve::optimalForwardSteps(l, m + 1)) * uf;
+  };
+  // Per column, the hull of (j, j uf + E_k(j, m)) and of (j, E_k(j, m)) over the lengths of finished rows;
+  // a row's value bounds its interval [g, g' - 1] with slope uf (fact (1)), so each row adds both ends.
+  std::vector<LowerHull> parts(cols), values(cols);
+  const auto addRow = [&](std::size_t row) {
+    const double g = static_cast<double>(lengths[row]);
+    const double end = static_cast<double>(row + 1 < lengths.size() ? lengths[row + 1] - 1 : lengths[row]);
+    for (std::size_t c = 0; c < cols; ++c) {
+      const double y = bound[row * cols + c];
+      // RAM is revolve, convex in the length: its increment at g bounds every later one.
+      const double slope =
+          c < ramColumns ? revolveSteps(lengths[row] + 1, static_cast<std::int64_t>(c)) - y : uf;
+      parts[c].add(g, g * uf + y);
+      values[c].add(g, y);
+      if (end > g) {
+        parts[c].add(end, end * uf + y + (end - g) * slope);
+        values[c].add(end, y + (end - g) * slope);
+      }
+    }
+  };
+  for (std::size_t row = 1; row <= static_cast<std::size_t>(exact); ++row) addRow(row);
+  std::vector<double> path(cols), best(cols);
+  for (std::size_t row = static_cast<std::size_t>(exact) + 1; row < lengths.size(); ++row) {
+    pollInterrupt();
+    const double l = static_cast<double>(lengths[row]);
+    std::fill(best.begin(), best.end(), -kInfinity);
+    for (const double lambda : multipliers) {
+      for (int k = 0; k < levelCount; ++k) {
+        const std::size_t kk = static_cast<std::size_t>(k);
+        // The faster levels a store or a move can go to, with their full slots less one.
+        double below = kInfinity, moveBelow = kInfinity;
+        for (int i = 0; i < k; ++i) {
+          const std::size_t ii = static_cast<std::size_t>(i);
+          if (capacity[ii] < 1) continue;
+          const std::size_t c = column(i, capacity[ii] - 1);
+          below = std::min(below, write[ii] + path[c]);
+          moveBelow = std::min(moveBelow, write[ii] + values[c].minimum(lambda));
+        }
+        for (std::int64_t m = 0; m <= capacity[kk]; ++m) {
+          const std::size_t c = column(k, m);
+          const double part = parts[c].minimum(lambda) + read[kk];  // min_j j uf + r_k + E_k(j, m) - lambda j
+          // Terminals: one state (0 - lambda), the advance (L = j + 1: part - lambda), a move (L <= l - 1;
+          // a move of the whole segment is taken below, exactly).
+          double v = std::min({-lambda, part - lambda, moveBelow});
+          double next = below;
+          if (m >= 1) next = std::min(next, write[kk] + path[c - 1]);
+          v = std::min(v, part + next);
+          path[c] = v;
+          best[c] = std::max(best[c], lambda * l + v);
+        }
+      }
+    }
+    const double previous = static_cast<double>(lengths[row - 1]);
+    for (int k = 0; k < levelCount; ++k) {
+      const std::size_t kk = static_cast<std::size_t>(k);
+      double move = kInfinity;  // the whole segment moved to a faster level: exact on this row
+      for (int i = 0; i < k; ++i) {
+        const std::size_t ii = static_cast<std::size_t>(i);
+        if (capacity[ii] >= 1)
+          move = std::min(move, write[ii] + bound[row * cols + column(i, capacity[ii] - 1)]);
+      }
+      for (std::int64_t m = 0; m <= capacity[kk]; ++m) {
+        const std::size_t c = column(k, m);
+        double value = std::min(best[c], move);
+        // Fact (1) from the previous row.
+        value = std::max(value, bound[(row - 1) * cols + c] + (l - previous) * uf);
+        // RAM alone is revolve (no faster level to move to): its count, exactly.
+        if (k == 0) value = revolveSteps(lengths[row], m);
+        bound[row * cols + c] = value;
+      }
+    }
+    addRow(row);
+  }
+  // The forward sweep, W: parts w_k + r_k + E_k(j, m - 1) on the chain (k, m) -> (k, m - 1), a
+  // terminal of the same form, and the switch to the faster level k - 1 with its full slots.
+  const double n = static_cast<double>(steps);
+  double forward = -kInfinity;
+  std::vector<double> w(cols);
+  for (const double lambda : multipliers) {
+    for (int k = 0; k < levelCount; ++k) {
+      const std::size_t kk = static_cast<std::size_t>(k);
+      for (std::int64_t m = 0; m <= capacity[kk]; ++m) {
+        const std::size_t c = column(k, m);
+        double v = k >= 1 ? w[column(k - 1, capacity[kk - 1])] : kInfinity;
+        if (m >= 1) {
+          const double part = write[kk] + read[kk] + values[c - 1].minimum(lambda);
+          v = std::min(v, part + std::min(0.0, w[c - 1]));
+        }
+        w[c] = v;
+      }
+    }
+    forward = std::max(forward, lambda * n + w[column(levelCount - 1, capacity.back())]);
+  }
+  result.bound = std::max(0.0, forward);
+  return result;
 }
 
 }  // namespace hindsight

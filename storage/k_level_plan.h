@@ -135,6 +135,24 @@ class KLevelPlan {
   };
   const Segments& segments() const { return segments_; }
 
+  /// A lower bound on hierarchical()'s optimum (the full split search: H-Revolve's family) for any N,
+  /// in O(rows * multipliers * sum_k (s_k + 1) * log rows) time without its O(N^2) work: the lengths
+  /// 1..grid.exactLengths by that search, beyond them a geometric grid (as graded()'s), each row bounded
+  /// by Lagrangian duality over the parts a chain of stores leaves (storage/k_level_plan.cpp). No schedule
+  /// of the family costs less than `bound`, so optimum() - bound bounds what a plan leaves to the family's
+  /// optimum (docs/theory/storage.md, "A certificate for large N"). Same arguments and errors as
+  /// optimal(); rows * sum_k (s_k + 1) at most kMaxBoundCells.
+  struct LowerBound {
+    double bound = 0.0;  ///< in optimum()'s unit (the schedule part)
+    std::int64_t exactLengths = 0, rows = 0;
+  };
+  static constexpr std::int64_t kMaxBoundCells = std::int64_t{1} << 23;
+  static constexpr double kBoundMultiplierRatio = 1.01;
+  static constexpr GradedGrid kBoundGrid = {1024, 1024};
+  static LowerBound lowerBound(std::int64_t steps, std::int64_t ramSlots,
+                               const std::vector<StorageLevelCosts>& levels, double forwardStep,
+                               GradedGrid grid = kBoundGrid);
+
   /// The plan a `multilevel` spec runs, with K levels or two (TwoLevelPlan::choose's stack schedule):
   /// optimal() where its work is at most kChooseExactWork -- for two levels kMaxWork, the limit the
   /// two-level programme always had (N^2 (R + 1)(D + 1) <= 2^28, 2-3 s) --, else graded() on the finest

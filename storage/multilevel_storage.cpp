@@ -1029,6 +1029,20 @@ TwoLevelPlan MultilevelStorage::fixedStepPlan(const TrajectoryStorage& storage,
                               planningCosts(multilevel.options(), request, layout));
 }
 
+namespace {
+
+// KLevelPlan::lowerBound for `hindsight schedule --bound`, its errors in the flag's words.
+double boundOf(std::int64_t steps, std::int64_t ramSlots, const std::vector<StorageLevelCosts>& levels,
+               double forwardStep) {
+  try {
+    return KLevelPlan::lowerBound(steps, ramSlots, levels, forwardStep).bound;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--bound: ") + e.what());
+  }
+}
+
+}  // namespace
+
 void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageSpec&,
                                 const PredictionRequest& request, SchedulePrediction& p) {
   const auto& multilevel = dynamic_cast<const MultilevelStorage&>(storage);
@@ -1048,6 +1062,11 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
                                   e.what());
     }
     warnAgainstStride(layout, request, p);
+    if (request.lowerBound) {
+      throw std::invalid_argument(
+          "--bound: multilevel.schedule = stride takes scratch rounds, not a plan of H-Revolve's family; "
+          "bound the default schedule (no schedule=)");
+    }
     return;
   }
   if (multilevel.usesLevels()) {
@@ -1061,6 +1080,11 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
   if (multilevel.options().overlap) {
     p.hiddenIoCost = internal::hiddenDiskSeconds(plan, costs, internal::OverlappedSlotIo::kDefaultQueueDepth);
     if (p.hiddenIoCost > 0.0) p.plan += "; disk I/O overlapped with computation (write-behind, read-ahead)";
+  }
+  if (request.lowerBound) {
+    p.lowerBound =
+        boundOf(steps, layout.ramSlots,
+                {StorageLevelCosts{layout.diskSlots, costs.diskWrite, costs.diskRead}}, costs.forwardStep);
   }
   const TwoLevelPlan::Counts& c = plan.counts();
   p.recomputedSteps = c.recomputedSteps;
@@ -1081,7 +1105,7 @@ void MultilevelStorage::predict(const TrajectoryStorage& storage, const StorageS
 
 KLevelPlan MultilevelStorage::levelPlanFor(const MultilevelStorage& multilevel,
                                            const PredictionRequest& request, const Layout& layout,
-                                           ScheduleCosts& costs) {
+                                           ScheduleCosts& costs, std::vector<StorageLevelCosts>* levelsOut) {
   // As beginPlan: the spec's costs, else nothing to choose (one step, or no slot below RAM) and 1:1 with
   // free levels; --costs has four numbers (two levels) and cannot stand for the K levels' measured costs.
   const Options& options = multilevel.options();
@@ -1115,14 +1139,17 @@ KLevelPlan MultilevelStorage::levelPlanFor(const MultilevelStorage& multilevel,
         "spec "
         "(--costs describes two levels)");
   }
+  if (levelsOut != nullptr) *levelsOut = below;
   return KLevelPlan::choose(steps, layout.ramSlots, below, costs.forwardStep);
 }
 
 void MultilevelStorage::predictLevels(const MultilevelStorage& multilevel, const PredictionRequest& request,
                                       const Layout& layout, SchedulePrediction& p) {
   ScheduleCosts costs;
-  const KLevelPlan plan = levelPlanFor(multilevel, request, layout, costs);
+  std::vector<StorageLevelCosts> below;
+  const KLevelPlan plan = levelPlanFor(multilevel, request, layout, costs, &below);
   p.costs = ScheduleCosts{costs.forwardStep, costs.adjointStep, 0.0, 0.0};
+  if (request.lowerBound) p.lowerBound = boundOf(request.steps, layout.ramSlots, below, costs.forwardStep);
   p.plan = plan.describe();
   const KLevelPlan::Counts& c = plan.counts();
   p.recomputedSteps = c.recomputedSteps;

@@ -214,9 +214,11 @@ class MultilevelStorage final : public TrajectoryStorage {
   static void warnAgainstStride(const Layout& layout, const PredictionRequest& request,
                                 SchedulePrediction& p);
   /// The K-level plan a run with levels= executes for a prediction's N and sizes, and the costs it is
-  /// chosen by (throws std::invalid_argument naming the flags and fields).
+  /// chosen by (throws std::invalid_argument naming the flags and fields); `levelsOut`, when given, receives
+  /// the levels below RAM it is planned on.
   static KLevelPlan levelPlanFor(const MultilevelStorage& multilevel, const PredictionRequest& request,
-                                 const Layout& layout, ScheduleCosts& costs);
+                                 const Layout& layout, ScheduleCosts& costs,
+                                 std::vector<StorageLevelCosts>* levelsOut = nullptr);
   static void predictLevels(const MultilevelStorage& multilevel, const PredictionRequest& request,
                             const Layout& layout, SchedulePrediction& p);
   void beginPlan();

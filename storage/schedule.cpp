@@ -460,7 +460,8 @@ void TwoLevelPlan::rewind() {
 // ---- predictions ----
 
 SchedulePrediction predictSchedule(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,
-                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes) {
+                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes,
+                                   bool lowerBound) {
   if (steps < 1 || steps > kMaxScheduleSteps) {
     throw std::invalid_argument("--steps = " + std::to_string(steps) + " must be an integer in [1, " +
                                 std::to_string(kMaxScheduleSteps) + "]");
@@ -481,7 +482,7 @@ SchedulePrediction predictSchedule(const std::string& specText, std::int64_t ste
   }
   // Each strategy's own prediction, from its row (engine/storage_registry.h).
   return predictFromRows(storageStrategies(), specText,
-                         PredictionRequest{steps, stateBytes, stages, costs, stageBytes});
+                         PredictionRequest{steps, stateBytes, stages, costs, stageBytes, lowerBound});
 }
 
 void writeScheduleActions(const std::string& specText, std::int64_t steps, std::int64_t stateBytes,

@@ -331,8 +331,11 @@ void TwoLevelPlan::replayLast(std::int64_t start, std::int64_t e, Visitor& visit
 /// predicted" and the row's reason).
 /// `stageBytes`: the rhs data a problem keeps per stage with the stage values (PredictionRequest::
 /// stageDataBytes; `hindsight schedule --stage-bytes`), a multiple of 8 in [0, kMaxScheduleStateBytes].
+/// `lowerBound`: also bound the family's optimum from below (PredictionRequest::lowerBound; multilevel
+/// plans only, `hindsight schedule --bound`).
 SchedulePrediction predictSchedule(const std::string& spec, std::int64_t steps, std::int64_t stateBytes,
-                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes = 0);
+                                   int stages, const ScheduleCosts* costs, std::int64_t stageBytes = 0,
+                                   bool lowerBound = false);
 
 /// Writes the plan's action stream of `spec` (one action per line) for fixed steps, N <= 2^24; cams'
 /// step records are those of an explicit Runge-Kutta method of `stages` stages, as predictSchedule

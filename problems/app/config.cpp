@@ -674,6 +674,7 @@ nlohmann::json scheduleToJson(const SchedulePrediction& p, std::int64_t stateByt
                          {"schedule_cost", p.scheduleCost},
                          {"total_cost", p.totalCost}};
   if (!p.warning.empty()) json["warning"] = p.warning;
+  if (p.lowerBound >= 0.0) json["lower_bound"] = p.lowerBound;  // --bound: the schedule part's bound
   if (!p.levels.empty()) {  // three or more levels: disk_writes, disk_reads and peak_disk_bytes sum these
     nlohmann::json levels = nlohmann::json::array();
     for (const LevelTraffic& level : p.levels) {

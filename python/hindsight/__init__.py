@@ -122,7 +122,8 @@ _CLI_WORDS = [("use --resume to continue it or --force to overwrite it",
               ("--resume and --force exclude each other", "resume=True and force=True exclude each other"),
               ("--resume:", "resume=True:"), ("--resume", "resume=True"), ("--force", "force=True"),
               ("--out", "out"), ("--state-bytes", "state_bytes"), ("--stage-bytes", "stage_bytes"),
-              ("--actions", "actions=True"), ("--steps", "steps"), ("--stages", "stages"),
+              ("--actions", "actions=True"), ("--bound", "bound=True"), ("--steps", "steps"),
+              ("--stages", "stages"),
               ("--costs", "costs"), ("--storage", "spec")]
 
 
@@ -405,14 +406,16 @@ def storage_specs():
     return [Result(entry) for entry in _hindsight._storage_specs()]
 
 
-def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stage_bytes=0):
+def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stage_bytes=0, bound=False):
     """What storage strategy `spec` will do for `steps` fixed steps of states of `state_bytes` bytes,
     without running a model (the C++ of `hindsight schedule`; full, disk, binomial, online, multilevel, cams incl. online=1):
     forward and recomputed steps, rhs evaluations for `stages` right-hand sides per step, reads, writes and
     peak bytes per level, and the predicted cost under `costs` = "uf:ub:wd:rd" (seconds). With
     actions=True the dict also holds the action stream as text. `stage_bytes`: the rhs data a problem
     keeps per stage with the stage values (`--stage-bytes`; a SecondOrderProblem of f coordinates
-    8 (f + f (f + 1) / 2), the rod's 10 modes 520). ValueError names a bad argument."""
+    8 (f + f (f + 1) / 2), the rod's 10 modes 520). bound=True (multilevel plans, `--bound`) adds
+    "lower_bound": no schedule of H-Revolve's family on these levels has a smaller schedule part
+    (docs/theory/storage.md, "A certificate for large N"). ValueError names a bad argument."""
     if not isinstance(spec, str):
         raise TypeError(f"spec must be a storage spec string such as 'binomial:checkpoints=50', not "
                         f"{type(spec).__name__} {spec!r}")
@@ -424,8 +427,11 @@ def schedule(spec, steps, state_bytes, stages=4, costs=None, actions=False, stag
         raise TypeError(f"costs must be a string 'uf:ub:wd:rd' or None, not {type(costs).__name__}")
     if not isinstance(actions, bool):
         raise TypeError(f"actions must be True or False, not {type(actions).__name__}")
+    if not isinstance(bound, bool):
+        raise TypeError(f"bound must be True or False, not {type(bound).__name__}")
     try:
-        return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions, stage_bytes))
+        return Result(_hindsight._schedule(spec, steps, state_bytes, stages, costs or "", actions, stage_bytes,
+                                           bound))
     except ValueError as error:
         raise _in_python_words(error) from None
 

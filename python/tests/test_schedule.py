@@ -136,3 +136,14 @@ def test_three_levels_predict_each_level_as_the_run_does(tmp_path):
     assert p.schedule_cost == p.recomputed_steps + sum(
         level["writes"] * level["write_cost"] + level["reads"] * level["read_cost"] for level in p.levels)
     assert list(tmp_path.iterdir()) == []  # the level subfolders are removed after the run
+
+
+def test_bound_is_below_the_plan_and_named_in_python_words():
+    r = hindsight.schedule("multilevel:ram=32,disk=320,costs=1:1:0.5:0.5", 5000, 8, bound=True)
+    synchronous = r["schedule_cost"] + r["hidden_io_cost"]
+    assert r["lower_bound"] <= synchronous <= 1.01 * r["lower_bound"]
+    assert "lower_bound" not in hindsight.schedule("multilevel:ram=32,disk=320,costs=1:1:0.5:0.5", 5000, 8)
+    with pytest.raises(ValueError, match="bound=True"):
+        hindsight.schedule("binomial:checkpoints=3", 100, 8, bound=True)
+    with pytest.raises(TypeError, match="bound"):
+        hindsight.schedule("binomial:checkpoints=3", 100, 8, bound=1)

@@ -517,6 +517,74 @@ TEST(KLevelPlan, ChooseKeepsEverySlotOfALargeDiskBySegments) {
   }
 }
 
+// The lower bound (KLevelPlan::lowerBound) against the family's optimum, the full split search, where that
+// fits: below it on every case (a wrong term -- a part, a terminal or a slope too generous -- shows as a
+// bound above the optimum), and within 1.5 % of it on grids coarse enough that most lengths are bounded
+// rather than searched (64 or 128 exact lengths, spacing 1/64 or 1/128: measured at most 0.9 %). Two and
+// three levels, ordered or not, and RAM alone (revolve, bounded exactly).
+TEST(KLevelPlan, LowerBoundIsBelowTheFamilysOptimumAndClose) {
+  std::mt19937 rng(20261130);
+  for (int trial = 0; trial < 8; ++trial) {
+    RandomCase c = randomCase(rng, 200, 450, 2 + trial % 2);
+    if (trial % 4 == 3) std::swap(c.levels.front().write, c.levels.back().write);  // out of order
+    SCOPED_TRACE(c.name());
+    const double full = KLevelPlan::hierarchical(c.steps, c.ram, c.levels, 1.0).optimum();
+    const std::int64_t fine = trial % 3 == 0 ? 128 : 64;
+    const KLevelPlan::LowerBound lower = KLevelPlan::lowerBound(c.steps, c.ram, c.levels, 1.0, {fine, fine});
+    EXPECT_LT(lower.exactLengths, c.steps);
+    EXPECT_LE(lower.bound, full * (1 + 1e-12));
+    EXPECT_GE(lower.bound, full / 1.015);
+  }
+  // RAM alone: revolve, whose count bounds every row exactly; only the forward sweep is bounded.
+  // (T(N + 1, S) - N recomputed steps, checked here at N = 3000 against the programme.)
+  EXPECT_EQ(KLevelPlan::hierarchical(3000, 5, {}, 1.0).optimum(),
+            static_cast<double>(revolve::optimalRecomputedSteps(3000, 5)));
+  const double revolveCount = static_cast<double>(revolve::optimalRecomputedSteps(100000, 5));
+  const double ram = KLevelPlan::lowerBound(100000, 5, {}, 1.0).bound;
+  EXPECT_LE(ram, revolveCount);
+  EXPECT_GE(ram, revolveCount / 1.001);
+  // Within the exact lengths it is the optimum itself.
+  const std::vector<StorageLevelCosts> levels{{10, 1, 1}, {40, 2, 2}};
+  EXPECT_EQ(KLevelPlan::lowerBound(500, 3, levels, 1.0).bound,
+            KLevelPlan::hierarchical(500, 3, levels, 1.0).optimum());
+}
+
+// The certificate at N = 10^4 (docs/theory/storage.md, "A certificate for large N"): the plans a spec runs
+// are within 1 % of the family's optimum -- RAM 8 + disk 40 at 0.5:0.5 and RAM 3, SSD 10, HDD 200.
+TEST(KLevelPlan, LowerBoundCertifiesTheChosenPlansWithinOnePercentAtTenThousandSteps) {
+  for (const RandomCase& c :
+       std::vector<RandomCase>{{10000, 8, {{40, 0.5, 0.5}}}, {10000, 3, {{10, 1, 1}, {200, 2, 2}}}}) {
+    SCOPED_TRACE(c.name());
+    const double bound = KLevelPlan::lowerBound(c.steps, c.ram, c.levels, 1.0).bound;
+    const double plan = KLevelPlan::choose(c.steps, c.ram, c.levels, 1.0).counts().cost;
+    EXPECT_LE(bound, plan);
+    EXPECT_LE(plan, 1.01 * bound);
+  }
+}
+
+TEST(KLevelPlan, LowerBoundNamesWhatItCannotBound) {
+  const auto message = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message([] {
+              KLevelPlan::lowerBound(1000, 2, {{10, 1, 1}}, 1.0, {0, 8});
+            }).find("exact lengths"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::lowerBound(1000000, 2, {{100000, 1, 1}}, 1.0);
+            }).find("entries"),
+            std::string::npos);
+  EXPECT_NE(message([] {
+              KLevelPlan::lowerBound(1000, 0, {{10, 1, 1}}, 1.0);
+            }).find("RAM"),
+            std::string::npos);
+}
+
 // Long (ctest label "long", tests/CMakeLists.txt): the full split search at N = 10^4 (O(N^2 sum(s_k + 1)),
 // a minute on two cores) as the reference of graded() and of the windowed search.
 TEST(KLevelPlanLong, DISABLED_GradedStaysWithinOnePercentOfTheFullSearchAtTenThousandSteps) {

@@ -105,6 +105,30 @@ TEST(ScheduleCommand, ActionsAndABillionSteps) {
   EXPECT_EQ(lastJson(billion.output)["steps"].get<std::int64_t>(), 1'000'000'000);
 }
 
+// --bound: the lower bound on H-Revolve's family (KLevelPlan::lowerBound) below the plan's synchronous
+// schedule part, for two and three levels, text and JSON; strategies without one are refused by the flag.
+TEST(ScheduleCommand, BoundIsBelowThePlanAndOnlyForMultilevel) {
+  const auto three = runCli(
+      "schedule --storage 'multilevel:ram=24,levels=ssd:80@1:1;hdd:1600@2:2,costs=1:1' --steps 3000 "
+      "--state-bytes 8 --bound --json");
+  ASSERT_EQ(three.exitCode, 0) << three.output;
+  const nlohmann::json j = lastJson(three.output);
+  EXPECT_LE(j["lower_bound"].get<double>(), j["schedule_cost"].get<double>());
+  EXPECT_GE(j["lower_bound"].get<double>(), j["schedule_cost"].get<double>() / 1.01);
+  const auto two = runCli(
+      "schedule --storage multilevel:ram=32,disk=320,costs=1:1:0.5:0.5 --steps 5000 --state-bytes 8 --bound");
+  ASSERT_EQ(two.exitCode, 0) << two.output;
+  EXPECT_NE(two.output.find("lower bound:"), std::string::npos) << two.output;
+  EXPECT_NE(two.output.find("without overlapped I/O"), std::string::npos) << two.output;
+  const auto none = runCli("schedule --storage binomial:checkpoints=3 --steps 100 --state-bytes 8 --bound");
+  EXPECT_EQ(none.exitCode, 2);
+  EXPECT_NE(none.output.find("--bound"), std::string::npos) << none.output;
+  const auto huge = runCli(
+      "schedule --storage multilevel:ram=16,disk=800000,costs=1:1:2:2 --steps 1e5 --state-bytes 8 --bound");
+  EXPECT_EQ(huge.exitCode, 2);
+  EXPECT_NE(huge.output.find("--bound"), std::string::npos) << huge.output;
+}
+
 // Inputs are read completely (1e17 is 10^17, not 1), counted without overflow, refused by name with exit 2.
 TEST(ScheduleCommand, ExtremeInputsAreReadExactlyOrRefusedByName) {
   const auto big = runCli(
