@@ -120,6 +120,14 @@ TEST(ScheduleCommand, BoundIsBelowThePlanAndOnlyForMultilevel) {
   ASSERT_EQ(two.exitCode, 0) << two.output;
   EXPECT_NE(two.output.find("lower bound:"), std::string::npos) << two.output;
   EXPECT_NE(two.output.find("without overlapped I/O"), std::string::npos) << two.output;
+  // Levels out of order: the exact programme's plan beats the family (docs/theory/storage.md), and says so.
+  const auto outside = runCli(
+      "schedule --storage 'multilevel:ram=8,levels=a:32@0.25:3.25;b:16@1.5:0.5,costs=1:1' --steps 65 "
+      "--state-bytes 8 --bound");
+  ASSERT_EQ(outside.exitCode, 0) << outside.output;
+  EXPECT_NE(outside.output.find("lower bound:       166.5"), std::string::npos) << outside.output;
+  EXPECT_NE(outside.output.find("151.5 without overlapped I/O, is 9.009 % below it"), std::string::npos)
+      << outside.output;
   const auto none = runCli("schedule --storage binomial:checkpoints=3 --steps 100 --state-bytes 8 --bound");
   EXPECT_EQ(none.exitCode, 2);
   EXPECT_NE(none.output.find("--bound"), std::string::npos) << none.output;
