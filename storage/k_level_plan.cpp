@@ -12,6 +12,23 @@
 
 namespace hindsight {
 
+namespace {
+
+// The rows of the hierarchical programme's tables: every length 0..min(N, exactLengths), then a geometric
+// grid up to N, each length at least `spacing` times the previous one further (and at least one more).
+std::vector<std::int64_t> gradedLengths(std::int64_t steps, std::int64_t exactLengths, double spacing) {
+  std::vector<std::int64_t> lengths;
+  for (std::int64_t l = 0; l <= std::min(steps, exactLengths); ++l) lengths.push_back(l);
+  while (lengths.back() < steps) {
+    const auto next =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(lengths.back()) * (1.0 + spacing)));
+    lengths.push_back(std::min(steps, std::max(next, lengths.back() + 1)));
+  }
+  return lengths;
+}
+
+}  // namespace
+
 // The tables of the programme (storage/k_level_plan.h): for every length l, level L and free-slot vector f
 // (mixed radix over capacity + 1), the backward values with and without moves and the forward values.
 struct KLevelPlan::Tables {
@@ -354,12 +371,7 @@ std::shared_ptr<KLevelPlan::HierarchicalTables> KLevelPlan::hierarchicalTables(
   t.uf = uf;
   t.window = window;
   t.exact = std::min(steps, exactLengths);
-  for (std::int64_t l = 0; l <= t.exact; ++l) t.lengths.push_back(l);
-  while (t.lengths.back() < steps) {
-    const std::int64_t next =
-        static_cast<std::int64_t>(std::ceil(static_cast<double>(t.lengths.back()) * (1.0 + spacing)));
-    t.lengths.push_back(std::min(steps, std::max(next, t.lengths.back() + 1)));
-  }
+  t.lengths = gradedLengths(steps, exactLengths, spacing);
   for (std::int64_t c : capacity) {
     t.offset.push_back(t.columns);
     t.columns += c + 1;
@@ -571,14 +583,8 @@ KLevelPlan KLevelPlan::choose(std::int64_t steps, std::int64_t ramSlots,
 }
 
 std::int64_t KLevelPlan::gradedRows(std::int64_t steps, GradedGrid grid) {
-  std::int64_t rows = std::min(steps, grid.exactLengths) + 1, length = rows - 1;
-  const double spacing = 1.0 / static_cast<double>(grid.spacingDivisor);
-  while (length < steps) {  // as solveHierarchical's grid
-    const auto next = static_cast<std::int64_t>(std::ceil(static_cast<double>(length) * (1.0 + spacing)));
-    length = std::min(steps, std::max(next, length + 1));
-    ++rows;
-  }
-  return rows;
+  return static_cast<std::int64_t>(
+      gradedLengths(steps, grid.exactLengths, 1.0 / static_cast<double>(grid.spacingDivisor)).size());
 }
 
 bool KLevelPlan::onGrid() const { return hierarchical_ && hierarchical_->exact < steps_; }
@@ -848,7 +854,9 @@ KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t r
     offset.push_back(columns);
     columns += c + 1;
   }
-  const std::int64_t rows = gradedRows(steps, grid);
+  const std::vector<std::int64_t> lengths =
+      gradedLengths(steps, grid.exactLengths, 1.0 / static_cast<double>(grid.spacingDivisor));
+  const auto rows = static_cast<std::int64_t>(lengths.size());
   if (static_cast<double>(rows) * static_cast<double>(columns) > static_cast<double>(kMaxBoundCells)) {
     throw std::invalid_argument("K-level lower bound: N = " + std::to_string(steps) + " with " +
                                 std::to_string(columns) + " slot counts needs " + std::to_string(rows) +
@@ -868,14 +876,6 @@ KLevelPlan::LowerBound KLevelPlan::lowerBound(std::int64_t steps, std::int64_t r
   if (steps == exact) {
     result.bound = t.forward[t.at(exact, levelCount - 1, capacity.back())].cost;
     return result;
-  }
-  std::vector<std::int64_t> lengths;
-  for (std::int64_t l = 0; l <= exact; ++l) lengths.push_back(l);
-  const double spacing = 1.0 / static_cast<double>(grid.spacingDivisor);
-  while (lengths.back() < steps) {  // as gradedRows()
-    const auto next =
-        static_cast<std::int64_t>(std::ceil(static_cast<double>(lengths.back()) * (1.0 + spacing)));
-    lengths.push_back(std::min(steps, std::max(next, lengths.back() + 1)));
   }
   const std::size_t cols = static_cast<std::size_t>(columns);
   std::vector<double> bound(lengths.size() * cols, kInfinity);  // [row][column]: E's lower bounds
