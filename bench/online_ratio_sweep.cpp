@@ -95,8 +95,7 @@ Worst sweep(std::int64_t c, std::int64_t maxSteps, std::int64_t checkEvery) {
       }
       ++worst.checks;
     }
-    const UnsignedInt128 optimum =
-        hindsight::revolve::workingStateRecomputedSteps(steps, std::min(c + 1, steps - 1));
+    const UnsignedInt128 optimum = hindsight::internal::binomialAtSameMemory(steps, c);
     const long double twice = 2.0L * static_cast<long double>(steps);
     const long double ratio =
         (twice + static_cast<long double>(recomputed)) / (twice + static_cast<long double>(optimum));

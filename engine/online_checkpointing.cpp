@@ -252,7 +252,7 @@ void OnlineCheckpointing::predict(const TrajectoryStorage& storage, const Storag
   if (steps >= 2) {
     // The ratio the guarantee is stated in (docs/guides/storage_strategies.md, "online"), computed for this
     // N: against binomial with the same slots, the optimum had N been known.
-    const UnsignedInt128 optimum = revolve::workingStateRecomputedSteps(steps, std::min(c + 1, steps - 1));
+    const UnsignedInt128 optimum = internal::binomialAtSameMemory(steps, c);
     const long double twice = 2.0L * static_cast<long double>(steps);
     char ratio[32];
     std::snprintf(

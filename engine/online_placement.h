@@ -27,6 +27,12 @@ inline PlacementCost intervalForwardSteps(std::int64_t length, std::int64_t slot
   return static_cast<PlacementCost>(revolve::optimalForwardSteps(length, slots));
 }
 
+/// The offline optimum `online` with c checkpoints is measured against: binomial's recomputed steps at the
+/// same memory, min(c + 1, N - 1) slots with the working state holding x_{N-1}, T(N, S) - (N - 1); N >= 2.
+inline UnsignedInt128 binomialAtSameMemory(std::int64_t steps, std::int64_t c) {
+  return revolve::workingStateRecomputedSteps(steps, std::min(c + 1, steps - 1));
+}
+
 /// simulatePlacement()'s offer of a record when the placement's offer(step) takes it: true unless it
 /// answers kSkipped.
 struct OfferRecord {
@@ -153,8 +159,7 @@ class TwoHorizonPlacement {
   // 2N + binomial's recomputed steps at the same memory (min(c + 1, N - 1) slots, the working state
   // holding x_{N-1}: T(N, S) - (N - 1)), N >= 2.
   UnsignedInt128 binomialLimit(std::int64_t steps) const {
-    const std::int64_t slots = std::min(checkpoints_ + 1, steps - 1);
-    return 2 * static_cast<UnsignedInt128>(steps) + revolve::workingStateRecomputedSteps(steps, slots);
+    return 2 * static_cast<UnsignedInt128>(steps) + binomialAtSameMemory(steps, checkpoints_);
   }
   static Ratio ratio(PlacementCost cost, std::int64_t steps, UnsignedInt128 limit) {
     return Ratio{2 * static_cast<UnsignedInt128>(steps) + static_cast<UnsignedInt128>(cost), limit};
