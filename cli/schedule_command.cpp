@@ -51,12 +51,12 @@ int runSchedule(const ScheduleArgs& args) {
   std::unique_ptr<ScheduleCosts> costs;
   if (!args.costs.empty())
     costs = std::make_unique<ScheduleCosts>(ScheduleCosts::parse(args.costs, "--costs"));
+  if (args.bound && args.actions) throw std::invalid_argument("--bound and --actions: give one of them");
   if (args.actions) {
     writeScheduleActions(args.storage, steps, stateBytes, stages, costs.get(), std::cout,
                          stageBytes);  // validates first
     return 0;
   }
-  if (args.bound && args.actions) throw std::invalid_argument("--bound and --actions: give one of them");
   const SchedulePrediction p =
       predictSchedule(args.storage, steps, stateBytes, stages, costs.get(), stageBytes, args.bound);
   if (args.json) {

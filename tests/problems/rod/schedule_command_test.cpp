@@ -128,6 +128,11 @@ TEST(ScheduleCommand, BoundIsBelowThePlanAndOnlyForMultilevel) {
   EXPECT_NE(outside.output.find("lower bound:       166.5"), std::string::npos) << outside.output;
   EXPECT_NE(outside.output.find("151.5 without overlapped I/O, is 9.009 % below it"), std::string::npos)
       << outside.output;
+  const auto withActions = runCli(
+      "schedule --storage multilevel:ram=32,disk=320,costs=1:1:0.5:0.5 --steps 100 --state-bytes 8 --bound "
+      "--actions");
+  EXPECT_EQ(withActions.exitCode, 2);
+  EXPECT_NE(withActions.output.find("--bound and --actions"), std::string::npos) << withActions.output;
   const auto none = runCli("schedule --storage binomial:checkpoints=3 --steps 100 --state-bytes 8 --bound");
   EXPECT_EQ(none.exitCode, 2);
   EXPECT_NE(none.output.find("--bound"), std::string::npos) << none.output;
